@@ -1,0 +1,270 @@
+#include "model/config.h"
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "model/null_screen.h"
+#include "model/surface.h"
+
+namespace topocal::model {
+namespace {
+
+using nlohmann::json;
+
+// Strict reader of one JSON object: every key must be consumed or known; types and ranges are checked.
+class Section {
+ public:
+  Section(const json& j, std::string origin, std::string prefix) : j_(j), origin_(std::move(origin)), prefix_(std::move(prefix)) {
+    if (!j_.is_object()) Fail(prefix_.empty() ? "(top level)" : prefix_, "must be a JSON object");
+  }
+
+  [[noreturn]] void Fail(const std::string& key, const std::string& problem) const {
+    throw ConfigError(fmt::format("{}: {}: {}", origin_, key, problem));
+  }
+  std::string Key(const std::string& k) const { return prefix_.empty() ? k : prefix_ + "." + k; }
+  bool Has(const std::string& k) const { return j_.contains(k); }
+
+  const json& Get(const std::string& k) {
+    seen_.insert(k);
+    if (!j_.contains(k)) Fail(Key(k), "missing");
+    return j_.at(k);
+  }
+
+  double Number(const std::string& k) {
+    const json& v = Get(k);
+    if (!v.is_number()) Fail(Key(k), fmt::format("must be a number (got {})", v.dump()));
+    const double d = v.get<double>();
+    if (!std::isfinite(d)) Fail(Key(k), "must be finite");
+    return d;
+  }
+  double Number(const std::string& k, double fallback) { return Has(k) ? Number(k) : fallback; }
+
+  int Integer(const std::string& k) {
+    const json& v = Get(k);
+    if (!v.is_number_integer()) Fail(Key(k), fmt::format("must be an integer (got {})", v.dump()));
+    return v.get<int>();
+  }
+  int Integer(const std::string& k, int fallback) { return Has(k) ? Integer(k) : fallback; }
+
+  std::string String(const std::string& k) {
+    const json& v = Get(k);
+    if (!v.is_string()) Fail(Key(k), fmt::format("must be a string (got {})", v.dump()));
+    return v.get<std::string>();
+  }
+  std::string String(const std::string& k, const std::string& fallback) { return Has(k) ? String(k) : fallback; }
+
+  void Positive(const std::string& k, double v) const {
+    if (!(v > 0)) Fail(Key(k), fmt::format("must be > 0 (got {})", v));
+  }
+  void AtLeast(const std::string& k, int v, int lo) const {
+    if (v < lo) Fail(Key(k), fmt::format("must be >= {} (got {})", lo, v));
+  }
+
+  Section Child(const std::string& k) { return Section(Get(k), origin_, Key(k)); }
+
+  // Any key present but never read is an error: a misspelt key must not silently fall back to a default.
+  void RejectUnknown() const {
+    for (auto it = j_.begin(); it != j_.end(); ++it) {
+      if (!seen_.count(it.key())) Fail(Key(it.key()), "unknown key");
+    }
+  }
+  void MarkSeen(const std::string& k) { seen_.insert(k); }
+
+ private:
+  const json& j_;
+  std::string origin_;
+  std::string prefix_;
+  std::set<std::string> seen_;
+};
+
+void ParseIdealImage(Section s, IdealImageParams& p) {
+  p.rho0_mm = s.Number("rho0_mm");
+  p.rhoN_mm = s.Number("rhoN_mm");
+  p.rings_N = s.Integer("rings_N");
+  p.eta0 = s.Integer("eta0");
+  p.eta = s.Integer("eta");
+  p.spot_radius_um = s.Number("spot_radius_um", p.spot_radius_um);
+  s.Positive("rho0_mm", p.rho0_mm);
+  s.Positive("rhoN_mm", p.rhoN_mm);
+  if (p.rhoN_mm <= p.rho0_mm) s.Fail(s.Key("rhoN_mm"), fmt::format("must exceed rho0_mm (got {} <= {})", p.rhoN_mm, p.rho0_mm));
+  // rings_N = N: N + 1 rings; N >= 1 keeps Eq. 2a's step (rhoN - rho0)/N defined, i.e. at least two rings.
+  s.AtLeast("rings_N", p.rings_N, 1);
+  s.AtLeast("eta0", p.eta0, 1);
+  s.AtLeast("eta", p.eta, 0);
+  s.Positive("spot_radius_um", p.spot_radius_um);
+  s.RejectUnknown();
+}
+
+void ParseTopographer(Section s, TopographerParams& p) {
+  p.a_mm = s.Number("a_mm");
+  p.b_mm = s.Number("b_mm");
+  p.re_mm = s.Number("re_mm");
+  p.cone_semi_angle_deg = s.Number("cone_semi_angle_deg");
+  p.cone_vertex_z_mm = s.Number("cone_vertex_z_mm");
+  s.Positive("a_mm", p.a_mm);
+  s.Positive("b_mm", p.b_mm);
+  s.Positive("re_mm", p.re_mm);
+  if (!(p.cone_semi_angle_deg > 0 && p.cone_semi_angle_deg < 90)) {
+    s.Fail(s.Key("cone_semi_angle_deg"), fmt::format("must lie in (0, 90) degrees (got {})", p.cone_semi_angle_deg));
+  }
+  // The cone must open towards the eye from behind the pinhole, or the camera sits outside it.
+  if (!(p.cone_vertex_z_mm < -p.b_mm)) {
+    s.Fail(s.Key("cone_vertex_z_mm"),
+           fmt::format("must lie behind the pinhole, below -b_mm = {} (got {}; see docs/paper-decisions.md)", -p.b_mm,
+                       p.cone_vertex_z_mm));
+  }
+  s.RejectUnknown();
+}
+
+void ParseCornea(Section s, BiconicParams& p) {
+  p.rx_mm = s.Number("rx_mm");
+  p.ry_mm = s.Number("ry_mm");
+  p.kx = s.Number("kx");
+  p.ky = s.Number("ky");
+  p.alpha_deg = s.Number("alpha_deg");
+  p.x0_mm = s.Number("x0_mm", 0.0);
+  p.y0_mm = s.Number("y0_mm", 0.0);
+  p.z0_mm = s.Number("z0_mm", 0.0);
+  s.Positive("rx_mm", p.rx_mm);
+  s.Positive("ry_mm", p.ry_mm);
+  s.RejectUnknown();
+}
+
+void ParseDistortion(Section s, DistortionSweep& p) {
+  p.model = s.String("model");
+  if (p.model != "seidel") s.Fail(s.Key("model"), fmt::format("must be \"seidel\" (got \"{}\")", p.model));
+  p.magnification = s.Number("MT");
+  if (p.magnification == 0) s.Fail(s.Key("MT"), "must be non-zero");
+  p.centre_x_mm = s.Number("centre_x_mm", 0.0);
+  p.centre_y_mm = s.Number("centre_y_mm", 0.0);
+  const json& sig = s.Get("sigmas_per_mm2");
+  if (!sig.is_array()) s.Fail(s.Key("sigmas_per_mm2"), "must be an array of numbers");
+  if (sig.empty()) s.Fail(s.Key("sigmas_per_mm2"), "must not be empty");
+  p.sigmas_per_mm2.clear();
+  for (size_t i = 0; i < sig.size(); ++i) {
+    if (!sig[i].is_number() || !std::isfinite(sig[i].get<double>())) {
+      s.Fail(fmt::format("{}[{}]", s.Key("sigmas_per_mm2"), i), fmt::format("must be a finite number (got {})", sig[i].dump()));
+    }
+    p.sigmas_per_mm2.push_back(sig[i].get<double>());
+  }
+  s.RejectUnknown();
+}
+
+void ParseReconstruction(Section s, ReconstructionSettings& p) {
+  p.method = s.String("method", p.method);
+  if (p.method != "iterative" && p.method != "paper") {
+    s.Fail(s.Key("method"), fmt::format("must be \"iterative\" or \"paper\" (got \"{}\")", p.method));
+  }
+  p.taylor_degree = s.Integer("taylor_degree", p.taylor_degree);
+  if (p.taylor_degree < 2 || p.taylor_degree > 14) {
+    s.Fail(s.Key("taylor_degree"), fmt::format("must lie in [2, 14] (got {})", p.taylor_degree));
+  }
+  p.vertex_search_halfwidth_um = s.Number("vertex_search_halfwidth_um", p.vertex_search_halfwidth_um);
+  s.Positive("vertex_search_halfwidth_um", p.vertex_search_halfwidth_um);
+  p.vertex_search_steps = s.Integer("vertex_search_steps", p.vertex_search_steps);
+  s.AtLeast("vertex_search_steps", p.vertex_search_steps, 3);
+  p.vertex_search_tol = s.Number("vertex_search_tol", p.vertex_search_tol);
+  s.Positive("vertex_search_tol", p.vertex_search_tol);
+  p.vertex_search_max_refinements = s.Integer("vertex_search_max_refinements", p.vertex_search_max_refinements);
+  s.AtLeast("vertex_search_max_refinements", p.vertex_search_max_refinements, 1);
+  p.max_iterations = s.Integer("max_iterations", p.max_iterations);
+  s.AtLeast("max_iterations", p.max_iterations, 1);
+  p.convergence_um = s.Number("convergence_um", p.convergence_um);
+  s.Positive("convergence_um", p.convergence_um);
+  p.power_map_radius_mm = s.Number("power_map_radius_mm", p.power_map_radius_mm);
+  s.Positive("power_map_radius_mm", p.power_map_radius_mm);
+  p.power_map_meridians = s.Integer("power_map_meridians", p.power_map_meridians);
+  s.AtLeast("power_map_meridians", p.power_map_meridians, 4);
+  p.power_map_radial_samples = s.Integer("power_map_radial_samples", p.power_map_radial_samples);
+  s.AtLeast("power_map_radial_samples", p.power_map_radial_samples, 10);
+  s.RejectUnknown();
+}
+
+// Physical consistency across sections: every designed ray must reach the cone, and the cornea must be defined
+// wherever the rays land on it.
+void CheckGeometry(const Config& c) {
+  const auto design = DesignNullScreen(c.ideal_image, c.topographer);
+  if (!design.failures.empty()) {
+    const auto& f = design.failures.front();
+    throw ConfigError(fmt::format("{}: topographer: {} of {} spots cannot be designed (first: ring {} index {}: {})",
+                                  c.path, design.failures.size(), c.ideal_image.SpotCount(), f.id.ring, f.id.index,
+                                  f.reason));
+  }
+  double landing_mm = 0;
+  for (const auto& t : design.targets) landing_mm = std::max(landing_mm, t.on_sphere_mm.head<2>().norm());
+  // Rays on a cornea land near where they land on the reference sphere; 10 % margin covers the paper's range of
+  // corneas (the spread of landing radii between r = 7.2 and 8.4 mm is ~6 %).
+  const double needed_mm = 1.1 * landing_mm;
+  const Biconic b{c.cornea};
+  if (b.DefinedRadiusMm() < needed_mm) {
+    const double qx = (1 + c.cornea.kx) / (c.cornea.rx_mm * c.cornea.rx_mm);
+    const double qy = (1 + c.cornea.ky) / (c.cornea.ry_mm * c.cornea.ry_mm);
+    throw ConfigError(fmt::format("{}: cornea.{}: the biconic is undefined beyond rho = {:.3f} mm but rays land out "
+                                  "to {:.3f} mm (conic constant too large for its radius)",
+                                  c.path, qx >= qy ? "kx" : "ky", b.DefinedRadiusMm(), needed_mm));
+  }
+}
+
+}  // namespace
+
+Config ParseConfig(const std::string& json_text, const std::string& origin) {
+  json j;
+  try {
+    j = json::parse(json_text);
+  } catch (const json::parse_error& e) {
+    throw ConfigError(fmt::format("{}: (file): not valid JSON: {}", origin, e.what()));
+  }
+  Config c;
+  c.path = origin;
+  Section top(j, origin, "");
+  ParseIdealImage(top.Child("ideal_image"), c.ideal_image);
+  ParseTopographer(top.Child("topographer"), c.topographer);
+  ParseCornea(top.Child("cornea"), c.cornea);
+  ParseDistortion(top.Child("distortion"), c.distortion);
+  if (top.Has("reconstruction")) ParseReconstruction(top.Child("reconstruction"), c.reconstruction);
+  top.RejectUnknown();
+  CheckGeometry(c);
+  return c;
+}
+
+Config LoadConfig(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw ConfigError(fmt::format("{}: (file): cannot be opened for reading", path));
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) throw ConfigError(fmt::format("{}: (file): read error", path));
+  return ParseConfig(ss.str(), path);
+}
+
+std::string ConfigToJson(const Config& c) {
+  json j;
+  j["ideal_image"] = {{"rho0_mm", c.ideal_image.rho0_mm}, {"rhoN_mm", c.ideal_image.rhoN_mm},
+                      {"rings_N", c.ideal_image.rings_N}, {"eta0", c.ideal_image.eta0},
+                      {"eta", c.ideal_image.eta}, {"spot_radius_um", c.ideal_image.spot_radius_um}};
+  j["topographer"] = {{"a_mm", c.topographer.a_mm}, {"b_mm", c.topographer.b_mm}, {"re_mm", c.topographer.re_mm},
+                      {"cone_semi_angle_deg", c.topographer.cone_semi_angle_deg},
+                      {"cone_vertex_z_mm", c.topographer.cone_vertex_z_mm}};
+  j["cornea"] = {{"rx_mm", c.cornea.rx_mm}, {"ry_mm", c.cornea.ry_mm}, {"kx", c.cornea.kx}, {"ky", c.cornea.ky},
+                 {"alpha_deg", c.cornea.alpha_deg}, {"x0_mm", c.cornea.x0_mm}, {"y0_mm", c.cornea.y0_mm},
+                 {"z0_mm", c.cornea.z0_mm}};
+  j["distortion"] = {{"model", c.distortion.model}, {"MT", c.distortion.magnification},
+                     {"centre_x_mm", c.distortion.centre_x_mm}, {"centre_y_mm", c.distortion.centre_y_mm},
+                     {"sigmas_per_mm2", c.distortion.sigmas_per_mm2}};
+  const auto& r = c.reconstruction;
+  j["reconstruction"] = {{"method", r.method}, {"taylor_degree", r.taylor_degree},
+                         {"vertex_search_halfwidth_um", r.vertex_search_halfwidth_um},
+                         {"vertex_search_steps", r.vertex_search_steps}, {"vertex_search_tol", r.vertex_search_tol},
+                         {"vertex_search_max_refinements", r.vertex_search_max_refinements},
+                         {"max_iterations", r.max_iterations}, {"convergence_um", r.convergence_um},
+                         {"power_map_radius_mm", r.power_map_radius_mm},
+                         {"power_map_meridians", r.power_map_meridians},
+                         {"power_map_radial_samples", r.power_map_radial_samples}};
+  return j.dump(2);
+}
+
+}  // namespace topocal::model

@@ -1,0 +1,91 @@
+#pragma once
+// The topographer configuration (JSON), paper Tables I-IV. Schema, units and validation rules are documented in
+// README.md ("Configuration"). Loading is strict: an unknown key, a missing key, a value of the wrong type or a
+// non-physical value throws ConfigError whose message is one line "FILE: KEY: problem".
+//
+// Frame: cornea vertex at the origin, sag towards +z, pinhole at z = -b, detection plane at z = -a-b, cone vertex
+// at z = cone_vertex_z_mm (negative: behind the pinhole), the cornea rotated by +alpha about z
+// (x_r = x cos a + y sin a, y_r = -x sin a + y cos a; see docs/conventions.md).
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "model/distortion.h"
+
+namespace topocal::model {
+
+class ConfigError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct IdealImageParams {
+  double rho0_mm = 0.031;  // radius of the first ring (Table I)
+  double rhoN_mm = 0.35;   // radius of the last ring
+  int rings_N = 11;        // N: there are N + 1 rings
+  int eta0 = 8;            // spots on the first ring
+  int eta = 8;             // extra spots per ring
+  double spot_radius_um = 8.0;  // radius of each ideal-image circle (only for drawing the null screen)
+  int SpotCount() const { return (rings_N + 1) * eta0 + eta * rings_N * (rings_N + 1) / 2; }
+};
+
+struct TopographerParams {
+  double a_mm = 5.2;                   // pinhole to detection plane
+  double b_mm = 70.0;                  // pinhole to corneal vertex
+  double re_mm = 7.8;                  // radius of the reference sphere the null screen is designed for
+  double cone_semi_angle_deg = 10.79;  // phi_c
+  double cone_vertex_z_mm = -85.5;     // z_c (see docs/paper-decisions.md: the paper prints +85.5)
+};
+
+struct BiconicParams {
+  double rx_mm = 8.35;
+  double ry_mm = 7.63;
+  double kx = -0.43;
+  double ky = -0.25;
+  double alpha_deg = 17.0;
+  double x0_mm = 0.0;  // decentration of the biconic in its own (rotated) frame, Eq. 12
+  double y0_mm = 0.0;
+  double z0_mm = 0.0;  // axial offset of the vertex (the paper's cornea sits at z = 0)
+};
+
+struct DistortionSweep {
+  std::string model = "seidel";
+  double magnification = -0.065;  // M_T
+  double centre_x_mm = 0.0;
+  double centre_y_mm = 0.0;
+  std::vector<double> sigmas_per_mm2;
+};
+
+// Settings of the null-screen reconstruction (optional section "reconstruction"; see README.md).
+struct ReconstructionSettings {
+  std::string method = "iterative";  // "iterative" (normal refinement, default) or "paper" (vertex search of Fig. 8)
+  int taylor_degree = 9;             // Taylor polynomial degree; 9 gives the paper's 55 terms
+  double vertex_search_halfwidth_um = 20.0;  // half-width of the first t_k interval (paper method)
+  int vertex_search_steps = 11;              // K, points per t_k interval (paper method)
+  double vertex_search_tol = 2e-7;           // TOL of Fig. 8
+  int vertex_search_max_refinements = 30;
+  int max_iterations = 50;                   // iterative method: outer iterations
+  double convergence_um = 1e-6;              // iterative method: stop when no point moves more than this
+  double power_map_radius_mm = 5.3;          // radius of the power maps (paper's pv values: ~5.3 mm)
+  int power_map_meridians = 360;
+  int power_map_radial_samples = 100;
+};
+
+struct Config {
+  std::string path;  // where it was loaded from, for messages
+  IdealImageParams ideal_image;
+  TopographerParams topographer;
+  BiconicParams cornea;
+  DistortionSweep distortion;
+  ReconstructionSettings reconstruction;
+};
+
+// Loads and validates a configuration file. Throws ConfigError ("FILE: KEY: problem").
+Config LoadConfig(const std::string& path);
+// Parses and validates JSON text; `origin` names the source in messages.
+Config ParseConfig(const std::string& json_text, const std::string& origin);
+// The configuration as JSON text (the same schema LoadConfig reads).
+std::string ConfigToJson(const Config& config);
+
+}  // namespace topocal::model

@@ -1,0 +1,62 @@
+#include "model/surface.h"
+
+#include <limits>
+
+namespace topocal::model {
+
+bool Sphere::Evaluate(double x, double y, SurfaceDerivatives* d) const noexcept {
+  const double arg = radius_mm * radius_mm - x * x - y * y;
+  if (!(arg > 0)) return false;
+  const double root = std::sqrt(arg);
+  d->z = z0_mm + radius_mm - root;
+  d->zx = x / root;
+  d->zy = y / root;
+  const double r3 = arg * root;
+  d->zxx = (radius_mm * radius_mm - y * y) / r3;
+  d->zxy = x * y / r3;
+  d->zyy = (radius_mm * radius_mm - x * x) / r3;
+  return true;
+}
+
+bool Biconic::Evaluate(double x, double y, SurfaceDerivatives* d) const noexcept {
+  const double alpha = params.alpha_deg * M_PI / 180.0;
+  const double ca = std::cos(alpha), sa = std::sin(alpha);
+  const double cx = 1.0 / params.rx_mm, cy = 1.0 / params.ry_mm;
+  const double qx = (1.0 + params.kx) * cx * cx, qy = (1.0 + params.ky) * cy * cy;
+  const double X = ca * x + sa * y - params.x0_mm;
+  const double Y = -sa * x + ca * y - params.y0_mm;
+  const double s2 = 1.0 - qx * X * X - qy * Y * Y;
+  if (!(s2 > 0)) return false;
+  const double s = std::sqrt(s2);
+  const double v = 1.0 + s;  // denominator; z v = u with u = cx X^2 + cy Y^2
+  const double u = cx * X * X + cy * Y * Y;
+  const double z = u / v;
+  // Derivatives of s (s s_X = -qx X, differentiated again), then of z from z v = u by the product rule.
+  const double sX = -qx * X / s, sY = -qy * Y / s;
+  const double sXX = (-qx - sX * sX) / s, sYY = (-qy - sY * sY) / s, sXY = -sX * sY / s;
+  const double zX = (2.0 * cx * X - z * sX) / v;
+  const double zY = (2.0 * cy * Y - z * sY) / v;
+  const double zXX = (2.0 * cx - 2.0 * zX * sX - z * sXX) / v;
+  const double zYY = (2.0 * cy - 2.0 * zY * sY - z * sYY) / v;
+  const double zXY = (-zX * sY - zY * sX - z * sXY) / v;
+  // Chain rule through the rotation: d(X,Y)/d(x,y) = [[ca, sa], [-sa, ca]].
+  d->z = params.z0_mm + z;
+  d->zx = ca * zX - sa * zY;
+  d->zy = sa * zX + ca * zY;
+  d->zxx = ca * ca * zXX - 2.0 * ca * sa * zXY + sa * sa * zYY;
+  d->zxy = ca * sa * zXX + (ca * ca - sa * sa) * zXY - ca * sa * zYY;
+  d->zyy = sa * sa * zXX + 2.0 * ca * sa * zXY + ca * ca * zYY;
+  return true;
+}
+
+double Biconic::DefinedRadiusMm() const noexcept {
+  // 1 - qx X^2 - qy Y^2 > 0 on a disc of radius R about the biconic's own centre iff max(qx, qy, 0) R^2 < 1.
+  const double qx = (1.0 + params.kx) / (params.rx_mm * params.rx_mm);
+  const double qy = (1.0 + params.ky) / (params.ry_mm * params.ry_mm);
+  const double q = std::max({qx, qy, 0.0});
+  const double decentre = std::hypot(params.x0_mm, params.y0_mm);
+  if (q <= 0) return std::numeric_limits<double>::infinity();
+  return std::max(0.0, 1.0 / std::sqrt(q) - decentre);
+}
+
+}  // namespace topocal::model

@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# One entry point for a fresh Debian 12 machine (run as root):
+#   bash scripts/setup.sh run    install what is missing, build, run the sweep on data/paper.json
+#   bash scripts/setup.sh test   install what is missing, build, run the whole test suite (ctest)
+# Idempotent: packages already installed are not touched; the build directory is reused.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+mode=${1:-run}
+case "$mode" in run|test|build) ;; *) echo "usage: scripts/setup.sh run|test|build" >&2; exit 2 ;; esac
+
+pkgs=(cmake g++ make pkg-config libopencv-dev libceres-dev libeigen3-dev libapriltag-dev libcli11-dev
+      nlohmann-json3-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev)
+# The real chessboard photographs the calibration tests compare against cv::calibrateCamera.
+[ "$mode" = test ] && pkgs+=(opencv-doc)
+
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing ${missing[*]}" >&2
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+build=${TOPOCAL_BUILD_DIR:-build}
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$build" -j"$(nproc)"
+
+case "$mode" in
+  run)  "$build/tools/topocal" sweep --config data/paper.json ;;
+  test) ctest --test-dir "$build" --output-on-failure -j"$(nproc)" ;;
+  build) ;;
+esac

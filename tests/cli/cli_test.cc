@@ -1,0 +1,101 @@
+// The command line end to end: outputs, exit codes and one-line messages for bad input, no partial files.
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Run {
+  int exit_code;
+  std::string output;  // stdout and stderr together
+};
+
+Run RunTopocal(const std::string& args) {
+  const std::string cmd = std::string(TOPOCAL_EXE) + " " + args + " 2>&1";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  std::string out;
+  std::array<char, 4096> buf;
+  while (size_t n = fread(buf.data(), 1, buf.size(), pipe)) out.append(buf.data(), n);
+  const int status = pclose(pipe);
+  return {WEXITSTATUS(status), out};
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("topocal_cli_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  void Write(const std::string& name, const std::string& text) const { std::ofstream(Path(name)) << text; }
+  fs::path dir_;
+  const std::string paper_ = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
+};
+
+TEST_F(Cli, DesignWritesTargetPoints) {
+  const auto r = RunTopocal("design --config " + paper_ + " --out " + Path("t.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(Path("t.csv"));
+  std::string header;
+  std::getline(in, header);
+  EXPECT_EQ(header, "ring,index,x_mm,y_mm,z_mm");
+  int lines = 0;
+  for (std::string l; std::getline(in, l);) ++lines;
+  EXPECT_EQ(lines, 624);
+}
+
+TEST_F(Cli, SimulateWritesSpots) {
+  const auto r = RunTopocal("simulate --config " + paper_ + " --sigma 2e-4 --out " + Path("s.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(Path("s.csv"));
+  std::string header;
+  std::getline(in, header);
+  EXPECT_EQ(header, "ring,index,x_mm,y_mm");
+}
+
+TEST_F(Cli, SweepPrintsTableVAndWritesJson) {
+  const auto r = RunTopocal("sweep --config " + paper_ + " --json " + Path("sweep.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("Table V"), std::string::npos);
+  EXPECT_TRUE(fs::exists(Path("sweep.json")));
+  EXPECT_EQ(r.output.find("nan"), std::string::npos);
+}
+
+TEST_F(Cli, BadConfigIsOneLineAndExitTwoWithNoOutput) {
+  Write("bad.json", R"({"ideal_image": {}})");
+  const auto r = RunTopocal("simulate --config " + Path("bad.json") + " --sigma 0 --out " + Path("s.csv"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.output, "topocal: " + Path("bad.json") + ": ideal_image.rho0_mm: missing\n");
+  EXPECT_FALSE(fs::exists(Path("s.csv")));
+}
+
+TEST_F(Cli, MissingConfigFile) {
+  const auto r = RunTopocal("sweep --config " + Path("nope.json"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.output, "topocal: " + Path("nope.json") + ": (file): cannot be opened for reading\n");
+}
+
+TEST_F(Cli, UnwritableOutputLeavesNothing) {
+  const auto r = RunTopocal("design --config " + paper_ + " --out " + Path("no/such/dir/t.csv"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("no/such/dir/t.csv: cannot be written"), std::string::npos) << r.output;
+}
+
+TEST_F(Cli, UsageErrorsExitTwoAndHelpExitsZero) {
+  EXPECT_EQ(RunTopocal("sweep").exit_code, 2);
+  EXPECT_EQ(RunTopocal("frobnicate").exit_code, 2);
+  for (const char* verb : {"design", "simulate", "sweep"}) {
+    const auto r = RunTopocal(std::string(verb) + " --help");
+    EXPECT_EQ(r.exit_code, 0) << verb;
+    EXPECT_NE(r.output.find("--config"), std::string::npos) << verb;
+  }
+}
+
+}  // namespace

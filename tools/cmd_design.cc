@@ -1,0 +1,34 @@
+#include <fmt/format.h>
+
+#include "model/config.h"
+#include "model/io.h"
+#include "model/null_screen.h"
+#include "tools/commands.h"
+
+namespace topocal::tools {
+
+void AddDesignCommand(CLI::App& app) {
+  auto* cmd = app.add_subcommand("design", "Design the null screen: target points on the cone for the ideal image");
+  auto config = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  auto svg = std::make_shared<std::string>();
+  cmd->add_option("--config", *config, "Topographer configuration (JSON)")->required();
+  cmd->add_option("--out", *out, "Target points CSV: ring,index,x_mm,y_mm,z_mm")->required();
+  cmd->add_option("--svg", *svg, "Also write the printable null screen (unrolled cone, 1:1) as SVG");
+  cmd->callback([=] {
+    const auto cfg = model::LoadConfig(*config);
+    const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
+    for (const auto& f : design.failures) {
+      fmt::print(stderr, "topocal design: spot ({}, {}): {}\n", f.id.ring, f.id.index, f.reason);
+    }
+    if (design.targets.empty()) throw std::runtime_error(fmt::format("{}: no target point could be designed", *config));
+    std::string csv = "ring,index,x_mm,y_mm,z_mm\n";
+    for (const auto& t : design.targets) {
+      csv += fmt::format("{},{},{},{},{}\n", t.id.ring, t.id.index, t.on_cone_mm.x(), t.on_cone_mm.y(), t.on_cone_mm.z());
+    }
+    model::WriteFileAtomic(*out, csv);
+    fmt::print("designed {} target points ({} failed) -> {}\n", design.targets.size(), design.failures.size(), *out);
+  });
+}
+
+}  // namespace topocal::tools

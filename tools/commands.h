@@ -1,0 +1,13 @@
+#pragma once
+// Each verb of the `topocal` command line lives in its own cmd_<verb>.cc and registers itself here.
+// A command's callback throws model::ConfigError / model::InputError for bad input (exit 2) and
+// std::runtime_error for a computation that failed (exit 1); main() turns them into one line on stderr.
+#include <CLI/CLI.hpp>
+
+namespace topocal::tools {
+
+void AddDesignCommand(CLI::App& app);
+void AddSimulateCommand(CLI::App& app);
+void AddSweepCommand(CLI::App& app);
+
+}  // namespace topocal::tools

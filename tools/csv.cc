@@ -1,0 +1,64 @@
+#include "tools/csv.h"
+
+#include <cmath>
+#include <set>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "model/io.h"
+
+namespace topocal::tools {
+
+std::vector<SpotRow> ReadSpotsCsv(const std::string& path) {
+  const std::string text = model::ReadFile(path);
+  std::istringstream in(text);
+  std::string line;
+  int line_no = 0;
+  bool header = false;
+  std::vector<SpotRow> rows;
+  std::set<model::SpotId> seen;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty() || line[0] == '#') continue;
+    if (!header) {
+      if (line != "ring,index,x_mm,y_mm") {
+        throw model::InputError(fmt::format("{}:{}: expected header 'ring,index,x_mm,y_mm'", path, line_no));
+      }
+      header = true;
+      continue;
+    }
+    SpotRow r;
+    char c1 = 0, c2 = 0, c3 = 0;
+    std::istringstream ls(line);
+    ls >> r.id.ring >> c1 >> r.id.index >> c2 >> r.x_mm >> c3 >> r.y_mm;
+    std::string rest;
+    ls >> rest;
+    if (ls.fail() && !ls.eof()) {
+      throw model::InputError(fmt::format("{}:{}: expected 'ring,index,x_mm,y_mm' numbers", path, line_no));
+    }
+    if (c1 != ',' || c2 != ',' || c3 != ',' || !rest.empty() || !std::isfinite(r.x_mm) || !std::isfinite(r.y_mm)) {
+      throw model::InputError(fmt::format("{}:{}: expected 'ring,index,x_mm,y_mm' numbers", path, line_no));
+    }
+    if (r.id.ring < 1 || r.id.index < 0) {
+      throw model::InputError(fmt::format("{}:{}: ring must be >= 1 and index >= 0", path, line_no));
+    }
+    if (!seen.insert(r.id).second) {
+      throw model::InputError(fmt::format("{}:{}: spot ({}, {}) appears twice", path, line_no, r.id.ring, r.id.index));
+    }
+    rows.push_back(r);
+  }
+  if (!header) throw model::InputError(fmt::format("{}: empty file (no header)", path));
+  return rows;
+}
+
+std::string SpotsCsv(const std::vector<model::ImageSpot>& spots) {
+  std::string out = "ring,index,x_mm,y_mm\n";
+  for (const auto& s : spots) {
+    out += fmt::format("{},{},{},{}\n", s.id.ring, s.id.index, s.position_mm.x(), s.position_mm.y());
+  }
+  return out;
+}
+
+}  // namespace topocal::tools

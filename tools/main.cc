@@ -1,0 +1,44 @@
+// topocal — camera-distortion calibration and correction for cone corneal topographers.
+// Exit codes: 0 success; 1 a computation failed (solver did not converge, no usable data); 2 bad input
+// (usage, missing or corrupt file, invalid configuration).
+#include <cstdio>
+#include <exception>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "model/config.h"
+#include "model/io.h"
+#include "model/version.h"
+#include "tools/commands.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"topocal: calibrate, correct and verify the camera of a cone (null-screen) corneal topographer"};
+  app.set_version_flag("--version", std::string("topocal ") + topocal::kVersion);
+  app.require_subcommand(1);
+  topocal::tools::AddDesignCommand(app);
+  topocal::tools::AddSimulateCommand(app);
+  topocal::tools::AddSweepCommand(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return 2;
+  } catch (const topocal::model::ConfigError& e) {
+    fmt::print(stderr, "topocal: {}\n", e.what());
+    return 2;
+  } catch (const topocal::model::InputError& e) {
+    fmt::print(stderr, "topocal: {}\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "topocal: {}\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,77 @@
+#include "topo/sweep.h"
+
+#include <chrono>
+#include <stdexcept>
+
+#include <fmt/format.h>
+
+#include "model/distortion.h"
+#include "topo/image_ellipse.h"
+
+namespace topocal::topo {
+namespace {
+
+double MsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+model::SeidelParams SeidelFor(const model::Config& c, double sigma) {
+  model::SeidelParams s;
+  s.sigma_per_mm2 = sigma;
+  s.magnification = c.distortion.magnification;
+  s.centre_x_mm = c.distortion.centre_x_mm;
+  s.centre_y_mm = c.distortion.centre_y_mm;
+  return s;
+}
+
+void ApplyDistortion(const model::Distortion& d, model::SyntheticImage* image) {
+  for (auto& s : image->spots) s.position_mm = model::Distort(d, s.position_mm);
+}
+
+}  // namespace
+
+model::SyntheticImage SimulateSpots(const model::Config& config, double sigma_per_mm2) {
+  const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
+  auto image = model::SynthesizeImage(model::Biconic{config.cornea}, model::Topographer{config.topographer},
+                                      design.targets);
+  ApplyDistortion(SeidelFor(config, sigma_per_mm2), &image);
+  return image;
+}
+
+SweepResult RunSweep(const model::Config& config) {
+  const auto t_start = std::chrono::steady_clock::now();
+  SweepResult result;
+  auto t0 = std::chrono::steady_clock::now();
+  const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
+  result.timing.design_ms = MsSince(t0);
+  result.spots = static_cast<int>(design.targets.size());
+  result.design_failures = design.failures;
+  if (design.targets.empty()) throw std::runtime_error(fmt::format("{}: no spot of the ideal image reaches the cone", config.path));
+
+  t0 = std::chrono::steady_clock::now();
+  const auto undistorted = model::SynthesizeImage(model::Biconic{config.cornea},
+                                                  model::Topographer{config.topographer}, design.targets);
+  result.timing.synthesis_ms = MsSince(t0);
+  result.synthesis_failures = undistorted.failures;
+  const int outer_ring = config.ideal_image.rings_N + 1;
+  const auto reference = FitImageContour(undistorted.spots, outer_ring);
+  if (!reference) {
+    throw std::runtime_error(fmt::format("{}: cornea: the outer ring of the image has too few spots for a contour fit", config.path));
+  }
+  for (const double sigma : config.distortion.sigmas_per_mm2) {
+    model::SyntheticImage image = undistorted;
+    ApplyDistortion(SeidelFor(config, sigma), &image);
+    const auto ellipse = FitImageContour(image.spots, outer_ring);
+    if (!ellipse) throw std::runtime_error(fmt::format("{}: sigma {}: contour fit failed", config.path, sigma));
+    SweepRow row;
+    row.sigma_per_mm2 = sigma;
+    row.image_ellipse = *ellipse;
+    row.area_change_pct = 100.0 * (ellipse->AreaMm2() / reference->AreaMm2() - 1.0);
+    row.spots_imaged = static_cast<int>(image.spots.size());
+    result.rows.push_back(row);
+  }
+  result.timing.total_ms = MsSince(t_start);
+  return result;
+}
+
+}  // namespace topocal::topo

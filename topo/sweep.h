@@ -1,0 +1,41 @@
+#pragma once
+// The sigma sweep (paper Sec. 5): for each distortion level of the configuration, synthesise the spot image of the
+// configured cornea, distort it, and measure what the distortion does — the image contour (Table V), and, in later
+// stages, the reconstructed surface, its biconic fit and power maps (Tables VI, VII).
+#include <string>
+#include <vector>
+
+#include "model/config.h"
+#include "model/ellipse_fit.h"
+#include "model/null_screen.h"
+
+namespace topocal::topo {
+
+struct SweepRow {
+  double sigma_per_mm2 = 0;
+  model::Ellipse image_ellipse;
+  double area_change_pct = 0;  // E_A: area change against the sigma = 0 contour
+  int spots_imaged = 0;
+};
+
+struct SweepTiming {
+  double design_ms = 0;
+  double synthesis_ms = 0;
+  double total_ms = 0;
+};
+
+struct SweepResult {
+  int spots = 0;  // designed spots
+  std::vector<SweepRow> rows;
+  std::vector<model::SpotFailure> design_failures;
+  std::vector<model::SpotFailure> synthesis_failures;  // spots the cornea does not image (same for every sigma)
+  SweepTiming timing;
+};
+
+// Throws std::runtime_error with a one-line message when the configuration cannot be swept (no spot images, etc.).
+SweepResult RunSweep(const model::Config& config);
+
+// The distorted spot image of the configured cornea for one sigma (as `topocal simulate` writes it).
+model::SyntheticImage SimulateSpots(const model::Config& config, double sigma_per_mm2);
+
+}  // namespace topocal::topo
