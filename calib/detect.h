@@ -1,0 +1,63 @@
+#pragma once
+// Detection entry point: find the corners of a calibration target in one grey image.
+//
+//   TargetDescription target = LoadTargetDescription("board.yaml");
+//   std::optional<ViewObservations> view = DetectTargetInFile(target, "img01.png", DetectionOptions{});
+//   if (!view) { /* no usable target in this image: list it and skip it */ }
+//
+// Checkerboards: OpenCV finds the board (cv::findChessboardCornersSB, then cv::findChessboardCorners as fallback),
+// and topocal refines every corner with a saddle-point fit (calib/corner_refinement.h); the whole board must be
+// visible. AprilTag grids: libapriltag 3 finds tag36h11 tags; tags with hamming distance > max_hamming, a decision
+// margin below min_decision_margin, or an id not on the grid are dropped; each tag's corners are refined by
+// fitting its four edges; partial views keep their corner ids (4 * (tag id - firstTagId) + k).
+// All pixel coordinates follow OpenCV's convention (calib/observations.h); libapriltag's are converted.
+#include <optional>
+#include <string>
+
+#include <opencv2/core/mat.hpp>
+
+#include "calib/observations.h"
+#include "calib/target.h"
+
+namespace topocal::calib {
+
+enum class CornerRefinement {
+  kSaddle,         // topocal's iterated, Gaussian-weighted quadratic saddle fit (checkerboards; default)
+  kOpenCvSubPix,   // cv::cornerSubPix with an 11 x 11 window: OpenCV's default, for comparison
+  kNone,           // the detector's own corners
+};
+
+struct DetectionOptions {
+  CornerRefinement refinement = CornerRefinement::kSaddle;
+  // Checkerboard: weight window of the saddle fit (Gaussian sigma, px); 0 = automatic from the corner spacing.
+  double saddle_window_sigma_px = 0.0;
+  // AprilTag filters.
+  int max_hamming = 0;                  // corrected bits accepted (0: only exact codes)
+  double min_decision_margin = 25.0;    // libapriltag's decision margin (mean bit contrast, grey levels)
+  double quad_decimate = 1.0;           // libapriltag decimation; 1 = full resolution
+  // A view with fewer corners than this is "not found" (a homography needs 4 points).
+  int min_corners = 4;
+
+  bool IsValid(std::string* why) const;
+};
+
+// What the detector found, with diagnostics for the caller to print. `view` is empty when nothing usable was found.
+struct DetectionResult {
+  std::optional<ViewObservations> view;
+  std::string message;      // why nothing was found, or a one-line summary ("54 corners", "23/24 tags")
+  int tags_detected = 0;    // AprilTag grids: tags kept after filtering
+  int tags_rejected = 0;    // AprilTag grids: tags dropped by the filters
+};
+
+// Detects the target in an 8-bit grey (or BGR, converted) image. Never throws for image content; an empty image,
+// an unsupported type or invalid options give an empty result with a message.
+DetectionResult DetectTargetDetailed(const TargetDescription& target, const cv::Mat& image,
+                                     const DetectionOptions& options = {});
+std::optional<ViewObservations> DetectTarget(const TargetDescription& target, const cv::Mat& image,
+                                             const DetectionOptions& options = {});
+// Reads the image (any format cv::imread knows) and detects; sets image_path. Throws model::InputError naming the
+// file if it cannot be read as an image.
+std::optional<ViewObservations> DetectTargetInFile(const TargetDescription& target, const std::string& image_path,
+                                                   const DetectionOptions& options = {});
+
+}  // namespace topocal::calib
