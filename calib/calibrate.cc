@@ -1,0 +1,538 @@
+#include "calib/calibrate.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <memory>
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+#include <fmt/format.h>
+#include <opencv2/calib3d.hpp>
+
+#include "calib/cost_functions.h"
+#include "model/distortion.h"
+
+namespace topocal::calib {
+namespace {
+
+enum ParamIndex : int { kFx, kFy, kCx, kCy, kK1, kK2, kP1, kP2, kK3, kEx, kEy };
+
+// Median of |r| for a 2-D isotropic Gaussian (Rayleigh) is sigma * sqrt(2 ln 2): the per-axis sigma from the
+// median residual norm, insensitive to the outliers it is used to find.
+constexpr double kRayleighMedianPerSigma = 1.1774100225154747;
+
+// Solver tolerances: tight enough that noise-free synthetic data comes back to ~1e-9 relative (Ceres' defaults stop
+// at 1e-6 relative cost change); the problems are small, so the extra iterations cost milliseconds.
+constexpr double kFunctionTolerance = 1e-15;
+constexpr double kGradientTolerance = 1e-15;
+constexpr double kParameterTolerance = 1e-14;
+
+struct Parameters {
+  std::array<double, kNumIntrinsics> intrinsics{};
+  std::array<double, kNumDistortion> dist{};
+  std::array<double, kNumCentre> centre{};
+  std::vector<std::array<double, kNumPose>> poses;  // one per used view
+};
+
+// A view that takes part in the fit, with the inlier flag of each of its corners.
+struct UsedView {
+  int index = 0;
+  const ViewObservations* view = nullptr;
+  std::vector<bool> inlier;
+};
+
+using FreeMask = std::array<bool, kNumCameraParameters>;
+
+FreeMask ComputeFreeMask(const CalibrationOptions& o, bool single_view) {
+  FreeMask free;
+  free.fill(true);
+  for (int i = 0; i < kNumCameraParameters; ++i) {
+    if (o.fixed.count(std::string(kParameterNames[i]))) free[i] = false;
+  }
+  if (o.model == DistortionModelKind::kSeidel) free[kK2] = free[kP1] = free[kP2] = free[kK3] = false;
+  if (!o.fit_distortion_centre) free[kEx] = free[kEy] = false;
+  if (single_view) free[kFx] = free[kFy] = free[kCx] = free[kCy] = false;
+  return free;
+}
+
+CalibrationResult Failure(CalibrationStatus status, std::string message) {
+  CalibrationResult r;
+  r.status = status;
+  r.message = std::move(message);
+  return r;
+}
+
+// Adds a block to the problem holding the entries whose mask is false fixed (whole block constant if all are).
+void AddBlock(ceres::Problem& problem, double* block, int size, const bool* free) {
+  problem.AddParameterBlock(block, size);
+  std::vector<int> fixed;
+  for (int i = 0; i < size; ++i) {
+    if (!free[i]) fixed.push_back(i);
+  }
+  if (static_cast<int>(fixed.size()) == size) {
+    problem.SetParameterBlockConstant(block);
+  } else if (!fixed.empty()) {
+    problem.SetManifold(block, new ceres::SubsetManifold(size, fixed));
+  }
+}
+
+ceres::LossFunction* MakeLoss(const CalibrationOptions& o) {
+  switch (o.loss) {
+    case RobustLoss::kHuber: return new ceres::HuberLoss(o.loss_scale_px);
+    case RobustLoss::kCauchy: return new ceres::CauchyLoss(o.loss_scale_px);
+    case RobustLoss::kNone: break;
+  }
+  return nullptr;
+}
+
+void BuildProblem(ceres::Problem& problem, Parameters& p, const std::vector<UsedView>& views, const FreeMask& free,
+                  const CalibrationOptions& o) {
+  AddBlock(problem, p.intrinsics.data(), kNumIntrinsics, &free[kFx]);
+  AddBlock(problem, p.dist.data(), kNumDistortion, &free[kK1]);
+  AddBlock(problem, p.centre.data(), kNumCentre, &free[kEx]);
+  for (size_t v = 0; v < views.size(); ++v) {
+    problem.AddParameterBlock(p.poses[v].data(), kNumPose);
+    const auto& corners = views[v].view->corners;
+    for (size_t c = 0; c < corners.size(); ++c) {
+      if (!views[v].inlier[c]) continue;
+      problem.AddResidualBlock(ReprojectionCost::Create(corners[c].image_px, corners[c].target_mm), MakeLoss(o),
+                               p.intrinsics.data(), p.dist.data(), p.centre.data(), p.poses[v].data());
+    }
+  }
+}
+
+std::optional<Eigen::Vector2d> Residual(const Parameters& p, const std::array<double, kNumPose>& pose,
+                                        const CornerObservation& corner) {
+  const ReprojectionCost cost(corner.image_px, corner.target_mm);
+  Eigen::Vector2d r;
+  if (!cost(p.intrinsics.data(), p.dist.data(), p.centre.data(), pose.data(), r.data()) || !r.allFinite()) {
+    return std::nullopt;
+  }
+  return r;
+}
+
+bool AllFinite(const Parameters& p) {
+  const auto finite = [](const auto& a) {
+    return std::all_of(a.begin(), a.end(), [](double x) { return std::isfinite(x); });
+  };
+  return finite(p.intrinsics) && finite(p.dist) && finite(p.centre) &&
+         std::all_of(p.poses.begin(), p.poses.end(), finite);
+}
+
+int CountFree(const FreeMask& free, size_t views) {
+  return static_cast<int>(std::count(free.begin(), free.end(), true)) + kNumPose * static_cast<int>(views);
+}
+
+// Solves, optionally rejecting outliers, then fills the statistics and the covariance of `result`.
+CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, const FreeMask& free,
+                                 const CalibrationOptions& o, CalibrationResult result) {
+  const int free_parameters = CountFree(free, views.size());
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::DENSE_SCHUR;
+  solver_options.max_num_iterations = o.max_iterations;
+  solver_options.function_tolerance = kFunctionTolerance;
+  solver_options.gradient_tolerance = kGradientTolerance;
+  solver_options.parameter_tolerance = kParameterTolerance;
+  solver_options.num_threads = 1;
+
+  for (int round = 0;; ++round) {
+    int inliers = 0;
+    for (const auto& v : views) inliers += static_cast<int>(std::count(v.inlier.begin(), v.inlier.end(), true));
+    if (2 * inliers <= free_parameters) {
+      return Failure(CalibrationStatus::kTooFewCorners,
+                     fmt::format("{} corners give {} residuals for {} free parameters", inliers, 2 * inliers,
+                                 free_parameters));
+    }
+    ceres::Problem problem;
+    BuildProblem(problem, p, views, free, o);
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver_options, &problem, &summary);
+    if (round == 0) result.solver.initial_cost = summary.initial_cost;
+    result.solver.iterations += static_cast<int>(summary.iterations.size()) - 1;
+    result.solver.final_cost = summary.final_cost;
+    result.solver.converged = summary.termination_type == ceres::CONVERGENCE;
+    result.solver.message = summary.message;
+    result.outlier_rounds = round;
+    if (!result.solver.converged || !std::isfinite(summary.final_cost) || !AllFinite(p)) {
+      return Failure(CalibrationStatus::kSolverFailed,
+                     fmt::format("the solver did not converge after {} iterations: {}", result.solver.iterations,
+                                 summary.message));
+    }
+    if (!o.reject_outliers || round >= o.max_outlier_rounds) break;
+
+    std::vector<double> norms;
+    for (size_t v = 0; v < views.size(); ++v) {
+      for (size_t c = 0; c < views[v].inlier.size(); ++c) {
+        if (!views[v].inlier[c]) continue;
+        const auto r = Residual(p, p.poses[v], views[v].view->corners[c]);
+        norms.push_back(r ? r->norm() : INFINITY);
+      }
+    }
+    std::nth_element(norms.begin(), norms.begin() + norms.size() / 2, norms.end());
+    const double sigma_px = norms[norms.size() / 2] / kRayleighMedianPerSigma;
+    const double threshold_px = o.outlier_threshold * sigma_px;
+    int dropped = 0;
+    for (size_t v = 0; v < views.size(); ++v) {
+      for (size_t c = 0; c < views[v].inlier.size(); ++c) {
+        if (!views[v].inlier[c]) continue;
+        const auto r = Residual(p, p.poses[v], views[v].view->corners[c]);
+        if (!r || r->norm() > threshold_px) {
+          views[v].inlier[c] = false;
+          ++dropped;
+        }
+      }
+    }
+    if (dropped == 0) break;
+  }
+
+  // Statistics on the inliers, residuals of every corner.
+  double ssr = 0;
+  int inliers = 0;
+  for (size_t v = 0; v < views.size(); ++v) {
+    double view_ssr = 0;
+    int view_n = 0;
+    const auto& corners = views[v].view->corners;
+    for (size_t c = 0; c < corners.size(); ++c) {
+      CornerResidual cr;
+      cr.view = views[v].index;
+      cr.corner_id = corners[c].id;
+      cr.observed_px = corners[c].image_px;
+      cr.outlier = !views[v].inlier[c];
+      const auto r = Residual(p, p.poses[v], corners[c]);
+      if (!r) {
+        return Failure(CalibrationStatus::kSolverFailed,
+                       fmt::format("view {}: corner {} lies behind the fitted camera", views[v].index, corners[c].id));
+      }
+      cr.residual_px = *r;
+      if (cr.outlier) {
+        result.outliers.push_back(cr);
+      } else {
+        view_ssr += r->squaredNorm();
+        ++view_n;
+      }
+      result.residuals.push_back(cr);
+    }
+    ssr += view_ssr;
+    inliers += view_n;
+    result.per_view_rms_px.push_back(view_n > 0 ? std::sqrt(view_ssr / view_n) : 0.0);
+  }
+  result.corners_used = inliers;
+  result.rms_px = std::sqrt(ssr / inliers);
+  result.free_parameters = free_parameters;
+  result.residual_variance_px2 = ssr / (2 * inliers - free_parameters);
+
+  // Covariance of the camera parameters at the solution (the poses take part in J but are not reported).
+  ceres::Problem problem;
+  BuildProblem(problem, p, views, free, o);
+  ceres::Covariance::Options cov_options;
+  cov_options.algorithm_type = ceres::DENSE_SVD;
+  cov_options.null_space_rank = 0;  // a rank-deficient Jacobian is an error, not a pseudo-inverse
+  cov_options.num_threads = 1;
+  ceres::Covariance covariance(cov_options);
+  std::vector<std::pair<const double*, const double*>> blocks;
+  std::vector<std::pair<double*, int>> reported = {
+      {p.intrinsics.data(), kFx}, {p.dist.data(), kK1}, {p.centre.data(), kEx}};
+  std::array<double, kNumCameraParameters> stddev{};
+  std::vector<std::pair<double*, int>> active;
+  for (const auto& [block, first] : reported) {
+    if (!problem.IsParameterBlockConstant(block)) {
+      blocks.emplace_back(block, block);
+      active.emplace_back(block, first);
+    }
+  }
+  if (!covariance.Compute(blocks, &problem)) {
+    return Failure(CalibrationStatus::kCovarianceFailed,
+                   "the Jacobian is rank-deficient at the solution: some free parameter is not determined by these "
+                   "views (fix it or add views)");
+  }
+  for (const auto& [block, first] : active) {
+    const int size = first == kFx ? kNumIntrinsics : first == kK1 ? kNumDistortion : kNumCentre;
+    std::vector<double> cov(static_cast<size_t>(size * size));
+    covariance.GetCovarianceBlock(block, block, cov.data());
+    for (int i = 0; i < size; ++i) {
+      const double var = cov[static_cast<size_t>(i * size + i)] * result.residual_variance_px2;
+      stddev[static_cast<size_t>(first + i)] = free[static_cast<size_t>(first + i)] && var > 0 ? std::sqrt(var) : 0.0;
+    }
+  }
+
+  const std::array<double, kNumCameraParameters> values = {
+      p.intrinsics[0], p.intrinsics[1], p.intrinsics[2], p.intrinsics[3], p.dist[0], p.dist[1],
+      p.dist[2],       p.dist[3],       p.dist[4],       p.centre[0],     p.centre[1]};
+  for (int i = 0; i < kNumCameraParameters; ++i) {
+    if (!std::isfinite(stddev[static_cast<size_t>(i)])) {
+      return Failure(CalibrationStatus::kCovarianceFailed, "non-finite parameter covariance");
+    }
+    result.parameters.push_back({std::string(kParameterNames[i]), values[static_cast<size_t>(i)],
+                                 stddev[static_cast<size_t>(i)], !free[static_cast<size_t>(i)]});
+  }
+  auto& cam = result.camera;
+  cam.fx_px = p.intrinsics[0];
+  cam.fy_px = p.intrinsics[1];
+  cam.cx_px = p.intrinsics[2];
+  cam.cy_px = p.intrinsics[3];
+  std::copy(p.dist.begin(), p.dist.end(), cam.dist.begin());
+  cam.distortion_centre = {p.centre[0], p.centre[1]};
+  for (size_t v = 0; v < views.size(); ++v) {
+    CamFromTarget pose;
+    pose.angle_axis = {p.poses[v][0], p.poses[v][1], p.poses[v][2]};
+    pose.translation_mm = {p.poses[v][3], p.poses[v][4], p.poses[v][5]};
+    result.cam_from_target.push_back(pose);
+  }
+
+  // Seidel sigma where the focal length in mm is known (paper Eq. 18; k1 = sigma f^2 / M_T^3).
+  if (o.model == DistortionModelKind::kSeidel && (o.pixel_pitch_um > 0 || o.focal_mm > 0)) {
+    SeidelEstimate s;
+    s.magnification = o.magnification;
+    s.pixel_pitch_um = o.pixel_pitch_um;
+    // With the pitch known, the fitted focal length in mm is the one the normalised k1 refers to.
+    s.focal_mm = o.pixel_pitch_um > 0 ? 0.5 * (cam.fx_px + cam.fy_px) * o.pixel_pitch_um * 1e-3 : o.focal_mm;
+    s.sigma_per_mm2 = model::BrownK1ToSeidelSigma(cam.dist[0], s.magnification, s.focal_mm);
+    s.sigma_stddev_per_mm2 = std::abs(model::BrownK1ToSeidelSigma(stddev[kK1], s.magnification, s.focal_mm));
+    result.seidel = s;
+  }
+  result.status = CalibrationStatus::kOk;
+  result.message = fmt::format("rms {:.4f} px over {} corners in {} views, {} outliers", result.rms_px, inliers,
+                               views.size(), result.outliers.size());
+  return result;
+}
+
+// Checks that the target points are planar (z = 0) and span two dimensions.
+std::string CheckTargetLayout(const ViewObservations& view) {
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const auto& c : view.corners) {
+    if (std::abs(c.target_mm.z()) > 0) return fmt::format("corner {} is off the target plane (z = {} mm)", c.id, c.target_mm.z());
+    mean += c.target_mm.head<2>();
+  }
+  mean /= static_cast<double>(view.corners.size());
+  Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
+  for (const auto& c : view.corners) {
+    const Eigen::Vector2d d = c.target_mm.head<2>() - mean;
+    scatter += d * d.transpose();
+  }
+  const Eigen::Vector2d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(scatter).eigenvalues();
+  // Collinear corners leave the second eigenvalue at rounding level relative to the first.
+  if (!(ev(0) > 1e-9 * ev(1))) return "the corners are collinear";
+  return {};
+}
+
+std::array<double, kNumPose> ToArray(const CamFromTarget& pose) {
+  return {pose.angle_axis.x(),     pose.angle_axis.y(),     pose.angle_axis.z(),
+          pose.translation_mm.x(), pose.translation_mm.y(), pose.translation_mm.z()};
+}
+
+}  // namespace
+
+std::string_view ToString(DistortionModelKind model) noexcept {
+  return model == DistortionModelKind::kSeidel ? "seidel" : "brown5";
+}
+
+std::optional<DistortionModelKind> ParseDistortionModel(std::string_view name) noexcept {
+  if (name == "seidel") return DistortionModelKind::kSeidel;
+  if (name == "brown5") return DistortionModelKind::kBrown5;
+  return std::nullopt;
+}
+
+std::string_view ToString(RobustLoss loss) noexcept {
+  switch (loss) {
+    case RobustLoss::kHuber: return "huber";
+    case RobustLoss::kCauchy: return "cauchy";
+    case RobustLoss::kNone: break;
+  }
+  return "none";
+}
+
+std::optional<RobustLoss> ParseRobustLoss(std::string_view name) noexcept {
+  if (name == "none") return RobustLoss::kNone;
+  if (name == "huber") return RobustLoss::kHuber;
+  if (name == "cauchy") return RobustLoss::kCauchy;
+  return std::nullopt;
+}
+
+std::string_view ToString(CalibrationStatus status) noexcept {
+  switch (status) {
+    case CalibrationStatus::kOk: return "ok";
+    case CalibrationStatus::kInvalidOptions: return "invalid options";
+    case CalibrationStatus::kInvalidInput: return "invalid input";
+    case CalibrationStatus::kTooFewViews: return "too few views";
+    case CalibrationStatus::kTooFewCorners: return "too few corners";
+    case CalibrationStatus::kDegenerate: return "degenerate";
+    case CalibrationStatus::kSolverFailed: return "solver failed";
+    case CalibrationStatus::kCovarianceFailed: return "covariance failed";
+  }
+  return "unknown";
+}
+
+bool CalibrationOptions::IsValid(std::string* why) const {
+  const auto fail = [why](std::string reason) {
+    if (why) *why = std::move(reason);
+    return false;
+  };
+  for (const auto& name : fixed) {
+    if (std::find(std::begin(kParameterNames), std::end(kParameterNames), name) == std::end(kParameterNames)) {
+      return fail(fmt::format("unknown parameter '{}' to fix (one of fx, fy, cx, cy, k1, k2, p1, p2, k3, ex, ey)", name));
+    }
+  }
+  if (fit_distortion_centre && model == DistortionModelKind::kBrown5 && !(fixed.count("p1") && fixed.count("p2"))) {
+    return fail("a free distortion centre and free p1, p2 are the same distortion to second order: fix p1,p2 or "
+                "the centre");
+  }
+  if (!(loss_scale_px > 0)) return fail("loss scale must be > 0 px");
+  if (!(outlier_threshold > 1)) return fail("outlier threshold must be > 1 robust sigma");
+  if (max_outlier_rounds < 0) return fail("max outlier rounds must be >= 0");
+  if (min_views < 2) return fail("min views must be >= 2");
+  if (min_corners_per_view < 4) return fail("min corners per view must be >= 4");
+  if (max_iterations < 1) return fail("max iterations must be >= 1");
+  if (focal_mm < 0 || pixel_pitch_um < 0 || distance_mm < 0) return fail("focal, pitch and distance must be >= 0");
+  if (!(magnification != 0) || !std::isfinite(magnification)) return fail("magnification M_T must be non-zero");
+  return true;
+}
+
+CalibrationResult CalibrateMultiView(const std::vector<ViewObservations>& views, const CalibrationOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) return Failure(CalibrationStatus::kInvalidOptions, why);
+  CalibrationResult result;
+  result.model = options.model;
+  std::vector<ViewObservations> usable;
+  std::vector<int> usable_index;
+  for (size_t i = 0; i < views.size(); ++i) {
+    const auto& v = views[i];
+    const int idx = static_cast<int>(i);
+    if (static_cast<int>(v.corners.size()) < options.min_corners_per_view) {
+      result.skipped_views.push_back(
+          {idx, fmt::format("{} corners, fewer than {}", v.corners.size(), options.min_corners_per_view)});
+      continue;
+    }
+    if (const auto layout = CheckTargetLayout(v); !layout.empty()) {
+      if (layout.find("off the target plane") != std::string::npos) {
+        return Failure(CalibrationStatus::kInvalidInput, fmt::format("view {} ({}): {}", i, v.image_path, layout));
+      }
+      result.skipped_views.push_back({idx, layout});
+      continue;
+    }
+    if (!usable.empty() && (v.image_width != usable.front().image_width || v.image_height != usable.front().image_height)) {
+      return Failure(CalibrationStatus::kInvalidInput,
+                     fmt::format("view {} ({}) is {}x{} px, the first is {}x{} px", i, v.image_path, v.image_width,
+                                 v.image_height, usable.front().image_width, usable.front().image_height));
+    }
+    usable.push_back(v);
+    usable_index.push_back(idx);
+  }
+  if (static_cast<int>(usable.size()) < options.min_views) {
+    auto f = Failure(CalibrationStatus::kTooFewViews,
+                     fmt::format("{} usable views, at least {} needed", usable.size(), options.min_views));
+    f.skipped_views = result.skipped_views;
+    return f;
+  }
+  const auto init = InitialiseZhang(usable, &why);
+  if (!init) return Failure(CalibrationStatus::kDegenerate, why);
+
+  Parameters p;
+  p.intrinsics = {init->fx_px, init->fy_px, init->cx_px, init->cy_px};
+  for (const auto& pose : init->cam_from_target) p.poses.push_back(ToArray(pose));
+  // Refine each pose for the initial K (Zhang's rotation projection is only least-squares in the algebraic sense).
+  const cv::Matx33d k(init->fx_px, 0, init->cx_px, 0, init->fy_px, init->cy_px, 0, 0, 1);
+  for (size_t v = 0; v < usable.size(); ++v) {
+    std::vector<cv::Point3d> object;
+    std::vector<cv::Point2d> image;
+    for (const auto& c : usable[v].corners) {
+      object.emplace_back(c.target_mm.x(), c.target_mm.y(), 0.0);
+      image.emplace_back(c.image_px.x(), c.image_px.y());
+    }
+    cv::Vec3d rvec(p.poses[v][0], p.poses[v][1], p.poses[v][2]), tvec(p.poses[v][3], p.poses[v][4], p.poses[v][5]);
+    if (cv::solvePnP(object, image, k, cv::noArray(), rvec, tvec, true, cv::SOLVEPNP_ITERATIVE) && tvec[2] > 0) {
+      p.poses[v] = {rvec[0], rvec[1], rvec[2], tvec[0], tvec[1], tvec[2]};
+    }
+  }
+
+  std::vector<UsedView> used;
+  for (size_t v = 0; v < usable.size(); ++v) {
+    used.push_back({usable_index[v], &usable[v], std::vector<bool>(usable[v].corners.size(), true)});
+  }
+  result.single_view = false;
+  result.camera.width_px = usable.front().image_width;
+  result.camera.height_px = usable.front().image_height;
+  result.views_used = usable_index;
+  auto skipped = result.skipped_views;
+  auto out = SolveAndReport(p, used, ComputeFreeMask(options, false), options, std::move(result));
+  if (!out.ok()) out.skipped_views = skipped;
+  out.model = options.model;
+  return out;
+}
+
+CalibrationResult CalibrateSingleView(const ViewObservations& view, const CalibrationOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) return Failure(CalibrationStatus::kInvalidOptions, why);
+  if (!(options.focal_mm > 0 && options.pixel_pitch_um > 0 && options.distance_mm > 0)) {
+    return Failure(CalibrationStatus::kInvalidOptions,
+                   "single-view calibration needs the focal distance (mm), the pixel pitch (um) and the nominal "
+                   "target distance (mm)");
+  }
+  if (view.image_width <= 0 || view.image_height <= 0) {
+    return Failure(CalibrationStatus::kInvalidInput, fmt::format("{}: image size unknown", view.image_path));
+  }
+  if (static_cast<int>(view.corners.size()) < options.min_corners_per_view) {
+    return Failure(CalibrationStatus::kTooFewCorners,
+                   fmt::format("{}: {} corners, fewer than {}", view.image_path, view.corners.size(),
+                               options.min_corners_per_view));
+  }
+  if (const auto layout = CheckTargetLayout(view); !layout.empty()) {
+    return Failure(CalibrationStatus::kDegenerate, fmt::format("{}: {}", view.image_path, layout));
+  }
+  Parameters p;
+  const double f_px = options.focal_mm / (options.pixel_pitch_um * 1e-3);
+  p.intrinsics = {f_px, f_px, 0.5 * (view.image_width - 1), 0.5 * (view.image_height - 1)};
+
+  // Pose: planar PnP (IPPE) with zero distortion, and an iterative PnP started fronto-parallel at the nominal
+  // distance with the target centroid on the axis; the one with the smaller reprojection error wins.
+  std::vector<cv::Point3d> object;
+  std::vector<cv::Point2d> image;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& c : view.corners) {
+    object.emplace_back(c.target_mm.x(), c.target_mm.y(), 0.0);
+    image.emplace_back(c.image_px.x(), c.image_px.y());
+    centroid += c.target_mm;
+  }
+  centroid /= static_cast<double>(view.corners.size());
+  const cv::Matx33d k(f_px, 0, p.intrinsics[2], 0, f_px, p.intrinsics[3], 0, 0, 1);
+  const auto reprojection = [&](const cv::Vec3d& rvec, const cv::Vec3d& tvec) {
+    std::vector<cv::Point2d> projected;
+    cv::projectPoints(object, rvec, tvec, k, cv::noArray(), projected);
+    double ssr = 0;
+    for (size_t i = 0; i < projected.size(); ++i) {
+      const cv::Point2d d = projected[i] - image[i];
+      ssr += d.dot(d);
+    }
+    return std::isfinite(ssr) && tvec[2] > 0 ? ssr : INFINITY;
+  };
+  cv::Vec3d best_r(0, 0, 0), best_t(-centroid.x(), -centroid.y(), options.distance_mm);
+  double best = reprojection(best_r, best_t);
+  {
+    cv::Vec3d r = best_r, t = best_t;
+    if (cv::solvePnP(object, image, k, cv::noArray(), r, t, true, cv::SOLVEPNP_ITERATIVE) && reprojection(r, t) < best) {
+      best = reprojection(r, t);
+      best_r = r;
+      best_t = t;
+    }
+    if (cv::solvePnP(object, image, k, cv::noArray(), r, t, false, cv::SOLVEPNP_IPPE) && reprojection(r, t) < best) {
+      best = reprojection(r, t);
+      best_r = r;
+      best_t = t;
+    }
+  }
+  p.poses.push_back({best_r[0], best_r[1], best_r[2], best_t[0], best_t[1], best_t[2]});
+
+  std::vector<UsedView> used{{0, &view, std::vector<bool>(view.corners.size(), true)}};
+  CalibrationResult result;
+  result.model = options.model;
+  result.single_view = true;
+  result.camera.width_px = view.image_width;
+  result.camera.height_px = view.image_height;
+  result.views_used = {0};
+  auto out = SolveAndReport(p, used, ComputeFreeMask(options, true), options, std::move(result));
+  out.model = options.model;
+  out.single_view = true;
+  return out;
+}
+
+}  // namespace topocal::calib

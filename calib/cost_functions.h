@@ -1,0 +1,56 @@
+#pragma once
+// Ceres cost functions of camera calibration.
+//
+// Reprojection of one target corner (paper-independent; Zhang 2000, Eq. 2 with OpenCV's distortion):
+//
+//   corner_in_cam = R(cam_from_target[0..2]) * corner_in_target_mm + cam_from_target[3..5]     (angle-axis, mm)
+//   u             = (X / Z, Y / Z)                                                               (normalised)
+//   predicted_px  = CameraModel::NormalizedToPixel(intrinsics, dist, centre, u)                 (calib/camera.h)
+//   residual_px   = predicted_px - observed_px
+//
+// Parameter blocks: intrinsics [fx, fy, cx, cy] px; dist [k1, k2, p1, p2, k3]; centre [e_x, e_y] normalised;
+// cam_from_target [angle-axis (rad), translation (mm)]. A corner behind the camera (Z <= 0) makes the evaluation
+// fail, which Ceres treats as an infeasible step rather than a NaN.
+#include <ceres/autodiff_cost_function.h>
+#include <ceres/rotation.h>
+#include <Eigen/Core>
+
+#include "calib/camera.h"
+
+namespace topocal::calib {
+
+inline constexpr int kNumIntrinsics = 4;
+inline constexpr int kNumDistortion = 5;
+inline constexpr int kNumCentre = 2;
+inline constexpr int kNumPose = 6;
+
+struct ReprojectionCost {
+  ReprojectionCost(const Eigen::Vector2d& observed_px, const Eigen::Vector3d& corner_in_target_mm)
+      : observed_px_(observed_px), corner_in_target_mm_(corner_in_target_mm) {}
+
+  template <typename T>
+  bool operator()(const T* intrinsics, const T* dist, const T* centre, const T* cam_from_target, T* residual_px) const {
+    const T corner[3] = {T(corner_in_target_mm_.x()), T(corner_in_target_mm_.y()), T(corner_in_target_mm_.z())};
+    T corner_in_cam[3];
+    ceres::AngleAxisRotatePoint(cam_from_target, corner, corner_in_cam);
+    for (int i = 0; i < 3; ++i) corner_in_cam[i] += cam_from_target[3 + i];
+    if (!(corner_in_cam[2] > T(0))) return false;
+    const T u[2] = {corner_in_cam[0] / corner_in_cam[2], corner_in_cam[1] / corner_in_cam[2]};
+    T px[2];
+    CameraModel::NormalizedToPixel(intrinsics, dist, centre, u, px);
+    residual_px[0] = px[0] - T(observed_px_.x());
+    residual_px[1] = px[1] - T(observed_px_.y());
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Eigen::Vector2d& observed_px, const Eigen::Vector3d& corner_in_target_mm) {
+    return new ceres::AutoDiffCostFunction<ReprojectionCost, 2, kNumIntrinsics, kNumDistortion, kNumCentre, kNumPose>(
+        new ReprojectionCost(observed_px, corner_in_target_mm));
+  }
+
+ private:
+  Eigen::Vector2d observed_px_;
+  Eigen::Vector3d corner_in_target_mm_;
+};
+
+}  // namespace topocal::calib
