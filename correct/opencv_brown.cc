@@ -1,0 +1,36 @@
+#include "correct/opencv_brown.h"
+
+#include <cmath>
+
+#include <fmt/format.h>
+
+namespace topocal::correct {
+
+std::optional<BrownOnDetectionPlane> BrownFromOpenCv(const OpenCvCamera& k, const model::TopographerCamera& camera,
+                                                     std::string* why) {
+  const auto fail = [why](std::string m) -> std::optional<BrownOnDetectionPlane> {
+    if (why) *why = std::move(m);
+    return std::nullopt;
+  };
+  if (!(k.fx_px > 0) || !(k.fy_px > 0) || !std::isfinite(k.fx_px) || !std::isfinite(k.fy_px)) {
+    return fail(fmt::format("focal lengths must be > 0 (fx = {}, fy = {})", k.fx_px, k.fy_px));
+  }
+  if (!std::isfinite(k.cx_px) || !std::isfinite(k.cy_px)) return fail("principal point must be finite");
+  if (k.dist.size() != 4 && k.dist.size() != 5) {
+    return fail(fmt::format("{} distortion coefficients: topocal's Brown model takes 4 or 5 (k1, k2, p1, p2[, k3])",
+                            k.dist.size()));
+  }
+  for (const double d : k.dist) {
+    if (!std::isfinite(d)) return fail("distortion coefficients must be finite");
+  }
+  BrownOnDetectionPlane out;
+  const double s = camera.Sign(), p = camera.PitchMm();
+  out.brown.focal_mm = std::sqrt(k.fx_px * k.fy_px) * p;
+  out.brown.centre_x_mm = s * p * (k.cx_px - camera.principal_point_px.x());
+  out.brown.centre_y_mm = s * p * (k.cy_px - camera.principal_point_px.y());
+  out.brown.k = {k.dist[0], k.dist[1], s * k.dist[2], s * k.dist[3], k.dist.size() == 5 ? k.dist[4] : 0.0};
+  out.aspect_error = std::abs(k.fx_px / k.fy_px - 1.0);
+  return out;
+}
+
+}  // namespace topocal::correct

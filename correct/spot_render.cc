@@ -1,0 +1,159 @@
+#include "correct/spot_render.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include <Eigen/LU>
+#include <fmt/format.h>
+
+namespace topocal::correct {
+namespace {
+
+double Phi(double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); }
+
+// Adds one spot's noiseless signal to the float image `acc` (signal above background, DN).
+void AddPsfSpot(const SpotToRender& s, double sigma, double peak, cv::Mat* acc) {
+  const int half = static_cast<int>(std::ceil(5.0 * sigma)) + 1;
+  const int u0 = std::max(0, static_cast<int>(std::floor(s.centre_px.x())) - half);
+  const int u1 = std::min(acc->cols - 1, static_cast<int>(std::ceil(s.centre_px.x())) + half);
+  const int v0 = std::max(0, static_cast<int>(std::floor(s.centre_px.y())) - half);
+  const int v1 = std::min(acc->rows - 1, static_cast<int>(std::ceil(s.centre_px.y())) + half);
+  if (u0 > u1 || v0 > v1) return;
+  // Pixel-area integral of a Gaussian with peak value `peak`: peak * 2 pi sigma^2 * (dPhi_x)(dPhi_y).
+  const double norm = peak * 2.0 * M_PI * sigma * sigma;
+  std::vector<double> wx(u1 - u0 + 1), wy(v1 - v0 + 1);
+  for (int u = u0; u <= u1; ++u) {
+    wx[u - u0] = Phi((u + 0.5 - s.centre_px.x()) / sigma) - Phi((u - 0.5 - s.centre_px.x()) / sigma);
+  }
+  for (int v = v0; v <= v1; ++v) {
+    wy[v - v0] = Phi((v + 0.5 - s.centre_px.y()) / sigma) - Phi((v - 0.5 - s.centre_px.y()) / sigma);
+  }
+  for (int v = v0; v <= v1; ++v) {
+    float* row = acc->ptr<float>(v);
+    for (int u = u0; u <= u1; ++u) row[u] += static_cast<float>(norm * wx[u - u0] * wy[v - v0]);
+  }
+}
+
+void AddEllipseSpot(const SpotToRender& s, double sigma, double peak, cv::Mat* acc) {
+  const Eigen::Matrix2d inv = s.shape_px.inverse();
+  const double extent = s.shape_px.norm() + 5.0 * sigma + 1.0;  // Frobenius norm bounds the largest semi-axis
+  const int u0 = std::max(0, static_cast<int>(std::floor(s.centre_px.x() - extent)));
+  const int u1 = std::min(acc->cols - 1, static_cast<int>(std::ceil(s.centre_px.x() + extent)));
+  const int v0 = std::max(0, static_cast<int>(std::floor(s.centre_px.y() - extent)));
+  const int v1 = std::min(acc->rows - 1, static_cast<int>(std::ceil(s.centre_px.y() + extent)));
+  // Symmetric 3x3 sub-pixel grid: its centroid is the pixel centre, so sampling adds no systematic shift.
+  constexpr double kSub[3] = {-1.0 / 3.0, 0.0, 1.0 / 3.0};
+  for (int v = v0; v <= v1; ++v) {
+    float* row = acc->ptr<float>(v);
+    for (int u = u0; u <= u1; ++u) {
+      double sum = 0;
+      for (const double dv : kSub) {
+        for (const double du : kSub) {
+          const Eigen::Vector2d d(u + du - s.centre_px.x(), v + dv - s.centre_px.y());
+          const double dist = d.norm();
+          const double t = (inv * d).norm();  // 1 on the ellipse's edge
+          // Radius of the ellipse in this direction: dist / t; signed distance inside the edge: dist / t - dist.
+          const double inside = t > 1e-12 ? dist / t - dist : extent;
+          sum += sigma > 0 ? Phi(inside / sigma) : (inside >= 0 ? 1.0 : 0.0);
+        }
+      }
+      row[u] += static_cast<float>(peak * sum / 9.0);
+    }
+  }
+}
+
+}  // namespace
+
+bool SpotRenderOptions::IsValid(std::string* why) const {
+  const auto fail = [why](std::string m) {
+    if (why) *why = std::move(m);
+    return false;
+  };
+  if (bits != 8 && bits != 16) return fail(fmt::format("bits must be 8 or 16 (got {})", bits));
+  if (!(psf_sigma_px > 0) && shape == SpotShape::kPsf) return fail("psf_sigma_px must be > 0 for PSF spots");
+  if (!(psf_sigma_px >= 0)) return fail("psf_sigma_px must be >= 0");
+  const double full = bits == 8 ? 255.0 : 65535.0;
+  if (!(background_dn >= 0) || !(peak_dn > 0) || background_dn + peak_dn > full) {
+    return fail(fmt::format("background ({}) + peak ({}) must be within 0..{} DN", background_dn, peak_dn, full));
+  }
+  if (!(read_noise_dn >= 0) || !(gain_e_per_dn >= 0)) return fail("noise and gain must be >= 0");
+  return true;
+}
+
+cv::Mat RenderSpotImage(const std::vector<SpotToRender>& spots, int width_px, int height_px,
+                        const SpotRenderOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw std::invalid_argument("RenderSpotImage: " + why);
+  cv::Mat acc(height_px, width_px, CV_32FC1, cv::Scalar(0));
+  for (const auto& s : spots) {
+    const double sigma = s.psf_sigma_px > 0 ? s.psf_sigma_px : options.psf_sigma_px;
+    const double peak = options.peak_dn * s.relative_brightness;
+    if (options.shape == SpotShape::kPsf || s.id.ring == 0) {
+      AddPsfSpot(s, sigma, peak, &acc);
+    } else {
+      AddEllipseSpot(s, sigma, peak, &acc);
+    }
+  }
+  std::mt19937 rng(options.seed);
+  std::normal_distribution<float> normal(0.f, 1.f);
+  const double full = options.bits == 8 ? 255.0 : 65535.0;
+  cv::Mat out(height_px, width_px, options.bits == 8 ? CV_8UC1 : CV_16UC1);
+  for (int v = 0; v < height_px; ++v) {
+    const float* a = acc.ptr<float>(v);
+    for (int u = 0; u < width_px; ++u) {
+      const double signal = std::min(a[u], static_cast<float>(full));
+      double var = options.read_noise_dn * options.read_noise_dn;
+      if (options.gain_e_per_dn > 0) var += signal / options.gain_e_per_dn;
+      double value = options.background_dn + signal;
+      if (var > 0) value += std::sqrt(var) * normal(rng);
+      value = std::clamp(std::round(value), 0.0, full);
+      if (options.bits == 8) {
+        out.ptr<uint8_t>(v)[u] = static_cast<uint8_t>(value);
+      } else {
+        out.ptr<uint16_t>(v)[u] = static_cast<uint16_t>(value);
+      }
+    }
+  }
+  return out;
+}
+
+std::vector<SpotToRender> DropAndAddGlints(const std::vector<SpotToRender>& spots, double drop_fraction,
+                                           int glint_count, double min_glint_distance_px, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::vector<SpotToRender> out = spots;
+  const int drop = static_cast<int>(std::round(std::clamp(drop_fraction, 0.0, 1.0) * spots.size()));
+  std::shuffle(out.begin(), out.end(), rng);
+  out.resize(out.size() - drop);
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.id < b.id; });
+  if (spots.empty() || glint_count <= 0) return out;
+  Eigen::Vector2d lo = spots[0].centre_px, hi = lo;
+  for (const auto& s : spots) {
+    lo = lo.cwiseMin(s.centre_px);
+    hi = hi.cwiseMax(s.centre_px);
+  }
+  const Eigen::Vector2d grow = 0.2 * (hi - lo);
+  std::uniform_real_distribution<double> ux(lo.x() - grow.x(), hi.x() + grow.x());
+  std::uniform_real_distribution<double> uy(lo.y() - grow.y(), hi.y() + grow.y());
+  std::uniform_real_distribution<double> size(1.0, 3.0), bright(0.5, 1.5);
+  const double min2 = min_glint_distance_px * min_glint_distance_px;
+  int placed = 0;
+  for (int attempt = 0; attempt < 100000 && placed < glint_count; ++attempt) {
+    const Eigen::Vector2d p(ux(rng), uy(rng));
+    // Clear of every spot, dropped ones included (a glint exactly where a spot is missing would be that spot to
+    // any detector), and of the glints already placed.
+    bool clear = true;
+    for (const auto& s : spots) clear = clear && (s.centre_px - p).squaredNorm() >= min2;
+    for (const auto& s : out) clear = clear && (s.centre_px - p).squaredNorm() >= min2;
+    if (!clear) continue;
+    SpotToRender g;
+    g.id = {0, placed++};
+    g.centre_px = p;
+    g.psf_sigma_px = size(rng);
+    g.relative_brightness = bright(rng);
+    out.push_back(g);
+  }
+  return out;
+}
+
+}  // namespace topocal::correct

@@ -1,0 +1,75 @@
+#include "correct/spot_truth.h"
+
+#include <optional>
+
+namespace topocal::correct {
+namespace {
+
+// The null-screen target of an arbitrary ideal-image point: the backward trace of model::DesignNullScreen
+// (pinhole -> reference sphere -> reflection -> cone) for one point.
+std::optional<model::TargetPoint> TargetOf(const model::Topographer& topo, const Eigen::Vector2d& ideal_mm) {
+  const model::Sphere sphere{topo.p.re_mm, 0.0};
+  const Eigen::Vector3d inc = topo.IncidentDirection(ideal_mm);
+  const auto p2 = topo.HitReferenceSphere(inc);
+  if (!p2) return std::nullopt;
+  double z = 0, zx = 0, zy = 0;
+  if (!sphere.SagAndGradient(p2->x(), p2->y(), &z, &zx, &zy)) return std::nullopt;
+  const Eigen::Vector3d n = model::SurfaceNormal(zx, zy);
+  const Eigen::Vector3d refl = inc - 2.0 * inc.dot(n) * n;
+  const auto p3 = topo.HitCone(*p2, refl);
+  if (!p3) return std::nullopt;
+  return model::TargetPoint{{}, ideal_mm, *p2, *p3};
+}
+
+}  // namespace
+
+SpotTruth SpotsOnSensor(const model::Surface& cornea, const model::IdealImageParams& ideal,
+                        const model::TopographerParams& topographer, const model::Distortion& distortion,
+                        const model::TopographerCamera& camera) {
+  const model::Topographer topo{topographer};
+  const auto design = model::DesignNullScreen(ideal, topographer);
+  const auto image = model::SynthesizeImage(cornea, topo, design.targets);
+  SpotTruth out;
+  out.failures = design.failures;
+  out.failures.insert(out.failures.end(), image.failures.begin(), image.failures.end());
+  const double radius_mm = ideal.spot_radius_um * 1e-3;
+  // Sensor pixel of an ideal-image point, through cornea and distortion; nullopt if any step fails.
+  const auto to_px = [&](const Eigen::Vector2d& ideal_mm, const Eigen::Vector2d& surface_guess) -> std::optional<Eigen::Vector2d> {
+    const auto t = TargetOf(topo, ideal_mm);
+    if (!t) return std::nullopt;
+    const auto p2 = model::SolveReflectionPoint(cornea, topo, t->on_cone_mm, surface_guess);
+    if (!p2) return std::nullopt;
+    const Eigen::Vector2d undistorted = topo.ImagePoint((*p2 - topo.Pinhole()).normalized());
+    return camera.PixelFromDetectionPlane(model::Distort(distortion, undistorted));
+  };
+  std::vector<Eigen::Vector2d> ideal_of(image.spots.size());
+  for (const auto& t : design.targets) {
+    for (size_t k = 0; k < image.spots.size(); ++k) {
+      if (image.spots[k].id == t.id) ideal_of[k] = t.ideal_mm;
+    }
+  }
+  for (size_t k = 0; k < image.spots.size(); ++k) {
+    const auto& s = image.spots[k];
+    const Eigen::Vector2d d_mm = model::Distort(distortion, s.position_mm);
+    SpotToRender r;
+    r.id = s.id;
+    r.centre_px = camera.PixelFromDetectionPlane(d_mm);
+    const Eigen::Vector2d guess = s.on_surface_mm.head<2>();
+    const auto xp = to_px(ideal_of[k] + Eigen::Vector2d(radius_mm, 0), guess);
+    const auto xm = to_px(ideal_of[k] - Eigen::Vector2d(radius_mm, 0), guess);
+    const auto yp = to_px(ideal_of[k] + Eigen::Vector2d(0, radius_mm), guess);
+    const auto ym = to_px(ideal_of[k] - Eigen::Vector2d(0, radius_mm), guess);
+    if (xp && xm && yp && ym) {
+      // Central differences over +-radius: J * radius directly.
+      r.shape_px.col(0) = (*xp - *xm) / 2.0;
+      r.shape_px.col(1) = (*yp - *ym) / 2.0;
+    } else {
+      r.shape_px = Eigen::Matrix2d::Identity() * (radius_mm / camera.PitchMm());
+    }
+    out.spots.push_back(r);
+    out.position_mm.push_back(d_mm);
+  }
+  return out;
+}
+
+}  // namespace topocal::correct

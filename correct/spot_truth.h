@@ -1,0 +1,34 @@
+#pragma once
+// Where each spot of a measurement lands on the sensor, with the shape of its image: the ground truth for
+// rendering (correct/spot_render.h) and for testing detection and indexing.
+//
+// Centre: the designed target of the spot (model::DesignNullScreen), reflected by the cornea (model::SynthesizeImage),
+// distorted (model::Distort), mapped to pixels by the camera.
+// Shape: the spot on the null screen is the back-trace of the ideal-image circle of radius spot_radius_um about the
+// ideal point P1. Its image is taken as that circle mapped through the local Jacobian J of the whole imaging
+// P1 -> (backward trace to the cone) -> (reflection on the cornea) -> distortion -> pixels, J by central
+// differences over the circle's own radius (four traced points). shape_px = J * radius: the spot is
+// shape_px * unit disk about the centre. Spots whose neighbourhood cannot be traced keep a circular shape of the
+// nominal radius scaled by the local ring spacing (never happens on the paper's corneas).
+#include <vector>
+
+#include "correct/spot_render.h"
+#include "model/config.h"
+#include "model/distortion.h"
+#include "model/null_screen.h"
+#include "model/surface.h"
+#include "model/topographer_camera.h"
+
+namespace topocal::correct {
+
+struct SpotTruth {
+  std::vector<SpotToRender> spots;          // centre_px and shape_px filled; sorted by id
+  std::vector<Eigen::Vector2d> position_mm;  // distorted detection-plane mm, same order
+  std::vector<model::SpotFailure> failures;  // designed spots the cornea does not image
+};
+
+SpotTruth SpotsOnSensor(const model::Surface& cornea, const model::IdealImageParams& ideal,
+                        const model::TopographerParams& topographer, const model::Distortion& distortion,
+                        const model::TopographerCamera& camera);
+
+}  // namespace topocal::correct

@@ -1,0 +1,143 @@
+#include "correct/undistort_map.h"
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include <opencv2/imgproc.hpp>
+
+namespace topocal::correct {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// First zero of the radial derivative g(s), s = r^2 in [0, s_max], by a scan fine enough not to step over a root
+// of a cubic in s (1000 steps) and bisection to machine precision. +inf if g stays positive.
+template <typename G>
+double FirstRootOfDerivative(const G& g, double s_max) {
+  constexpr int kSteps = 1000;
+  double s_prev = 0.0;
+  for (int i = 1; i <= kSteps; ++i) {
+    const double s = s_max * i / kSteps;
+    if (g(s) <= 0.0) {
+      double lo = s_prev, hi = s;
+      for (int it = 0; it < 100 && hi - lo > 1e-15 * s_max; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (g(mid) > 0.0 ? lo : hi) = mid;
+      }
+      return lo;
+    }
+    s_prev = s;
+  }
+  return kInf;
+}
+
+Eigen::Vector2d CentreMm(const model::Distortion& d) {
+  if (const auto* s = std::get_if<model::SeidelParams>(&d)) return {s->centre_x_mm, s->centre_y_mm};
+  const auto& b = std::get<model::BrownParams>(d);
+  return {b.centre_x_mm, b.centre_y_mm};
+}
+
+// Fills rows [r0, r1) of the map with `distort` (mm -> mm), marking radii >= fold_radius_mm invalid.
+template <typename Distort>
+void FillRows(const Distort& distort, const model::TopographerCamera& camera, const Eigen::Vector2d& centre_mm,
+              double fold_radius_mm, int r0, int r1, cv::Mat* map_x, cv::Mat* map_y) {
+  const double s_mm = camera.Sign() * camera.PitchMm();  // mm per pixel, with orientation
+  const double inv = 1.0 / s_mm;
+  const double cu = camera.principal_point_px.x(), cv_ = camera.principal_point_px.y();
+  const double fold2 = fold_radius_mm * fold_radius_mm;
+  for (int v = r0; v < r1; ++v) {
+    float* mx = map_x->ptr<float>(v);
+    float* my = map_y->ptr<float>(v);
+    const double y = s_mm * (v - cv_);
+    const double dy = y - centre_mm.y();
+    for (int u = 0; u < camera.width_px; ++u) {
+      const double x = s_mm * (u - cu);
+      const double dx = x - centre_mm.x();
+      if (dx * dx + dy * dy >= fold2) {
+        mx[u] = -1.f;
+        my[u] = -1.f;
+        continue;
+      }
+      double out_x, out_y;
+      distort(x, y, &out_x, &out_y);
+      mx[u] = static_cast<float>(cu + inv * out_x);
+      my[u] = static_cast<float>(cv_ + inv * out_y);
+    }
+  }
+}
+
+}  // namespace
+
+double FoldRadiusMm(const model::Distortion& distortion, double max_radius_mm) {
+  if (const auto* s = std::get_if<model::SeidelParams>(&distortion)) {
+    // r_d = r (1 + c r^2): d r_d / d r = 1 + 3 c r^2 vanishes at r^2 = -1 / (3 c) for barrel (c < 0).
+    const double c = s->sigma_per_mm2 / std::pow(s->magnification, 3);
+    if (c >= 0) return kInf;
+    const double r = std::sqrt(-1.0 / (3.0 * c));
+    return r < max_radius_mm ? r : kInf;
+  }
+  const auto& b = std::get<model::BrownParams>(distortion);
+  // r_d = r (1 + k1 s + k2 s^2 + k3 s^3), s = r^2 (normalised): d r_d / d r = 1 + 3 k1 s + 5 k2 s^2 + 7 k3 s^3.
+  const double k1 = b.k[0], k2 = b.k[1], k3 = b.k[4];
+  const auto g = [&](double s) { return 1.0 + s * (3.0 * k1 + s * (5.0 * k2 + s * 7.0 * k3)); };
+  const double s_max = std::pow(max_radius_mm / b.focal_mm, 2);
+  const double s_fold = FirstRootOfDerivative(g, s_max);
+  return std::isfinite(s_fold) ? b.focal_mm * std::sqrt(s_fold) : kInf;
+}
+
+UndistortMap BuildUndistortMap(const model::Distortion& distortion, const model::TopographerCamera& camera) {
+  UndistortMap out;
+  out.map_x.create(camera.height_px, camera.width_px, CV_32FC1);
+  out.map_y.create(camera.height_px, camera.width_px, CV_32FC1);
+  const Eigen::Vector2d centre = CentreMm(distortion);
+  // Largest radius about the distortion centre that the sensor reaches: the farthest corner.
+  double max_r = 0;
+  for (const double u : {-0.5, camera.width_px - 0.5}) {
+    for (const double v : {-0.5, camera.height_px - 0.5}) {
+      max_r = std::max(max_r, (camera.DetectionPlaneFromPixel({u, v}) - centre).norm());
+    }
+  }
+  out.fold_radius_mm = FoldRadiusMm(distortion, max_r * 1.001);
+  const double fold = out.fold_radius_mm;
+  cv::Mat* mx = &out.map_x;
+  cv::Mat* my = &out.map_y;
+  // The model is chosen once, outside the pixel loop: the per-pixel kernel is a few multiply-adds.
+  if (const auto* s = std::get_if<model::SeidelParams>(&distortion)) {
+    const double c = s->sigma_per_mm2 / std::pow(s->magnification, 3);
+    const auto kernel = [c, centre](double x, double y, double* ox, double* oy) {
+      const double dx = x - centre.x(), dy = y - centre.y();
+      const double f = 1.0 + c * (dx * dx + dy * dy);
+      *ox = centre.x() + f * dx;
+      *oy = centre.y() + f * dy;
+    };
+    cv::parallel_for_(cv::Range(0, camera.height_px), [&](const cv::Range& r) {
+      FillRows(kernel, camera, centre, fold, r.start, r.end, mx, my);
+    });
+  } else {
+    const auto b = std::get<model::BrownParams>(distortion);
+    const auto kernel = [b](double x, double y, double* ox, double* oy) {
+      const double xn[2] = {(x - b.centre_x_mm) / b.focal_mm, (y - b.centre_y_mm) / b.focal_mm};
+      double xd[2];
+      model::BrownConrady::DistortNormalized(b.k.data(), xn, xd);
+      *ox = b.centre_x_mm + b.focal_mm * xd[0];
+      *oy = b.centre_y_mm + b.focal_mm * xd[1];
+    };
+    cv::parallel_for_(cv::Range(0, camera.height_px), [&](const cv::Range& r) {
+      FillRows(kernel, camera, centre, fold, r.start, r.end, mx, my);
+    });
+  }
+  if (std::isfinite(fold)) out.invalid_px = cv::countNonZero(out.map_x == -1.f);
+  return out;
+}
+
+cv::Mat UndistortImage(const cv::Mat& distorted, const UndistortMap& map, int interpolation, double border_value) {
+  if (distorted.size() != map.map_x.size()) {
+    throw std::invalid_argument("UndistortImage: image size differs from the camera's sensor size");
+  }
+  cv::Mat out;
+  cv::remap(distorted, out, map.map_x, map.map_y, interpolation, cv::BORDER_CONSTANT, cv::Scalar::all(border_value));
+  return out;
+}
+
+}  // namespace topocal::correct

@@ -1,0 +1,80 @@
+// Spot indexing: 100 % correct identities on every sigma of the paper's Table IV and on corneas beyond the paper's,
+// with 10 % of the spots missing and spurious glints.
+#include "correct/spot_index.h"
+
+#include <map>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include "synthetic.h"
+
+namespace topocal::correct {
+namespace {
+
+constexpr double kDropFraction = 0.10;  // issue 6: up to 10 % missing spots
+constexpr int kGlints = 6;              // "a few" spurious blobs
+// Glints closer than a spot's radius plus a blur margin would merge with it into one blob (see DropAndAddGlints).
+constexpr double kGlintClearancePx = 12.0;
+
+struct Case {
+  std::string name;
+  model::BiconicParams cornea;
+  double sigma;
+};
+
+std::vector<Case> Cases() {
+  const auto cfg = testing::PaperConfig();
+  std::vector<Case> cases;
+  for (const double s : cfg.distortion.sigmas_per_mm2) cases.push_back({fmt::format("paper sigma {}", s), cfg.cornea, s});
+  model::BiconicParams a{7.2, 7.9, 0.3, -0.6, 123.0};
+  model::BiconicParams sphere{7.0, 7.0, 0.0, 0.0, 0.0};
+  model::BiconicParams b{8.0, 7.4, -0.2, -0.2, 95.0};
+  model::BiconicParams steep{6.5, 7.1, -0.5, 0.2, 250.0};
+  for (const double s : {-2e-4, 0.0, 2e-4}) {
+    cases.push_back({fmt::format("rx7.2 ry7.9 k0.3/-0.6 a123 sigma {}", s), a, s});
+    cases.push_back({fmt::format("sphere r7.0 sigma {}", s), sphere, s});
+    cases.push_back({fmt::format("rx8.0 ry7.4 a95 sigma {}", s), b, s});
+    cases.push_back({fmt::format("rx6.5 ry7.1 a250 sigma {}", s), steep, s});
+  }
+  return cases;
+}
+
+TEST(SpotIndex, AllCorrectWithDropsAndGlints) {
+  const auto cfg = testing::PaperConfig();
+  const auto camera = testing::DefaultCamera();
+  uint32_t seed = 1;
+  for (const auto& c : Cases()) {
+    SCOPED_TRACE(c.name);
+    const auto truth = testing::Truth(cfg, c.cornea, c.sigma, camera);
+    ASSERT_GT(truth.spots.size(), 500u);
+    const auto perturbed = DropAndAddGlints(truth.spots, kDropFraction, kGlints, kGlintClearancePx, seed++);
+    std::vector<Eigen::Vector2d> mm;
+    for (const auto& s : perturbed) mm.push_back(camera.DetectionPlaneFromPixel(s.centre_px));
+    const auto idx = IndexSpots(mm, cfg.ideal_image);
+    ASSERT_TRUE(idx.ok) << idx.message;
+    int wrong = 0, glints_assigned = 0;
+    for (const auto& s : idx.spots) {
+      const auto& t = perturbed[s.detection].id;
+      if (t.ring == 0) ++glints_assigned;
+      else if (!(t == s.id)) ++wrong;
+    }
+    int real_unassigned = 0;
+    for (const int i : idx.unassigned_detections) real_unassigned += perturbed[i].id.ring != 0;
+    EXPECT_EQ(wrong, 0);
+    EXPECT_EQ(glints_assigned, 0);
+    EXPECT_EQ(real_unassigned, 0) << idx.message;
+    EXPECT_EQ(idx.spots.size() + idx.missing.size(), static_cast<size_t>(cfg.ideal_image.SpotCount()));
+  }
+}
+
+TEST(SpotIndex, TooFewDetectionsIsReportedNotThrown) {
+  const auto cfg = testing::PaperConfig();
+  const auto idx = IndexSpots({Eigen::Vector2d(0.1, 0.1)}, cfg.ideal_image);
+  EXPECT_FALSE(idx.ok);
+  EXPECT_EQ(idx.unassigned_detections.size(), 1u);
+  EXPECT_EQ(idx.missing.size(), static_cast<size_t>(cfg.ideal_image.SpotCount()));
+}
+
+}  // namespace
+}  // namespace topocal::correct
