@@ -274,7 +274,7 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
   std::copy(p.dist.begin(), p.dist.end(), cam.dist.begin());
   cam.distortion_centre = {p.centre[0], p.centre[1]};
   for (size_t v = 0; v < views.size(); ++v) {
-    CamFromTarget pose;
+    ViewPose pose;
     pose.angle_axis = {p.poses[v][0], p.poses[v][1], p.poses[v][2]};
     pose.translation_mm = {p.poses[v][3], p.poses[v][4], p.poses[v][5]};
     result.cam_from_target.push_back(pose);
@@ -316,7 +316,7 @@ std::string CheckTargetLayout(const ViewObservations& view) {
   return {};
 }
 
-std::array<double, kNumPose> ToArray(const CamFromTarget& pose) {
+std::array<double, kNumPose> ToArray(const ViewPose& pose) {
   return {pose.angle_axis.x(),     pose.angle_axis.y(),     pose.angle_axis.z(),
           pose.translation_mm.x(), pose.translation_mm.y(), pose.translation_mm.z()};
 }

@@ -142,7 +142,7 @@ struct CalibrationResult {
 
   std::vector<int> views_used;                 // indices into the caller's views
   std::vector<SkippedView> skipped_views;
-  std::vector<CamFromTarget> cam_from_target;  // parallel to views_used
+  std::vector<ViewPose> cam_from_target;  // parallel to views_used
   std::vector<double> per_view_rms_px;         // parallel to views_used, inliers only
   double rms_px = 0;                           // inliers only
   int corners_used = 0;

@@ -42,7 +42,7 @@ std::optional<Eigen::Matrix3d> TargetToImageHomography(const ViewObservations& v
   return out;
 }
 
-CamFromTarget PoseFromHomography(const Eigen::Matrix3d& camera_matrix, const Eigen::Matrix3d& homography) {
+ViewPose PoseFromHomography(const Eigen::Matrix3d& camera_matrix, const Eigen::Matrix3d& homography) {
   const Eigen::Matrix3d m = camera_matrix.inverse() * homography;
   double lambda = 1.0 / m.col(0).norm();
   if (m(2, 2) * lambda < 0) lambda = -lambda;  // the target origin must lie in front of the camera
@@ -58,7 +58,7 @@ CamFromTarget PoseFromHomography(const Eigen::Matrix3d& camera_matrix, const Eig
     u.col(2) *= -1;
     rot = u * svd.matrixV().transpose();
   }
-  CamFromTarget pose;
+  ViewPose pose;
   pose.angle_axis = RotationToAngleAxis(rot);
   pose.translation_mm = lambda * m.col(2);
   return pose;

@@ -25,15 +25,16 @@
 
 namespace topocal::calib {
 
-// Rigid transform target -> camera: angle-axis rotation (rad) and translation (mm).
-struct CamFromTarget {
+// Rigid transform target -> camera (cam_from_target): angle-axis rotation (rad) and translation (mm), the
+// parameterisation the bundle adjustment uses (calib/render_target.h has the rotation-matrix form for rendering).
+struct ViewPose {
   Eigen::Vector3d angle_axis = Eigen::Vector3d::Zero();
   Eigen::Vector3d translation_mm = Eigen::Vector3d::Zero();
 };
 
 struct ZhangInitialisation {
   double fx_px = 0, fy_px = 0, cx_px = 0, cy_px = 0;
-  std::vector<CamFromTarget> cam_from_target;  // one per input view
+  std::vector<ViewPose> cam_from_target;  // one per input view
   // Singular values of the normalised constraint matrix, largest first: the 5th over the 1st is the conditioning of
   // the intrinsics (near zero = degenerate view set).
   double constraint_conditioning = 0;
@@ -50,7 +51,7 @@ inline constexpr double kMinConstraintConditioning = 1e-4;
 std::optional<Eigen::Matrix3d> TargetToImageHomography(const ViewObservations& view);
 
 // The pose of the target given K and its homography (Zhang Sec. 3.1), target in front of the camera.
-CamFromTarget PoseFromHomography(const Eigen::Matrix3d& camera_matrix, const Eigen::Matrix3d& homography);
+ViewPose PoseFromHomography(const Eigen::Matrix3d& camera_matrix, const Eigen::Matrix3d& homography);
 
 // Zhang's closed form over all views (each with >= 4 non-collinear corners and the same image size). nullopt with
 // the reason in *why when a homography fails, the views are degenerate or B is not positive definite.

@@ -243,7 +243,7 @@ struct Topographer {
   }
   static constexpr GridTarget kGrid{13, 13, 1.0};
   // Placed by hand: 1.5 deg tilt, 0.3 mm off axis, 0.8 mm beyond the nominal distance.
-  static CamFromTarget Pose() { return MakePose(1.5, -1.0, 2.0, {0.3, -0.2, kDistanceMm + 0.8}, kGrid); }
+  static ViewPose Pose() { return MakePose(1.5, -1.0, 2.0, {0.3, -0.2, kDistanceMm + 0.8}, kGrid); }
   static ViewObservations View(const CameraModel& cam, double noise_px, std::mt19937& rng) {
     return ProjectGrid(cam, Pose(), kGrid, noise_px, rng);
   }

@@ -17,7 +17,7 @@ struct GridTarget {
   double spacing_mm = 30.0;
 };
 
-inline CamFromTarget MakePose(double rx_deg, double ry_deg, double rz_deg, const Eigen::Vector3d& centre_in_cam_mm,
+inline ViewPose MakePose(double rx_deg, double ry_deg, double rz_deg, const Eigen::Vector3d& centre_in_cam_mm,
                               const GridTarget& grid) {
   constexpr double kDeg = M_PI / 180.0;
   const Eigen::Matrix3d r = (Eigen::AngleAxisd(rz_deg * kDeg, Eigen::Vector3d::UnitZ()) *
@@ -27,14 +27,14 @@ inline CamFromTarget MakePose(double rx_deg, double ry_deg, double rz_deg, const
   const Eigen::Vector3d grid_centre(0.5 * (grid.cols - 1) * grid.spacing_mm, 0.5 * (grid.rows - 1) * grid.spacing_mm,
                                     0);
   const Eigen::AngleAxisd aa(r);
-  CamFromTarget pose;
+  ViewPose pose;
   pose.angle_axis = aa.angle() * aa.axis();
   pose.translation_mm = centre_in_cam_mm - r * grid_centre;
   return pose;
 }
 
 // Projects every grid corner; corners outside the image are left out. noise_px: per-axis Gaussian sigma.
-inline ViewObservations ProjectGrid(const CameraModel& camera, const CamFromTarget& pose, const GridTarget& grid,
+inline ViewObservations ProjectGrid(const CameraModel& camera, const ViewPose& pose, const GridTarget& grid,
                                     double noise_px, std::mt19937& rng) {
   ViewObservations view;
   view.image_width = camera.width_px;
@@ -74,7 +74,7 @@ inline CameraModel ReferenceCamera() {
   return cam;
 }
 
-inline std::vector<CamFromTarget> ReferencePoses(const GridTarget& grid) {
+inline std::vector<ViewPose> ReferencePoses(const GridTarget& grid) {
   return {MakePose(20, 0, 0, {0, 0, 450}, grid),     MakePose(-20, 5, 3, {10, 0, 470}, grid),
           MakePose(0, 25, -4, {-20, 10, 460}, grid), MakePose(5, -25, 8, {15, -10, 440}, grid),
           MakePose(15, 15, 0, {0, 5, 500}, grid),    MakePose(-15, -15, -10, {-10, 0, 420}, grid),
