@@ -1,0 +1,295 @@
+#include "calib/calibration_file.h"
+
+#include <cmath>
+#include <ctime>
+#include <filesystem>
+#include <stdexcept>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include "calib/opencv_equivalent.h"
+#include "model/io.h"
+#include "model/version.h"
+
+namespace topocal::calib {
+namespace {
+
+std::string NowUtc() {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+cv::Mat CameraMatrix(const CameraModel& c) {
+  return (cv::Mat_<double>(3, 3) << c.fx_px, 0, c.cx_px, 0, c.fy_px, c.cy_px, 0, 0, 1);
+}
+cv::Mat DistortionRow(const CameraModel& c) {
+  return (cv::Mat_<double>(1, 5) << c.dist[0], c.dist[1], c.dist[2], c.dist[3], c.dist[4]);
+}
+
+std::optional<double> SingleViewDistance(const CalibrationResult& r) {
+  if (!r.single_view || r.cam_from_target.empty()) return std::nullopt;
+  return r.cam_from_target.front().translation_mm.z();
+}
+
+// ---- strict reading ----------------------------------------------------------------------------------------------
+
+[[noreturn]] void Bad(const std::string& path, const std::string& key, const std::string& problem) {
+  throw model::InputError(fmt::format("{}: {}: {}", path, key, problem));
+}
+
+cv::Mat ReadMatrix(const cv::FileStorage& fs, const std::string& path, const std::string& key, int rows, int cols,
+                   bool required) {
+  const cv::FileNode node = fs[key];
+  if (node.empty()) {
+    if (required) Bad(path, key, "missing");
+    return {};
+  }
+  cv::Mat m;
+  try {
+    node >> m;
+  } catch (const cv::Exception&) {
+    Bad(path, key, "not an OpenCV matrix");
+  }
+  if (m.empty()) Bad(path, key, "not an OpenCV matrix");
+  // Distortion vectors are accepted as a row or a column, as cv::undistort does.
+  const bool vector_ok = (rows == 1 || cols == 1) && static_cast<int>(m.total()) == rows * cols && m.channels() == 1;
+  if (!(m.rows == rows && m.cols == cols) && !vector_ok) {
+    Bad(path, key, fmt::format("expected {}x{}, found {}x{}", rows, cols, m.rows, m.cols));
+  }
+  m.convertTo(m, CV_64F);
+  for (int i = 0; i < static_cast<int>(m.total()); ++i) {
+    if (!std::isfinite(m.at<double>(i))) Bad(path, key, "non-finite value");
+  }
+  return m.reshape(1, rows);
+}
+
+int ReadPositiveInt(const cv::FileStorage& fs, const std::string& path, const std::string& key) {
+  const cv::FileNode node = fs[key];
+  if (node.empty()) Bad(path, key, "missing");
+  if (!node.isInt()) Bad(path, key, "not an integer");
+  const int v = static_cast<int>(node);
+  if (v <= 0) Bad(path, key, "must be > 0");
+  return v;
+}
+
+std::optional<double> ReadOptionalReal(const cv::FileStorage& fs, const std::string& path, const std::string& key) {
+  const cv::FileNode node = fs[key];
+  if (node.empty()) return std::nullopt;
+  if (!node.isReal() && !node.isInt()) Bad(path, key, "not a number");
+  const double v = static_cast<double>(node);
+  if (!std::isfinite(v)) Bad(path, key, "non-finite value");
+  return v;
+}
+
+std::string ReadOptionalString(const cv::FileStorage& fs, const std::string& path, const std::string& key) {
+  const cv::FileNode node = fs[key];
+  if (node.empty()) return {};
+  if (!node.isString()) Bad(path, key, "not a string");
+  return static_cast<std::string>(node);
+}
+
+void SetIntrinsics(const cv::Mat& k, const std::string& path, const std::string& key, CameraModel& cam) {
+  if (k.at<double>(0, 1) != 0 || k.at<double>(1, 0) != 0 || k.at<double>(2, 0) != 0 || k.at<double>(2, 1) != 0 ||
+      k.at<double>(2, 2) != 1) {
+    Bad(path, key, "not a pinhole camera matrix [fx 0 cx; 0 fy cy; 0 0 1]");
+  }
+  if (!(k.at<double>(0, 0) > 0 && k.at<double>(1, 1) > 0)) Bad(path, key, "focal lengths must be > 0");
+  cam.fx_px = k.at<double>(0, 0);
+  cam.fy_px = k.at<double>(1, 1);
+  cam.cx_px = k.at<double>(0, 2);
+  cam.cy_px = k.at<double>(1, 2);
+}
+
+void SetDistortion(const cv::Mat& d, CameraModel& cam) {
+  for (int i = 0; i < 5; ++i) cam.dist[static_cast<size_t>(i)] = d.at<double>(i);
+}
+
+}  // namespace
+
+std::string CalibrationFileText(const CalibrationResult& result, const CalibrationProvenance& provenance) {
+  if (!result.ok()) throw std::invalid_argument("calibration file requested for a failed calibration");
+  const auto equivalent = ToOpenCvModel(result.camera);
+  if (!equivalent) {
+    throw std::runtime_error("the calibrated camera has no OpenCV equivalent over the image (distortion not "
+                             "invertible at the image border)");
+  }
+  cv::FileStorage fs(".yml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
+  fs << "calibration_tool" << "topocal";
+  fs << "tool_version" << topocal::kVersion;
+  fs << "calibration_date" << (provenance.date_utc.empty() ? NowUtc() : provenance.date_utc);
+  fs << "model" << std::string(ToString(result.model));
+  fs << "single_view" << (result.single_view ? 1 : 0);
+  fs << "image_width" << result.camera.width_px;
+  fs << "image_height" << result.camera.height_px;
+  fs << "camera_matrix" << CameraMatrix(equivalent->camera);
+  fs << "distortion_coefficients" << DistortionRow(equivalent->camera);
+  fs << "distortion_centre"
+     << (cv::Mat_<double>(1, 2) << result.camera.distortion_centre.x(), result.camera.distortion_centre.y());
+  if (!result.camera.distortion_centre.isZero(0)) {
+    fs << "topocal_camera_matrix" << CameraMatrix(result.camera);
+    fs << "topocal_distortion_coefficients" << DistortionRow(result.camera);
+    fs << "opencv_equivalent_max_error_px" << equivalent->max_error_px;
+  }
+  fs << "parameter_names" << "[";
+  for (const auto& p : result.parameters) fs << p.name;
+  fs << "]";
+  cv::Mat values(1, static_cast<int>(result.parameters.size()), CV_64F);
+  cv::Mat stddev(1, static_cast<int>(result.parameters.size()), CV_64F);
+  for (size_t i = 0; i < result.parameters.size(); ++i) {
+    values.at<double>(static_cast<int>(i)) = result.parameters[i].value;
+    stddev.at<double>(static_cast<int>(i)) = result.parameters[i].stddev;
+  }
+  fs << "parameter_values" << values;
+  fs << "parameter_stddev" << stddev;
+  fs << "rms_px" << result.rms_px;
+  fs << "per_view_rms_px" << result.per_view_rms_px;
+  fs << "views_used" << static_cast<int>(result.views_used.size());
+  fs << "images" << "[";
+  for (const int v : result.views_used) {
+    fs << (static_cast<size_t>(v) < provenance.image_paths.size() && !provenance.image_paths[static_cast<size_t>(v)].empty()
+               ? provenance.image_paths[static_cast<size_t>(v)]
+               : fmt::format("view {}", v));
+  }
+  fs << "]";
+  fs << "outliers" << static_cast<int>(result.outliers.size());
+  if (result.seidel) {
+    fs << "seidel_sigma_per_mm2" << result.seidel->sigma_per_mm2;
+    fs << "seidel_sigma_stddev_per_mm2" << result.seidel->sigma_stddev_per_mm2;
+    fs << "magnification" << result.seidel->magnification;
+    fs << "focal_mm" << result.seidel->focal_mm;
+    if (result.seidel->pixel_pitch_um > 0) fs << "pixel_pitch_um" << result.seidel->pixel_pitch_um;
+  }
+  if (const auto d = SingleViewDistance(result)) fs << "target_distance_mm" << *d;
+  if (!provenance.target_path.empty()) fs << "target" << provenance.target_path;
+  return fs.releaseAndGetString();
+}
+
+void WriteCalibrationFile(const std::string& path, const CalibrationResult& result,
+                          const CalibrationProvenance& provenance) {
+  model::WriteFileAtomic(path, CalibrationFileText(result, provenance));
+}
+
+CalibrationFile LoadCalibrationFile(const std::string& path) {
+  if (!std::filesystem::is_regular_file(path)) throw model::InputError(fmt::format("{}: cannot be opened", path));
+  cv::FileStorage fs;
+  try {
+    if (!fs.open(path, cv::FileStorage::READ)) Bad(path, "file", "not an OpenCV FileStorage file");
+  } catch (const cv::Exception&) {
+    Bad(path, "file", "not an OpenCV FileStorage file (YAML/XML/JSON)");
+  }
+  if (fs["camera_matrix"].empty() && fs["distortion_coefficients"].empty()) {
+    Bad(path, "camera_matrix", "missing: not a topocal or OpenCV calibration file");
+  }
+  CalibrationFile out;
+  const std::string tool = ReadOptionalString(fs, path, "calibration_tool");
+  out.written_by_topocal = tool == "topocal";
+  if (!tool.empty() && !out.written_by_topocal) Bad(path, "calibration_tool", "'" + tool + "' is not topocal");
+
+  CameraModel cv_cam;
+  cv_cam.width_px = ReadPositiveInt(fs, path, "image_width");
+  cv_cam.height_px = ReadPositiveInt(fs, path, "image_height");
+  SetIntrinsics(ReadMatrix(fs, path, "camera_matrix", 3, 3, true), path, "camera_matrix", cv_cam);
+  SetDistortion(ReadMatrix(fs, path, "distortion_coefficients", 1, 5, true), cv_cam);
+  out.opencv_camera = cv_cam;
+  out.camera = cv_cam;
+
+  if (out.written_by_topocal) {
+    out.model = ReadOptionalString(fs, path, "model");
+    if (out.model.empty()) Bad(path, "model", "missing");
+    if (!ParseDistortionModel(out.model)) Bad(path, "model", "'" + out.model + "' is not seidel or brown5");
+    const cv::Mat centre = ReadMatrix(fs, path, "distortion_centre", 1, 2, true);
+    if (centre.at<double>(0) != 0 || centre.at<double>(1) != 0) {
+      CameraModel exact = cv_cam;
+      SetIntrinsics(ReadMatrix(fs, path, "topocal_camera_matrix", 3, 3, true), path, "topocal_camera_matrix", exact);
+      SetDistortion(ReadMatrix(fs, path, "topocal_distortion_coefficients", 1, 5, true), exact);
+      exact.distortion_centre = {centre.at<double>(0), centre.at<double>(1)};
+      out.camera = exact;
+    }
+    out.single_view = ReadOptionalReal(fs, path, "single_view").value_or(0) != 0;
+    out.rms_px = ReadOptionalReal(fs, path, "rms_px");
+    if (!out.rms_px) Bad(path, "rms_px", "missing");
+    const cv::FileNode per_view = fs["per_view_rms_px"];
+    if (!per_view.empty()) {
+      if (!per_view.isSeq()) Bad(path, "per_view_rms_px", "not a sequence");
+      for (const auto& n : per_view) out.per_view_rms_px.push_back(static_cast<double>(n));
+    }
+    const cv::FileNode names = fs["parameter_names"];
+    const cv::Mat sd = ReadMatrix(fs, path, "parameter_stddev", 1, static_cast<int>(names.size()), !names.empty());
+    if (!names.empty()) {
+      int i = 0;
+      for (const auto& n : names) out.stddev[static_cast<std::string>(n)] = sd.at<double>(i++);
+    }
+    out.sigma_per_mm2 = ReadOptionalReal(fs, path, "seidel_sigma_per_mm2");
+    out.magnification = ReadOptionalReal(fs, path, "magnification");
+    out.focal_mm = ReadOptionalReal(fs, path, "focal_mm");
+    out.pixel_pitch_um = ReadOptionalReal(fs, path, "pixel_pitch_um");
+    out.target = ReadOptionalString(fs, path, "target");
+    out.date = ReadOptionalString(fs, path, "calibration_date");
+    out.tool_version = ReadOptionalString(fs, path, "tool_version");
+  }
+  return out;
+}
+
+std::string CalibrationReportJson(const CalibrationResult& result, const CalibrationProvenance& provenance) {
+  using nlohmann::json;
+  const auto image = [&](int v) {
+    return static_cast<size_t>(v) < provenance.image_paths.size() ? provenance.image_paths[static_cast<size_t>(v)]
+                                                                  : fmt::format("view {}", v);
+  };
+  json j;
+  j["status"] = std::string(ToString(result.status));
+  j["message"] = result.message;
+  j["model"] = std::string(ToString(result.model));
+  j["single_view"] = result.single_view;
+  j["skipped_views"] = json::array();
+  for (const auto& s : result.skipped_views) j["skipped_views"].push_back({{"image", image(s.view)}, {"reason", s.reason}});
+  if (!result.ok()) return j.dump(2) + "\n";
+  const auto& c = result.camera;
+  j["image_width"] = c.width_px;
+  j["image_height"] = c.height_px;
+  j["rms_px"] = result.rms_px;
+  j["camera_matrix"] = {{c.fx_px, 0.0, c.cx_px}, {0.0, c.fy_px, c.cy_px}, {0.0, 0.0, 1.0}};
+  j["dist_coeffs"] = c.dist;
+  j["distortion_centre"] = {c.distortion_centre.x(), c.distortion_centre.y()};
+  j["stddev"] = json::object();
+  j["fixed"] = json::array();
+  for (const auto& p : result.parameters) {
+    j["stddev"][p.name] = p.stddev;
+    if (p.fixed) j["fixed"].push_back(p.name);
+  }
+  j["views_used"] = result.views_used.size();
+  j["images_used"] = json::array();
+  for (const int v : result.views_used) j["images_used"].push_back(image(v));
+  j["per_view_rms_px"] = result.per_view_rms_px;
+  j["corners_used"] = result.corners_used;
+  j["residual_sigma_px"] = std::sqrt(result.residual_variance_px2);
+  j["outliers"] = json::array();
+  for (const auto& o : result.outliers) {
+    j["outliers"].push_back({{"image", image(o.view)},
+                             {"corner_id", o.corner_id},
+                             {"observed_px", {o.observed_px.x(), o.observed_px.y()}},
+                             {"residual_px", {o.residual_px.x(), o.residual_px.y()}}});
+  }
+  if (result.seidel) {
+    j["seidel"] = {{"sigma_per_mm2", result.seidel->sigma_per_mm2},
+                   {"sigma_stddev_per_mm2", result.seidel->sigma_stddev_per_mm2},
+                   {"magnification", result.seidel->magnification},
+                   {"focal_mm", result.seidel->focal_mm}};
+  }
+  if (const auto d = SingleViewDistance(result)) j["target_distance_mm"] = *d;
+  j["solver"] = {{"converged", result.solver.converged},
+                 {"iterations", result.solver.iterations},
+                 {"initial_cost", result.solver.initial_cost},
+                 {"final_cost", result.solver.final_cost},
+                 {"outlier_rounds", result.outlier_rounds},
+                 {"message", result.solver.message}};
+  return j.dump(2) + "\n";
+}
+
+}  // namespace topocal::calib

@@ -1,0 +1,69 @@
+#pragma once
+// The calibration file: OpenCV FileStorage YAML that cv::FileStorage loads and cv::undistort uses as it is, with
+// topocal's own fields beside OpenCV's.
+//
+//   %YAML:1.0
+//   ---
+//   calibration_tool: topocal              # absent in plain OpenCV files, which LoadCalibrationFile also accepts
+//   tool_version: "0.1.0"
+//   calibration_date: "2026-11-25T16:40:00Z"
+//   model: seidel | brown5
+//   single_view: 0 | 1
+//   image_width: 1600                      # px
+//   image_height: 1200
+//   camera_matrix: !!opencv-matrix         # 3x3 [fx 0 cx; 0 fy cy; 0 0 1], px
+//   distortion_coefficients: !!opencv-matrix   # 1x5 k1 k2 p1 p2 k3 (OpenCV order)
+//   distortion_centre: !!opencv-matrix     # 1x2 e (normalised units) of the topocal model; [0 0] = OpenCV's model
+//   # only when e != 0: the exact topocal model; camera_matrix / distortion_coefficients then hold the closest
+//   # OpenCV model (calib/opencv_equivalent.h), opencv_equivalent_max_error_px says how close over the image.
+//   topocal_camera_matrix, topocal_distortion_coefficients, opencv_equivalent_max_error_px
+//   parameter_names: [fx, fy, cx, cy, k1, k2, p1, p2, k3, ex, ey]
+//   parameter_values / parameter_stddev: 1x11 (stddev 0 = fixed)
+//   rms_px, per_view_rms_px (sequence), views_used, images (sequence), outliers (count)
+//   seidel_sigma_per_mm2, seidel_sigma_stddev_per_mm2, magnification, focal_mm, pixel_pitch_um   # Seidel, f known
+//   target_distance_mm                     # single view: the fitted distance of the target origin
+//   target                                 # the target description file
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "calib/calibrate.h"
+#include "calib/camera.h"
+
+namespace topocal::calib {
+
+struct CalibrationProvenance {
+  std::string target_path;
+  std::vector<std::string> image_paths;  // parallel to the views given to the calibration
+  std::string date_utc;                  // ISO 8601; empty = now
+};
+
+struct CalibrationFile {
+  CameraModel camera;          // the exact model (with its distortion centre)
+  CameraModel opencv_camera;   // camera_matrix + distortion_coefficients as OpenCV reads them
+  bool written_by_topocal = false;
+  std::string model = "brown5";
+  bool single_view = false;
+  std::optional<double> rms_px;
+  std::vector<double> per_view_rms_px;
+  std::map<std::string, double> stddev;  // by parameter name
+  std::optional<double> sigma_per_mm2, magnification, focal_mm, pixel_pitch_um;
+  std::string target, date, tool_version;
+};
+
+// The YAML text for a successful result. Throws std::invalid_argument for a failed result and std::runtime_error
+// when the OpenCV-equivalent model cannot be computed.
+std::string CalibrationFileText(const CalibrationResult& result, const CalibrationProvenance& provenance);
+// Writes it atomically (model::WriteFileAtomic). Throws model::InputError if the path cannot be written.
+void WriteCalibrationFile(const std::string& path, const CalibrationResult& result,
+                          const CalibrationProvenance& provenance);
+
+// Reads a topocal or plain OpenCV calibration file. Strict: a missing key, a wrongly sized or non-finite matrix,
+// or a file that is not a calibration throws model::InputError "PATH: KEY: problem".
+CalibrationFile LoadCalibrationFile(const std::string& path);
+
+// The --json report: rms_px, camera_matrix, dist_coeffs, stddev, views_used, per_view_rms_px, outliers, and more.
+std::string CalibrationReportJson(const CalibrationResult& result, const CalibrationProvenance& provenance);
+
+}  // namespace topocal::calib
