@@ -1,8 +1,12 @@
+#include <filesystem>
+
 #include <fmt/format.h>
 
 #include "model/config.h"
 #include "model/io.h"
 #include "model/null_screen.h"
+#include "model/null_screen_layout.h"
+#include "tools/null_screen_svg.h"
 #include "tools/commands.h"
 
 namespace topocal::tools {
@@ -26,8 +30,21 @@ void AddDesignCommand(CLI::App& app) {
     for (const auto& t : design.targets) {
       csv += fmt::format("{},{},{},{},{}\n", t.id.ring, t.id.index, t.on_cone_mm.x(), t.on_cone_mm.y(), t.on_cone_mm.z());
     }
+    std::string svg_text;
+    if (!svg->empty()) {
+      const auto layout = model::LayoutNullScreen(cfg.ideal_image, cfg.topographer);
+      for (size_t k = design.failures.size(); k < layout.failures.size(); ++k) {
+        const auto& f = layout.failures[k];
+        fmt::print(stderr, "topocal design: spot ({}, {}): {}\n", f.id.ring, f.id.index, f.reason);
+      }
+      svg_text = NullScreenSvg(layout, {.title = std::filesystem::path(*config).stem().string()});
+    }
     model::WriteFileAtomic(*out, csv);
     fmt::print("designed {} target points ({} failed) -> {}\n", design.targets.size(), design.failures.size(), *out);
+    if (!svg->empty()) {
+      model::WriteFileAtomic(*svg, svg_text);
+      fmt::print("printable null screen (unrolled cone, 1:1, print at 100 %) -> {}\n", *svg);
+    }
   });
 }
 
