@@ -164,6 +164,7 @@ void ParseReconstruction(Section s, ReconstructionSettings& p) {
   if (p.taylor_degree < 2 || p.taylor_degree > 14) {
     s.Fail(s.Key("taylor_degree"), fmt::format("must lie in [2, 14] (got {})", p.taylor_degree));
   }
+  p.vertex_t_um = s.Number("vertex_t_um", p.vertex_t_um);
   p.vertex_search_halfwidth_um = s.Number("vertex_search_halfwidth_um", p.vertex_search_halfwidth_um);
   s.Positive("vertex_search_halfwidth_um", p.vertex_search_halfwidth_um);
   p.vertex_search_steps = s.Integer("vertex_search_steps", p.vertex_search_steps);
@@ -178,6 +179,10 @@ void ParseReconstruction(Section s, ReconstructionSettings& p) {
   s.Positive("convergence_um", p.convergence_um);
   p.power_map_radius_mm = s.Number("power_map_radius_mm", p.power_map_radius_mm);
   s.Positive("power_map_radius_mm", p.power_map_radius_mm);
+  p.power_map_method = s.String("power_map_method", p.power_map_method);
+  if (p.power_map_method != "exact" && p.power_map_method != "polynomial") {
+    s.Fail(s.Key("power_map_method"), fmt::format("must be \"exact\" or \"polynomial\" (got \"{}\")", p.power_map_method));
+  }
   p.power_map_meridians = s.Integer("power_map_meridians", p.power_map_meridians);
   s.AtLeast("power_map_meridians", p.power_map_meridians, 4);
   p.power_map_radial_samples = s.Integer("power_map_radial_samples", p.power_map_radial_samples);
@@ -257,11 +262,13 @@ std::string ConfigToJson(const Config& c) {
                      {"sigmas_per_mm2", c.distortion.sigmas_per_mm2}};
   const auto& r = c.reconstruction;
   j["reconstruction"] = {{"method", r.method}, {"taylor_degree", r.taylor_degree},
+                         {"vertex_t_um", r.vertex_t_um},
                          {"vertex_search_halfwidth_um", r.vertex_search_halfwidth_um},
                          {"vertex_search_steps", r.vertex_search_steps}, {"vertex_search_tol", r.vertex_search_tol},
                          {"vertex_search_max_refinements", r.vertex_search_max_refinements},
                          {"max_iterations", r.max_iterations}, {"convergence_um", r.convergence_um},
                          {"power_map_radius_mm", r.power_map_radius_mm},
+                         {"power_map_method", r.power_map_method},
                          {"power_map_meridians", r.power_map_meridians},
                          {"power_map_radial_samples", r.power_map_radial_samples}};
   return j.dump(2);

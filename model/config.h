@@ -60,14 +60,18 @@ struct DistortionSweep {
 // Settings of the null-screen reconstruction (optional section "reconstruction"; see README.md).
 struct ReconstructionSettings {
   std::string method = "iterative";  // "iterative" (normal refinement, default) or "paper" (vertex search of Fig. 8)
-  int taylor_degree = 9;             // Taylor polynomial degree; 9 gives the paper's 55 terms
-  double vertex_search_halfwidth_um = 20.0;  // half-width of the first t_k interval (paper method)
+  int taylor_degree = 10;            // Taylor polynomial degree: 10 (66 terms); 9 is the paper's 55 terms
+                                     // (docs/reconstruction.md: degree 9 cannot hold other corneas to 0.05 um)
+  double vertex_t_um = 0.0;                  // axial position of G's vertex / Psi(0,0): the nominal working distance
+  double vertex_search_halfwidth_um = 20.0;  // half-width of the first t_k interval around vertex_t_um (paper method)
   int vertex_search_steps = 11;              // K, points per t_k interval (paper method)
   double vertex_search_tol = 2e-7;           // TOL of Fig. 8
   int vertex_search_max_refinements = 30;
   int max_iterations = 50;                   // iterative method: outer iterations
   double convergence_um = 1e-6;              // iterative method: stop when no point moves more than this
-  double power_map_radius_mm = 5.3;          // radius of the power maps (paper's pv values: ~5.3 mm)
+  double power_map_radius_mm = 5.3;          // radius of the power maps (paper's pv values: ~5.3 mm); clipped
+                                             // to the radius the reconstructed points cover (no extrapolation)
+  std::string power_map_method = "exact";    // "exact" derivatives of Psi or "polynomial" (Eq. 23 meridian fit)
   int power_map_meridians = 360;
   int power_map_radial_samples = 100;
 };

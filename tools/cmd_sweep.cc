@@ -9,6 +9,37 @@
 namespace topocal::tools {
 namespace {
 
+nlohmann::json SurfaceFitJson(const topo::BiconicFit& f) {
+  const auto& p = f.params;
+  const auto& sd = f.stddev;
+  nlohmann::json j = {{"rx_mm", p.rx_mm},     {"ry_mm", p.ry_mm},         {"kx", p.kx},
+                      {"ky", p.ky},           {"alpha_deg", p.alpha_deg}, {"vertex_um", p.z0_mm * 1e3},
+                      {"rms_um", f.rms_residual_um}};
+  if (f.stddev_ok) {
+    j["stddev"] = {{"rx_mm", sd.rx_mm}, {"ry_mm", sd.ry_mm},         {"kx", sd.kx},
+                   {"ky", sd.ky},       {"alpha_deg", sd.alpha_deg}, {"vertex_um", sd.z0_mm * 1e3}};
+  }
+  return j;
+}
+
+nlohmann::json ReconstructionJson(const topo::Reconstruction& r) {
+  return {{"method", r.method},
+          {"spots_used", r.spots_used},
+          {"vertex_t_um", r.vertex_t_mm * 1e3},
+          {"iterations", r.iterations},
+          {"consistency_delta", r.consistency},
+          {"rms_slope_residual", r.rms_slope_residual}};
+}
+
+nlohmann::json ErrorsJson(const topo::Analysis& a) {
+  nlohmann::json j = {{"pv_tangential_D", a.power.pv_tangential_D}, {"pv_axial_D", a.power.pv_axial_D}};
+  if (a.errors) {
+    j["pv_um"] = a.errors->pv_um;
+    j["rms_um"] = a.errors->rms_um;
+  }
+  return j;
+}
+
 std::string SweepJson(const topo::SweepResult& r) {
   nlohmann::json j;
   j["spots"] = r.spots;
@@ -22,10 +53,43 @@ std::string SweepJson(const topo::SweepResult& r) {
                            {"beta_deg", row.image_ellipse.beta_deg},
                            {"area_mm2", row.image_ellipse.AreaMm2()},
                            {"area_change_pct", row.area_change_pct}};
+    const auto& a = row.analysis;
+    jr["surface_fit"] = SurfaceFitJson(a.surface_fit);
+    jr["reconstruction"] = ReconstructionJson(a.reconstruction);
+    jr["errors"] = ErrorsJson(a);
     j["rows"].push_back(jr);
   }
-  j["timing_ms"] = {{"design", r.timing.design_ms}, {"synthesis", r.timing.synthesis_ms}, {"total", r.timing.total_ms}};
+  j["ideal"] = {{"pv_tangential_D", r.ideal_power.pv_tangential_D}, {"pv_axial_D", r.ideal_power.pv_axial_D}};
+  j["timing_ms"] = {{"design", r.timing.design_ms},
+                    {"synthesis", r.timing.synthesis_ms},
+                    {"analysis", r.timing.analysis_ms},
+                    {"total", r.timing.total_ms}};
   return j.dump(2) + "\n";
+}
+
+void PrintTableVI(const topo::SweepResult& r) {
+  fmt::print("\nTable VI — biconic fitted to the reconstructed surface (rx >= ry, alpha in [0, 180))\n");
+  fmt::print("{:>12}  {:>8}  {:>8}  {:>8}  {:>8}  {:>9}  {:>10}\n", "sigma/mm^2", "rx/mm", "ry/mm", "kx", "ky",
+             "alpha/deg", "vertex/um");
+  for (const auto& row : r.rows) {
+    const auto& p = row.analysis.surface_fit.params;
+    fmt::print("{:>12.3g}  {:>8.4f}  {:>8.4f}  {:>8.4f}  {:>8.4f}  {:>9.4f}  {:>10.4f}\n", row.sigma_per_mm2, p.rx_mm,
+               p.ry_mm, p.kx, p.ky, p.alpha_deg, p.z0_mm * 1e3);
+  }
+}
+
+void PrintTableVII(const topo::SweepResult& r) {
+  fmt::print("\nTable VII — height difference to the true cornea and power-map peak-to-valley (R = {:.2f} mm)\n",
+             r.ideal_power.radius_mm);
+  fmt::print("{:>12}  {:>10}  {:>10}  {:>10}  {:>10}\n", "sigma/mm^2", "pv/um", "rms/um", "pv_m/D", "pv_a/D");
+  for (const auto& row : r.rows) {
+    const auto& a = row.analysis;
+    fmt::print("{:>12.3g}  {:>10.4f}  {:>10.4f}  {:>10.3f}  {:>10.3f}\n", row.sigma_per_mm2,
+               a.errors ? a.errors->pv_um : 0.0, a.errors ? a.errors->rms_um : 0.0, a.power.pv_tangential_D,
+               a.power.pv_axial_D);
+  }
+  fmt::print("{:>12}  {:>10}  {:>10}  {:>10.3f}  {:>10.3f}\n", "ideal", "", "", r.ideal_power.pv_tangential_D,
+             r.ideal_power.pv_axial_D);
 }
 
 void PrintTableV(const topo::SweepResult& r) {
@@ -54,6 +118,8 @@ void AddSweepCommand(CLI::App& app) {
       fmt::print(stderr, "topocal sweep: spot ({}, {}) not imaged: {}\n", f.id.ring, f.id.index, f.reason);
     }
     PrintTableV(result);
+    PrintTableVI(result);
+    PrintTableVII(result);
     if (!json_out->empty()) model::WriteFileAtomic(*json_out, SweepJson(result));
   });
 }

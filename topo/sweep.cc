@@ -53,6 +53,7 @@ SweepResult RunSweep(const model::Config& config) {
                                                   model::Topographer{config.topographer}, design.targets);
   result.timing.synthesis_ms = MsSince(t0);
   result.synthesis_failures = undistorted.failures;
+  result.ideal_power = IdealPowerMaps(config.cornea, config.reconstruction);
   const int outer_ring = config.ideal_image.rings_N + 1;
   const auto reference = FitImageContour(undistorted.spots, outer_ring);
   if (!reference) {
@@ -68,7 +69,17 @@ SweepResult RunSweep(const model::Config& config) {
     row.image_ellipse = *ellipse;
     row.area_change_pct = 100.0 * (ellipse->AreaMm2() / reference->AreaMm2() - 1.0);
     row.spots_imaged = static_cast<int>(image.spots.size());
-    result.rows.push_back(row);
+    std::vector<MeasuredSpot> measured;
+    measured.reserve(image.spots.size());
+    for (const auto& s : image.spots) measured.push_back({s.id, s.position_mm});
+    t0 = std::chrono::steady_clock::now();
+    try {
+      row.analysis = AnalyzeSpots(measured, design.targets, config, &config.cornea);
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(fmt::format("{}: sigma {}: {}", config.path, sigma, e.what()));
+    }
+    result.timing.analysis_ms += MsSince(t0);
+    result.rows.push_back(std::move(row));
   }
   result.timing.total_ms = MsSince(t_start);
   return result;

@@ -8,6 +8,7 @@
 #include "model/config.h"
 #include "model/ellipse_fit.h"
 #include "model/null_screen.h"
+#include "topo/analysis.h"
 
 namespace topocal::topo {
 
@@ -16,11 +17,13 @@ struct SweepRow {
   model::Ellipse image_ellipse;
   double area_change_pct = 0;  // E_A: area change against the sigma = 0 contour
   int spots_imaged = 0;
+  Analysis analysis;            // reconstruction, biconic fit (Table VI), power maps and errors (Table VII)
 };
 
 struct SweepTiming {
   double design_ms = 0;
   double synthesis_ms = 0;
+  double analysis_ms = 0;  // reconstruction + biconic fit + power maps, all sigmas
   double total_ms = 0;
 };
 
@@ -29,6 +32,7 @@ struct SweepResult {
   std::vector<SweepRow> rows;
   std::vector<model::SpotFailure> design_failures;
   std::vector<model::SpotFailure> synthesis_failures;  // spots the cornea does not image (same for every sigma)
+  PowerMaps ideal_power;  // maps of the configured (true) cornea
   SweepTiming timing;
 };
 

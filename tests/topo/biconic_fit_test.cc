@@ -1,0 +1,84 @@
+#include "topo/biconic_fit.h"
+
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "model/surface.h"
+
+namespace topocal::topo {
+namespace {
+
+std::vector<Eigen::Vector3d> Cloud(const model::BiconicParams& p, double noise_um, unsigned seed) {
+  const model::Biconic b{p};
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, noise_um * 1e-3);
+  std::vector<Eigen::Vector3d> pts;
+  for (int ring = 1; ring <= 12; ++ring) {
+    const double rho = 5.0 * ring / 12.0;
+    for (int j = 0; j < 8 * ring; ++j) {
+      const double t = 2 * M_PI * j / (8 * ring);
+      model::SurfaceDerivatives d;
+      b.Evaluate(rho * std::cos(t), rho * std::sin(t), &d);
+      pts.emplace_back(rho * std::cos(t), rho * std::sin(t), d.z + noise(rng));
+    }
+  }
+  return pts;
+}
+
+TEST(BiconicFit, NoiseFreeCloudGivesTheParametersBack) {
+  // Exact data: the solver stops at its tolerances, ~1e-9 relative.
+  constexpr double kExactTol = 1e-7;
+  for (const model::BiconicParams& truth : {model::BiconicParams{8.35, 7.63, -0.43, -0.25, 17.0, 0, 0, 0.001},
+                                            model::BiconicParams{7.9, 7.2, -0.6, 0.3, 123.0, 0, 0, -0.002}}) {
+    const auto fit = FitBiconic(Cloud(truth, 0.0, 1));
+    ASSERT_TRUE(fit.ok) << fit.message;
+    const auto t = CanonicalBiconic(truth);
+    EXPECT_NEAR(fit.params.rx_mm, t.rx_mm, kExactTol);
+    EXPECT_NEAR(fit.params.ry_mm, t.ry_mm, kExactTol);
+    EXPECT_NEAR(fit.params.kx, t.kx, kExactTol);
+    EXPECT_NEAR(fit.params.ky, t.ky, kExactTol);
+    EXPECT_NEAR(fit.params.alpha_deg, t.alpha_deg, kExactTol);
+    EXPECT_NEAR(fit.params.z0_mm, t.z0_mm, kExactTol);
+  }
+}
+
+TEST(BiconicFit, NoisyCloudStaysWithinThreeSigmaOfItsCovariance) {
+  const model::BiconicParams truth{8.35, 7.63, -0.43, -0.25, 17.0, 0, 0, 0};
+  int within = 0, total = 0;
+  for (unsigned seed = 1; seed <= 10; ++seed) {
+    const auto fit = FitBiconic(Cloud(truth, 0.5, seed));
+    ASSERT_TRUE(fit.ok && fit.stddev_ok);
+    const auto& s = fit.stddev;
+    for (auto [est, tru, sd] : {std::tuple{fit.params.rx_mm, truth.rx_mm, s.rx_mm},
+                                std::tuple{fit.params.ky, truth.ky, s.ky},
+                                std::tuple{fit.params.alpha_deg, truth.alpha_deg, s.alpha_deg}}) {
+      EXPECT_GT(sd, 0.0);
+      within += std::abs(est - tru) <= 3 * sd;
+      ++total;
+    }
+  }
+  // 3 sigma covers 99.7 %: allow one miss in 30 draws.
+  EXPECT_GE(within, total - 1);
+}
+
+TEST(BiconicFit, CanonicalFormSwapsAxesAndWrapsAlpha) {
+  const auto c = CanonicalBiconic({7.2, 7.9, 0.3, -0.6, 123.0, 0, 0, 0});
+  EXPECT_DOUBLE_EQ(c.rx_mm, 7.9);
+  EXPECT_DOUBLE_EQ(c.kx, -0.6);
+  EXPECT_NEAR(c.alpha_deg, 33.0, 1e-12);
+  // Same surface either way.
+  model::SurfaceDerivatives a, b;
+  model::Biconic{{7.2, 7.9, 0.3, -0.6, 123.0, 0.1, 0.2, 0}}.Evaluate(1.0, -2.0, &a);
+  model::Biconic{CanonicalBiconic({7.2, 7.9, 0.3, -0.6, 123.0, 0.1, 0.2, 0})}.Evaluate(1.0, -2.0, &b);
+  EXPECT_NEAR(a.z, b.z, 1e-14);
+}
+
+TEST(BiconicFit, TooFewPointsFail) {
+  const auto fit = FitBiconic({{0, 0, 0}, {1, 0, 0.06}, {0, 1, 0.06}});
+  EXPECT_FALSE(fit.ok);
+  EXPECT_FALSE(fit.message.empty());
+}
+
+}  // namespace
+}  // namespace topocal::topo

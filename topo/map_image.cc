@@ -1,0 +1,427 @@
+#include "topo/map_image.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string_view>
+
+#include <fmt/format.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "model/io.h"
+
+namespace topocal::topo {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+const cv::Scalar kBlack(0, 0, 0), kWhite(255, 255, 255), kContourColour(30, 30, 30);
+constexpr std::uint8_t kNoDataGrey = 205;  // light grey, clearly apart from the white page and from every scale colour
+
+int OpenCvColormap(ColourScale s) { return s == ColourScale::kJet ? cv::COLORMAP_JET : cv::COLORMAP_TURBO; }
+
+// The 256 colours of the scale, as a 256 x 1 BGR image (index 0 = low end).
+cv::Mat ScaleLut(ColourScale s) {
+  cv::Mat ramp(256, 1, CV_8UC1);
+  for (int i = 0; i < 256; ++i) ramp.at<std::uint8_t>(i) = static_cast<std::uint8_t>(i);
+  cv::Mat lut;
+  cv::applyColorMap(ramp, lut, OpenCvColormap(s));
+  return lut;
+}
+
+// A round step (1, 2 or 5 times a power of ten) of at least range / target_count.
+double NiceStep(double range, double target_count) {
+  const double raw = range / target_count;
+  if (!(raw > 0) || !std::isfinite(raw)) return 1.0;
+  const double mag = std::pow(10.0, std::floor(std::log10(raw)));
+  for (double f : {1.0, 2.0, 5.0, 10.0}) {
+    if (f * mag >= raw * (1 - 1e-9)) return f * mag;
+  }
+  return 10.0 * mag;
+}
+
+std::vector<double> Ticks(double lo, double hi, double step) {
+  std::vector<double> t;
+  const double eps = 1e-9 * step;
+  for (double k = std::ceil((lo - eps) / step); k * step <= hi + eps; k += 1.0) {
+    const double v = k * step;
+    t.push_back(std::abs(v) < eps ? 0.0 : v);
+  }
+  return t;
+}
+
+int Decimals(double step) { return std::max(0, static_cast<int>(-std::floor(std::log10(step) + 1e-9))); }
+
+// OpenCV's Hershey fonts are ASCII only: transliterate the few symbols our titles and units use. "µ" is kept as
+// a marker (\x01) and drawn as a 'u' with a descender, which reads as µ.
+std::string Transliterate(std::string_view s) {
+  std::string out;
+  for (size_t i = 0; i < s.size(); ++i) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    if (c < 0x80) {
+      out += static_cast<char>(c);
+      continue;
+    }
+    const std::string_view rest = s.substr(i);
+    const auto starts = [&](std::string_view p) { return rest.substr(0, p.size()) == p; };
+    if (starts("\u00b5") || starts("\u03bc")) out += '\x01', i += 1;
+    else if (starts("\u03c3")) out += "sigma", i += 1;
+    else if (starts("\u00b2")) out += "^2", i += 1;
+    else if (starts("\u00b0")) out += " deg", i += 1;
+    else if (starts("\u2212")) out += '-', i += 2;
+    else {
+      out += '?';
+      while (i + 1 < s.size() && (static_cast<unsigned char>(s[i + 1]) & 0xC0) == 0x80) ++i;
+    }
+  }
+  return out;
+}
+
+struct Font {
+  double scale;
+  int thickness;
+};
+
+cv::Size TextSize(const std::string& text, const Font& f) {
+  int baseline = 0;
+  std::string ascii = text;
+  std::replace(ascii.begin(), ascii.end(), '\x01', 'u');
+  return cv::getTextSize(ascii, cv::FONT_HERSHEY_SIMPLEX, f.scale, f.thickness, &baseline);
+}
+
+// Draws transliterated text with its baseline-left corner at `org`.
+void PutText(cv::Mat& img, const std::string& text, cv::Point org, const Font& f, const cv::Scalar& colour = kBlack) {
+  std::string ascii = text;
+  std::replace(ascii.begin(), ascii.end(), '\x01', 'u');
+  cv::putText(img, ascii, org, cv::FONT_HERSHEY_SIMPLEX, f.scale, colour, f.thickness, cv::LINE_AA);
+  // The descender that turns each 'u' standing for µ into a µ.
+  for (size_t p = text.find('\x01'); p != std::string::npos; p = text.find('\x01', p + 1)) {
+    const int x = org.x + TextSize(text.substr(0, p), f).width;
+    const int h = TextSize("u", f).height;
+    const int stem = x + std::max(1, static_cast<int>(std::lround(0.22 * h)));
+    cv::line(img, {stem, org.y - h / 2}, {stem, org.y + static_cast<int>(0.45 * h)}, colour, f.thickness, cv::LINE_AA);
+  }
+}
+
+// Text anchored by its centre (x) and baseline (y), or right-aligned / centred vertically.
+void PutCentred(cv::Mat& img, const std::string& text, cv::Point centre_baseline, const Font& f) {
+  PutText(img, text, {centre_baseline.x - TextSize(text, f).width / 2, centre_baseline.y}, f);
+}
+
+void PutRightMiddle(cv::Mat& img, const std::string& text, cv::Point right_middle, const Font& f) {
+  const cv::Size s = TextSize(text, f);
+  PutText(img, text, {right_middle.x - s.width, right_middle.y + s.height / 2}, f);
+}
+
+void PutLeftMiddle(cv::Mat& img, const std::string& text, cv::Point left_middle, const Font& f) {
+  PutText(img, text, {left_middle.x, left_middle.y + TextSize(text, f).height / 2}, f);
+}
+
+// Vertical text reading bottom to top, centred at `centre`.
+void PutVertical(cv::Mat& img, const std::string& text, cv::Point centre, const Font& f) {
+  const cv::Size s = TextSize(text, f);
+  cv::Mat patch(s.height * 2 + 4, s.width + 4, CV_8UC3, kWhite);
+  PutText(patch, text, {2, s.height + 2}, f);
+  cv::Mat rotated;
+  cv::rotate(patch, rotated, cv::ROTATE_90_COUNTERCLOCKWISE);
+  const cv::Rect dst(centre.x - rotated.cols / 2, centre.y - rotated.rows / 2, rotated.cols, rotated.rows);
+  if ((dst & cv::Rect(0, 0, img.cols, img.rows)) == dst) rotated.copyTo(img(dst));
+}
+
+}  // namespace
+
+bool GridMap::IsValid(std::string* why) const {
+  const auto fail = [&](const std::string& m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (nx < 2 || ny < 2) return fail("the grid needs at least 2 x 2 samples");
+  if (!(x_max_mm > x_min_mm) || !(y_max_mm > y_min_mm) || !std::isfinite(x_min_mm + x_max_mm + y_min_mm + y_max_mm)) {
+    return fail("the grid's extent must be finite with x_max > x_min and y_max > y_min");
+  }
+  if (values.size() != static_cast<size_t>(nx) * ny) return fail("values must hold nx * ny samples");
+  for (double v : values) {
+    if (std::isinf(v)) return fail("values must be finite or NaN (no data)");
+  }
+  return true;
+}
+
+bool MapImageOptions::IsValid(std::string* why) const {
+  const auto fail = [&](const std::string& m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (size_px < 100 || size_px > 8000) return fail("size_px must be in [100, 8000]");
+  if (value_min && !std::isfinite(*value_min)) return fail("value_min must be finite");
+  if (value_max && !std::isfinite(*value_max)) return fail("value_max must be finite");
+  if (value_min && value_max && !(*value_max > *value_min)) return fail("value_max must exceed value_min");
+  if (!std::isfinite(contour_step)) return fail("contour_step must be finite");
+  return true;
+}
+
+std::array<std::uint8_t, 3> ScaleColour(ColourScale scale, double t) {
+  static const cv::Mat turbo = ScaleLut(ColourScale::kTurbo), jet = ScaleLut(ColourScale::kJet);
+  const cv::Mat& lut = scale == ColourScale::kJet ? jet : turbo;
+  const int i = static_cast<int>(std::lround(255.0 * std::clamp(std::isfinite(t) ? t : 0.0, 0.0, 1.0)));
+  const auto& c = lut.at<cv::Vec3b>(i);
+  return {c[0], c[1], c[2]};
+}
+
+std::array<std::uint8_t, 3> NoDataColour() { return {kNoDataGrey, kNoDataGrey, kNoDataGrey}; }
+
+MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
+  std::string why;
+  if (!map.IsValid(&why)) throw std::invalid_argument("GridMap: " + why);
+  if (!options.IsValid(&why)) throw std::invalid_argument("MapImageOptions: " + why);
+
+  // Colour range: the options', else the data's rounded out to round ticks.
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (double v : map.values) {
+    if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
+  }
+  if (!std::isfinite(lo)) lo = 0.0, hi = 1.0;
+  if (hi - lo < 1e-9 * std::max(1.0, std::abs(hi))) {  // a flat field: a unit-wide range around it
+    lo -= 0.5;
+    hi += 0.5;
+  }
+  double vmin = options.value_min.value_or(lo), vmax = options.value_max.value_or(hi);
+  if (options.value_min && !options.value_max && !(vmax > vmin)) vmax = vmin + 1.0;
+  if (options.value_max && !options.value_min && !(vmax > vmin)) vmin = vmax - 1.0;
+  const double tick_step = NiceStep(vmax - vmin, 6.0);
+  if (!options.value_min) vmin = tick_step * std::floor(vmin / tick_step + 1e-9);
+  if (!options.value_max) vmax = tick_step * std::ceil(vmax / tick_step - 1e-9);
+  const double contour_step =
+      options.contour_step > 0 ? options.contour_step : options.contour_step < 0 ? 0.0 : NiceStep(vmax - vmin, 10.0);
+
+  // Geometry: square pixels, equal mm scale on both axes; the longer side gets size_px.
+  const double fscale = options.size_px / 800.0;
+  const Font title_font{0.75 * fscale, std::max(1, static_cast<int>(std::lround(2 * fscale)))};
+  const Font label_font{0.55 * fscale, std::max(1, static_cast<int>(std::lround(1 * fscale)))};
+  const double wx = map.x_max_mm - map.x_min_mm, wy = map.y_max_mm - map.y_min_mm;
+  const double px_per_mm = options.size_px / std::max(wx, wy);
+  const int plot_w = std::max(2, static_cast<int>(std::lround(wx * px_per_mm)));
+  const int plot_h = std::max(2, static_cast<int>(std::lround(wy * px_per_mm)));
+  const int s = static_cast<int>(std::lround(fscale * 10));  // layout unit
+  const cv::Rect plot(9 * s, 7 * s, plot_w, plot_h);
+  const cv::Rect bar(plot.x + plot.width + 5 * s, plot.y, std::max(8, 3 * s), plot.height);
+  const int width = bar.x + bar.width + 12 * s, height = plot.y + plot.height + 8 * s;
+  cv::Mat img(height, width, CV_8UC3, kWhite);
+
+  // Sample the field at every plot pixel centre (bilinear, cv::remap). No data is carried as a weight: a pixel has
+  // data where at least half of its interpolation weight comes from samples with data.
+  cv::Mat values(map.ny, map.nx, CV_32FC1), weights(map.ny, map.nx, CV_32FC1);
+  for (int j = 0; j < map.ny; ++j) {
+    for (int i = 0; i < map.nx; ++i) {
+      const double v = map.At(i, j);
+      values.at<float>(j, i) = std::isfinite(v) ? static_cast<float>(v) : 0.0f;
+      weights.at<float>(j, i) = std::isfinite(v) ? 1.0f : 0.0f;
+    }
+  }
+  cv::Mat map_x(plot_h, plot_w, CV_32FC1), map_y(plot_h, plot_w, CV_32FC1);
+  for (int r = 0; r < plot_h; ++r) {
+    const double y_mm = map.y_max_mm - (r + 0.5) * wy / plot_h;
+    for (int c = 0; c < plot_w; ++c) {
+      const double x_mm = map.x_min_mm + (c + 0.5) * wx / plot_w;
+      map_x.at<float>(r, c) = static_cast<float>((x_mm - map.x_min_mm) / wx * (map.nx - 1));
+      map_y.at<float>(r, c) = static_cast<float>((y_mm - map.y_min_mm) / wy * (map.ny - 1));
+    }
+  }
+  cv::Mat sampled, sampled_w;
+  cv::remap(values, sampled, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  cv::remap(weights, sampled_w, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  cv::Mat field(plot_h, plot_w, CV_64FC1);
+  cv::Mat valid(plot_h, plot_w, CV_8UC1);
+  for (int r = 0; r < plot_h; ++r) {
+    for (int c = 0; c < plot_w; ++c) {
+      const float w = sampled_w.at<float>(r, c);
+      const bool ok = w >= 0.5f;
+      valid.at<std::uint8_t>(r, c) = ok ? 255 : 0;
+      field.at<double>(r, c) = ok ? sampled.at<float>(r, c) / w : kNaN;
+    }
+  }
+
+  // Colour: the value's fraction of the range through the scale's 256-entry table (OpenCV applyColorMap).
+  cv::Mat index(plot_h, plot_w, CV_8UC1, cv::Scalar(0));
+  for (int r = 0; r < plot_h; ++r) {
+    for (int c = 0; c < plot_w; ++c) {
+      if (!valid.at<std::uint8_t>(r, c)) continue;
+      const double t = std::clamp((field.at<double>(r, c) - vmin) / (vmax - vmin), 0.0, 1.0);
+      index.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(std::lround(255.0 * t));
+    }
+  }
+  cv::Mat coloured;
+  cv::applyColorMap(index, coloured, OpenCvColormap(options.scale));
+  coloured.setTo(cv::Scalar(kNoDataGrey, kNoDataGrey, kNoDataGrey), ~valid);
+
+  // Contour lines at the multiples of the step: a pixel is on a line where the level band floor(v / step) changes
+  // to its right or below it (both pixels with data). This is the pixel-level form of marching squares, exact to a
+  // pixel at the plot's resolution; cv::findContours would trace the same boundaries plus the no-data edges.
+  if (contour_step > 0) {
+    cv::Mat band(plot_h, plot_w, CV_32SC1, cv::Scalar(0));
+    for (int r = 0; r < plot_h; ++r) {
+      for (int c = 0; c < plot_w; ++c) {
+        if (valid.at<std::uint8_t>(r, c)) {
+          band.at<int>(r, c) = static_cast<int>(std::floor(field.at<double>(r, c) / contour_step));
+        }
+      }
+    }
+    for (int r = 0; r < plot_h; ++r) {
+      for (int c = 0; c < plot_w; ++c) {
+        if (!valid.at<std::uint8_t>(r, c)) continue;
+        const int b = band.at<int>(r, c);
+        const bool right = c + 1 < plot_w && valid.at<std::uint8_t>(r, c + 1) && band.at<int>(r, c + 1) != b;
+        const bool below = r + 1 < plot_h && valid.at<std::uint8_t>(r + 1, c) && band.at<int>(r + 1, c) != b;
+        if (right || below) coloured.at<cv::Vec3b>(r, c) = cv::Vec3b(30, 30, 30);
+      }
+    }
+  }
+  coloured.copyTo(img(plot));
+  cv::rectangle(img, {plot.x - 1, plot.y - 1}, {plot.x + plot.width, plot.y + plot.height}, kBlack, 1);
+
+  // Axes in mm: ticks and labels on the left and bottom, light grid through the ticks.
+  const double axis_step = NiceStep(std::max(wx, wy), 8.0);
+  const int tick_len = std::max(4, s / 2);
+  for (double x : Ticks(map.x_min_mm, map.x_max_mm, axis_step)) {
+    const int c = plot.x + static_cast<int>(std::lround((x - map.x_min_mm) / wx * plot_w));
+    cv::line(img, {c, plot.y + plot.height}, {c, plot.y + plot.height + tick_len}, kBlack, 1);
+    PutCentred(img, fmt::format("{:.{}f}", x, Decimals(axis_step)), {c, plot.y + plot.height + tick_len + 2 * s},
+               label_font);
+  }
+  for (double y : Ticks(map.y_min_mm, map.y_max_mm, axis_step)) {
+    const int r = plot.y + plot.height - static_cast<int>(std::lround((y - map.y_min_mm) / wy * plot_h));
+    cv::line(img, {plot.x - tick_len, r}, {plot.x - 1, r}, kBlack, 1);
+    PutRightMiddle(img, fmt::format("{:.{}f}", y, Decimals(axis_step)), {plot.x - tick_len - s / 2, r}, label_font);
+  }
+  PutCentred(img, "x (mm)", {plot.x + plot.width / 2, plot.y + plot.height + 6 * s}, label_font);
+  PutVertical(img, "y (mm)", {plot.x - 7 * s, plot.y + plot.height / 2}, label_font);
+
+  // Title.
+  PutCentred(img, Transliterate(map.title), {plot.x + plot.width / 2, plot.y - 3 * s}, title_font);
+
+  // Colour bar: value_max at the top row, value_min at the bottom row; labelled ticks on the right, the contour
+  // levels as short marks on the left, the unit above.
+  const cv::Mat lut = ScaleLut(options.scale);
+  for (int r = 0; r < bar.height; ++r) {
+    const double t = 1.0 - static_cast<double>(r) / (bar.height - 1);
+    const auto& colour = lut.at<cv::Vec3b>(static_cast<int>(std::lround(255.0 * t)));
+    img(cv::Rect(bar.x, bar.y + r, bar.width, 1)).setTo(cv::Scalar(colour[0], colour[1], colour[2]));
+  }
+  cv::rectangle(img, {bar.x - 1, bar.y - 1}, {bar.x + bar.width, bar.y + bar.height}, kBlack, 1);
+  const auto bar_row = [&](double v) {
+    return bar.y + static_cast<int>(std::lround((vmax - v) / (vmax - vmin) * (bar.height - 1)));
+  };
+  for (double v : Ticks(vmin, vmax, tick_step)) {
+    const int r = bar_row(v);
+    cv::line(img, {bar.x + bar.width, r}, {bar.x + bar.width + tick_len, r}, kBlack, 1);
+    PutLeftMiddle(img, fmt::format("{:.{}f}", v, Decimals(tick_step)), {bar.x + bar.width + tick_len + s / 2, r},
+                  label_font);
+  }
+  if (contour_step > 0 && (vmax - vmin) / contour_step <= 200) {
+    for (double v : Ticks(vmin, vmax, contour_step)) {
+      const int r = bar_row(v);
+      cv::line(img, {bar.x - tick_len, r}, {bar.x - 2, r}, kContourColour, 1);
+    }
+  }
+  PutCentred(img, Transliterate(map.unit), {bar.x + bar.width / 2, bar.y - 2 * s}, label_font);
+  if (contour_step > 0) {
+    const std::string note = fmt::format("contours every {:.{}f} {}", contour_step, Decimals(contour_step),
+                                         Transliterate(map.unit));
+    PutText(img, note, {plot.x + plot.width - TextSize(note, label_font).width, height - s}, label_font);
+  }
+
+  MapImage out;
+  out.width_px = width;
+  out.height_px = height;
+  out.bgr.assign(img.datastart, img.dataend);
+  out.plot = {plot.x, plot.y, plot.width, plot.height};
+  out.colour_bar = {bar.x, bar.y, bar.width, bar.height};
+  out.value_min = vmin;
+  out.value_max = vmax;
+  out.contour_step = contour_step;
+  return out;
+}
+
+void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOptions& options) {
+  MapImage image = RenderMap(map, options);
+  const cv::Mat img(image.height_px, image.width_px, CV_8UC3, image.bgr.data());
+  std::vector<std::uint8_t> png;
+  if (!cv::imencode(".png", img, png)) throw std::runtime_error(path + ": PNG encoding failed");
+  model::WriteFileAtomic(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+}
+
+std::string GridMapCsv(const GridMap& map) {
+  std::string why;
+  if (!map.IsValid(&why)) throw std::invalid_argument("GridMap: " + why);
+  std::string column = "value";
+  const std::string unit = Transliterate(map.unit);
+  if (!unit.empty()) column += '_';
+  for (char c : unit) {
+    if (c == '\x01') column += 'u';
+    else if (std::isalnum(static_cast<unsigned char>(c))) column += c;
+    else column += '_';
+  }
+  std::string csv = "x_mm,y_mm," + column + "\n";
+  csv.reserve(csv.size() + map.values.size() * 32);
+  for (int j = 0; j < map.ny; ++j) {
+    const double y = map.y_min_mm + j * (map.y_max_mm - map.y_min_mm) / (map.ny - 1);
+    for (int i = 0; i < map.nx; ++i) {
+      const double x = map.x_min_mm + i * (map.x_max_mm - map.x_min_mm) / (map.nx - 1);
+      const double v = map.At(i, j);
+      if (std::isfinite(v)) csv += fmt::format("{},{},{}\n", x, y, v);
+      else csv += fmt::format("{},{},\n", x, y);
+    }
+  }
+  return csv;
+}
+
+void WriteMapCsv(const std::string& path, const GridMap& map) { model::WriteFileAtomic(path, GridMapCsv(map)); }
+
+GridMap ResamplePolar(const PolarField& field, int n, std::string title, std::string unit) {
+  const size_t nr = field.radii_mm.size();
+  if (n < 2) throw std::invalid_argument("ResamplePolar: n must be at least 2");
+  if (nr < 2 || field.meridians < 1 || field.values.size() != nr * field.meridians) {
+    throw std::invalid_argument("ResamplePolar: need >= 2 radii, >= 1 meridian and meridians * radii values");
+  }
+  for (size_t k = 0; k < nr; ++k) {
+    if (!(field.radii_mm[k] >= 0) || (k > 0 && !(field.radii_mm[k] > field.radii_mm[k - 1]))) {
+      throw std::invalid_argument("ResamplePolar: radii must be >= 0 and strictly ascending");
+    }
+  }
+  const double R = field.radii_mm.back();
+  GridMap g;
+  g.x_min_mm = g.y_min_mm = -R;
+  g.x_max_mm = g.y_max_mm = R;
+  g.nx = g.ny = n;
+  g.title = std::move(title);
+  g.unit = std::move(unit);
+  g.values.assign(static_cast<size_t>(n) * n, kNaN);
+  const auto value = [&](int m, size_t k) { return field.values[static_cast<size_t>(m) * nr + k]; };
+  for (int j = 0; j < n; ++j) {
+    const double y = -R + 2.0 * R * j / (n - 1);
+    for (int i = 0; i < n; ++i) {
+      const double x = -R + 2.0 * R * i / (n - 1);
+      const double r = std::hypot(x, y);
+      if (r > R * (1 + 1e-12)) continue;
+      // Meridians: periodic linear interpolation in angle.
+      double u = std::atan2(y, x) / (2.0 * M_PI) * field.meridians;
+      if (u < 0) u += field.meridians;
+      const double uf = std::floor(u);
+      const double wu = u - uf;
+      const int m0 = static_cast<int>(uf) % field.meridians, m1 = (m0 + 1) % field.meridians;
+      // Radii: linear between the bracketing samples, the innermost sample inside the smallest radius.
+      size_t k1 = std::upper_bound(field.radii_mm.begin(), field.radii_mm.end(), r) - field.radii_mm.begin();
+      size_t k0 = k1 == 0 ? 0 : k1 - 1;
+      k1 = std::min(k1, nr - 1);
+      const double wr = k1 == k0 ? 0.0 : (r - field.radii_mm[k0]) / (field.radii_mm[k1] - field.radii_mm[k0]);
+      const double v = (1 - wu) * ((1 - wr) * value(m0, k0) + wr * value(m0, k1)) +
+                       wu * ((1 - wr) * value(m1, k0) + wr * value(m1, k1));
+      g.values[static_cast<size_t>(j) * n + i] = v;  // NaN if a contributing sample has no data
+    }
+  }
+  return g;
+}
+
+}  // namespace topocal::topo

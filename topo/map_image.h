@@ -1,0 +1,89 @@
+#pragma once
+// Maps as files (issue 4, item 4): a scalar field over the cornea (power in D, height in µm) as a CSV grid and as a
+// PNG a clinician or QA engineer can read: colour scale with a labelled colour bar, contour lines at round levels,
+// axes in mm, title. Drawn with OpenCV (kept out of this header: topocal_topo links OpenCV privately, so callers
+// get raw 8-bit BGR pixels, not a cv::Mat). See docs/maps.md for the conventions.
+//
+// Frame: the topographer's (x, y) in mm, the cornea seen from the camera, x to the right and y UP on the image
+// (row 0 of the grid is y_min and is drawn at the bottom of the plot). Equal scale on both axes.
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace topocal::topo {
+
+// A scalar field sampled on a regular grid over [x_min, x_max] x [y_min, y_max] (sample points include the edges:
+// x_i = x_min + i (x_max - x_min) / (nx - 1)). NaN = no data (outside the measured zone).
+struct GridMap {
+  double x_min_mm = -1.0, x_max_mm = 1.0, y_min_mm = -1.0, y_max_mm = 1.0;
+  int nx = 0, ny = 0;
+  std::vector<double> values;  // row-major, values[j * nx + i] at (x_i, y_j), row 0 at y_min
+  std::string title;           // e.g. "Axial power, sigma = 2e-4 /mm^2"
+  std::string unit;            // e.g. "D" or "µm"
+  double At(int i, int j) const { return values[static_cast<size_t>(j) * nx + i]; }
+  bool IsValid(std::string* why) const;
+};
+
+// Colour scales of OpenCV's applyColorMap. Turbo (default): Google's perceptually smoothed rainbow, low = blue,
+// high = red, the clinical convention for power maps (steep = warm). Jet: the classic rainbow, for comparison.
+enum class ColourScale { kTurbo, kJet };
+
+struct MapImageOptions {
+  int size_px = 800;                        // side of the (square) plot area; the image adds axes and colour bar
+  std::optional<double> value_min, value_max;  // colour range; default: the data's range (rounded out to ticks)
+  double contour_step = 0;                  // 0: a round step giving about 10 levels; < 0: no contour lines
+  ColourScale scale = ColourScale::kTurbo;
+  bool IsValid(std::string* why) const;
+};
+
+struct PixelRect {
+  int x = 0, y = 0, width = 0, height = 0;  // top-left corner and size, pixels
+};
+
+// A rendered map: 8-bit BGR pixels and where things were drawn (for tests and for callers that compose figures).
+struct MapImage {
+  int width_px = 0, height_px = 0;
+  std::vector<std::uint8_t> bgr;  // row-major, 3 bytes per pixel, row 0 at the top
+  PixelRect plot;                 // the data area: x_min..x_max left to right, y_max..y_min top to bottom
+  PixelRect colour_bar;           // value_min at the bottom row, value_max at the top row
+  double value_min = 0, value_max = 0;  // the colour range drawn
+  double contour_step = 0;              // the contour step drawn (0: none)
+  std::array<std::uint8_t, 3> Bgr(int x, int y) const {
+    const size_t k = 3 * (static_cast<size_t>(y) * width_px + x);
+    return {bgr[k], bgr[k + 1], bgr[k + 2]};
+  }
+};
+
+// Colour of the scale at fraction t in [0, 1] of the range (clamped), BGR.
+std::array<std::uint8_t, 3> ScaleColour(ColourScale scale, double t);
+// The light grey drawn where the map has no data, BGR.
+std::array<std::uint8_t, 3> NoDataColour();
+
+// Renders the map. Throws std::invalid_argument if the map or the options are invalid (see IsValid).
+MapImage RenderMap(const GridMap& map, const MapImageOptions& options = {});
+// Renders and writes a PNG atomically. Throws model::InputError naming the path if it cannot be written.
+void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOptions& options = {});
+
+// The map as CSV, long format: a header "x_mm,y_mm,<quantity>_<unit>" (e.g. value_D, value_um) then one row per
+// grid point, row 0 (y_min) first, x ascending within a row; no data is an empty field. Numbers in the shortest
+// form that reads back exactly.
+std::string GridMapCsv(const GridMap& map);
+// Writes GridMapCsv atomically. Throws model::InputError naming the path if it cannot be written.
+void WriteMapCsv(const std::string& path, const GridMap& map);
+
+// A field on a polar grid: `meridians` equally spaced meridians (meridian m at angle 2 pi m / meridians from +x
+// towards +y) times samples at the ascending radii `radii_mm` (r = 0 allowed).
+struct PolarField {
+  std::vector<double> radii_mm;
+  int meridians = 0;
+  std::vector<double> values;  // values[m * radii_mm.size() + k]; NaN = no data
+};
+
+// Resamples a polar field onto an n x n grid over [-R, R]^2, R = the largest radius: bilinear in (r, angle),
+// periodic in angle; NaN beyond R; inside the smallest radius the innermost ring's value on that meridian.
+// Throws std::invalid_argument on an inconsistent field or n < 2.
+GridMap ResamplePolar(const PolarField& field, int n, std::string title, std::string unit);
+
+}  // namespace topocal::topo

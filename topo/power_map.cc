@@ -1,0 +1,89 @@
+#include "topo/power_map.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Core>
+#include <Eigen/QR>
+#include <fmt/format.h>
+
+namespace topocal::topo {
+namespace {
+
+bool Fail(std::string* why, std::string message) {
+  if (why) *why = std::move(message);
+  return false;
+}
+
+}  // namespace
+
+bool ComputePowerMaps(const SurfaceEvaluator& surface, const PowerMapOptions& o, PowerMaps* maps, std::string* why) {
+  const int K = o.radial_samples, M = o.meridians, P = o.meridian_polynomial_order;
+  if (M < 1 || K < 1 || !(o.radius_mm > 0)) return Fail(why, "power map grid is empty");
+  const bool fit = o.method == MeridianMethod::kPolynomialFit;
+  if (fit && K < P + 1) return Fail(why, fmt::format("{} radial samples cannot fit an order-{} polynomial", K, P));
+  // The Eq. 23 design matrix in normalised s = rho / R is the same for every meridian: factor it once.
+  Eigen::MatrixXd A(K, P);
+  for (int k = 0; k < K; ++k) {
+    const double s = static_cast<double>(k + 1) / K;
+    double sp = 1.0;
+    for (int i = 0; i < P; ++i) A(k, i) = (sp *= s);
+  }
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr;
+  if (fit) {
+    qr.compute(A);
+    if (qr.rank() < P) return Fail(why, "meridian polynomial fit is singular");
+  }
+  const double power_per_curvature = (o.corneal_index - o.surrounding_index) * 1000.0;  // 1/mm -> diopters
+
+  maps->meridians = M;
+  maps->radial_samples = K;
+  maps->radius_mm = o.radius_mm;
+  maps->axial_D.assign(static_cast<size_t>(M) * K, 0.0);
+  maps->tangential_D.assign(static_cast<size_t>(M) * K, 0.0);
+  Eigen::VectorXd f(K), d1s(K), d2s(K);
+  for (int j = 0; j < M; ++j) {
+    const double theta = 2.0 * M_PI * j / M;
+    const double ct = std::cos(theta), st = std::sin(theta);
+    for (int k = 0; k < K; ++k) {
+      const double rho = o.radius_mm * (k + 1) / K;
+      model::SurfaceDerivatives d;
+      if (!surface(rho * ct, rho * st, &d)) {
+        return Fail(why, fmt::format("surface undefined at rho = {:.3f} mm, theta = {:.1f} deg", rho, theta * 180 / M_PI));
+      }
+      f(k) = d.z;
+      d1s(k) = d.zx * ct + d.zy * st;
+      d2s(k) = ct * ct * d.zxx + 2.0 * ct * st * d.zxy + st * st * d.zyy;
+    }
+    if (fit) {
+      const Eigen::VectorXd c = qr.solve(f);  // coefficients of s^i, i = 1..P
+      for (int k = 0; k < K; ++k) {
+        const double s = static_cast<double>(k + 1) / K;
+        double d1 = 0, d2 = 0, sp = 1.0;  // sp = s^(i-1); d/drho = (1/R) d/ds
+        for (int i = 1; i <= P; ++i) {
+          d1 += i * c(i - 1) * sp;
+          if (i >= 2) d2 += i * (i - 1) * c(i - 1) * sp / s;
+          sp *= s;
+        }
+        d1s(k) = d1 / o.radius_mm;
+        d2s(k) = d2 / (o.radius_mm * o.radius_mm);
+      }
+    }
+    for (int k = 0; k < K; ++k) {
+      const double rho = o.radius_mm * (k + 1) / K;
+      const double g = 1.0 + d1s(k) * d1s(k);
+      const double ka = d1s(k) / (rho * std::sqrt(g));   // Eq. 24
+      const double km = d2s(k) / (g * std::sqrt(g));
+      if (!std::isfinite(ka) || !std::isfinite(km)) return Fail(why, "curvature is not finite");
+      maps->axial_D[static_cast<size_t>(j) * K + k] = ka * power_per_curvature;  // Eq. 25
+      maps->tangential_D[static_cast<size_t>(j) * K + k] = km * power_per_curvature;
+    }
+  }
+  const auto [amin, amax] = std::minmax_element(maps->axial_D.begin(), maps->axial_D.end());
+  const auto [tmin, tmax] = std::minmax_element(maps->tangential_D.begin(), maps->tangential_D.end());
+  maps->pv_axial_D = *amax - *amin;       // Eq. 28b
+  maps->pv_tangential_D = *tmax - *tmin;  // Eq. 28a
+  return true;
+}
+
+}  // namespace topocal::topo

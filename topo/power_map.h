@@ -1,0 +1,58 @@
+#pragma once
+// Axial (sagittal) and tangential (meridional) curvature and power maps (paper Sec. 4.2, Eq. 23-25, 28).
+//
+// Along each meridian theta the sag is F(rho) = surface(rho cos theta, rho sin theta). Its derivatives come either
+//  * kPolynomialFit: from the least-squares polynomial F(rho) = sum_{i=1..8} c_i rho^i (Eq. 23 as printed; no
+//    constant term: the piston and tilts of Psi are zeroed first, so F(0) = 0), or
+//  * kExact (default): from the surface's own gradient and Hessian, F' = grad S . e, F'' = e^T H e with
+//    e = (cos theta, sin theta). For Psi (degree 9) the two agree to ~1e-3 D, since Psi along a meridian is itself a
+//    polynomial of degree 9; for a sphere or biconic the order-8 fit leaves +-0.1 D of model error over 5.3 mm
+//    (docs/power-maps.md), which is why exact derivatives are the default;
+//
+//   K_a = F' / (rho (1 + F'^2)^(1/2)),   K_m = F'' / (1 + F'^2)^(3/2)          (Eq. 24, 1/mm)
+//   P = (n_c - n') K * 1000                                                     (Eq. 25, diopters)
+// with the keratometric index n_c = 1.3375 and n' = 1. Samples: rho_k = R k / K, k = 1..K (rho = 0 is excluded:
+// K_a is a limit there), theta_j = 360 j / M deg, j = 0..M-1.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "model/surface.h"
+
+namespace topocal::topo {
+
+inline constexpr double kKeratometricIndex = 1.3375;  // paper Sec. 4.2
+
+enum class MeridianMethod { kExact, kPolynomialFit };
+
+// Evaluates the surface and its derivatives at (x, y) mm; false where it is undefined.
+using SurfaceEvaluator = std::function<bool(double x_mm, double y_mm, model::SurfaceDerivatives*)>;
+
+struct PowerMapOptions {
+  MeridianMethod method = MeridianMethod::kExact;
+  double radius_mm = 5.3;
+  int meridians = 360;
+  int radial_samples = 100;
+  int meridian_polynomial_order = 8;  // Eq. 23
+  double corneal_index = kKeratometricIndex;
+  double surrounding_index = 1.0;
+};
+
+struct PowerMaps {
+  int meridians = 0;
+  int radial_samples = 0;
+  double radius_mm = 0;
+  std::vector<double> axial_D;       // [meridian * radial_samples + k]
+  std::vector<double> tangential_D;
+  double pv_axial_D = 0;      // Eq. 28b (the paper's pv_a, Table VII column "pv_s")
+  double pv_tangential_D = 0; // Eq. 28a (pv_m)
+  double RhoMm(int k) const { return radius_mm * (k + 1) / radial_samples; }
+  double ThetaDeg(int j) const { return 360.0 * j / meridians; }
+};
+
+// The surface must be defined on the whole disc of radius options.radius_mm. Returns false with a reason if it
+// is not, if the meridian fits are singular, or if a curvature is not finite.
+bool ComputePowerMaps(const SurfaceEvaluator& surface, const PowerMapOptions& options, PowerMaps* maps,
+                      std::string* why = nullptr);
+
+}  // namespace topocal::topo

@@ -1,0 +1,263 @@
+#include "topo/reconstruction.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include <fmt/format.h>
+
+namespace topocal::topo {
+namespace {
+
+struct Ray {
+  model::SpotId id;
+  Eigen::Vector3d incident;  // I, unit, from the pinhole towards the cornea
+  Eigen::Vector3d target;    // P3
+};
+
+struct Prepared {
+  std::vector<Ray> rays;
+  std::vector<model::SpotId> unmatched;
+};
+
+Prepared Prepare(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
+                 const model::Topographer& topo) {
+  std::map<model::SpotId, const model::TargetPoint*> by_id;
+  for (const auto& t : targets) by_id[t.id] = &t;
+  Prepared p;
+  p.rays.reserve(spots.size());
+  for (const auto& s : spots) {
+    const auto it = by_id.find(s.id);
+    if (it == by_id.end()) {
+      p.unmatched.push_back(s.id);
+      continue;
+    }
+    p.rays.push_back({s.id, topo.IncidentDirection(s.image_mm), it->second->on_cone_mm});
+  }
+  // Ring order (then index) makes the zonal integration paths and all outputs deterministic.
+  std::sort(p.rays.begin(), p.rays.end(), [](const Ray& a, const Ray& b) { return a.id < b.id; });
+  return p;
+}
+
+// Intersection of the ray h + lambda I with z = Psi(x, y), by Newton on lambda from lambda0.
+bool IntersectPolynomial(const TaylorPolynomial& psi, const Eigen::Vector3d& h, const Eigen::Vector3d& dir,
+                         double lambda0, Eigen::Vector3d* hit) {
+  // 1e-12 mm on lambda: far below the nm accuracy the reconstruction targets, above the double floor at ~70 mm.
+  constexpr double kLambdaToleranceMm = 1e-12;
+  constexpr int kMaxIterations = 30;
+  double lambda = lambda0;
+  for (int it = 0; it < kMaxIterations; ++it) {
+    const Eigen::Vector3d p = h + lambda * dir;
+    double z, zx, zy;
+    psi.ValueAndGradient(p.x(), p.y(), &z, &zx, &zy);
+    const double f = p.z() - z;
+    const double df = dir.z() - zx * dir.x() - zy * dir.y();
+    if (!(std::abs(df) > 1e-12)) return false;
+    const double step = f / df;
+    lambda -= step;
+    if (!std::isfinite(lambda)) return false;
+    if (std::abs(step) < kLambdaToleranceMm) {
+      *hit = h + lambda * dir;
+      return true;
+    }
+  }
+  return false;
+}
+
+Eigen::Vector3d NormalFromRays(const Eigen::Vector3d& incident, const Eigen::Vector3d& p2, const Eigen::Vector3d& p3) {
+  const Eigen::Vector3d reflected = (p3 - p2).normalized();
+  return (reflected - incident).normalized();  // Eq. 19
+}
+
+// Std of |U - n| (paper Sec. 4.1, Eq. 22 against Eq. 19), U = (Psi_x, Psi_y, -1)/norm.
+double Consistency(const TaylorPolynomial& psi, const std::vector<Eigen::Vector3d>& p2,
+                   const std::vector<Eigen::Vector3d>& normals) {
+  const int n = static_cast<int>(p2.size());
+  double sum = 0, sum2 = 0;
+  for (int i = 0; i < n; ++i) {
+    double z, zx, zy;
+    psi.ValueAndGradient(p2[i].x(), p2[i].y(), &z, &zx, &zy);
+    const Eigen::Vector3d u = Eigen::Vector3d(zx, zy, -1.0).normalized();
+    const double d = (u - normals[i]).norm();
+    sum += d;
+    sum2 += d * d;
+  }
+  const double mean = sum / n;
+  return std::sqrt(std::max(0.0, sum2 / n - mean * mean));
+}
+
+// Trapezoidal integration of the slopes (Eq. 20) along straight paths: ring 1 from the vertex (0, 0, t) whose
+// slope is taken as the mean slope of ring 1; every later spot from the nearest spot of the previous ring present.
+std::vector<double> ZonalHeights(const std::vector<Ray>& rays, const std::vector<Eigen::Vector3d>& p2,
+                                 const std::vector<Eigen::Vector2d>& slopes, double t_mm) {
+  const int n = static_cast<int>(rays.size());
+  std::vector<double> z(n, t_mm);
+  Eigen::Vector2d vertex_slope = Eigen::Vector2d::Zero();
+  int first_ring = n ? rays[0].id.ring : 0, count = 0;
+  for (int i = 0; i < n && rays[i].id.ring == first_ring; ++i, ++count) vertex_slope += slopes[i];
+  if (count) vertex_slope /= count;
+  int prev_begin = -1, prev_end = -1, begin = 0;
+  while (begin < n) {
+    int end = begin;
+    while (end < n && rays[end].id.ring == rays[begin].id.ring) ++end;
+    for (int i = begin; i < end; ++i) {
+      Eigen::Vector2d from_xy = Eigen::Vector2d::Zero(), from_slope = vertex_slope;
+      double from_z = t_mm;
+      if (prev_begin >= 0) {
+        int best = prev_begin;
+        for (int j = prev_begin; j < prev_end; ++j) {
+          if ((p2[j].head<2>() - p2[i].head<2>()).squaredNorm() < (p2[best].head<2>() - p2[i].head<2>()).squaredNorm()) best = j;
+        }
+        from_xy = p2[best].head<2>();
+        from_slope = slopes[best];
+        from_z = z[best];
+      }
+      const Eigen::Vector2d step = p2[i].head<2>() - from_xy;
+      z[i] = from_z + 0.5 * (from_slope + slopes[i]).dot(step);
+    }
+    prev_begin = begin;
+    prev_end = end;
+    begin = end;
+  }
+  return z;
+}
+
+Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
+                     const model::ReconstructionSettings& settings, double t_mm, bool iterate) {
+  Reconstruction r;
+  r.method = iterate ? "iterative" : "paper";
+  r.vertex_t_mm = t_mm;
+  r.unmatched = prep.unmatched;
+  const int n = static_cast<int>(prep.rays.size());
+  r.spots_used = n;
+  const int needed = TaylorPolynomial::TermCount(settings.taylor_degree);
+  if (2 * n < needed - 1 + 1) {
+    r.message = fmt::format("{} spots give {} slope equations; a degree-{} polynomial needs at least {}", n, 2 * n,
+                            settings.taylor_degree, needed);
+    return r;
+  }
+  const model::Topographer topo{tp};
+  const Eigen::Vector3d h = topo.Pinhole();
+  std::vector<Eigen::Vector3d> p2(n), normals(n);
+  std::vector<Eigen::Vector2d> xy(n), slopes(n);
+  double radius = 0;
+  for (int i = 0; i < n; ++i) {
+    const auto hit = topo.HitReferenceSphere(prep.rays[i].incident, t_mm);
+    if (!hit) {
+      r.message = fmt::format("spot ({}, {}): its ray misses the reference sphere", prep.rays[i].id.ring, prep.rays[i].id.index);
+      return r;
+    }
+    p2[i] = *hit;
+    radius = std::max(radius, hit->head<2>().norm());
+  }
+  // Normalise the polynomial on the data radius (rounded up to 0.1 mm so that it does not change between
+  // iterations, which keeps the basis identical while the points move by micrometres).
+  const double norm_radius = std::ceil(radius * 10.0 + 1.0) / 10.0;
+  TaylorPolynomial psi(settings.taylor_degree, norm_radius);
+  const double tolerance_mm = settings.convergence_um * 1e-3;
+  const int max_iterations = iterate ? settings.max_iterations : 1;
+  for (int it = 0; it < max_iterations; ++it) {
+    for (int i = 0; i < n; ++i) {
+      normals[i] = NormalFromRays(prep.rays[i].incident, p2[i], prep.rays[i].target);
+      slopes[i] = Eigen::Vector2d(-normals[i].x() / normals[i].z(), -normals[i].y() / normals[i].z());
+      xy[i] = p2[i].head<2>();
+    }
+    const GradientFit fit = FitGradient(xy, slopes, t_mm, &psi);
+    if (!fit.ok) {
+      r.message = "the modal fit of the slopes is rank-deficient (too few or degenerate spots)";
+      return r;
+    }
+    r.rms_slope_residual = fit.rms_slope_residual;
+    r.iterations = it + 1;
+    if (!iterate) break;
+    double moved = 0;
+    for (int i = 0; i < n; ++i) {
+      Eigen::Vector3d hit;
+      if (!IntersectPolynomial(psi, h, prep.rays[i].incident, (p2[i] - h).norm(), &hit)) {
+        r.message = fmt::format("spot ({}, {}): its ray misses the reconstructed surface", prep.rays[i].id.ring,
+                                prep.rays[i].id.index);
+        return r;
+      }
+      moved = std::max(moved, (hit - p2[i]).norm());
+      p2[i] = hit;
+    }
+    if (moved <= tolerance_mm) break;
+    if (it + 1 == max_iterations) {
+      r.message = fmt::format("normal refinement did not converge in {} iterations (last move {:.3g} um)",
+                              max_iterations, moved * 1e3);
+      return r;
+    }
+  }
+  // Points on the recovered surface: for the paper's method the estimates P2' lie on G, not on Psi; report the
+  // surface height Psi at their (x, y), as the paper's point cloud does.
+  r.consistency = Consistency(psi, p2, normals);
+  const std::vector<double> zonal = ZonalHeights(prep.rays, p2, slopes, t_mm);
+  r.points.resize(n);
+  for (int i = 0; i < n; ++i) {
+    r.points[i].id = prep.rays[i].id;
+    r.points[i].point_mm = Eigen::Vector3d(p2[i].x(), p2[i].y(), psi.Value(p2[i].x(), p2[i].y()));
+    r.points[i].normal = normals[i];
+    r.points[i].zonal_z_mm = zonal[i];
+  }
+  r.surface = std::move(psi);
+  r.ok = true;
+  return r;
+}
+
+}  // namespace
+
+Reconstruction ReconstructAt(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
+                             const model::TopographerParams& topographer,
+                             const model::ReconstructionSettings& settings, double t_mm, bool iterate) {
+  const Prepared prep = Prepare(spots, targets, model::Topographer{topographer});
+  return Solve(prep, topographer, settings, t_mm, iterate);
+}
+
+Reconstruction Reconstruct(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
+                           const model::TopographerParams& topographer, const model::ReconstructionSettings& settings) {
+  const Prepared prep = Prepare(spots, targets, model::Topographer{topographer});
+  const bool iterate = settings.method == "iterative";
+  if (iterate) {
+    // The consistency Delta(t) is monotone in t for this geometry (docs/reconstruction.md): a single camera and
+    // screen do not fix the vertex height, so the iterative method works at the nominal position.
+    Reconstruction r = Solve(prep, topographer, settings, settings.vertex_t_um * 1e-3, true);
+    r.vertex_evaluations = 1;
+    if (r.ok) {
+      r.message = fmt::format("iterative method: {} spots, t = {:.4f} um, {} iterations, slope rms {:.3g}",
+                              r.spots_used, r.vertex_t_mm * 1e3, r.iterations, r.rms_slope_residual);
+    }
+    return r;
+  }
+  // Vertex search of Fig. 8: K points over [t - w, t + w]; take the best, shrink to +- one grid step around it and
+  // repeat until Delta <= TOL, the budget ends, or the interval is below 1e-6 um (beyond double precision of t).
+  double centre = settings.vertex_t_um * 1e-3, half = settings.vertex_search_halfwidth_um * 1e-3;
+  Reconstruction best;
+  int evaluations = 0;
+  for (int round = 0; round < settings.vertex_search_max_refinements; ++round) {
+    const int k = settings.vertex_search_steps;
+    const double step = 2.0 * half / (k - 1);
+    for (int i = 0; i < k; ++i) {
+      const double t = centre - half + i * step;
+      Reconstruction r = Solve(prep, topographer, settings, t, iterate);
+      ++evaluations;
+      if (!r.ok) continue;
+      if (!best.ok || r.consistency < best.consistency) best = std::move(r);
+    }
+    if (!best.ok) break;
+    if (best.consistency <= settings.vertex_search_tol || step < 1e-9) break;
+    centre = best.vertex_t_mm;
+    half = step;
+  }
+  if (!best.ok) {
+    best = Solve(prep, topographer, settings, 0.0, iterate);  // for its failure message
+    best.ok = false;
+  }
+  best.vertex_evaluations = evaluations;
+  if (best.ok) {
+    best.message = fmt::format("{} method: {} spots, t = {:.4f} um, Delta = {:.3g}, {} evaluations", best.method,
+                               best.spots_used, best.vertex_t_mm * 1e3, best.consistency, evaluations);
+  }
+  return best;
+}
+
+}  // namespace topocal::topo

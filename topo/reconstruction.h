@@ -1,0 +1,66 @@
+#pragma once
+// Null-screen reconstruction (paper Sec. 4.1): from spot positions on the detection plane and the designed target
+// points on the cone, recover the corneal surface as the Taylor polynomial Psi of Eq. 21.
+//
+// For every spot: the incident direction I from the image point through the pinhole (Eq. 3); an estimate P2' of the
+// incidence point on a surface G; the reflected direction R' = (P3 - P2')/|P3 - P2'|; the normal n = (R' - I)/|R' - I|
+// (Eq. 19) and the slopes S_x = -n_x/n_z, S_y = -n_y/n_z. The slopes are integrated zonally (trapezoidal rule along
+// ring-to-ring paths, Eq. 20) and modally (least-squares fit of grad Psi, Eq. 21-22).
+//
+// Two ways to choose G (docs/reconstruction.md gives the evidence for the default):
+//  * "paper": G is the design sphere placed at axial offsets t_k; the t_k whose Psi agrees best with its own
+//    normals (smallest std of |U - n|, Eq. 22) wins, refining the t interval (Fig. 8) until Delta <= TOL or the
+//    refinement budget ends. The normals are never updated, so Psi keeps the error of P2' ~ P2.
+//  * "iterative" (default): start from the sphere, then intersect every ray with the current Psi, recompute the
+//    normals from those points and refit, until no point moves by more than convergence_um. Delta(t) is monotone in
+//    t here (the vertex height is not observable from one camera and one screen), so this method works at the
+//    nominal vertex position vertex_t_um; the biconic fit's own vertex offset absorbs a small displacement.
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "model/config.h"
+#include "model/null_screen.h"
+#include "topo/taylor_polynomial.h"
+
+namespace topocal::topo {
+
+struct MeasuredSpot {
+  model::SpotId id;
+  Eigen::Vector2d image_mm;  // on the detection plane
+};
+
+struct ReconstructedPoint {
+  model::SpotId id;
+  Eigen::Vector3d point_mm;   // (x, y, Psi(x, y)): the incidence point on the recovered surface
+  Eigen::Vector3d normal;     // n of Eq. 19 (points towards the camera, n_z < 0)
+  double zonal_z_mm = 0;      // height from the trapezoidal zonal integration (Eq. 20)
+};
+
+struct Reconstruction {
+  bool ok = false;
+  std::string message;              // why it failed, or a one-line summary
+  std::string method;
+  TaylorPolynomial surface;         // Psi
+  std::vector<ReconstructedPoint> points;
+  double vertex_t_mm = 0;           // axial position of G / of Psi(0, 0)
+  double consistency = 0;           // Delta: std of |U - n| over the spots at the chosen t
+  double rms_slope_residual = 0;    // rms of the gradient fit
+  int iterations = 0;               // normal-refinement iterations at the chosen t (iterative method)
+  int vertex_evaluations = 0;       // t values tried
+  int spots_used = 0;
+  std::vector<model::SpotId> unmatched;  // spots whose identity is not in the design
+};
+
+// Reconstructs from any subset of spots (unordered, some missing). Fails (ok = false, message) with fewer spots
+// than the polynomial needs, or when a ray misses the surface estimate.
+Reconstruction Reconstruct(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
+                           const model::TopographerParams& topographer, const model::ReconstructionSettings& settings);
+
+// One evaluation at a fixed vertex offset t (exposed for tests and the investigation in docs/reconstruction.md).
+Reconstruction ReconstructAt(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
+                             const model::TopographerParams& topographer,
+                             const model::ReconstructionSettings& settings, double t_mm, bool iterate);
+
+}  // namespace topocal::topo

@@ -1,0 +1,57 @@
+#pragma once
+// The modal surface of paper Eq. 21: Psi(x, y) = sum_k B_k psi_k(x, y), Taylor monomials of total degree <= D
+// (D = 9 gives the paper's N = 55 terms), evaluated in normalised coordinates u = x / R, v = y / R so that the
+// least-squares problems stay well conditioned (R = the radius of the data).
+//
+// Term order: by total degree d = 0..D, and within a degree by falling power of u:
+//   psi_1 = 1, psi_2 = u, psi_3 = v, psi_4 = u^2, psi_5 = u v, psi_6 = v^2, psi_7 = u^3, ...
+// so B_1 is the piston and B_2, B_3 the tilts (paper Sec. 4.2 zeroes them for the power maps).
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace topocal::topo {
+
+class TaylorPolynomial {
+ public:
+  TaylorPolynomial() = default;
+  TaylorPolynomial(int degree, double norm_radius_mm);
+
+  static int TermCount(int degree) { return (degree + 1) * (degree + 2) / 2; }
+  int degree() const { return degree_; }
+  int terms() const { return static_cast<int>(coefficients_.size()); }
+  double norm_radius_mm() const { return norm_radius_mm_; }
+  const Eigen::VectorXd& coefficients() const { return coefficients_; }
+  Eigen::VectorXd& coefficients() { return coefficients_; }
+  // Exponents (a, b) of term k (0-based): psi_k = u^a v^b.
+  std::pair<int, int> Exponents(int k) const { return exponents_[k]; }
+
+  double Value(double x_mm, double y_mm) const;
+  // Value and gradient (mm, dimensionless slopes).
+  void ValueAndGradient(double x_mm, double y_mm, double* z, double* zx, double* zy) const;
+  // Value, gradient and Hessian (1/mm).
+  void Derivatives(double x_mm, double y_mm, double* z, double* zx, double* zy, double* zxx, double* zxy,
+                   double* zyy) const;
+
+  // Rows of d psi_k / dx and d psi_k / dy at a point, for the gradient fit (k = 1..N-1: the piston has no gradient).
+  void GradientRows(double x_mm, double y_mm, double* row_x, double* row_y) const;
+
+ private:
+  int degree_ = 0;
+  double norm_radius_mm_ = 1.0;
+  Eigen::VectorXd coefficients_;
+  std::vector<std::pair<int, int>> exponents_;
+};
+
+struct GradientFit {
+  bool ok = false;
+  double rms_slope_residual = 0;  // rms of the fitted minus measured slopes (dimensionless)
+};
+
+// Fits B_2..B_N to measured slopes (S_x, S_y) at points (x, y) (paper Eq. 21-22 modal reconstruction) by
+// column-pivoting Householder QR, then sets the piston B_1 so that Psi(0, 0) = z_at_origin_mm.
+// Needs at least N - 1 distinct slope equations; returns ok = false otherwise or on a rank-deficient system.
+GradientFit FitGradient(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes,
+                        double z_at_origin_mm, TaylorPolynomial* poly);
+
+}  // namespace topocal::topo
