@@ -1,7 +1,286 @@
 #include "topo/map_image.h"
 
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
 #include <gtest/gtest.h>
 
+#include "model/io.h"
+
 namespace topocal::topo {
-namespace {}  // namespace
+namespace {
+
+namespace fs = std::filesystem;
+using Bgr = std::array<std::uint8_t, 3>;
+
+// A pixel's scale position may differ from round(255 t) by one entry: the field goes through float32 and cv::remap,
+// which quantises interpolation weights to 1/32 of a grid cell (0.003 mm here, 8e-5 of the range, << 1/255).
+constexpr int kScaleIndexTolerance = 1;
+// ResamplePolar, linear interpolation across meridians 1 deg apart: error <= max|f''| dtheta^2 / 8; for cos(2 theta)
+// that is 4 (pi/180)^2 / 8 = 1.5e-4.
+constexpr double kAngularInterpolationTolerance = 4.0 * (M_PI / 180.0) * (M_PI / 180.0) / 8.0;
+// A field linear in r is reproduced by linear radial interpolation to rounding.
+constexpr double kRadialExactTolerance = 1e-12;
+
+GridMap Ramp(int n, double lo_mm, double hi_mm, bool along_x) {
+  GridMap g;
+  g.x_min_mm = g.y_min_mm = lo_mm;
+  g.x_max_mm = g.y_max_mm = hi_mm;
+  g.nx = g.ny = n;
+  g.title = "ramp";
+  g.unit = "D";
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const double x = lo_mm + (hi_mm - lo_mm) * i / (n - 1), y = lo_mm + (hi_mm - lo_mm) * j / (n - 1);
+      g.values.push_back(along_x ? x : y);
+    }
+  }
+  return g;
+}
+
+// Index of the scale entry nearest to a colour.
+int ScaleIndex(ColourScale s, const Bgr& c) {
+  int best = 0;
+  int best_d = std::numeric_limits<int>::max();
+  for (int i = 0; i < 256; ++i) {
+    const Bgr e = ScaleColour(s, i / 255.0);
+    int d = 0;
+    for (int k = 0; k < 3; ++k) d += (e[k] - c[k]) * (e[k] - c[k]);
+    if (d < best_d) best_d = d, best = i;
+  }
+  return best;
+}
+
+bool IsContourPixel(const Bgr& c) { return c[0] == 30 && c[1] == 30 && c[2] == 30; }
+
+TEST(MapImage, ColourBarRunsFromTheLowEndAtTheBottomToTheHighEndAtTheTop) {
+  for (ColourScale scale : {ColourScale::kTurbo, ColourScale::kJet}) {
+    MapImageOptions o;
+    o.scale = scale;
+    const MapImage img = RenderMap(Ramp(51, -5, 5, true), o);
+    const auto& bar = img.colour_bar;
+    const int cx = bar.x + bar.width / 2;
+    EXPECT_EQ(img.Bgr(cx, bar.y + bar.height - 1), ScaleColour(scale, 0.0));
+    EXPECT_EQ(img.Bgr(cx, bar.y), ScaleColour(scale, 1.0));
+    // Both scales run blue (low) to red (high): BGR blue > red at the bottom, red > blue at the top.
+    EXPECT_GT(img.Bgr(cx, bar.y + bar.height - 1)[0], img.Bgr(cx, bar.y + bar.height - 1)[2]);
+    EXPECT_GT(img.Bgr(cx, bar.y)[2], img.Bgr(cx, bar.y)[0]);
+    // Monotone along the bar.
+    int previous = 256;
+    for (int r = bar.y; r < bar.y + bar.height; ++r) {
+      const int idx = ScaleIndex(scale, img.Bgr(cx, r));
+      EXPECT_LE(idx, previous) << "row " << r;
+      previous = idx;
+    }
+  }
+}
+
+TEST(MapImage, AutomaticRangeIsTheDataRangeRoundedOutToTicks) {
+  GridMap g = Ramp(11, 0, 1, true);
+  for (auto& v : g.values) v = 41.37 + 3.9 * v;  // 41.37 .. 45.27 D
+  const MapImage img = RenderMap(g);
+  EXPECT_DOUBLE_EQ(img.value_min, 41.0);
+  EXPECT_DOUBLE_EQ(img.value_max, 46.0);
+  EXPECT_DOUBLE_EQ(img.contour_step, 0.5);  // about 10 levels over 5 D
+  MapImageOptions fixed;
+  fixed.value_min = 40.0;
+  fixed.value_max = 48.0;
+  fixed.contour_step = 0.25;
+  const MapImage f = RenderMap(g, fixed);
+  EXPECT_DOUBLE_EQ(f.value_min, 40.0);
+  EXPECT_DOUBLE_EQ(f.value_max, 48.0);
+  EXPECT_DOUBLE_EQ(f.contour_step, 0.25);
+}
+
+TEST(MapImage, LinearRampMapsMonotonicallyOntoTheScale) {
+  MapImageOptions o;
+  o.contour_step = -1;  // no contour lines over the colours
+  o.value_min = -5.0;
+  o.value_max = 5.0;
+  const MapImage img = RenderMap(Ramp(101, -5, 5, true), o);
+  const int row = img.plot.y + img.plot.height / 2;
+  int previous = -1;
+  for (int c = 0; c < img.plot.width; ++c) {
+    const int idx = ScaleIndex(o.scale, img.Bgr(img.plot.x + c, row));
+    EXPECT_GE(idx, previous) << "column " << c;
+    previous = idx;
+    const double x_mm = -5.0 + (c + 0.5) * 10.0 / img.plot.width;
+    const int expected = static_cast<int>(std::lround(255.0 * (x_mm + 5.0) / 10.0));
+    EXPECT_NEAR(idx, expected, kScaleIndexTolerance) << "column " << c;
+  }
+}
+
+TEST(MapImage, YPointsUpAndXToTheRight) {
+  MapImageOptions o;
+  o.contour_step = -1;
+  const MapImage img = RenderMap(Ramp(21, -3, 3, false), o);  // value = y
+  const int cx = img.plot.x + img.plot.width / 2;
+  EXPECT_GT(ScaleIndex(o.scale, img.Bgr(cx, img.plot.y + 2)), 250);
+  EXPECT_LT(ScaleIndex(o.scale, img.Bgr(cx, img.plot.y + img.plot.height - 3)), 5);
+}
+
+TEST(MapImage, NoDataIsLightGreyAndDistinctFromThePage) {
+  GridMap g = Ramp(41, -4, 4, true);
+  for (int j = 0; j < g.ny; ++j) {
+    for (int i = 0; i < g.nx / 2; ++i) g.values[j * g.nx + i] = std::numeric_limits<double>::quiet_NaN();
+  }
+  const MapImage img = RenderMap(g);
+  const int row = img.plot.y + img.plot.height / 2;
+  EXPECT_EQ(img.Bgr(img.plot.x + img.plot.width / 4, row), NoDataColour());
+  EXPECT_NE(img.Bgr(img.plot.x + 3 * img.plot.width / 4, row), NoDataColour());
+  EXPECT_EQ(img.Bgr(0, 0), (Bgr{255, 255, 255}));
+  EXPECT_NE(NoDataColour(), (Bgr{255, 255, 255}));
+  for (int i = 0; i < 256; ++i) EXPECT_NE(ScaleColour(ColourScale::kTurbo, i / 255.0), NoDataColour());
+}
+
+TEST(MapImage, ContourLinesLieOnTheRoundLevels) {
+  MapImageOptions o;
+  o.contour_step = 1.0;
+  const MapImage img = RenderMap(Ramp(101, -5, 5, true), o);  // levels at x = -4 .. 4 mm
+  const double px_per_mm = img.plot.width / 10.0;
+  std::vector<bool> level_seen(9, false);
+  for (int row = img.plot.y + 5; row < img.plot.y + img.plot.height - 5; row += 37) {
+    for (int c = 0; c < img.plot.width; ++c) {
+      if (!IsContourPixel(img.Bgr(img.plot.x + c, row))) continue;
+      const double x_mm = -5.0 + (c + 0.5) / px_per_mm;
+      const double level = std::round(x_mm);
+      EXPECT_LE(std::abs(x_mm - level) * px_per_mm, 1.0) << "contour pixel off any level at x = " << x_mm;
+      if (level >= -4 && level <= 4) level_seen[static_cast<int>(level) + 4] = true;
+    }
+  }
+  for (int k = 0; k < 9; ++k) EXPECT_TRUE(level_seen[k]) << "no line at level " << k - 4;
+  // A flat field has no contour line.
+  GridMap flat = Ramp(11, -1, 1, true);
+  for (auto& v : flat.values) v = 43.27;
+  const MapImage f = RenderMap(flat);
+  for (int r = 0; r < f.plot.height; ++r) {
+    for (int c = 0; c < f.plot.width; ++c) ASSERT_FALSE(IsContourPixel(f.Bgr(f.plot.x + c, f.plot.y + r)));
+  }
+}
+
+class MapFiles : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("topocal_maps_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+TEST_F(MapFiles, PngIsWrittenAtomicallyWithTheRenderedSize) {
+  const GridMap g = Ramp(31, -2, 2, true);
+  const std::string path = (dir_ / "ramp.png").string();
+  WriteMapPng(path, g);
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_GT(bytes.size(), 24u);
+  EXPECT_EQ(bytes.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  EXPECT_EQ(bytes.substr(12, 4), "IHDR");
+  const auto be32 = [&](size_t k) {
+    return (static_cast<unsigned char>(bytes[k]) << 24) | (static_cast<unsigned char>(bytes[k + 1]) << 16) |
+           (static_cast<unsigned char>(bytes[k + 2]) << 8) | static_cast<unsigned char>(bytes[k + 3]);
+  };
+  const MapImage img = RenderMap(g);
+  EXPECT_EQ(be32(16), static_cast<unsigned>(img.width_px));
+  EXPECT_EQ(be32(20), static_cast<unsigned>(img.height_px));
+  int files = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir_)) ++files;
+  EXPECT_EQ(files, 1);  // no temporary file left beside it
+}
+
+TEST_F(MapFiles, UnwritablePathIsInputErrorNamingIt) {
+  const std::string path = (dir_ / "missing" / "map.png").string();
+  try {
+    WriteMapPng(path, Ramp(11, -1, 1, true));
+    FAIL() << "no error for " << path;
+  } catch (const model::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(path));
+  EXPECT_THROW(WriteMapCsv(path, Ramp(11, -1, 1, true)), model::InputError);
+}
+
+TEST(MapCsv, LongFormatWithUnitInTheHeaderAndEmptyNoData) {
+  GridMap g = Ramp(3, -1, 1, true);
+  g.unit = "\u00b5m";
+  g.values[4] = std::numeric_limits<double>::quiet_NaN();  // centre
+  g.values[8] = 0.1 + 0.2;                                   // must read back exactly
+  const std::string csv = GridMapCsv(g);
+  std::istringstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "x_mm,y_mm,value_um");
+  std::vector<std::string> rows;
+  while (std::getline(in, line)) rows.push_back(line);
+  ASSERT_EQ(rows.size(), 9u);
+  EXPECT_EQ(rows[0], "-1,-1,-1");
+  EXPECT_EQ(rows[4], "0,0,");
+  const double back = std::stod(rows[8].substr(rows[8].rfind(',') + 1));
+  EXPECT_EQ(back, 0.1 + 0.2);
+  EXPECT_EQ(rows[8].substr(0, 4), "1,1,");
+}
+
+TEST(ResamplePolar, ReproducesRadialAndAngularFieldsAndLeavesTheCornersEmpty) {
+  PolarField f;
+  for (int k = 0; k <= 50; ++k) f.radii_mm.push_back(5.0 * k / 50);
+  f.meridians = 360;
+  for (int m = 0; m < f.meridians; ++m) {
+    for (double r : f.radii_mm) f.values.push_back(r);
+  }
+  const GridMap radial = ResamplePolar(f, 41, "r", "mm");
+  EXPECT_EQ(radial.nx, 41);
+  EXPECT_DOUBLE_EQ(radial.x_max_mm, 5.0);
+  for (int j = 0; j < 41; ++j) {
+    for (int i = 0; i < 41; ++i) {
+      const double x = -5.0 + 0.25 * i, y = -5.0 + 0.25 * j;
+      const double r = std::hypot(x, y);
+      if (r > 5.0) {
+        EXPECT_TRUE(std::isnan(radial.At(i, j)));
+      } else {
+        EXPECT_NEAR(radial.At(i, j), r, kRadialExactTolerance);
+      }
+    }
+  }
+  // cos(2 theta): largest along x, smallest along y (meridian 90 deg points to +y, grid row j up).
+  f.values.clear();
+  for (int m = 0; m < f.meridians; ++m) {
+    for (size_t k = 0; k < f.radii_mm.size(); ++k) f.values.push_back(std::cos(2.0 * 2.0 * M_PI * m / f.meridians));
+  }
+  const GridMap angular = ResamplePolar(f, 41, "cos 2 theta", "");
+  for (int j = 0; j < 41; ++j) {
+    for (int i = 0; i < 41; ++i) {
+      const double x = -5.0 + 0.25 * i, y = -5.0 + 0.25 * j;
+      if (std::hypot(x, y) > 5.0 || (x == 0 && y == 0)) continue;
+      EXPECT_NEAR(angular.At(i, j), std::cos(2.0 * std::atan2(y, x)), kAngularInterpolationTolerance);
+    }
+  }
+  EXPECT_NEAR(angular.At(20, 40), -1.0, kAngularInterpolationTolerance);  // (0, +5)
+}
+
+TEST(MapImage, RejectsInconsistentInput) {
+  GridMap g = Ramp(5, -1, 1, true);
+  g.values.pop_back();
+  std::string why;
+  EXPECT_FALSE(g.IsValid(&why));
+  EXPECT_THROW(RenderMap(g), std::invalid_argument);
+  EXPECT_THROW(GridMapCsv(g), std::invalid_argument);
+  MapImageOptions o;
+  o.value_min = 2.0;
+  o.value_max = 1.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_THROW(RenderMap(Ramp(5, -1, 1, true), o), std::invalid_argument);
+  PolarField p;
+  p.radii_mm = {0.0, 1.0};
+  p.meridians = 4;
+  p.values = {1.0};
+  EXPECT_THROW(ResamplePolar(p, 10, "", ""), std::invalid_argument);
+}
+
+}  // namespace
 }  // namespace topocal::topo
