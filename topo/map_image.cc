@@ -190,7 +190,7 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   double vmin = options.value_min.value_or(lo), vmax = options.value_max.value_or(hi);
   if (options.value_min && !options.value_max && !(vmax > vmin)) vmax = vmin + 1.0;
   if (options.value_max && !options.value_min && !(vmax > vmin)) vmin = vmax - 1.0;
-  const double tick_step = NiceStep(vmax - vmin, 6.0);
+  const double tick_step = NiceStep(vmax - vmin, 8.0);  // 4 to 9 labelled ticks
   if (!options.value_min) vmin = tick_step * std::floor(vmin / tick_step + 1e-9);
   if (!options.value_max) vmax = tick_step * std::ceil(vmax / tick_step - 1e-9);
   const double contour_step =

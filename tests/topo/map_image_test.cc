@@ -83,9 +83,9 @@ TEST(MapImage, AutomaticRangeIsTheDataRangeRoundedOutToTicks) {
   GridMap g = Ramp(11, 0, 1, true);
   for (auto& v : g.values) v = 41.37 + 3.9 * v;  // 41.37 .. 45.27 D
   const MapImage img = RenderMap(g);
-  EXPECT_DOUBLE_EQ(img.value_min, 41.0);
-  EXPECT_DOUBLE_EQ(img.value_max, 46.0);
-  EXPECT_DOUBLE_EQ(img.contour_step, 0.5);  // about 10 levels over 5 D
+  EXPECT_DOUBLE_EQ(img.value_min, 41.0);   // ticks every 0.5 D (3.9 D / 8 rounded up to 1-2-5)
+  EXPECT_DOUBLE_EQ(img.value_max, 45.5);
+  EXPECT_DOUBLE_EQ(img.contour_step, 0.5);  // about 10 levels over 4.5 D
   MapImageOptions fixed;
   fixed.value_min = 40.0;
   fixed.value_max = 48.0;
