@@ -1,0 +1,100 @@
+#include "calib/detect.h"
+
+#include <cmath>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "calib/apriltag_detector.h"
+#include "calib/checkerboard_detector.h"
+#include "model/io.h"
+
+namespace topocal::calib {
+
+bool DetectionOptions::IsValid(std::string* why) const {
+  auto fail = [&](const char* message) {
+    if (why) *why = message;
+    return false;
+  };
+  if (!std::isfinite(saddle_window_sigma_px) || saddle_window_sigma_px < 0) {
+    return fail("saddle window sigma must be >= 0 px (0 = automatic)");
+  }
+  if (max_hamming < 0 || max_hamming > 3) return fail("max hamming must be 0..3");
+  if (!std::isfinite(min_decision_margin) || min_decision_margin < 0) return fail("min decision margin must be >= 0");
+  if (!std::isfinite(quad_decimate) || quad_decimate < 1) return fail("quad decimate must be >= 1");
+  if (min_corners < 4) return fail("min corners must be at least 4");
+  return true;
+}
+
+DetectionResult DetectTargetDetailed(const TargetDescription& target, const cv::Mat& image,
+                                     const DetectionOptions& options) {
+  DetectionResult result;
+  if (!options.IsValid(&result.message)) return result;
+  if (image.empty()) {
+    result.message = "empty image";
+    return result;
+  }
+  cv::Mat gray;
+  if (image.type() == CV_8UC1) {
+    gray = image;
+  } else if (image.type() == CV_8UC3) {
+    cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+  } else if (image.type() == CV_8UC4) {
+    cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
+  } else {
+    result.message = "unsupported image type (need 8-bit grey, BGR or BGRA)";
+    return result;
+  }
+
+  ViewObservations view;
+  view.image_width = gray.cols;
+  view.image_height = gray.rows;
+  if (const auto* board = std::get_if<CheckerboardLayout>(&target.layout)) {
+    const auto corners = DetectCheckerboardCorners(gray, *board, options, &result.message);
+    if (!corners) return result;
+    for (size_t id = 0; id < corners->size(); ++id) {
+      view.corners.push_back({static_cast<int>(id), (*corners)[id], *target.CornerMm(static_cast<int>(id))});
+    }
+    result.message = fmt::format("{} corners", view.corners.size());
+  } else {
+    const auto& grid = std::get<AprilGridLayout>(target.layout);
+    const AprilGridDetections tags = DetectAprilGrid(gray, grid, options);
+    result.tags_detected = static_cast<int>(tags.tags.size());
+    result.tags_rejected = tags.rejected;
+    result.message = tags.message;
+    for (const auto& tag : tags.tags) {
+      for (int k = 0; k < 4; ++k) {
+        const int id = 4 * tag.tag_index + k;
+        view.corners.push_back({id, tag.corners_px[static_cast<size_t>(k)], *target.CornerMm(id)});
+      }
+    }
+  }
+  if (static_cast<int>(view.corners.size()) < options.min_corners) {
+    result.message = fmt::format("too few corners ({}; {})", view.corners.size(), result.message);
+    return result;
+  }
+  result.view = std::move(view);
+  return result;
+}
+
+std::optional<ViewObservations> DetectTarget(const TargetDescription& target, const cv::Mat& image,
+                                             const DetectionOptions& options) {
+  return DetectTargetDetailed(target, image, options).view;
+}
+
+std::optional<ViewObservations> DetectTargetInFile(const TargetDescription& target, const std::string& image_path,
+                                                   const DetectionOptions& options) {
+  cv::Mat image;
+  try {
+    image = cv::imread(image_path, cv::IMREAD_GRAYSCALE);
+  } catch (const cv::Exception& e) {
+    throw model::InputError(fmt::format("{}: cannot read image ({})", image_path, e.err));
+  }
+  if (image.empty()) throw model::InputError(fmt::format("{}: cannot read image", image_path));
+  auto view = DetectTarget(target, image, options);
+  if (view) view->image_path = image_path;
+  return view;
+}
+
+}  // namespace topocal::calib

@@ -1,0 +1,136 @@
+#include "calib/target_drawing.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <stdexcept>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "calib/apriltag_raii.h"
+#include "model/io.h"
+
+namespace topocal::calib {
+namespace {
+
+constexpr double kMmPerInch = 25.4;
+
+}  // namespace
+
+TargetPattern::TargetPattern(const TargetDescription& target) : target_(target), paper_(target.PaperExtent()) {
+  if (const auto* g = std::get_if<AprilGridLayout>(&target_.layout)) {
+    const auto family = apriltag_raii::MakeTag36h11();
+    if (!family) throw std::runtime_error("libapriltag: cannot create the tag36h11 family");
+    for (int i = 0; i < g->NumTags(); ++i) tag_bits_.push_back(apriltag_raii::TagBitmap(family.get(), g->first_tag_id + i, &tag_cells_));
+  }
+}
+
+bool TargetPattern::OnPaper(double x_mm, double y_mm) const noexcept {
+  return x_mm >= paper_.min_x_mm && x_mm < paper_.max_x_mm && y_mm >= paper_.min_y_mm && y_mm < paper_.max_y_mm;
+}
+
+bool TargetPattern::IsBlack(double x_mm, double y_mm) const noexcept {
+  if (const auto* b = std::get_if<CheckerboardLayout>(&target_.layout)) {
+    // Square (i, j) spans [(i-1) s, i s): i = 0 .. cols, j = 0 .. rows; (0, 0) is black.
+    const double fi = std::floor(x_mm / b->col_spacing_mm) + 1.0;
+    const double fj = std::floor(y_mm / b->row_spacing_mm) + 1.0;
+    if (fi < 0 || fj < 0 || fi > b->cols || fj > b->rows) return false;
+    return (static_cast<long>(fi) + static_cast<long>(fj)) % 2 == 0;
+  }
+  const auto& g = std::get<AprilGridLayout>(target_.layout);
+  const double pitch = g.PitchMm();
+  const double fi = std::floor(x_mm / pitch), fj = std::floor(y_mm / pitch);
+  if (fi < 0 || fj < 0 || fi >= g.tag_cols || fj >= g.tag_rows) return false;
+  const double u = (x_mm - fi * pitch) / g.tag_size_mm, v = (y_mm - fj * pitch) / g.tag_size_mm;
+  if (u >= 1.0 || v >= 1.0) return false;  // in the white gap
+  const int cx = std::min(tag_cells_ - 1, static_cast<int>(u * tag_cells_));
+  const int cy = std::min(tag_cells_ - 1, static_cast<int>(v * tag_cells_));
+  const auto& bits = tag_bits_[static_cast<size_t>(static_cast<int>(fj) * g.tag_cols + static_cast<int>(fi))];
+  return bits[static_cast<size_t>(cy * tag_cells_ + cx)] != 0;
+}
+
+std::string TargetSvg(const TargetDescription& target) {
+  const TargetPattern pattern(target);
+  const TargetExtent paper = target.PaperExtent();
+  std::string svg = fmt::format(
+      "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+      "<!-- topocal target: {} -->\n"
+      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{:.4f}mm\" height=\"{:.4f}mm\" viewBox=\"0 0 {:.4f} {:.4f}\" "
+      "shape-rendering=\"crispEdges\">\n"
+      "<rect x=\"0\" y=\"0\" width=\"{:.4f}\" height=\"{:.4f}\" fill=\"#ffffff\"/>\n<g fill=\"#000000\">\n",
+      target.Describe(), paper.WidthMm(), paper.HeightMm(), paper.WidthMm(), paper.HeightMm(), paper.WidthMm(),
+      paper.HeightMm());
+  auto rect = [&](double x_mm, double y_mm, double w_mm, double h_mm) {
+    svg += fmt::format("<rect x=\"{:.4f}\" y=\"{:.4f}\" width=\"{:.4f}\" height=\"{:.4f}\"/>\n", x_mm - paper.min_x_mm,
+                       y_mm - paper.min_y_mm, w_mm, h_mm);
+  };
+  if (const auto* b = std::get_if<CheckerboardLayout>(&target.layout)) {
+    for (int j = 0; j <= b->rows; ++j) {
+      for (int i = 0; i <= b->cols; ++i) {
+        if ((i + j) % 2 == 0) rect((i - 1) * b->col_spacing_mm, (j - 1) * b->row_spacing_mm, b->col_spacing_mm,
+                                   b->row_spacing_mm);
+      }
+    }
+  } else {
+    const auto& g = std::get<AprilGridLayout>(target.layout);
+    const int n = pattern.tag_cells();
+    const double cell_mm = g.tag_size_mm / n;
+    for (int t = 0; t < g.NumTags(); ++t) {
+      const double x0 = (t % g.tag_cols) * g.PitchMm(), y0 = (t / g.tag_cols) * g.PitchMm();
+      const auto& bits = pattern.tag_bits()[static_cast<size_t>(t)];
+      svg += fmt::format("<!-- tag {} -->\n", g.first_tag_id + t);
+      for (int y = 0; y < n; ++y) {
+        // Runs of black cells become one rectangle: fewer elements, no hairline seams between cells.
+        for (int x = 0; x < n;) {
+          if (!bits[static_cast<size_t>(y * n + x)]) { ++x; continue; }
+          int end = x;
+          while (end < n && bits[static_cast<size_t>(y * n + end)]) ++end;
+          rect(x0 + x * cell_mm, y0 + y * cell_mm, (end - x) * cell_mm, cell_mm);
+          x = end;
+        }
+      }
+    }
+  }
+  svg += "</g>\n</svg>\n";
+  return svg;
+}
+
+cv::Mat RasterizeTarget(const TargetDescription& target, double dpi, int max_side_px) {
+  const TargetPattern pattern(target);
+  const TargetExtent paper = target.PaperExtent();
+  const double px_per_mm = dpi / kMmPerInch;
+  const double width = std::round(paper.WidthMm() * px_per_mm), height = std::round(paper.HeightMm() * px_per_mm);
+  if (!(width >= 1 && height >= 1 && width <= max_side_px && height <= max_side_px)) return {};
+  cv::Mat image(static_cast<int>(height), static_cast<int>(width), CV_8UC1);
+  for (int y = 0; y < image.rows; ++y) {
+    auto* row = image.ptr<uint8_t>(y);
+    const double y_mm = paper.min_y_mm + (y + 0.5) / px_per_mm;
+    for (int x = 0; x < image.cols; ++x) {
+      row[x] = pattern.IsBlack(paper.min_x_mm + (x + 0.5) / px_per_mm, y_mm) ? 0 : 255;
+    }
+  }
+  return image;
+}
+
+void WriteTargetDrawing(const TargetDescription& target, const std::string& path, double dpi) {
+  std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (ext == ".svg") {
+    model::WriteFileAtomic(path, TargetSvg(target));
+    return;
+  }
+  if (ext != ".png") throw model::InputError(fmt::format("{}: output must end in .svg or .png", path));
+  if (!std::isfinite(dpi) || dpi <= 0) throw model::InputError(fmt::format("--dpi: must be positive, got {}", dpi));
+  const cv::Mat image = RasterizeTarget(target, dpi);
+  if (image.empty()) {
+    throw model::InputError(fmt::format("{}: {} at {} dpi is too large a raster (use SVG or a lower --dpi)", path,
+                                        target.Describe(), dpi));
+  }
+  std::vector<uchar> png;
+  // PNG's pHYs chunk is not written by OpenCV; the physical size comes from the dpi the user prints at.
+  if (!cv::imencode(".png", image, png)) throw model::InputError(fmt::format("{}: cannot encode PNG", path));
+  model::WriteFileAtomic(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+}
+
+}  // namespace topocal::calib

@@ -1,0 +1,148 @@
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <random>
+
+#include <fmt/format.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "calib/corner_refinement.h"
+#include "calib/detect.h"
+#include "calib/render_target.h"
+#include "detection_fixtures.h"
+
+namespace topocal::calib {
+namespace {
+
+// The bar for checkerboard corners against the renderer's truth, blur ~1 px, noise 0-2 grey levels.
+constexpr double kSaddleRmsPx = 0.02;
+
+struct Scene {
+  const char* name;
+  double tilt_x_deg, tilt_y_deg, roll_deg, shift_x_mm, shift_y_mm;
+};
+
+// Straight-on (slightly rolled so edges are not pixel-aligned), 30-degree tilts and a combined oblique view near
+// the image corner where distortion is strongest.
+const Scene kScenes[] = {
+    {"straight-on", 0, 0, 3, 0, 0},
+    {"tilt-x-30", 30, 0, -5, 0, 0},
+    {"tilt-y-30", 0, 30, 8, 0, 0},
+    {"oblique-corner", 20, -20, 15, 40, 30},
+};
+
+RenderedView Render(const TargetDescription& target, const Scene& scene, double noise_grey, uint32_t seed) {
+  RenderOptions options;
+  options.blur_sigma_px = 1.0;
+  options.noise_grey = noise_grey;
+  options.seed = seed;
+  const auto pose = PoseFacingTarget(target, 420.0, scene.tilt_x_deg, scene.tilt_y_deg, scene.roll_deg,
+                                     scene.shift_x_mm, scene.shift_y_mm);
+  auto view = RenderTarget(target, testing::TestCamera(), pose, options);
+  EXPECT_TRUE(view.has_value());
+  return std::move(*view);
+}
+
+class CheckerboardNoise : public ::testing::TestWithParam<double> {};
+
+TEST_P(CheckerboardNoise, SaddleRefinementBeatsTheBarOnAllViews) {
+  const double noise = GetParam();
+  const auto target = testing::Checkerboard9x6();
+  double saddle_sum2 = 0, opencv_sum2 = 0;
+  int saddle_n = 0, opencv_n = 0;
+  uint32_t seed = 11;
+  for (const Scene& scene : kScenes) {
+    const RenderedView view = Render(target, scene, noise, seed++);
+    ASSERT_EQ(view.corners.size(), 54u) << scene.name;
+    DetectionOptions saddle;
+    const auto found = DetectTarget(target, view.image, saddle);
+    ASSERT_TRUE(found.has_value()) << scene.name;
+    int unmatched = 0;
+    const auto stats = testing::CornerError(*found, view.corners, &unmatched);
+    EXPECT_EQ(unmatched, 0);
+    EXPECT_EQ(stats.matched, 54) << scene.name << ": ids must match the truth's ordering";
+    saddle_sum2 += stats.rms_px * stats.rms_px * stats.matched;
+    saddle_n += stats.matched;
+
+    DetectionOptions opencv;
+    opencv.refinement = CornerRefinement::kOpenCvSubPix;
+    const auto reference = DetectTarget(target, view.image, opencv);
+    ASSERT_TRUE(reference.has_value());
+    const auto ref_stats = testing::CornerError(*reference, view.corners, nullptr);
+    opencv_sum2 += ref_stats.rms_px * ref_stats.rms_px * ref_stats.matched;
+    opencv_n += ref_stats.matched;
+    std::printf("noise %.0f %-15s saddle RMS %.4f (max %.4f) px, cornerSubPix RMS %.4f px\n", noise, scene.name,
+                stats.rms_px, stats.max_px, ref_stats.rms_px);
+  }
+  const double saddle_rms = std::sqrt(saddle_sum2 / saddle_n), opencv_rms = std::sqrt(opencv_sum2 / opencv_n);
+  std::printf("noise %.0f all views: saddle RMS %.4f px, cornerSubPix RMS %.4f px\n", noise, saddle_rms, opencv_rms);
+  EXPECT_LT(saddle_rms, kSaddleRmsPx);
+  EXPECT_LT(saddle_rms, opencv_rms);
+}
+
+INSTANTIATE_TEST_SUITE_P(GreyLevels, CheckerboardNoise, ::testing::Values(0.0, 1.0, 2.0));
+
+TEST(Checkerboard, OrientationIsRestoredWhenTheBoardIsUpsideDown) {
+  const auto target = testing::Checkerboard9x6();
+  const RenderedView view = Render(target, {"upside-down", 10, 0, 180, 0, 0}, 0.0, 3);
+  const auto found = DetectTarget(target, view.image);
+  ASSERT_TRUE(found.has_value());
+  const auto stats = testing::CornerError(*found, view.corners, nullptr);
+  EXPECT_LT(stats.max_px, 0.1);  // ids agree with the truth: every corner is within a fraction of a pixel
+}
+
+TEST(Checkerboard, NoBoardIsNotFoundWithoutCrashing) {
+  const auto target = testing::Checkerboard9x6();
+  cv::Mat blank(480, 640, CV_8UC1, cv::Scalar(128));
+  cv::Mat noise(480, 640, CV_8UC1);
+  cv::randu(noise, 0, 255);
+  const auto result = DetectTargetDetailed(target, blank);
+  EXPECT_FALSE(result.view.has_value());
+  EXPECT_FALSE(result.message.empty());
+  EXPECT_FALSE(DetectTarget(target, noise).has_value());
+  EXPECT_FALSE(DetectTarget(target, cv::Mat()).has_value());
+  EXPECT_FALSE(DetectTarget(target, cv::Mat(480, 640, CV_32FC1, cv::Scalar(0.5))).has_value());
+  // Half of the board outside the image: the whole board is needed.
+  const RenderedView cut = Render(target, {"cut", 0, 0, 0, 230, 0}, 0.0, 4);
+  ASSERT_LT(cut.corners.size(), 54u);
+  EXPECT_FALSE(DetectTarget(target, cut.image).has_value());
+  // An AprilTag grid is not a checkerboard.
+  const auto grid = testing::AprilGrid6x5();
+  const auto grid_view = RenderTarget(grid, testing::TestCamera(), PoseFacingTarget(grid, 600.0), RenderOptions{});
+  ASSERT_TRUE(grid_view.has_value());
+  EXPECT_FALSE(DetectTarget(target, grid_view->image).has_value());
+  DetectionOptions invalid;
+  invalid.min_corners = 1;
+  EXPECT_FALSE(DetectTarget(target, grid_view->image, invalid).has_value());
+}
+
+TEST(SaddleFit, RejectsWindowsOutsideTheImageAndNonSaddles) {
+  cv::Mat flat(40, 40, CV_32FC1, cv::Scalar(100.0f));
+  EXPECT_FALSE(RefineSaddle(flat, Eigen::Vector2d(20, 20)).has_value());
+  EXPECT_FALSE(RefineSaddle(flat, Eigen::Vector2d(1, 1)).has_value());
+}
+
+// Debian's opencv-doc ships real photographs of a 9x6 board (the real-photograph set).
+TEST(Checkerboard, FindsTheBoardInRealPhotographs) {
+  const std::filesystem::path dir = "/usr/share/doc/opencv-doc/examples/data";
+  if (!std::filesystem::exists(dir / "left01.jpg")) GTEST_SKIP() << "opencv-doc is not installed";
+  const auto target = testing::Checkerboard9x6();
+  int found = 0;
+  for (int i = 1; i <= 14; ++i) {
+    if (i == 10) continue;  // the set has no left10.jpg
+    const auto path = (dir / fmt::format("left{:02d}.jpg", i)).string();
+    if (!std::filesystem::exists(path)) continue;
+    const auto view = DetectTargetInFile(target, path);
+    if (view) {
+      ++found;
+      EXPECT_EQ(view->corners.size(), 54u);
+      EXPECT_EQ(view->image_path, path);
+    }
+  }
+  EXPECT_EQ(found, 13);
+}
+
+}  // namespace
+}  // namespace topocal::calib
