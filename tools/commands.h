@@ -9,5 +9,7 @@ namespace topocal::tools {
 void AddDesignCommand(CLI::App& app);
 void AddSimulateCommand(CLI::App& app);
 void AddSweepCommand(CLI::App& app);
+void AddTargetCommand(CLI::App& app);
+void AddRenderTargetCommand(CLI::App& app);
 
 }  // namespace topocal::tools
