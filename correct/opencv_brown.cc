@@ -26,8 +26,9 @@ std::optional<BrownOnDetectionPlane> BrownFromOpenCv(const OpenCvCamera& k, cons
   BrownOnDetectionPlane out;
   const double s = camera.Sign(), p = camera.PitchMm();
   out.brown.focal_mm = std::sqrt(k.fx_px * k.fy_px) * p;
-  out.brown.centre_x_mm = s * p * (k.cx_px - camera.principal_point_px.x());
-  out.brown.centre_y_mm = s * p * (k.cy_px - camera.principal_point_px.y());
+  if (!std::isfinite(k.centre_x) || !std::isfinite(k.centre_y)) return fail("distortion centre must be finite");
+  out.brown.centre_x_mm = s * p * (k.cx_px - camera.principal_point_px.x() + k.fx_px * k.centre_x);
+  out.brown.centre_y_mm = s * p * (k.cy_px - camera.principal_point_px.y() + k.fy_px * k.centre_y);
   out.brown.k = {k.dist[0], k.dist[1], s * k.dist[2], s * k.dist[3], k.dist.size() == 5 ? k.dist[4] : 0.0};
   out.aspect_error = std::abs(k.fx_px / k.fy_px - 1.0);
   return out;

@@ -3,7 +3,8 @@
 // detection plane, so that points and images of the topographer can be undistorted in millimetres.
 //
 // With x_mm = s p (u - c_cam) (model/topographer_camera.h; s = +1, or -1 when rotated_180) and OpenCV's
-// x_n = (u - c_x) / f_x:   x_n = s (x_mm - centre_mm) / focal_mm,  focal_mm = f p,  centre_mm = s p (c - c_cam).
+// x_n = (u - c_x) / f_x, the distortion acting on v = x_n - e (e the distortion centre, normalised):
+//   s v = (x_mm - centre_mm) / focal_mm,  focal_mm = f p,  centre_mm = s p (c - c_cam + f e).
 // For s = -1 the radial terms are unchanged and the tangential ones (p1, p2) change sign.
 // OpenCV allows f_x != f_y; model::BrownParams has one focal length: f = sqrt(f_x f_y). The error this makes is
 // |f_x / f_y - 1| / 2 times the distortion displacement — reported as `aspect_error` so callers can refuse it.
@@ -19,6 +20,9 @@ namespace topocal::correct {
 struct OpenCvCamera {
   double fx_px = 0, fy_px = 0, cx_px = 0, cy_px = 0;
   std::vector<double> dist;  // k1, k2, p1, p2[, k3] (4 or 5 values; more is a model topocal does not have)
+  // Centre of the radial distortion, OpenCV-normalised units relative to (cx, cy); 0 = OpenCV's own model
+  // (topocal's calibration may fit it: calib/camera.h).
+  double centre_x = 0, centre_y = 0;
 };
 
 struct BrownOnDetectionPlane {

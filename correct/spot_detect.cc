@@ -68,6 +68,15 @@ struct GaussianResidual {
   }
 };
 
+const cv::Mat& Disc(int radius) {
+  static thread_local std::vector<cv::Mat> cache;
+  if (static_cast<int>(cache.size()) <= radius) cache.resize(radius + 1);
+  if (cache[radius].empty()) {
+    cache[radius] = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1));
+  }
+  return cache[radius];
+}
+
 }  // namespace
 
 bool SpotDetectionOptions::IsValid(std::string* why) const {
@@ -115,11 +124,18 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
     const int r0 = std::max(0, stats.at<int>(k, cv::CC_STAT_TOP) - m);
     const int c1 = std::min(image.cols - 1, stats.at<int>(k, cv::CC_STAT_LEFT) + stats.at<int>(k, cv::CC_STAT_WIDTH) - 1 + m);
     const int r1 = std::min(image.rows - 1, stats.at<int>(k, cv::CC_STAT_TOP) + stats.at<int>(k, cv::CC_STAT_HEIGHT) - 1 + m);
+    // The window: the component grown by `m` pixels (a disc kernel), other components excluded. Following the
+    // spot's own outline rather than its bounding box keeps the far window corners — pure noise with the largest
+    // lever arm — out of the centroid.
+    const cv::Rect roi(c0, r0, c1 - c0 + 1, r1 - r0 + 1);
+    cv::Mat window = labels(roi) == k;
+    if (m > 0) cv::dilate(window, window, Disc(m));
     double sw = 0, su = 0, sv = 0, peak = 0;
     for (int r = r0; r <= r1; ++r) {
       const int* lab = labels.ptr<int>(r);
+      const uint8_t* win = window.ptr<uint8_t>(r - r0) - c0;
       for (int c = c0; c <= c1; ++c) {
-        if (lab[c] != 0 && lab[c] != k) continue;
+        if (!win[c] || (lab[c] != 0 && lab[c] != k)) continue;
         const double w = At(image, r, c) - bg;
         sw += w;
         su += w * c;
@@ -140,8 +156,9 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
       ceres::Problem problem;
       for (int r = r0; r <= r1; ++r) {
         const int* lab = labels.ptr<int>(r);
+        const uint8_t* win = window.ptr<uint8_t>(r - r0) - c0;
         for (int c = c0; c <= c1; ++c) {
-          if (lab[c] != 0 && lab[c] != k) continue;
+          if (!win[c] || (lab[c] != 0 && lab[c] != k)) continue;
           problem.AddResidualBlock(new ceres::AutoDiffCostFunction<GaussianResidual, 1, 7>(
                                        new GaussianResidual{double(c), double(r), At(image, r, c) - bg}),
                                    nullptr, p);

@@ -10,6 +10,10 @@ namespace topocal::correct {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// Output pixels where d r_d / d r has fallen below this are treated as beyond the fold: there one source pixel is
+// smeared over more than 100 output pixels, nothing is left to recover, and the inverse is too ill-conditioned to
+// check (a 1e-12 mm residual allows a 1e-10 mm error).
+constexpr double kMinRadialDerivative = 0.01;
 
 // First zero of the radial derivative g(s), s = r^2 in [0, s_max], by a scan fine enough not to step over a root
 // of a cubic in s (1000 steps) and bisection to machine precision. +inf if g stays positive.
@@ -19,11 +23,11 @@ double FirstRootOfDerivative(const G& g, double s_max) {
   double s_prev = 0.0;
   for (int i = 1; i <= kSteps; ++i) {
     const double s = s_max * i / kSteps;
-    if (g(s) <= 0.0) {
+    if (g(s) <= kMinRadialDerivative) {
       double lo = s_prev, hi = s;
       for (int it = 0; it < 100 && hi - lo > 1e-15 * s_max; ++it) {
         const double mid = 0.5 * (lo + hi);
-        (g(mid) > 0.0 ? lo : hi) = mid;
+        (g(mid) > kMinRadialDerivative ? lo : hi) = mid;
       }
       return lo;
     }
@@ -71,10 +75,11 @@ void FillRows(const Distort& distort, const model::TopographerCamera& camera, co
 
 double FoldRadiusMm(const model::Distortion& distortion, double max_radius_mm) {
   if (const auto* s = std::get_if<model::SeidelParams>(&distortion)) {
-    // r_d = r (1 + c r^2): d r_d / d r = 1 + 3 c r^2 vanishes at r^2 = -1 / (3 c) for barrel (c < 0).
+    // r_d = r (1 + c r^2): d r_d / d r = 1 + 3 c r^2 falls to kMinRadialDerivative at
+    // r^2 = (1 - kMinRadialDerivative) / (-3 c) for barrel (c < 0).
     const double c = s->sigma_per_mm2 / std::pow(s->magnification, 3);
     if (c >= 0) return kInf;
-    const double r = std::sqrt(-1.0 / (3.0 * c));
+    const double r = std::sqrt((1.0 - kMinRadialDerivative) / (-3.0 * c));
     return r < max_radius_mm ? r : kInf;
   }
   const auto& b = std::get<model::BrownParams>(distortion);

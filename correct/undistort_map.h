@@ -5,9 +5,9 @@
 // cv::remap pulls: undistorted(u, v) = distorted(map(u, v)). The map therefore needs only the FORWARD model —
 //   pixel (undistorted) -> detection plane mm -> model::Distort -> mm -> pixel (distorted)
 // — evaluated once per output pixel, no per-pixel inverse. Output pixels beyond the fold of the distortion (where the
-// forward map stops being one-to-one: for a radial model the first zero of d r_d / d r) have no valid source; they
-// are mapped to (-1, -1) and come out as the border value. The fold is computed for the radial part only: the
-// tangential terms of a real lens (|p| ~ 1e-3) move it by far less than a pixel.
+// forward map stops being one-to-one: for a radial model where d r_d / d r first falls to 0.01, just short of its
+// zero) have no valid source; they are mapped to (-1, -1) and come out as the border value. The fold is computed
+// for the radial part only: the tangential terms of a real lens (|p| ~ 1e-3) move it by far less than a pixel.
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -31,8 +31,9 @@ UndistortMap BuildUndistortMap(const model::Distortion& distortion, const model:
 cv::Mat UndistortImage(const cv::Mat& distorted, const UndistortMap& map, int interpolation = cv::INTER_LINEAR,
                        double border_value = 0.0);
 
-// The radius (mm on the detection plane, about the distortion centre) of the first fold of the radial part of the
-// model within `max_radius_mm`; +infinity if the map is monotone out to there.
+// The radius (mm on the detection plane, about the distortion centre) where the radial part of the model first
+// stretches by less than 0.01 (d r_d / d r <= 0.01, just short of its fold) within `max_radius_mm`; +infinity if it
+// never does out to there.
 double FoldRadiusMm(const model::Distortion& distortion, double max_radius_mm);
 
 }  // namespace topocal::correct

@@ -9,6 +9,8 @@ namespace topocal::tools {
 void AddDesignCommand(CLI::App& app);
 void AddSimulateCommand(CLI::App& app);
 void AddSweepCommand(CLI::App& app);
+void AddRenderSpotsCommand(CLI::App& app);
+void AddUndistortCommand(CLI::App& app);
 void AddTargetCommand(CLI::App& app);
 void AddRenderTargetCommand(CLI::App& app);
 

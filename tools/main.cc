@@ -19,6 +19,8 @@ int main(int argc, char** argv) {
   topocal::tools::AddDesignCommand(app);
   topocal::tools::AddSimulateCommand(app);
   topocal::tools::AddSweepCommand(app);
+  topocal::tools::AddRenderSpotsCommand(app);
+  topocal::tools::AddUndistortCommand(app);
   topocal::tools::AddTargetCommand(app);
   topocal::tools::AddRenderTargetCommand(app);
   try {

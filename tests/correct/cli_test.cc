@@ -1,1 +1,228 @@
+// The command line for correct/: render-spots and undistort, end to end through their files; exit codes and
+// one-line messages for bad input, and no output file when the input is bad.
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "correct/detect_and_index.h"
+#include "correct/opencv_brown.h"
+#include "correct/undistort_map.h"
+#include "synthetic.h"
+
+namespace topocal::correct {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Spots written with fmt's shortest round-trip representation come back exactly; the undistortion's own
+// convergence tolerance is 1e-12 mm.
+constexpr double kCsvRoundTripMm = 1e-11;
+// Matching a detection to its truth: far below the ~16 px spot spacing.
+constexpr double kMatchPx = 1.0;
+
+struct Run {
+  int exit_code;
+  std::string output;
+};
+
+Run RunTopocal(const std::string& args) {
+  const std::string cmd = std::string(TOPOCAL_EXE) + " " + args + " 2>&1";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  std::string out;
+  std::array<char, 4096> buf;
+  while (size_t n = fread(buf.data(), 1, buf.size(), pipe)) out.append(buf.data(), n);
+  const int status = pclose(pipe);
+  return {WEXITSTATUS(status), out};
+}
+
+class CorrectCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("topocal_correct_cli_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+    // A 1000 x 1000 crop of the default camera: the whole pattern, a fraction of the rendering time.
+    auto cam = testing::DefaultCamera();
+    cam.width_px = 1000;
+    cam.height_px = 1000;
+    cam.principal_point_px = {499.5, 499.5};
+    camera_ = cam;
+    Write("cam.json", model::TopographerCameraToJson(cam));
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  void Write(const std::string& name, const std::string& text) const { std::ofstream(Path(name)) << text; }
+  // A plain OpenCV calibration file for the crop camera.
+  void WriteCalibration(const std::string& name, const OpenCvCamera& k, int width, int height) const {
+    cv::FileStorage fs(Path(name), cv::FileStorage::WRITE);
+    fs << "image_width" << width << "image_height" << height;
+    fs << "camera_matrix" << cv::Mat(cv::Matx33d(k.fx_px, 0, k.cx_px, 0, k.fy_px, k.cy_px, 0, 0, 1));
+    fs << "distortion_coefficients" << cv::Mat(cv::Mat(k.dist).t());
+  }
+  OpenCvCamera Lens() const {
+    const double f = camera_.FocalPx();
+    return {f, f, camera_.principal_point_px.x() + 4.0, camera_.principal_point_px.y() - 3.0,
+            {-0.15, 0.3, 6e-4, -4e-4, 0.0}};
+  }
+  fs::path dir_;
+  model::TopographerCamera camera_;
+  const std::string paper_ = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
+};
+
+TEST_F(CorrectCli, RenderSpotsWritesAnImageThatDetectsBackToItsTruth) {
+  const auto r = RunTopocal("render-spots --config " + paper_ + " --camera " + Path("cam.json") +
+                            " --sigma 2e-4 --drop 0.1 --glints 4 --seed 5 --out " + Path("s.png") + " --truth " +
+                            Path("t.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const cv::Mat img = cv::imread(Path("s.png"), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(img.type(), CV_16UC1);
+  ASSERT_EQ(img.cols, 1000);
+  std::ifstream in(Path("t.csv"));
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "ring,index,x_px,y_px,x_mm,y_mm");
+  struct Row {
+    model::SpotId id;
+    Eigen::Vector2d px, mm;
+  };
+  std::vector<Row> rows;
+  while (std::getline(in, line)) {
+    std::replace(line.begin(), line.end(), ',', ' ');
+    std::istringstream ls(line);
+    Row row;
+    ls >> row.id.ring >> row.id.index >> row.px.x() >> row.px.y() >> row.mm.x() >> row.mm.y();
+    rows.push_back(row);
+  }
+  const int glints = static_cast<int>(std::count_if(rows.begin(), rows.end(), [](const Row& w) { return w.id.ring == 0; }));
+  EXPECT_EQ(glints, 4);
+  EXPECT_EQ(rows.size() - glints, 624u - 62u);  // 10 % of 624 dropped, rounded
+  const auto cfg = testing::PaperConfig();
+  const auto found = DetectAndIndexSpots(img, camera_, cfg.ideal_image);
+  ASSERT_TRUE(found.ok) << found.message;
+  EXPECT_EQ(found.spots.size(), rows.size() - glints);
+  EXPECT_EQ(found.unassigned.size(), static_cast<size_t>(glints));
+  for (const auto& s : found.spots) {
+    const auto it = std::find_if(rows.begin(), rows.end(), [&](const Row& w) { return w.id == s.id; });
+    ASSERT_NE(it, rows.end());
+    EXPECT_LT((it->px - s.position_px).norm(), kMatchPx);
+    EXPECT_LT((camera_.DetectionPlaneFromPixel(it->px) - it->mm).norm(), 1e-8);  // the two columns agree
+  }
+}
+
+TEST_F(CorrectCli, RenderSpotsEightBit) {
+  const auto r = RunTopocal("render-spots --config " + paper_ + " --camera " + Path("cam.json") +
+                            " --sigma 0 --bits 8 --spot psf --psf-px 1.5 --out " + Path("s.png"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(cv::imread(Path("s.png"), cv::IMREAD_UNCHANGED).type(), CV_8UC1);
+}
+
+TEST_F(CorrectCli, RenderSpotsBadInputIsOneLineExitTwoNoOutput) {
+  const std::string base = "render-spots --config " + paper_ + " --sigma 0 --out " + Path("s.png");
+  for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
+           {base + " --camera " + Path("missing.json"), "missing.json"},
+           {base + " --camera " + Path("cam.json") + " --drop 1.5", "--drop: must be in [0, 1)"},
+           {"render-spots --config " + paper_ + " --sigma 0 --camera " + Path("cam.json") + " --out " + Path("s.jpg"),
+            "must be a .png"},
+           {base + " --camera " + Path("bad.json"), "bad.json: a_mm: 4 differs from the configuration"}}) {
+    SCOPED_TRACE(args);
+    Write("bad.json", R"({"pixel_pitch_um": 1.12, "width_px": 100, "height_px": 100, "principal_point_px": [50, 50],
+                          "a_mm": 4})");
+    const auto r = RunTopocal(args);
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(fs::exists(Path("s.png")));
+  }
+}
+
+TEST_F(CorrectCli, UndistortSpotsInvertsTheCalibratedLens) {
+  const auto k = Lens();
+  WriteCalibration("cal.yaml", k, camera_.width_px, camera_.height_px);
+  std::string why;
+  const auto brown = BrownFromOpenCv(k, camera_, &why);
+  ASSERT_TRUE(brown) << why;
+  std::vector<Eigen::Vector2d> truth;
+  std::string csv = "ring,index,x_mm,y_mm\n";
+  int id = 0;
+  for (double x = -0.45; x <= 0.45; x += 0.09) {
+    for (double y = -0.45; y <= 0.45; y += 0.09) {
+      truth.emplace_back(x, y);
+      const Eigen::Vector2d d = model::Distort(brown->brown, truth.back());
+      csv += fmt::format("1,{},{},{}\n", id++, d.x(), d.y());
+    }
+  }
+  Write("in.csv", csv);
+  const auto r = RunTopocal("undistort --calibration " + Path("cal.yaml") + " --camera " + Path("cam.json") +
+                            " --spots " + Path("in.csv") + " --out " + Path("out.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(Path("out.csv"));
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "ring,index,x_mm,y_mm");
+  size_t n = 0;
+  while (std::getline(in, line)) {
+    std::replace(line.begin(), line.end(), ',', ' ');
+    std::istringstream ls(line);
+    int ring = 0, index = 0;
+    Eigen::Vector2d p;
+    ls >> ring >> index >> p.x() >> p.y();
+    ASSERT_LT(static_cast<size_t>(index), truth.size());
+    EXPECT_LT((p - truth[index]).norm(), kCsvRoundTripMm);
+    ++n;
+  }
+  EXPECT_EQ(n, truth.size());
+}
+
+TEST_F(CorrectCli, UndistortImageMatchesTheLibrary) {
+  const auto k = Lens();
+  WriteCalibration("cal.yaml", k, camera_.width_px, camera_.height_px);
+  cv::Mat img(camera_.height_px, camera_.width_px, CV_8UC1);
+  cv::randu(img, 0, 255);
+  cv::imwrite(Path("in.png"), img);
+  const auto r = RunTopocal("undistort --calibration " + Path("cal.yaml") + " --image " + Path("in.png") + " --out " +
+                            Path("out.png") + " --camera " + Path("cam.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const cv::Mat out = cv::imread(Path("out.png"), cv::IMREAD_UNCHANGED);
+  std::string why;
+  const auto expected = UndistortImage(img, BuildUndistortMap(BrownFromOpenCv(k, camera_, &why)->brown, camera_));
+  ASSERT_EQ(out.size(), expected.size());
+  EXPECT_EQ(cv::norm(out, expected, cv::NORM_INF), 0.0);
+  // Without --camera the calibration's own geometry is used: the same image in pixels.
+  const auto r2 = RunTopocal("undistort --calibration " + Path("cal.yaml") + " --image " + Path("in.png") + " --out " +
+                             Path("out2.png"));
+  ASSERT_EQ(r2.exit_code, 0) << r2.output;
+  EXPECT_LE(cv::norm(cv::imread(Path("out2.png"), cv::IMREAD_UNCHANGED), expected, cv::NORM_INF), 1.0);
+}
+
+TEST_F(CorrectCli, UndistortBadInputIsOneLineExitTwoNoOutput) {
+  WriteCalibration("cal.yaml", Lens(), camera_.width_px, camera_.height_px);
+  WriteCalibration("small.yaml", Lens(), 640, 480);
+  Write("in.csv", "ring,index,x_mm,y_mm\n1,0,0.1,0.1\n");
+  const std::string cal = " --calibration " + Path("cal.yaml");
+  for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
+           {"undistort" + cal + " --spots " + Path("in.csv") + " --image x.png --out " + Path("o.csv"),
+            "exactly one of --spots or --image"},
+           {"undistort --calibration " + Path("none.yaml") + " --spots " + Path("in.csv") + " --out " + Path("o.csv"),
+            "none.yaml"},
+           {"undistort" + cal + " --spots " + Path("in.csv") + " --out " + Path("o.csv"), "give --camera"},
+           {"undistort --calibration " + Path("small.yaml") + " --camera " + Path("cam.json") + " --spots " +
+                Path("in.csv") + " --out " + Path("o.csv"),
+            "is for 640 x 480 px"}}) {
+    SCOPED_TRACE(args);
+    const auto r = RunTopocal(args);
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(fs::exists(Path("o.csv")));
+  }
+}
+
+}  // namespace
+}  // namespace topocal::correct

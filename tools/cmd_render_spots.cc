@@ -1,0 +1,126 @@
+// topocal render-spots: the raw sensor image of a measurement (spot pattern of the configured cornea, distorted,
+// seen by the topographer's camera), with its truth. Conventions: docs/camera-conventions.md.
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+#include <Eigen/SVD>
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "correct/spot_render.h"
+#include "correct/spot_truth.h"
+#include "model/config.h"
+#include "model/io.h"
+#include "model/topographer_camera.h"
+#include "tools/commands.h"
+
+namespace topocal::tools {
+namespace {
+
+struct RenderSpotsArgs {
+  std::string config, camera, out, truth, spot = "ellipse";
+  double sigma = 0, psf_px = 1.0, drop = 0;
+  double background = NAN, peak = NAN, noise = NAN, gain = NAN;
+  int bits = 16, glints = 0;
+  uint32_t seed = 1;
+};
+
+void RequirePng(const std::string& path, const char* option) {
+  if (path.size() < 4 || path.substr(path.size() - 4) != ".png") {
+    throw model::InputError(fmt::format("{}: {}: the output must be a .png file", option, path));
+  }
+}
+
+void Run(const RenderSpotsArgs& a) {
+  RequirePng(a.out, "--out");
+  if (!std::isfinite(a.sigma)) throw model::InputError("--sigma: must be a finite number");
+  if (!(a.drop >= 0 && a.drop < 1)) throw model::InputError(fmt::format("--drop: must be in [0, 1) (got {})", a.drop));
+  if (a.glints < 0) throw model::InputError(fmt::format("--glints: must be >= 0 (got {})", a.glints));
+  const auto cfg = model::LoadConfig(a.config);
+  const auto camera = model::LoadTopographerCamera(a.camera);
+  if (std::abs(camera.a_mm - cfg.topographer.a_mm) > 1e-9) {
+    throw model::InputError(fmt::format("{}: a_mm: {} differs from the configuration's topographer.a_mm = {} ({})",
+                                        a.camera, camera.a_mm, cfg.topographer.a_mm, a.config));
+  }
+  correct::SpotRenderOptions o;
+  o.shape = a.spot == "psf" ? correct::SpotShape::kPsf : correct::SpotShape::kEllipse;
+  o.psf_sigma_px = a.psf_px;
+  o.bits = a.bits;
+  // Defaults by bit depth: a well-exposed frame (spots at ~60 % of full scale) with realistic read and shot noise.
+  const bool b16 = a.bits == 16;
+  o.background_dn = std::isnan(a.background) ? (b16 ? 1000.0 : 4.0) : a.background;
+  o.peak_dn = std::isnan(a.peak) ? (b16 ? 40000.0 : 160.0) : a.peak;
+  o.read_noise_dn = std::isnan(a.noise) ? (b16 ? 60.0 : 1.0) : a.noise;
+  o.gain_e_per_dn = std::isnan(a.gain) ? (b16 ? 4.0 : 0.0) : a.gain;
+  o.seed = a.seed;
+  std::string why;
+  if (!o.IsValid(&why)) throw model::InputError("render-spots: " + why);
+
+  model::SeidelParams seidel;
+  seidel.sigma_per_mm2 = a.sigma;
+  seidel.magnification = cfg.distortion.magnification;
+  seidel.centre_x_mm = cfg.distortion.centre_x_mm;
+  seidel.centre_y_mm = cfg.distortion.centre_y_mm;
+  const auto truth = correct::SpotsOnSensor(model::Biconic{cfg.cornea}, cfg.ideal_image, cfg.topographer, seidel, camera);
+  if (truth.spots.empty()) throw std::runtime_error(fmt::format("{}: the cornea images no spot", a.config));
+  for (const auto& f : truth.failures) {
+    fmt::print(stderr, "topocal render-spots: spot ({}, {}): {}\n", f.id.ring, f.id.index, f.reason);
+  }
+  // Glints keep clear of every spot by its largest semi-axis plus 8 px (the above-threshold radius of the widest,
+  // brightest glint, PSF 3 px at 1.5x the spot level, is ~6 px), so that no glint merges with a spot.
+  double largest_px = 0;
+  for (const auto& s : truth.spots) {
+    largest_px = std::max(largest_px, Eigen::JacobiSVD<Eigen::Matrix2d>(s.shape_px).singularValues()(0));
+  }
+  const double clearance = (o.shape == correct::SpotShape::kEllipse ? largest_px : 3.0 * a.psf_px) + 8.0;
+  const auto spots = correct::DropAndAddGlints(truth.spots, a.drop, a.glints, clearance, a.seed + 1);
+  int off_sensor = 0;
+  for (const auto& s : spots) off_sensor += !camera.OnSensor(s.centre_px);
+  if (off_sensor > 0) fmt::print(stderr, "topocal render-spots: {} spots fall off the sensor\n", off_sensor);
+
+  const cv::Mat image = correct::RenderSpotImage(spots, camera.width_px, camera.height_px, o);
+  std::vector<uchar> png;
+  if (!cv::imencode(".png", image, png)) throw std::runtime_error(fmt::format("{}: PNG encoding failed", a.out));
+  std::string csv;
+  if (!a.truth.empty()) {
+    csv = "ring,index,x_px,y_px,x_mm,y_mm\n";
+    for (const auto& s : spots) {
+      const Eigen::Vector2d mm = camera.DetectionPlaneFromPixel(s.centre_px);
+      csv += fmt::format("{},{},{:.6f},{:.6f},{:.9f},{:.9f}\n", s.id.ring, s.id.index, s.centre_px.x(), s.centre_px.y(),
+                         mm.x(), mm.y());
+    }
+  }
+  model::WriteFileAtomic(a.out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  if (!a.truth.empty()) model::WriteFileAtomic(a.truth, csv);
+  const int glints = static_cast<int>(std::count_if(spots.begin(), spots.end(), [](const auto& s) { return s.id.ring == 0; }));
+  fmt::print("rendered {} spots ({} dropped, {} not imaged) and {} glints, {}-bit {}x{} -> {}\n",
+             spots.size() - glints, truth.spots.size() - (spots.size() - glints), truth.failures.size(), glints, a.bits,
+             camera.width_px, camera.height_px, a.out);
+}
+
+}  // namespace
+
+void AddRenderSpotsCommand(CLI::App& app) {
+  auto* cmd = app.add_subcommand("render-spots", "Render the raw sensor image of the configured cornea's spot pattern");
+  auto a = std::make_shared<RenderSpotsArgs>();
+  cmd->add_option("--config", a->config, "Topographer configuration (JSON)")->required();
+  cmd->add_option("--camera", a->camera, "Topographer camera (JSON, docs/camera-conventions.md)")->required();
+  cmd->add_option("--sigma", a->sigma, "Seidel distortion coefficient sigma, mm^-2 (paper Eq. 18)")->required();
+  cmd->add_option("--out", a->out, "Output image (.png)")->required();
+  cmd->add_option("--truth", a->truth, "Truth CSV: ring,index,x_px,y_px,x_mm,y_mm (distorted; ring 0 = glint)");
+  cmd->add_option("--spot", a->spot, "Spot model: ellipse (image of the null-screen spot) or psf (point source)")
+      ->check(CLI::IsMember({"ellipse", "psf"}));
+  cmd->add_option("--psf-px", a->psf_px, "Gaussian PSF standard deviation, px")->check(CLI::PositiveNumber);
+  cmd->add_option("--bits", a->bits, "PNG bit depth (8 or 16)")->check(CLI::IsMember({8, 16}));
+  cmd->add_option("--background", a->background, "Background level, DN (default 1000 / 4 for 16 / 8 bits)");
+  cmd->add_option("--peak", a->peak, "Exposure: spot level above background, DN (default 40000 / 160)");
+  cmd->add_option("--noise", a->noise, "Read noise standard deviation, DN (default 60 / 1)");
+  cmd->add_option("--gain", a->gain, "Shot noise: electrons per DN, 0 = none (default 4 / 0)");
+  cmd->add_option("--seed", a->seed, "Seed of the noise, drops and glints");
+  cmd->add_option("--drop", a->drop, "Fraction of spots to leave out, [0, 1)");
+  cmd->add_option("--glints", a->glints, "Number of spurious blobs to add");
+  cmd->callback([a] { Run(*a); });
+}
+
+}  // namespace topocal::tools

@@ -1,0 +1,136 @@
+// topocal undistort: correct a spots CSV or an image with a calibration file (calib/calibration_file.h).
+#include <cmath>
+#include <memory>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "calib/calibration_file.h"
+#include "correct/opencv_brown.h"
+#include "correct/undistort_map.h"
+#include "correct/undistort_points.h"
+#include "model/io.h"
+#include "model/topographer_camera.h"
+#include "tools/commands.h"
+#include "tools/csv.h"
+
+namespace topocal::tools {
+namespace {
+
+// The largest |f_x / f_y - 1| accepted when mapping the calibration onto the detection plane with one focal length:
+// its error is half that times the distortion displacement, 1e-4 of a ~10 px displacement = 1e-3 px.
+constexpr double kMaxAspectError = 2e-4;
+
+struct UndistortArgs {
+  std::string calibration, camera, spots, image, out;
+};
+
+// The camera to interpret pixels with: the given file (checked against the calibration's image size), or one
+// derived from the calibration itself (principal point and focal length from its camera matrix; the pixel pitch
+// is the file's when it has one, else 1 um — it cancels out for images).
+model::TopographerCamera CameraFor(const UndistortArgs& a, const calib::CalibrationFile& cal) {
+  if (!a.camera.empty()) {
+    const auto camera = model::LoadTopographerCamera(a.camera);
+    if (camera.width_px != cal.camera.width_px || camera.height_px != cal.camera.height_px) {
+      throw model::InputError(fmt::format("{}: the camera is {} x {} px but the calibration {} is for {} x {} px",
+                                          a.camera, camera.width_px, camera.height_px, a.calibration,
+                                          cal.camera.width_px, cal.camera.height_px));
+    }
+    return camera;
+  }
+  model::TopographerCamera c;
+  c.width_px = cal.camera.width_px;
+  c.height_px = cal.camera.height_px;
+  c.principal_point_px = {cal.camera.cx_px, cal.camera.cy_px};
+  c.pixel_pitch_um = cal.pixel_pitch_um.value_or(1.0);
+  c.a_mm = std::sqrt(cal.camera.fx_px * cal.camera.fy_px) * c.PitchMm();
+  return c;
+}
+
+model::BrownParams DistortionFor(const calib::CalibrationFile& cal, const model::TopographerCamera& camera,
+                                 const std::string& path) {
+  correct::OpenCvCamera k;
+  k.fx_px = cal.camera.fx_px;
+  k.fy_px = cal.camera.fy_px;
+  k.cx_px = cal.camera.cx_px;
+  k.cy_px = cal.camera.cy_px;
+  k.dist.assign(cal.camera.dist.begin(), cal.camera.dist.end());
+  k.centre_x = cal.camera.distortion_centre.x();
+  k.centre_y = cal.camera.distortion_centre.y();
+  std::string why;
+  const auto brown = correct::BrownFromOpenCv(k, camera, &why);
+  if (!brown) throw model::InputError(fmt::format("{}: {}", path, why));
+  if (brown->aspect_error > kMaxAspectError) {
+    throw model::InputError(fmt::format("{}: camera_matrix: fx / fy = {:.6f}; topocal undistorts on the detection "
+                                        "plane with one focal length and accepts |fx / fy - 1| <= {}",
+                                        path, cal.camera.fx_px / cal.camera.fy_px, kMaxAspectError));
+  }
+  return brown->brown;
+}
+
+void Run(const UndistortArgs& a) {
+  if (a.spots.empty() == a.image.empty()) throw model::InputError("undistort: give exactly one of --spots or --image");
+  const auto cal = calib::LoadCalibrationFile(a.calibration);
+  const auto camera = CameraFor(a, cal);
+  const auto distortion = DistortionFor(cal, camera, a.calibration);
+  if (!a.spots.empty()) {
+    if (a.camera.empty() && !cal.pixel_pitch_um) {
+      throw model::InputError(fmt::format("--spots: {} has no pixel_pitch_um; give --camera to map its pixels to mm",
+                                          a.calibration));
+    }
+    const auto rows = ReadSpotsCsv(a.spots);
+    std::vector<Eigen::Vector2d> mm;
+    for (const auto& r : rows) mm.emplace_back(r.x_mm, r.y_mm);
+    const auto result = correct::UndistortPoints(distortion, mm);
+    for (const auto& f : result.failures) {
+      fmt::print(stderr, "topocal undistort: spot ({}, {}): {}\n", rows[f.index].id.ring, rows[f.index].id.index,
+                 f.reason);
+    }
+    std::vector<model::ImageSpot> out;
+    for (size_t i = 0; i < rows.size(); ++i) {
+      if (!result.ok[i]) continue;
+      model::ImageSpot s;
+      s.id = rows[i].id;
+      s.position_mm = result.points_mm[i];
+      s.on_surface_mm.setZero();  // unknown here; not written
+      out.push_back(s);
+    }
+    if (out.empty() && !rows.empty()) throw std::runtime_error(fmt::format("{}: no spot could be undistorted", a.spots));
+    model::WriteFileAtomic(a.out, SpotsCsv(out));
+    fmt::print("undistorted {} of {} spots ({} failed) -> {}\n", out.size(), rows.size(), result.failures.size(), a.out);
+    return;
+  }
+  if (a.out.size() < 4 || a.out.substr(a.out.size() - 4) != ".png") {
+    throw model::InputError(fmt::format("--out: {}: the output image must be a .png file", a.out));
+  }
+  model::ReadFile(a.image);  // a missing or unreadable file is named as such, not as "not an image"
+  const cv::Mat image = cv::imread(a.image, cv::IMREAD_UNCHANGED);
+  if (image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", a.image));
+  if (image.cols != camera.width_px || image.rows != camera.height_px) {
+    throw model::InputError(fmt::format("{}: the image is {} x {} px but the camera is {} x {} px", a.image, image.cols,
+                                        image.rows, camera.width_px, camera.height_px));
+  }
+  const auto map = correct::BuildUndistortMap(distortion, camera);
+  const cv::Mat out = correct::UndistortImage(image, map);
+  std::vector<uchar> png;
+  if (!cv::imencode(".png", out, png)) throw std::runtime_error(fmt::format("{}: PNG encoding failed", a.out));
+  model::WriteFileAtomic(a.out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  fmt::print("undistorted {} x {} image ({} px beyond the fold left empty) -> {}\n", image.cols, image.rows,
+             map.invalid_px, a.out);
+}
+
+}  // namespace
+
+void AddUndistortCommand(CLI::App& app) {
+  auto* cmd = app.add_subcommand("undistort", "Correct a spots CSV or an image with a calibration file");
+  auto a = std::make_shared<UndistortArgs>();
+  cmd->add_option("--calibration", a->calibration, "Calibration file (OpenCV FileStorage YAML)")->required();
+  cmd->add_option("--spots", a->spots, "Spots CSV ring,index,x_mm,y_mm on the detection plane (distorted)");
+  cmd->add_option("--image", a->image, "Raw image (size of the calibrated camera)");
+  cmd->add_option("--out", a->out, "Output: spots CSV or .png image")->required();
+  cmd->add_option("--camera", a->camera, "Topographer camera (JSON); needed for --spots unless the calibration "
+                                         "records its pixel pitch");
+  cmd->callback([a] { Run(*a); });
+}
+
+}  // namespace topocal::tools
