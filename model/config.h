@@ -68,9 +68,9 @@ struct ReconstructionSettings {
   double vertex_search_tol = 2e-7;           // TOL of Fig. 8
   int vertex_search_max_refinements = 30;
   int max_iterations = 50;                   // iterative method: outer iterations
-  double convergence_um = 1e-6;              // iterative method: stop when no point moves more than this
-  double power_map_radius_mm = 5.3;          // radius of the power maps (paper's pv values: ~5.3 mm); clipped
-                                             // to the radius the reconstructed points cover (no extrapolation)
+  double convergence_um = 1e-4;              // iterative method: stop when no point moves more than this (0.1 nm)
+  double power_map_radius_mm = 5.3;          // radius of the power maps (paper's pv values: ~5.3 mm), the same
+                                             // for every input so that maps compare; coverage is reported
   std::string power_map_method = "exact";    // "exact" derivatives of Psi or "polynomial" (Eq. 23 meridian fit)
   int power_map_meridians = 360;
   int power_map_radial_samples = 100;

@@ -32,7 +32,10 @@ nlohmann::json ReconstructionJson(const topo::Reconstruction& r) {
 }
 
 nlohmann::json ErrorsJson(const topo::Analysis& a) {
-  nlohmann::json j = {{"pv_tangential_D", a.power.pv_tangential_D}, {"pv_axial_D", a.power.pv_axial_D}};
+  nlohmann::json j = {{"pv_tangential_D", a.power.pv_tangential_D},
+                      {"pv_axial_D", a.power.pv_axial_D},
+                      {"map_radius_mm", a.power.radius_mm},
+                      {"covered_radius_mm", a.covered_radius_mm}};
   if (a.errors) {
     j["pv_um"] = a.errors->pv_um;
     j["rms_um"] = a.errors->rms_um;

@@ -63,11 +63,13 @@ Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<
   // Sec. 4.2: piston B_1 and tilts B_2, B_3 do not affect the shape and are zeroed before the maps.
   TaylorPolynomial shape = a.reconstruction.surface;
   shape.coefficients().head(3).setZero();
-  // Maps stop where the data stop: Psi beyond the outermost reconstructed point is an extrapolation.
-  PowerMapOptions map_options = PowerMapOptionsFrom(config.reconstruction);
-  double covered_mm = 0;
-  for (const auto& p : a.reconstruction.points) covered_mm = std::max(covered_mm, p.point_mm.head<2>().norm());
-  map_options.radius_mm = std::min(map_options.radius_mm, covered_mm);
+  // The maps use the configured radius for every input, as the paper's comparisons across sigma need; how far
+  // the reconstructed points reach is reported beside it (beyond that radius Psi is extrapolated).
+  const PowerMapOptions map_options = PowerMapOptionsFrom(config.reconstruction);
+  a.covered_radius_mm = 0;
+  for (const auto& p : a.reconstruction.points) {
+    a.covered_radius_mm = std::max(a.covered_radius_mm, p.point_mm.head<2>().norm());
+  }
   std::string why;
   const bool maps_ok = ComputePowerMaps(
       [&](double x, double y, model::SurfaceDerivatives* d) {

@@ -21,6 +21,7 @@ struct Analysis {
   Reconstruction reconstruction;
   BiconicFit surface_fit;
   PowerMaps power;                       // of Psi with piston and tilts removed (Sec. 4.2)
+  double covered_radius_mm = 0;          // radius the reconstructed points reach; maps beyond it extrapolate
   std::optional<SurfaceErrors> errors;   // when the truth is given
 };
 

@@ -89,8 +89,11 @@ GradientFit FitGradient(const std::vector<Eigen::Vector2d>& points_mm, const std
     rhs(2 * i) = slopes[i].x();
     rhs(2 * i + 1) = slopes[i].y();
   }
-  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(A);
-  if (qr.rank() < unknowns) return fit;
+  // Blocked Householder QR (no pivoting: the monomial columns in normalised coordinates are never exactly
+  // dependent once 2n >= N - 1 points are spread over the disc); rank is checked on R's diagonal.
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(A);
+  const auto diag = qr.matrixQR().diagonal().cwiseAbs();
+  if (!(diag.minCoeff() > 1e-10 * diag.maxCoeff())) return fit;
   const Eigen::VectorXd b = qr.solve(rhs);
   if (!b.allFinite()) return fit;
   poly->coefficients().tail(unknowns) = b;
