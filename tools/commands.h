@@ -11,6 +11,7 @@ void AddSimulateCommand(CLI::App& app);
 void AddSweepCommand(CLI::App& app);
 void AddRenderSpotsCommand(CLI::App& app);
 void AddUndistortCommand(CLI::App& app);
+void AddCalibrateCommand(CLI::App& app);
 void AddTargetCommand(CLI::App& app);
 void AddRenderTargetCommand(CLI::App& app);
 

@@ -1,0 +1,167 @@
+// topocal calibrate: detect a planar target in a set of images and fit the camera (calib/calibrate.h).
+#include <glob.h>
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "calib/calibrate.h"
+#include "calib/calibration_file.h"
+#include "calib/detect.h"
+#include "calib/target.h"
+#include "model/io.h"
+#include "tools/commands.h"
+
+namespace topocal::tools {
+namespace {
+
+// Above this many images, each detection reports its progress on stderr.
+constexpr size_t kProgressFromImages = 5;
+
+std::vector<std::string> Glob(const std::string& pattern) {
+  glob_t g{};
+  const int rc = ::glob(pattern.c_str(), GLOB_ERR | GLOB_TILDE, nullptr, &g);
+  std::vector<std::string> paths;
+  if (rc == 0) {
+    for (size_t i = 0; i < g.gl_pathc; ++i) paths.emplace_back(g.gl_pathv[i]);
+  }
+  globfree(&g);
+  if (rc == GLOB_NOMATCH || paths.empty()) throw model::InputError(fmt::format("--images '{}': no file matches", pattern));
+  if (rc != 0) throw model::InputError(fmt::format("--images '{}': cannot be expanded", pattern));
+  return paths;  // glob(3) sorts them
+}
+
+struct CalibrateArgs {
+  std::string target, images, model = "brown5", out, json;
+  bool single_view = false, robust = false, fit_centre = false;
+  double focal_mm = 0, pixel_pitch_um = 0, distance_mm = 0, magnification = calib::kPaperMagnification;
+  std::vector<std::string> fix;
+  std::string loss = "huber";
+  double loss_scale_px = 1.0, outlier_threshold = 4.0;
+};
+
+void Run(const CalibrateArgs& a) {
+  const auto model = calib::ParseDistortionModel(a.model);
+  if (!model) throw model::InputError(fmt::format("--model: '{}' is not seidel or brown5", a.model));
+  calib::CalibrationOptions options;
+  options.model = *model;
+  options.fixed = {a.fix.begin(), a.fix.end()};
+  options.fit_distortion_centre = a.fit_centre;
+  options.focal_mm = a.focal_mm;
+  options.pixel_pitch_um = a.pixel_pitch_um;
+  options.distance_mm = a.distance_mm;
+  options.magnification = a.magnification;
+  if (a.robust) {
+    const auto loss = calib::ParseRobustLoss(a.loss);
+    if (!loss || *loss == calib::RobustLoss::kNone) throw model::InputError(fmt::format("--loss: '{}' is not huber or cauchy", a.loss));
+    options.loss = *loss;
+    options.loss_scale_px = a.loss_scale_px;
+    options.reject_outliers = true;
+    options.outlier_threshold = a.outlier_threshold;
+  }
+  if (a.single_view && !(a.focal_mm > 0 && a.pixel_pitch_um > 0 && a.distance_mm > 0)) {
+    throw model::InputError("--single-view needs --focal-mm, --pixel-pitch-um and --distance-mm (all > 0)");
+  }
+  std::string why;
+  if (!options.IsValid(&why)) throw model::InputError(why);
+
+  const auto target = calib::LoadTargetDescription(a.target);
+  const auto paths = Glob(a.images);
+  if (a.single_view && paths.size() != 1) {
+    throw model::InputError(fmt::format("--single-view takes one image; '{}' matches {}", a.images, paths.size()));
+  }
+  std::vector<calib::ViewObservations> views;
+  std::vector<std::string> view_paths;
+  for (size_t i = 0; i < paths.size(); ++i) {
+    const cv::Mat image = cv::imread(paths[i], cv::IMREAD_GRAYSCALE);
+    if (image.empty()) {
+      fmt::print(stderr, "topocal calibrate: skipping {}: cannot be read as an image\n", paths[i]);
+      continue;
+    }
+    const auto found = calib::DetectTargetDetailed(target, image);
+    if (!found.view) {
+      fmt::print(stderr, "topocal calibrate: skipping {}: no target found{}\n", paths[i],
+                 found.message.empty() ? "" : ": " + found.message);
+      continue;
+    }
+    views.push_back(*found.view);
+    views.back().image_path = paths[i];
+    view_paths.push_back(paths[i]);
+    if (paths.size() > kProgressFromImages) {
+      fmt::print(stderr, "topocal calibrate: [{}/{}] {}: {} corners\n", i + 1, paths.size(), paths[i],
+                 views.back().corners.size());
+    }
+  }
+
+  calib::CalibrationResult result;
+  if (a.single_view) {
+    if (views.empty()) throw std::runtime_error(fmt::format("{}: no target found, nothing to calibrate", paths[0]));
+    result = calib::CalibrateSingleView(views[0], options);
+  } else {
+    result = calib::CalibrateMultiView(views, options);
+  }
+  for (const auto& s : result.skipped_views) {
+    fmt::print(stderr, "topocal calibrate: not used {}: {}\n", view_paths[static_cast<size_t>(s.view)], s.reason);
+  }
+  if (!result.ok()) {
+    throw std::runtime_error(fmt::format("calibration failed ({}): {}", calib::ToString(result.status), result.message));
+  }
+  for (const auto& o : result.outliers) {
+    fmt::print(stderr, "topocal calibrate: outlier {} corner {}: residual {:.3f} px\n",
+               view_paths[static_cast<size_t>(o.view)], o.corner_id, o.residual_px.norm());
+  }
+  const calib::CalibrationProvenance provenance{a.target, view_paths, {}};
+  // Both texts are complete before either file is written, so a failure leaves neither behind.
+  const std::string cal_text = calib::CalibrationFileText(result, provenance);
+  const std::string json_text = a.json.empty() ? std::string() : calib::CalibrationReportJson(result, provenance);
+  model::WriteFileAtomic(a.out, cal_text);
+  if (!a.json.empty()) model::WriteFileAtomic(a.json, json_text);
+
+  const auto& c = result.camera;
+  fmt::print("{} {} calibration from {} view(s), {} corners: rms {:.4f} px, {} outlier(s)\n", calib::ToString(result.model),
+             result.single_view ? "single-view" : "multi-view", result.views_used.size(), result.corners_used,
+             result.rms_px, result.outliers.size());
+  fmt::print("  fx {:.4f} fy {:.4f} cx {:.4f} cy {:.4f} px\n", c.fx_px, c.fy_px, c.cx_px, c.cy_px);
+  for (const auto& p : result.parameters) {
+    if (!p.fixed) fmt::print("  {:>2} = {:<14.8g} +- {:.3g}\n", p.name, p.value, p.stddev);
+  }
+  if (result.seidel) {
+    fmt::print("  Seidel sigma = {:.6g} +- {:.2g} mm^-2 (M_T = {}, f = {:.4g} mm)\n", result.seidel->sigma_per_mm2,
+               result.seidel->sigma_stddev_per_mm2, result.seidel->magnification, result.seidel->focal_mm);
+  }
+  fmt::print("  -> {}\n", a.out);
+}
+
+}  // namespace
+
+void AddCalibrateCommand(CLI::App& app) {
+  auto* cmd = app.add_subcommand("calibrate", "Fit the camera's intrinsics and distortion to images of a target");
+  auto a = std::make_shared<CalibrateArgs>();
+  cmd->add_option("--target", a->target, "Target description (Kalibr-style YAML)")->required();
+  cmd->add_option("--images", a->images, "Images, a glob(3) pattern (quote it)")->required();
+  cmd->add_option("--model", a->model, "Distortion model: seidel (k1 [+ centre]) or brown5 (k1,k2,p1,p2,k3)");
+  cmd->add_flag("--single-view", a->single_view,
+                "One image of the target at the cornea position; needs --focal-mm, --pixel-pitch-um, --distance-mm");
+  cmd->add_option("--focal-mm", a->focal_mm, "Lens focal distance, mm (single view; Seidel sigma)");
+  cmd->add_option("--pixel-pitch-um", a->pixel_pitch_um, "Pixel pitch, um (single view; Seidel sigma)");
+  cmd->add_option("--distance-mm", a->distance_mm, "Nominal target distance from the pinhole, mm (single view)");
+  cmd->add_option("--magnification", a->magnification, "Transverse magnification M_T for the Seidel sigma")
+      ->capture_default_str();
+  cmd->add_option("--fix", a->fix, "Parameters to hold fixed, comma-separated: fx,fy,cx,cy,k1,k2,p1,p2,k3,ex,ey")
+      ->delimiter(',');
+  cmd->add_flag("--fit-centre", a->fit_centre, "Fit the radial distortion centre (Seidel; brown5 needs --fix p1,p2)");
+  cmd->add_flag("--robust", a->robust, "Robust loss and iterative outlier rejection");
+  cmd->add_option("--loss", a->loss, "Robust loss with --robust: huber or cauchy")->capture_default_str();
+  cmd->add_option("--loss-scale-px", a->loss_scale_px, "Robust loss scale, px")->capture_default_str();
+  cmd->add_option("--outlier-threshold", a->outlier_threshold, "Reject corners beyond this many robust sigmas")
+      ->capture_default_str();
+  cmd->add_option("--out", a->out, "Calibration file (OpenCV FileStorage YAML)")->required();
+  cmd->add_option("--json", a->json, "Also write a JSON report");
+  cmd->callback([a] { Run(*a); });
+}
+
+}  // namespace topocal::tools
