@@ -123,6 +123,12 @@ NullScreenLayout LayoutNullScreen(const IdealImageParams& ideal, const Topograph
 
   const auto design = DesignNullScreen(ideal, topographer);
   layout.failures = design.failures;
+  // All pairs: 624 spots are 2e5 distance checks, negligible next to the trace.
+  for (size_t a = 0; a < design.targets.size(); ++a) {
+    for (size_t b = a + 1; b < design.targets.size(); ++b) {
+      if ((design.targets[a].ideal_mm - design.targets[b].ideal_mm).norm() < 2.0 * radius_mm) ++layout.overlapping_pairs;
+    }
+  }
   std::vector<std::pair<double, double>> azimuth_intervals;
   for (const auto& t : design.targets) {
     SpotOutline o;

@@ -76,6 +76,9 @@ struct NullScreenLayout {
   double outer_slant_mm = 0.0;  // sheet radius of the outer rim (eye end)
   std::vector<SpotOutline> outlines;
   std::vector<SpotFailure> failures;  // spots whose centre or any outline point could not be traced to the cone
+  // Pairs of spots whose ideal-image circles overlap (centre distance < 2 spot radii): their outlines on the cone
+  // overlap too (the trace is one-to-one), and the printed ellipses merge. 0 for a usable spot radius.
+  int overlapping_pairs = 0;
 };
 
 // Backward trace of one detection-plane point to the cone, step for step as DesignNullScreen does for spot

@@ -37,6 +37,10 @@ void AddDesignCommand(CLI::App& app) {
         const auto& f = layout.failures[k];
         fmt::print(stderr, "topocal design: spot ({}, {}): {}\n", f.id.ring, f.id.index, f.reason);
       }
+      if (layout.overlapping_pairs > 0) {
+        fmt::print(stderr, "topocal design: warning: {} pairs of spot circles overlap (ideal_image.spot_radius_um = {}); "
+                   "their ellipses merge on the sheet\n", layout.overlapping_pairs, cfg.ideal_image.spot_radius_um);
+      }
       svg_text = NullScreenSvg(layout, {.title = std::filesystem::path(*config).stem().string()});
     }
     model::WriteFileAtomic(*out, csv);

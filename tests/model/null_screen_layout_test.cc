@@ -251,6 +251,24 @@ TEST(NullScreenLayout, SeamAvoidsOutlinesWhenChosenAutomatically) {
   EXPECT_LT(count_crossing(automatic), count_crossing(through));
 }
 
+TEST(NullScreenLayout, CountsOverlappingSpotCircles) {
+  auto c = PaperConfig();
+  EXPECT_EQ(LayoutNullScreen(c.ideal_image, c.topographer).overlapping_pairs, 0);
+  // Neighbours on ring i (n = 8 i spots on radius rho_i) are 2 rho_i sin(pi / n) apart: 23.73 um on ring 1, then
+  // slowly less (22.9 um on ring 12); rings are 29 um apart and second neighbours ~46 um. With 11.8 um circles
+  // (23.6 um apart at touching) every ring but the first has all its n neighbour pairs overlapping.
+  c.ideal_image.spot_radius_um = 11.8;
+  int expected = 0;
+  const auto& p = c.ideal_image;
+  for (int i = 1; i <= p.rings_N + 1; ++i) {
+    const int n = p.eta0 + (i - 1) * p.eta;
+    const double rho_um = 1e3 * (p.rho0_mm + (i - 1) * (p.rhoN_mm - p.rho0_mm) / p.rings_N);
+    if (2.0 * rho_um * std::sin(M_PI / n) < 2.0 * p.spot_radius_um) expected += n;
+  }
+  EXPECT_EQ(expected, 624 - 8);
+  EXPECT_EQ(LayoutNullScreen(c.ideal_image, c.topographer).overlapping_pairs, expected);
+}
+
 TEST(NullScreenLayout, RejectsInvalidOptions) {
   const auto c = PaperConfig();
   NullScreenLayoutOptions o;
