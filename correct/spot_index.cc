@@ -20,14 +20,21 @@ class PolynomialMap {
   PolynomialMap() = default;
   PolynomialMap(int degree, double scale) : degree_(degree), scale_(scale) {}
 
+  static constexpr int kMaxDegree = 5;
   static int Terms(int degree) { return (degree + 1) * (degree + 2) / 2; }
   int degree() const { return degree_; }
 
   void Monomials(const Eigen::Vector2d& q, double* out) const {
     const double x = q.x() / scale_, y = q.y() / scale_;
+    double px[kMaxDegree + 1], py[kMaxDegree + 1];
+    px[0] = py[0] = 1.0;
+    for (int i = 1; i <= degree_; ++i) {
+      px[i] = px[i - 1] * x;
+      py[i] = py[i - 1] * y;
+    }
     int k = 0;
     for (int d = 0; d <= degree_; ++d) {
-      for (int j = 0; j <= d; ++j) out[k++] = std::pow(x, d - j) * std::pow(y, j);
+      for (int j = 0; j <= d; ++j) out[k++] = px[d - j] * py[j];
     }
   }
   Eigen::Vector2d operator()(const Eigen::Vector2d& q) const {
@@ -203,7 +210,7 @@ SpotIndexing IndexSpots(const std::vector<Eigen::Vector2d>& det, const model::Id
         p.push_back(det[det_of_tpl[j]]);
       }
     }
-    for (int d = degree; d >= 1; d -= 2) {
+    for (int d = std::min(degree, PolynomialMap::kMaxDegree); d >= 1; d -= 2) {
       PolynomialMap m(d, rho_n);
       if (m.Fit(q, p)) {
         map = m;

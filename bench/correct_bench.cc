@@ -1,0 +1,138 @@
+// correct/ speed (issue 6 item 7): detect + index the 624 spots of a 4000 x 3000 raw image (goal <= 50 ms), and
+// undistort a 4000 x 3000 image with a precomputed map against cv::undistort in the same run.
+// Run: build/bench/bench_correct --benchmark_min_time=1
+#include <benchmark/benchmark.h>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "correct/detect_and_index.h"
+#include "correct/opencv_brown.h"
+#include "correct/spot_render.h"
+#include "correct/spot_truth.h"
+#include "correct/undistort_map.h"
+#include "model/config.h"
+#include "model/topographer_camera.h"
+
+namespace {
+
+using namespace topocal;
+
+struct Scene {
+  model::Config config;
+  model::TopographerCamera camera;
+  cv::Mat spots16;  // raw spot image, 16-bit
+  cv::Mat grey8;    // a textured 8-bit frame for the remap comparison
+  correct::OpenCvCamera lens;
+  model::BrownParams brown;
+};
+
+const Scene& GetScene() {
+  static const Scene scene = [] {
+    Scene s;
+    s.config = model::LoadConfig(TOPOCAL_PAPER_CONFIG);
+    s.camera = model::LoadTopographerCamera(std::string(TOPOCAL_SOURCE_DIR) + "/data/camera.json");
+    model::SeidelParams seidel;
+    seidel.sigma_per_mm2 = 6.3e-5;
+    seidel.magnification = s.config.distortion.magnification;
+    const auto truth = correct::SpotsOnSensor(model::Biconic{s.config.cornea}, s.config.ideal_image,
+                                              s.config.topographer, seidel, s.camera);
+    correct::SpotRenderOptions o;  // 16-bit, ellipse spots, realistic noise
+    s.spots16 = correct::RenderSpotImage(truth.spots, s.camera.width_px, s.camera.height_px, o);
+    s.grey8.create(s.camera.height_px, s.camera.width_px, CV_8UC1);
+    cv::randu(s.grey8, 0, 255);
+    const double f = s.camera.FocalPx();
+    s.lens = {f, f, s.camera.principal_point_px.x() + 4, s.camera.principal_point_px.y() - 3,
+              {-0.12, 0.25, 8e-4, -5e-4, -0.1}};
+    std::string why;
+    s.brown = correct::BrownFromOpenCv(s.lens, s.camera, &why)->brown;
+    return s;
+  }();
+  return scene;
+}
+
+void BM_DetectAndIndex624Spots(benchmark::State& state) {
+  const auto& s = GetScene();
+  size_t found = 0;
+  for (auto _ : state) {
+    const auto r = correct::DetectAndIndexSpots(s.spots16, s.camera, s.config.ideal_image);
+    found = r.spots.size();
+    benchmark::DoNotOptimize(r);
+  }
+  state.counters["spots"] = static_cast<double>(found);
+}
+BENCHMARK(BM_DetectAndIndex624Spots)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_DetectOnly(benchmark::State& state) {
+  const auto& s = GetScene();
+  for (auto _ : state) benchmark::DoNotOptimize(correct::DetectSpots(s.spots16));
+}
+BENCHMARK(BM_DetectOnly)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_IndexOnly(benchmark::State& state) {
+  const auto& s = GetScene();
+  const auto det = correct::DetectSpots(s.spots16);
+  std::vector<Eigen::Vector2d> mm;
+  for (const auto& d : det.spots) mm.push_back(s.camera.DetectionPlaneFromPixel(d.centre_px));
+  for (auto _ : state) benchmark::DoNotOptimize(correct::IndexSpots(mm, s.config.ideal_image));
+}
+BENCHMARK(BM_IndexOnly)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_BuildUndistortMapBrown(benchmark::State& state) {
+  const auto& s = GetScene();
+  for (auto _ : state) benchmark::DoNotOptimize(correct::BuildUndistortMap(s.brown, s.camera));
+}
+BENCHMARK(BM_BuildUndistortMapBrown)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_BuildUndistortMapSeidel(benchmark::State& state) {
+  const auto& s = GetScene();
+  model::SeidelParams seidel;
+  seidel.sigma_per_mm2 = 6.3e-5;
+  seidel.magnification = s.config.distortion.magnification;
+  for (auto _ : state) benchmark::DoNotOptimize(correct::BuildUndistortMap(seidel, s.camera));
+}
+BENCHMARK(BM_BuildUndistortMapSeidel)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_OpenCvInitUndistortRectifyMap(benchmark::State& state) {
+  const auto& s = GetScene();
+  const cv::Matx33d k(s.lens.fx_px, 0, s.lens.cx_px, 0, s.lens.fy_px, s.lens.cy_px, 0, 0, 1);
+  cv::Mat mx, my;
+  for (auto _ : state) {
+    cv::initUndistortRectifyMap(k, s.lens.dist, cv::Mat(), k, s.grey8.size(), CV_32FC1, mx, my);
+    benchmark::DoNotOptimize(mx.data);
+  }
+}
+BENCHMARK(BM_OpenCvInitUndistortRectifyMap)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_UndistortWithPrecomputedMap(benchmark::State& state) {
+  const auto& s = GetScene();
+  const auto map = correct::BuildUndistortMap(s.brown, s.camera);
+  for (auto _ : state) benchmark::DoNotOptimize(correct::UndistortImage(s.grey8, map));
+}
+BENCHMARK(BM_UndistortWithPrecomputedMap)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_UndistortWithPrecomputedFixedPointMap(benchmark::State& state) {
+  const auto& s = GetScene();
+  const auto map = correct::BuildUndistortMap(s.brown, s.camera);
+  cv::Mat m1, m2, out;
+  cv::convertMaps(map.map_x, map.map_y, m1, m2, CV_16SC2);  // OpenCV's 1/32 px fixed-point tables
+  for (auto _ : state) {
+    cv::remap(s.grey8, out, m1, m2, cv::INTER_LINEAR);
+    benchmark::DoNotOptimize(out.data);
+  }
+}
+BENCHMARK(BM_UndistortWithPrecomputedFixedPointMap)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_CvUndistort(benchmark::State& state) {
+  const auto& s = GetScene();
+  const cv::Matx33d k(s.lens.fx_px, 0, s.lens.cx_px, 0, s.lens.fy_px, s.lens.cy_px, 0, 0, 1);
+  cv::Mat out;
+  for (auto _ : state) {
+    cv::undistort(s.grey8, out, k, s.lens.dist);
+    benchmark::DoNotOptimize(out.data);
+  }
+}
+BENCHMARK(BM_CvUndistort)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+
+BENCHMARK_MAIN();
