@@ -144,6 +144,42 @@ void BM_SolveOpenCv(benchmark::State& state) {
 }
 BENCHMARK(BM_SolveOpenCv)->Unit(benchmark::kMillisecond);
 
+// The whole job, image to camera, each tool with its own detector.
+void BM_DetectAndSolveTopocal(benchmark::State& state) {
+  if (!HaveData(state)) return;
+  topocal::calib::TargetDescription target;
+  target.layout = topocal::calib::CheckerboardLayout{9, 6, kSquareMm, kSquareMm};
+  topocal::calib::CalibrationResult r;
+  for (auto _ : state) {
+    std::vector<ViewObservations> views;
+    for (const auto& img : Images()) {
+      if (auto v = topocal::calib::DetectTarget(target, img)) views.push_back(std::move(*v));
+    }
+    r = topocal::calib::CalibrateMultiView(views, {});
+  }
+  state.counters["rms_px"] = r.rms_px;
+  state.counters["fx_px"] = r.camera.fx_px;
+  state.counters["fy_px"] = r.camera.fy_px;
+  state.SetLabel("calib/detect.h + CalibrateMultiView");
+}
+BENCHMARK(BM_DetectAndSolveTopocal)->Unit(benchmark::kMillisecond);
+
+void BM_DetectAndSolveOpenCv(benchmark::State& state) {
+  if (!HaveData(state)) return;
+  double rms = 0;
+  cv::Mat k, d;
+  for (auto _ : state) {
+    const Corners c = DetectOpenCv(Images());
+    std::vector<cv::Mat> rvecs, tvecs;
+    rms = cv::calibrateCamera(c.object, c.image, c.size, k, d, rvecs, tvecs);
+  }
+  state.counters["rms_px"] = rms;
+  state.counters["fx_px"] = k.at<double>(0, 0);
+  state.counters["fy_px"] = k.at<double>(1, 1);
+  state.SetLabel("findChessboardCorners + cornerSubPix + calibrateCamera");
+}
+BENCHMARK(BM_DetectAndSolveOpenCv)->Unit(benchmark::kMillisecond);
+
 }  // namespace
 
 BENCHMARK_MAIN();
