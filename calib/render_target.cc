@@ -80,6 +80,22 @@ CamFromTarget PoseFacingTarget(const TargetDescription& target, double distance_
   return pose;
 }
 
+cv::Mat AddSensorNoise(const cv::Mat& irradiance, double noise_grey, uint32_t seed) {
+  cv::Mat image(irradiance.rows, irradiance.cols, CV_8UC1);
+  // Its own stream (seed + 1), so that the same seed gives the same noise whether or not the sampling ran first.
+  std::mt19937 rng(seed + 1);
+  std::normal_distribution<double> noise(0.0, noise_grey > 0 ? noise_grey : 1.0);
+  for (int y = 0; y < irradiance.rows; ++y) {
+    const auto* in = irradiance.ptr<float>(y);
+    auto* out = image.ptr<uint8_t>(y);
+    for (int x = 0; x < irradiance.cols; ++x) {
+      const double value = in[x] + (noise_grey > 0 ? noise(rng) : 0.0);
+      out[x] = static_cast<uint8_t>(std::clamp(std::lround(value), 0L, 255L));
+    }
+  }
+  return image;
+}
+
 bool RenderOptions::IsValid(std::string* why) const {
   auto fail = [&](std::string message) {
     if (why) *why = std::move(message);
@@ -216,16 +232,8 @@ std::optional<RenderedView> RenderTarget(const TargetDescription& target, const 
   }
 
   RenderedView view;
-  view.image.create(height, width, CV_8UC1);
-  std::normal_distribution<double> noise(0.0, options.noise_grey);
-  for (int y = 0; y < height; ++y) {
-    const auto* in = irradiance.ptr<float>(y);
-    auto* out = view.image.ptr<uint8_t>(y);
-    for (int x = 0; x < width; ++x) {
-      const double value = in[x] + (options.noise_grey > 0 ? noise(rng) : 0.0);
-      out[x] = static_cast<uint8_t>(std::clamp(std::lround(value), 0L, 255L));
-    }
-  }
+  view.image = AddSensorNoise(irradiance, options.noise_grey, options.seed);
+  view.irradiance = irradiance;
 
   for (int id : target.CornerIds()) {
     const Eigen::Vector3d in_cam = pose.rotation * *target.CornerMm(id) + pose.translation_mm;

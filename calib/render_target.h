@@ -63,8 +63,13 @@ struct CornerTruth {
 
 struct RenderedView {
   cv::Mat image;                     // CV_8UC1, camera.height_px x camera.width_px
+  cv::Mat irradiance;                // CV_32FC1: the same before noise and rounding
   std::vector<CornerTruth> corners;  // corners inside the image (and in front of the camera), ascending id
 };
+
+// Seeded Gaussian noise (grey levels) on a float image, rounded and clamped to 8 bits: the last step of
+// RenderTarget, exposed so that one rendering can be seen at several noise levels.
+cv::Mat AddSensorNoise(const cv::Mat& irradiance, double noise_grey, uint32_t seed);
 
 // nullopt when the options or the camera are invalid (why says which).
 std::optional<RenderedView> RenderTarget(const TargetDescription& target, const CameraModel& camera,
