@@ -4,44 +4,12 @@
 #include "model/config.h"
 #include "model/io.h"
 #include "tools/commands.h"
+#include "tools/map_output.h"
+#include "tools/report_json.h"
 #include "topo/sweep.h"
 
 namespace topocal::tools {
 namespace {
-
-nlohmann::json SurfaceFitJson(const topo::BiconicFit& f) {
-  const auto& p = f.params;
-  const auto& sd = f.stddev;
-  nlohmann::json j = {{"rx_mm", p.rx_mm},     {"ry_mm", p.ry_mm},         {"kx", p.kx},
-                      {"ky", p.ky},           {"alpha_deg", p.alpha_deg}, {"vertex_um", p.z0_mm * 1e3},
-                      {"rms_um", f.rms_residual_um}};
-  if (f.stddev_ok) {
-    j["stddev"] = {{"rx_mm", sd.rx_mm}, {"ry_mm", sd.ry_mm},         {"kx", sd.kx},
-                   {"ky", sd.ky},       {"alpha_deg", sd.alpha_deg}, {"vertex_um", sd.z0_mm * 1e3}};
-  }
-  return j;
-}
-
-nlohmann::json ReconstructionJson(const topo::Reconstruction& r) {
-  return {{"method", r.method},
-          {"spots_used", r.spots_used},
-          {"vertex_t_um", r.vertex_t_mm * 1e3},
-          {"iterations", r.iterations},
-          {"consistency_delta", r.consistency},
-          {"rms_slope_residual", r.rms_slope_residual}};
-}
-
-nlohmann::json ErrorsJson(const topo::Analysis& a) {
-  nlohmann::json j = {{"pv_tangential_D", a.power.pv_tangential_D},
-                      {"pv_axial_D", a.power.pv_axial_D},
-                      {"map_radius_mm", a.power.radius_mm},
-                      {"covered_radius_mm", a.covered_radius_mm}};
-  if (a.errors) {
-    j["pv_um"] = a.errors->pv_um;
-    j["rms_um"] = a.errors->rms_um;
-  }
-  return j;
-}
 
 std::string SweepJson(const topo::SweepResult& r) {
   nlohmann::json j;
@@ -112,8 +80,10 @@ void AddSweepCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("sweep", "Run every sigma of the configuration and print the paper's tables");
   auto config = std::make_shared<std::string>();
   auto json_out = std::make_shared<std::string>();
+  auto maps = std::make_shared<std::string>();
   cmd->add_option("--config", *config, "Topographer configuration (JSON)")->required();
   cmd->add_option("--json", *json_out, "Write the sweep as JSON");
+  cmd->add_option("--maps", *maps, "Write every sigma's power, height and difference maps (CSV + PNG) here");
   cmd->callback([=] {
     const auto cfg = model::LoadConfig(*config);
     const auto result = topo::RunSweep(cfg);
@@ -124,6 +94,12 @@ void AddSweepCommand(CLI::App& app) {
     PrintTableVI(result);
     PrintTableVII(result);
     if (!json_out->empty()) model::WriteFileAtomic(*json_out, SweepJson(result));
+    if (!maps->empty()) {
+      for (const auto& row : result.rows) {
+        WriteAnalysisMaps(*maps, fmt::format("sigma_{:+.3g}_", row.sigma_per_mm2),
+                          fmt::format(", sigma = {:.3g} /mm^2", row.sigma_per_mm2), row.analysis, &cfg.cornea);
+      }
+    }
   });
 }
 

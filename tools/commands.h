@@ -9,6 +9,7 @@ namespace topocal::tools {
 void AddDesignCommand(CLI::App& app);
 void AddSimulateCommand(CLI::App& app);
 void AddSweepCommand(CLI::App& app);
+void AddReconstructCommand(CLI::App& app);
 void AddRenderSpotsCommand(CLI::App& app);
 void AddUndistortCommand(CLI::App& app);
 void AddCalibrateCommand(CLI::App& app);

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   topocal::tools::AddDesignCommand(app);
   topocal::tools::AddSimulateCommand(app);
   topocal::tools::AddSweepCommand(app);
+  topocal::tools::AddReconstructCommand(app);
   topocal::tools::AddRenderSpotsCommand(app);
   topocal::tools::AddUndistortCommand(app);
   topocal::tools::AddCalibrateCommand(app);

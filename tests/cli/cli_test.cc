@@ -63,9 +63,38 @@ TEST_F(Cli, SimulateWritesSpots) {
 TEST_F(Cli, SweepPrintsTableVAndWritesJson) {
   const auto r = RunTopocal("sweep --config " + paper_ + " --json " + Path("sweep.json"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_NE(r.output.find("Table V"), std::string::npos);
+  for (const char* table : {"Table V ", "Table VI ", "Table VII "}) EXPECT_NE(r.output.find(table), std::string::npos);
   EXPECT_TRUE(fs::exists(Path("sweep.json")));
   EXPECT_EQ(r.output.find("nan"), std::string::npos);
+}
+
+TEST_F(Cli, ReconstructFromSimulatedSpotsWritesJsonAndMaps) {
+  ASSERT_EQ(RunTopocal("simulate --config " + paper_ + " --sigma 0 --out " + Path("s.csv")).exit_code, 0);
+  const auto r = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("s.csv") + " --truth --json " +
+                            Path("r.json") + " --maps " + Path("maps"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("rx = 8.3500"), std::string::npos) << r.output;
+  std::ifstream in(Path("r.json"));
+  const std::string json((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (const char* key : {"\"surface_fit\"", "\"stddev\"", "\"errors\"", "\"coefficients\"", "\"pv_um\""}) {
+    EXPECT_NE(json.find(key), std::string::npos) << key;
+  }
+  for (const char* f : {"axial_power.png", "tangential_power.csv", "height.png", "height_difference.png"}) {
+    EXPECT_TRUE(fs::exists(Path("maps/") + f)) << f;
+  }
+}
+
+TEST_F(Cli, ReconstructRejectsBadSpotsFiles) {
+  Write("bad.csv", "ring,index,x_mm,y_mm\n1,0,0.1,abc\n");
+  auto r = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("bad.csv") + " --json " + Path("r.json"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.output, "topocal: " + Path("bad.csv") + ":2: expected 'ring,index,x_mm,y_mm' numbers\n");
+  EXPECT_FALSE(fs::exists(Path("r.json")));
+  Write("few.csv", "ring,index,x_mm,y_mm\n1,0,0.031,0\n1,1,0.02,0.02\n");
+  r = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("few.csv") + " --json " + Path("r.json"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("reconstruction failed: 2 spots"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(Path("r.json")));
 }
 
 TEST_F(Cli, BadConfigIsOneLineAndExitTwoWithNoOutput) {
@@ -91,7 +120,7 @@ TEST_F(Cli, UnwritableOutputLeavesNothing) {
 TEST_F(Cli, UsageErrorsExitTwoAndHelpExitsZero) {
   EXPECT_EQ(RunTopocal("sweep").exit_code, 2);
   EXPECT_EQ(RunTopocal("frobnicate").exit_code, 2);
-  for (const char* verb : {"design", "simulate", "sweep"}) {
+  for (const char* verb : {"design", "simulate", "sweep", "reconstruct"}) {
     const auto r = RunTopocal(std::string(verb) + " --help");
     EXPECT_EQ(r.exit_code, 0) << verb;
     EXPECT_NE(r.output.find("--config"), std::string::npos) << verb;
