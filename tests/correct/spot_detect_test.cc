@@ -109,8 +109,8 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(Scene{"psf1.5", SpotShape::kPsf, 1.5, 0.0}, Scene{"ellipse", SpotShape::kEllipse, 1.0, 0.0},
                       Scene{"ellipse-barrel", SpotShape::kEllipse, 1.0, 2e-4},
                       Scene{"ellipse-pincushion", SpotShape::kEllipse, 1.0, -2e-4}),
-    [](const auto& info) {
-      std::string n = info.param.name;
+    [](const auto& test_info) {
+      std::string n = test_info.param.name;
       for (auto& c : n) c = std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
       return n;
     });

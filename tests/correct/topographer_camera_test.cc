@@ -32,7 +32,7 @@ TEST(TopographerCamera, OrientationAndRoundTrip) {
   const Eigen::Vector2d rot = c.PixelFromDetectionPlane({c.PitchMm(), 2 * c.PitchMm()});
   EXPECT_NEAR(rot.x() - c.principal_point_px.x(), -1.0, kRoundTripPx);
   EXPECT_NEAR(rot.y() - c.principal_point_px.y(), -2.0, kRoundTripPx);
-  for (const Eigen::Vector2d p : {Eigen::Vector2d(0, 0), Eigen::Vector2d(3999, 2999), Eigen::Vector2d(12.25, 2000.75)}) {
+  for (const Eigen::Vector2d& p : {Eigen::Vector2d(0, 0), Eigen::Vector2d(3999, 2999), Eigen::Vector2d(12.25, 2000.75)}) {
     EXPECT_NEAR((c.PixelFromDetectionPlane(c.DetectionPlaneFromPixel(p)) - p).norm(), 0, kRoundTripPx);
   }
   // OpenCV's normalised coordinates are x_mm / a: fx = a / pitch.

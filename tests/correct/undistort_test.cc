@@ -157,7 +157,7 @@ TEST(UndistortMap, RemapOfARenderedPatternMatchesTheTruth) {
     return 0.5 + 0.25 * (std::cos(k * mm.x()) + std::cos(k * mm.y()));
   };
   const auto cfg = testing::PaperConfig();
-  for (const model::Distortion d : {model::Distortion(testing::Seidel(cfg, 2e-4)),
+  for (const model::Distortion& d : {model::Distortion(testing::Seidel(cfg, 2e-4)),
                                     model::Distortion(testing::Seidel(cfg, -2e-4)),
                                     model::Distortion(SmartphoneBrown())}) {
     SCOPED_TRACE(model::DescribeDistortion(d));
@@ -196,7 +196,9 @@ TEST(UndistortMap, RemapOfARenderedPatternMatchesTheTruth) {
     EXPECT_LT(worst, bound);
     // And the image is not the distorted one passed through: without correction it would err by O(0.1).
     EXPECT_GT(cv::norm(distorted, undistorted, cv::NORM_INF), 10 * bound);
-    if (std::isfinite(map.fold_radius_mm)) EXPECT_GT(map.invalid_px, 0);
+    if (std::isfinite(map.fold_radius_mm)) {
+      EXPECT_GT(map.invalid_px, 0);
+    }
   }
 }
 
