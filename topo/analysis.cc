@@ -71,12 +71,7 @@ Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<
     a.covered_radius_mm = std::max(a.covered_radius_mm, p.point_mm.head<2>().norm());
   }
   std::string why;
-  const bool maps_ok = ComputePowerMaps(
-      [&](double x, double y, model::SurfaceDerivatives* d) {
-        shape.Derivatives(x, y, &d->z, &d->zx, &d->zy, &d->zxx, &d->zxy, &d->zyy);
-        return true;
-      },
-      map_options, &a.power, &why);
+  const bool maps_ok = ComputePowerMaps(shape, map_options, &a.power, &why);
   if (!maps_ok) throw std::runtime_error(fmt::format("power maps failed: {}", why));
   if (truth) a.errors = HeightErrors(a.reconstruction.points, model::Biconic{*truth});
   return a;

@@ -18,6 +18,43 @@ bool Fail(std::string* why, std::string message) {
 }  // namespace
 
 bool ComputePowerMaps(const SurfaceEvaluator& surface, const PowerMapOptions& o, PowerMaps* maps, std::string* why) {
+  const auto sampler = [&surface](double theta, int n, const double* rho, double* f, double* df, double* d2f) {
+    const double ct = std::cos(theta), st = std::sin(theta);
+    for (int k = 0; k < n; ++k) {
+      model::SurfaceDerivatives d;
+      if (!surface(rho[k] * ct, rho[k] * st, &d)) return false;
+      f[k] = d.z;
+      df[k] = d.zx * ct + d.zy * st;
+      d2f[k] = ct * ct * d.zxx + 2.0 * ct * st * d.zxy + st * st * d.zyy;
+    }
+    return true;
+  };
+  return ComputePowerMaps(sampler, o, maps, why);
+}
+
+bool ComputePowerMaps(const TaylorPolynomial& psi, const PowerMapOptions& o, PowerMaps* maps, std::string* why) {
+  std::vector<double> g(psi.degree() + 1);
+  const int top = psi.degree();
+  const auto sampler = [&](double theta, int n, const double* rho, double* f, double* df, double* d2f) {
+    psi.MeridianCoefficients(theta, g.data());
+    for (int k = 0; k < n; ++k) {
+      const double r = rho[k];
+      double v = g[top], d1 = 0, d2 = 0;  // Horner for the value and both derivatives together
+      for (int d = top - 1; d >= 0; --d) {
+        d2 = d2 * r + 2.0 * d1;
+        d1 = d1 * r + v;
+        v = v * r + g[d];
+      }
+      f[k] = v;
+      df[k] = d1;
+      d2f[k] = d2;
+    }
+    return true;
+  };
+  return ComputePowerMaps(sampler, o, maps, why);
+}
+
+bool ComputePowerMaps(const MeridianSampler& meridian, const PowerMapOptions& o, PowerMaps* maps, std::string* why) {
   const int K = o.radial_samples, M = o.meridians, P = o.meridian_polynomial_order;
   if (M < 1 || K < 1 || !(o.radius_mm > 0)) return Fail(why, "power map grid is empty");
   const bool fit = o.method == MeridianMethod::kPolynomialFit;
@@ -41,19 +78,13 @@ bool ComputePowerMaps(const SurfaceEvaluator& surface, const PowerMapOptions& o,
   maps->radius_mm = o.radius_mm;
   maps->axial_D.assign(static_cast<size_t>(M) * K, 0.0);
   maps->tangential_D.assign(static_cast<size_t>(M) * K, 0.0);
-  Eigen::VectorXd f(K), d1s(K), d2s(K);
+  Eigen::VectorXd f(K), d1s(K), d2s(K), rho(K);
+  for (int k = 0; k < K; ++k) rho(k) = o.radius_mm * (k + 1) / K;
   for (int j = 0; j < M; ++j) {
     const double theta = 2.0 * M_PI * j / M;
-    const double ct = std::cos(theta), st = std::sin(theta);
-    for (int k = 0; k < K; ++k) {
-      const double rho = o.radius_mm * (k + 1) / K;
-      model::SurfaceDerivatives d;
-      if (!surface(rho * ct, rho * st, &d)) {
-        return Fail(why, fmt::format("surface undefined at rho = {:.3f} mm, theta = {:.1f} deg", rho, theta * 180 / M_PI));
-      }
-      f(k) = d.z;
-      d1s(k) = d.zx * ct + d.zy * st;
-      d2s(k) = ct * ct * d.zxx + 2.0 * ct * st * d.zxy + st * st * d.zyy;
+    if (!meridian(theta, K, rho.data(), f.data(), d1s.data(), d2s.data())) {
+      return Fail(why, fmt::format("surface undefined within rho = {:.3f} mm on the meridian at {:.1f} deg",
+                                   o.radius_mm, theta * 180 / M_PI));
     }
     if (fit) {
       const Eigen::VectorXd c = qr.solve(f);  // coefficients of s^i, i = 1..P

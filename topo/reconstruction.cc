@@ -156,13 +156,14 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   TaylorPolynomial psi(settings.taylor_degree, norm_radius);
   const double tolerance_mm = settings.convergence_um * 1e-3;
   const int max_iterations = iterate ? settings.max_iterations : 1;
+  GradientFitter fitter;
   for (int it = 0; it < max_iterations; ++it) {
     for (int i = 0; i < n; ++i) {
       normals[i] = NormalFromRays(prep.rays[i].incident, p2[i], prep.rays[i].target);
       slopes[i] = Eigen::Vector2d(-normals[i].x() / normals[i].z(), -normals[i].y() / normals[i].z());
       xy[i] = p2[i].head<2>();
     }
-    const GradientFit fit = FitGradient(xy, slopes, t_mm, &psi);
+    const GradientFit fit = fitter.Fit(xy, slopes, t_mm, &psi);
     if (!fit.ok) {
       r.message = "the modal fit of the slopes is rank-deficient (too few or degenerate spots)";
       return r;

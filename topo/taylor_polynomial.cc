@@ -57,6 +57,21 @@ void TaylorPolynomial::Derivatives(double x_mm, double y_mm, double* z, double* 
   *zyy = svv * inv * inv;
 }
 
+void TaylorPolynomial::MeridianCoefficients(double theta_rad, double* g) const {
+  const double c = std::cos(theta_rad) / norm_radius_mm_, s = std::sin(theta_rad) / norm_radius_mm_;
+  double pc[kMaxDegree + 1], ps[kMaxDegree + 1];
+  pc[0] = ps[0] = 1.0;
+  for (int i = 1; i <= degree_; ++i) {
+    pc[i] = pc[i - 1] * c;
+    ps[i] = ps[i - 1] * s;
+  }
+  for (int d = 0; d <= degree_; ++d) g[d] = 0.0;
+  for (int k = 0; k < terms(); ++k) {
+    const auto [a, b] = exponents_[k];
+    g[a + b] += coefficients_[k] * pc[a] * ps[b];
+  }
+}
+
 void TaylorPolynomial::GradientRows(double x_mm, double y_mm, double* row_x, double* row_y) const {
   const double u = x_mm / norm_radius_mm_, v = y_mm / norm_radius_mm_;
   double pu[kMaxDegree + 1], pv[kMaxDegree + 1];
@@ -73,36 +88,106 @@ void TaylorPolynomial::GradientRows(double x_mm, double y_mm, double* row_x, dou
   }
 }
 
-GradientFit FitGradient(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes,
-                        double z_at_origin_mm, TaylorPolynomial* poly) {
-  GradientFit fit;
+namespace {
+
+void BuildDesign(const TaylorPolynomial& poly, const std::vector<Eigen::Vector2d>& points_mm,
+                 const std::vector<Eigen::Vector2d>& slopes, Eigen::MatrixXd* A, Eigen::VectorXd* rhs) {
   const int n = static_cast<int>(points_mm.size());
-  const int unknowns = poly->terms() - 1;
-  if (2 * n < unknowns || slopes.size() != points_mm.size()) return fit;
-  Eigen::MatrixXd A(2 * n, unknowns);
-  Eigen::VectorXd rhs(2 * n);
+  const int unknowns = poly.terms() - 1;
+  A->resize(2 * n, unknowns);
+  rhs->resize(2 * n);
   std::vector<double> rx(unknowns), ry(unknowns);
   for (int i = 0; i < n; ++i) {
-    poly->GradientRows(points_mm[i].x(), points_mm[i].y(), rx.data(), ry.data());
-    A.row(2 * i) = Eigen::Map<const Eigen::RowVectorXd>(rx.data(), unknowns);
-    A.row(2 * i + 1) = Eigen::Map<const Eigen::RowVectorXd>(ry.data(), unknowns);
-    rhs(2 * i) = slopes[i].x();
-    rhs(2 * i + 1) = slopes[i].y();
+    poly.GradientRows(points_mm[i].x(), points_mm[i].y(), rx.data(), ry.data());
+    A->row(2 * i) = Eigen::Map<const Eigen::RowVectorXd>(rx.data(), unknowns);
+    A->row(2 * i + 1) = Eigen::Map<const Eigen::RowVectorXd>(ry.data(), unknowns);
+    (*rhs)(2 * i) = slopes[i].x();
+    (*rhs)(2 * i + 1) = slopes[i].y();
   }
+}
+
+// Preconditioned CGLS on min |A x - b| with x = R^-1 y, warm-started at x. True when the preconditioned normal
+// residual |R^-T A^T (b - A x)| falls below `tolerance` times its value at x = 0.
+bool PreconditionedCgls(const Eigen::MatrixXd& A, const Eigen::VectorXd& b, const Eigen::MatrixXd& R,
+                        Eigen::VectorXd* x) {
+  // 1e-13: the normal residual of a QR solution in double on this problem is ~1e-15 relative; CGLS stops close above.
+  constexpr double kTolerance = 1e-13;
+  constexpr int kMaxIterations = 25;
+  const auto Rt = R.triangularView<Eigen::Upper>();
+  Eigen::VectorXd r = b - A * (*x);
+  Eigen::VectorXd s = Rt.transpose().solve(A.transpose() * r);
+  const double reference = Rt.transpose().solve(A.transpose() * b).norm();
+  Eigen::VectorXd p = s;
+  double gamma = s.squaredNorm();
+  for (int it = 0; it < kMaxIterations; ++it) {
+    if (std::sqrt(gamma) <= kTolerance * reference) return true;
+    const Eigen::VectorXd rp = Rt.solve(p);
+    const Eigen::VectorXd q = A * rp;
+    const double qq = q.squaredNorm();
+    if (!(qq > 0)) return false;
+    const double alpha = gamma / qq;
+    *x += alpha * rp;
+    r -= alpha * q;
+    s = Rt.transpose().solve(A.transpose() * r);
+    const double gamma_next = s.squaredNorm();
+    p = s + (gamma_next / gamma) * p;
+    gamma = gamma_next;
+  }
+  return std::sqrt(gamma) <= kTolerance * reference;
+}
+
+bool SolveByQr(const Eigen::MatrixXd& A, const Eigen::VectorXd& rhs, Eigen::VectorXd* x, Eigen::MatrixXd* r_out) {
   // Blocked Householder QR (no pivoting: the monomial columns in normalised coordinates are never exactly
   // dependent once 2n >= N - 1 points are spread over the disc); rank is checked on R's diagonal.
   const Eigen::HouseholderQR<Eigen::MatrixXd> qr(A);
   const auto diag = qr.matrixQR().diagonal().cwiseAbs();
-  if (!(diag.minCoeff() > 1e-10 * diag.maxCoeff())) return fit;
-  const Eigen::VectorXd b = qr.solve(rhs);
-  if (!b.allFinite()) return fit;
+  if (!(diag.minCoeff() > 1e-10 * diag.maxCoeff())) return false;
+  *x = qr.solve(rhs);
+  if (r_out) *r_out = qr.matrixQR().topRows(A.cols()).triangularView<Eigen::Upper>();
+  return x->allFinite();
+}
+
+GradientFit Finish(const Eigen::MatrixXd& A, const Eigen::VectorXd& rhs, const Eigen::VectorXd& b,
+                   double z_at_origin_mm, TaylorPolynomial* poly) {
+  GradientFit fit;
+  const int unknowns = static_cast<int>(b.size());
   poly->coefficients().tail(unknowns) = b;
-  poly->coefficients()(0) = 0.0;
   // Psi(0, 0) is the piston alone (every other monomial vanishes at the origin).
   poly->coefficients()(0) = z_at_origin_mm;
-  fit.rms_slope_residual = std::sqrt((A * b - rhs).squaredNorm() / (2 * n));
+  fit.rms_slope_residual = std::sqrt((A * b - rhs).squaredNorm() / A.rows());
   fit.ok = true;
   return fit;
+}
+
+}  // namespace
+
+GradientFit GradientFitter::Fit(const std::vector<Eigen::Vector2d>& points_mm,
+                                const std::vector<Eigen::Vector2d>& slopes, double z_at_origin_mm,
+                                TaylorPolynomial* poly) {
+  const int unknowns = poly->terms() - 1;
+  if (2 * static_cast<int>(points_mm.size()) < unknowns || slopes.size() != points_mm.size()) return {};
+  BuildDesign(*poly, points_mm, slopes, &a_, &rhs_);
+  Eigen::VectorXd x = poly->coefficients().tail(unknowns);
+  if (r_.rows() == unknowns && PreconditionedCgls(a_, rhs_, r_, &x)) {
+    return Finish(a_, rhs_, x, z_at_origin_mm, poly);
+  }
+  ++factorizations_;
+  if (!SolveByQr(a_, rhs_, &x, &r_)) {
+    r_.resize(0, 0);
+    return {};
+  }
+  return Finish(a_, rhs_, x, z_at_origin_mm, poly);
+}
+
+GradientFit FitGradient(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes,
+                        double z_at_origin_mm, TaylorPolynomial* poly) {
+  const int unknowns = poly->terms() - 1;
+  if (2 * static_cast<int>(points_mm.size()) < unknowns || slopes.size() != points_mm.size()) return {};
+  Eigen::MatrixXd A;
+  Eigen::VectorXd rhs, x;
+  BuildDesign(*poly, points_mm, slopes, &A, &rhs);
+  if (!SolveByQr(A, rhs, &x, nullptr)) return {};
+  return Finish(A, rhs, x, z_at_origin_mm, poly);
 }
 
 }  // namespace topocal::topo

@@ -33,6 +33,10 @@ class TaylorPolynomial {
   void Derivatives(double x_mm, double y_mm, double* z, double* zx, double* zy, double* zxx, double* zxy,
                    double* zyy) const;
 
+  // Psi along the meridian at angle theta as a polynomial in rho: Psi(rho cos t, rho sin t) = sum_d g[d] rho^d,
+  // d = 0..degree (g has degree + 1 entries, in mm^(1-d)).
+  void MeridianCoefficients(double theta_rad, double* g) const;
+
   // Rows of d psi_k / dx and d psi_k / dy at a point, for the gradient fit (k = 1..N-1: the piston has no gradient).
   void GradientRows(double x_mm, double y_mm, double* row_x, double* row_y) const;
 
@@ -46,6 +50,26 @@ class TaylorPolynomial {
 struct GradientFit {
   bool ok = false;
   double rms_slope_residual = 0;  // rms of the fitted minus measured slopes (dimensionless)
+};
+
+// Repeated gradient fits on slowly moving points (the normal-refinement loop): the first fit factors the design
+// matrix by Householder QR and keeps R; later fits solve the same least-squares problem by CGLS preconditioned with
+// that R and warm-started from the previous coefficients. While the points move by micrometres the preconditioned
+// operator A R^-1 stays within ~1e-4 of orthonormal, so CGLS reaches the least-squares solution in a few matrix-
+// vector products instead of a new O(m n^2) factorisation. Written by hand because Eigen's iterative solvers take
+// sparse or square systems, not a dense rectangular one with a triangular preconditioner. Falls back to a fresh QR
+// whenever CGLS has not converged within its budget.
+class GradientFitter {
+ public:
+  GradientFit Fit(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes,
+                  double z_at_origin_mm, TaylorPolynomial* poly);
+  int factorizations() const { return factorizations_; }
+
+ private:
+  Eigen::MatrixXd r_;        // upper-triangular factor of the last QR (empty before the first fit)
+  Eigen::MatrixXd a_;        // design matrix, reused storage
+  Eigen::VectorXd rhs_;
+  int factorizations_ = 0;
 };
 
 // Fits B_2..B_N to measured slopes (S_x, S_y) at points (x, y) (paper Eq. 21-22 modal reconstruction) by

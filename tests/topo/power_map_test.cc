@@ -82,6 +82,27 @@ TEST(PowerMaps, PolynomialFitOfASphereShowsItsModelError) {
   EXPECT_LT(maps.pv_tangential_D, 0.5);
 }
 
+TEST(PowerMaps, TaylorFastPathEqualsTheGenericEvaluation) {
+  // Horner along meridians against the 2-D derivatives of the same polynomial: both exact, rounding only.
+  constexpr double kSamePowerD = 1e-9;
+  TaylorPolynomial p(10, 5.5);
+  for (int k = 3; k < p.terms(); ++k) p.coefficients()(k) = 0.02 * std::cos(0.9 * k) / (1 + k);
+  p.coefficients()(3) = 0.35;  // a convex base so that the powers are cornea-like
+  p.coefficients()(5) = 0.33;
+  PowerMaps fast, generic;
+  ASSERT_TRUE(ComputePowerMaps(p, PowerMapOptions{}, &fast));
+  ASSERT_TRUE(ComputePowerMaps(
+      [&](double x, double y, model::SurfaceDerivatives* d) {
+        p.Derivatives(x, y, &d->z, &d->zx, &d->zy, &d->zxx, &d->zxy, &d->zyy);
+        return true;
+      },
+      PowerMapOptions{}, &generic));
+  for (size_t i = 0; i < fast.axial_D.size(); ++i) {
+    ASSERT_NEAR(fast.axial_D[i], generic.axial_D[i], kSamePowerD);
+    ASSERT_NEAR(fast.tangential_D[i], generic.tangential_D[i], kSamePowerD);
+  }
+}
+
 TEST(PowerMaps, UndefinedSurfaceIsAnErrorNotNaN) {
   const model::Sphere small{4.0, 0.0};
   PowerMaps maps;
@@ -129,5 +150,33 @@ TEST(TaylorPolynomial, GradientFitRecoversAnExactPolynomial) {
   EXPECT_LT((fit.coefficients() - truth.coefficients()).norm(), 1e-10);
 }
 
+}  // namespace
+}  // namespace topocal::topo
+
+namespace topocal::topo {
+namespace {
+TEST(TaylorPolynomial, PreconditionedRefitEqualsAFreshQrSolve) {
+  // The normal-refinement loop refits on points that moved by micrometres: CGLS with the old R must land on the
+  // same least-squares solution as a fresh QR (both to rounding, ~1e-13 relative).
+  constexpr double kSameSolutionTol = 1e-11;
+  TaylorPolynomial truth(10, 5.5);
+  for (int k = 0; k < truth.terms(); ++k) truth.coefficients()(k) = 0.03 * std::sin(0.4 * k + 0.1);
+  std::vector<Eigen::Vector2d> pts, slopes;
+  for (int i = 0; i < 600; ++i) {
+    const double r = 5.3 * std::sqrt((i + 0.5) / 600.0), t = 2.39996 * i;
+    pts.emplace_back(r * std::cos(t), r * std::sin(t));
+    double z, zx, zy;
+    truth.ValueAndGradient(pts.back().x(), pts.back().y(), &z, &zx, &zy);
+    slopes.emplace_back(zx + 1e-4 * std::cos(3.0 * i), zy);  // not exactly representable: a real LS problem
+  }
+  GradientFitter fitter;
+  TaylorPolynomial a(10, 5.5), b(10, 5.5);
+  ASSERT_TRUE(fitter.Fit(pts, slopes, 0.0, &a).ok);
+  for (auto& p : pts) p *= 1.0 + 2e-6;  // the points move by ~10 nm
+  ASSERT_TRUE(fitter.Fit(pts, slopes, 0.0, &a).ok);
+  EXPECT_EQ(fitter.factorizations(), 1);  // the second fit reused the factor
+  ASSERT_TRUE(FitGradient(pts, slopes, 0.0, &b).ok);
+  EXPECT_LT((a.coefficients() - b.coefficients()).norm(), kSameSolutionTol * b.coefficients().norm());
+}
 }  // namespace
 }  // namespace topocal::topo
