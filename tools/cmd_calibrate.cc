@@ -7,6 +7,7 @@
 #include <vector>
 
 #include <fmt/format.h>
+#include <glog/logging.h>
 #include <opencv2/imgcodecs.hpp>
 
 #include "calib/calibrate.h"
@@ -45,6 +46,9 @@ struct CalibrateArgs {
 };
 
 void Run(const CalibrateArgs& a) {
+  // Ceres logs through glog (e.g. a rank-deficient covariance); the calibration's status already says it in one
+  // line, so keep glog's lines off the terminal.
+  FLAGS_minloglevel = google::GLOG_FATAL;
   const auto model = calib::ParseDistortionModel(a.model);
   if (!model) throw model::InputError(fmt::format("--model: '{}' is not seidel or brown5", a.model));
   calib::CalibrationOptions options;
