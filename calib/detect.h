@@ -21,9 +21,11 @@
 
 namespace topocal::calib {
 
+// Checkerboards: kSaddle and kOpenCvSubPix choose the refinement. AprilTag grids: both mean topocal's tag-edge
+// fit (calib/apriltag_detector.h); kNone keeps libapriltag's corners (converted to OpenCV's pixel convention).
 enum class CornerRefinement {
   kSaddle,         // topocal's iterated, Gaussian-weighted quadratic saddle fit (checkerboards; default)
-  kOpenCvSubPix,   // cv::cornerSubPix with an 11 x 11 window: OpenCV's default, for comparison
+  kOpenCvSubPix,   // cv::cornerSubPix with an 11 x 11 window: OpenCV's usual call, for comparison
   kNone,           // the detector's own corners
 };
 
