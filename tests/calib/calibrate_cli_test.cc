@@ -120,6 +120,18 @@ TEST_F(CalibrateCli, TooFewViewsIsOneLineExitOneAndNoOutput) {
   EXPECT_FALSE(fs::exists(Path("report.json")));
 }
 
+TEST_F(CalibrateCli, DegenerateSetIsOneLineExitOneAndNoOutput) {
+  // The same photograph three times: one target orientation, which cannot determine the intrinsics.
+  for (const char* name : {"a.jpg", "b.jpg", "c.jpg"}) fs::copy_file(kDataDir + "left03.jpg", Path(name));
+  const auto r = RunTopocal("calibrate --target " + Path("board.yaml") + " --images '" + Path("*.jpg") + "' --out " +
+                            Path("cal.yaml") + " --json " + Path("report.json"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(CountLines(r.output), 1) << r.output;
+  EXPECT_NE(r.output.find("degenerate"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(Path("cal.yaml")));
+  EXPECT_FALSE(fs::exists(Path("report.json")));
+}
+
 TEST_F(CalibrateCli, BadInputIsExitTwo) {
   auto r = RunTopocal("calibrate --target " + Path("nope.yaml") + " --images '" + kDataDir + "left0*.jpg' --out " +
                       Path("cal.yaml"));
