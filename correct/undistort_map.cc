@@ -55,18 +55,16 @@ void FillRows(const Distort& distort, const model::TopographerCamera& camera, co
     float* my = map_y->ptr<float>(v);
     const double y = s_mm * (v - cv_);
     const double dy = y - centre_mm.y();
+    // Branch-free so that the compiler can vectorise the row: evaluate everywhere, then select.
     for (int u = 0; u < camera.width_px; ++u) {
       const double x = s_mm * (u - cu);
       const double dx = x - centre_mm.x();
-      if (dx * dx + dy * dy >= fold2) {
-        mx[u] = -1.f;
-        my[u] = -1.f;
-        continue;
-      }
+      const double valid = dx * dx + dy * dy < fold2 ? 1.0 : 0.0;
       double out_x, out_y;
       distort(x, y, &out_x, &out_y);
-      mx[u] = static_cast<float>(cu + inv * out_x);
-      my[u] = static_cast<float>(cv_ + inv * out_y);
+      // Arithmetic select (exact: one term is multiplied by zero): no control flow in the loop body.
+      mx[u] = static_cast<float>(valid * (cu + inv * out_x) - (1.0 - valid));
+      my[u] = static_cast<float>(valid * (cv_ + inv * out_y) - (1.0 - valid));
     }
   }
 }
@@ -93,6 +91,14 @@ double FoldRadiusMm(const model::Distortion& distortion, double max_radius_mm) {
 
 UndistortMap BuildUndistortMap(const model::Distortion& distortion, const model::TopographerCamera& camera) {
   UndistortMap out;
+  BuildUndistortMap(distortion, camera, &out);
+  return out;
+}
+
+void BuildUndistortMap(const model::Distortion& distortion, const model::TopographerCamera& camera,
+                       UndistortMap* map) {
+  UndistortMap& out = *map;
+  out.invalid_px = 0;
   out.map_x.create(camera.height_px, camera.width_px, CV_32FC1);
   out.map_y.create(camera.height_px, camera.width_px, CV_32FC1);
   const Eigen::Vector2d centre = CentreMm(distortion);
@@ -121,8 +127,9 @@ UndistortMap BuildUndistortMap(const model::Distortion& distortion, const model:
     });
   } else {
     const auto b = std::get<model::BrownParams>(distortion);
-    const auto kernel = [b](double x, double y, double* ox, double* oy) {
-      const double xn[2] = {(x - b.centre_x_mm) / b.focal_mm, (y - b.centre_y_mm) / b.focal_mm};
+    const double inv_f = 1.0 / b.focal_mm;  // a multiply per pixel instead of a divide
+    const auto kernel = [b, inv_f](double x, double y, double* ox, double* oy) {
+      const double xn[2] = {(x - b.centre_x_mm) * inv_f, (y - b.centre_y_mm) * inv_f};
       double xd[2];
       model::BrownConrady::DistortNormalized(b.k.data(), xn, xd);
       *ox = b.centre_x_mm + b.focal_mm * xd[0];
@@ -133,7 +140,6 @@ UndistortMap BuildUndistortMap(const model::Distortion& distortion, const model:
     });
   }
   if (std::isfinite(fold)) out.invalid_px = cv::countNonZero(out.map_x == -1.f);
-  return out;
 }
 
 cv::Mat UndistortImage(const cv::Mat& distorted, const UndistortMap& map, int interpolation, double border_value) {

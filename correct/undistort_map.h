@@ -25,6 +25,9 @@ struct UndistortMap {
 
 // Builds the map for `camera`'s full sensor. Rows are built in parallel (cv::parallel_for_).
 UndistortMap BuildUndistortMap(const model::Distortion& distortion, const model::TopographerCamera& camera);
+// The same into `map`, reusing its buffers when they have the right size (rebuilding a map for a new calibration
+// then costs no allocation: 96 MB of fresh pages for 4000 x 3000 cost about as much as computing the map).
+void BuildUndistortMap(const model::Distortion& distortion, const model::TopographerCamera& camera, UndistortMap* map);
 
 // The undistorted image (same size and type as `distorted`, which must match the camera's size). Pixels without a
 // source are `border_value`. Throws std::invalid_argument if the sizes differ.
