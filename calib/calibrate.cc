@@ -184,6 +184,14 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
       }
     }
     if (dropped == 0) break;
+    // A pose needs at least 4 corners of its view; rejection must not leave one undetermined.
+    for (const auto& v : views) {
+      const auto left = std::count(v.inlier.begin(), v.inlier.end(), true);
+      if (left < 4) {
+        return Failure(CalibrationStatus::kTooFewCorners,
+                       fmt::format("view {}: {} corners left after outlier rejection", v.index, left));
+      }
+    }
   }
 
   // Statistics on the inliers, residuals of every corner.
