@@ -386,10 +386,10 @@ TEST(RealPhotographs, AgreesWithOpenCvCalibrateCamera) {
   EXPECT_NEAR(r.rms_px, cv_rms, kRmsAgreementPx);
   // Same minimum: topocal's cost must not be above OpenCV's.
   EXPECT_LE(r.rms_px, cv_rms + 1e-9);
-  std::printf("opencv : fx %.4f fy %.4f cx %.4f cy %.4f k %.5f %.5f %.6f %.6f %.5f rms %.6f\n", k.at<double>(0, 0),
+  std::printf("opencv : fx %.6f fy %.6f cx %.6f cy %.6f k %.7f %.7f %.7f %.7f %.7f rms %.7f\n", k.at<double>(0, 0),
               k.at<double>(1, 1), k.at<double>(0, 2), k.at<double>(1, 2), dist.at<double>(0), dist.at<double>(1),
               dist.at<double>(2), dist.at<double>(3), dist.at<double>(4), cv_rms);
-  std::printf("topocal: fx %.4f fy %.4f cx %.4f cy %.4f k %.5f %.5f %.6f %.6f %.5f rms %.6f\n", r.camera.fx_px,
+  std::printf("topocal: fx %.6f fy %.6f cx %.6f cy %.6f k %.7f %.7f %.7f %.7f %.7f rms %.7f\n", r.camera.fx_px,
               r.camera.fy_px, r.camera.cx_px, r.camera.cy_px, r.camera.dist[0], r.camera.dist[1], r.camera.dist[2],
               r.camera.dist[3], r.camera.dist[4], r.rms_px);
   for (const auto& p : r.parameters) std::printf("  %s = %.6g +- %.3g\n", p.name.c_str(), p.value, p.stddev);
