@@ -3,6 +3,8 @@
 
 #include "model/config.h"
 #include "model/io.h"
+#include "model/topographer_camera.h"
+#include "pipeline/closed_loop.h"
 #include "tools/commands.h"
 #include "tools/map_output.h"
 #include "tools/report_json.h"
@@ -11,7 +13,7 @@
 namespace topocal::tools {
 namespace {
 
-std::string SweepJson(const topo::SweepResult& r) {
+std::string SweepJson(const topo::SweepResult& r, const std::vector<pipeline::ClosedLoopResult>& corrected) {
   nlohmann::json j;
   j["spots"] = r.spots;
   j["rows"] = nlohmann::json::array();
@@ -28,6 +30,20 @@ std::string SweepJson(const topo::SweepResult& r) {
     jr["surface_fit"] = SurfaceFitJson(a.surface_fit);
     jr["reconstruction"] = ReconstructionJson(a.reconstruction);
     jr["errors"] = ErrorsJson(a);
+    const size_t i = j["rows"].size();
+    if (i < corrected.size()) {
+      const auto& c = corrected[i];
+      jr["corrected"] = {{"surface_fit", SurfaceFitJson(c.corrected.surface_fit)},
+                         {"errors", ErrorsJson(c.corrected)},
+                         {"reconstruction", ReconstructionJson(c.corrected.reconstruction)},
+                         {"spots_indexed", c.spots_indexed},
+                         {"spots_unassigned", c.spots_unassigned},
+                         {"spots_missing", c.spots_missing}};
+      jr["calibration"] = {{"sigma_estimated_per_mm2", c.calibration.sigma_estimated_per_mm2},
+                           {"sigma_stddev_per_mm2", c.calibration.sigma_stddev_per_mm2},
+                           {"residual_rms_px", c.calibration.residual_rms_px},
+                           {"corners", c.calibration.corners}};
+    }
     j["rows"].push_back(jr);
   }
   j["ideal"] = {{"pv_tangential_D", r.ideal_power.pv_tangential_D}, {"pv_axial_D", r.ideal_power.pv_axial_D}};
@@ -63,6 +79,27 @@ void PrintTableVII(const topo::SweepResult& r) {
              r.ideal_power.pv_axial_D);
 }
 
+void PrintCorrection(const topo::SweepResult& r, const std::vector<pipeline::ClosedLoopResult>& corrected) {
+  fmt::print("\nBefore / after correction — single-view Seidel calibration at the cornea position, spots detected in "
+             "the rendered sensor image, undistorted, reconstructed\n");
+  fmt::print("{:>10} {:>11} {:>7} | {:>16} {:>16} {:>16} {:>16} | {:>17} {:>15} {:>15}\n", "sigma", "sigma_est",
+             "rms_px", "kx before>after", "ky before>after", "rx before>after", "ry before>after",
+             "pv_um before>after", "pv_m before>after", "pv_a before>after");
+  for (size_t i = 0; i < corrected.size(); ++i) {
+    const auto& b = r.rows[i].analysis;
+    const auto& c = corrected[i];
+    const auto& a = c.corrected;
+    const auto& pb = b.surface_fit.params;
+    const auto& pa = a.surface_fit.params;
+    fmt::print("{:>10.3g} {:>11.4g} {:>7.3f} | {:>7.4f} > {:>6.4f} {:>7.4f} > {:>6.4f} {:>7.4f} > {:>6.4f} "
+               "{:>7.4f} > {:>6.4f} | {:>8.3f} > {:>6.3f} {:>6.2f} > {:>6.2f} {:>6.2f} > {:>6.2f}\n",
+               r.rows[i].sigma_per_mm2, c.calibration.sigma_estimated_per_mm2, c.calibration.residual_rms_px, pb.kx,
+               pa.kx, pb.ky, pa.ky, pb.rx_mm, pa.rx_mm, pb.ry_mm, pa.ry_mm, b.errors ? b.errors->pv_um : 0.0,
+               a.errors ? a.errors->pv_um : 0.0, b.power.pv_tangential_D, a.power.pv_tangential_D,
+               b.power.pv_axial_D, a.power.pv_axial_D);
+  }
+}
+
 void PrintTableV(const topo::SweepResult& r) {
   fmt::print("Table V — image contour (Fitzgibbon fit to the outer ring), {} spots\n", r.spots);
   fmt::print("{:>12}  {:>9}  {:>9}  {:>9}  {:>10}  {:>8}\n", "sigma/mm^2", "a_e/mm", "b_e/mm", "beta_e/deg",
@@ -84,6 +121,12 @@ void AddSweepCommand(CLI::App& app) {
   cmd->add_option("--config", *config, "Topographer configuration (JSON)")->required();
   cmd->add_option("--json", *json_out, "Write the sweep as JSON");
   cmd->add_option("--maps", *maps, "Write every sigma's power, height and difference maps (CSV + PNG) here");
+  auto correct = std::make_shared<bool>(false);
+  auto camera = std::make_shared<std::string>();
+  cmd->add_flag("--correct", *correct,
+                "Close the loop for every sigma: calibrate from a rendered target, detect the spots in a rendered "
+                "sensor image, undistort, reconstruct; print before and after side by side");
+  cmd->add_option("--camera", *camera, "Topographer camera (JSON) for --correct; default: 1.12 um pitch, a from the config");
   cmd->callback([=] {
     const auto cfg = model::LoadConfig(*config);
     const auto result = topo::RunSweep(cfg);
@@ -93,7 +136,21 @@ void AddSweepCommand(CLI::App& app) {
     PrintTableV(result);
     PrintTableVI(result);
     PrintTableVII(result);
-    if (!json_out->empty()) model::WriteFileAtomic(*json_out, SweepJson(result));
+    std::vector<pipeline::ClosedLoopResult> corrected;
+    if (*correct) {
+      pipeline::ClosedLoopOptions options;
+      if (!camera->empty()) {
+        options.camera = model::LoadTopographerCamera(*camera);
+      } else {
+        options.camera.a_mm = cfg.topographer.a_mm;
+      }
+      for (const auto& row : result.rows) {
+        fmt::print(stderr, "topocal sweep: closing the loop at sigma = {:.3g} ...\n", row.sigma_per_mm2);
+        corrected.push_back(pipeline::RunClosedLoop(cfg, row.sigma_per_mm2, options));
+      }
+      PrintCorrection(result, corrected);
+    }
+    if (!json_out->empty()) model::WriteFileAtomic(*json_out, SweepJson(result, corrected));
     if (!maps->empty()) {
       for (const auto& row : result.rows) {
         WriteAnalysisMaps(*maps, fmt::format("sigma_{:+.3g}_", row.sigma_per_mm2),

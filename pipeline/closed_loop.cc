@@ -1,0 +1,136 @@
+#include "pipeline/closed_loop.h"
+
+#include <stdexcept>
+
+#include <fmt/format.h>
+
+#include "calib/calibrate.h"
+#include "calib/camera.h"
+#include "calib/detect.h"
+#include "calib/render_target.h"
+#include "calib/target.h"
+#include "correct/detect_and_index.h"
+#include "correct/opencv_brown.h"
+#include "correct/spot_render.h"
+#include "correct/spot_truth.h"
+#include "correct/undistort_points.h"
+#include "model/null_screen.h"
+
+namespace topocal::pipeline {
+namespace {
+
+model::TopographerCamera RegionOfInterest(const ClosedLoopOptions& o) {
+  model::TopographerCamera roi = o.camera;
+  roi.width_px = roi.height_px = 2 * o.roi_half_px;
+  roi.principal_point_px = Eigen::Vector2d(o.roi_half_px - 0.5, o.roi_half_px - 0.5);
+  return roi;
+}
+
+calib::CameraModel CameraThrough(const model::TopographerCamera& roi, const model::Config& config, double sigma) {
+  calib::CameraModel cam;
+  cam.width_px = roi.width_px;
+  cam.height_px = roi.height_px;
+  cam.fx_px = cam.fy_px = roi.FocalPx();
+  cam.cx_px = roi.principal_point_px.x();
+  cam.cy_px = roi.principal_point_px.y();
+  // OpenCV's normalised coordinates are x1 / a on the detection plane (docs/camera-conventions.md), so the Seidel
+  // distortion is Brown's k1 = sigma a^2 / M_T^3 about the principal point.
+  cam.dist = {model::SeidelSigmaToBrownK1(sigma, config.distortion.magnification, roi.a_mm), 0, 0, 0, 0};
+  return cam;
+}
+
+CalibrationOutcome Calibrate(const model::Config& config, const model::TopographerCamera& roi,
+                             const calib::CameraModel& truth_camera, const ClosedLoopOptions& o, double sigma) {
+  const auto target = calib::ParseTargetDescription(
+      fmt::format("target_type: checkerboard\ntargetCols: {}\ntargetRows: {}\nrowSpacingMeters: {}\n"
+                  "colSpacingMeters: {}\n",
+                  o.target_cols, o.target_rows, o.target_square_mm * 1e-3, o.target_square_mm * 1e-3),
+      "closed-loop target");
+  calib::RenderOptions render;
+  render.blur_sigma_px = o.target_blur_px;
+  render.noise_grey = o.target_noise_grey;
+  render.seed = o.seed;
+  std::string why;
+  const auto view = calib::RenderTarget(target, truth_camera,
+                                        calib::PoseFacingTarget(target, config.topographer.b_mm), render, &why);
+  if (!view) throw std::runtime_error(fmt::format("sigma {}: rendering the calibration target: {}", sigma, why));
+  const auto observed = calib::DetectTarget(target, view->image, calib::DetectionOptions{});
+  if (!observed) throw std::runtime_error(fmt::format("sigma {}: no calibration target found in its image", sigma));
+
+  calib::CalibrationOptions co;
+  co.model = calib::DistortionModelKind::kSeidel;
+  co.focal_mm = roi.a_mm;
+  co.pixel_pitch_um = roi.pixel_pitch_um;
+  co.distance_mm = config.topographer.b_mm;
+  co.magnification = config.distortion.magnification;
+  const auto result = calib::CalibrateSingleView(*observed, co);
+  if (!result.ok() || !result.seidel) {
+    throw std::runtime_error(fmt::format("sigma {}: calibration failed: {}", sigma, result.message));
+  }
+  correct::OpenCvCamera k;
+  k.fx_px = result.camera.fx_px;
+  k.fy_px = result.camera.fy_px;
+  k.cx_px = result.camera.cx_px;
+  k.cy_px = result.camera.cy_px;
+  k.dist.assign(result.camera.dist.begin(), result.camera.dist.end());
+  k.centre_x = result.camera.distortion_centre.x();
+  k.centre_y = result.camera.distortion_centre.y();
+  const auto brown = correct::BrownFromOpenCv(k, roi, &why);
+  if (!brown) throw std::runtime_error(fmt::format("sigma {}: calibration not usable on the detection plane: {}", sigma, why));
+
+  CalibrationOutcome out;
+  out.sigma_estimated_per_mm2 = result.seidel->sigma_per_mm2;
+  out.sigma_stddev_per_mm2 = result.seidel->sigma_stddev_per_mm2;
+  out.residual_rms_px = result.rms_px;
+  out.corners = result.corners_used;
+  out.distortion = brown->brown;
+  return out;
+}
+
+}  // namespace
+
+ClosedLoopResult RunClosedLoop(const model::Config& config, double sigma, const ClosedLoopOptions& o) {
+  const model::TopographerCamera roi = RegionOfInterest(o);
+  ClosedLoopResult r;
+  r.sigma_per_mm2 = sigma;
+  // (i) calibration at the cornea position.
+  r.calibration = Calibrate(config, roi, CameraThrough(roi, config, sigma), o, sigma);
+
+  // (ii) the raw spot image through the same (distorted) camera.
+  model::SeidelParams truth_distortion;
+  truth_distortion.sigma_per_mm2 = sigma;
+  truth_distortion.magnification = config.distortion.magnification;
+  const auto truth = correct::SpotsOnSensor(model::Biconic{config.cornea}, config.ideal_image, config.topographer,
+                                            truth_distortion, roi);
+  correct::SpotRenderOptions spot_options;
+  spot_options.shape = correct::SpotShape::kEllipse;
+  spot_options.psf_sigma_px = o.spot_psf_px;
+  spot_options.read_noise_dn = o.spot_read_noise_dn;
+  spot_options.seed = o.seed;
+  const cv::Mat image = correct::RenderSpotImage(truth.spots, roi.width_px, roi.height_px, spot_options);
+
+  // (iii) detect, index, undistort, reconstruct.
+  const auto located = correct::DetectAndIndexSpots(image, roi, config.ideal_image);
+  if (!located.ok) throw std::runtime_error(fmt::format("sigma {}: spot detection/indexing: {}", sigma, located.message));
+  r.spots_indexed = static_cast<int>(located.spots.size());
+  r.spots_unassigned = static_cast<int>(located.unassigned.size());
+  r.spots_missing = static_cast<int>(located.missing.size());
+  std::vector<Eigen::Vector2d> distorted;
+  distorted.reserve(located.spots.size());
+  for (const auto& s : located.spots) distorted.push_back(s.position_mm);
+  const auto undistorted = correct::UndistortPoints(r.calibration.distortion, distorted);
+  r.undistort_failures = static_cast<int>(undistorted.failures.size());
+  std::vector<topo::MeasuredSpot> measured;
+  for (size_t i = 0; i < located.spots.size(); ++i) {
+    if (undistorted.ok[i]) measured.push_back({located.spots[i].id, undistorted.points_mm[i]});
+  }
+  const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
+  try {
+    r.corrected = topo::AnalyzeSpots(measured, design.targets, config, &config.cornea);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(fmt::format("sigma {}: corrected spots: {}", sigma, e.what()));
+  }
+  return r;
+}
+
+}  // namespace topocal::pipeline
