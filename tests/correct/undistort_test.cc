@@ -1,4 +1,5 @@
 // Undistortion of points and whole images, Seidel and Brown-Conrady, over the whole sensor.
+#include <array>
 #include <cmath>
 
 #include <Eigen/SVD>
@@ -200,6 +201,65 @@ TEST(UndistortMap, RemapOfARenderedPatternMatchesTheTruth) {
       EXPECT_GT(map.invalid_px, 0);
     }
   }
+}
+
+}  // namespace
+}  // namespace topocal::correct
+
+namespace topocal::correct {
+namespace {
+
+// The pixel-space camera of a calibration file (OpenCV's Brown model with an optional radial centre e, as
+// calib/camera.h defines it), written out here so that this test does not depend on calib/.
+Eigen::Vector2d ProjectOpenCv(const OpenCvCamera& k, const Eigen::Vector2d& normalised) {
+  const double v[2] = {normalised.x() - k.centre_x, normalised.y() - k.centre_y};
+  double d[2];
+  std::array<double, 5> c{};
+  std::copy(k.dist.begin(), k.dist.end(), c.begin());
+  model::BrownConrady::DistortNormalized(c.data(), v, d);
+  return {k.fx_px * (d[0] + k.centre_x) + k.cx_px, k.fy_px * (d[1] + k.centre_y) + k.cy_px};
+}
+
+// Exact agreement: the conversion is algebra, only rounding separates the two paths.
+constexpr double kSameModelPx = 1e-9;
+
+TEST(BrownFromOpenCv, SameDistortionInPixelsForEveryOrientationAndCentre) {
+  for (const bool rotated : {false, true}) {
+    for (const double e : {0.0, 0.01}) {
+      SCOPED_TRACE(::testing::Message() << "rotated_180 " << rotated << " centre " << e);
+      auto camera = testing::DefaultCamera();
+      camera.rotated_180 = rotated;
+      const double f = camera.FocalPx();
+      OpenCvCamera k{f, f, camera.principal_point_px.x() + 21.0, camera.principal_point_px.y() - 9.0,
+                     {-0.12, 0.25, 8e-4, -5e-4, -0.1}, e, -0.5 * e};
+      std::string why;
+      const auto b = BrownFromOpenCv(k, camera, &why);
+      ASSERT_TRUE(b) << why;
+      for (int v = 0; v < camera.height_px; v += 250) {
+        for (int u = 0; u < camera.width_px; u += 250) {
+          // The same undistorted pixel through both: OpenCV's normalised coordinates from the calibration's K,
+          // topocal's millimetres from the topographer camera.
+          const Eigen::Vector2d px(u, v);
+          const Eigen::Vector2d cv_px = ProjectOpenCv(k, {(u - k.cx_px) / k.fx_px, (v - k.cy_px) / k.fy_px});
+          const Eigen::Vector2d ours =
+              camera.PixelFromDetectionPlane(model::Distort(b->brown, camera.DetectionPlaneFromPixel(px)));
+          EXPECT_LT((cv_px - ours).norm(), kSameModelPx) << u << ", " << v;
+        }
+      }
+    }
+  }
+}
+
+TEST(BrownFromOpenCv, RejectsWhatItCannotRepresent) {
+  const auto camera = testing::DefaultCamera();
+  std::string why;
+  EXPECT_FALSE(BrownFromOpenCv({1000, 1000, 10, 10, {0.1, 0, 0, 0, 0, 0, 0, 0}}, camera, &why));
+  EXPECT_NE(why.find("8 distortion coefficients"), std::string::npos);
+  EXPECT_FALSE(BrownFromOpenCv({0, 1000, 10, 10, {0.1, 0, 0, 0}}, camera, &why));
+  EXPECT_NE(why.find("focal lengths must be > 0"), std::string::npos);
+  const auto b = BrownFromOpenCv({1000, 1001, 10, 10, {0.1, 0, 0, 0}}, camera, &why);
+  ASSERT_TRUE(b);
+  EXPECT_NEAR(b->aspect_error, 1e-3, 1e-6);
 }
 
 }  // namespace
