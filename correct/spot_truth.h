@@ -8,8 +8,8 @@
 // ideal point P1. Its image is taken as that circle mapped through the local Jacobian J of the whole imaging
 // P1 -> (backward trace to the cone) -> (reflection on the cornea) -> distortion -> pixels, J by central
 // differences over the circle's own radius (four traced points). shape_px = J * radius: the spot is
-// shape_px * unit disk about the centre. Spots whose neighbourhood cannot be traced keep a circular shape of the
-// nominal radius scaled by the local ring spacing (never happens on the paper's corneas).
+// shape_px * unit disk about the centre. Spots whose neighbourhood cannot be traced keep a circle of the nominal
+// radius in pixels (radius / pitch; does not happen on the paper's corneas).
 #include <vector>
 
 #include "correct/spot_render.h"
