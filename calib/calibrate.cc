@@ -288,13 +288,19 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
     result.cam_from_target.push_back(pose);
   }
 
+  result.pixel_pitch_um = o.pixel_pitch_um;
+  if (o.focal_mm > 0 && (!free[kFx] || o.pixel_pitch_um <= 0)) {
+    result.focal_mm = o.focal_mm;
+  } else if (o.pixel_pitch_um > 0) {
+    result.focal_mm = 0.5 * (cam.fx_px + cam.fy_px) * o.pixel_pitch_um * 1e-3;
+  }
   // Seidel sigma where the focal length in mm is known (paper Eq. 18; k1 = sigma f^2 / M_T^3).
-  if (o.model == DistortionModelKind::kSeidel && (o.pixel_pitch_um > 0 || o.focal_mm > 0)) {
+  if (o.model == DistortionModelKind::kSeidel && result.focal_mm > 0) {
     SeidelEstimate s;
     s.magnification = o.magnification;
     s.pixel_pitch_um = o.pixel_pitch_um;
     // With the pitch known, the fitted focal length in mm is the one the normalised k1 refers to.
-    s.focal_mm = o.pixel_pitch_um > 0 ? 0.5 * (cam.fx_px + cam.fy_px) * o.pixel_pitch_um * 1e-3 : o.focal_mm;
+    s.focal_mm = result.focal_mm;
     s.sigma_per_mm2 = model::BrownK1ToSeidelSigma(cam.dist[0], s.magnification, s.focal_mm);
     s.sigma_stddev_per_mm2 = std::abs(model::BrownK1ToSeidelSigma(stddev[kK1], s.magnification, s.focal_mm));
     result.seidel = s;

@@ -139,6 +139,8 @@ struct CalibrationResult {
   CameraModel camera;
   std::vector<ParameterEstimate> parameters;   // kParameterNames order
   std::optional<SeidelEstimate> seidel;        // Seidel model with a known focal length in mm
+  double pixel_pitch_um = 0;                   // from the options; 0 = unknown
+  double focal_mm = 0;                         // given (single view), or fitted f_px x pitch; 0 = unknown
 
   std::vector<int> views_used;                 // indices into the caller's views
   std::vector<SkippedView> skipped_views;

@@ -162,9 +162,10 @@ std::string CalibrationFileText(const CalibrationResult& result, const Calibrati
     fs << "seidel_sigma_per_mm2" << result.seidel->sigma_per_mm2;
     fs << "seidel_sigma_stddev_per_mm2" << result.seidel->sigma_stddev_per_mm2;
     fs << "magnification" << result.seidel->magnification;
-    fs << "focal_mm" << result.seidel->focal_mm;
-    if (result.seidel->pixel_pitch_um > 0) fs << "pixel_pitch_um" << result.seidel->pixel_pitch_um;
   }
+  // The sensor geometry whenever it is known (the correction maps pixels to mm with it).
+  if (result.focal_mm > 0) fs << "focal_mm" << result.focal_mm;
+  if (result.pixel_pitch_um > 0) fs << "pixel_pitch_um" << result.pixel_pitch_um;
   if (const auto d = SingleViewDistance(result)) fs << "target_distance_mm" << *d;
   if (!provenance.target_path.empty()) fs << "target" << provenance.target_path;
   return fs.releaseAndGetString();
@@ -283,6 +284,8 @@ std::string CalibrationReportJson(const CalibrationResult& result, const Calibra
                    {"focal_mm", result.seidel->focal_mm}};
   }
   if (const auto d = SingleViewDistance(result)) j["target_distance_mm"] = *d;
+  if (result.focal_mm > 0) j["focal_mm"] = result.focal_mm;
+  if (result.pixel_pitch_um > 0) j["pixel_pitch_um"] = result.pixel_pitch_um;
   j["solver"] = {{"converged", result.solver.converged},
                  {"iterations", result.solver.iterations},
                  {"initial_cost", result.solver.initial_cost},

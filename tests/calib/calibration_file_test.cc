@@ -45,7 +45,9 @@ class CalibrationFileTest : public ::testing::Test {
 constexpr double kYamlRoundTrip = 1e-12;
 
 TEST_F(CalibrationFileTest, OpenCvReadsItAndUndistortUsesIt) {
-  const auto r = Calibrated(testing::ReferenceCamera(), {});
+  CalibrationOptions o;
+  o.pixel_pitch_um = 3.0;  // known sensor: the file carries it for the correction (pixels -> mm)
+  const auto r = Calibrated(testing::ReferenceCamera(), o);
   ASSERT_TRUE(r.ok()) << r.message;
   WriteCalibrationFile(Path("cal.yaml"), r, {"board.yaml", {}, "2026-11-25T00:00:00Z"});
   cv::FileStorage fs(Path("cal.yaml"), cv::FileStorage::READ);
@@ -75,6 +77,11 @@ TEST_F(CalibrationFileTest, OpenCvReadsItAndUndistortUsesIt) {
   EXPECT_EQ(loaded.per_view_rms_px.size(), r.per_view_rms_px.size());
   EXPECT_NEAR(loaded.stddev.at("fx"), r.parameters[0].stddev, kYamlRoundTrip * r.parameters[0].stddev);
   EXPECT_EQ(loaded.target, "board.yaml");
+  ASSERT_TRUE(loaded.pixel_pitch_um);
+  EXPECT_EQ(*loaded.pixel_pitch_um, 3.0);
+  ASSERT_TRUE(loaded.focal_mm);
+  EXPECT_NEAR(*loaded.focal_mm, 0.5 * (r.camera.fx_px + r.camera.fy_px) * 3e-3, kYamlRoundTrip);
+  EXPECT_FALSE(loaded.sigma_per_mm2);  // brown5: no Seidel sigma
 }
 
 TEST_F(CalibrationFileTest, SeidelWithCentreKeepsTheExactModelAndAnOpenCvEquivalent) {
