@@ -20,7 +20,8 @@
 //   parameter_names: [fx, fy, cx, cy, k1, k2, p1, p2, k3, ex, ey]
 //   parameter_values / parameter_stddev: 1x11 (stddev 0 = fixed)
 //   rms_px, per_view_rms_px (sequence), views_used, images (sequence), outliers (count)
-//   seidel_sigma_per_mm2, seidel_sigma_stddev_per_mm2, magnification, focal_mm, pixel_pitch_um   # Seidel, f known
+//   seidel_sigma_per_mm2, seidel_sigma_stddev_per_mm2, magnification   # Seidel with a known focal length in mm
+//   focal_mm, pixel_pitch_um               # whenever known (given, or fitted f_px x pitch)
 //   target_distance_mm                     # single view: the fitted distance of the target origin
 //   target                                 # the target description file
 #include <map>
