@@ -88,7 +88,8 @@ TEST_F(DetectionCli, RenderTargetWritesImageAndTruthThatDetectionMatches) {
 
 TEST_F(DetectionCli, SeidelCameraAndExplicitPose) {
   const auto r = RunTopocal("render-target --target " + Path("grid.yaml") + " --out " + Path("s.png") +
-                            " --focal-mm 5.2 --pixel-pitch-um 5 --sigma 2e-4 --rvec-deg 10,0,0 --tvec-mm -80,-50,500");
+                            " --width 320 --height 240 --supersampling 4 --focal-mm 5.2 --pixel-pitch-um 10 --sigma 2e-4" +
+                            " --rvec-deg 10,0,0 --tvec-mm -80,-50,700");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(fs::exists(Path("s.png")));
 }
