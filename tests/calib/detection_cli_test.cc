@@ -94,6 +94,25 @@ TEST_F(DetectionCli, SeidelCameraAndExplicitPose) {
   EXPECT_TRUE(fs::exists(Path("s.png")));
 }
 
+TEST_F(DetectionCli, CameraFromAnOpenCvCalibrationFile) {
+  Write("cal.yaml",
+        "%YAML:1.0\n---\nimage_width: 320\nimage_height: 240\n"
+        "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
+        "   data: [ 300., 0., 160., 0., 300., 120., 0., 0., 1. ]\n"
+        "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n"
+        "   data: [ -0.1, 0.01, 0., 0., 0. ]\n");
+  auto r = RunTopocal("render-target --target " + Path("grid.yaml") + " --camera " + Path("cal.yaml") + " --out " +
+                      Path("c.png") + " --distance-mm 600 --supersampling 4");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const cv::Mat image = cv::imread(Path("c.png"), cv::IMREAD_GRAYSCALE);
+  EXPECT_EQ(image.cols, 320);
+  EXPECT_EQ(image.rows, 240);
+  r = RunTopocal("render-target --target " + Path("grid.yaml") + " --camera " + Path("cal.yaml") + " --fx 3 --out " +
+                 Path("d.png") + " --distance-mm 600");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.output, "topocal: --fx: not allowed with --camera\n");
+}
+
 TEST_F(DetectionCli, BadInputIsOneLineAndNoOutput) {
   Write("bad.yaml", "target_type: checkerboard\ntargetCols: 9\n");
   auto r = RunTopocal("target --target " + Path("bad.yaml") + " --out " + Path("x.svg"));
