@@ -101,11 +101,15 @@ std::optional<ZhangInitialisation> InitialiseZhang(const std::vector<ViewObserva
   const Eigen::VectorXd b = svd.matrixV().col(5);
   const double b11 = b(0), b12 = b(1), b22 = b(2), b13 = b(3), b23 = b(4), b33 = b(5);
   const double den = b11 * b22 - b12 * b12;
-  if (!(std::abs(den) > 0) || !(std::abs(b11) > 0)) return fail("degenerate view set: B is singular");
+  if (!(std::abs(den) > 0) || !(std::abs(b11) > 0)) {
+    return fail(fmt::format("degenerate view set: B is singular (conditioning {:.2g})", conditioning));
+  }
   const double v0 = (b12 * b13 - b11 * b23) / den;
   const double lambda = b33 - (b13 * b13 + v0 * (b12 * b13 - b11 * b23)) / b11;
   const double alpha2 = lambda / b11, beta2 = lambda * b11 / den;
-  if (!(alpha2 > 0) || !(beta2 > 0)) return fail("degenerate view set: B is not positive definite");
+  if (!(alpha2 > 0) || !(beta2 > 0)) {
+    return fail(fmt::format("degenerate view set: B is not positive definite (conditioning {:.2g})", conditioning));
+  }
   const double alpha = std::sqrt(alpha2), beta = std::sqrt(beta2);
   const double u0 = -b13 * alpha2 / lambda;  // skew term is zero by construction
 
@@ -126,8 +130,8 @@ std::optional<ZhangInitialisation> InitialiseZhang(const std::vector<ViewObserva
       init.cx_px < -0.5 * width || init.cx_px > 1.5 * width || init.cy_px < -0.5 * height ||
       init.cy_px > 1.5 * height) {
     return fail(fmt::format("degenerate view set: implausible initial intrinsics fx={:.4g} fy={:.4g} cx={:.4g} "
-                            "cy={:.4g} px",
-                            init.fx_px, init.fy_px, init.cx_px, init.cy_px));
+                            "cy={:.4g} px (conditioning {:.2g})",
+                            init.fx_px, init.fy_px, init.cx_px, init.cy_px, conditioning));
   }
   for (const auto& h : homographies) init.cam_from_target.push_back(PoseFromHomography(k, h));
   return init;

@@ -72,6 +72,8 @@ TEST(Zhang, RecoversPinholeIntrinsicsFromNoiseFreeViews) {
   EXPECT_NEAR(init->cx_px, cam.cx_px, kZhangRelative * cam.fx_px);
   EXPECT_NEAR(init->cy_px, cam.cy_px, kZhangRelative * cam.fx_px);
   ASSERT_EQ(init->cam_from_target.size(), views.size());
+  EXPECT_GT(init->constraint_conditioning, 10 * kMinConstraintConditioning);  // far from the degeneracy test
+  RecordProperty("constraint_conditioning", std::to_string(init->constraint_conditioning));
   EXPECT_GT(init->cam_from_target[0].translation_mm.z(), 0);
 }
 
@@ -87,6 +89,7 @@ TEST(Zhang, RejectsParallelViews) {
   std::string why;
   EXPECT_FALSE(InitialiseZhang(views, &why));
   EXPECT_NE(why.find("degenerate"), std::string::npos) << why;
+  RecordProperty("why", why);
   const auto r = CalibrateMultiView(views, {});
   EXPECT_EQ(r.status, CalibrationStatus::kDegenerate) << r.message;
 }
@@ -373,6 +376,10 @@ TEST(RealPhotographs, AgreesWithOpenCvCalibrateCamera) {
   const auto set = DetectRealSet();
   if (set.views.empty()) GTEST_SKIP() << "opencv-doc's left*.jpg are not installed (apt-get install opencv-doc)";
   ASSERT_EQ(set.views.size(), 13u);
+  std::string why;
+  const auto init = InitialiseZhang(set.views, &why);
+  ASSERT_TRUE(init) << why;
+  RecordProperty("constraint_conditioning", std::to_string(init->constraint_conditioning));
   cv::Mat k, dist;
   std::vector<cv::Mat> rvecs, tvecs;
   const double cv_rms = cv::calibrateCamera(set.object, set.image, set.size, k, dist, rvecs, tvecs);
