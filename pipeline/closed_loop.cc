@@ -48,6 +48,7 @@ CalibrationOutcome Calibrate(const model::Config& config, const model::Topograph
       "closed-loop target");
   calib::RenderOptions render;
   render.blur_sigma_px = o.target_blur_px;
+  render.supersampling = o.target_supersampling;
   render.noise_grey = o.target_noise_grey;
   render.seed = o.seed;
   std::string why;
