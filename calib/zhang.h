@@ -44,8 +44,8 @@ struct ZhangInitialisation {
 // determine the intrinsics (all views parallel, or a single orientation: rank 3 in exact arithmetic, ~1e-10 on
 // noise-free corners). Measured: OpenCV's 13 photographs 0.17, the synthetic 8-view set 0.11, five parallel views
 // with 0.1 px noise 0.003 — noise lifts a degenerate set well above any safe rank threshold, so noisy degenerate
-// sets are caught by the next checks (B not positive definite, implausible intrinsics) and, failing those, by the
-// rank-deficient covariance after bundle adjustment.
+// sets are caught by the next checks (B not positive definite, implausible intrinsics); one that slipped through
+// would show as large parameter standard deviations (or a rank-deficient covariance) after bundle adjustment.
 inline constexpr double kMinConstraintConditioning = 1e-4;
 
 // Least-squares homography target plane (mm) -> pixel for one view; nullopt with fewer than 4 corners or when the
