@@ -9,12 +9,11 @@
 #include "calib/detect.h"
 #include "calib/render_target.h"
 #include "calib/target.h"
-#include "correct/detect_and_index.h"
-#include "correct/opencv_brown.h"
 #include "correct/spot_render.h"
 #include "correct/spot_truth.h"
-#include "correct/undistort_points.h"
 #include "model/null_screen.h"
+#include "pipeline/detection_plane.h"
+#include "pipeline/measure_spots.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -68,23 +67,17 @@ CalibrationOutcome Calibrate(const model::Config& config, const model::Topograph
   if (!result.ok() || !result.seidel) {
     throw std::runtime_error(fmt::format("sigma {}: calibration failed: {}", sigma, result.message));
   }
-  correct::OpenCvCamera k;
-  k.fx_px = result.camera.fx_px;
-  k.fy_px = result.camera.fy_px;
-  k.cx_px = result.camera.cx_px;
-  k.cy_px = result.camera.cy_px;
-  k.dist.assign(result.camera.dist.begin(), result.camera.dist.end());
-  k.centre_x = result.camera.distortion_centre.x();
-  k.centre_y = result.camera.distortion_centre.y();
-  const auto brown = correct::BrownFromOpenCv(k, roi, &why);
-  if (!brown) throw std::runtime_error(fmt::format("sigma {}: calibration not usable on the detection plane: {}", sigma, why));
+  const auto distortion = DistortionOnDetectionPlane(result.camera, roi, &why);
+  if (!distortion) {
+    throw std::runtime_error(fmt::format("sigma {}: calibration not usable on the detection plane: {}", sigma, why));
+  }
 
   CalibrationOutcome out;
   out.sigma_estimated_per_mm2 = result.seidel->sigma_per_mm2;
   out.sigma_stddev_per_mm2 = result.seidel->sigma_stddev_per_mm2;
   out.residual_rms_px = result.rms_px;
   out.corners = result.corners_used;
-  out.distortion = brown->brown;
+  out.distortion = *distortion;
   return out;
 }
 
@@ -111,23 +104,19 @@ ClosedLoopResult RunClosedLoop(const model::Config& config, double sigma, const 
   const cv::Mat image = correct::RenderSpotImage(truth.spots, roi.width_px, roi.height_px, spot_options);
 
   // (iii) detect, index, undistort, reconstruct.
-  const auto located = correct::DetectAndIndexSpots(image, roi, config.ideal_image);
-  if (!located.ok) throw std::runtime_error(fmt::format("sigma {}: spot detection/indexing: {}", sigma, located.message));
-  r.spots_indexed = static_cast<int>(located.spots.size());
-  r.spots_unassigned = static_cast<int>(located.unassigned.size());
-  r.spots_missing = static_cast<int>(located.missing.size());
-  std::vector<Eigen::Vector2d> distorted;
-  distorted.reserve(located.spots.size());
-  for (const auto& s : located.spots) distorted.push_back(s.position_mm);
-  const auto undistorted = correct::UndistortPoints(r.calibration.distortion, distorted);
-  r.undistort_failures = static_cast<int>(undistorted.failures.size());
-  std::vector<topo::MeasuredSpot> measured;
-  for (size_t i = 0; i < located.spots.size(); ++i) {
-    if (undistorted.ok[i]) measured.push_back({located.spots[i].id, undistorted.points_mm[i]});
+  SpotMeasurement measured;
+  try {
+    measured = MeasureSpots(image, roi, config.ideal_image, r.calibration.distortion);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(fmt::format("sigma {}: {}", sigma, e.what()));
   }
+  r.spots_indexed = measured.indexed;
+  r.spots_unassigned = measured.unassigned;
+  r.spots_missing = measured.missing;
+  r.undistort_failures = measured.undistort_failures;
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
   try {
-    r.corrected = topo::AnalyzeSpots(measured, design.targets, config, &config.cornea);
+    r.corrected = topo::AnalyzeSpots(measured.spots, design.targets, config, &config.cornea);
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(fmt::format("sigma {}: corrected spots: {}", sigma, e.what()));
   }

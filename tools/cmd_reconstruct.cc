@@ -1,7 +1,13 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include <opencv2/imgcodecs.hpp>
+
+#include "calib/calibration_file.h"
 #include "model/config.h"
+#include "model/topographer_camera.h"
+#include "pipeline/detection_plane.h"
+#include "pipeline/measure_spots.h"
 #include "model/io.h"
 #include "model/null_screen.h"
 #include "tools/commands.h"
@@ -30,32 +36,86 @@ void PrintAnalysis(const topo::Analysis& a) {
   if (a.errors) fmt::print("against the configured cornea: pv {:.4f} um, rms {:.4f} um\n", a.errors->pv_um, a.errors->rms_um);
 }
 
+struct Inputs {
+  std::string spots, image, camera, calibration;
+};
+
+// Spots from a CSV, or detected, indexed and (with a calibration) undistorted in a raw image.
+std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::Config& cfg, nlohmann::json* info) {
+  std::vector<topo::MeasuredSpot> measured;
+  if (!in.spots.empty()) {
+    if (!in.camera.empty() || !in.calibration.empty()) {
+      throw model::InputError("--camera and --calibration go with --image (a spots CSV is already in mm)");
+    }
+    for (const auto& r : ReadSpotsCsv(in.spots)) measured.push_back({r.id, Eigen::Vector2d(r.x_mm, r.y_mm)});
+    (*info)["spots_read"] = measured.size();
+    return measured;
+  }
+  if (in.camera.empty()) throw model::InputError("--image: needs --camera (pixel pitch, principal point)");
+  const auto camera = model::LoadTopographerCamera(in.camera);
+  model::ReadFile(in.image);  // a missing or unreadable file is named as such, not as "not an image"
+  const cv::Mat image = cv::imread(in.image, cv::IMREAD_UNCHANGED);
+  if (image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", in.image));
+  if (image.cols != camera.width_px || image.rows != camera.height_px) {
+    throw model::InputError(fmt::format("{}: the image is {} x {} px but {} says {} x {} px", in.image, image.cols,
+                                        image.rows, in.camera, camera.width_px, camera.height_px));
+  }
+  std::optional<model::Distortion> distortion;
+  if (!in.calibration.empty()) {
+    const auto cal = calib::LoadCalibrationFile(in.calibration);
+    std::string why;
+    distortion = pipeline::DistortionOnDetectionPlane(cal.camera, camera, &why);
+    if (!distortion) throw model::InputError(fmt::format("{}: {}", in.calibration, why));
+  }
+  pipeline::SpotMeasurement m;
+  try {
+    m = pipeline::MeasureSpots(image, camera, cfg.ideal_image, distortion);
+  } catch (const std::invalid_argument& e) {
+    throw model::InputError(fmt::format("{}: {}", in.image, e.what()));
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(fmt::format("{}: {}", in.image, e.what()));
+  }
+  fmt::print("image: {} spots indexed, {} unassigned detections, {} designed spots missing{}\n", m.indexed,
+             m.unassigned, m.missing,
+             distortion ? fmt::format(", undistorted with {} ({} outside its domain)", in.calibration,
+                                      m.undistort_failures)
+                        : std::string(", NOT undistorted (no --calibration)"));
+  (*info)["image"] = {{"indexed", m.indexed},
+                      {"unassigned", m.unassigned},
+                      {"missing", m.missing},
+                      {"undistorted", distortion.has_value()},
+                      {"undistort_failures", m.undistort_failures}};
+  return m.spots;
+}
+
 }  // namespace
 
 void AddReconstructCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("reconstruct", "Recover the cornea from spot positions: surface, biconic fit, maps");
   auto config = std::make_shared<std::string>();
-  auto spots = std::make_shared<std::string>();
+  auto in = std::make_shared<Inputs>();
   auto json_out = std::make_shared<std::string>();
   auto maps = std::make_shared<std::string>();
   auto truth = std::make_shared<bool>(false);
   cmd->add_option("--config", *config, "Topographer configuration (JSON)")->required();
-  cmd->add_option("--spots", *spots, "Spots CSV (ring,index,x_mm,y_mm on the detection plane)")->required();
+  auto* spots_opt = cmd->add_option("--spots", in->spots, "Spots CSV (ring,index,x_mm,y_mm on the detection plane)");
+  auto* image_opt = cmd->add_option("--image", in->image, "Raw sensor image of the spots (detected and indexed)");
+  spots_opt->excludes(image_opt);
+  cmd->add_option("--camera", in->camera, "Topographer camera (JSON) for --image");
+  cmd->add_option("--calibration", in->calibration, "Calibration file (YAML) to undistort the --image spots with");
   cmd->add_option("--json", *json_out, "Write the result as JSON");
   cmd->add_option("--maps", *maps, "Write power and height maps (CSV + PNG) into this directory");
   cmd->add_flag("--truth", *truth, "Compare with the configuration's cornea (pv and rms of the height difference)");
   cmd->callback([=] {
     const auto cfg = model::LoadConfig(*config);
-    const auto rows = ReadSpotsCsv(*spots);
-    std::vector<topo::MeasuredSpot> measured;
-    measured.reserve(rows.size());
-    for (const auto& r : rows) measured.push_back({r.id, Eigen::Vector2d(r.x_mm, r.y_mm)});
+    if (in->spots.empty() == in->image.empty()) throw model::InputError("reconstruct: give one of --spots or --image");
+    nlohmann::json info;
+    const auto measured = ReadMeasurement(*in, cfg, &info);
     const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
     const auto analysis = topo::AnalyzeSpots(measured, design.targets, cfg, *truth ? &cfg.cornea : nullptr);
     PrintAnalysis(analysis);
     if (!json_out->empty()) {
-      nlohmann::json j;
-      j["spots_read"] = rows.size();
+      nlohmann::json j = info;
       j["reconstruction"] = ReconstructionJson(analysis.reconstruction);
       j["polynomial"] = PolynomialJson(analysis.reconstruction.surface);
       j["surface_fit"] = SurfaceFitJson(analysis.surface_fit);

@@ -84,6 +84,24 @@ TEST_F(Cli, ReconstructFromSimulatedSpotsWritesJsonAndMaps) {
   }
 }
 
+TEST_F(Cli, ReconstructFromARawImageDetectsIndexesAndReconstructs) {
+  const std::string camera = std::string(TOPOCAL_SOURCE_DIR) + "/data/camera.json";
+  ASSERT_EQ(RunTopocal("render-spots --config " + paper_ + " --camera " + camera + " --sigma 0 --out " +
+                       Path("spots.png")).exit_code, 0);
+  const auto r = RunTopocal("reconstruct --config " + paper_ + " --image " + Path("spots.png") + " --camera " +
+                            camera + " --truth --json " + Path("r.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("624 spots indexed"), std::string::npos) << r.output;
+  // Centroids within ~0.02 px (issue 6) keep the undistorted camera's cornea within 0.001 mm / 0.005 in k.
+  EXPECT_NE(r.output.find("rx = 8.350"), std::string::npos) << r.output;
+  // --image needs a camera; --camera does not go with --spots.
+  EXPECT_EQ(RunTopocal("reconstruct --config " + paper_ + " --image " + Path("spots.png")).exit_code, 2);
+  Write("s.csv", "ring,index,x_mm,y_mm\n");
+  const auto mixed = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("s.csv") + " --camera " + camera);
+  EXPECT_EQ(mixed.exit_code, 2);
+  EXPECT_NE(mixed.output.find("--camera and --calibration go with --image"), std::string::npos) << mixed.output;
+}
+
 TEST_F(Cli, ReconstructRejectsBadSpotsFiles) {
   Write("bad.csv", "ring,index,x_mm,y_mm\n1,0,0.1,abc\n");
   auto r = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("bad.csv") + " --json " + Path("r.json"));
