@@ -63,6 +63,11 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
   std::optional<model::Distortion> distortion;
   if (!in.calibration.empty()) {
     const auto cal = calib::LoadCalibrationFile(in.calibration);
+    if (cal.camera.width_px != camera.width_px || cal.camera.height_px != camera.height_px) {
+      throw model::InputError(fmt::format("{}: calibrated at {} x {} px but {} is {} x {} px: calibrate the same sensor",
+                                          in.calibration, cal.camera.width_px, cal.camera.height_px, in.camera,
+                                          camera.width_px, camera.height_px));
+    }
     std::string why;
     distortion = pipeline::DistortionOnDetectionPlane(cal.camera, camera, &why);
     if (!distortion) throw model::InputError(fmt::format("{}: {}", in.calibration, why));
