@@ -6,20 +6,17 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "calib/calibration_file.h"
-#include "correct/opencv_brown.h"
 #include "correct/undistort_map.h"
 #include "correct/undistort_points.h"
 #include "model/io.h"
 #include "model/topographer_camera.h"
+#include "pipeline/detection_plane.h"
 #include "tools/commands.h"
 #include "tools/csv.h"
 
 namespace topocal::tools {
 namespace {
 
-// The largest |f_x / f_y - 1| accepted when mapping the calibration onto the detection plane with one focal length:
-// its error is half that times the distortion displacement, 1e-4 of a ~10 px displacement = 1e-3 px.
-constexpr double kMaxAspectError = 2e-4;
 
 struct UndistortArgs {
   std::string calibration, camera, spots, image, out;
@@ -47,25 +44,12 @@ model::TopographerCamera CameraFor(const UndistortArgs& a, const calib::Calibrat
   return c;
 }
 
-model::BrownParams DistortionFor(const calib::CalibrationFile& cal, const model::TopographerCamera& camera,
-                                 const std::string& path) {
-  correct::OpenCvCamera k;
-  k.fx_px = cal.camera.fx_px;
-  k.fy_px = cal.camera.fy_px;
-  k.cx_px = cal.camera.cx_px;
-  k.cy_px = cal.camera.cy_px;
-  k.dist.assign(cal.camera.dist.begin(), cal.camera.dist.end());
-  k.centre_x = cal.camera.distortion_centre.x();
-  k.centre_y = cal.camera.distortion_centre.y();
+model::Distortion DistortionFor(const calib::CalibrationFile& cal, const model::TopographerCamera& camera,
+                                const std::string& path) {
   std::string why;
-  const auto brown = correct::BrownFromOpenCv(k, camera, &why);
-  if (!brown) throw model::InputError(fmt::format("{}: {}", path, why));
-  if (brown->aspect_error > kMaxAspectError) {
-    throw model::InputError(fmt::format("{}: camera_matrix: fx / fy = {:.6f}; topocal undistorts on the detection "
-                                        "plane with one focal length and accepts |fx / fy - 1| <= {}",
-                                        path, cal.camera.fx_px / cal.camera.fy_px, kMaxAspectError));
-  }
-  return brown->brown;
+  const auto distortion = pipeline::DistortionOnDetectionPlane(cal.camera, camera, &why);
+  if (!distortion) throw model::InputError(fmt::format("{}: {}", path, why));
+  return *distortion;
 }
 
 void Run(const UndistortArgs& a) {
