@@ -17,7 +17,6 @@
 namespace topocal::tools {
 namespace {
 
-
 struct UndistortArgs {
   std::string calibration, camera, spots, image, out;
 };
