@@ -38,7 +38,7 @@ class PolynomialMap {
     }
   }
   Eigen::Vector2d operator()(const Eigen::Vector2d& q) const {
-    double m[32];
+    double m[32] = {};  // Monomials fills the first Terms(degree_) entries; zeroed to keep -Wmaybe-uninitialized quiet
     Monomials(q, m);
     Eigen::Vector2d p = Eigen::Vector2d::Zero();
     for (int k = 0; k < coef_.rows(); ++k) p += m[k] * coef_.row(k).transpose();

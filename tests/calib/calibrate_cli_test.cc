@@ -9,6 +9,8 @@
 #include <fstream>
 
 #include <gtest/gtest.h>
+
+#include "tests/cli_harness.h"
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -19,20 +21,8 @@ namespace fs = std::filesystem;
 
 const std::string kDataDir = "/usr/share/doc/opencv-doc/examples/data/";
 
-struct Run {
-  int exit_code;
-  std::string output;  // stdout and stderr together
-};
-
-Run RunTopocal(const std::string& args) {
-  const std::string cmd = std::string(TOPOCAL_EXE) + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  std::string out;
-  std::array<char, 4096> buf;
-  while (size_t n = fread(buf.data(), 1, buf.size(), pipe)) out.append(buf.data(), n);
-  const int status = pclose(pipe);
-  return {WEXITSTATUS(status), out};
-}
+using topocal::testing_cli::Run;
+using topocal::testing_cli::RunTopocal;
 
 int CountLines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
 

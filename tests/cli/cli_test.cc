@@ -6,24 +6,14 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/cli_harness.h"
+
 namespace {
 
 namespace fs = std::filesystem;
 
-struct Run {
-  int exit_code;
-  std::string output;  // stdout and stderr together
-};
-
-Run RunTopocal(const std::string& args) {
-  const std::string cmd = std::string(TOPOCAL_EXE) + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  std::string out;
-  std::array<char, 4096> buf;
-  while (size_t n = fread(buf.data(), 1, buf.size(), pipe)) out.append(buf.data(), n);
-  const int status = pclose(pipe);
-  return {WEXITSTATUS(status), out};
-}
+using topocal::testing_cli::Run;
+using topocal::testing_cli::RunTopocal;
 
 class Cli : public ::testing::Test {
  protected:

@@ -8,6 +8,8 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+
+#include "tests/cli_harness.h"
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -27,20 +29,8 @@ constexpr double kCsvRoundTripMm = 1e-11;
 // Matching a detection to its truth: far below the ~16 px spot spacing.
 constexpr double kMatchPx = 1.0;
 
-struct Run {
-  int exit_code;
-  std::string output;
-};
-
-Run RunTopocal(const std::string& args) {
-  const std::string cmd = std::string(TOPOCAL_EXE) + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  std::string out;
-  std::array<char, 4096> buf;
-  while (size_t n = fread(buf.data(), 1, buf.size(), pipe)) out.append(buf.data(), n);
-  const int status = pclose(pipe);
-  return {WEXITSTATUS(status), out};
-}
+using topocal::testing_cli::Run;
+using topocal::testing_cli::RunTopocal;
 
 class CorrectCli : public ::testing::Test {
  protected:
