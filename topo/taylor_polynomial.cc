@@ -24,8 +24,25 @@ double TaylorPolynomial::Value(double x_mm, double y_mm) const {
 }
 
 void TaylorPolynomial::ValueAndGradient(double x_mm, double y_mm, double* z, double* zx, double* zy) const {
-  double zxx, zxy, zyy;
-  Derivatives(x_mm, y_mm, z, zx, zy, &zxx, &zxy, &zyy);
+  // The ray intersections and consistency checks need no Hessian: half the work of Derivatives().
+  const double u = x_mm / norm_radius_mm_, v = y_mm / norm_radius_mm_;
+  double pu[kMaxDegree + 1], pv[kMaxDegree + 1];
+  pu[0] = pv[0] = 1.0;
+  for (int i = 1; i <= degree_; ++i) {
+    pu[i] = pu[i - 1] * u;
+    pv[i] = pv[i - 1] * v;
+  }
+  double s = coefficients_[0], su = 0, sv = 0;
+  for (int k = 1; k < terms(); ++k) {
+    const auto [a, b] = exponents_[k];
+    const double c = coefficients_[k];
+    s += c * pu[a] * pv[b];
+    if (a >= 1) su += c * a * pu[a - 1] * pv[b];
+    if (b >= 1) sv += c * b * pu[a] * pv[b - 1];
+  }
+  *z = s;
+  *zx = su / norm_radius_mm_;
+  *zy = sv / norm_radius_mm_;
 }
 
 void TaylorPolynomial::Derivatives(double x_mm, double y_mm, double* z, double* zx, double* zy, double* zxx,
