@@ -7,7 +7,17 @@
 namespace topocal::topo {
 namespace {
 constexpr int kMaxDegree = 14;  // ReconstructionSettings caps taylor_degree at 14; powers tables are sized for it
+
+// pu[i] = u^i, pv[i] = v^i for i = 0..degree.
+void Powers(double u, double v, int degree, double* pu, double* pv) {
+  pu[0] = pv[0] = 1.0;
+  for (int i = 1; i <= degree; ++i) {
+    pu[i] = pu[i - 1] * u;
+    pv[i] = pv[i - 1] * v;
+  }
 }
+
+}  // namespace
 
 TaylorPolynomial::TaylorPolynomial(int degree, double norm_radius_mm)
     : degree_(degree), norm_radius_mm_(norm_radius_mm), coefficients_(Eigen::VectorXd::Zero(TermCount(degree))) {
@@ -27,11 +37,7 @@ void TaylorPolynomial::ValueAndGradient(double x_mm, double y_mm, double* z, dou
   // The ray intersections and consistency checks need no Hessian: half the work of Derivatives().
   const double u = x_mm / norm_radius_mm_, v = y_mm / norm_radius_mm_;
   double pu[kMaxDegree + 1], pv[kMaxDegree + 1];
-  pu[0] = pv[0] = 1.0;
-  for (int i = 1; i <= degree_; ++i) {
-    pu[i] = pu[i - 1] * u;
-    pv[i] = pv[i - 1] * v;
-  }
+  Powers(u, v, degree_, pu, pv);
   double s = coefficients_[0], su = 0, sv = 0;
   for (int k = 1; k < terms(); ++k) {
     const auto [a, b] = exponents_[k];
@@ -49,11 +55,7 @@ void TaylorPolynomial::Derivatives(double x_mm, double y_mm, double* z, double* 
                                    double* zxy, double* zyy) const {
   const double u = x_mm / norm_radius_mm_, v = y_mm / norm_radius_mm_;
   double pu[kMaxDegree + 1], pv[kMaxDegree + 1];
-  pu[0] = pv[0] = 1.0;
-  for (int i = 1; i <= degree_; ++i) {
-    pu[i] = pu[i - 1] * u;
-    pv[i] = pv[i - 1] * v;
-  }
+  Powers(u, v, degree_, pu, pv);
   double s = 0, su = 0, sv = 0, suu = 0, suv = 0, svv = 0;
   for (int k = 0; k < terms(); ++k) {
     const auto [a, b] = exponents_[k];
@@ -77,11 +79,7 @@ void TaylorPolynomial::Derivatives(double x_mm, double y_mm, double* z, double* 
 void TaylorPolynomial::MeridianCoefficients(double theta_rad, double* g) const {
   const double c = std::cos(theta_rad) / norm_radius_mm_, s = std::sin(theta_rad) / norm_radius_mm_;
   double pc[kMaxDegree + 1], ps[kMaxDegree + 1];
-  pc[0] = ps[0] = 1.0;
-  for (int i = 1; i <= degree_; ++i) {
-    pc[i] = pc[i - 1] * c;
-    ps[i] = ps[i - 1] * s;
-  }
+  Powers(c, s, degree_, pc, ps);
   for (int d = 0; d <= degree_; ++d) g[d] = 0.0;
   for (int k = 0; k < terms(); ++k) {
     const auto [a, b] = exponents_[k];
@@ -92,11 +90,7 @@ void TaylorPolynomial::MeridianCoefficients(double theta_rad, double* g) const {
 void TaylorPolynomial::GradientRows(double x_mm, double y_mm, double* row_x, double* row_y) const {
   const double u = x_mm / norm_radius_mm_, v = y_mm / norm_radius_mm_;
   double pu[kMaxDegree + 1], pv[kMaxDegree + 1];
-  pu[0] = pv[0] = 1.0;
-  for (int i = 1; i <= degree_; ++i) {
-    pu[i] = pu[i - 1] * u;
-    pv[i] = pv[i - 1] * v;
-  }
+  Powers(u, v, degree_, pu, pv);
   const double inv = 1.0 / norm_radius_mm_;
   for (int k = 1; k < terms(); ++k) {
     const auto [a, b] = exponents_[k];
