@@ -129,6 +129,14 @@ void AddSweepCommand(CLI::App& app) {
   cmd->add_option("--camera", *camera, "Topographer camera (JSON) for --correct; default: 1.12 um pitch, a from the config");
   cmd->callback([=] {
     const auto cfg = model::LoadConfig(*config);
+    if (!camera->empty() && !*correct) throw model::InputError("--camera goes with --correct");
+    // Inputs are checked before any work: a bad camera file fails at once, not after the sweep.
+    pipeline::ClosedLoopOptions options;
+    if (!camera->empty()) {
+      options.camera = model::LoadTopographerCamera(*camera);
+    } else {
+      options.camera.a_mm = cfg.topographer.a_mm;
+    }
     const auto result = topo::RunSweep(cfg);
     for (const auto& f : result.synthesis_failures) {
       fmt::print(stderr, "topocal sweep: spot ({}, {}) not imaged: {}\n", f.id.ring, f.id.index, f.reason);
@@ -138,12 +146,6 @@ void AddSweepCommand(CLI::App& app) {
     PrintTableVII(result);
     std::vector<pipeline::ClosedLoopResult> corrected;
     if (*correct) {
-      pipeline::ClosedLoopOptions options;
-      if (!camera->empty()) {
-        options.camera = model::LoadTopographerCamera(*camera);
-      } else {
-        options.camera.a_mm = cfg.topographer.a_mm;
-      }
       for (const auto& row : result.rows) {
         fmt::print(stderr, "topocal sweep: closing the loop at sigma = {:.3g} ...\n", row.sigma_per_mm2);
         corrected.push_back(pipeline::RunClosedLoop(cfg, row.sigma_per_mm2, options));

@@ -58,6 +58,30 @@ TEST_F(Cli, SweepPrintsTableVAndWritesJson) {
   EXPECT_EQ(r.output.find("nan"), std::string::npos);
 }
 
+TEST_F(Cli, SweepCorrectPrintsBeforeAndAfterAndWritesTheCorrectedRows) {
+  // Two sigmas keep the closed loop short; the pipeline test covers all of Table IV.
+  std::ifstream in(paper_);
+  std::string cfg((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string list = "[-2.0e-4, -6.3e-5, -1.41e-6, 0.0, 1.41e-6, 6.3e-5, 2.0e-4]";
+  ASSERT_NE(cfg.find(list), std::string::npos);
+  cfg.replace(cfg.find(list), list.size(), "[0.0, 2.0e-4]");
+  Write("two.json", cfg);
+  const auto r = RunTopocal("sweep --config " + Path("two.json") + " --correct --json " + Path("s.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("Before / after correction"), std::string::npos);
+  std::ifstream js(Path("s.json"));
+  const std::string json((std::istreambuf_iterator<char>(js)), std::istreambuf_iterator<char>());
+  for (const char* key : {"\"corrected\"", "\"calibration\"", "\"sigma_estimated_per_mm2\"", "\"residual_rms_px\""}) {
+    EXPECT_NE(json.find(key), std::string::npos) << key;
+  }
+  // A camera file that does not exist is bad input, and nothing is written.
+  const auto bad = RunTopocal("sweep --config " + Path("two.json") + " --correct --camera " + Path("none.json") +
+                              " --json " + Path("t.json"));
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_EQ(bad.output.find("Table V"), std::string::npos) << "bad input must fail before any work";
+  EXPECT_FALSE(fs::exists(Path("t.json")));
+}
+
 TEST_F(Cli, ReconstructFromSimulatedSpotsWritesJsonAndMaps) {
   ASSERT_EQ(RunTopocal("simulate --config " + paper_ + " --sigma 0 --out " + Path("s.csv")).exit_code, 0);
   const auto r = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("s.csv") + " --truth --json " +
