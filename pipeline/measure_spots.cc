@@ -17,6 +17,7 @@ SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamer
   m.indexed = static_cast<int>(located.spots.size());
   m.unassigned = static_cast<int>(located.unassigned.size());
   m.missing = static_cast<int>(located.missing.size());
+  for (const auto& s : located.spots) m.detected.push_back({s.id, s.position_mm});
   if (!distortion) {
     for (const auto& s : located.spots) m.spots.push_back({s.id, s.position_mm});
     return m;

@@ -14,7 +14,14 @@
 
 namespace topocal::pipeline {
 
+// A detected and identified spot as the camera saw it (distorted), on the detection plane.
+struct MeasuredImageSpot {
+  model::SpotId id;
+  Eigen::Vector2d distorted_mm;
+};
+
 struct SpotMeasurement {
+  std::vector<MeasuredImageSpot> detected;  // every identified spot, distorted, by id
   std::vector<topo::MeasuredSpot> spots;  // identified (and undistorted, if a distortion was given), by id
   int indexed = 0;
   int unassigned = 0;                      // detections without identity (glints)

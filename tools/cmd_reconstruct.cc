@@ -1,4 +1,5 @@
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
 
 #include <opencv2/imgcodecs.hpp>
@@ -8,6 +9,7 @@
 #include "model/topographer_camera.h"
 #include "pipeline/detection_plane.h"
 #include "pipeline/measure_spots.h"
+#include "pipeline/uncertainty.h"
 #include "model/io.h"
 #include "model/null_screen.h"
 #include "tools/commands.h"
@@ -38,10 +40,13 @@ void PrintAnalysis(const topo::Analysis& a) {
 
 struct Inputs {
   std::string spots, image, camera, calibration;
+  int uncertainty_samples = 0;
+  unsigned seed = 1;
 };
 
 // Spots from a CSV, or detected, indexed and (with a calibration) undistorted in a raw image.
-std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::Config& cfg, nlohmann::json* info) {
+std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::Config& cfg, nlohmann::json* info,
+                                                std::optional<pipeline::ClinicalUncertainty>* uncertainty) {
   std::vector<topo::MeasuredSpot> measured;
   if (!in.spots.empty()) {
     if (!in.camera.empty() || !in.calibration.empty()) {
@@ -61,15 +66,16 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
                                         image.rows, in.camera, camera.width_px, camera.height_px));
   }
   std::optional<model::Distortion> distortion;
+  std::optional<calib::CalibrationFile> cal;
   if (!in.calibration.empty()) {
-    const auto cal = calib::LoadCalibrationFile(in.calibration);
-    if (cal.camera.width_px != camera.width_px || cal.camera.height_px != camera.height_px) {
+    cal = calib::LoadCalibrationFile(in.calibration);
+    if (cal->camera.width_px != camera.width_px || cal->camera.height_px != camera.height_px) {
       throw model::InputError(fmt::format("{}: calibrated at {} x {} px but {} is {} x {} px: calibrate the same sensor",
-                                          in.calibration, cal.camera.width_px, cal.camera.height_px, in.camera,
+                                          in.calibration, cal->camera.width_px, cal->camera.height_px, in.camera,
                                           camera.width_px, camera.height_px));
     }
     std::string why;
-    distortion = pipeline::DistortionOnDetectionPlane(cal.camera, camera, &why);
+    distortion = pipeline::DistortionOnDetectionPlane(cal->camera, camera, &why);
     if (!distortion) throw model::InputError(fmt::format("{}: {}", in.calibration, why));
   }
   pipeline::SpotMeasurement m;
@@ -90,6 +96,14 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
                       {"missing", m.missing},
                       {"undistorted", distortion.has_value()},
                       {"undistort_failures", m.undistort_failures}};
+  if (in.uncertainty_samples > 0) {
+    try {
+      *uncertainty = pipeline::PropagateCalibrationUncertainty(m.detected, cal->camera, cal->stddev, camera, cfg,
+                                                               in.uncertainty_samples, in.seed);
+    } catch (const std::invalid_argument& e) {
+      throw model::InputError(fmt::format("{}: {}", in.calibration, e.what()));
+    }
+  }
   return m.spots;
 }
 
@@ -108,17 +122,40 @@ void AddReconstructCommand(CLI::App& app) {
   spots_opt->excludes(image_opt);
   cmd->add_option("--camera", in->camera, "Topographer camera (JSON) for --image");
   cmd->add_option("--calibration", in->calibration, "Calibration file (YAML) to undistort the --image spots with");
+  cmd->add_option("--uncertainty", in->uncertainty_samples,
+                  "Monte Carlo draws of the calibration's parameters carried to the clinical numbers (with "
+                  "--image and --calibration); reports mean +- U (k = 2)")
+      ->check(CLI::Range(2, 100000));
+  cmd->add_option("--seed", in->seed, "Seed of the --uncertainty draws")->capture_default_str();
   cmd->add_option("--json", *json_out, "Write the result as JSON");
   cmd->add_option("--maps", *maps, "Write power and height maps (CSV + PNG) into this directory");
   cmd->add_flag("--truth", *truth, "Compare with the configuration's cornea (pv and rms of the height difference)");
   cmd->callback([=] {
     const auto cfg = model::LoadConfig(*config);
     if (in->spots.empty() == in->image.empty()) throw model::InputError("reconstruct: give one of --spots or --image");
+    if (in->uncertainty_samples > 0 && (in->image.empty() || in->calibration.empty())) {
+      throw model::InputError("--uncertainty needs --image and --calibration");
+    }
     nlohmann::json info;
-    const auto measured = ReadMeasurement(*in, cfg, &info);
+    std::optional<pipeline::ClinicalUncertainty> uncertainty;
+    const auto measured = ReadMeasurement(*in, cfg, &info, &uncertainty);
     const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
     const auto analysis = topo::AnalyzeSpots(measured, design.targets, cfg, *truth ? &cfg.cornea : nullptr);
     PrintAnalysis(analysis);
+    if (uncertainty) {
+      fmt::print("calibration uncertainty carried through ({} draws of {}; {} failed), mean +- U (k = 2):\n",
+                 uncertainty->samples, fmt::join(uncertainty->drawn, ", "), uncertainty->failed_samples);
+      for (const auto& [name, q] : uncertainty->quantities) {
+        fmt::print("  {:<16} {:>12.6f} +- {:.3g}\n", name, q.mean, q.expanded_k2);
+      }
+      nlohmann::json u;
+      u["samples"] = uncertainty->samples;
+      u["failed_samples"] = uncertainty->failed_samples;
+      u["drawn"] = uncertainty->drawn;
+      u["coverage_factor"] = 2;
+      for (const auto& [name, q] : uncertainty->quantities) u[name] = {{"mean", q.mean}, {"expanded", q.expanded_k2}};
+      info["uncertainty"] = u;
+    }
     if (!json_out->empty()) {
       nlohmann::json j = info;
       j["reconstruction"] = ReconstructionJson(analysis.reconstruction);

@@ -108,6 +108,11 @@ TEST_F(Cli, ReconstructFromARawImageDetectsIndexesAndReconstructs) {
   EXPECT_NE(r.output.find("624 spots indexed"), std::string::npos) << r.output;
   // Centroids within ~0.02 px (issue 6) keep the undistorted camera's cornea within 0.001 mm / 0.005 in k.
   EXPECT_NE(r.output.find("rx = 8.350"), std::string::npos) << r.output;
+  // --uncertainty needs a calibration to draw from.
+  const auto no_cal = RunTopocal("reconstruct --config " + paper_ + " --image " + Path("spots.png") + " --camera " +
+                                 camera + " --uncertainty 10");
+  EXPECT_EQ(no_cal.exit_code, 2);
+  EXPECT_NE(no_cal.output.find("--uncertainty needs --image and --calibration"), std::string::npos) << no_cal.output;
   // --image needs a camera; --camera does not go with --spots.
   EXPECT_EQ(RunTopocal("reconstruct --config " + paper_ + " --image " + Path("spots.png")).exit_code, 2);
   Write("s.csv", "ring,index,x_mm,y_mm\n");

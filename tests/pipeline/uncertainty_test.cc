@@ -1,0 +1,67 @@
+// Calibration uncertainty carried to the clinical numbers by seeded Monte Carlo.
+#include <gtest/gtest.h>
+
+#include "model/config.h"
+#include "pipeline/uncertainty.h"
+#include "topo/sweep.h"
+
+namespace topocal::pipeline {
+namespace {
+
+struct Fixture {
+  model::Config config = model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json");
+  model::TopographerCamera camera;
+  calib::CameraModel calibrated;
+  std::vector<MeasuredImageSpot> spots;
+  static constexpr double kSigma = 6.3e-5;
+  Fixture() {
+    camera.a_mm = config.topographer.a_mm;
+    calibrated.width_px = camera.width_px;
+    calibrated.height_px = camera.height_px;
+    calibrated.fx_px = calibrated.fy_px = camera.FocalPx();
+    calibrated.cx_px = camera.principal_point_px.x();
+    calibrated.cy_px = camera.principal_point_px.y();
+    calibrated.dist = {model::SeidelSigmaToBrownK1(kSigma, config.distortion.magnification, camera.a_mm), 0, 0, 0, 0};
+    for (const auto& s : topo::SimulateSpots(config, kSigma).spots) spots.push_back({s.id, s.position_mm});
+  }
+};
+
+TEST(Uncertainty, ScalesWithTheCalibrationsStandardDeviationAndIsCentredOnTheTruth) {
+  const Fixture f;
+  // k1 ~ -6.2; a standard deviation of 1e-3 is what the single-view calibration reports (topocal calibrate).
+  const auto u1 = PropagateCalibrationUncertainty(f.spots, f.calibrated, {{"k1", 1e-3}, {"fx", 0.0}}, f.camera,
+                                                  f.config, 64, 7);
+  const auto u2 = PropagateCalibrationUncertainty(f.spots, f.calibrated, {{"k1", 2e-3}}, f.camera, f.config, 64, 7);
+  ASSERT_EQ(u1.drawn, std::vector<std::string>{"k1"});  // fx has no spread, so it is not drawn
+  EXPECT_EQ(u1.samples, 64);
+  EXPECT_EQ(u1.failed_samples, 0);
+  for (const char* q : {"kx", "ky", "rx_mm", "pv_tangential_D"}) {
+    SCOPED_TRACE(q);
+    EXPECT_GT(u1.quantities.at(q).expanded_k2, 0.0);
+    // Same seed, so the same standard-normal draws: in the linear regime U doubles with the input spread.
+    // 2 % allows for the curvature of k(sigma) over +-2 standard deviations.
+    EXPECT_NEAR(u2.quantities.at(q).expanded_k2 / u1.quantities.at(q).expanded_k2, 2.0, 0.04);
+  }
+  // The draws are centred on the calibrated value, which is exact here: the means are the truth within U.
+  EXPECT_NEAR(u1.quantities.at("kx").mean, f.config.cornea.kx, u1.quantities.at("kx").expanded_k2);
+  EXPECT_NEAR(u1.quantities.at("rx_mm").mean, f.config.cornea.rx_mm, 1e-3);
+}
+
+TEST(Uncertainty, IsDeterministicForASeed) {
+  const Fixture f;
+  const auto a = PropagateCalibrationUncertainty(f.spots, f.calibrated, {{"k1", 1e-3}}, f.camera, f.config, 8, 3);
+  const auto b = PropagateCalibrationUncertainty(f.spots, f.calibrated, {{"k1", 1e-3}}, f.camera, f.config, 8, 3);
+  EXPECT_EQ(a.quantities.at("kx").mean, b.quantities.at("kx").mean);
+  EXPECT_EQ(a.quantities.at("kx").expanded_k2, b.quantities.at("kx").expanded_k2);
+}
+
+TEST(Uncertainty, RefusesWhatItCannotPropagate) {
+  const Fixture f;
+  EXPECT_THROW(PropagateCalibrationUncertainty(f.spots, f.calibrated, {{"k1", 0.0}}, f.camera, f.config, 8, 1),
+               std::invalid_argument);
+  EXPECT_THROW(PropagateCalibrationUncertainty(f.spots, f.calibrated, {{"k1", 1e-3}}, f.camera, f.config, 1, 1),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace topocal::pipeline
