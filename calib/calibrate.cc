@@ -244,24 +244,45 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
   std::array<double, kNumCameraParameters> stddev{};
   std::vector<std::pair<double*, int>> active;
   for (const auto& [block, first] : reported) {
-    if (!problem.IsParameterBlockConstant(block)) {
-      blocks.emplace_back(block, block);
-      active.emplace_back(block, first);
-    }
+    if (!problem.IsParameterBlockConstant(block)) active.emplace_back(block, first);
+  }
+  // Every pair of reported blocks, cross terms included: the covariance is what carries the calibration's
+  // uncertainty to the clinic (pipeline/uncertainty.h), and k1, k2, k3 are strongly correlated.
+  for (size_t a = 0; a < active.size(); ++a) {
+    for (size_t b = a; b < active.size(); ++b) blocks.emplace_back(active[a].first, active[b].first);
   }
   if (!covariance.Compute(blocks, &problem)) {
     return Failure(CalibrationStatus::kCovarianceFailed,
                    "the Jacobian is rank-deficient at the solution: some free parameter is not determined by these "
                    "views (fix it or add views)");
   }
-  for (const auto& [block, first] : active) {
-    const int size = first == kFx ? kNumIntrinsics : first == kK1 ? kNumDistortion : kNumCentre;
-    std::vector<double> cov(static_cast<size_t>(size * size));
-    covariance.GetCovarianceBlock(block, block, cov.data());
-    for (int i = 0; i < size; ++i) {
-      const double var = cov[static_cast<size_t>(i * size + i)] * result.residual_variance_px2;
-      stddev[static_cast<size_t>(first + i)] = free[static_cast<size_t>(first + i)] && var > 0 ? std::sqrt(var) : 0.0;
+  const auto block_size = [](int first) { return first == kFx ? kNumIntrinsics : first == kK1 ? kNumDistortion : kNumCentre; };
+  result.covariance = Eigen::MatrixXd::Zero(kNumCameraParameters, kNumCameraParameters);
+  for (size_t a = 0; a < active.size(); ++a) {
+    for (size_t b = a; b < active.size(); ++b) {
+      const auto [block_a, first_a] = active[a];
+      const auto [block_b, first_b] = active[b];
+      const int size_a = block_size(first_a), size_b = block_size(first_b);
+      std::vector<double> cov(static_cast<size_t>(size_a * size_b));
+      covariance.GetCovarianceBlock(block_a, block_b, cov.data());
+      for (int i = 0; i < size_a; ++i) {
+        for (int j = 0; j < size_b; ++j) {
+          const int gi = first_a + i, gj = first_b + j;
+          // Ceres gives zero rows for parameters held constant inside a block (SubsetManifold); keep them zero.
+          const bool both_free = free[static_cast<size_t>(gi)] && free[static_cast<size_t>(gj)];
+          const double c = both_free ? cov[static_cast<size_t>(i * size_b + j)] * result.residual_variance_px2 : 0.0;
+          result.covariance(gi, gj) = c;
+          result.covariance(gj, gi) = c;
+        }
+      }
     }
+  }
+  for (int i = 0; i < kNumCameraParameters; ++i) {
+    const double var = result.covariance(i, i);
+    stddev[static_cast<size_t>(i)] = free[static_cast<size_t>(i)] && var > 0 ? std::sqrt(var) : 0.0;
+  }
+  if (!result.covariance.allFinite()) {
+    return Failure(CalibrationStatus::kCovarianceFailed, "non-finite parameter covariance");
   }
 
   const std::array<double, kNumCameraParameters> values = {

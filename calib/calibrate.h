@@ -138,6 +138,9 @@ struct CalibrationResult {
   bool single_view = false;
   CameraModel camera;
   std::vector<ParameterEstimate> parameters;   // kParameterNames order
+  // Covariance of the camera parameters, kNumCameraParameters square in kParameterNames order (px, normalised
+  // units), sigma^2 (J'J)^-1 with the poses marginalised; rows and columns of fixed parameters are zero.
+  Eigen::MatrixXd covariance;
   std::optional<SeidelEstimate> seidel;        // Seidel model with a known focal length in mm
   double pixel_pitch_um = 0;                   // from the options; 0 = unknown
   double focal_mm = 0;                         // given (single view), or fitted f_px x pitch; 0 = unknown

@@ -147,6 +147,14 @@ std::string CalibrationFileText(const CalibrationResult& result, const Calibrati
   }
   fs << "parameter_values" << values;
   fs << "parameter_stddev" << stddev;
+  if (result.covariance.rows() == static_cast<Eigen::Index>(result.parameters.size()) &&
+      result.covariance.cols() == result.covariance.rows()) {
+    cv::Mat cov(result.covariance.rows(), result.covariance.cols(), CV_64F);
+    for (int i = 0; i < cov.rows; ++i) {
+      for (int j = 0; j < cov.cols; ++j) cov.at<double>(i, j) = result.covariance(i, j);
+    }
+    fs << "parameter_covariance" << cov;
+  }
   fs << "rms_px" << result.rms_px;
   fs << "per_view_rms_px" << result.per_view_rms_px;
   fs << "views_used" << static_cast<int>(result.views_used.size());
@@ -224,7 +232,29 @@ CalibrationFile LoadCalibrationFile(const std::string& path) {
     const cv::Mat sd = ReadMatrix(fs, path, "parameter_stddev", 1, static_cast<int>(names.size()), !names.empty());
     if (!names.empty()) {
       int i = 0;
-      for (const auto& n : names) out.stddev[static_cast<std::string>(n)] = sd.at<double>(i++);
+      for (const auto& n : names) {
+        out.parameter_names.push_back(static_cast<std::string>(n));
+        out.stddev[out.parameter_names.back()] = sd.at<double>(i++);
+      }
+    }
+    // Absent in files from before topocal 0.1.0 stored it; ParameterCovarianceOf then falls back to the diagonal.
+    if (!fs["parameter_covariance"].empty()) {
+      const int n = static_cast<int>(out.parameter_names.size());
+      const cv::Mat cov = ReadMatrix(fs, path, "parameter_covariance", n, n, true);
+      Eigen::MatrixXd m(n, n);
+      for (int r = 0; r < n; ++r) {
+        for (int c = 0; c < n; ++c) m(r, c) = cov.at<double>(r, c);
+      }
+      // Written symmetric to full precision; anything beyond rounding is a corrupt file.
+      constexpr double kSymmetryTolerance = 1e-9;
+      if (!m.allFinite()) Bad(path, "parameter_covariance", "non-finite entry");
+      if ((m - m.transpose()).cwiseAbs().maxCoeff() > kSymmetryTolerance * m.cwiseAbs().maxCoeff()) {
+        Bad(path, "parameter_covariance", "not symmetric");
+      }
+      for (int d = 0; d < n; ++d) {
+        if (m(d, d) < 0) Bad(path, "parameter_covariance", "negative variance on the diagonal");
+      }
+      out.covariance = m;
     }
     out.sigma_per_mm2 = ReadOptionalReal(fs, path, "seidel_sigma_per_mm2");
     out.magnification = ReadOptionalReal(fs, path, "magnification");
@@ -235,6 +265,22 @@ CalibrationFile LoadCalibrationFile(const std::string& path) {
     out.tool_version = ReadOptionalString(fs, path, "tool_version");
   }
   return out;
+}
+
+ParameterCovariance ParameterCovarianceOf(const CalibrationFile& file) {
+  ParameterCovariance c;
+  c.names = file.parameter_names;
+  if (file.covariance) {
+    c.matrix = *file.covariance;
+    c.full = true;
+    return c;
+  }
+  c.matrix = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(c.names.size()), static_cast<Eigen::Index>(c.names.size()));
+  for (size_t i = 0; i < c.names.size(); ++i) {
+    const auto it = file.stddev.find(c.names[i]);
+    if (it != file.stddev.end()) c.matrix(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(i)) = it->second * it->second;
+  }
+  return c;
 }
 
 std::string CalibrationReportJson(const CalibrationResult& result, const CalibrationProvenance& provenance) {
@@ -263,6 +309,14 @@ std::string CalibrationReportJson(const CalibrationResult& result, const Calibra
   for (const auto& p : result.parameters) {
     j["stddev"][p.name] = p.stddev;
     if (p.fixed) j["fixed"].push_back(p.name);
+  }
+  if (result.covariance.size() > 0) {
+    j["covariance"] = json::array();
+    for (Eigen::Index r = 0; r < result.covariance.rows(); ++r) {
+      json row = json::array();
+      for (Eigen::Index c = 0; c < result.covariance.cols(); ++c) row.push_back(result.covariance(r, c));
+      j["covariance"].push_back(row);
+    }
   }
   j["views_used"] = result.views_used.size();
   j["images_used"] = json::array();

@@ -19,6 +19,7 @@
 //   topocal_camera_matrix, topocal_distortion_coefficients, opencv_equivalent_max_error_px
 //   parameter_names: [fx, fy, cx, cy, k1, k2, p1, p2, k3, ex, ey]
 //   parameter_values / parameter_stddev: 1x11 (stddev 0 = fixed)
+//   parameter_covariance: 11x11, same order (rows/columns of fixed parameters zero)
 //   rms_px, per_view_rms_px (sequence), views_used, images (sequence), outliers (count)
 //   seidel_sigma_per_mm2, seidel_sigma_stddev_per_mm2, magnification   # Seidel with a known focal length in mm
 //   focal_mm, pixel_pitch_um               # whenever known (given, or fitted f_px x pitch)
@@ -28,6 +29,8 @@
 #include <optional>
 #include <string>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "calib/calibrate.h"
 #include "calib/camera.h"
@@ -49,6 +52,8 @@ struct CalibrationFile {
   std::optional<double> rms_px;
   std::vector<double> per_view_rms_px;
   std::map<std::string, double> stddev;  // by parameter name
+  std::vector<std::string> parameter_names;
+  std::optional<Eigen::MatrixXd> covariance;  // parameter_names order; absent in older files
   std::optional<double> sigma_per_mm2, magnification, focal_mm, pixel_pitch_um;
   std::string target, date, tool_version;
 };
@@ -63,6 +68,15 @@ void WriteCalibrationFile(const std::string& path, const CalibrationResult& resu
 // Reads a topocal or plain OpenCV calibration file. Strict: a missing key, a wrongly sized or non-finite matrix,
 // or a file that is not a calibration throws model::InputError "PATH: KEY: problem".
 CalibrationFile LoadCalibrationFile(const std::string& path);
+
+// The parameters' covariance in parameter_names order: the stored one (full = true) or, for a file without it,
+// the diagonal of the standard deviations (full = false: correlations unknown).
+struct ParameterCovariance {
+  std::vector<std::string> names;
+  Eigen::MatrixXd matrix;
+  bool full = false;
+};
+ParameterCovariance ParameterCovarianceOf(const CalibrationFile& file);
 
 // The --json report: rms_px, camera_matrix, dist_coeffs, stddev, views_used, per_view_rms_px, outliers, and more.
 std::string CalibrationReportJson(const CalibrationResult& result, const CalibrationProvenance& provenance);

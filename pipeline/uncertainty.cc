@@ -4,6 +4,8 @@
 #include <random>
 #include <stdexcept>
 
+#include <Eigen/Eigenvalues>
+
 #include <fmt/format.h>
 
 #include "correct/undistort_points.h"
@@ -28,18 +30,41 @@ double* Parameter(calib::CameraModel& c, const std::string& name) {
 
 ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredImageSpot>& spots,
                                                     const calib::CameraModel& calibrated,
-                                                    const std::map<std::string, double>& stddev,
+                                                    const calib::ParameterCovariance& covariance,
                                                     const model::TopographerCamera& camera,
                                                     const model::Config& config, int samples, std::uint32_t seed) {
   if (samples < 2) throw std::invalid_argument("uncertainty: at least 2 samples are needed");
+  const auto n_names = static_cast<Eigen::Index>(covariance.names.size());
+  if (covariance.matrix.rows() != n_names || covariance.matrix.cols() != n_names) {
+    throw std::invalid_argument("uncertainty: the covariance matrix does not match its parameter names");
+  }
   ClinicalUncertainty u;
+  u.correlated = covariance.full;
   calib::CameraModel probe = calibrated;
-  for (const auto& [name, sd] : stddev) {
-    if (sd > 0 && std::isfinite(sd) && Parameter(probe, name)) u.drawn.push_back(name);
+  std::vector<Eigen::Index> drawn_index;
+  for (Eigen::Index i = 0; i < n_names; ++i) {
+    const double var = covariance.matrix(i, i);
+    const auto& name = covariance.names[static_cast<size_t>(i)];
+    if (var > 0 && std::isfinite(var) && Parameter(probe, name)) {
+      u.drawn.push_back(name);
+      drawn_index.push_back(i);
+    }
   }
   if (u.drawn.empty()) {
     throw std::invalid_argument("uncertainty: the calibration reports no standard deviation for a distortion parameter");
   }
+  // The drawn parameters' joint covariance and its factor L (L L' = S): a draw is mean + L z, z ~ N(0, I).
+  // A symmetric eigendecomposition rather than a Cholesky factor, so that a covariance that is only positive
+  // semi-definite (rounding in a stored file) still factors; negative rounding-level eigenvalues are clamped to 0.
+  const auto m = static_cast<Eigen::Index>(drawn_index.size());
+  Eigen::MatrixXd s(m, m);
+  for (Eigen::Index a = 0; a < m; ++a) {
+    for (Eigen::Index b = 0; b < m; ++b) s(a, b) = covariance.matrix(drawn_index[static_cast<size_t>(a)], drawn_index[static_cast<size_t>(b)]);
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(s);
+  if (eigen.info() != Eigen::Success) throw std::invalid_argument("uncertainty: the covariance cannot be factored");
+  const Eigen::MatrixXd factor = eigen.eigenvectors() * eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
   std::vector<Eigen::Vector2d> distorted;
   distorted.reserve(spots.size());
@@ -50,7 +75,10 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
   std::map<std::string, std::vector<double>> draws;
   for (int i = 0; i < samples; ++i) {
     calib::CameraModel c = calibrated;
-    for (const auto& name : u.drawn) *Parameter(c, name) += stddev.at(name) * normal(rng);
+    Eigen::VectorXd z(m);
+    for (Eigen::Index k = 0; k < m; ++k) z(k) = normal(rng);
+    const Eigen::VectorXd delta = factor * z;
+    for (Eigen::Index k = 0; k < m; ++k) *Parameter(c, u.drawn[static_cast<size_t>(k)]) += delta(k);
     std::string why;
     const auto distortion = DistortionOnDetectionPlane(c, camera, &why);
     if (!distortion) {

@@ -3,10 +3,10 @@
 // calibrated distortion parameters from their reported standard deviations, undistort the measured spots with each
 // draw, reconstruct, fit, map — and report each clinical number as mean +- expanded uncertainty U = 2 s (k = 2).
 //
-// The draws are independent normals per free parameter (the calibration file stores standard deviations, not the
-// covariance). That is exact for the topographer's single-view Seidel calibration, whose only free distortion
-// parameter is k1, and conservative-or-not-known for correlated multi-parameter models (k1, k2, k3 anticorrelate):
-// the result says which parameters were drawn.
+// The draws are joint normals with the calibration's parameter covariance (calibration files since topocal 0.1.0
+// store it; for an older file calib::ParameterCovarianceOf gives the diagonal and `correlated` is false). Only the
+// distortion parameters (k1..k3, p1, p2, ex, ey) are drawn; the intrinsics enter the detection-plane distortion
+// only through its scale, which the topographer's camera description fixes. The result says what was drawn.
 #include <cstdint>
 #include <map>
 #include <string>
@@ -14,6 +14,7 @@
 
 #include <Eigen/Core>
 
+#include "calib/calibration_file.h"
 #include "calib/camera.h"
 #include "model/config.h"
 #include "model/null_screen.h"
@@ -30,14 +31,16 @@ struct ClinicalUncertainty {
   int samples = 0;
   int failed_samples = 0;             // draws whose reconstruction failed (reported, not hidden)
   std::vector<std::string> drawn;     // parameter names drawn
+  bool correlated = false;            // drawn with the full covariance (false: independent, diagonal only)
   std::map<std::string, Quantity> quantities;  // rx_mm, ry_mm, kx, ky, alpha_deg, pv_tangential_D, pv_axial_D
 };
 
-// Throws std::invalid_argument for samples < 2 or no parameter with a positive standard deviation;
+// Throws std::invalid_argument for samples < 2, a covariance whose size does not match its names, or no distortion
+// parameter with a positive variance;
 // std::runtime_error when more than half of the draws fail.
 ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredImageSpot>& spots,
                                                     const calib::CameraModel& calibrated,
-                                                    const std::map<std::string, double>& stddev,
+                                                    const calib::ParameterCovariance& covariance,
                                                     const model::TopographerCamera& camera,
                                                     const model::Config& config, int samples, std::uint32_t seed);
 

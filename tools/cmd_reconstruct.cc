@@ -98,7 +98,7 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
                       {"undistort_failures", m.undistort_failures}};
   if (in.uncertainty_samples > 0) {
     try {
-      *uncertainty = pipeline::PropagateCalibrationUncertainty(m.detected, cal->camera, cal->stddev, camera, cfg,
+      *uncertainty = pipeline::PropagateCalibrationUncertainty(m.detected, cal->camera, calib::ParameterCovarianceOf(*cal), camera, cfg,
                                                                in.uncertainty_samples, in.seed);
     } catch (const std::invalid_argument& e) {
       throw model::InputError(fmt::format("{}: {}", in.calibration, e.what()));
@@ -143,8 +143,10 @@ void AddReconstructCommand(CLI::App& app) {
     const auto analysis = topo::AnalyzeSpots(measured, design.targets, cfg, *truth ? &cfg.cornea : nullptr);
     PrintAnalysis(analysis);
     if (uncertainty) {
-      fmt::print("calibration uncertainty carried through ({} draws of {}; {} failed), mean +- U (k = 2):\n",
-                 uncertainty->samples, fmt::join(uncertainty->drawn, ", "), uncertainty->failed_samples);
+      fmt::print("calibration uncertainty carried through ({} draws of {}, {}; {} failed), mean +- U (k = 2):\n",
+                 uncertainty->samples, fmt::join(uncertainty->drawn, ", "),
+                 uncertainty->correlated ? "with their covariance" : "independent (the file has no covariance)",
+                 uncertainty->failed_samples);
       for (const auto& [name, q] : uncertainty->quantities) {
         fmt::print("  {:<16} {:>12.6f} +- {:.3g}\n", name, q.mean, q.expanded_k2);
       }
@@ -152,6 +154,7 @@ void AddReconstructCommand(CLI::App& app) {
       u["samples"] = uncertainty->samples;
       u["failed_samples"] = uncertainty->failed_samples;
       u["drawn"] = uncertainty->drawn;
+      u["correlated"] = uncertainty->correlated;
       u["coverage_factor"] = 2;
       for (const auto& [name, q] : uncertainty->quantities) u[name] = {{"mean", q.mean}, {"expanded", q.expanded_k2}};
       info["uncertainty"] = u;

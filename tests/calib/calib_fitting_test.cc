@@ -122,6 +122,16 @@ TEST(MultiView, NoisyBrownWithinThreeSigmaOfCovariance) {
   constexpr double kNoiseEstimateRelative = 0.1;  // ~900 corners: the estimate's own relative spread is ~2 %
   EXPECT_NEAR(std::sqrt(r.residual_variance_px2), kNoisePx, kNoiseEstimateRelative * kNoisePx);
   EXPECT_EQ(r.per_view_rms_px.size(), r.views_used.size());
+  // The full covariance: its diagonal is the reported variances, it is symmetric, and it carries the well-known
+  // anticorrelation of the radial terms (k1 and k2 trade off over a field of limited radius).
+  ASSERT_EQ(r.covariance.rows(), kNumCameraParameters);
+  for (int i = 0; i < kNumCameraParameters; ++i) {
+    EXPECT_NEAR(r.covariance(i, i), r.parameters[i].stddev * r.parameters[i].stddev, 1e-12 * r.covariance(i, i));
+  }
+  EXPECT_TRUE(r.covariance.isApprox(r.covariance.transpose()));
+  const double k1k2 = r.covariance(4, 5) / (r.parameters[4].stddev * r.parameters[5].stddev);
+  constexpr double kStrongAnticorrelation = -0.5;
+  EXPECT_LT(k1k2, kStrongAnticorrelation);
 }
 
 TEST(MultiView, FixedParametersStayPut) {

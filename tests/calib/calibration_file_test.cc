@@ -132,6 +132,44 @@ TEST(OpenCvEquivalent, DecentringIsAbsorbedExceptForTheSkewAndTheReportSaysHowMu
   RecordProperty("dropped_centre_max_error_px", std::to_string(worst_dropped));
 }
 
+TEST_F(CalibrationFileTest, CovarianceRoundTripsAndOlderFilesFallBackToTheDiagonal) {
+  const auto r = Calibrated(testing::ReferenceCamera(), {});
+  ASSERT_TRUE(r.ok()) << r.message;
+  WriteCalibrationFile(Path("cal.yaml"), r, {"board.yaml", {}, "2026-11-25T00:00:00Z"});
+  const auto loaded = LoadCalibrationFile(Path("cal.yaml"));
+  ASSERT_TRUE(loaded.covariance.has_value());
+  ASSERT_EQ(loaded.parameter_names.size(), static_cast<size_t>(kNumCameraParameters));
+  EXPECT_TRUE(loaded.covariance->isApprox(r.covariance, kYamlRoundTrip));
+  const auto full = ParameterCovarianceOf(loaded);
+  EXPECT_TRUE(full.full);
+  EXPECT_NE(full.matrix(4, 5), 0.0);  // k1-k2 cross term kept
+
+  // The same file without the covariance (as written before it was stored): the diagonal of the stddevs.
+  std::string text = model::ReadFile(Path("cal.yaml"));
+  const auto begin = text.find("parameter_covariance:");
+  const auto end = text.find("rms_px:", begin);
+  ASSERT_NE(begin, std::string::npos);
+  ASSERT_NE(end, std::string::npos);
+  text.erase(begin, end - begin);
+  Write("old.yaml", text);
+  const auto diagonal = ParameterCovarianceOf(LoadCalibrationFile(Path("old.yaml")));
+  EXPECT_FALSE(diagonal.full);
+  EXPECT_EQ(diagonal.matrix(4, 5), 0.0);
+  EXPECT_NEAR(diagonal.matrix(4, 4), r.covariance(4, 4), kYamlRoundTrip * r.covariance(4, 4));
+
+  // A corrupt covariance (one entry too many) is named.
+  std::string asymmetric = model::ReadFile(Path("cal.yaml"));
+  const auto data = asymmetric.find("data: [", asymmetric.find("parameter_covariance:"));
+  asymmetric.insert(data + 7, "1., ");
+  Write("bad.yaml", asymmetric);
+  try {
+    LoadCalibrationFile(Path("bad.yaml"));
+    FAIL() << "accepted a corrupt covariance";
+  } catch (const model::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("parameter_covariance"), std::string::npos) << e.what();
+  }
+}
+
 TEST_F(CalibrationFileTest, PlainOpenCvFileIsAccepted) {
   Write("cv.yaml",
         "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n"

@@ -1,4 +1,8 @@
 // Calibration uncertainty carried to the clinical numbers by seeded Monte Carlo.
+#include <map>
+#include <string>
+#include <vector>
+
 #include <gtest/gtest.h>
 
 #include "model/config.h"
@@ -26,12 +30,35 @@ struct Fixture {
   }
 };
 
+// Independent draws with these standard deviations.
+calib::ParameterCovariance Diagonal(const std::map<std::string, double>& stddev) {
+  calib::ParameterCovariance c;
+  c.matrix = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(stddev.size()), static_cast<Eigen::Index>(stddev.size()));
+  Eigen::Index i = 0;
+  for (const auto& [name, sd] : stddev) {
+    c.names.push_back(name);
+    c.matrix(i, i) = sd * sd;
+    ++i;
+  }
+  return c;
+}
+
+// k1 and k2 with these standard deviations and correlation.
+calib::ParameterCovariance K1K2(double sd1, double sd2, double correlation) {
+  calib::ParameterCovariance c;
+  c.names = {"k1", "k2"};
+  c.matrix.resize(2, 2);
+  c.matrix << sd1 * sd1, correlation * sd1 * sd2, correlation * sd1 * sd2, sd2 * sd2;
+  c.full = true;
+  return c;
+}
+
 TEST(Uncertainty, ScalesWithTheCalibrationsStandardDeviationAndIsCentredOnTheTruth) {
   const Fixture f;
   // k1 ~ -6.2; a standard deviation of 1e-3 is what the single-view calibration reports (topocal calibrate).
-  const auto u1 = PropagateCalibrationUncertainty(f.spots, f.calibrated, {{"k1", 1e-3}, {"fx", 0.0}}, f.camera,
+  const auto u1 = PropagateCalibrationUncertainty(f.spots, f.calibrated, Diagonal({{"k1", 1e-3}, {"fx", 0.0}}), f.camera,
                                                   f.config, 64, 7);
-  const auto u2 = PropagateCalibrationUncertainty(f.spots, f.calibrated, {{"k1", 2e-3}}, f.camera, f.config, 64, 7);
+  const auto u2 = PropagateCalibrationUncertainty(f.spots, f.calibrated, Diagonal({{"k1", 2e-3}}), f.camera, f.config, 64, 7);
   ASSERT_EQ(u1.drawn, std::vector<std::string>{"k1"});  // fx has no spread, so it is not drawn
   EXPECT_EQ(u1.samples, 64);
   EXPECT_EQ(u1.failed_samples, 0);
@@ -49,17 +76,39 @@ TEST(Uncertainty, ScalesWithTheCalibrationsStandardDeviationAndIsCentredOnTheTru
 
 TEST(Uncertainty, IsDeterministicForASeed) {
   const Fixture f;
-  const auto a = PropagateCalibrationUncertainty(f.spots, f.calibrated, {{"k1", 1e-3}}, f.camera, f.config, 8, 3);
-  const auto b = PropagateCalibrationUncertainty(f.spots, f.calibrated, {{"k1", 1e-3}}, f.camera, f.config, 8, 3);
+  const auto a = PropagateCalibrationUncertainty(f.spots, f.calibrated, Diagonal({{"k1", 1e-3}}), f.camera, f.config, 8, 3);
+  const auto b = PropagateCalibrationUncertainty(f.spots, f.calibrated, Diagonal({{"k1", 1e-3}}), f.camera, f.config, 8, 3);
   EXPECT_EQ(a.quantities.at("kx").mean, b.quantities.at("kx").mean);
   EXPECT_EQ(a.quantities.at("kx").expanded_k2, b.quantities.at("kx").expanded_k2);
 }
 
+TEST(Uncertainty, CorrelationsOfTheCalibrationChangeTheClinicalUncertainty) {
+  const Fixture f;
+  // Over the spot field (r ~ 0.1 in normalised units) k2 r^4 moves the spots the same way as k1 r^2, so both push
+  // k_x the same way: correlated draws add up, anticorrelated ones cancel. Same seed, so the same normal draws.
+  constexpr double kSd1 = 1e-3, kSd2 = 0.1;  // k2's effect at r ~ 0.1 is then comparable to k1's
+  const auto independent = PropagateCalibrationUncertainty(f.spots, f.calibrated, K1K2(kSd1, kSd2, 0.0), f.camera,
+                                                           f.config, 64, 5);
+  const auto together = PropagateCalibrationUncertainty(f.spots, f.calibrated, K1K2(kSd1, kSd2, 0.95), f.camera,
+                                                        f.config, 64, 5);
+  const auto opposed = PropagateCalibrationUncertainty(f.spots, f.calibrated, K1K2(kSd1, kSd2, -0.95), f.camera,
+                                                       f.config, 64, 5);
+  EXPECT_TRUE(together.correlated);
+  EXPECT_EQ(together.drawn, (std::vector<std::string>{"k1", "k2"}));
+  const double u0 = independent.quantities.at("kx").expanded_k2;
+  EXPECT_GT(together.quantities.at("kx").expanded_k2, u0);
+  EXPECT_LT(opposed.quantities.at("kx").expanded_k2, u0);
+}
+
 TEST(Uncertainty, RefusesWhatItCannotPropagate) {
   const Fixture f;
-  EXPECT_THROW(PropagateCalibrationUncertainty(f.spots, f.calibrated, {{"k1", 0.0}}, f.camera, f.config, 8, 1),
+  EXPECT_THROW(PropagateCalibrationUncertainty(f.spots, f.calibrated, Diagonal({{"k1", 0.0}}), f.camera, f.config, 8, 1),
                std::invalid_argument);
-  EXPECT_THROW(PropagateCalibrationUncertainty(f.spots, f.calibrated, {{"k1", 1e-3}}, f.camera, f.config, 1, 1),
+  EXPECT_THROW(PropagateCalibrationUncertainty(f.spots, f.calibrated, Diagonal({{"k1", 1e-3}}), f.camera, f.config, 1, 1),
+               std::invalid_argument);
+  auto mismatched = K1K2(1e-3, 1e-3, 0.0);
+  mismatched.names.pop_back();
+  EXPECT_THROW(PropagateCalibrationUncertainty(f.spots, f.calibrated, mismatched, f.camera, f.config, 8, 1),
                std::invalid_argument);
 }
 
