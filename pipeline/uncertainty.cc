@@ -57,11 +57,11 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
   // A symmetric eigendecomposition rather than a Cholesky factor, so that a covariance that is only positive
   // semi-definite (rounding in a stored file) still factors; negative rounding-level eigenvalues are clamped to 0.
   const auto m = static_cast<Eigen::Index>(drawn_index.size());
-  Eigen::MatrixXd s(m, m);
+  Eigen::MatrixXd drawn_covariance(m, m);
   for (Eigen::Index a = 0; a < m; ++a) {
-    for (Eigen::Index b = 0; b < m; ++b) s(a, b) = covariance.matrix(drawn_index[static_cast<size_t>(a)], drawn_index[static_cast<size_t>(b)]);
+    for (Eigen::Index b = 0; b < m; ++b) drawn_covariance(a, b) = covariance.matrix(drawn_index[static_cast<size_t>(a)], drawn_index[static_cast<size_t>(b)]);
   }
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(s);
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(drawn_covariance);
   if (eigen.info() != Eigen::Success) throw std::invalid_argument("uncertainty: the covariance cannot be factored");
   const Eigen::MatrixXd factor = eigen.eigenvectors() * eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
 
@@ -100,6 +100,8 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
       draws["alpha_deg"].push_back(p.alpha_deg);
       draws["pv_tangential_D"].push_back(a.power.pv_tangential_D);
       draws["pv_axial_D"].push_back(a.power.pv_axial_D);
+      draws["radius_mm"].push_back(0.5 * (p.rx_mm + p.ry_mm));
+      draws["central_axial_power_D"].push_back(topo::MeanAxialPowerD(a.power, kCentralPowerRadiusMm));
     } catch (const std::runtime_error&) {
       ++u.failed_samples;
     }

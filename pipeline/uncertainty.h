@@ -23,6 +23,10 @@
 
 namespace topocal::pipeline {
 
+// The central zone of the power reading: 3 mm diameter, the zone keratometers and topographers' simulated-K
+// readings use (the Javal–Schiøtz keratometer measures at about 3 mm).
+inline constexpr double kCentralPowerRadiusMm = 1.5;
+
 struct ClinicalUncertainty {
   struct Quantity {
     double mean = 0;
@@ -32,7 +36,9 @@ struct ClinicalUncertainty {
   int failed_samples = 0;             // draws whose reconstruction failed (reported, not hidden)
   std::vector<std::string> drawn;     // parameter names drawn
   bool correlated = false;            // drawn with the full covariance (false: independent, diagonal only)
-  std::map<std::string, Quantity> quantities;  // rx_mm, ry_mm, kx, ky, alpha_deg, pv_tangential_D, pv_axial_D
+  // rx_mm, ry_mm, kx, ky, alpha_deg, pv_tangential_D, pv_axial_D, radius_mm (mean of rx, ry),
+  // central_axial_power_D (topo::MeanAxialPowerD over kCentralPowerRadiusMm)
+  std::map<std::string, Quantity> quantities;
 };
 
 // Throws std::invalid_argument for samples < 2, a covariance whose size does not match its names, or no distortion

@@ -1,6 +1,4 @@
 // topocal calibrate: detect a planar target in a set of images and fit the camera (calib/calibrate.h).
-#include <glob.h>
-
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -16,25 +14,13 @@
 #include "calib/target.h"
 #include "model/io.h"
 #include "tools/commands.h"
+#include "tools/file_glob.h"
 
 namespace topocal::tools {
 namespace {
 
 // Above this many images, each detection reports its progress on stderr.
 constexpr size_t kProgressFromImages = 5;
-
-std::vector<std::string> Glob(const std::string& pattern) {
-  glob_t g{};
-  const int rc = ::glob(pattern.c_str(), GLOB_ERR | GLOB_TILDE, nullptr, &g);
-  std::vector<std::string> paths;
-  if (rc == 0) {
-    for (size_t i = 0; i < g.gl_pathc; ++i) paths.emplace_back(g.gl_pathv[i]);
-  }
-  globfree(&g);
-  if (rc == GLOB_NOMATCH || paths.empty()) throw model::InputError(fmt::format("--images '{}': no file matches", pattern));
-  if (rc != 0) throw model::InputError(fmt::format("--images '{}': cannot be expanded", pattern));
-  return paths;  // glob(3) sorts them
-}
 
 struct CalibrateArgs {
   std::string target, images, model = "brown5", out, json;

@@ -20,7 +20,7 @@ namespace {
 
 struct RenderSpotsArgs {
   std::string config, camera, out, truth, spot = "ellipse";
-  double sigma = 0, psf_px = 1.0, drop = 0;
+  double sigma = 0, psf_px = 1.0, drop = 0, sphere_radius_mm = 0;
   double background = NAN, peak = NAN, noise = NAN, gain = NAN;
   int bits = 16, glints = 0;
   uint32_t seed = 1;
@@ -37,7 +37,15 @@ void Run(const RenderSpotsArgs& a) {
   if (!std::isfinite(a.sigma)) throw model::InputError("--sigma: must be a finite number");
   if (!(a.drop >= 0 && a.drop < 1)) throw model::InputError(fmt::format("--drop: must be in [0, 1) (got {})", a.drop));
   if (a.glints < 0) throw model::InputError(fmt::format("--glints: must be >= 0 (got {})", a.glints));
-  const auto cfg = model::LoadConfig(a.config);
+  if (a.sphere_radius_mm < 0 || !std::isfinite(a.sphere_radius_mm)) {
+    throw model::InputError(fmt::format("--sphere-radius-mm: must be a positive radius (got {})", a.sphere_radius_mm));
+  }
+  auto cfg = model::LoadConfig(a.config);
+  if (a.sphere_radius_mm > 0) {  // a reference ball instead of the configured cornea
+    cfg.cornea = model::BiconicParams{};
+    cfg.cornea.rx_mm = cfg.cornea.ry_mm = a.sphere_radius_mm;
+    cfg.cornea.kx = cfg.cornea.ky = cfg.cornea.alpha_deg = 0.0;
+  }
   const auto camera = model::LoadTopographerCamera(a.camera);
   if (std::abs(camera.a_mm - cfg.topographer.a_mm) > 1e-9) {
     throw model::InputError(fmt::format("{}: a_mm: {} differs from the configuration's topographer.a_mm = {} ({})",
@@ -108,6 +116,8 @@ void AddRenderSpotsCommand(CLI::App& app) {
   cmd->add_option("--camera", a->camera, "Topographer camera (JSON, docs/camera-conventions.md)")->required();
   cmd->add_option("--sigma", a->sigma, "Seidel distortion coefficient sigma, mm^-2 (paper Eq. 18)")->required();
   cmd->add_option("--out", a->out, "Output image (.png)")->required();
+  cmd->add_option("--sphere-radius-mm", a->sphere_radius_mm,
+                  "Image a reference sphere of this radius instead of the configured cornea, mm");
   cmd->add_option("--truth", a->truth, "Truth CSV: ring,index,x_px,y_px,x_mm,y_mm (distorted; ring 0 = glint)");
   cmd->add_option("--spot", a->spot, "Spot model: ellipse (image of the null-screen spot) or psf (point source)")
       ->check(CLI::IsMember({"ellipse", "psf"}));

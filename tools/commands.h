@@ -15,5 +15,6 @@ void AddUndistortCommand(CLI::App& app);
 void AddCalibrateCommand(CLI::App& app);
 void AddTargetCommand(CLI::App& app);
 void AddRenderTargetCommand(CLI::App& app);
+void AddUnitCommand(CLI::App& app);
 
 }  // namespace topocal::tools

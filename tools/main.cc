@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   topocal::tools::AddCalibrateCommand(app);
   topocal::tools::AddTargetCommand(app);
   topocal::tools::AddRenderTargetCommand(app);
+  topocal::tools::AddUnitCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

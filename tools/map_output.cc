@@ -41,34 +41,36 @@ topo::GridMap CartesianGrid(double radius_mm, const std::string& title, const st
   return g;
 }
 
-void Write(const std::string& dir, const std::string& name, const topo::GridMap& g) {
+void Write(const std::string& dir, const std::string& name, const topo::GridMap& g, bool csv, int size_px) {
   const std::string base = (std::filesystem::path(dir) / name).string();
-  topo::WriteMapCsv(base + ".csv", g);
-  topo::WriteMapPng(base + ".png", g);
+  if (csv) topo::WriteMapCsv(base + ".csv", g);
+  topo::MapImageOptions o;
+  o.size_px = size_px;
+  topo::WriteMapPng(base + ".png", g, o);
 }
 
 }  // namespace
 
 void WriteAnalysisMaps(const std::string& dir, const std::string& prefix, const std::string& label,
-                       const topo::Analysis& a, const model::BiconicParams* truth) {
+                       const topo::Analysis& a, const model::BiconicParams* truth, bool csv, int size_px) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw model::InputError(fmt::format("{}: cannot create directory: {}", dir, ec.message()));
   const auto& pm = a.power;
-  Write(dir, prefix + "axial_power", PowerGrid(pm, pm.axial_D, fmt::format("Axial power{}", label)));
-  Write(dir, prefix + "tangential_power", PowerGrid(pm, pm.tangential_D, fmt::format("Tangential power{}", label)));
+  Write(dir, prefix + "axial_power", PowerGrid(pm, pm.axial_D, fmt::format("Axial power{}", label)), csv, size_px);
+  Write(dir, prefix + "tangential_power", PowerGrid(pm, pm.tangential_D, fmt::format("Tangential power{}", label)), csv, size_px);
   const double r = a.covered_radius_mm;
   const auto& psi = a.reconstruction.surface;
   Write(dir, prefix + "height", CartesianGrid(r, fmt::format("Height{}", label), "um", [&](double x, double y) {
           return psi.Value(x, y) * 1e3;
-        }));
+        }), csv, size_px);
   if (truth) {
     const model::Biconic b{*truth};
     Write(dir, prefix + "height_difference",
           CartesianGrid(r, fmt::format("Ideal - recovered height{}", label), "um", [&](double x, double y) {
             model::SurfaceDerivatives d;
             return b.Evaluate(x, y, &d) ? (d.z - psi.Value(x, y)) * 1e3 : NAN;
-          }));
+          }), csv, size_px);
   }
 }
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Core>
 #include <Eigen/QR>
@@ -101,9 +102,8 @@ bool ComputePowerMaps(const MeridianSampler& meridian, const PowerMapOptions& o,
       }
     }
     for (int k = 0; k < K; ++k) {
-      const double rho = o.radius_mm * (k + 1) / K;
       const double g = 1.0 + d1s(k) * d1s(k);
-      const double ka = d1s(k) / (rho * std::sqrt(g));   // Eq. 24
+      const double ka = d1s(k) / (rho(k) * std::sqrt(g));   // Eq. 24
       const double km = d2s(k) / (g * std::sqrt(g));
       if (!std::isfinite(ka) || !std::isfinite(km)) return Fail(why, "curvature is not finite");
       maps->axial_D[static_cast<size_t>(j) * K + k] = ka * power_per_curvature;  // Eq. 25
@@ -115,6 +115,19 @@ bool ComputePowerMaps(const MeridianSampler& meridian, const PowerMapOptions& o,
   maps->pv_axial_D = *amax - *amin;       // Eq. 28b
   maps->pv_tangential_D = *tmax - *tmin;  // Eq. 28a
   return true;
+}
+
+double MeanAxialPowerD(const PowerMaps& maps, double radius_mm) {
+  double sum = 0, weight = 0;
+  for (int j = 0; j < maps.meridians; ++j) {
+    for (int k = 0; k < maps.radial_samples; ++k) {
+      const double rho = maps.RhoMm(k);
+      if (rho > radius_mm) break;
+      sum += rho * maps.axial_D[static_cast<size_t>(j * maps.radial_samples + k)];
+      weight += rho;
+    }
+  }
+  return weight > 0 ? sum / weight : std::numeric_limits<double>::quiet_NaN();
 }
 
 }  // namespace topocal::topo

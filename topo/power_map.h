@@ -68,4 +68,9 @@ bool ComputePowerMaps(const SurfaceEvaluator& surface, const PowerMapOptions& op
 bool ComputePowerMaps(const TaylorPolynomial& psi, const PowerMapOptions& options, PowerMaps* maps,
                       std::string* why = nullptr);
 
+// Area-weighted mean of the axial power over the disc of this radius (samples weighted by rho, the polar area
+// element): the "central power" a keratometer-like reading gives, e.g. over 3 mm diameter. NaN if no sample lies
+// in the disc.
+double MeanAxialPowerD(const PowerMaps& maps, double radius_mm);
+
 }  // namespace topocal::topo

@@ -1,0 +1,147 @@
+#include "pipeline/unit_verification.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "correct/undistort_points.h"
+#include "model/null_screen.h"
+#include "pipeline/detection_plane.h"
+#include "pipeline/measure_spots.h"
+#include "topo/power_map.h"
+
+namespace topocal::pipeline {
+namespace {
+
+// The smallest and largest reference ball we accept: test spheres for corneal topographers span about
+// 5-11 mm (ISO 19980 test surfaces cover the human range of 6-10 mm); outside that the null screen's spots leave
+// the sensor or crowd together.
+constexpr double kMinSphereRadiusMm = 5.0;
+constexpr double kMaxSphereRadiusMm = 11.0;
+
+StageResult Analyze(const std::vector<topo::MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
+                    const model::Config& config, const model::BiconicParams& truth, const char* what) {
+  StageResult r;
+  try {
+    r.analysis = topo::AnalyzeSpots(spots, targets, config, &truth);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(fmt::format("{}: {}", what, e.what()));
+  }
+  r.numbers = Summarize(r.analysis, static_cast<int>(spots.size()));
+  return r;
+}
+
+std::optional<ClinicalUncertainty> Uncertainty(const std::vector<MeasuredImageSpot>& detected,
+                                               const UnitCalibration& unit, const model::TopographerCamera& camera,
+                                               const model::Config& config, const CheckOptions& options) {
+  if (options.uncertainty_samples <= 0) return std::nullopt;
+  try {
+    return PropagateCalibrationUncertainty(detected, unit.camera, unit.covariance, camera, config,
+                                           options.uncertainty_samples, options.seed);
+  } catch (const std::invalid_argument&) {
+    // No distortion parameter with a spread (e.g. all fixed): nothing to propagate, and the record says so by
+    // leaving the uncertainty out.
+    return std::nullopt;
+  }
+}
+
+model::Distortion OnDetectionPlane(const UnitCalibration& unit, const model::TopographerCamera& camera) {
+  std::string why;
+  const auto d = DistortionOnDetectionPlane(unit.camera, camera, &why);
+  if (!d) throw std::runtime_error("the calibration cannot be put on the detection plane: " + why);
+  return *d;
+}
+
+}  // namespace
+
+ClinicalNumbers Summarize(const topo::Analysis& analysis, int spots) {
+  ClinicalNumbers n;
+  n.spots = spots;
+  const auto& p = analysis.surface_fit.params;
+  n.rx_mm = p.rx_mm;
+  n.ry_mm = p.ry_mm;
+  n.kx = p.kx;
+  n.ky = p.ky;
+  n.alpha_deg = p.alpha_deg;
+  n.radius_mm = 0.5 * (p.rx_mm + p.ry_mm);
+  n.central_axial_power_D = topo::MeanAxialPowerD(analysis.power, kCentralPowerRadiusMm);
+  n.pv_tangential_D = analysis.power.pv_tangential_D;
+  n.pv_axial_D = analysis.power.pv_axial_D;
+  if (analysis.errors) {
+    n.height_pv_um = analysis.errors->pv_um;
+    n.height_rms_um = analysis.errors->rms_um;
+  }
+  return n;
+}
+
+model::Config WithSphere(const model::Config& config, double radius_mm) {
+  model::Config c = config;
+  c.cornea = model::BiconicParams{};
+  c.cornea.rx_mm = c.cornea.ry_mm = radius_mm;
+  c.cornea.kx = c.cornea.ky = 0.0;
+  c.cornea.alpha_deg = 0.0;
+  return c;
+}
+
+SphereVerification VerifyOnReferenceSphere(const cv::Mat& image, double radius_mm, const UnitCalibration& unit,
+                                           const model::TopographerCamera& camera, const model::Config& config,
+                                           const CheckOptions& options) {
+  if (!(radius_mm >= kMinSphereRadiusMm && radius_mm <= kMaxSphereRadiusMm)) {
+    throw std::invalid_argument(fmt::format("sphere radius {} mm is outside [{}, {}] mm", radius_mm,
+                                            kMinSphereRadiusMm, kMaxSphereRadiusMm));
+  }
+  if (image.cols != camera.width_px || image.rows != camera.height_px) {
+    throw std::invalid_argument(fmt::format("the image is {} x {} px but the camera is {} x {} px", image.cols,
+                                            image.rows, camera.width_px, camera.height_px));
+  }
+  const model::Config sphere = WithSphere(config, radius_mm);
+  const auto design = model::DesignNullScreen(sphere.ideal_image, sphere.topographer);
+  const auto distortion = OnDetectionPlane(unit, camera);
+
+  SphereVerification v;
+  v.radius_true_mm = radius_mm;
+  v.power_true_D = (topo::kKeratometricIndex - 1.0) / radius_mm * 1000.0;
+  const auto raw = MeasureSpots(image, camera, sphere.ideal_image, std::nullopt);
+  const auto undistorted = MeasureSpots(image, camera, sphere.ideal_image, distortion);
+  v.spots_indexed = raw.indexed;
+  v.spots_unassigned = raw.unassigned;
+  v.spots_missing = raw.missing;
+  v.undistort_failures = undistorted.undistort_failures;
+  v.uncorrected = Analyze(raw.spots, design.targets, sphere, sphere.cornea, "reference sphere, uncorrected");
+  v.corrected = Analyze(undistorted.spots, design.targets, sphere, sphere.cornea, "reference sphere, corrected");
+  v.uncertainty = Uncertainty(undistorted.detected, unit, camera, sphere, options);
+  return v;
+}
+
+SimulatedCornea SimulateThroughCalibratedCamera(const UnitCalibration& unit, const model::TopographerCamera& camera,
+                                                const model::Config& config, const CheckOptions& options) {
+  const auto distortion = OnDetectionPlane(unit, camera);
+  const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
+  const auto ideal =
+      model::SynthesizeImage(model::Biconic{config.cornea}, model::Topographer{config.topographer}, design.targets);
+  std::vector<Eigen::Vector2d> ideal_mm;
+  for (const auto& s : ideal.spots) ideal_mm.push_back(s.position_mm);
+  const auto distorted_mm = correct::DistortPoints(distortion, ideal_mm);
+  const auto corrected_mm = correct::UndistortPoints(distortion, distorted_mm);
+
+  SimulatedCornea out;
+  out.truth = config.cornea;
+  std::vector<topo::MeasuredSpot> distorted, corrected;
+  std::vector<MeasuredImageSpot> detected;
+  for (size_t i = 0; i < ideal.spots.size(); ++i) {
+    distorted.push_back({ideal.spots[i].id, distorted_mm[i]});
+    detected.push_back({ideal.spots[i].id, distorted_mm[i]});
+    if (corrected_mm.ok[i]) corrected.push_back({ideal.spots[i].id, corrected_mm.points_mm[i]});
+    out.max_displacement_um = std::max(out.max_displacement_um, (distorted_mm[i] - ideal_mm[i]).norm() * 1000.0);
+  }
+  out.uncorrected = Analyze(distorted, design.targets, config, config.cornea, "paper cornea, uncorrected");
+  out.corrected = Analyze(corrected, design.targets, config, config.cornea, "paper cornea, corrected");
+  out.uncertainty = Uncertainty(detected, unit, camera, config, options);
+  return out;
+}
+
+}  // namespace topocal::pipeline

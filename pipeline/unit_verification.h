@@ -1,0 +1,84 @@
+#pragma once
+// What a unit's calibration is worth, in clinical numbers (issue 7): the two checks of a unit record
+// (docs/unit-record.md).
+//
+//  * Reference sphere: the raw image of a precision ball of known radius, measured by the unit, reconstructed
+//    without and with the calibration. A sphere's radius and power are known exactly, so the errors are the unit's
+//    own measurement errors — the check topographer makers and ISO 19980 use on test surfaces.
+//  * Paper cornea: the configuration's biconic imaged, in simulation, through the unit's camera as calibrated —
+//    uncorrected (its distortion left in) and corrected (undistorted with the calibration), the calibration's
+//    covariance carried through by Monte Carlo. It says what this unit's distortion would do to an aspheric,
+//    astigmatic cornea, where the conic constants are fragile.
+#include <cstdint>
+#include <optional>
+
+#include <opencv2/core/mat.hpp>
+
+#include "calib/calibration_file.h"
+#include "calib/camera.h"
+#include "model/config.h"
+#include "model/topographer_camera.h"
+#include "pipeline/uncertainty.h"
+#include "topo/analysis.h"
+
+namespace topocal::pipeline {
+
+// One reconstruction in clinical numbers.
+struct ClinicalNumbers {
+  int spots = 0;
+  double rx_mm = 0, ry_mm = 0, kx = 0, ky = 0, alpha_deg = 0;
+  double radius_mm = 0;              // mean of rx and ry
+  double central_axial_power_D = 0;  // topo::MeanAxialPowerD over kCentralPowerRadiusMm
+  double pv_tangential_D = 0, pv_axial_D = 0;
+  std::optional<double> height_pv_um, height_rms_um;  // against the truth, when known
+};
+ClinicalNumbers Summarize(const topo::Analysis& analysis, int spots);
+
+// The calibration of a unit as the checks need it.
+struct UnitCalibration {
+  calib::CameraModel camera;             // the calibrated (exact) model, in pixels of the unit's sensor
+  calib::ParameterCovariance covariance;
+};
+
+struct CheckOptions {
+  int uncertainty_samples = 200;  // 0 = no Monte Carlo
+  std::uint32_t seed = 1;
+};
+
+struct StageResult {
+  ClinicalNumbers numbers;
+  topo::Analysis analysis;
+};
+
+struct SphereVerification {
+  double radius_true_mm = 0;
+  double power_true_D = 0;  // (n_k - 1) / R, n_k = topo::kKeratometricIndex
+  int spots_indexed = 0, spots_unassigned = 0, spots_missing = 0, undistort_failures = 0;
+  StageResult uncorrected, corrected;
+  std::optional<ClinicalUncertainty> uncertainty;  // of the corrected numbers
+  double RadiusErrorMm(const StageResult& s) const { return s.numbers.radius_mm - radius_true_mm; }
+  double PowerErrorD(const StageResult& s) const { return s.numbers.central_axial_power_D - power_true_D; }
+};
+
+// The design (`config`) with its cornea replaced by a sphere of this radius.
+model::Config WithSphere(const model::Config& config, double radius_mm);
+
+// Throws std::invalid_argument for a non-physical radius or an image of the wrong size, std::runtime_error (one
+// line) when the spots cannot be found or the reconstruction fails.
+SphereVerification VerifyOnReferenceSphere(const cv::Mat& image, double radius_mm, const UnitCalibration& unit,
+                                           const model::TopographerCamera& camera, const model::Config& config,
+                                           const CheckOptions& options);
+
+struct SimulatedCornea {
+  model::BiconicParams truth;
+  StageResult uncorrected, corrected;
+  std::optional<ClinicalUncertainty> uncertainty;
+  double max_displacement_um = 0;  // largest shift the calibrated distortion gives a spot of this cornea
+};
+
+// Throws std::runtime_error when the calibrated distortion cannot be put on the detection plane or a
+// reconstruction fails.
+SimulatedCornea SimulateThroughCalibratedCamera(const UnitCalibration& unit, const model::TopographerCamera& camera,
+                                                const model::Config& config, const CheckOptions& options);
+
+}  // namespace topocal::pipeline

@@ -1,0 +1,197 @@
+// topocal unit calibrate | calibrate-batch: the per-unit calibration workflow on the production line
+// (tools/unit_workflow.h, docs/unit-record.md).
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <fmt/format.h>
+#include <glog/logging.h>
+#include <opencv2/core/utility.hpp>
+
+#include "model/config.h"
+#include "model/io.h"
+#include "tools/commands.h"
+#include "tools/file_glob.h"
+#include "tools/unit_workflow.h"
+
+namespace topocal::tools {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The bundled design and camera (data/), the defaults of --config and --camera.
+const std::string kDefaultConfig = std::string(TOPOCAL_DATA_DIR) + "/paper.json";
+const std::string kDefaultCamera = std::string(TOPOCAL_DATA_DIR) + "/camera.json";
+constexpr const char* kUnitInputsFile = "unit-inputs.json";
+constexpr int kProgressBarWidth = 30;
+
+void QuietCeres() {
+  // Ceres logs through glog (e.g. a rank-deficient covariance); the workflow reports failures in one line.
+  FLAGS_minloglevel = google::GLOG_FATAL;
+}
+
+void AddCommonOptions(CLI::App* cmd, UnitRequest* r) {
+  cmd->add_option("--config", r->config, "Topographer design (JSON) [bundled data/paper.json]");
+  cmd->add_option("--camera", r->camera, "Topographer camera (JSON) [bundled data/camera.json]");
+  cmd->add_option("--model", r->model, "Distortion model: seidel or brown5")->check(CLI::IsMember({"seidel", "brown5"}));
+  cmd->add_flag("--fit-centre", r->fit_centre, "Fit the distortion centre (seidel)");
+  cmd->add_option("--uncertainty", r->uncertainty_samples,
+                  "Monte Carlo draws of the calibration covariance carried to the clinical numbers (0 = none)")
+      ->check(CLI::Range(0, 100000));
+  cmd->add_option("--seed", r->seed, "Seed of the Monte Carlo draws");
+}
+
+struct BatchArgs {
+  std::string dir, out;
+  int jobs = 0;
+  UnitRequest defaults;
+};
+
+struct BatchItem {
+  std::string inputs_path;
+  std::optional<UnitRequest> request;
+  std::string error;  // set when the unit failed
+  std::vector<std::string> summary;
+  bool done = false;
+};
+
+void RunBatch(const BatchArgs& a) {
+  QuietCeres();
+  if (!fs::is_directory(a.dir)) throw model::InputError(fmt::format("{}: not a directory", a.dir));
+  std::vector<BatchItem> items;
+  for (const auto& e : fs::directory_iterator(a.dir)) {
+    if (e.is_directory() && fs::exists(e.path() / kUnitInputsFile)) {
+      items.push_back({(e.path() / kUnitInputsFile).string(), std::nullopt, {}, {}, false});
+    }
+  }
+  if (items.empty()) {
+    throw model::InputError(fmt::format("{}: no unit directory (none has a {})", a.dir, kUnitInputsFile));
+  }
+  std::sort(items.begin(), items.end(), [](const auto& x, const auto& y) { return x.inputs_path < y.inputs_path; });
+
+  // Read every unit's inputs first: a bad one fails that unit only; two units with one serial both fail.
+  std::map<std::string, size_t> first_with_serial;
+  for (size_t i = 0; i < items.size(); ++i) {
+    auto& item = items[i];
+    try {
+      item.request = ReadUnitInputs(item.inputs_path, a.defaults);
+      item.request->out = (fs::path(a.out) / item.request->serial).string();
+      const auto [it, inserted] = first_with_serial.emplace(item.request->serial, i);
+      if (!inserted) {
+        item.error = fmt::format("serial {} is also used by {}", item.request->serial, items[it->second].inputs_path);
+      }
+    } catch (const std::exception& e) {
+      item.error = e.what();
+    }
+  }
+
+  const unsigned hardware = std::max(1u, std::thread::hardware_concurrency());
+  const unsigned jobs = a.jobs > 0 ? static_cast<unsigned>(a.jobs) : hardware;
+  // Parallel across units, one core each: OpenCV's own thread pool would only compete with the workers.
+  if (jobs > 1) cv::setNumThreads(1);
+  const bool tty = ::isatty(STDERR_FILENO) != 0;
+  std::mutex mutex;
+  size_t finished = 0, failed = 0;
+  const auto report = [&](const BatchItem& item) {  // under the mutex
+    ++finished;
+    if (!item.error.empty()) ++failed;
+    const std::string name = item.request ? item.request->serial : item.inputs_path;
+    if (tty) {
+      const int filled = static_cast<int>(kProgressBarWidth * finished / items.size());
+      fmt::print(stderr, "\r[{}{}] {}/{} units, {} failed  {:<24.24}", std::string(static_cast<size_t>(filled), '#'),
+                 std::string(static_cast<size_t>(kProgressBarWidth - filled), '.'), finished, items.size(), failed,
+                 name);
+      if (finished == items.size()) fmt::print(stderr, "\n");
+    } else {
+      fmt::print(stderr, "[{}/{}] {}: {}\n", finished, items.size(), name,
+                 item.error.empty() ? std::string("ok") : "FAILED: " + item.error);
+    }
+  };
+  {
+    std::lock_guard lock(mutex);
+    for (auto& item : items) {
+      if (!item.error.empty()) report(item);
+    }
+  }
+  std::atomic<size_t> next{0};
+  const auto worker = [&] {
+    for (size_t i = next++; i < items.size(); i = next++) {
+      auto& item = items[i];
+      if (!item.error.empty()) continue;
+      try {
+        const auto outcome = CalibrateUnit(*item.request, [&](const std::string& line) {
+          std::lock_guard lock(mutex);
+          if (tty) fmt::print(stderr, "\n");
+          fmt::print(stderr, "topocal unit: {}\n", line);
+        });
+        item.summary = outcome.summary;
+      } catch (const std::exception& e) {
+        item.error = e.what();
+      }
+      std::lock_guard lock(mutex);
+      report(item);
+    }
+  };
+  std::vector<std::thread> threads;
+  for (unsigned t = 0; t < std::min<size_t>(jobs, items.size()); ++t) threads.emplace_back(worker);
+  for (auto& t : threads) t.join();
+
+  for (const auto& item : items) {
+    for (const auto& line : item.summary) fmt::print("{}\n", line);
+  }
+  fmt::print("{} unit(s): {} calibrated, {} failed\n", items.size(), items.size() - failed, failed);
+  for (const auto& item : items) {
+    if (!item.error.empty()) fmt::print("  FAILED {}: {}\n", item.inputs_path, item.error);
+  }
+  if (failed > 0) throw std::runtime_error(fmt::format("calibrate-batch: {} of {} unit(s) failed", failed, items.size()));
+}
+
+}  // namespace
+
+void AddUnitCommand(CLI::App& app) {
+  auto* unit = app.add_subcommand("unit", "Per-unit calibration records for the production line");
+  unit->require_subcommand(1);
+
+  auto* cal = unit->add_subcommand("calibrate",
+                                   "Calibrate one unit, verify it on a reference sphere, write its unit record");
+  auto r = std::make_shared<UnitRequest>();
+  r->config = kDefaultConfig;
+  r->camera = kDefaultCamera;
+  auto images = std::make_shared<std::string>();
+  cal->add_option("--serial", r->serial, "Unit serial number (A-Z a-z 0-9 . _ -)")->required();
+  cal->add_option("--target", r->target, "Target description (Kalibr-style YAML)")->required();
+  cal->add_option("--images", *images, "Target images, a glob(3) pattern (quote it); one image = single view")->required();
+  cal->add_option("--reference-sphere", r->reference_sphere, "Raw spot image of the reference sphere");
+  cal->add_option("--sphere-radius-mm", r->sphere_radius_mm, "Radius of the reference sphere, mm");
+  cal->add_option("--out", r->out, "Unit record directory (e.g. units/SN/)")->required();
+  AddCommonOptions(cal, r.get());
+  cal->callback([r, images] {
+    QuietCeres();
+    UnitRequest request = *r;
+    request.images = Glob(*images);
+    const auto outcome = CalibrateUnit(request, [](const std::string& line) { fmt::print(stderr, "topocal unit: {}\n", line); });
+    for (const auto& line : outcome.summary) fmt::print("{}\n", line);
+  });
+
+  auto* batch = unit->add_subcommand(
+      "calibrate-batch", "Calibrate every unit of a directory (DIR/<unit>/unit-inputs.json), in parallel");
+  auto b = std::make_shared<BatchArgs>();
+  b->defaults.config = kDefaultConfig;
+  b->defaults.camera = kDefaultCamera;
+  batch->add_option("dir", b->dir, "Directory of unit directories")->required();
+  batch->add_option("--out", b->out, "Where the unit records go: OUT/<serial>/")->required();
+  batch->add_option("--jobs", b->jobs, "Units calibrated at once [number of cores]")->check(CLI::Range(1, 256));
+  AddCommonOptions(batch, &b->defaults);
+  batch->callback([b] { RunBatch(*b); });
+}
+
+}  // namespace topocal::tools
