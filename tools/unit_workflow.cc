@@ -183,6 +183,12 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
     throw model::InputError(fmt::format("--uncertainty {}: 0 (none) or at least 2 draws", r.uncertainty_samples));
   }
   if (r.images.empty()) throw model::InputError("--images: no image given");
+  for (const auto& f : r.fixed) {
+    if (std::find(std::begin(calib::kParameterNames), std::end(calib::kParameterNames), f) ==
+        std::end(calib::kParameterNames)) {
+      throw model::InputError(fmt::format("--fix: '{}' is not a camera parameter (fx fy cx cy k1 k2 p1 p2 k3 ex ey)", f));
+    }
+  }
   const fs::path out(r.out);
   if (fs::exists(out) && !fs::exists(out / "unit.json")) {
     throw model::InputError(fmt::format("--out {}: exists and is not a unit record; not overwriting it", r.out));
@@ -235,6 +241,7 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
   calib::CalibrationOptions co;
   co.model = *model_kind;
   co.fit_distortion_centre = r.fit_centre;
+  co.fixed = {r.fixed.begin(), r.fixed.end()};
   co.focal_mm = camera.a_mm;
   co.pixel_pitch_um = camera.pixel_pitch_um;
   co.distance_mm = config.topographer.b_mm;
@@ -370,6 +377,7 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
   record["settings"] = {{"model", r.model},
                         {"single_view", single_view},
                         {"fit_centre", r.fit_centre},
+                        {"fixed", r.fixed},
                         {"sphere_radius_mm", r.sphere_radius_mm},
                         {"uncertainty_samples", r.uncertainty_samples},
                         {"seed", r.seed}};
@@ -460,7 +468,7 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
   }
   if (!j.is_object()) throw model::InputError(fmt::format("{}: expected a JSON object", path));
   static const std::vector<std::string> kKeys = {"serial", "target",           "images",      "reference_sphere",
-                                                 "sphere_radius_mm", "model",  "fit_centre",  "config",
+                                                 "sphere_radius_mm", "model",  "fit_centre",  "fix", "config",
                                                  "camera",  "uncertainty_samples", "seed"};
   for (const auto& [key, value] : j.items()) {
     if (std::find(kKeys.begin(), kKeys.end(), key) == kKeys.end()) {
@@ -496,6 +504,14 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
   if (j.contains("fit_centre")) {
     if (!j["fit_centre"].is_boolean()) throw model::InputError(fmt::format("{}: fit_centre: expected true or false", path));
     r.fit_centre = j["fit_centre"].get<bool>();
+  }
+  if (j.contains("fix")) {
+    if (!j["fix"].is_array()) throw model::InputError(fmt::format("{}: fix: expected a list of parameter names", path));
+    r.fixed.clear();
+    for (const auto& f : j["fix"]) {
+      if (!f.is_string()) throw model::InputError(fmt::format("{}: fix: expected a list of parameter names", path));
+      r.fixed.push_back(f.get<std::string>());
+    }
   }
   if (j.contains("uncertainty_samples")) {
     if (!j["uncertainty_samples"].is_number_integer()) {

@@ -18,6 +18,7 @@ struct UnitRequest {
   double sphere_radius_mm = 0;
   std::string model = "seidel";       // seidel | brown5
   bool fit_centre = false;
+  std::vector<std::string> fixed;     // parameters held at their initial value (calib::kParameterNames)
   int uncertainty_samples = 200;      // Monte Carlo draws; 0 = none
   unsigned seed = 1;
   std::string out;                    // the record directory
