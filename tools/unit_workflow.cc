@@ -402,6 +402,7 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
               {"undistort_failures", sphere->undistort_failures}};
     for (const auto* stage : {&sphere->uncorrected, &sphere->corrected}) {
       json n = Numbers(stage->numbers);
+      n["spots_indexed"] = sphere->spots_indexed;  // both stages use the same detected and indexed spots
       n["radius_error_mm"] = sphere->RadiusErrorMm(*stage);
       n["power_error_D"] = sphere->PowerErrorD(*stage);
       v[stage == &sphere->uncorrected ? "uncorrected" : "corrected"] = n;
