@@ -1,0 +1,510 @@
+#include "pipeline/harness.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <exception>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <random>
+#include <stdexcept>
+#include <thread>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "model/distortion.h"
+#include "model/io.h"
+#include "model/null_screen.h"
+#include "model/version.h"
+#include "topo/analysis.h"
+
+namespace topocal::pipeline {
+namespace {
+
+using nlohmann::json;
+
+constexpr const char* kShardFormat = "topocal-harness-shard";
+constexpr int kShardFormatVersion = 1;
+
+// SplitMix64 (Steele, Lea, Flood 2014): a bijective mixer, so distinct (seed, index) pairs give unrelated streams.
+std::uint64_t SplitMix64(std::uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+// Standard normal pairs by Box-Muller from std::mt19937_64, whose output sequence the C++ standard fixes (unlike
+// std::normal_distribution's algorithm), so a seed gives the same noise with any standard library.
+class NormalPairs {
+ public:
+  explicit NormalPairs(std::uint64_t seed) : engine_(seed) {}
+  Eigen::Vector2d Next() {
+    constexpr double kTwoPi = 6.283185307179586;
+    const double u1 = (static_cast<double>(engine_() >> 11) + 1.0) * 0x1.0p-53;  // (0, 1]
+    const double u2 = static_cast<double>(engine_() >> 11) * 0x1.0p-53;          // [0, 1)
+    const double radius = std::sqrt(-2.0 * std::log(u1));
+    return {radius * std::cos(kTwoPi * u2), radius * std::sin(kTwoPi * u2)};
+  }
+
+ private:
+  std::mt19937_64 engine_;
+};
+
+model::Distortion DistortionOf(const model::Config& design, DistortionFamily family, double coefficient) {
+  if (family == DistortionFamily::kSeidelSigma) {
+    model::SeidelParams s;
+    s.sigma_per_mm2 = coefficient;
+    s.magnification = design.distortion.magnification;
+    s.centre_x_mm = design.distortion.centre_x_mm;
+    s.centre_y_mm = design.distortion.centre_y_mm;
+    return s;
+  }
+  model::BrownParams b;
+  b.focal_mm = design.topographer.a_mm;  // OpenCV's normalised coordinates are x / a (docs/camera-conventions.md)
+  b.centre_x_mm = design.distortion.centre_x_mm;
+  b.centre_y_mm = design.distortion.centre_y_mm;
+  b.k[family == DistortionFamily::kBrownK1 ? model::BrownConrady::kK1 : model::BrownConrady::kK2] = coefficient;
+  return b;
+}
+
+// Largest |P - P_truth| over the samples of the two maps (same layout) within radius_mm.
+double MaxAbsDifference(const std::vector<double>& a, const std::vector<double>& b, const topo::PowerMaps& layout,
+                        double radius_mm) {
+  double worst = 0;
+  for (int j = 0; j < layout.meridians; ++j) {
+    for (int k = 0; k < layout.radial_samples && layout.RhoMm(k) <= radius_mm; ++k) {
+      const size_t i = static_cast<size_t>(j) * layout.radial_samples + k;
+      worst = std::max(worst, std::abs(a[i] - b[i]));
+    }
+  }
+  return worst;
+}
+
+[[noreturn]] void ShardFail(const std::string& origin, const std::string& key, const std::string& problem) {
+  throw model::InputError(fmt::format("{}: {}: {}", origin, key, problem));
+}
+
+const json& Field(const json& j, const std::string& key, const std::string& origin, const std::string& path) {
+  if (!j.is_object() || !j.contains(key)) ShardFail(origin, path + key, "missing");
+  return j.at(key);
+}
+double NumberField(const json& j, const std::string& key, const std::string& origin, const std::string& path) {
+  const json& v = Field(j, key, origin, path);
+  if (!v.is_number() || !std::isfinite(v.get<double>())) ShardFail(origin, path + key, "must be a finite number");
+  return v.get<double>();
+}
+long long IntegerField(const json& j, const std::string& key, const std::string& origin, const std::string& path) {
+  const json& v = Field(j, key, origin, path);
+  if (!v.is_number_integer()) ShardFail(origin, path + key, "must be an integer");
+  return v.get<long long>();
+}
+std::string StringField(const json& j, const std::string& key, const std::string& origin, const std::string& path) {
+  const json& v = Field(j, key, origin, path);
+  if (!v.is_string()) ShardFail(origin, path + key, "must be a string");
+  return v.get<std::string>();
+}
+
+json BiconicJson(const model::BiconicParams& p) {
+  return {{"rx_mm", p.rx_mm}, {"ry_mm", p.ry_mm}, {"kx", p.kx}, {"ky", p.ky}, {"alpha_deg", p.alpha_deg},
+          {"z0_mm", p.z0_mm}};
+}
+
+}  // namespace
+
+double HarnessCaseResult::MaxAbsDk() const { return std::max(std::abs(dk_x), std::abs(dk_y)); }
+double HarnessCaseResult::MaxAbsDP_D(const HarnessLimits& limits) const {
+  return limits.tangential_map ? std::max(dP_axial_max_D, dP_tangential_max_D) : dP_axial_max_D;
+}
+
+ShardSpec ParseShardSpec(const std::string& text) {
+  const auto slash = text.find('/');
+  auto parse = [&](const std::string& part, int* out) {
+    if (part.empty() || part.size() > 9 || !std::all_of(part.begin(), part.end(), ::isdigit)) return false;
+    *out = std::stoi(part);
+    return true;
+  };
+  ShardSpec s;
+  if (slash == std::string::npos || !parse(text.substr(0, slash), &s.index) || !parse(text.substr(slash + 1), &s.count)) {
+    throw model::InputError(fmt::format("--shard: must be i/N with integers 0 <= i < N (got \"{}\")", text));
+  }
+  if (s.count < 1 || s.index >= s.count) {
+    throw model::InputError(fmt::format("--shard: must be i/N with 0 <= i < N and N >= 1 (got \"{}\")", text));
+  }
+  return s;
+}
+
+std::uint64_t HarnessCaseSeed(std::uint64_t config_seed, int index) {
+  return SplitMix64(SplitMix64(config_seed) ^ static_cast<std::uint64_t>(index));
+}
+
+std::vector<HarnessCaseSpec> EnumerateHarnessCases(const HarnessConfig& config) {
+  std::vector<HarnessCaseSpec> cases;
+  int index = 0;
+  for (size_t c = 0; c < config.corneas.size(); ++c) {
+    for (const DistortionFamily family : kDistortionFamilies) {
+      for (const double coefficient : config.Coefficients(family)) {
+        for (const double e : config.calibration_errors) {
+          for (const double noise : config.noise_px) {
+            const int draws = noise > 0 ? config.noise_draws : 1;
+            for (int d = 0; d < draws; ++d) {
+              HarnessCaseSpec s;
+              s.index = index;
+              s.cornea = static_cast<int>(c);
+              s.family = family;
+              s.coefficient = coefficient;
+              s.calibration_error = e;
+              s.noise_px = noise;
+              s.draw = d;
+              s.seed = HarnessCaseSeed(config.seed, index);
+              cases.push_back(s);
+              ++index;
+            }
+          }
+        }
+      }
+    }
+  }
+  return cases;
+}
+
+struct HarnessCaseRunner::CorneaData {
+  model::Config config;                   // the design with this cornea
+  std::vector<model::ImageSpot> spots;    // undistorted, noise-free
+  topo::Analysis truth;
+};
+
+HarnessCaseRunner::HarnessCaseRunner(const HarnessConfig& config) : config_(config) {
+  const auto design = model::DesignNullScreen(config.design.ideal_image, config.design.topographer);
+  if (design.targets.empty()) throw std::runtime_error("harness: no spot of the ideal image reaches the cone");
+  targets_ = std::make_shared<const std::vector<model::TargetPoint>>(design.targets);
+  const Eigen::Vector2d centre(config.design.distortion.centre_x_mm, config.design.distortion.centre_y_mm);
+  for (const auto& cornea : config.corneas) {
+    auto d = std::make_shared<CorneaData>();
+    d->config = config.design;
+    d->config.cornea = cornea.params;
+    d->spots = model::SynthesizeImage(model::Biconic{cornea.params}, model::Topographer{config.design.topographer},
+                                      design.targets)
+                   .spots;
+    std::vector<topo::MeasuredSpot> measured;
+    for (const auto& s : d->spots) measured.push_back({s.id, s.position_mm});
+    try {
+      d->truth = topo::AnalyzeSpots(measured, design.targets, d->config, nullptr);
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(fmt::format("harness: cornea {}: the undistorted truth: {}", cornea.name, e.what()));
+    }
+    HarnessTruth t;
+    t.cornea = cornea.name;
+    t.fit = d->truth.surface_fit.params;
+    t.covered_radius_mm = d->truth.covered_radius_mm;
+    t.spots = static_cast<int>(d->spots.size());
+    for (const auto& s : d->spots) t.spot_field_radius_mm = std::max(t.spot_field_radius_mm, (s.position_mm - centre).norm());
+    t.pv_axial_D = d->truth.power.pv_axial_D;
+    t.pv_tangential_D = d->truth.power.pv_tangential_D;
+    truth_.push_back(t);
+    data_.push_back(std::move(d));
+  }
+}
+
+HarnessCaseResult HarnessCaseRunner::Run(const HarnessCaseSpec& spec) const {
+  HarnessCaseResult r;
+  r.spec = spec;
+  const CorneaData& d = *data_.at(spec.cornea);
+  const model::Distortion truth_distortion = DistortionOf(config_.design, spec.family, spec.coefficient);
+  const model::Distortion estimated =
+      DistortionOf(config_.design, spec.family, spec.coefficient * (1.0 + spec.calibration_error));
+  const double pitch_mm = config_.pixel_pitch_um * 1e-3;
+  NormalPairs noise(spec.seed);
+  std::vector<topo::MeasuredSpot> measured;
+  measured.reserve(d.spots.size());
+  double sum2 = 0;
+  int residual_spots = 0;
+  for (const auto& s : d.spots) {
+    const Eigen::Vector2d distorted = model::Distort(truth_distortion, s.position_mm);
+    // Drawn for every spot (not only those that survive) so a case's noise does not depend on other failures.
+    const Eigen::Vector2d z = spec.noise_px > 0 ? noise.Next() : Eigen::Vector2d::Zero();
+    if (const auto back = model::Undistort(estimated, distorted)) {
+      const double e_mm = (*back - s.position_mm).norm();
+      r.residual_max_um = std::max(r.residual_max_um, e_mm * 1e3);
+      sum2 += e_mm * e_mm;
+      ++residual_spots;
+    }
+    const auto corrected = model::Undistort(estimated, distorted + spec.noise_px * pitch_mm * z);
+    if (!corrected) {
+      ++r.undistort_failures;
+      continue;
+    }
+    measured.push_back({s.id, *corrected});
+  }
+  r.residual_rms_um = residual_spots > 0 ? std::sqrt(sum2 / residual_spots) * 1e3 : 0.0;
+  r.spots_used = static_cast<int>(measured.size());
+  if (residual_spots == 0 || measured.empty()) {
+    r.failure = "no spot could be undistorted with the estimated coefficient";
+    return r;
+  }
+  topo::Analysis a;
+  try {
+    a = topo::AnalyzeSpots(measured, *targets_, d.config, nullptr);
+  } catch (const std::runtime_error& e) {
+    r.failure = e.what();
+    return r;
+  }
+  const auto& fit = a.surface_fit.params;
+  const auto& truth = d.truth.surface_fit.params;
+  r.dk_x = fit.kx - truth.kx;
+  r.dk_y = fit.ky - truth.ky;
+  r.dr_x_mm = fit.rx_mm - truth.rx_mm;
+  r.dr_y_mm = fit.ry_mm - truth.ry_mm;
+  r.compared_radius_mm = std::min({d.truth.covered_radius_mm, a.covered_radius_mm, a.power.radius_mm});
+  r.dP_axial_max_D = MaxAbsDifference(a.power.axial_D, d.truth.power.axial_D, a.power, r.compared_radius_mm);
+  r.dP_tangential_max_D =
+      MaxAbsDifference(a.power.tangential_D, d.truth.power.tangential_D, a.power, r.compared_radius_mm);
+  r.dpv_axial_D = a.power.pv_axial_D - d.truth.power.pv_axial_D;
+  r.dpv_tangential_D = a.power.pv_tangential_D - d.truth.power.pv_tangential_D;
+  const double values[] = {r.dk_x, r.dk_y, r.dr_x_mm, r.dr_y_mm, r.dP_axial_max_D, r.dP_tangential_max_D,
+                           r.dpv_axial_D, r.dpv_tangential_D, r.residual_max_um, r.residual_rms_um};
+  if (!std::all_of(std::begin(values), std::end(values), [](double v) { return std::isfinite(v); })) {
+    r = HarnessCaseResult{};
+    r.spec = spec;
+    r.failure = "a reconstructed value is not finite";
+    return r;
+  }
+  r.ok = true;
+  return r;
+}
+
+HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs) {
+  HarnessRun run;
+  run.config = config;
+  run.config_sha256 = HarnessConfigSha256(config);
+  run.shard = shard;
+  const auto all = EnumerateHarnessCases(config);
+  run.total_cases = static_cast<int>(all.size());
+  std::vector<HarnessCaseSpec> mine;
+  for (const auto& s : all) {
+    if (s.index % shard.count == shard.index) mine.push_back(s);
+  }
+  const HarnessCaseRunner runner(run.config);
+  run.truth = runner.truth();
+  run.cases.resize(mine.size());
+  // Each case writes only its own slot, from its own seed: the results do not depend on the number of threads.
+  std::atomic<size_t> next{0};
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  auto work = [&] {
+    for (size_t i = next++; i < mine.size(); i = next++) {
+      try {
+        run.cases[i] = runner.Run(mine[i]);
+      } catch (...) {
+        const std::lock_guard lock(error_mutex);
+        if (!error) error = std::current_exception();
+      }
+    }
+  };
+  const int threads = std::max(1, std::min<int>(jobs, static_cast<int>(mine.size())));
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+  return run;
+}
+
+std::string HarnessShardFileName(ShardSpec shard) { return fmt::format("shard-{}-of-{}.json", shard.index, shard.count); }
+
+std::string HarnessShardJson(const HarnessRun& run) {
+  json j;
+  j["format"] = kShardFormat;
+  j["format_version"] = kShardFormatVersion;
+  j["topocal_version"] = kVersion;
+  j["config_sha256"] = run.config_sha256;
+  j["config"] = json::parse(CanonicalHarnessJson(run.config));
+  j["shard"] = {{"index", run.shard.index}, {"count", run.shard.count}};
+  j["total_cases"] = run.total_cases;
+  json truth = json::array();
+  for (const auto& t : run.truth) {
+    truth.push_back({{"cornea", t.cornea}, {"fit", BiconicJson(t.fit)}, {"covered_radius_mm", t.covered_radius_mm},
+                     {"spot_field_radius_mm", t.spot_field_radius_mm}, {"spots", t.spots},
+                     {"pv_axial_D", t.pv_axial_D}, {"pv_tangential_D", t.pv_tangential_D}});
+  }
+  j["truth"] = truth;
+  json cases = json::array();
+  for (const auto& c : run.cases) {
+    cases.push_back({{"index", c.spec.index}, {"seed", c.spec.seed}, {"ok", c.ok}, {"failure", c.failure},
+                     {"residual_max_um", c.residual_max_um}, {"residual_rms_um", c.residual_rms_um},
+                     {"spots_used", c.spots_used}, {"undistort_failures", c.undistort_failures},
+                     {"dk_x", c.dk_x}, {"dk_y", c.dk_y}, {"dr_x_mm", c.dr_x_mm}, {"dr_y_mm", c.dr_y_mm},
+                     {"dP_axial_max_D", c.dP_axial_max_D}, {"dP_tangential_max_D", c.dP_tangential_max_D},
+                     {"dpv_axial_D", c.dpv_axial_D}, {"dpv_tangential_D", c.dpv_tangential_D},
+                     {"compared_radius_mm", c.compared_radius_mm}});
+  }
+  j["cases"] = cases;
+  return j.dump(1) + "\n";
+}
+
+HarnessRun ParseHarnessShard(const std::string& text, const std::string& origin) {
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e999
+    throw model::InputError(fmt::format("{}: (file): not valid JSON: {}", origin, e.what()));
+  }
+  if (!j.is_object() || !j.contains("format") || j["format"] != kShardFormat) {
+    ShardFail(origin, "format", fmt::format("not a harness shard (expected \"{}\")", kShardFormat));
+  }
+  if (IntegerField(j, "format_version", origin, "") != kShardFormatVersion) {
+    ShardFail(origin, "format_version", fmt::format("must be {} (written by another topocal version)", kShardFormatVersion));
+  }
+  HarnessRun run;
+  try {
+    run.config = ParseHarnessConfig(Field(j, "config", origin, "").dump(), origin + ": config", "");
+  } catch (const model::ConfigError& e) {
+    throw model::InputError(e.what());
+  }
+  run.config_sha256 = StringField(j, "config_sha256", origin, "");
+  if (run.config_sha256 != HarnessConfigSha256(run.config)) {
+    ShardFail(origin, "config_sha256", "does not match the configuration stored in the shard (file edited?)");
+  }
+  const json& shard = Field(j, "shard", origin, "");
+  run.shard.index = static_cast<int>(IntegerField(shard, "index", origin, "shard."));
+  run.shard.count = static_cast<int>(IntegerField(shard, "count", origin, "shard."));
+  if (run.shard.count < 1 || run.shard.index < 0 || run.shard.index >= run.shard.count) {
+    ShardFail(origin, "shard", fmt::format("{}/{} is not a shard i/N with 0 <= i < N", run.shard.index, run.shard.count));
+  }
+  const auto all = EnumerateHarnessCases(run.config);
+  run.total_cases = static_cast<int>(IntegerField(j, "total_cases", origin, ""));
+  if (run.total_cases != static_cast<int>(all.size())) {
+    ShardFail(origin, "total_cases", fmt::format("{} but the configuration has {} cases", run.total_cases, all.size()));
+  }
+  const json& truth = Field(j, "truth", origin, "");
+  if (!truth.is_array() || truth.size() != run.config.corneas.size()) {
+    ShardFail(origin, "truth", "must hold one entry per cornea");
+  }
+  for (size_t i = 0; i < truth.size(); ++i) {
+    const std::string p = fmt::format("truth[{}].", i);
+    HarnessTruth t;
+    t.cornea = StringField(truth[i], "cornea", origin, p);
+    const json& fit = Field(truth[i], "fit", origin, p);
+    t.fit.rx_mm = NumberField(fit, "rx_mm", origin, p + "fit.");
+    t.fit.ry_mm = NumberField(fit, "ry_mm", origin, p + "fit.");
+    t.fit.kx = NumberField(fit, "kx", origin, p + "fit.");
+    t.fit.ky = NumberField(fit, "ky", origin, p + "fit.");
+    t.fit.alpha_deg = NumberField(fit, "alpha_deg", origin, p + "fit.");
+    t.fit.z0_mm = NumberField(fit, "z0_mm", origin, p + "fit.");
+    t.covered_radius_mm = NumberField(truth[i], "covered_radius_mm", origin, p);
+    t.spot_field_radius_mm = NumberField(truth[i], "spot_field_radius_mm", origin, p);
+    t.spots = static_cast<int>(IntegerField(truth[i], "spots", origin, p));
+    t.pv_axial_D = NumberField(truth[i], "pv_axial_D", origin, p);
+    t.pv_tangential_D = NumberField(truth[i], "pv_tangential_D", origin, p);
+    run.truth.push_back(t);
+  }
+  const json& cases = Field(j, "cases", origin, "");
+  if (!cases.is_array()) ShardFail(origin, "cases", "must be a list");
+  int previous = -1;
+  for (size_t i = 0; i < cases.size(); ++i) {
+    const json& c = cases[i];
+    const std::string p = fmt::format("cases[{}].", i);
+    HarnessCaseResult r;
+    const long long index = IntegerField(c, "index", origin, p);
+    if (index < 0 || index >= run.total_cases || index % run.shard.count != run.shard.index || index <= previous) {
+      ShardFail(origin, p + "index",
+                fmt::format("{} does not belong to shard {}/{} in increasing order", index, run.shard.index,
+                            run.shard.count));
+    }
+    previous = static_cast<int>(index);
+    r.spec = all[static_cast<size_t>(index)];
+    const json& seed = Field(c, "seed", origin, p);
+    if (!seed.is_number_unsigned() || seed.get<std::uint64_t>() != r.spec.seed) {
+      ShardFail(origin, p + "seed", "does not match the seed of the case (another seeding scheme?)");
+    }
+    const json& ok = Field(c, "ok", origin, p);
+    if (!ok.is_boolean()) ShardFail(origin, p + "ok", "must be true or false");
+    r.ok = ok.get<bool>();
+    r.failure = StringField(c, "failure", origin, p);
+    r.residual_max_um = NumberField(c, "residual_max_um", origin, p);
+    r.residual_rms_um = NumberField(c, "residual_rms_um", origin, p);
+    r.spots_used = static_cast<int>(IntegerField(c, "spots_used", origin, p));
+    r.undistort_failures = static_cast<int>(IntegerField(c, "undistort_failures", origin, p));
+    r.dk_x = NumberField(c, "dk_x", origin, p);
+    r.dk_y = NumberField(c, "dk_y", origin, p);
+    r.dr_x_mm = NumberField(c, "dr_x_mm", origin, p);
+    r.dr_y_mm = NumberField(c, "dr_y_mm", origin, p);
+    r.dP_axial_max_D = NumberField(c, "dP_axial_max_D", origin, p);
+    r.dP_tangential_max_D = NumberField(c, "dP_tangential_max_D", origin, p);
+    r.dpv_axial_D = NumberField(c, "dpv_axial_D", origin, p);
+    r.dpv_tangential_D = NumberField(c, "dpv_tangential_D", origin, p);
+    r.compared_radius_mm = NumberField(c, "compared_radius_mm", origin, p);
+    run.cases.push_back(r);
+  }
+  int expected = 0;
+  for (int k = run.shard.index; k < run.total_cases; k += run.shard.count) ++expected;
+  if (static_cast<int>(run.cases.size()) != expected) {
+    ShardFail(origin, "cases",
+              fmt::format("{} cases but shard {}/{} has {} (incomplete shard)", run.cases.size(), run.shard.index,
+                          run.shard.count, expected));
+  }
+  return run;
+}
+
+HarnessRun MergeHarnessShards(const std::vector<HarnessRun>& shards, const std::vector<std::string>& origins) {
+  if (shards.empty()) throw model::InputError("harness merge: no shard given");
+  const HarnessRun& first = shards.front();
+  std::map<int, size_t> by_index;
+  for (size_t i = 0; i < shards.size(); ++i) {
+    const HarnessRun& s = shards[i];
+    if (s.config_sha256 != first.config_sha256) {
+      throw model::InputError(fmt::format("{}: config_sha256: {} differs from {} in {} (shards of another "
+                                          "configuration)",
+                                          origins[i], s.config_sha256, first.config_sha256, origins[0]));
+    }
+    if (s.shard.count != first.shard.count) {
+      throw model::InputError(fmt::format("{}: shard: split into {} shards but {} is split into {}", origins[i],
+                                          s.shard.count, origins[0], first.shard.count));
+    }
+    const auto [it, inserted] = by_index.emplace(s.shard.index, i);
+    if (!inserted) {
+      throw model::InputError(fmt::format("{}: shard: {}/{} is given twice (also {})", origins[i], s.shard.index,
+                                          s.shard.count, origins[it->second]));
+    }
+    for (size_t c = 0; c < s.truth.size(); ++c) {
+      const auto& a = s.truth[c];
+      const auto& b = first.truth[c];
+      if (a.fit.kx != b.fit.kx || a.fit.ky != b.fit.ky || a.fit.rx_mm != b.fit.rx_mm || a.fit.ry_mm != b.fit.ry_mm ||
+          a.covered_radius_mm != b.covered_radius_mm) {
+        throw model::InputError(fmt::format("{}: truth[{}]: differs from {} (shards computed by different builds)",
+                                            origins[i], c, origins[0]));
+      }
+    }
+  }
+  for (int k = 0; k < first.shard.count; ++k) {
+    if (!by_index.count(k)) {
+      throw model::InputError(fmt::format("harness merge: shard {}/{} is missing", k, first.shard.count));
+    }
+  }
+  HarnessRun merged;
+  merged.config = first.config;
+  merged.config_sha256 = first.config_sha256;
+  merged.shard = ShardSpec{0, 1};
+  merged.total_cases = first.total_cases;
+  merged.truth = first.truth;
+  merged.cases.resize(static_cast<size_t>(merged.total_cases));
+  std::vector<bool> filled(merged.cases.size(), false);
+  for (const auto& s : shards) {
+    for (const auto& c : s.cases) {
+      const auto i = static_cast<size_t>(c.spec.index);
+      if (i >= filled.size() || filled[i]) {
+        throw model::InputError(fmt::format("harness merge: case {} is given twice", c.spec.index));
+      }
+      filled[i] = true;
+      merged.cases[i] = c;
+    }
+  }
+  for (size_t i = 0; i < filled.size(); ++i) {
+    if (!filled[i]) throw model::InputError(fmt::format("harness merge: case {} is missing", i));
+  }
+  return merged;
+}
+
+}  // namespace topocal::pipeline

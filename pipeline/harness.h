@@ -1,0 +1,123 @@
+#pragma once
+// The residual-distortion harness (issue 7 item 4, docs/harness.md): how much residual distortion a topographer
+// design tolerates.
+//
+// A case is one cornea x one true distortion (one coefficient of one family) x one relative calibration error e x
+// one spot-position noise level x one seeded draw. For each case:
+//   true spots (undistorted, noise-free) --Distort(true)--> + Gaussian noise (px x pitch, per axis)
+//     --Undistort(estimated = true coefficient x (1 + e))--> reconstruction, biconic fit, power maps
+// and the result is compared with the reconstruction of the undistorted, noise-free spots of the same cornea (the
+// "truth reconstruction": what a perfect camera gives, so that the model error of the reconstruction itself is not
+// charged to the distortion). The residual distortion of a case is Undistort(est, Distort(true, p)) - p over the
+// noise-free spot field: e = 0 leaves none, e = -1 (no correction) leaves the whole distortion.
+//
+// Cases are enumerated in a fixed order (cornea, family, coefficient, calibration error, noise level, draw) with a
+// global index; the noise of a case is drawn from a generator seeded by (config seed, case index) only, so any
+// split into shards (index % N == i) merges into exactly the cases of a single run.
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "model/config.h"
+#include "model/null_screen.h"
+#include "pipeline/harness_config.h"
+
+namespace topocal::pipeline {
+
+struct HarnessCaseSpec {
+  int index = 0;
+  int cornea = 0;  // into HarnessConfig::corneas
+  DistortionFamily family = DistortionFamily::kSeidelSigma;
+  double coefficient = 0;        // true value, in the family's unit
+  double calibration_error = 0;  // e: the correction uses coefficient x (1 + e)
+  double noise_px = 0;
+  int draw = 0;                  // 0..noise_draws-1 (always 0 when noise_px = 0)
+  std::uint64_t seed = 0;        // of this case's noise generator: from (config seed, index) only
+};
+
+struct HarnessCaseResult {
+  HarnessCaseSpec spec;
+  bool ok = false;              // false: the reconstruction or fit failed (counts as outside the limits)
+  std::string failure;          // why, when !ok
+  // Residual distortion over the noise-free spot field, on the detection plane.
+  double residual_max_um = 0;
+  double residual_rms_um = 0;
+  int spots_used = 0;           // spots reconstructed
+  int undistort_failures = 0;   // spots the estimated model could not undistort (dropped)
+  // Errors against the truth reconstruction of the same cornea (all zero when !ok).
+  double dk_x = 0, dk_y = 0;
+  double dr_x_mm = 0, dr_y_mm = 0;
+  double dP_axial_max_D = 0;        // max |P - P_truth| over the compared disc
+  double dP_tangential_max_D = 0;
+  double dpv_axial_D = 0;           // pv(P) - pv(P_truth) over the whole map disc (paper Table VII's measure)
+  double dpv_tangential_D = 0;
+  double compared_radius_mm = 0;    // radius of the compared disc: where both reconstructions have points
+
+  double MaxAbsDk() const;
+  double MaxAbsDP_D(const HarnessLimits& limits) const;  // the maps the limits name
+};
+
+// The truth reconstruction of one cornea.
+struct HarnessTruth {
+  std::string cornea;
+  model::BiconicParams fit;         // biconic fitted to the truth reconstruction
+  double covered_radius_mm = 0;
+  double spot_field_radius_mm = 0;  // largest distance of an undistorted spot from the distortion centre
+  int spots = 0;
+  double pv_axial_D = 0, pv_tangential_D = 0;
+};
+
+struct ShardSpec {
+  int index = 0;
+  int count = 1;
+};
+// "i/N" with 0 <= i < N; throws model::InputError ("--shard: ...") otherwise.
+ShardSpec ParseShardSpec(const std::string& text);
+
+// Every case of the configuration in the fixed global order.
+std::vector<HarnessCaseSpec> EnumerateHarnessCases(const HarnessConfig& config);
+// The seed of case `index`: SplitMix64 of (config seed, index).
+std::uint64_t HarnessCaseSeed(std::uint64_t config_seed, int index);
+
+// The cases of one shard (or of all: shard 0/1) and the truth reconstructions.
+struct HarnessRun {
+  HarnessConfig config;
+  std::string config_sha256;
+  ShardSpec shard;
+  int total_cases = 0;
+  std::vector<HarnessTruth> truth;           // one per cornea
+  std::vector<HarnessCaseResult> cases;      // sorted by index
+};
+
+// Runs the shard's cases on `jobs` threads (results do not depend on jobs). Throws std::runtime_error when a truth
+// reconstruction fails (the design cannot reconstruct that cornea at all).
+HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs = 1);
+
+// Runs one case against its truth (exposed for tests and the benchmark).
+class HarnessCaseRunner {
+ public:
+  explicit HarnessCaseRunner(const HarnessConfig& config);  // designs the screen, reconstructs every truth
+  HarnessCaseResult Run(const HarnessCaseSpec& spec) const;
+  const std::vector<HarnessTruth>& truth() const { return truth_; }
+
+ private:
+  struct CorneaData;
+  const HarnessConfig& config_;
+  std::shared_ptr<const std::vector<model::TargetPoint>> targets_;
+  std::vector<HarnessTruth> truth_;
+  std::vector<std::shared_ptr<const CorneaData>> data_;
+};
+
+// A shard as a JSON file and back. Reading checks the format and every field; throws model::InputError naming the
+// file and key.
+std::string HarnessShardJson(const HarnessRun& run);
+HarnessRun ParseHarnessShard(const std::string& json_text, const std::string& origin);
+// The file name a shard is written under: "shard-<i>-of-<N>.json".
+std::string HarnessShardFileName(ShardSpec shard);
+
+// Combines shards into the run of all cases. Throws model::InputError when the shards come from different
+// configurations or tool versions, when one is missing or given twice, or when a case is missing or duplicated.
+HarnessRun MergeHarnessShards(const std::vector<HarnessRun>& shards, const std::vector<std::string>& origins);
+
+}  // namespace topocal::pipeline

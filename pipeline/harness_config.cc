@@ -1,0 +1,339 @@
+#include "pipeline/harness_config.h"
+
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <set>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "model/io.h"
+#include "model/sha256.h"
+
+namespace topocal::pipeline {
+namespace {
+
+using nlohmann::json;
+
+// A sweep larger than this is a configuration mistake, not a plan: 1e7 cases are ~1 CPU-day at ~10 ms a case.
+constexpr double kMaxCases = 1e7;
+
+// Strict reader of one JSON object (the same discipline as model/config.cc): every key must be read, types and
+// ranges are checked, and every failure is one line naming the file and the key.
+class Reader {
+ public:
+  Reader(const json& j, std::string origin, std::string prefix)
+      : j_(j), origin_(std::move(origin)), prefix_(std::move(prefix)) {
+    if (!j_.is_object()) Fail(prefix_.empty() ? "(top level)" : prefix_, "must be a JSON object");
+  }
+  [[noreturn]] void Fail(const std::string& key, const std::string& problem) const {
+    throw model::ConfigError(fmt::format("{}: {}: {}", origin_, key, problem));
+  }
+  std::string Key(const std::string& k) const { return prefix_.empty() ? k : prefix_ + "." + k; }
+  bool Has(const std::string& k) const { return j_.contains(k); }
+  const json& Get(const std::string& k) {
+    seen_.insert(k);
+    if (!j_.contains(k)) Fail(Key(k), "missing");
+    return j_.at(k);
+  }
+  double Number(const std::string& k) {
+    const json& v = Get(k);
+    if (!v.is_number()) Fail(Key(k), fmt::format("must be a number (got {})", v.dump()));
+    const double d = v.get<double>();
+    if (!std::isfinite(d)) Fail(Key(k), "must be finite");
+    return d;
+  }
+  double Number(const std::string& k, double fallback) { return Has(k) ? Number(k) : fallback; }
+  double PositiveNumber(const std::string& k, double fallback) {
+    const double v = Number(k, fallback);
+    if (!(v > 0)) Fail(Key(k), fmt::format("must be > 0 (got {})", v));
+    return v;
+  }
+  std::string String(const std::string& k) {
+    const json& v = Get(k);
+    if (!v.is_string()) Fail(Key(k), fmt::format("must be a string (got {})", v.dump()));
+    return v.get<std::string>();
+  }
+  void RejectUnknown() const {
+    for (auto it = j_.begin(); it != j_.end(); ++it) {
+      if (!seen_.count(it.key())) Fail(Key(it.key()), "unknown key");
+    }
+  }
+  const std::string& origin() const { return origin_; }
+
+ private:
+  const json& j_;
+  std::string origin_;
+  std::string prefix_;
+  std::set<std::string> seen_;
+};
+
+// A list of values: explicit, or a range object (see harness_config.h).
+std::vector<double> ParseValues(Reader& parent, const std::string& k) {
+  const json& v = parent.Get(k);
+  const std::string key = parent.Key(k);
+  std::vector<double> out;
+  if (v.is_array()) {
+    if (v.empty()) parent.Fail(key, "must not be empty (give at least one value)");
+    for (size_t i = 0; i < v.size(); ++i) {
+      if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) {
+        parent.Fail(fmt::format("{}[{}]", key, i), fmt::format("must be a finite number (got {})", v[i].dump()));
+      }
+      out.push_back(v[i].get<double>());
+    }
+    return out;
+  }
+  if (!v.is_object()) {
+    parent.Fail(key, fmt::format("must be a list of numbers or a range {{\"from\", \"to\", \"count\", \"spacing\"}} "
+                                 "(got {})", v.dump()));
+  }
+  Reader r(v, parent.origin(), key);
+  const double from = r.Number("from");
+  const double to = r.Number("to");
+  const json& count_json = r.Get("count");
+  if (!count_json.is_number_integer()) r.Fail(r.Key("count"), fmt::format("must be an integer (got {})", count_json.dump()));
+  const long long count = count_json.get<long long>();
+  const std::string spacing = r.Has("spacing") ? r.String("spacing") : "linear";
+  bool both_signs = false;
+  if (r.Has("both_signs")) {
+    const json& b = r.Get("both_signs");
+    if (!b.is_boolean()) r.Fail(r.Key("both_signs"), fmt::format("must be true or false (got {})", b.dump()));
+    both_signs = b.get<bool>();
+  }
+  r.RejectUnknown();
+  if (count < 1) r.Fail(r.Key("count"), fmt::format("must be >= 1 (got {})", count));
+  if (count > kMaxCases) r.Fail(r.Key("count"), fmt::format("must be <= {:.0f} (got {})", kMaxCases, count));
+  if (from > to) r.Fail(r.Key("from"), fmt::format("must not exceed to (got from {} > to {})", from, to));
+  if (count == 1 && from != to) r.Fail(r.Key("count"), fmt::format("1 value needs from == to (got {} and {})", from, to));
+  if (spacing != "log" && spacing != "linear") {
+    r.Fail(r.Key("spacing"), fmt::format("must be \"log\" or \"linear\" (got \"{}\")", spacing));
+  }
+  if (spacing == "log" && !(from > 0)) {
+    r.Fail(r.Key("from"), fmt::format("a log range needs 0 < from (got {}); use both_signs for negative values", from));
+  }
+  std::vector<double> positive;
+  for (long long i = 0; i < count; ++i) {
+    const double t = count == 1 ? 0.0 : static_cast<double>(i) / static_cast<double>(count - 1);
+    double value = spacing == "log" ? from * std::pow(to / from, t) : from + (to - from) * t;
+    if (i == count - 1) value = to;  // the stated end exactly, not pow's rounding of it
+    positive.push_back(value);
+  }
+  if (!both_signs) return positive;
+  for (auto it = positive.rbegin(); it != positive.rend(); ++it) {
+    if (*it != 0) out.push_back(-*it);
+  }
+  out.insert(out.end(), positive.begin(), positive.end());
+  return out;
+}
+
+bool ValidName(const std::string& name) {
+  if (name.empty() || name.size() > 64) return false;
+  for (const char c : name) {
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')) return false;
+  }
+  return true;
+}
+
+// The design with another cornea, validated by model::ParseConfig (the cornea must be defined where rays land).
+model::Config WithCornea(const model::Config& design, const model::BiconicParams& cornea, const std::string& origin) {
+  model::Config c = design;
+  c.cornea = cornea;
+  model::Config checked = model::ParseConfig(model::ConfigToJson(c), origin);
+  return checked;
+}
+
+model::Config ParseDesign(Reader& top, const std::string& base_dir) {
+  const json& d = top.Get("design");
+  const std::string origin = fmt::format("{}: design", top.origin());
+  if (d.is_object()) return model::ParseConfig(d.dump(), origin);
+  if (!d.is_string()) top.Fail("design", fmt::format("must be a configuration file path or object (got {})", d.dump()));
+  std::filesystem::path path(d.get<std::string>());
+  if (path.is_relative() && !base_dir.empty()) path = std::filesystem::path(base_dir) / path;
+  try {
+    model::Config c = model::LoadConfig(path.string());
+    c.path = origin;
+    return c;
+  } catch (const model::ConfigError& e) {
+    throw model::ConfigError(fmt::format("{}: {}", origin, e.what()));
+  }
+}
+
+std::vector<HarnessCornea> ParseCorneas(Reader& top, const model::Config& design) {
+  std::vector<HarnessCornea> out;
+  if (!top.Has("corneas")) {
+    out.push_back({"design", design.cornea});
+    return out;
+  }
+  const json& list = top.Get("corneas");
+  if (!list.is_array()) top.Fail("corneas", fmt::format("must be a list of biconics (got {})", list.dump()));
+  if (list.empty()) top.Fail("corneas", "must not be empty (leave it out for the design's own cornea)");
+  std::set<std::string> names;
+  for (size_t i = 0; i < list.size(); ++i) {
+    const std::string key = fmt::format("corneas[{}]", i);
+    if (list[i].is_string() && list[i].get<std::string>() == "design") {
+      out.push_back({"design", design.cornea});
+    } else {
+      Reader r(list[i], top.origin(), key);
+      HarnessCornea c;
+      c.name = r.Has("name") ? r.String("name") : fmt::format("cornea{}", i + 1);
+      c.params.rx_mm = r.Number("rx_mm");
+      c.params.ry_mm = r.Number("ry_mm");
+      c.params.kx = r.Number("kx");
+      c.params.ky = r.Number("ky");
+      c.params.alpha_deg = r.Number("alpha_deg");
+      c.params.x0_mm = r.Number("x0_mm", 0.0);
+      c.params.y0_mm = r.Number("y0_mm", 0.0);
+      c.params.z0_mm = r.Number("z0_mm", 0.0);
+      r.RejectUnknown();
+      if (!ValidName(c.name)) {
+        r.Fail(r.Key("name"), fmt::format("must be 1-64 characters of A-Z a-z 0-9 _ - . (got \"{}\")", c.name));
+      }
+      c.params = WithCornea(design, c.params, fmt::format("{}: {}", top.origin(), key)).cornea;
+      out.push_back(c);
+    }
+    if (!names.insert(out.back().name).second) {
+      top.Fail(key, fmt::format("the name \"{}\" is used twice", out.back().name));
+    }
+  }
+  return out;
+}
+
+json ValuesJson(const std::vector<double>& v) { return json(v); }
+
+}  // namespace
+
+const char* DistortionFamilyName(DistortionFamily family) {
+  switch (family) {
+    case DistortionFamily::kSeidelSigma: return "seidel_sigma_per_mm2";
+    case DistortionFamily::kBrownK1: return "brown_k1";
+    case DistortionFamily::kBrownK2: return "brown_k2";
+  }
+  return "?";
+}
+
+const std::vector<double>& HarnessConfig::Coefficients(DistortionFamily family) const {
+  switch (family) {
+    case DistortionFamily::kSeidelSigma: return seidel_sigma_per_mm2;
+    case DistortionFamily::kBrownK1: return brown_k1;
+    case DistortionFamily::kBrownK2: return brown_k2;
+  }
+  return seidel_sigma_per_mm2;
+}
+
+std::vector<double>& HarnessConfig::Coefficients(DistortionFamily family) {
+  return const_cast<std::vector<double>&>(static_cast<const HarnessConfig&>(*this).Coefficients(family));
+}
+
+HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string& origin, const std::string& base_dir) {
+  json j;
+  try {
+    j = json::parse(json_text);
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e999
+    throw model::ConfigError(fmt::format("{}: (file): not valid JSON: {}", origin, e.what()));
+  }
+  HarnessConfig h;
+  Reader top(j, origin, "");
+  if (top.Has("description")) top.String("description");  // free text for the reader; not part of the identity
+  h.design = ParseDesign(top, base_dir);
+  h.pixel_pitch_um = top.PositiveNumber("pixel_pitch_um", h.pixel_pitch_um);
+  if (top.Has("seed")) {
+    const json& s = top.Get("seed");
+    if (!s.is_number_unsigned()) top.Fail("seed", fmt::format("must be a non-negative integer (got {})", s.dump()));
+    h.seed = s.get<std::uint64_t>();
+  }
+  {
+    Reader d(top.Get("distortion"), origin, "distortion");
+    for (const DistortionFamily f : kDistortionFamilies) {
+      const std::string name = DistortionFamilyName(f);
+      if (!d.Has(name)) continue;
+      h.Coefficients(f) = ParseValues(d, name);
+    }
+    d.RejectUnknown();
+    if (h.seidel_sigma_per_mm2.empty() && h.brown_k1.empty() && h.brown_k2.empty()) {
+      top.Fail("distortion", "must give at least one of seidel_sigma_per_mm2, brown_k1, brown_k2");
+    }
+  }
+  h.corneas = ParseCorneas(top, h.design);
+  h.noise_px = ParseValues(top, "noise_px");
+  for (size_t i = 0; i < h.noise_px.size(); ++i) {
+    if (h.noise_px[i] < 0) top.Fail(fmt::format("noise_px[{}]", i), fmt::format("must be >= 0 px (got {})", h.noise_px[i]));
+  }
+  if (top.Has("noise_draws")) {
+    const json& n = top.Get("noise_draws");
+    if (!n.is_number_integer()) top.Fail("noise_draws", fmt::format("must be an integer (got {})", n.dump()));
+    const long long draws = n.get<long long>();
+    if (draws < 1 || draws > kMaxCases) top.Fail("noise_draws", fmt::format("must lie in [1, {:.0f}] (got {})", kMaxCases, draws));
+    h.noise_draws = static_cast<int>(draws);
+  }
+  h.calibration_errors = ParseValues(top, "calibration_errors");
+  for (size_t i = 0; i < h.calibration_errors.size(); ++i) {
+    if (h.calibration_errors[i] < -1) {
+      top.Fail(fmt::format("calibration_errors[{}]", i),
+               fmt::format("must be >= -1 (-1: no correction; got {})", h.calibration_errors[i]));
+    }
+  }
+  {
+    Reader l(top.Get("limits"), origin, "limits");
+    h.limits.dk = l.PositiveNumber("dk", h.limits.dk);
+    h.limits.dP_D = l.PositiveNumber("dP_D", h.limits.dP_D);
+    if (l.Has("dP_maps")) {
+      const std::string maps = l.String("dP_maps");
+      if (maps != "axial+tangential" && maps != "axial") {
+        l.Fail(l.Key("dP_maps"), fmt::format("must be \"axial+tangential\" or \"axial\" (got \"{}\")", maps));
+      }
+      h.limits.tangential_map = maps == "axial+tangential";
+    }
+    l.RejectUnknown();
+  }
+  top.RejectUnknown();
+
+  double noise_cases = 0;
+  for (const double n : h.noise_px) noise_cases += n > 0 ? h.noise_draws : 1;
+  const double distortions = static_cast<double>(h.seidel_sigma_per_mm2.size() + h.brown_k1.size() + h.brown_k2.size());
+  const double cases = distortions * static_cast<double>(h.corneas.size()) *
+                       static_cast<double>(h.calibration_errors.size()) * noise_cases;
+  if (cases > kMaxCases) {
+    top.Fail("(top level)", fmt::format("{:.0f} cases: more than the {:.0f} a sweep may hold", cases, kMaxCases));
+  }
+  return h;
+}
+
+HarnessConfig LoadHarnessConfig(const std::string& path) {
+  std::string text;
+  try {
+    text = model::ReadFile(path);
+  } catch (const model::InputError&) {
+    throw model::ConfigError(fmt::format("{}: (file): cannot be opened for reading", path));
+  }
+  return ParseHarnessConfig(text, path, std::filesystem::path(path).parent_path().string());
+}
+
+std::string CanonicalHarnessJson(const HarnessConfig& h) {
+  json j;
+  j["design"] = json::parse(model::ConfigToJson(h.design));
+  j["pixel_pitch_um"] = h.pixel_pitch_um;
+  j["seed"] = h.seed;
+  json d = json::object();
+  for (const DistortionFamily f : kDistortionFamilies) {
+    if (!h.Coefficients(f).empty()) d[DistortionFamilyName(f)] = ValuesJson(h.Coefficients(f));
+  }
+  j["distortion"] = d;
+  json corneas = json::array();
+  for (const auto& c : h.corneas) {
+    corneas.push_back({{"name", c.name}, {"rx_mm", c.params.rx_mm}, {"ry_mm", c.params.ry_mm}, {"kx", c.params.kx},
+                       {"ky", c.params.ky}, {"alpha_deg", c.params.alpha_deg}, {"x0_mm", c.params.x0_mm},
+                       {"y0_mm", c.params.y0_mm}, {"z0_mm", c.params.z0_mm}});
+  }
+  j["corneas"] = corneas;
+  j["noise_px"] = ValuesJson(h.noise_px);
+  j["noise_draws"] = h.noise_draws;
+  j["calibration_errors"] = ValuesJson(h.calibration_errors);
+  j["limits"] = {{"dk", h.limits.dk}, {"dP_D", h.limits.dP_D},
+                 {"dP_maps", h.limits.tangential_map ? "axial+tangential" : "axial"}};
+  return j.dump();
+}
+
+std::string HarnessConfigSha256(const HarnessConfig& config) { return model::Sha256Hex(CanonicalHarnessJson(config)); }
+
+}  // namespace topocal::pipeline

@@ -1,0 +1,266 @@
+// The residual-distortion harness: configuration parsing and its refusals, the physics of one case against the
+// paper's sweep, deterministic sharding (merged shards == single run, byte for byte) and the inverse answer.
+#include "pipeline/harness.h"
+
+#include <cmath>
+#include <string>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include "model/io.h"
+#include "pipeline/harness_answer.h"
+#include "pipeline/harness_config.h"
+#include "pipeline/harness_report.h"
+#include "pipeline/svg_plot.h"
+#include "topo/sweep.h"
+
+namespace {
+
+using namespace topocal;
+using pipeline::DistortionFamily;
+
+const std::string kPaper = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
+
+// Two identical spot sets reconstruct identically up to the solvers' own convergence: the iterative
+// reconstruction stops when no point moves more than 1e-4 um, which moves k by ~1e-7; 1e-6 leaves a decade.
+constexpr double kSameSpotsDk = 1e-6;
+constexpr double kSameSpotsDP_D = 1e-4;  // the same convergence in power: ~1e-5 D
+// The e = -1 (uncorrected) case is the sweep's row of the same sigma: the same spots through the same code.
+constexpr double kSameComputation = 1e-12;
+
+std::string SmallConfig(const std::string& extra = "") {
+  return fmt::format(R"({{"design": "{}", "seed": 7,
+    "distortion": {{"seidel_sigma_per_mm2": [6.3e-5], "brown_k2": [300]}},
+    "noise_px": [0, 0.1], "noise_draws": 2, "calibration_errors": [-1, 0, 0.1],
+    "limits": {{"dk": 0.05, "dP_D": 0.25}}{}}})",
+                     kPaper, extra);
+}
+
+pipeline::HarnessConfig Parse(const std::string& text) { return pipeline::ParseHarnessConfig(text, "H.json", ""); }
+
+// The message of the ConfigError that parsing `text` throws ("" if it does not throw).
+std::string Refusal(const std::string& text) {
+  try {
+    Parse(text);
+  } catch (const model::ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::string Replace(std::string s, const std::string& from, const std::string& to) {
+  const auto at = s.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) s.replace(at, from.size(), to);
+  return s;
+}
+
+TEST(HarnessConfig, RangesExpandAndTheCanonicalFormRoundTrips) {
+  const auto h = Parse(Replace(SmallConfig(), "[6.3e-5]",
+                               R"({"from": 1e-6, "to": 1e-4, "count": 3, "spacing": "log", "both_signs": true})"));
+  ASSERT_EQ(h.seidel_sigma_per_mm2.size(), 6u);
+  EXPECT_DOUBLE_EQ(h.seidel_sigma_per_mm2[0], -1e-4);
+  EXPECT_DOUBLE_EQ(h.seidel_sigma_per_mm2[1], -1e-5);
+  EXPECT_DOUBLE_EQ(h.seidel_sigma_per_mm2[3], 1e-6);
+  EXPECT_EQ(h.seidel_sigma_per_mm2[5], 1e-4);  // the stated end exactly
+  ASSERT_EQ(h.corneas.size(), 1u);
+  EXPECT_EQ(h.corneas[0].name, "design");
+  const std::string canonical = pipeline::CanonicalHarnessJson(h);
+  const auto again = Parse(canonical);
+  EXPECT_EQ(pipeline::CanonicalHarnessJson(again), canonical);
+  EXPECT_EQ(pipeline::HarnessConfigSha256(again).size(), 64u);
+}
+
+TEST(HarnessConfig, RefusesEveryInvalidRangeNamingTheKey) {
+  const std::string ok = SmallConfig();
+  ASSERT_EQ(Refusal(ok), "");
+  const struct {
+    std::string from, to, key;
+  } cases[] = {
+      {"[0, 0.1]", "[]", "noise_px"},
+      {"[0, 0.1]", "[0, -0.1]", "noise_px[1]"},
+      {"[0, 0.1]", "[0, \"x\"]", "noise_px[1]"},
+      {"[-1, 0, 0.1]", "[-1.5]", "calibration_errors[0]"},
+      {"[6.3e-5]", R"({"from": 2, "to": 1, "count": 3})", "distortion.seidel_sigma_per_mm2.from"},
+      {"[6.3e-5]", R"({"from": 1, "to": 2, "count": 0})", "distortion.seidel_sigma_per_mm2.count"},
+      {"[6.3e-5]", R"({"from": 0, "to": 2, "count": 3, "spacing": "log"})", "distortion.seidel_sigma_per_mm2.from"},
+      {"[6.3e-5]", R"({"from": 1, "to": 2, "count": 3, "step": 1})", "distortion.seidel_sigma_per_mm2.step"},
+      {"\"noise_draws\": 2", "\"noise_draws\": 0", "noise_draws"},
+      {"\"dk\": 0.05", "\"dk\": -1", "limits.dk"},
+      {"\"seed\": 7", "\"seed\": 7, \"sed\": 1", "sed"},
+      {"\"brown_k2\": [300]", "\"brown_k3\": [300]", "distortion.brown_k3"},
+  };
+  for (const auto& c : cases) {
+    const std::string why = Refusal(Replace(ok, c.from, c.to));
+    EXPECT_NE(why.find("H.json: " + c.key + ":"), std::string::npos) << c.to << " -> " << why;
+    EXPECT_EQ(why.find('\n'), std::string::npos) << why;
+  }
+  // A cornea the design's rays cannot image, and a duplicated name.
+  EXPECT_NE(Refusal(SmallConfig(R"(, "corneas": [{"rx_mm": 7, "ry_mm": 7, "kx": 40, "ky": 40, "alpha_deg": 0}])"))
+                .find("corneas[0]"),
+            std::string::npos);
+  EXPECT_NE(Refusal(SmallConfig(R"(, "corneas": ["design", "design"])")).find("corneas[1]"), std::string::npos);
+  EXPECT_NE(Refusal(SmallConfig(R"(, "corneas": [])")).find("corneas"), std::string::npos);
+}
+
+TEST(HarnessShardSpec, ParsesOnlyIOfN) {
+  EXPECT_EQ(pipeline::ParseShardSpec("2/3").index, 2);
+  EXPECT_EQ(pipeline::ParseShardSpec("2/3").count, 3);
+  for (const char* bad : {"3/3", "0/0", "1", "a/3", "-1/3", "1/", "/3", "1/3/4", " 1/3"}) {
+    EXPECT_THROW(pipeline::ParseShardSpec(bad), model::InputError) << bad;
+  }
+}
+
+TEST(HarnessCase, UncorrectedIsThePaperSweepAndExactCorrectionIsTheTruth) {
+  const auto h = Parse(SmallConfig());
+  const pipeline::HarnessCaseRunner runner(h);
+  const auto all = pipeline::EnumerateHarnessCases(h);
+  // 2 distortions x 3 calibration errors x (1 + 2 draws) noise cases.
+  ASSERT_EQ(all.size(), 18u);
+  auto find = [&](DistortionFamily f, double e, double noise) {
+    for (const auto& s : all) {
+      if (s.family == f && s.calibration_error == e && s.noise_px == noise && s.draw == 0) return s;
+    }
+    ADD_FAILURE() << "no such case";
+    return all.front();
+  };
+  // e = -1: the spots keep the whole distortion, exactly as in the sweep's row of the same sigma.
+  const auto uncorrected = runner.Run(find(DistortionFamily::kSeidelSigma, -1, 0));
+  ASSERT_TRUE(uncorrected.ok) << uncorrected.failure;
+  auto paper = model::LoadConfig(kPaper);
+  paper.distortion.sigmas_per_mm2 = {0.0, 6.3e-5};
+  const auto sweep = topo::RunSweep(paper);
+  const auto& truth = sweep.rows[0].analysis;
+  const auto& distorted = sweep.rows[1].analysis;
+  EXPECT_NEAR(uncorrected.dk_x, distorted.surface_fit.params.kx - truth.surface_fit.params.kx, kSameComputation);
+  EXPECT_NEAR(uncorrected.dk_y, distorted.surface_fit.params.ky - truth.surface_fit.params.ky, kSameComputation);
+  EXPECT_NEAR(uncorrected.dpv_axial_D, distorted.power.pv_axial_D - truth.power.pv_axial_D, kSameComputation);
+  // Its residual is the Seidel displacement at the edge of the spot field: |sigma / M_T^3| r^3.
+  const double r = runner.truth()[0].spot_field_radius_mm;
+  EXPECT_NEAR(uncorrected.residual_max_um, 6.3e-5 / std::pow(0.065, 3) * r * r * r * 1e3, 1e-9);
+  // e = 0: no residual, and the reconstruction of the truth.
+  const auto exact = runner.Run(find(DistortionFamily::kSeidelSigma, 0, 0));
+  ASSERT_TRUE(exact.ok);
+  EXPECT_LT(exact.residual_max_um, pipeline::kZeroResidualUm);
+  EXPECT_LT(exact.MaxAbsDk(), kSameSpotsDk);
+  EXPECT_LT(exact.MaxAbsDP_D(h.limits), kSameSpotsDP_D);
+  // e = +0.1: the outermost spot, at r_d = r (1 + c r^2), is undistorted with 1.1 c to r_c (1 + 1.1 c r_c^2) = r_d:
+  // about a tenth of the distortion remains, with the opposite sign (0.114 of it at this strength).
+  const auto over = runner.Run(find(DistortionFamily::kSeidelSigma, 0.1, 0));
+  const double c = 6.3e-5 / std::pow(-0.065, 3);  // M_T < 0: barrel
+  const double r_d = r * (1 + c * r * r);
+  double r_c = r;
+  for (int i = 0; i < 50; ++i) r_c -= (r_c * (1 + 1.1 * c * r_c * r_c) - r_d) / (1 + 3.3 * c * r_c * r_c);
+  EXPECT_NEAR(over.residual_max_um, std::abs(r - r_c) * 1e3, 1e-9);
+  EXPECT_LT(over.dk_x * uncorrected.dk_x, 0);
+  // Noise: the same case twice gives the same draw; another draw differs.
+  const auto noisy = find(DistortionFamily::kSeidelSigma, 0, 0.1);
+  const auto a = runner.Run(noisy), b = runner.Run(noisy);
+  EXPECT_EQ(a.dk_x, b.dk_x);
+  EXPECT_GT(a.MaxAbsDk(), 0);
+  auto other = noisy;
+  other.seed = pipeline::HarnessCaseSeed(h.seed, noisy.index + 1);
+  EXPECT_NE(runner.Run(other).dk_x, a.dk_x);
+}
+
+// Shards 0/3, 1/3, 2/3 through their JSON files, merged, give byte-identical outputs to a single run, and so does
+// a single run on two threads.
+TEST(HarnessShards, MergedShardsEqualASingleRunByteForByte) {
+  const auto h = Parse(SmallConfig());
+  auto outputs = [](const pipeline::HarnessRun& run) {
+    return pipeline::RenderHarnessOutputs(run, pipeline::ComputeInverseAnswer(run));
+  };
+  const auto single = pipeline::RunHarness(h, {0, 1}, 1);
+  std::vector<pipeline::HarnessRun> shards;
+  std::vector<std::string> origins;
+  for (int i = 0; i < 3; ++i) {
+    const auto shard = pipeline::RunHarness(h, {i, 3}, 1);
+    origins.push_back(pipeline::HarnessShardFileName({i, 3}));
+    shards.push_back(pipeline::ParseHarnessShard(pipeline::HarnessShardJson(shard), origins.back()));
+  }
+  const auto merged = pipeline::MergeHarnessShards({shards[2], shards[0], shards[1]},
+                                                   {origins[2], origins[0], origins[1]});
+  EXPECT_EQ(outputs(merged), outputs(single));
+  EXPECT_EQ(outputs(pipeline::RunHarness(h, {0, 1}, 2)), outputs(single));
+
+  // Refusals: a missing shard, a shard given twice, a shard of another configuration.
+  EXPECT_THROW(pipeline::MergeHarnessShards({shards[0], shards[1]}, {origins[0], origins[1]}), model::InputError);
+  EXPECT_THROW(pipeline::MergeHarnessShards({shards[0], shards[1], shards[1]}, {origins[0], origins[1], origins[1]}),
+               model::InputError);
+  auto other = Parse(Replace(SmallConfig(), "\"seed\": 7", "\"seed\": 8"));
+  auto foreign = pipeline::RunHarness(other, {2, 3}, 1);
+  EXPECT_THROW(pipeline::MergeHarnessShards({shards[0], shards[1], foreign}, {"a", "b", "c"}), model::InputError);
+  // A shard file with a case removed is incomplete.
+  auto cut = pipeline::RunHarness(h, {1, 3}, 1);
+  cut.cases.pop_back();
+  EXPECT_THROW(pipeline::ParseHarnessShard(pipeline::HarnessShardJson(cut), "cut.json"), model::InputError);
+}
+
+// The answer on constructed cases: one group whose utilisation grows linearly with the residual.
+TEST(HarnessAnswer, InterpolatesTheFirstCrossingOfEachGroupAndTakesTheSmallest) {
+  pipeline::HarnessRun run;
+  run.config = Parse(SmallConfig());
+  run.truth.push_back({});
+  run.truth[0].spot_field_radius_mm = 0.4;
+  auto add = [&](DistortionFamily f, double e, double residual_um, double dk, double dP) {
+    pipeline::HarnessCaseResult c;
+    c.spec.index = static_cast<int>(run.cases.size());
+    c.spec.family = f;
+    c.spec.coefficient = 1;
+    c.spec.calibration_error = e;
+    c.ok = true;
+    c.residual_max_um = residual_um;
+    c.dk_x = dk;
+    c.dP_axial_max_D = dP;
+    run.cases.push_back(c);
+  };
+  add(DistortionFamily::kSeidelSigma, 0, 0, 0.001, 0.01);      // anchor: u0 = 0.04
+  add(DistortionFamily::kSeidelSigma, -0.1, 1, 0.02, 0.0);     // u = 0.4
+  add(DistortionFamily::kSeidelSigma, -0.5, 5, 0.06, 0.0);     // u = 1.2: crossing at 1 + 0.6/0.8 * 4 = 4
+  add(DistortionFamily::kSeidelSigma, -1, 10, 0.001, 0.0);     // after the first failure: not used
+  add(DistortionFamily::kBrownK2, -1, 8, 0.0, 0.5);            // u = 2 from u0 = 0.04: crossing at 8 * 0.96 / 1.96
+  run.total_cases = static_cast<int>(run.cases.size());
+  const auto a = pipeline::ComputeInverseAnswer(run);
+  ASSERT_TRUE(a.found);
+  EXPECT_NEAR(a.residual_max_um, 8 * 0.96 / 1.96, 1e-12);
+  EXPECT_EQ(a.limiting_case, 4);
+  EXPECT_EQ(a.limited_by, "dP");
+  EXPECT_EQ(a.grid_first_failure_um, 5);
+  EXPECT_EQ(a.grid_all_pass_up_to_um, 1);
+  ASSERT_EQ(a.families.size(), 2u);
+  EXPECT_NEAR(a.families[0].residual_max_um, 4, 1e-12);
+  EXPECT_NEAR(a.residual_max_px, a.residual_max_um / run.config.pixel_pitch_um, 1e-12);
+  EXPECT_NEAR(a.sigma_equivalent_per_mm2, a.residual_max_um * 1e-3 * std::pow(0.065, 3) / std::pow(0.4, 3), 1e-15);
+  EXPECT_EQ(a.cases_outside, 2);
+
+  // Noise alone outside the limits: the answer is 0.
+  run.cases[0].dk_x = 0.1;
+  const auto none = pipeline::ComputeInverseAnswer(run);
+  EXPECT_TRUE(none.noise_alone_exceeds);
+  EXPECT_EQ(none.residual_max_um, 0);
+  // Nothing outside the limits: the largest residual tested is a lower bound.
+  run.cases[0].dk_x = run.cases[2].dk_x = run.cases[4].dP_axial_max_D = 0;
+  const auto bound = pipeline::ComputeInverseAnswer(run);
+  EXPECT_FALSE(bound.found);
+  EXPECT_EQ(bound.residual_max_um, 10);
+}
+
+TEST(SvgPlot, DrawsEveryPointAndClampsWhatALogAxisCannotShow) {
+  pipeline::ScatterPlot p;
+  p.title = "t < 1";
+  p.series.push_back({"a", "#000", {{1e-2, 1e-3}, {10, 0.5}, {0, 1e-2}, {1, 0}}});
+  p.horizontal.push_back({0.05, "limit", "#f00"});
+  const std::string svg = pipeline::RenderScatterSvg(p);
+  EXPECT_EQ(svg.rfind("<svg", 0), 0u);
+  EXPECT_NE(svg.find("t &lt; 1"), std::string::npos);
+  size_t circles = 0, hollow = 0;
+  for (size_t at = svg.find("<circle"); at != std::string::npos; at = svg.find("<circle", at + 1)) ++circles;
+  for (size_t at = svg.find("fill=\"none\"/>"); at != std::string::npos; at = svg.find("fill=\"none\"/>", at + 1)) ++hollow;
+  EXPECT_EQ(circles, 4u + 1u);  // 4 points + 1 legend marker
+  EXPECT_EQ(hollow, 2u);
+  EXPECT_EQ(svg.find("nan"), std::string::npos);
+  EXPECT_EQ(svg.find("inf"), std::string::npos);
+}
+
+}  // namespace
