@@ -16,5 +16,6 @@ void AddCalibrateCommand(CLI::App& app);
 void AddTargetCommand(CLI::App& app);
 void AddRenderTargetCommand(CLI::App& app);
 void AddUnitCommand(CLI::App& app);
+void AddHarnessCommand(CLI::App& app);
 
 }  // namespace topocal::tools

@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   topocal::tools::AddTargetCommand(app);
   topocal::tools::AddRenderTargetCommand(app);
   topocal::tools::AddUnitCommand(app);
+  topocal::tools::AddHarnessCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -1,0 +1,147 @@
+// topocal harness end to end: the outputs, shards merged == single run byte for byte, and one-line refusals of bad
+// input (exit 2) that leave no output behind.
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "tests/cli_harness.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+using topocal::testing_cli::Run;
+using topocal::testing_cli::RunTopocal;
+
+const char* kOutputs[] = {"cases.csv", "summary.json", "table.md", "dk_vs_residual.svg", "dP_vs_residual.svg"};
+
+class HarnessCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("topocal_harness_cli_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  static std::string Read(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  }
+  // A small sweep: 2 sigmas x 3 calibration errors x 1 noise level = 6 cases (~0.1 s).
+  std::string Config(const std::string& name, const std::string& replace_from = "", const std::string& replace_to = "") {
+    std::string text = R"({"design": ")" + std::string(TOPOCAL_SOURCE_DIR) + R"(/data/paper.json", "seed": 3,
+      "distortion": {"seidel_sigma_per_mm2": [-1e-6, 6.3e-5]},
+      "noise_px": [0.01], "noise_draws": 1, "calibration_errors": [-1, 0, 0.1],
+      "limits": {"dk": 0.05, "dP_D": 0.25}})";
+    if (!replace_from.empty()) {
+      const auto at = text.find(replace_from);
+      EXPECT_NE(at, std::string::npos) << replace_from;
+      if (at != std::string::npos) text.replace(at, replace_from.size(), replace_to);
+    }
+    std::ofstream(Path(name)) << text;
+    return Path(name);
+  }
+  fs::path dir_;
+};
+
+TEST_F(HarnessCli, SingleRunWritesEveryOutputAndPrintsTheAnswer) {
+  const auto r = RunTopocal("harness --config " + Config("h.json") + " --out " + Path("out"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("inverse answer: "), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("nan"), std::string::npos) << r.output;
+  for (const char* name : kOutputs) {
+    const std::string text = Read(Path("out/") + name);
+    EXPECT_FALSE(text.empty()) << name;
+    EXPECT_EQ(text.find("nan"), std::string::npos) << name;
+  }
+  const std::string csv = Read(Path("out/cases.csv"));
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1 + 6);
+  EXPECT_NE(Read(Path("out/summary.json")).find("\"residual_max_um\""), std::string::npos);
+}
+
+TEST_F(HarnessCli, ThreeShardsMergeIntoTheSingleRunByteForByte) {
+  const std::string config = Config("h.json");
+  ASSERT_EQ(RunTopocal("harness --config " + config + " --out " + Path("single")).exit_code, 0);
+  for (int i = 0; i < 3; ++i) {
+    const auto r = RunTopocal("harness --config " + config + " --shard " + std::to_string(i) + "/3 --out " +
+                              Path("s" + std::to_string(i)));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_TRUE(fs::exists(Path("s" + std::to_string(i) + "/shard-" + std::to_string(i) + "-of-3.json")));
+  }
+  // Shards given as directories and as a file, in any order.
+  const auto m = RunTopocal("harness merge --out " + Path("merged") + " " + Path("s2") + " " + Path("s0") + " " +
+                            Path("s1/shard-1-of-3.json"));
+  ASSERT_EQ(m.exit_code, 0) << m.output;
+  EXPECT_NE(m.output.find("inverse answer: "), std::string::npos);
+  for (const char* name : kOutputs) {
+    EXPECT_EQ(Read(Path("merged/") + name), Read(Path("single/") + name)) << name;
+  }
+
+  // Incomplete: shard 2 missing. A shard of another configuration. A shard given twice. Nothing is written.
+  const auto missing = RunTopocal("harness merge --out " + Path("m1") + " " + Path("s0") + " " + Path("s1"));
+  EXPECT_EQ(missing.exit_code, 2) << missing.output;
+  EXPECT_NE(missing.output.find("shard 2/3 is missing"), std::string::npos) << missing.output;
+  ASSERT_EQ(RunTopocal("harness --config " + Config("other.json", "\"seed\": 3", "\"seed\": 4") +
+                       " --shard 2/3 --out " + Path("foreign"))
+                .exit_code,
+            0);
+  const auto foreign = RunTopocal("harness merge --out " + Path("m2") + " " + Path("s0") + " " + Path("s1") + " " +
+                                  Path("foreign"));
+  EXPECT_EQ(foreign.exit_code, 2) << foreign.output;
+  EXPECT_NE(foreign.output.find("config_sha256"), std::string::npos) << foreign.output;
+  const auto twice = RunTopocal("harness merge --out " + Path("m3") + " " + Path("s0") + " " + Path("s1") + " " +
+                                Path("s1") + " " + Path("s2"));
+  EXPECT_EQ(twice.exit_code, 2) << twice.output;
+  for (const auto* r : {&missing, &foreign, &twice}) {
+    EXPECT_EQ(std::count(r->output.begin(), r->output.end(), '\n'), 1) << r->output;
+  }
+  for (const char* d : {"m1", "m2", "m3"}) EXPECT_FALSE(fs::exists(Path(d))) << d;
+}
+
+TEST_F(HarnessCli, RefusesBadInputWithOneLineAndNoOutput) {
+  const struct {
+    std::string from, to, expect;
+  } configs[] = {
+      {"\"noise_px\": [0.01]", "\"noise_px\": []", "noise_px: must not be empty"},
+      {"\"noise_px\": [0.01]", "\"noise_px\": [-0.01]", "noise_px[0]: must be >= 0"},
+      {"\"noise_px\": [0.01]", "\"noise_px\": [1e999]", "not valid JSON"},  // JSON has no infinity
+      {"[-1e-6, 6.3e-5]", R"({"from": 1e-4, "to": 1e-5, "count": 3, "spacing": "log"})", ".from: must not exceed to"},
+      {"[-1e-6, 6.3e-5]", R"({"from": 1e-5, "to": 1e-4, "count": 0})", ".count: must be >= 1"},
+      {"\"seed\": 3", "\"seed\": 3, \"colour\": 1", "colour: unknown key"},
+  };
+  int n = 0;
+  for (const auto& c : configs) {
+    const std::string out = Path("out" + std::to_string(n));
+    const auto r = RunTopocal("harness --config " + Config("bad" + std::to_string(n++) + ".json", c.from, c.to) +
+                              " --out " + out);
+    EXPECT_EQ(r.exit_code, 2) << c.to << ": " << r.output;
+    EXPECT_NE(r.output.find(c.expect), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(".json: "), std::string::npos) << r.output;  // names the file
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(fs::exists(out)) << c.to;
+  }
+  const std::string good = Config("good.json");
+  for (const char* shard : {"3/3", "0/0", "1", "x/3", "-1/3"}) {
+    const auto r = RunTopocal("harness --config " + good + " --shard " + shard + " --out " + Path("shard_out"));
+    EXPECT_EQ(r.exit_code, 2) << shard << ": " << r.output;
+    EXPECT_NE(r.output.find("--shard"), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(fs::exists(Path("shard_out"))) << shard;
+  }
+  const auto no_config = RunTopocal("harness --out " + Path("x"));
+  EXPECT_EQ(no_config.exit_code, 2) << no_config.output;
+  const auto no_shards = RunTopocal("harness merge --out " + Path("y") + " " + Path("nowhere"));
+  EXPECT_EQ(no_shards.exit_code, 2) << no_shards.output;
+  EXPECT_FALSE(fs::exists(Path("y")));
+}
+
+}  // namespace

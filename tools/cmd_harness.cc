@@ -1,0 +1,142 @@
+// topocal harness: the residual-distortion sweep and its inverse answer (docs/harness.md).
+//   topocal harness --config H.json --out DIR [--shard i/N] [--jobs J]
+//   topocal harness merge --out DIR SHARD...
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "model/config.h"
+#include "model/io.h"
+#include "pipeline/harness.h"
+#include "pipeline/harness_answer.h"
+#include "pipeline/harness_config.h"
+#include "pipeline/harness_report.h"
+#include "tools/commands.h"
+
+namespace topocal::tools {
+namespace {
+
+namespace fs = std::filesystem;
+
+void PrepareOutputDirectory(const std::string& dir) {
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
+    throw model::InputError(fmt::format("{}: --out: exists and is not a directory", dir));
+  }
+  fs::create_directories(dir, ec);
+  if (ec) throw model::InputError(fmt::format("{}: --out: cannot be created: {}", dir, ec.message()));
+}
+
+// Writes every file atomically; if one cannot be written, the ones already written by this call are removed, so a
+// failed run leaves no partial set of outputs behind.
+void WriteAll(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files) {
+  std::vector<fs::path> written;
+  try {
+    for (const auto& [name, content] : files) {
+      const fs::path path = fs::path(dir) / name;
+      model::WriteFileAtomic(path.string(), content);
+      written.push_back(path);
+    }
+  } catch (...) {
+    std::error_code ec;
+    for (const auto& p : written) fs::remove(p, ec);
+    throw;
+  }
+}
+
+void WriteOutputs(const std::string& dir, const pipeline::HarnessRun& run) {
+  const auto answer = pipeline::ComputeInverseAnswer(run);
+  WriteAll(dir, pipeline::RenderHarnessOutputs(run, answer));
+  fmt::print("{}", pipeline::HarnessAnswerText(run, answer));
+}
+
+// A shard argument: a shard file, or a directory holding shard-*-of-*.json files.
+std::vector<std::string> ShardFiles(const std::string& arg) {
+  std::error_code ec;
+  if (!fs::exists(arg, ec)) throw model::InputError(fmt::format("{}: shard: no such file or directory", arg));
+  if (!fs::is_directory(arg, ec)) return {arg};
+  std::vector<std::string> files;
+  for (const auto& entry : fs::directory_iterator(arg, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (entry.is_regular_file() && name.rfind("shard-", 0) == 0 && name.size() > 5 &&
+        name.compare(name.size() - 5, 5, ".json") == 0) {
+      files.push_back(entry.path().string());
+    }
+  }
+  if (ec) throw model::InputError(fmt::format("{}: shard: cannot be listed: {}", arg, ec.message()));
+  if (files.empty()) throw model::InputError(fmt::format("{}: shard: no shard-<i>-of-<N>.json file in it", arg));
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+double SecondsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+void AddHarnessCommand(CLI::App& app) {
+  auto* cmd = app.add_subcommand(
+      "harness", "Sweep distortion x corneas x noise x calibration error; tables, plots and the largest residual "
+                 "distortion within clinical limits (docs/harness.md)");
+  auto config = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  auto shard = std::make_shared<std::string>();
+  auto jobs = std::make_shared<int>(1);
+  cmd->add_option("--config", *config, "Harness configuration (JSON, docs/harness.md)");
+  cmd->add_option("--out", *out, "Output directory (created if missing)");
+  cmd->add_option("--shard", *shard,
+                  "Run only shard i of N (cases with index % N == i) and write DIR/shard-<i>-of-<N>.json for merge");
+  cmd->add_option("--jobs", *jobs, "Threads in this process (the results do not depend on it)");
+
+  auto* merge = cmd->add_subcommand("merge", "Merge the shard files of one configuration into the outputs of a "
+                                             "single run");
+  auto merge_out = std::make_shared<std::string>();
+  auto inputs = std::make_shared<std::vector<std::string>>();
+  merge->add_option("--out", *merge_out, "Output directory (created if missing)")->required();
+  merge->add_option("shards", *inputs, "Shard files, or directories holding shard-<i>-of-<N>.json files")->required();
+  merge->callback([=] {
+    std::vector<pipeline::HarnessRun> shards;
+    std::vector<std::string> origins;
+    for (const auto& arg : *inputs) {
+      for (const auto& file : ShardFiles(arg)) {
+        shards.push_back(pipeline::ParseHarnessShard(model::ReadFile(file), file));
+        origins.push_back(file);
+      }
+    }
+    const auto run = pipeline::MergeHarnessShards(shards, origins);
+    PrepareOutputDirectory(*merge_out);
+    WriteOutputs(*merge_out, run);
+  });
+
+  cmd->callback([=] {
+    if (merge->parsed()) return;
+    if (config->empty()) throw model::InputError("harness: --config is required (or: topocal harness merge)");
+    if (out->empty()) throw model::InputError("harness: --out is required");
+    if (*jobs < 1) throw model::InputError(fmt::format("--jobs: must be >= 1 (got {})", *jobs));
+    const pipeline::ShardSpec spec = shard->empty() ? pipeline::ShardSpec{} : pipeline::ParseShardSpec(*shard);
+    const auto cfg = pipeline::LoadHarnessConfig(*config);
+    PrepareOutputDirectory(*out);
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto run = pipeline::RunHarness(cfg, spec, *jobs);
+    const double seconds = SecondsSince(t0);
+    fmt::print(stderr, "topocal harness: {} of {} cases in {:.1f} s ({:.1f} ms per case, {} job{})\n",
+               run.cases.size(), run.total_cases, seconds, run.cases.empty() ? 0.0 : 1e3 * seconds / run.cases.size(),
+               *jobs, *jobs == 1 ? "" : "s");
+    if (shard->empty()) {
+      WriteOutputs(*out, run);
+      return;
+    }
+    const std::string name = pipeline::HarnessShardFileName(spec);
+    WriteAll(*out, {{name, pipeline::HarnessShardJson(run)}});
+    fmt::print("shard {}/{}: {} of {} cases written to {}\n", spec.index, spec.count, run.cases.size(),
+               run.total_cases, (fs::path(*out) / name).string());
+  });
+}
+
+}  // namespace topocal::tools
