@@ -1,0 +1,71 @@
+// The residual-distortion harness: one case (distort, add noise, undistort, reconstruct, fit, maps, compare), the
+// per-process setup (screen design + one truth reconstruction per cornea), and the outputs of a merged run.
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <string>
+
+#include "pipeline/harness.h"
+#include "pipeline/harness_answer.h"
+#include "pipeline/harness_config.h"
+#include "pipeline/harness_report.h"
+
+namespace {
+
+using namespace topocal;
+
+pipeline::HarnessConfig BundledConfig() {
+  return pipeline::LoadHarnessConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/harness.json");
+}
+
+void BM_HarnessSetup(benchmark::State& state) {
+  const auto config = BundledConfig();
+  for (auto _ : state) {
+    const pipeline::HarnessCaseRunner runner(config);
+    benchmark::DoNotOptimize(runner.truth().data());
+  }
+}
+BENCHMARK(BM_HarnessSetup)->Unit(benchmark::kMillisecond);
+
+// A case with residual distortion and noise on the paper's cornea (the typical case of data/harness.json).
+void BM_HarnessCase(benchmark::State& state) {
+  const auto config = BundledConfig();
+  const pipeline::HarnessCaseRunner runner(config);
+  const auto cases = pipeline::EnumerateHarnessCases(config);
+  pipeline::HarnessCaseSpec spec = cases.front();
+  for (const auto& s : cases) {
+    if (s.cornea == 0 && s.calibration_error == 0.1 && s.coefficient == 2e-4) {
+      spec = s;
+      break;
+    }
+  }
+  for (auto _ : state) benchmark::DoNotOptimize(runner.Run(spec).dk_x);
+}
+BENCHMARK(BM_HarnessCase)->Unit(benchmark::kMillisecond);
+
+// Inverse answer and every output file for the 1620 cases of data/harness.json (synthetic case values).
+void BM_HarnessOutputs(benchmark::State& state) {
+  pipeline::HarnessRun run;
+  run.config = BundledConfig();
+  run.config_sha256 = pipeline::HarnessConfigSha256(run.config);
+  run.truth.resize(run.config.corneas.size());
+  for (auto& t : run.truth) t.spot_field_radius_mm = 0.4;
+  for (const auto& spec : pipeline::EnumerateHarnessCases(run.config)) {
+    pipeline::HarnessCaseResult c;
+    c.spec = spec;
+    c.ok = true;
+    c.residual_max_um = 1e5 * std::abs(spec.coefficient * spec.calibration_error) + 1e-3 * spec.draw;
+    c.dk_x = 0.02 * c.residual_max_um;
+    c.dP_axial_max_D = 0.15 * c.residual_max_um;
+    run.cases.push_back(c);
+  }
+  run.total_cases = static_cast<int>(run.cases.size());
+  for (auto _ : state) {
+    const auto answer = pipeline::ComputeInverseAnswer(run);
+    benchmark::DoNotOptimize(pipeline::RenderHarnessOutputs(run, answer).size());
+  }
+}
+BENCHMARK(BM_HarnessOutputs)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+BENCHMARK_MAIN();
