@@ -19,15 +19,19 @@ struct Crossing {
   int failing_case = -1;
 };
 
-// First crossing of u = 1 along a group sorted by residual, starting from the anchor (0, u0).
-Crossing GroupCrossing(const std::vector<const HarnessCaseResult*>& group, double u0, const HarnessLimits& limits) {
+// The worst zero-residual case of a cornea and noise level.
+struct Anchor {
+  double u = 0;
+  int index = -1;
+};
+
+// First crossing of u = 1 along a group sorted by residual, starting from the anchor (0, u0). An anchor already
+// outside the limits is the crossing itself, at zero residual.
+Crossing GroupCrossing(const std::vector<const HarnessCaseResult*>& group, const Anchor& anchor,
+                       const HarnessLimits& limits) {
   Crossing c;
-  double r_prev = 0, u_prev = u0;
-  if (u0 > 1) {
-    c.residual_um = 0;
-    c.failing_case = group.empty() ? -1 : group.front()->spec.index;
-    return c;
-  }
+  if (anchor.u > 1) return {0.0, anchor.index};
+  double r_prev = 0, u_prev = anchor.u;
   for (const auto* m : group) {
     const double u = LimitUtilisation(*m, limits);
     if (u <= 1) {
@@ -56,7 +60,7 @@ double LimitUtilisation(const HarnessCaseResult& c, const HarnessLimits& limits)
 InverseAnswer ComputeInverseAnswer(const HarnessRun& run) {
   const HarnessLimits& limits = run.config.limits;
   InverseAnswer a;
-  std::map<std::pair<int, double>, double> anchor;  // (cornea, noise) -> worst u without residual
+  std::map<std::pair<int, double>, Anchor> anchor;  // (cornea, noise) -> worst case without residual
   std::map<GroupKey, std::vector<const HarnessCaseResult*>> groups;
   for (const auto& c : run.cases) {
     const double u = LimitUtilisation(c, limits);
@@ -65,7 +69,7 @@ InverseAnswer ComputeInverseAnswer(const HarnessRun& run) {
     a.max_tested_um = std::max(a.max_tested_um, c.residual_max_um);
     if (c.residual_max_um <= kZeroResidualUm) {
       auto& w = anchor[{c.spec.cornea, c.spec.noise_px}];
-      w = std::max(w, u);
+      if (w.index < 0 || u > w.u) w = {u, c.spec.index};
       continue;
     }
     const double orientation = -c.spec.calibration_error * c.spec.coefficient;
@@ -82,8 +86,8 @@ InverseAnswer ComputeInverseAnswer(const HarnessRun& run) {
       a.grid_all_pass_up_to_um = std::max(a.grid_all_pass_up_to_um, c.residual_max_um);
     }
   }
-  for (const auto& [key, u] : anchor) {
-    if (u > 1) a.noise_alone_exceeds = true;
+  for (const auto& [key, w] : anchor) {
+    if (w.u > 1) a.noise_alone_exceeds = true;
   }
 
   Crossing best;
@@ -95,7 +99,7 @@ InverseAnswer ComputeInverseAnswer(const HarnessRun& run) {
                                                       : x->spec.index < y->spec.index;
     });
     const auto it = anchor.find({std::get<0>(key), std::get<3>(key)});
-    const Crossing c = GroupCrossing(members, it == anchor.end() ? 0.0 : it->second, limits);
+    const Crossing c = GroupCrossing(members, it == anchor.end() ? Anchor{} : it->second, limits);
     const int family = std::get<1>(key);
     family_max_um[family] = std::max(family_max_um[family], members.back()->residual_max_um);
     auto better = [](const Crossing& x, const Crossing& y) {
@@ -105,14 +109,10 @@ InverseAnswer ComputeInverseAnswer(const HarnessRun& run) {
     auto& f = by_family[family];
     if (c.failing_case >= 0 && (f.failing_case < 0 || better(c, f))) f = c;
   }
-  // A zero-residual case outside the limits that belongs to no group (only zero coefficients swept).
-  if (a.noise_alone_exceeds && best.failing_case < 0) {
-    for (const auto& c : run.cases) {
-      if (c.residual_max_um <= kZeroResidualUm && LimitUtilisation(c, limits) > 1) {
-        best = {0.0, c.spec.index};
-        break;
-      }
-    }
+  // A zero-residual case outside the limits whose cornea and noise level have no group (only zero coefficients
+  // or e = 0 swept).
+  for (const auto& [key, w] : anchor) {
+    if (w.u > 1 && (best.failing_case < 0 || best.residual_um > 0)) best = {0.0, w.index};
   }
   if (best.failing_case >= 0) {
     a.found = true;

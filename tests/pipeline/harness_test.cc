@@ -239,6 +239,8 @@ TEST(HarnessAnswer, InterpolatesTheFirstCrossingOfEachGroupAndTakesTheSmallest) 
   const auto none = pipeline::ComputeInverseAnswer(run);
   EXPECT_TRUE(none.noise_alone_exceeds);
   EXPECT_EQ(none.residual_max_um, 0);
+  EXPECT_EQ(none.limiting_case, 0);  // the noise-only case itself
+  EXPECT_EQ(none.limited_by, "dk");
   // Nothing outside the limits: the largest residual tested is a lower bound.
   run.cases[0].dk_x = run.cases[2].dk_x = run.cases[4].dP_axial_max_D = 0;
   const auto bound = pipeline::ComputeInverseAnswer(run);
