@@ -17,5 +17,6 @@ void AddTargetCommand(CLI::App& app);
 void AddRenderTargetCommand(CLI::App& app);
 void AddUnitCommand(CLI::App& app);
 void AddHarnessCommand(CLI::App& app);
+void AddReportCommand(CLI::App& app);
 
 }  // namespace topocal::tools

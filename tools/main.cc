@@ -27,6 +27,7 @@ int main(int argc, char** argv) {
   topocal::tools::AddRenderTargetCommand(app);
   topocal::tools::AddUnitCommand(app);
   topocal::tools::AddHarnessCommand(app);
+  topocal::tools::AddReportCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -1,0 +1,528 @@
+#include "report/html_report.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <tuple>
+
+#include <Eigen/Core>
+#include <fmt/format.h>
+
+#include "calib/camera.h"
+#include "model/version.h"
+#include "report/svg_plot.h"
+
+namespace topocal::report {
+namespace {
+
+// Grids of the distortion-field plot: coloured cells (magnitude) and arrows, over the whole image.
+constexpr int kFieldCellsAcross = 48;
+constexpr int kFieldArrowsAcross = 16;
+// The residual plot zooms on the corners when they span less than this fraction of the image in both directions,
+// with this relative margin around them.
+constexpr double kZoomBelowFraction = 0.5;
+constexpr double kZoomMargin = 0.15;
+// Map kinds and stages in the order they are shown (docs/unit-record.md names: <case>_<stage>_<map>.png).
+constexpr const char* kMapKinds[] = {"axial_power", "tangential_power", "height", "height_difference"};
+constexpr const char* kMapTitles[] = {"Axial power", "Tangential power", "Height", "Height difference"};
+
+std::string H(std::string_view s) { return EscapeXml(s); }
+
+// Fixed decimals, never "nan", never "-0.000".
+std::string Fixed(double v, int decimals) {
+  if (!std::isfinite(v)) return "\u2014";
+  std::string s = fmt::format("{:.{}f}", v, decimals);
+  if (s.front() == '-' && s.find_first_not_of("-0.") == std::string::npos) s.erase(0, 1);
+  return s;
+}
+std::string Sig(double v, int digits = 6) {
+  if (!std::isfinite(v)) return "\u2014";
+  if (v == 0) return "0";
+  return fmt::format("{:.{}g}", v, digits);
+}
+
+struct Quantity {
+  const char* key;
+  const char* label;  // HTML
+  const char* unit;
+  int decimals;
+};
+
+constexpr Quantity kSphereRows[] = {
+    {"rx_mm", "r<sub>x</sub>", "mm", 4},          {"ry_mm", "r<sub>y</sub>", "mm", 4},
+    {"kx", "k<sub>x</sub>", "", 4},               {"ky", "k<sub>y</sub>", "", 4},
+    {"alpha_deg", "\u03b1", "\u00b0", 3},         {"radius_mm", "radius (r<sub>x</sub> + r<sub>y</sub>)/2", "mm", 4},
+    {"radius_error_mm", "radius error", "mm", 4}, {"power_mean_D", "mean axial power, central 3 mm", "D", 3},
+    {"power_error_D", "power error", "D", 3},     {"pv_tangential_D", "tangential power pv", "D", 3},
+    {"pv_axial_D", "axial power pv", "D", 3},     {"spots_indexed", "spots indexed", "", 0},
+};
+constexpr Quantity kPaperRows[] = {
+    {"rx_mm", "r<sub>x</sub>", "mm", 4},
+    {"ry_mm", "r<sub>y</sub>", "mm", 4},
+    {"kx", "k<sub>x</sub>", "", 4},
+    {"ky", "k<sub>y</sub>", "", 4},
+    {"alpha_deg", "\u03b1", "\u00b0", 3},
+    {"pv_tangential_D", "tangential power pv", "D", 3},
+    {"pv_axial_D", "axial power pv", "D", 3},
+    {"height_pv_um", "height error pv", "\u00b5m", 3},
+    {"height_rms_um", "height error rms", "\u00b5m", 3},
+};
+
+std::string ValueU(const std::optional<UncertaintyBlock>& block, const char* key, int decimals) {
+  if (!block) return "";
+  const auto it = block->quantities.find(key);
+  if (it == block->quantities.end()) return "";
+  return Fixed(it->second.mean, decimals) + " \u00b1 " + Fixed(it->second.U, decimals);
+}
+
+std::string Lookup(const StageValues& v, const char* key, int decimals) {
+  const auto it = v.find(key);
+  return it == v.end() ? "" : Fixed(it->second, decimals);
+}
+
+std::string MapsFigure(const UnitRecord& rec, const std::string& case_name) {
+  std::string s;
+  for (std::size_t m = 0; m < std::size(kMapKinds); ++m) {
+    std::string row;
+    int present = 0;
+    for (const char* stage : {"uncorrected", "corrected"}) {
+      const std::string name = fmt::format("{}_{}_{}.png", case_name, stage, kMapKinds[m]);
+      const auto it = rec.map_png.find(name);
+      row += "<figure class=\"map\">";
+      if (it != rec.map_png.end()) {
+        ++present;
+        row += fmt::format("<img alt=\"{0}\" data-name=\"maps/{0}\" src=\"data:image/png;base64,{1}\">", H(name),
+                           Base64(it->second));
+      } else {
+        row += "<div class=\"nomap\">not in the record</div>";
+      }
+      row += fmt::format("<figcaption>{}, {}</figcaption></figure>", kMapTitles[m], stage);
+    }
+    if (present > 0) s += "<div class=\"map-row\">" + row + "</div>\n";
+  }
+  if (s.empty()) return "<p class=\"note\">The record holds no maps for this case.</p>\n";
+  return s;
+}
+
+// Residual vectors live where the target was. A single view at the cornea position covers a small patch of the
+// image: the plot then shows that patch (with a margin) so the vectors can be read; the caption says which part.
+std::optional<PixelRegion> ResidualRegion(const UnitRecord& rec) {
+  if (rec.residuals.empty()) return std::nullopt;
+  double x0 = rec.residuals.front().x_px, x1 = x0, y0 = rec.residuals.front().y_px, y1 = y0;
+  for (const CornerResidualRow& r : rec.residuals) {
+    x0 = std::min(x0, r.x_px);
+    x1 = std::max(x1, r.x_px);
+    y0 = std::min(y0, r.y_px);
+    y1 = std::max(y1, r.y_px);
+  }
+  const double w = rec.calibration_width_px, h = rec.calibration_height_px;
+  if (x1 - x0 > kZoomBelowFraction * w || y1 - y0 > kZoomBelowFraction * h) return std::nullopt;
+  // Keep the image's aspect ratio so the plot has the same shape as the full-frame ones.
+  const double half_w = std::max(0.5 * (x1 - x0), 0.5 * (y1 - y0) * w / h) * (1 + kZoomMargin);
+  const double half_h = half_w * h / w;
+  const double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1);
+  return PixelRegion{cx - half_w, cy - half_h, 2 * half_w, 2 * half_h};
+}
+
+// The part of the image the distortion plot covers: the measurement's field (about the principal point, holding
+// the field radius, widened to the image's aspect) when the record gives it, else the corners' region, else the
+// whole image. A strong Seidel k1 fitted for a small central field means nothing at the sensor's corners.
+PixelRegion FieldRegion(const UnitRecord& rec, const std::optional<PixelRegion>& corners) {
+  const double w = rec.calibration_width_px, h = rec.calibration_height_px;
+  if (rec.field_radius_px) {
+    const double half_h = std::min(*rec.field_radius_px * (1 + kZoomMargin), 0.5 * h);
+    const double half_w = half_h * w / h;
+    return {rec.calibration.camera.cx_px - half_w, rec.calibration.camera.cy_px - half_h, 2 * half_w, 2 * half_h};
+  }
+  if (corners) return *corners;
+  return {-0.5, -0.5, w, h};
+}
+
+struct DistortionPlot {
+  std::string svg;
+  double max_displacement_px = 0;
+};
+
+DistortionPlot DistortionField(const calib::CameraModel& cam, const PixelRegion& region, bool whole_image) {
+  const double in[4] = {cam.fx_px, cam.fy_px, cam.cx_px, cam.cy_px};
+  // Where an ideal (pinhole) image point p lands through the calibrated lens, minus p.
+  auto displacement = [&](double x, double y) {
+    const double u[2] = {(x - cam.cx_px) / cam.fx_px, (y - cam.cy_px) / cam.fy_px};
+    double px[2];
+    calib::CameraModel::NormalizedToPixel(in, cam.dist.data(), cam.distortion_centre.data(), u, px);
+    const Eigen::Vector2d d(px[0] - x, px[1] - y);
+    if (!d.allFinite()) throw std::runtime_error("the calibration's distortion is not finite over the image");
+    return d;
+  };
+  DistortionPlot plot;
+  CellField field;
+  field.cols = kFieldCellsAcross;
+  field.rows = std::max(1, static_cast<int>(std::lround(kFieldCellsAcross * region.height_px / region.width_px)));
+  field.label = "|displacement| (px)";
+  for (int r = 0; r < field.rows; ++r) {
+    for (int c = 0; c < field.cols; ++c) {
+      field.values.push_back(displacement(region.x_px + (c + 0.5) * region.width_px / field.cols,
+                                          region.y_px + (r + 0.5) * region.height_px / field.rows)
+                                 .norm());
+    }
+  }
+  // The extreme of a radial field is on the region's border: sample it densely.
+  constexpr int kBorderSamples = 256;
+  for (int i = 0; i <= kBorderSamples; ++i) {
+    const double t = static_cast<double>(i) / kBorderSamples;
+    for (const auto& [x, y] : {std::pair{region.x_px + t * region.width_px, region.y_px},
+                               std::pair{region.x_px + t * region.width_px, region.y_px + region.height_px},
+                               std::pair{region.x_px, region.y_px + t * region.height_px},
+                               std::pair{region.x_px + region.width_px, region.y_px + t * region.height_px}}) {
+      plot.max_displacement_px = std::max(plot.max_displacement_px, displacement(x, y).norm());
+    }
+  }
+  std::vector<Arrow> arrows;
+  const int arrows_down =
+      std::max(1, static_cast<int>(std::lround(kFieldArrowsAcross * region.height_px / region.width_px)));
+  for (int r = 0; r < arrows_down; ++r) {
+    for (int c = 0; c < kFieldArrowsAcross; ++c) {
+      const double x = region.x_px + (c + 0.5) * region.width_px / kFieldArrowsAcross;
+      const double y = region.y_px + (r + 0.5) * region.height_px / arrows_down;
+      const Eigen::Vector2d d = displacement(x, y);
+      arrows.push_back({x, y, d.x(), d.y(), false});
+    }
+  }
+  QuiverOptions o;
+  o.image_width_px = cam.width_px;
+  o.image_height_px = cam.height_px;
+  if (!whole_image) o.region = region;
+  o.title = "Distortion field of the calibrated model (distorted \u2212 ideal)";
+  o.background = std::move(field);
+  plot.svg = SvgQuiver(arrows, o);
+  return plot;
+}
+
+constexpr const char* kCss = R"css(
+:root { --pass: #2e7d32; --fail: #c62828; --ink: #1a1a1a; --rule: #c8c8c8; }
+* { box-sizing: border-box; }
+html { -webkit-print-color-adjust: exact; print-color-adjust: exact; }
+body { font-family: "DejaVu Sans", Arial, sans-serif; color: var(--ink); margin: 0; font-size: 10.5pt; line-height: 1.35; }
+main { max-width: 190mm; margin: 0 auto; padding: 8mm 6mm; }
+h1 { font-size: 17pt; margin: 0 0 2mm 0; }
+h2 { font-size: 13pt; border-bottom: 1.5px solid var(--ink); padding-bottom: 1mm; margin: 7mm 0 3mm 0; }
+h3 { font-size: 11pt; margin: 5mm 0 2mm 0; }
+table.data { border-collapse: collapse; width: 100%; margin: 2mm 0; }
+table.data td { overflow-wrap: anywhere; }
+table.data th, table.data td { border-bottom: 1px solid var(--rule); padding: 1mm 2mm; text-align: left; vertical-align: top; }
+table.data th { background: #f0f0f0; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+.hash { font-family: "DejaVu Sans Mono", monospace; font-size: 7.5pt; word-break: break-all; }
+.banner { font-size: 20pt; font-weight: bold; color: #fff; padding: 4mm 6mm; margin: 3mm 0; border-radius: 2mm; }
+.banner.pass { background: var(--pass); }
+.banner.fail { background: var(--fail); }
+.banner small { display: block; font-size: 10pt; font-weight: normal; }
+td.pass { color: var(--pass); font-weight: bold; }
+td.fail { color: var(--fail); font-weight: bold; }
+.report-id { font-family: "DejaVu Sans Mono", monospace; }
+.note { color: #555; font-size: 9pt; }
+svg.plot { width: 100%; height: auto; display: block; margin: 2mm 0; }
+figure { margin: 0; }
+.map-row { display: flex; gap: 4mm; margin: 2mm 0; break-inside: avoid; }
+.map-row figure { flex: 1 1 0; text-align: center; }
+.map-row img { width: 100%; height: auto; border: 1px solid var(--rule); }
+.nomap { border: 1px dashed var(--rule); padding: 20mm 2mm; color: #777; }
+figcaption { font-size: 9pt; color: #444; }
+.keep { break-inside: avoid; }
+.print-header, .print-footer { display: none; }
+table.page-frame { width: 100%; border-collapse: collapse; }
+table.page-frame > thead td, table.page-frame > tfoot td, table.page-frame > tbody > tr > td { padding: 0; }
+@page { size: A4; margin: 10mm 10mm 10mm 10mm; }
+@media print {
+  body { font-size: 9.5pt; }
+  main { max-width: none; padding: 0; }
+  .print-header, .print-footer { display: block; position: fixed; left: 0; right: 0; font-size: 8pt; color: #333;
+                                 background: #fff; }
+  .print-header { top: 0; border-bottom: 1px solid var(--rule); padding-bottom: 1mm; }
+  .print-footer { bottom: 0; border-top: 1px solid var(--rule); padding-top: 1mm; }
+  .header-space { height: 9mm; }
+  .footer-space { height: 8mm; }
+  .page-break { break-before: page; }
+  h2, h3 { break-after: avoid; }
+  svg.plot, table.data tr, .banner { break-inside: avoid; }
+}
+)css";
+
+constexpr const char* kImageCheckScript = R"js(
+window.addEventListener('load', function () {
+  var images = document.images, decoded = 0;
+  for (var i = 0; i < images.length; ++i) {
+    if (images[i].complete && images[i].naturalWidth > 0) ++decoded;
+  }
+  document.documentElement.setAttribute('data-images-decoded', decoded + '/' + images.length);
+});
+)js";
+
+}  // namespace
+
+std::string Base64(std::string_view bytes) {
+  static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  std::size_t i = 0;
+  for (; i + 2 < bytes.size(); i += 3) {
+    const unsigned v = (static_cast<unsigned char>(bytes[i]) << 16) | (static_cast<unsigned char>(bytes[i + 1]) << 8) |
+                       static_cast<unsigned char>(bytes[i + 2]);
+    out += kAlphabet[(v >> 18) & 63];
+    out += kAlphabet[(v >> 12) & 63];
+    out += kAlphabet[(v >> 6) & 63];
+    out += kAlphabet[v & 63];
+  }
+  if (const std::size_t rest = bytes.size() - i; rest > 0) {
+    unsigned v = static_cast<unsigned char>(bytes[i]) << 16;
+    if (rest == 2) v |= static_cast<unsigned char>(bytes[i + 1]) << 8;
+    out += kAlphabet[(v >> 18) & 63];
+    out += kAlphabet[(v >> 12) & 63];
+    out += rest == 2 ? kAlphabet[(v >> 6) & 63] : '=';
+    out += '=';
+  }
+  return out;
+}
+
+std::string ReportId(const UnitRecord& record) {
+  return record.serial + "-" + record.unit_json_sha256.substr(0, kReportIdHexDigits);
+}
+
+std::string RenderHtmlReport(const UnitRecord& rec, const Limits& limits) {
+  const std::string id = ReportId(rec);
+  const Verdict verdict = Evaluate(rec, limits);
+  const char* verdict_word = verdict.pass ? "PASS" : "FAIL";
+  int failed = 0;
+  for (const Check& c : verdict.checks) failed += c.pass ? 0 : 1;
+
+  std::string s;
+  s += "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n";
+  s += fmt::format("<meta name=\"report-id\" content=\"{}\">\n", H(id));
+  s += fmt::format("<title>topocal QA report {} \u2014 {}</title>\n", H(id), verdict_word);
+  s += fmt::format("<style>{}</style>\n</head>\n", kCss);
+  s += fmt::format("<body data-report-id=\"{}\" data-verdict=\"{}\">\n", H(id), verdict_word);
+  // Repeated on every printed page (position: fixed in @media print); the page-frame table's header and footer
+  // rows keep the content clear of them.
+  s += fmt::format("<div class=\"print-header\">topocal QA report <span class=\"report-id\">{}</span> \u00b7 unit {} "
+                   "\u00b7 {}</div>\n",
+                   H(id), H(rec.serial), verdict_word);
+  s += fmt::format("<div class=\"print-footer\">Report <span class=\"report-id\">{}</span> \u00b7 record created {} "
+                   "\u00b7 topocal {}</div>\n",
+                   H(id), H(rec.created_utc), H(kVersion));
+  s += "<table class=\"page-frame\"><thead><tr><td><div class=\"header-space\"></div></td></tr></thead>\n"
+       "<tfoot><tr><td><div class=\"footer-space\"></div></td></tr></tfoot>\n<tbody><tr><td>\n<main>\n";
+
+  // Title and verdict.
+  s += fmt::format("<h1>Calibration QA report \u2014 unit {}</h1>\n", H(rec.serial));
+  s += fmt::format("<p>Report id <strong class=\"report-id\" id=\"report-id\">{}</strong> \u00b7 record created {} "
+                   "\u00b7 topocal {}</p>\n",
+                   H(id), H(rec.created_utc), H(rec.tool_version));
+  s += fmt::format("<div id=\"verdict\" class=\"banner {}\" data-verdict=\"{}\">{}<small>{} of {} checks passed "
+                   "against {} ({} acceptance)</small></div>\n",
+                   verdict.pass ? "pass" : "fail", verdict_word, verdict_word, verdict.checks.size() - failed,
+                   verdict.checks.size(), H(limits.origin), ToString(limits.rule));
+
+  // Identity.
+  s += "<section id=\"identity\" class=\"keep\"><h2>Device identity</h2>\n<table class=\"data\">\n";
+  auto row = [&](const std::string& k, const std::string& v) {
+    s += fmt::format("<tr><th>{}</th><td>{}</td></tr>\n", k, v);
+  };
+  row("Serial", H(rec.serial));
+  row("Report id", "<span class=\"report-id\">" + H(id) + "</span>");
+  row("Record created (UTC)", H(rec.created_utc));
+  row("Calibration date", H(rec.calibration.date.empty() ? "not in calibration.yaml" : rec.calibration.date));
+  row("Tool version", "topocal " + H(rec.tool_version));
+  row("Record", H(rec.directory));
+  row("unit.json SHA-256", "<span class=\"hash\">" + H(rec.unit_json_sha256) + "</span>");
+  row("Camera", fmt::format("{} \u00d7 {} px, pixel pitch {} \u00b5m, a = {} mm", rec.camera_width_px,
+                            rec.camera_height_px, Sig(rec.camera_pixel_pitch_um), Sig(rec.camera_a_mm)));
+  s += "</table></section>\n";
+
+  // Method.
+  s += "<section id=\"method\" class=\"keep\"><h2>Method</h2>\n<table class=\"data\">\n";
+  row("Distortion model", H(rec.settings_model) +
+                              (rec.settings_model == "seidel"
+                                   ? " (paper Eq. 18: k<sub>1</sub> alone, \u03c3 = k<sub>1</sub> M<sub>T</sub><sup>3</sup> "
+                                     "/ f<sup>2</sup>)"
+                                   : " (OpenCV Brown\u2013Conrady k<sub>1</sub>, k<sub>2</sub>, p<sub>1</sub>, "
+                                     "p<sub>2</sub>, k<sub>3</sub>)"));
+  row("Views", rec.settings_single_view
+                   ? "single view of a planar target at the cornea position; f<sub>x</sub> = f<sub>y</sub> from focal "
+                     "length and pixel pitch and the principal point at the image centre held fixed"
+                   : fmt::format("multi-view ({} views), all intrinsics fitted", rec.views.size()));
+  row("Distortion centre", rec.settings_fit_centre ? "fitted" : "at the principal point (fixed)");
+  row("Reference sphere", rec.settings_sphere_radius_mm ? Fixed(*rec.settings_sphere_radius_mm, 4) + " mm"
+                                                         : "none given");
+  row("Uncertainty", rec.settings_uncertainty_samples > 0
+                         ? fmt::format("calibration covariance carried to the clinical numbers by Monte Carlo, {} "
+                                       "draws, seed {}; U = 2 s (k = 2)",
+                                       rec.settings_uncertainty_samples, rec.settings_seed)
+                         : std::string("not propagated (uncertainty samples = 0)"));
+  row("Decision rule", H(DecisionRuleText(limits.rule)));
+  s += "</table></section>\n";
+
+  // Inputs and record files.
+  s += "<section id=\"inputs\"><h2>Inputs</h2>\n<table class=\"data\"><tr><th>role</th><th>path</th>"
+       "<th>SHA-256</th></tr>\n";
+  for (const InputFile& f : rec.inputs) {
+    s += fmt::format("<tr><td>{}</td><td>{}</td><td class=\"hash\">{}</td></tr>\n", H(f.role), H(f.path),
+                     H(f.sha256));
+  }
+  s += "</table>\n<h3>Record files (each verified against its SHA-256 when this report was made)</h3>\n"
+       "<table class=\"data\"><tr><th>file</th><th>SHA-256</th></tr>\n";
+  for (const RecordFile& f : rec.files) {
+    s += fmt::format("<tr><td>{}</td><td class=\"hash\">{}</td></tr>\n", H(f.name), H(f.sha256));
+  }
+  s += "</table></section>\n";
+
+  // Calibration.
+  s += "<section id=\"calibration\" class=\"page-break\"><h2>Calibration</h2>\n";
+  s += fmt::format("<p>Model {}, {} \u00d7 {} px, RMS reprojection error {} px over {} corners, {} outliers "
+                   "rejected.</p>\n",
+                   H(rec.calibration_model), rec.calibration_width_px, rec.calibration_height_px,
+                   Sig(rec.calibration_rms_px, 4), rec.corners_used, rec.outliers);
+  s += "<table class=\"data\"><tr><th>parameter</th><th>value</th><th>U (k = 2)</th><th></th></tr>\n";
+  for (const CalibrationParameter& p : rec.parameters) {
+    s += fmt::format("<tr><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td>{}</td></tr>\n", H(p.name),
+                     Sig(p.value, 7), p.fixed ? "\u2014" : "\u00b1 " + Sig(2 * p.stddev, 3),
+                     p.fixed ? "fixed" : "fitted");
+  }
+  s += "</table>\n";
+  if (rec.seidel_sigma_per_mm2) {
+    s += fmt::format("<p id=\"seidel-sigma\">Seidel \u03c3 = <strong>{} \u00b1 {} mm<sup>\u22122</sup></strong> "
+                     "(U, k = 2; M<sub>T</sub> = {}, f = {} mm; the focal length taken as exact).</p>\n",
+                     Sig(*rec.seidel_sigma_per_mm2, 6), Sig(2 * rec.seidel_sigma_stddev_per_mm2.value_or(0), 3),
+                     Sig(rec.seidel_magnification.value_or(0), 4), Sig(rec.seidel_focal_mm.value_or(0), 5));
+  } else {
+    s += "<p id=\"seidel-sigma\" class=\"note\">No Seidel \u03c3 in the record (not the Seidel model, or the focal "
+         "length in mm unknown).</p>\n";
+  }
+  s += "</section>\n";
+
+  // Residual plots.
+  s += "<section id=\"residuals\"><h2>Residuals and distortion</h2>\n";
+  std::vector<Bar> bars;
+  for (std::size_t i = 0; i < rec.views.size(); ++i) {
+    const std::string& image = rec.views[i].image;
+    const std::string base = image.substr(image.find_last_of('/') + 1);
+    bars.push_back({fmt::format("{} ({})", i + 1, base.empty() ? "view" : base), rec.views[i].rms_px});
+  }
+  s += SvgBarChart(bars, {"RMS reprojection error per view", "RMS (px)", limits.calibration_rms_px.max,
+                          fmt::format("limit {} px", Sig(limits.calibration_rms_px.max, 3))});
+  std::vector<Arrow> arrows;
+  int outliers = 0;
+  for (const CornerResidualRow& r : rec.residuals) {
+    arrows.push_back({r.x_px, r.y_px, r.dx_px, r.dy_px, r.outlier});
+    outliers += r.outlier ? 1 : 0;
+  }
+  QuiverOptions qo;
+  qo.image_width_px = rec.calibration_width_px;
+  qo.image_height_px = rec.calibration_height_px;
+  qo.region = ResidualRegion(rec);
+  qo.title = fmt::format("Residual vectors (predicted \u2212 observed), {} corners{}", rec.residuals.size(),
+                         outliers ? fmt::format(", {} outliers in red", outliers) : std::string());
+  s += SvgQuiver(arrows, qo);
+  const PixelRegion field_region = FieldRegion(rec, qo.region);
+  const bool whole_image = !rec.field_radius_px && !qo.region;
+  const DistortionPlot field = DistortionField(rec.calibration.camera, field_region, whole_image);
+  s += field.svg;
+  s += fmt::format("<p class=\"note\">Distortion field from {} (the exact model, with its distortion centre) over {}: "
+                   "largest displacement {} px.</p>\n",
+                   H(rec.calibration_path),
+                   rec.field_radius_px
+                       ? fmt::format("the measurement field (radius {} px about the principal point, from unit.json)",
+                                     Sig(*rec.field_radius_px, 4))
+                       : (whole_image ? std::string("the whole image") : std::string("the region of the corners")),
+                   Sig(field.max_displacement_px, 4));
+  s += "</section>\n";
+
+  // Reference sphere.
+  s += "<section id=\"sphere\" class=\"page-break\"><h2>Reference sphere: before and after correction</h2>\n";
+  if (rec.verification) {
+    const SphereVerification& v = *rec.verification;
+    s += fmt::format("<p>Image {}; true radius {} mm, true power {} D (n<sub>k</sub> = {}).</p>\n", H(v.image),
+                     Fixed(v.radius_true_mm, 4), Fixed(v.power_true_D, 3), Sig(v.keratometric_index, 5));
+    s += "<table class=\"data\"><tr><th>quantity</th><th>truth</th><th>uncorrected</th><th>corrected</th>"
+         "<th>corrected, Monte Carlo mean \u00b1 U (k = 2)</th></tr>\n";
+    for (const Quantity& q : kSphereRows) {
+      std::string truth;
+      if (std::string_view(q.key) == "rx_mm" || std::string_view(q.key) == "ry_mm" ||
+          std::string_view(q.key) == "radius_mm") {
+        truth = Fixed(v.radius_true_mm, q.decimals);
+      } else if (std::string_view(q.key) == "kx" || std::string_view(q.key) == "ky") {
+        truth = Fixed(0, q.decimals);
+      } else if (std::string_view(q.key) == "power_mean_D") {
+        truth = Fixed(v.power_true_D, q.decimals);
+      }
+      s += fmt::format("<tr><td>{}{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td>"
+                       "<td class=\"num\">{}</td></tr>\n",
+                       q.label, *q.unit ? fmt::format(" ({})", q.unit) : std::string(), truth,
+                       Lookup(v.uncorrected, q.key, q.decimals), Lookup(v.corrected, q.key, q.decimals),
+                       ValueU(v.uncertainty, q.key, q.decimals));
+    }
+    s += "</table>\n";
+  } else {
+    s += "<p class=\"note\">No reference sphere was given: the unit is not verified.</p>\n";
+  }
+  s += MapsFigure(rec, "sphere");
+  s += "</section>\n";
+
+  // Paper cornea.
+  s += "<section id=\"paper\" class=\"page-break\"><h2>Paper biconic cornea (simulated through this camera): before "
+       "and after correction</h2>\n";
+  s += "<table class=\"data\"><tr><th>quantity</th><th>truth</th><th>uncorrected</th><th>corrected</th>"
+       "<th>corrected \u2212 truth</th><th>Monte Carlo mean \u00b1 U (k = 2)</th></tr>\n";
+  for (const Quantity& q : kPaperRows) {
+    const auto t = rec.paper.truth.find(q.key);
+    const bool has_truth = t != rec.paper.truth.end();
+    s += fmt::format("<tr><td>{}{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td>"
+                     "<td class=\"num\">{}</td><td class=\"num\">{}</td></tr>\n",
+                     q.label, *q.unit ? fmt::format(" ({})", q.unit) : std::string(),
+                     has_truth ? Fixed(t->second, q.decimals) : "",
+                     Lookup(rec.paper.uncorrected, q.key, q.decimals), Lookup(rec.paper.corrected, q.key, q.decimals),
+                     has_truth ? Fixed(rec.paper.corrected.at(q.key) - t->second, q.decimals) : "",
+                     ValueU(rec.paper.uncertainty, q.key, q.decimals));
+  }
+  s += "</table>\n";
+  s += MapsFigure(rec, "paper");
+  s += "</section>\n";
+
+  // Acceptance.
+  s += "<section id=\"acceptance\" class=\"page-break\"><h2>Acceptance</h2>\n";
+  s += fmt::format("<p><strong>Decision rule.</strong> {}</p>\n", H(DecisionRuleText(limits.rule)));
+  s += "<table class=\"data\" id=\"checks\"><tr><th>check</th><th>|error|</th><th>U (k = 2)</th><th>limit</th>"
+       "<th>result</th><th>note</th></tr>\n";
+  for (const Check& c : verdict.checks) {
+    const std::string unit = c.unit.empty() ? "" : " " + c.unit;
+    s += fmt::format("<tr data-check=\"{}\"><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td>"
+                     "<td class=\"num\">{}</td><td class=\"{}\">{}</td><td class=\"note\">{}</td></tr>\n",
+                     H(c.id), H(c.what), c.error ? Sig(*c.error, 4) + unit : "\u2014",
+                     c.U ? Sig(*c.U, 3) + unit : "\u2014", Sig(c.limit, 4) + unit, c.pass ? "pass" : "fail",
+                     c.pass ? "PASS" : "FAIL", H(c.note));
+  }
+  s += "</table>\n";
+  s += fmt::format("<h3>Limits ({})</h3>\n<table class=\"data\"><tr><th>limit</th><th>value</th><th>source</th>"
+                   "</tr>\n",
+                   H(limits.origin));
+  for (const auto& [name, limit, unit] :
+       {std::tuple{"calibration_rms_px", &limits.calibration_rms_px, " px"},
+        std::tuple{"sphere_radius_error_mm", &limits.sphere_radius_error_mm, " mm"},
+        std::tuple{"sphere_power_error_D", &limits.sphere_power_error_D, " D"},
+        std::tuple{"paper_radius_error_mm", &limits.paper_radius_error_mm, " mm"},
+        std::tuple{"paper_conic_error", &limits.paper_conic_error, ""}}) {
+    s += fmt::format("<tr><td>{}</td><td class=\"num\">{}{}</td><td class=\"note\">{}</td></tr>\n", name,
+                     Sig(limit->max, 4), unit, H(limit->source));
+  }
+  s += "</table>\n";
+  s += fmt::format("<p class=\"verdict-line\">Overall: <strong>{}</strong> (report <span class=\"report-id\">{}</span>)"
+                   "</p>\n",
+                   verdict_word, H(id));
+  s += "</section>\n";
+
+  s += "</main>\n</td></tr></tbody></table>\n";
+  s += fmt::format("<script>{}</script>\n", kImageCheckScript);
+  s += "</body>\n</html>\n";
+  return s;
+}
+
+}  // namespace topocal::report

@@ -1,0 +1,255 @@
+#include "report/svg_plot.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <stdexcept>
+
+#include <fmt/format.h>
+
+namespace topocal::report {
+namespace {
+
+// Drawing sizes in SVG user units (the SVG scales to the page width; text keeps its proportion).
+constexpr double kPlotWidth = 640;
+constexpr double kMarginLeft = 56, kMarginRight = 16, kMarginTop = 30, kMarginBottom = 44;
+constexpr double kColourBarWidth = 14, kColourBarGap = 12, kColourBarLabelRoom = 64;
+// The longest vector is drawn about this fraction of the larger image side.
+constexpr double kLongestArrowFraction = 0.06;
+constexpr double kArrowHeadFraction = 0.3;   // head length / arrow length
+constexpr double kArrowHeadMaxUnits = 6;     // head length cap, user units
+constexpr const char* kArrowColour = "#1f4e9e";
+constexpr const char* kHighlightColour = "#c62828";
+constexpr const char* kFont = "font-family=\"DejaVu Sans, Arial, sans-serif\"";
+
+std::string Num(double v, int decimals = 2) {
+  if (!std::isfinite(v)) return "0";
+  return fmt::format("{:.{}f}", v, decimals);
+}
+
+// Shortest readable label of a value (3 significant digits).
+std::string Label(double v) {
+  if (!std::isfinite(v)) return "n/a";
+  if (v == 0) return "0";
+  // Whole numbers up to a million as integers ("x1000", not "x1e+03").
+  if (std::abs(v) >= 1 && std::abs(v) < 1e6 && v == std::round(v)) return fmt::format("{:.0f}", v);
+  return fmt::format("{:.3g}", v);
+}
+
+// A blue-to-yellow ramp (viridis anchors), t in [0, 1].
+std::string Colour(double t) {
+  static constexpr std::array<std::array<double, 3>, 5> kStops = {{{68, 1, 84}, {59, 82, 139}, {33, 145, 140},
+                                                                   {94, 201, 98}, {253, 231, 37}}};
+  t = std::clamp(std::isfinite(t) ? t : 0.0, 0.0, 1.0) * (kStops.size() - 1);
+  const int i = std::min(static_cast<int>(t), static_cast<int>(kStops.size()) - 2);
+  const double f = t - i;
+  std::array<int, 3> c{};
+  for (int k = 0; k < 3; ++k) c[k] = static_cast<int>(std::lround(kStops[i][k] + f * (kStops[i + 1][k] - kStops[i][k])));
+  return fmt::format("#{:02x}{:02x}{:02x}", c[0], c[1], c[2]);
+}
+
+}  // namespace
+
+std::string EscapeXml(std::string_view text) {
+  std::string out;
+  out.reserve(text.size());
+  for (char c : text) {
+    switch (c) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      case '\'': out += "&#39;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
+double NiceFloor(double x) {
+  if (!std::isfinite(x) || x <= 0) return 1;
+  const double decade = std::pow(10.0, std::floor(std::log10(x)));
+  const double m = x / decade;
+  // 1e-9 relative slack so that an exact 2 x 10^n is not floored to 1 x 10^n by rounding in log10/pow.
+  if (m >= 5 * (1 - 1e-9)) return 5 * decade;
+  if (m >= 2 * (1 - 1e-9)) return 2 * decade;
+  return decade;
+}
+
+std::string SvgBarChart(const std::vector<Bar>& bars, const BarChartOptions& o) {
+  double top = o.limit.value_or(0);
+  for (const Bar& b : bars) {
+    if (!std::isfinite(b.value) || b.value < 0) throw std::invalid_argument("bar chart: values must be finite and >= 0");
+    top = std::max(top, b.value);
+  }
+  if (top <= 0) top = 1;
+  const double tick = NiceFloor(top / 4);
+  const double axis_max = std::ceil(top * 1.1 / tick) * tick;
+  const double plot_h = 200;
+  const double w = kPlotWidth, h = kMarginTop + plot_h + kMarginBottom + 20;
+  const double inner_w = w - kMarginLeft - kMarginRight;
+  auto y_of = [&](double v) { return kMarginTop + plot_h * (1 - v / axis_max); };
+
+  std::string s = fmt::format(
+      "<svg class=\"plot\" viewBox=\"0 0 {} {}\" role=\"img\" "
+      "aria-label=\"{}\">\n",
+      Num(w, 0), Num(h, 0), EscapeXml(o.title));
+  s += fmt::format("<text x=\"{}\" y=\"18\" font-size=\"13\" font-weight=\"bold\" {}>{}</text>\n", Num(kMarginLeft),
+                   kFont, EscapeXml(o.title));
+  for (double v = 0; v <= axis_max * (1 + 1e-9); v += tick) {
+    s += fmt::format("<line x1=\"{}\" x2=\"{}\" y1=\"{}\" y2=\"{}\" stroke=\"#ddd\"/>\n", Num(kMarginLeft),
+                     Num(w - kMarginRight), Num(y_of(v)), Num(y_of(v)));
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" text-anchor=\"end\" {}>{}</text>\n",
+                     Num(kMarginLeft - 4), Num(y_of(v) + 3), kFont, Label(v));
+  }
+  s += fmt::format(
+      "<text transform=\"translate(12 {}) rotate(-90)\" font-size=\"11\" text-anchor=\"middle\" {}>{}</text>\n",
+      Num(kMarginTop + plot_h / 2), kFont, EscapeXml(o.value_label));
+  const double slot = bars.empty() ? inner_w : inner_w / bars.size();
+  const double bar_w = std::min(slot * 0.6, 80.0);
+  for (std::size_t i = 0; i < bars.size(); ++i) {
+    const double cx = kMarginLeft + slot * (i + 0.5);
+    const double y = y_of(bars[i].value);
+    s += fmt::format("<rect class=\"bar\" x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\"/>\n",
+                     Num(cx - bar_w / 2), Num(y), Num(bar_w), Num(kMarginTop + plot_h - y), kArrowColour);
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" text-anchor=\"middle\" {}>{}</text>\n", Num(cx),
+                     Num(y - 4), kFont, Label(bars[i].value));
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" text-anchor=\"middle\" {}>{}</text>\n", Num(cx),
+                     Num(kMarginTop + plot_h + 14), kFont, EscapeXml(bars[i].label));
+  }
+  if (o.limit) {
+    s += fmt::format(
+        "<line x1=\"{}\" x2=\"{}\" y1=\"{}\" y2=\"{}\" stroke=\"{}\" stroke-dasharray=\"6 4\" stroke-width=\"1.5\"/>\n",
+        Num(kMarginLeft), Num(w - kMarginRight), Num(y_of(*o.limit)), Num(y_of(*o.limit)), kHighlightColour);
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" text-anchor=\"end\" fill=\"{}\" {}>{}</text>\n",
+                     Num(w - kMarginRight), Num(y_of(*o.limit) - 4), kHighlightColour, kFont,
+                     EscapeXml(o.limit_label));
+  }
+  s += fmt::format("<line x1=\"{0}\" x2=\"{0}\" y1=\"{1}\" y2=\"{2}\" stroke=\"#333\"/>\n", Num(kMarginLeft),
+                   Num(kMarginTop), Num(kMarginTop + plot_h));
+  s += fmt::format("<line x1=\"{0}\" x2=\"{1}\" y1=\"{2}\" y2=\"{2}\" stroke=\"#333\"/>\n", Num(kMarginLeft),
+                   Num(w - kMarginRight), Num(kMarginTop + plot_h));
+  s += "</svg>\n";
+  return s;
+}
+
+std::string SvgQuiver(const std::vector<Arrow>& arrows, const QuiverOptions& o) {
+  if (o.image_width_px <= 0 || o.image_height_px <= 0) throw std::invalid_argument("quiver: image size must be > 0");
+  double longest = 0;
+  for (const Arrow& a : arrows) {
+    if (!std::isfinite(a.x_px) || !std::isfinite(a.y_px) || !std::isfinite(a.dx_px) || !std::isfinite(a.dy_px)) {
+      throw std::invalid_argument("quiver: non-finite arrow");
+    }
+    longest = std::max(longest, std::hypot(a.dx_px, a.dy_px));
+  }
+  const PixelRegion region = o.region.value_or(PixelRegion{-0.5, -0.5, static_cast<double>(o.image_width_px),
+                                                            static_cast<double>(o.image_height_px)});
+  if (!(region.width_px > 0) || !(region.height_px > 0)) throw std::invalid_argument("quiver: empty region");
+  const double img_w = region.width_px, img_h = region.height_px;
+  const double magnification =
+      o.magnification.value_or(longest > 0 ? NiceFloor(kLongestArrowFraction * std::max(img_w, img_h) / longest) : 1);
+  // Pixel x covers [x - 0.5, x + 0.5]: the region's left edge is at region.x_px.
+  const bool bar = o.background.has_value();
+  const double right = kMarginRight + (bar ? kColourBarGap + kColourBarWidth + kColourBarLabelRoom : 0);
+  const double inner_w = kPlotWidth - 20 - right;
+  const double scale = inner_w / img_w;  // user units per pixel
+  const double x0 = 20, y0 = kMarginTop;
+  const double inner_h = img_h * scale;
+  const double w = kPlotWidth, h = y0 + inner_h + kMarginBottom;
+  auto X = [&](double x_px) { return x0 + (x_px - region.x_px) * scale; };
+  auto Y = [&](double y_px) { return y0 + (y_px - region.y_px) * scale; };
+
+  std::string s = fmt::format(
+      "<svg class=\"plot\" viewBox=\"0 0 {} {}\" role=\"img\" "
+      "aria-label=\"{}\">\n",
+      Num(w, 0), Num(h, 0), EscapeXml(o.title));
+  s += fmt::format("<text x=\"{}\" y=\"18\" font-size=\"13\" font-weight=\"bold\" {}>{}</text>\n", Num(x0), kFont,
+                   EscapeXml(o.title));
+  if (bar) {
+    const CellField& f = *o.background;
+    if (f.cols <= 0 || f.rows <= 0 || f.values.size() != static_cast<std::size_t>(f.cols) * f.rows) {
+      throw std::invalid_argument("quiver: background grid size does not match its values");
+    }
+    double lo = f.values.front(), hi = f.values.front();
+    for (double v : f.values) {
+      if (!std::isfinite(v)) throw std::invalid_argument("quiver: non-finite background value");
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
+    }
+    const double span = hi > lo ? hi - lo : 1;
+    const double cw = inner_w / f.cols, ch = inner_h / f.rows;
+    s += "<g class=\"field\" shape-rendering=\"crispEdges\">\n";
+    for (int r = 0; r < f.rows; ++r) {
+      for (int c = 0; c < f.cols; ++c) {
+        // Cells overlap by a hair so no background seam shows between them.
+        s += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\"/>", Num(x0 + c * cw),
+                         Num(y0 + r * ch), Num(cw + 0.3), Num(ch + 0.3),
+                         Colour((f.values[r * f.cols + c] - lo) / span));
+      }
+      s += "\n";
+    }
+    s += "</g>\n";
+    const double bx = x0 + inner_w + kColourBarGap;
+    constexpr int kBarSteps = 32;
+    for (int i = 0; i < kBarSteps; ++i) {
+      const double t = 1.0 - (i + 0.5) / kBarSteps;
+      s += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\"/>", Num(bx),
+                       Num(y0 + i * inner_h / kBarSteps), Num(kColourBarWidth), Num(inner_h / kBarSteps + 0.3),
+                       Colour(t));
+    }
+    s += "\n";
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" {}>{}</text>\n", Num(bx + kColourBarWidth + 4),
+                     Num(y0 + 8), kFont, Label(hi));
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" {}>{}</text>\n", Num(bx + kColourBarWidth + 4),
+                     Num(y0 + inner_h), kFont, Label(lo));
+    s += fmt::format(
+        "<text transform=\"translate({} {}) rotate(90)\" font-size=\"10\" text-anchor=\"middle\" {}>{}</text>\n",
+        Num(bx + kColourBarWidth + 30), Num(y0 + inner_h / 2), kFont, EscapeXml(f.label));
+  }
+  s += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#333\"/>\n", Num(x0),
+                   Num(y0), Num(inner_w), Num(inner_h));
+  s += "<g class=\"arrows\" stroke-linecap=\"round\">\n";
+  for (const Arrow& a : arrows) {
+    const double bx = X(a.x_px), by = Y(a.y_px);
+    const double ex = bx + a.dx_px * magnification * scale, ey = by + a.dy_px * magnification * scale;
+    const double len = std::hypot(ex - bx, ey - by);
+    const char* colour = a.highlight ? kHighlightColour : kArrowColour;
+    s += fmt::format("<line x1=\"{}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"{}\" stroke-width=\"0.8\"/>", Num(bx),
+                     Num(by), Num(ex), Num(ey), colour);
+    if (len > 1e-6) {
+      const double head = std::min(kArrowHeadFraction * len, kArrowHeadMaxUnits);
+      const double ux = (ex - bx) / len, uy = (ey - by) / len;
+      const double hx = ex - head * ux, hy = ey - head * uy;
+      s += fmt::format("<polygon points=\"{},{} {},{} {},{}\" fill=\"{}\"/>", Num(ex), Num(ey),
+                       Num(hx - 0.4 * head * uy), Num(hy + 0.4 * head * ux), Num(hx + 0.4 * head * uy),
+                       Num(hy - 0.4 * head * ux), colour);
+    }
+    s += "\n";
+  }
+  s += "</g>\n";
+  // Scale bar: a round displacement about half the longest, drawn at the plot's magnification.
+  const double bar_value = longest > 0 ? NiceFloor(longest / 2) : 1;
+  const double bar_len = bar_value * magnification * scale;
+  const double sy = y0 + inner_h + 22;
+  s += fmt::format("<line class=\"scale-bar\" x1=\"{}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"#000\" "
+                   "stroke-width=\"2\"/>\n",
+                   Num(x0), Num(sy), Num(x0 + bar_len), Num(sy));
+  s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" {}>{} {} (vectors magnified \u00d7{}; longest {} {})"
+                   "</text>\n",
+                   Num(x0 + bar_len + 8), Num(sy + 4), kFont, Label(bar_value), EscapeXml(o.caption_unit),
+                   Label(magnification), Label(longest), EscapeXml(o.caption_unit));
+  if (o.region) {
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" fill=\"#555\" {}>x {} to {} px, y {} to {} px of the "
+                     "{} \u00d7 {} px image</text>\n",
+                     Num(x0), Num(sy + 18), kFont, Label(std::round(region.x_px)),
+                     Label(std::round(region.x_px + region.width_px)), Label(std::round(region.y_px)),
+                     Label(std::round(region.y_px + region.height_px)), o.image_width_px, o.image_height_px);
+  } else {
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" fill=\"#555\" {}>image {} \u00d7 {} px</text>\n",
+                     Num(x0), Num(sy + 18), kFont, o.image_width_px, o.image_height_px);
+  }
+  s += "</svg>\n";
+  return s;
+}
+
+}  // namespace topocal::report

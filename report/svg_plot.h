@@ -1,0 +1,67 @@
+#pragma once
+// Inline SVG plots for the QA report: no scripts, no external fonts or images, deterministic text (every number
+// printed by fmt with a fixed precision), so the same record gives the same bytes.
+//
+// Image-space plots use OpenCV's pixel convention (x right, y down, the centre of the top-left pixel at (0, 0)),
+// scaled to a fixed drawing width; vectors are magnified by a 1-2-5 factor chosen so the longest is visible, and a
+// scale bar says how long a given displacement is drawn.
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace topocal::report {
+
+// &, <, >, " and ' escaped for XML text and attributes.
+std::string EscapeXml(std::string_view text);
+// The largest 1, 2 or 5 x 10^n not above x (x > 0); 1 for x <= 0 or not finite.
+double NiceFloor(double x);
+
+struct Bar {
+  std::string label;
+  double value = 0;
+};
+
+struct BarChartOptions {
+  std::string title;
+  std::string value_label;      // axis label with unit, e.g. "RMS (px)"
+  std::optional<double> limit;  // drawn as a dashed line
+  std::string limit_label;
+};
+
+// Vertical bars, one per entry, with the value printed above each bar. Values must be finite and >= 0.
+std::string SvgBarChart(const std::vector<Bar>& bars, const BarChartOptions& options);
+
+struct Arrow {
+  double x_px = 0, y_px = 0;    // base, image pixels
+  double dx_px = 0, dy_px = 0;  // the vector, pixels
+  bool highlight = false;       // drawn in the warning colour (outliers)
+};
+
+// A scalar field over the image on a regular cols x rows grid of cells (row-major, row 0 at the top), drawn as
+// coloured cells under the arrows with a colour bar.
+struct CellField {
+  int cols = 0, rows = 0;
+  std::vector<double> values;
+  std::string label;  // colour-bar label with unit
+};
+
+// A part of the image, pixels (x right, y down).
+struct PixelRegion {
+  double x_px = 0, y_px = 0, width_px = 0, height_px = 0;
+};
+
+struct QuiverOptions {
+  int image_width_px = 0, image_height_px = 0;
+  std::optional<PixelRegion> region;        // draw only this part of the image (default: all of it)
+  std::string title;
+  std::string caption_unit = "px";          // unit of the vectors in the scale bar
+  std::optional<double> magnification;      // default: chosen from the longest vector
+  std::optional<CellField> background;
+};
+
+// Arrows over the image frame, magnified, with a scale bar. Throws std::invalid_argument for a non-positive image
+// size or a non-finite vector.
+std::string SvgQuiver(const std::vector<Arrow>& arrows, const QuiverOptions& options);
+
+}  // namespace topocal::report

@@ -1,0 +1,143 @@
+#pragma once
+// Reading a unit record (docs/unit-record.md) for the QA report: the directory `topocal unit calibrate` writes,
+// checked before a single number of it is shown.
+//
+//   units/SN/unit.json          format, format_version, tool_version (== topocal::kVersion), identity, results
+//   units/SN/calibration.yaml   calib::LoadCalibrationFile (strict)
+//   units/SN/residuals.csv      view,image,corner_id,x_px,y_px,dx_px,dy_px,outlier
+//   units/SN/maps/*.png         embedded as they are
+//
+// Every file listed in unit.json's `files` must exist with the listed SHA-256, and calibration.yaml and
+// residuals.csv must be among them: a record that is incomplete or was changed after it was written is refused.
+// Every error is a model::InputError with one line "PATH: KEY: problem".
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "calib/calibration_file.h"
+
+namespace topocal::report {
+
+// Versions of the record this reader understands.
+inline constexpr const char* kUnitRecordFormat = "topocal-unit-record";
+inline constexpr int kUnitRecordFormatVersion = 1;
+
+struct InputFile {
+  std::string role, path, sha256;
+};
+
+struct RecordFile {
+  std::string name;    // relative to the record directory
+  std::string sha256;  // as listed, and verified against the file
+};
+
+struct CalibrationParameter {
+  std::string name;
+  double value = 0;
+  double stddev = 0;
+  bool fixed = false;
+};
+
+struct ViewRms {
+  std::string image;
+  double rms_px = 0;
+  int corners = 0;
+};
+
+// One row of residuals.csv: the corner where it was observed and predicted - observed.
+struct CornerResidualRow {
+  int view = 0;
+  std::string image;
+  int corner_id = 0;
+  double x_px = 0, y_px = 0, dx_px = 0, dy_px = 0;
+  bool outlier = false;
+};
+
+// mean +- U (k = 2) of one clinical number from the Monte Carlo of the calibration's uncertainty.
+struct ExpandedUncertainty {
+  double mean = 0;
+  double U = 0;
+};
+
+struct UncertaintyBlock {
+  int samples = 0;
+  int seed = 0;
+  int failed_samples = 0;
+  std::vector<std::string> drawn;
+  std::map<std::string, ExpandedUncertainty> quantities;  // rx_mm, ry_mm, kx, ky, alpha_deg, pv_*_D
+};
+
+// The numbers of one stage (uncorrected or corrected) of a case, by key as in unit.json (rx_mm, kx, ...).
+using StageValues = std::map<std::string, double>;
+
+struct SphereVerification {
+  std::string image;
+  double radius_true_mm = 0, power_true_D = 0, keratometric_index = 0;
+  StageValues uncorrected, corrected;
+  std::optional<UncertaintyBlock> uncertainty;
+};
+
+struct PaperCornea {
+  StageValues truth, uncorrected, corrected;
+  std::optional<UncertaintyBlock> uncertainty;
+};
+
+// The keys each stage must hold (docs/unit-record.md).
+inline constexpr const char* kSphereStageKeys[] = {
+    "spots_indexed", "rx_mm", "ry_mm", "kx", "ky", "alpha_deg", "radius_mm", "radius_error_mm",
+    "power_mean_D",  "power_error_D", "pv_tangential_D", "pv_axial_D"};
+inline constexpr const char* kPaperStageKeys[] = {"rx_mm", "ry_mm", "kx", "ky", "alpha_deg", "pv_tangential_D",
+                                                  "pv_axial_D", "height_pv_um", "height_rms_um"};
+inline constexpr const char* kPaperTruthKeys[] = {"rx_mm", "ry_mm", "kx", "ky", "alpha_deg"};
+
+struct UnitRecord {
+  std::string directory;
+  std::string unit_json_path;
+  std::string unit_json_sha256;
+
+  std::string serial, tool_version, created_utc;
+  int format_version = 0;
+
+  // settings
+  std::string settings_model;
+  bool settings_single_view = false, settings_fit_centre = false;
+  std::optional<double> settings_sphere_radius_mm;
+  int settings_uncertainty_samples = 0, settings_seed = 0;
+
+  std::vector<InputFile> inputs;
+  std::vector<RecordFile> files;
+
+  // camera
+  double camera_pixel_pitch_um = 0, camera_a_mm = 0;
+  int camera_width_px = 0, camera_height_px = 0;
+
+  // calibration block of unit.json
+  std::string calibration_model;
+  bool calibration_single_view = false;
+  int calibration_width_px = 0, calibration_height_px = 0;
+  double calibration_rms_px = 0;
+  int corners_used = 0, outliers = 0;
+  std::vector<CalibrationParameter> parameters;
+  std::optional<double> seidel_sigma_per_mm2, seidel_sigma_stddev_per_mm2, seidel_magnification, seidel_focal_mm;
+  std::vector<ViewRms> views;
+  // calibration.distortion_field.field_radius_px: radius about the principal point that the measurement uses
+  // (optional; the distortion plot covers it).
+  std::optional<double> field_radius_px;
+
+  std::optional<SphereVerification> verification;
+  PaperCornea paper;
+
+  // The files themselves.
+  calib::CalibrationFile calibration;
+  std::string calibration_path;
+  std::vector<CornerResidualRow> residuals;
+  std::map<std::string, std::string> map_png;  // name under maps/ (e.g. "sphere_corrected_axial_power.png") -> bytes
+};
+
+// Reads and verifies the record in `directory`. Throws model::InputError "PATH: KEY: problem" for a missing or
+// malformed file, a missing key, a value of the wrong type, another format or tool version, a file listed in
+// `files` that is missing or whose SHA-256 differs.
+UnitRecord ReadUnitRecord(const std::string& directory);
+
+}  // namespace topocal::report

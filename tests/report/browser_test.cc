@@ -1,0 +1,174 @@
+// The report in a real browser: Debian's headless Chromium prints it to PDF, screenshots it and dumps the DOM after
+// the page's load event, and the test checks what is on the page. Chromium is required (scripts/setup.sh test
+// installs it): without it the test FAILS, it does not skip.
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <future>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "model/io.h"
+#include "tests/cli_harness.h"
+#include "tests/report/record_fixture.h"
+
+namespace topocal::report {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::FreshDir;
+using testing::MakeRecord;
+using topocal::testing_cli::RunTopocal;
+
+// Each Chromium run is killed after this long (a hung browser must fail the test, not hang CI); a cold start on
+// the 2-core machine takes about 2 s.
+constexpr int kChromiumTimeoutS = 60;
+constexpr int kWindowWidthPx = 1200, kWindowHeightPx = 3000;
+// Enough virtual time for the load event after decoding four small PNGs (they are data: URIs, nothing to fetch).
+constexpr int kVirtualTimeBudgetMs = 5000;
+// A printed report with embedded maps and three SVG plots is tens of kB; an empty page prints to ~7 kB.
+constexpr std::uintmax_t kMinPdfBytes = 20000;
+// Page breaks before calibration, sphere, paper and acceptance: at least five A4 pages.
+constexpr int kMinPdfPages = 5;
+// The PASS banner colour (#2e7d32) must cover at least a banner's area in the screenshot (~1000 x 60 px).
+constexpr int kMinBannerPixels = 20000;
+constexpr int kBannerColourTolerance = 6;  // per channel, for anti-aliasing / colour management
+// A rendered page has text, tables and plots: its grey levels vary far more than a blank one (stddev 0).
+constexpr double kMinScreenshotStddev = 10.0;
+
+std::string FindChromium() {
+  if (const char* env = std::getenv("TOPOCAL_CHROMIUM"); env && *env) return env;
+  for (const char* candidate : {"/usr/bin/chromium", "/usr/bin/chromium-browser"}) {
+    if (::access(candidate, X_OK) == 0) return candidate;
+  }
+  return "";
+}
+
+struct ShellRun {
+  int exit_code = -1;
+  std::string output;
+};
+
+ShellRun Shell(const std::string& cmd) {
+  ShellRun r;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (!pipe) return r;
+  std::array<char, 65536> buf;
+  while (std::size_t n = fread(buf.data(), 1, buf.size(), pipe)) r.output.append(buf.data(), n);
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return r;
+}
+
+// Headless Chromium with its own HOME and profile (it writes both), killed after the timeout. stderr (D-Bus noise
+// on a machine without a session bus) goes to a log that a failure prints.
+ShellRun Chromium(const std::string& chromium, const std::string& work, const std::string& name, const std::string& args) {
+  const std::string home = work + "/home-" + name, profile = work + "/profile-" + name, log = work + "/" + name + ".log";
+  fs::create_directories(home);
+  const std::string cmd =
+      fmt::format("env HOME={} timeout -k 5 {} {} --headless --no-sandbox --disable-gpu --no-first-run "
+                  "--no-default-browser-check --disable-extensions --hide-scrollbars --user-data-dir={} {} 2>{}",
+                  home, kChromiumTimeoutS, chromium, profile, args, log);
+  ShellRun r = Shell(cmd);
+  if (r.exit_code != 0) {
+    std::string err;
+    try {
+      err = model::ReadFile(log);
+    } catch (const std::exception&) {
+    }
+    r.output += "\n[chromium stderr]\n" + err;
+  }
+  return r;
+}
+
+std::size_t Count(const std::string& haystack, const std::string& needle) {
+  std::size_t n = 0;
+  for (std::size_t pos = haystack.find(needle); pos != std::string::npos; pos = haystack.find(needle, pos + 1)) ++n;
+  return n;
+}
+
+TEST(ReportInBrowser, ChromiumRendersPrintsAndShowsTheReport) {
+  const std::string chromium = FindChromium();
+  ASSERT_FALSE(chromium.empty()) << "headless Chromium is required for this test and was not found at "
+                                    "/usr/bin/chromium (install the Debian package `chromium`, as scripts/setup.sh "
+                                    "test does, or set TOPOCAL_CHROMIUM)";
+  const std::string work = FreshDir("browser");
+  const auto record = MakeRecord(work + "/units/SN-TEST-0001");
+  const std::string html = work + "/report.html";
+  const auto made = RunTopocal("report --unit " + record.dir + " --out " + html);
+  ASSERT_EQ(made.exit_code, 0) << made.output;
+  const std::string page = model::ReadFile(html);
+  const std::string id_key = "data-report-id=\"";
+  const std::size_t id_at = page.find(id_key);
+  ASSERT_NE(id_at, std::string::npos);
+  const std::string report_id = page.substr(id_at + id_key.size(), page.find('"', id_at + id_key.size()) - id_at - id_key.size());
+  ASSERT_EQ(report_id.size(), std::string("SN-TEST-0001-").size() + 12) << report_id;
+  const std::string url = "file://" + fs::absolute(html).string();
+  const std::string pdf = work + "/report.pdf", png = work + "/report.png";
+
+  // The three renderings are independent (own profile each): run them side by side.
+  auto print = std::async(std::launch::async, [&] {
+    return Chromium(chromium, work, "pdf", "--no-pdf-header-footer --print-to-pdf=" + pdf + " " + url);
+  });
+  auto shot = std::async(std::launch::async, [&] {
+    return Chromium(chromium, work, "png",
+                    fmt::format("--screenshot={} --window-size={},{} {}", png, kWindowWidthPx, kWindowHeightPx, url));
+  });
+  auto dom = std::async(std::launch::async, [&] {
+    return Chromium(chromium, work, "dom",
+                    fmt::format("--virtual-time-budget={} --dump-dom {}", kVirtualTimeBudgetMs, url));
+  });
+  const ShellRun printed = print.get(), shown = shot.get(), dumped = dom.get();
+
+  // PDF: there, non-trivial, A4 pages, several of them.
+  ASSERT_EQ(printed.exit_code, 0) << printed.output;
+  ASSERT_TRUE(fs::exists(pdf)) << printed.output;
+  EXPECT_GE(fs::file_size(pdf), kMinPdfBytes);
+  const std::string pdf_bytes = model::ReadFile(pdf);
+  EXPECT_EQ(pdf_bytes.rfind("%PDF-", 0), 0u);
+  // Skia writes each page object as "/Type /Page" (the page tree as "/Type /Pages").
+  const int pages = static_cast<int>(Count(pdf_bytes, "/Type /Page") - Count(pdf_bytes, "/Type /Pages"));
+  EXPECT_GE(pages, kMinPdfPages);
+  // A4 = 595.28 x 841.89 pt (210 x 297 mm) on every page.
+  EXPECT_EQ(static_cast<int>(Count(pdf_bytes, "/MediaBox [0 0 594.95996 841.91998]")), pages) << "not A4";
+
+  // DOM after the load event: the id, the serial, the verdict, every embedded image decoded.
+  ASSERT_EQ(dumped.exit_code, 0) << dumped.output;
+  const std::string& d = dumped.output;
+  EXPECT_NE(d.find("data-images-decoded=\"4/4\""), std::string::npos) << "embedded PNG maps not decoded";
+  EXPECT_NE(d.find("<title>topocal QA report " + report_id), std::string::npos);
+  EXPECT_NE(d.find("id=\"report-id\">" + report_id), std::string::npos);
+  EXPECT_NE(d.find("class=\"print-header\">topocal QA report <span class=\"report-id\">" + report_id),
+            std::string::npos);
+  EXPECT_NE(d.find("SN-TEST-0001"), std::string::npos);
+  EXPECT_NE(d.find("id=\"verdict\" class=\"banner pass\" data-verdict=\"PASS\">PASS"), std::string::npos);
+  EXPECT_EQ(Count(d, "<svg class=\"plot\""), 3u);
+  EXPECT_EQ(Count(d, "<tr data-check="), 7u);
+
+  // Screenshot: loads, the window's size, not blank, and the green PASS banner is on it.
+  ASSERT_EQ(shown.exit_code, 0) << shown.output;
+  const cv::Mat shot_img = cv::imread(png, cv::IMREAD_COLOR);
+  ASSERT_FALSE(shot_img.empty()) << png;
+  EXPECT_EQ(shot_img.cols, kWindowWidthPx);
+  EXPECT_EQ(shot_img.rows, kWindowHeightPx);
+  cv::Mat grey;
+  cv::cvtColor(shot_img, grey, cv::COLOR_BGR2GRAY);
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(grey, mean, stddev);
+  EXPECT_GT(stddev[0], kMinScreenshotStddev) << "blank screenshot";
+  const cv::Scalar pass_bgr(0x32, 0x7d, 0x2e), tol(kBannerColourTolerance, kBannerColourTolerance,
+                                                    kBannerColourTolerance);
+  cv::Mat banner;
+  cv::inRange(shot_img, pass_bgr - tol, pass_bgr + tol, banner);
+  EXPECT_GT(cv::countNonZero(banner), kMinBannerPixels) << "no PASS banner on the rendered page";
+}
+
+}  // namespace
+}  // namespace topocal::report

@@ -1,0 +1,185 @@
+// The HTML of the report: its id everywhere it must be, every section, the embedded maps, nothing fetched from
+// outside, no NaN, the same bytes for the same record.
+#include "report/html_report.h"
+
+#include <cctype>
+#include <regex>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "report/svg_plot.h"
+#include "tests/report/record_fixture.h"
+
+namespace topocal::report {
+namespace {
+
+using testing::FreshDir;
+using testing::MakeRecord;
+
+std::size_t Count(const std::string& haystack, const std::string& needle) {
+  std::size_t n = 0;
+  for (std::size_t pos = haystack.find(needle); pos != std::string::npos; pos = haystack.find(needle, pos + 1)) ++n;
+  return n;
+}
+
+TEST(Base64, Rfc4648Vectors) {
+  EXPECT_EQ(Base64(""), "");
+  EXPECT_EQ(Base64("f"), "Zg==");
+  EXPECT_EQ(Base64("fo"), "Zm8=");
+  EXPECT_EQ(Base64("foo"), "Zm9v");
+  EXPECT_EQ(Base64("foob"), "Zm9vYg==");
+  EXPECT_EQ(Base64("fooba"), "Zm9vYmE=");
+  EXPECT_EQ(Base64("foobar"), "Zm9vYmFy");
+  EXPECT_EQ(Base64(std::string("\xff\x00\x80", 3)), "/wCA");
+}
+
+TEST(SvgPlot, NiceFloorAndEscaping) {
+  EXPECT_DOUBLE_EQ(NiceFloor(7.3), 5);
+  EXPECT_DOUBLE_EQ(NiceFloor(2.0), 2);
+  EXPECT_DOUBLE_EQ(NiceFloor(0.0199), 0.01);
+  EXPECT_DOUBLE_EQ(NiceFloor(0), 1);
+  EXPECT_EQ(EscapeXml("a<b & \"c\">'"), "a&lt;b &amp; &quot;c&quot;&gt;&#39;");
+  QuiverOptions o;
+  o.image_width_px = o.image_height_px = 10;
+  EXPECT_THROW(SvgQuiver({{0, 0, std::nan(""), 0, false}}, o), std::invalid_argument);
+}
+
+TEST(SvgPlot, QuiverHasOneArrowPerVectorAndAScaleBar) {
+  QuiverOptions o;
+  o.image_width_px = 400;
+  o.image_height_px = 300;
+  o.title = "t";
+  const std::string svg = SvgQuiver({{10, 10, 1, 0, false}, {200, 150, 0, -2, true}}, o);
+  EXPECT_EQ(Count(svg, "<polygon"), 2u);
+  EXPECT_EQ(Count(svg, "class=\"scale-bar\""), 1u);
+  // Longest 2 px, 6 % of 400 px = 24 px: magnified x10 (1-2-5 floor of 12); bar of 1 px.
+  EXPECT_NE(svg.find("1 px (vectors magnified \u00d710; longest 2 px)"), std::string::npos) << svg;
+}
+
+class HtmlReportTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    fixture_ = new testing::RecordFixture(MakeRecord(FreshDir("html")));
+    record_ = new UnitRecord(ReadUnitRecord(fixture_->dir));
+    html_ = new std::string(RenderHtmlReport(*record_, DefaultLimits()));
+  }
+  static void TearDownTestSuite() {
+    delete html_;
+    delete record_;
+    delete fixture_;
+  }
+  static testing::RecordFixture* fixture_;
+  static UnitRecord* record_;
+  static std::string* html_;
+};
+testing::RecordFixture* HtmlReportTest::fixture_ = nullptr;
+UnitRecord* HtmlReportTest::record_ = nullptr;
+std::string* HtmlReportTest::html_ = nullptr;
+
+TEST_F(HtmlReportTest, ReportIdIsSerialAndUnitJsonDigest) {
+  const std::string id = ReportId(*record_);
+  EXPECT_TRUE(std::regex_match(id, std::regex("SN-TEST-0001-[0-9a-f]{12}"))) << id;
+  EXPECT_EQ(id.substr(id.size() - 12), model::Sha256HexOfFile(fixture_->Path("unit.json")).substr(0, 12));
+}
+
+TEST_F(HtmlReportTest, IdInTitleHeaderFooterAndBody) {
+  const std::string& h = *html_;
+  const std::string id = ReportId(*record_);
+  EXPECT_NE(h.find("<title>topocal QA report " + id), std::string::npos);
+  EXPECT_NE(h.find("<div class=\"print-header\">topocal QA report <span class=\"report-id\">" + id), std::string::npos);
+  EXPECT_NE(h.find("<div class=\"print-footer\">Report <span class=\"report-id\">" + id), std::string::npos);
+  EXPECT_NE(h.find("id=\"report-id\">" + id), std::string::npos);
+  // Repeated on every printed page: fixed in print, with page-frame rows reserving their room.
+  const std::size_t print_css = h.find("@media print {");
+  ASSERT_NE(print_css, std::string::npos);
+  EXPECT_NE(h.find(".print-header, .print-footer { display: block; position: fixed;", print_css), std::string::npos);
+  EXPECT_NE(h.find("@page { size: A4;"), std::string::npos);
+  EXPECT_NE(h.find("<thead><tr><td><div class=\"header-space\">"), std::string::npos);
+  EXPECT_NE(h.find("record created 2026-11-25T19:00:00Z"), std::string::npos);
+}
+
+TEST_F(HtmlReportTest, HasEverySection) {
+  const std::string& h = *html_;
+  for (const char* id : {"id=\"verdict\"", "id=\"identity\"", "id=\"method\"", "id=\"inputs\"", "id=\"calibration\"",
+                         "id=\"seidel-sigma\"", "id=\"residuals\"", "id=\"sphere\"", "id=\"paper\"",
+                         "id=\"acceptance\"", "id=\"checks\""}) {
+    EXPECT_NE(h.find(id), std::string::npos) << id;
+  }
+  EXPECT_NE(h.find("data-verdict=\"PASS\">PASS"), std::string::npos);
+  EXPECT_NE(h.find("Guarded acceptance (ILAC-G8:09/2019"), std::string::npos);
+  EXPECT_EQ(Count(h, "<tr data-check="), 7u);
+  EXPECT_EQ(Count(h, "<svg class=\"plot\""), 3u);  // per-view RMS, residual vectors, distortion field
+  EXPECT_EQ(Count(h, "<rect class=\"bar\""), 1u);  // one view
+  // Every input and record file with its digest.
+  for (const auto& in : record_->inputs) EXPECT_NE(h.find(in.sha256), std::string::npos) << in.path;
+  for (const auto& f : record_->files) EXPECT_NE(h.find(f.sha256), std::string::npos) << f.name;
+  // Parameters with U (k = 2): k1 fitted, fx fixed.
+  const std::size_t k1 = h.find("<td>k1</td><td class=\"num\">");
+  ASSERT_NE(k1, std::string::npos);
+  const std::string fitted_u = "</td><td class=\"num\">\u00b1 ";
+  EXPECT_EQ(h.substr(h.find("</td>", k1 + 30), fitted_u.size()), fitted_u);
+  EXPECT_NE(h.find("<td>fx</td><td class=\"num\">4642.857</td><td class=\"num\">\u2014</td><td>fixed"),
+            std::string::npos);
+  EXPECT_NE(h.find("Seidel \u03c3 = <strong>"), std::string::npos);
+  // Before/after tables of both cases with the Monte Carlo U.
+  EXPECT_NE(h.find("<td>radius error (mm)</td>"), std::string::npos);
+  EXPECT_NE(h.find("<td>power error (D)</td>"), std::string::npos);
+  EXPECT_NE(h.find("-0.4302</td><td class=\"num\">-0.0002</td><td class=\"num\">0.0002 \u00b1 0.0030</td>"),
+            std::string::npos);
+}
+
+TEST_F(HtmlReportTest, MapsAreEmbeddedAndNothingIsFetched) {
+  const std::string& h = *html_;
+  EXPECT_EQ(Count(h, "<img "), 4u);
+  EXPECT_EQ(Count(h, "src=\"data:image/png;base64,"), 4u);
+  EXPECT_NE(h.find(Base64(record_->map_png.at("paper_corrected_axial_power.png"))), std::string::npos);
+  for (const char* external : {"http://", "https://", "src=\"/", "src=\"file:", "href=", "url(", "@import", "<link",
+                               "<iframe", "<object", "<embed", "//cdn"}) {
+    EXPECT_EQ(h.find(external), std::string::npos) << external;
+  }
+  EXPECT_EQ(Count(h, "src=\""), 4u);  // only the four data: URIs
+}
+
+// The words of the page outside its base64 payloads (std::regex would overflow the stack on a page this long).
+std::vector<std::string> Words(const std::string& html) {
+  std::vector<std::string> words;
+  std::string word;
+  for (std::size_t i = 0; i < html.size(); ++i) {
+    if (html.compare(i, 7, "base64,") == 0) {
+      i = html.find('"', i);
+      if (i == std::string::npos) break;
+    }
+    const unsigned char c = html[i];
+    if (std::isalnum(c)) {
+      word += static_cast<char>(std::tolower(c));
+    } else if (!word.empty()) {
+      words.push_back(word);
+      word.clear();
+    }
+  }
+  return words;
+}
+
+TEST_F(HtmlReportTest, NoNanAndDeterministic) {
+  for (const std::string& w : Words(*html_)) {
+    EXPECT_TRUE(w != "nan" && w != "inf" && w != "infinity") << w;
+  }
+  EXPECT_EQ(RenderHtmlReport(ReadUnitRecord(fixture_->dir), DefaultLimits()), *html_);
+}
+
+TEST(HtmlReport, FailingRecordSaysFailAndWhy) {
+  auto f = MakeRecord(FreshDir("fail"));
+  f.unit["paper_cornea"]["corrected"]["kx"] = -0.61;  // the uncorrected value: correction did nothing
+  f.unit.erase("verification");
+  f.WriteUnitJson();
+  const std::string h = RenderHtmlReport(ReadUnitRecord(f.dir), DefaultLimits());
+  EXPECT_NE(h.find("data-verdict=\"FAIL\">FAIL"), std::string::npos);
+  EXPECT_NE(h.find("No reference sphere was given"), std::string::npos);
+  EXPECT_NE(h.find("not verified: the record has no reference-sphere verification"), std::string::npos);
+  EXPECT_NE(h.find("paper cornea: k_x error, corrected</td><td class=\"num\">0.18</td>"), std::string::npos);
+  EXPECT_NE(h.find("4 of 7 checks passed"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace topocal::report
