@@ -122,7 +122,10 @@ double HarnessCaseResult::MaxAbsDP_D(const HarnessLimits& limits) const {
 ShardSpec ParseShardSpec(const std::string& text) {
   const auto slash = text.find('/');
   auto parse = [&](const std::string& part, int* out) {
-    if (part.empty() || part.size() > 9 || !std::all_of(part.begin(), part.end(), ::isdigit)) return false;
+    if (part.empty() || part.size() > 9) return false;
+    for (const char c : part) {
+      if (c < '0' || c > '9') return false;
+    }
     *out = std::stoi(part);
     return true;
   };

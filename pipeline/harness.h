@@ -103,7 +103,7 @@ class HarnessCaseRunner {
 
  private:
   struct CorneaData;
-  const HarnessConfig& config_;
+  HarnessConfig config_;  // a copy: the runner may outlive the caller's configuration
   std::shared_ptr<const std::vector<model::TargetPoint>> targets_;
   std::vector<HarnessTruth> truth_;
   std::vector<std::shared_ptr<const CorneaData>> data_;

@@ -113,7 +113,6 @@ TEST_F(HarnessCli, RefusesBadInputWithOneLineAndNoOutput) {
   } configs[] = {
       {"\"noise_px\": [0.01]", "\"noise_px\": []", "noise_px: must not be empty"},
       {"\"noise_px\": [0.01]", "\"noise_px\": [-0.01]", "noise_px[0]: must be >= 0"},
-      {"\"noise_px\": [0.01]", "\"noise_px\": [1e999]", "not valid JSON"},  // JSON has no infinity
       {"[-1e-6, 6.3e-5]", R"({"from": 1e-4, "to": 1e-5, "count": 3, "spacing": "log"})", ".from: must not exceed to"},
       {"[-1e-6, 6.3e-5]", R"({"from": 1e-5, "to": 1e-4, "count": 0})", ".count: must be >= 1"},
       {"\"seed\": 3", "\"seed\": 3, \"colour\": 1", "colour: unknown key"},
@@ -130,7 +129,8 @@ TEST_F(HarnessCli, RefusesBadInputWithOneLineAndNoOutput) {
     EXPECT_FALSE(fs::exists(out)) << c.to;
   }
   const std::string good = Config("good.json");
-  for (const char* shard : {"3/3", "0/0", "1", "x/3", "-1/3"}) {
+  // Each launch costs ~0.1-0.4 s of process start; tests/pipeline/harness_test.cc parses every other malformed form.
+  for (const char* shard : {"3/3", "0/0", "x/3"}) {
     const auto r = RunTopocal("harness --config " + good + " --shard " + shard + " --out " + Path("shard_out"));
     EXPECT_EQ(r.exit_code, 2) << shard << ": " << r.output;
     EXPECT_NE(r.output.find("--shard"), std::string::npos) << r.output;

@@ -102,6 +102,8 @@ TEST(HarnessConfig, RefusesEveryInvalidRangeNamingTheKey) {
             std::string::npos);
   EXPECT_NE(Refusal(SmallConfig(R"(, "corneas": ["design", "design"])")).find("corneas[1]"), std::string::npos);
   EXPECT_NE(Refusal(SmallConfig(R"(, "corneas": [])")).find("corneas"), std::string::npos);
+  // JSON has no infinity: a number beyond double's range is refused as invalid JSON, one line naming the file.
+  EXPECT_NE(Refusal(Replace(ok, "[0, 0.1]", "[0, 1e999]")).find("H.json: (file): not valid JSON"), std::string::npos);
 }
 
 TEST(HarnessShardSpec, ParsesOnlyIOfN) {
