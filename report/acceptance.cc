@@ -156,25 +156,30 @@ Verdict Evaluate(const UnitRecord& rec, const Limits& limits) {
   }
   if (rec.verification) {
     const SphereVerification& s = *rec.verification;
-    // radius = (r_x + r_y) / 2: U of a mean is at most the mean of the U's (equality for full correlation).
-    std::optional<double> u_radius;
-    if (auto ux = QuantityU(s.uncertainty, "rx_mm"), uy = QuantityU(s.uncertainty, "ry_mm"); ux && uy) {
+    // The record's own U of the radius when it has one; else radius = (r_x + r_y) / 2 and the U of a mean is at
+    // most the mean of the U's (equality for full correlation).
+    std::optional<double> u_radius = QuantityU(s.uncertainty, "radius_mm");
+    std::string radius_note = u_radius ? "U of (r_x + r_y) / 2 from the Monte Carlo" : "";
+    if (auto ux = QuantityU(s.uncertainty, "rx_mm"), uy = QuantityU(s.uncertainty, "ry_mm"); !u_radius && ux && uy) {
       u_radius = 0.5 * (*ux + *uy);
+      radius_note = "U = (U(r_x) + U(r_y)) / 2, the bound for fully correlated r_x, r_y";
     }
     v.checks.push_back(Judge({"sphere_radius_error_mm", "reference sphere: radius error, corrected", "mm",
                               std::abs(s.corrected.at("radius_error_mm")), u_radius,
-                              limits.sphere_radius_error_mm.max, false,
-                              u_radius ? "U = (U(r_x) + U(r_y)) / 2, the bound for fully correlated r_x, r_y" : ""},
+                              limits.sphere_radius_error_mm.max, false, radius_note},
                              limits.rule));
-    // P = 1000 (n_k - 1) / R, so U(P) = 1000 (n_k - 1) U(R) / R^2 to first order.
-    std::optional<double> u_power;
+    // The record's U of the central power when it has one; else P = 1000 (n_k - 1) / R, so
+    // U(P) = 1000 (n_k - 1) U(R) / R^2 to first order.
+    std::optional<double> u_power = QuantityU(s.uncertainty, "central_axial_power_D");
+    std::string power_note = u_power ? "U of the central power from the Monte Carlo" : "";
     const double radius_mm = s.corrected.at("radius_mm");
-    if (u_radius && radius_mm > 0) {
+    if (!u_power && u_radius && radius_mm > 0) {
       u_power = 1000.0 * (s.keratometric_index - 1.0) * *u_radius / (radius_mm * radius_mm);
+      power_note = "U = 1000 (n_k - 1) U(R) / R^2, first order";
     }
     v.checks.push_back(Judge({"sphere_power_error_D", "reference sphere: power error, corrected", "D",
                               std::abs(s.corrected.at("power_error_D")), u_power, limits.sphere_power_error_D.max,
-                              false, u_power ? "U = 1000 (n_k - 1) U(R) / R^2, first order" : ""},
+                              false, power_note},
                              limits.rule));
   } else {
     for (const auto& [id, what, unit, limit] :

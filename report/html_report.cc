@@ -52,7 +52,7 @@ constexpr Quantity kSphereRows[] = {
     {"rx_mm", "r<sub>x</sub>", "mm", 4},          {"ry_mm", "r<sub>y</sub>", "mm", 4},
     {"kx", "k<sub>x</sub>", "", 4},               {"ky", "k<sub>y</sub>", "", 4},
     {"alpha_deg", "\u03b1", "\u00b0", 3},         {"radius_mm", "radius (r<sub>x</sub> + r<sub>y</sub>)/2", "mm", 4},
-    {"radius_error_mm", "radius error", "mm", 4}, {"power_mean_D", "mean axial power, central 3 mm", "D", 3},
+    {"radius_error_mm", "radius error", "mm", 4}, {"central_axial_power_D", "mean axial power, central 3 mm", "D", 3},
     {"power_error_D", "power error", "D", 3},     {"pv_tangential_D", "tangential power pv", "D", 3},
     {"pv_axial_D", "axial power pv", "D", 3},     {"spots_indexed", "spots indexed", "", 0},
 };
@@ -72,7 +72,8 @@ std::string ValueU(const std::optional<UncertaintyBlock>& block, const char* key
   if (!block) return "";
   const auto it = block->quantities.find(key);
   if (it == block->quantities.end()) return "";
-  return Fixed(it->second.mean, decimals) + " \u00b1 " + Fixed(it->second.U, decimals);
+  // U with two significant digits: a calibration good to 2e-6 mm must not print as "+- 0.0000".
+  return Fixed(it->second.mean, decimals) + " \u00b1 " + Sig(it->second.U, 2);
 }
 
 std::string Lookup(const StageValues& v, const char* key, int decimals) {
@@ -451,7 +452,7 @@ std::string RenderHtmlReport(const UnitRecord& rec, const Limits& limits) {
         truth = Fixed(v.radius_true_mm, q.decimals);
       } else if (std::string_view(q.key) == "kx" || std::string_view(q.key) == "ky") {
         truth = Fixed(0, q.decimals);
-      } else if (std::string_view(q.key) == "power_mean_D") {
+      } else if (std::string_view(q.key) == "central_axial_power_D") {
         truth = Fixed(v.power_true_D, q.decimals);
       }
       s += fmt::format("<tr><td>{}{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td>"

@@ -133,6 +133,15 @@ std::optional<UncertaintyBlock> ReadUncertainty(const JsonReader& r, const json&
     if (e.U < 0) r.Fail(JsonReader::Join(kp, "U"), "must not be negative");
     block.quantities[key] = e;
   }
+  // Optional: the sphere's radius and central power carried through the same draws.
+  for (const char* key : {"radius_mm", "central_axial_power_D"}) {
+    if (!r.Has(q, key)) continue;
+    const json& one = r.Object(q, qp, key);
+    const std::string kp = JsonReader::Join(qp, key);
+    ExpandedUncertainty e{r.Number(one, kp, "mean"), r.Number(one, kp, "U")};
+    if (e.U < 0) r.Fail(JsonReader::Join(kp, "U"), "must not be negative");
+    block.quantities[key] = e;
+  }
   return block;
 }
 

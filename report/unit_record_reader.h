@@ -86,7 +86,7 @@ struct PaperCornea {
 // The keys each stage must hold (docs/unit-record.md).
 inline constexpr const char* kSphereStageKeys[] = {
     "spots_indexed", "rx_mm", "ry_mm", "kx", "ky", "alpha_deg", "radius_mm", "radius_error_mm",
-    "power_mean_D",  "power_error_D", "pv_tangential_D", "pv_axial_D"};
+    "central_axial_power_D",  "power_error_D", "pv_tangential_D", "pv_axial_D"};
 inline constexpr const char* kPaperStageKeys[] = {"rx_mm", "ry_mm", "kx", "ky", "alpha_deg", "pv_tangential_D",
                                                   "pv_axial_D", "height_pv_um", "height_rms_um"};
 inline constexpr const char* kPaperTruthKeys[] = {"rx_mm", "ry_mm", "kx", "ky", "alpha_deg"};

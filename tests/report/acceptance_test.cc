@@ -101,6 +101,14 @@ TEST(Acceptance, SphereUncertaintyComesFromRxRyAndPowerFromRadius) {
   ASSERT_EQ(v.checks[2].id, "sphere_power_error_D");
   const double r = 7.8005;
   EXPECT_NEAR(*v.checks[2].U, 1000 * 0.3375 * 0.002 / (r * r), 1e-12);
+  // The record's own U of radius and central power (what `unit calibrate` writes) take precedence.
+  auto g = MakeRecord(FreshDir("sphereu2"));
+  g.unit["verification"]["uncertainty"]["quantities"]["radius_mm"] = {{"mean", 7.8005}, {"U", 0.0011}};
+  g.unit["verification"]["uncertainty"]["quantities"]["central_axial_power_D"] = {{"mean", 43.27}, {"U", 0.007}};
+  g.WriteUnitJson();
+  const Verdict w = Evaluate(ReadUnitRecord(g.dir), DefaultLimits());
+  EXPECT_DOUBLE_EQ(*w.checks[1].U, 0.0011);
+  EXPECT_DOUBLE_EQ(*w.checks[2].U, 0.007);
 }
 
 TEST(Acceptance, WithoutVerificationOrUncertaintyTheGuardedRuleFails) {

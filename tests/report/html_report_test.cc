@@ -125,7 +125,7 @@ TEST_F(HtmlReportTest, HasEverySection) {
   // Before/after tables of both cases with the Monte Carlo U.
   EXPECT_NE(h.find("<td>radius error (mm)</td>"), std::string::npos);
   EXPECT_NE(h.find("<td>power error (D)</td>"), std::string::npos);
-  EXPECT_NE(h.find("-0.4302</td><td class=\"num\">-0.0002</td><td class=\"num\">0.0002 \u00b1 0.0030</td>"),
+  EXPECT_NE(h.find("-0.4302</td><td class=\"num\">-0.0002</td><td class=\"num\">0.0002 \u00b1 0.003</td>"),
             std::string::npos);
 }
 

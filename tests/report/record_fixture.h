@@ -51,7 +51,7 @@ inline json StageSphere(double radius_mm, double dr_mm, double dk) {
   const double power = 337.5 / r;
   return {{"spots_indexed", 624}, {"rx_mm", r + 1e-4},  {"ry_mm", r - 1e-4},          {"kx", dk},
           {"ky", -dk},            {"alpha_deg", 0.0},   {"radius_mm", r},             {"radius_error_mm", dr_mm},
-          {"power_mean_D", power}, {"power_error_D", power - 337.5 / radius_mm},
+          {"central_axial_power_D", power}, {"power_error_D", power - 337.5 / radius_mm},
           {"pv_tangential_D", 0.02 + 10 * std::abs(dk)}, {"pv_axial_D", 0.01 + 5 * std::abs(dk)}};
 }
 
