@@ -144,7 +144,8 @@ struct DistortionPlot {
   double max_displacement_px = 0;
 };
 
-DistortionPlot DistortionField(const calib::CameraModel& cam, const PixelRegion& region, bool whole_image) {
+DistortionPlot DistortionField(const calib::CameraModel& cam, const PixelRegion& region, bool whole_image,
+                               std::optional<double> field_radius_px) {
   const double in[4] = {cam.fx_px, cam.fy_px, cam.cx_px, cam.cy_px};
   // Where an ideal (pinhole) image point p lands through the calibrated lens, minus p.
   auto displacement = [&](double x, double y) {
@@ -167,9 +168,22 @@ DistortionPlot DistortionField(const calib::CameraModel& cam, const PixelRegion&
                                  .norm());
     }
   }
-  // The extreme of a radial field is on the region's border: sample it densely.
+  // The largest displacement where it matters: within the measurement field's disc when the record gives it
+  // (rings out to its radius; the plotted rectangle's corners lie beyond the field and are not measured on), else
+  // on the region's border, where the extreme of a radial field is; both sampled densely.
   constexpr int kBorderSamples = 256;
-  for (int i = 0; i <= kBorderSamples; ++i) {
+  if (field_radius_px) {
+    constexpr int kRings = 16;
+    for (int k = 1; k <= kRings; ++k) {
+      const double rho = *field_radius_px * k / kRings;
+      for (int i = 0; i < kBorderSamples; ++i) {
+        const double t = 2 * M_PI * i / kBorderSamples;
+        plot.max_displacement_px = std::max(
+            plot.max_displacement_px, displacement(cam.cx_px + rho * std::cos(t), cam.cy_px + rho * std::sin(t)).norm());
+      }
+    }
+  }
+  for (int i = 0; !field_radius_px && i <= kBorderSamples; ++i) {
     const double t = static_cast<double>(i) / kBorderSamples;
     for (const auto& [x, y] : {std::pair{region.x_px + t * region.width_px, region.y_px},
                                std::pair{region.x_px + t * region.width_px, region.y_px + region.height_px},
@@ -425,13 +439,14 @@ std::string RenderHtmlReport(const UnitRecord& rec, const Limits& limits) {
   s += SvgQuiver(arrows, qo);
   const PixelRegion field_region = FieldRegion(rec, qo.region);
   const bool whole_image = !rec.field_radius_px && !qo.region;
-  const DistortionPlot field = DistortionField(rec.calibration.camera, field_region, whole_image);
+  const DistortionPlot field = DistortionField(rec.calibration.camera, field_region, whole_image, rec.field_radius_px);
   s += field.svg;
   s += fmt::format("<p class=\"note\">Distortion field from {} (the exact model, with its distortion centre) over {}: "
                    "largest displacement {} px.</p>\n",
                    H(rec.calibration_path),
                    rec.field_radius_px
-                       ? fmt::format("the measurement field (radius {} px about the principal point, from unit.json)",
+                       ? fmt::format("the measurement field (the disc of radius {} px about the principal point, "
+                                     "from unit.json; the plot's corners lie outside it)",
                                      Sig(*rec.field_radius_px, 4))
                        : (whole_image ? std::string("the whole image") : std::string("the region of the corners")),
                    Sig(field.max_displacement_px, 4));

@@ -25,6 +25,12 @@ void Run(const ReportArgs& a) {
   const report::Verdict verdict = report::Evaluate(record, limits);
   fmt::print("{}: report {} for unit {}: {}\n", a.out, report::ReportId(record), record.serial,
              verdict.pass ? "PASS" : "FAIL");
+  if (!verdict.pass) {
+    int failed = 0;
+    for (const auto& c : verdict.checks) failed += c.pass ? 0 : 1;
+    throw VerdictFailed(fmt::format("unit {}: FAIL ({} check(s) outside the limits; the report says which)",
+                                    record.serial, failed));
+  }
 }
 
 }  // namespace

@@ -2,9 +2,18 @@
 // Each verb of the `topocal` command line lives in its own cmd_<verb>.cc and registers itself here.
 // A command's callback throws model::ConfigError / model::InputError for bad input (exit 2) and
 // std::runtime_error for a computation that failed (exit 1); main() turns them into one line on stderr.
+#include <stdexcept>
+
 #include <CLI/CLI.hpp>
 
 namespace topocal::tools {
+
+// A check that ran to the end and said no (a QA verdict of FAIL): the output is complete and written; main() prints
+// the message and exits 3, so that a production line's script can gate on the verdict.
+class VerdictFailed : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
 
 void AddDesignCommand(CLI::App& app);
 void AddSimulateCommand(CLI::App& app);

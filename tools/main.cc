@@ -1,6 +1,6 @@
 // topocal — camera-distortion calibration and correction for cone corneal topographers.
 // Exit codes: 0 success; 1 a computation failed (solver did not converge, no usable data); 2 bad input
-// (usage, missing or corrupt file, invalid configuration).
+// (usage, missing or corrupt file, invalid configuration); 3 a QA verdict of FAIL (the report is written).
 #include <cstdio>
 #include <exception>
 
@@ -45,6 +45,9 @@ int main(int argc, char** argv) {
   } catch (const topocal::model::InputError& e) {
     fmt::print(stderr, "topocal: {}\n", e.what());
     return 2;
+  } catch (const topocal::tools::VerdictFailed& e) {
+    fmt::print(stderr, "topocal: {}\n", e.what());
+    return 3;
   } catch (const std::exception& e) {
     fmt::print(stderr, "topocal: {}\n", e.what());
     return 1;

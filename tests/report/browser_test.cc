@@ -17,7 +17,9 @@
 
 #include "model/io.h"
 #include "tests/cli_harness.h"
+#include "tests/report/chromium.h"
 #include "tests/report/record_fixture.h"
+#include "tests/unit_fixture.h"
 
 namespace topocal::report {
 namespace {
@@ -26,10 +28,10 @@ namespace fs = std::filesystem;
 using testing::FreshDir;
 using testing::MakeRecord;
 using topocal::testing_cli::RunTopocal;
+using testing::Chromium;
+using testing::FindChromium;
+using testing::ShellRun;
 
-// Each Chromium run is killed after this long (a hung browser must fail the test, not hang CI); a cold start on
-// the 2-core machine takes about 2 s.
-constexpr int kChromiumTimeoutS = 60;
 constexpr int kWindowWidthPx = 1200, kWindowHeightPx = 3000;
 // Enough virtual time for the load event after decoding four small PNGs (they are data: URIs, nothing to fetch).
 constexpr int kVirtualTimeBudgetMs = 5000;
@@ -42,51 +44,6 @@ constexpr int kMinBannerPixels = 20000;
 constexpr int kBannerColourTolerance = 6;  // per channel, for anti-aliasing / colour management
 // A rendered page has text, tables and plots: its grey levels vary far more than a blank one (stddev 0).
 constexpr double kMinScreenshotStddev = 10.0;
-
-std::string FindChromium() {
-  if (const char* env = std::getenv("TOPOCAL_CHROMIUM"); env && *env) return env;
-  for (const char* candidate : {"/usr/bin/chromium", "/usr/bin/chromium-browser"}) {
-    if (::access(candidate, X_OK) == 0) return candidate;
-  }
-  return "";
-}
-
-struct ShellRun {
-  int exit_code = -1;
-  std::string output;
-};
-
-ShellRun Shell(const std::string& cmd) {
-  ShellRun r;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 65536> buf;
-  while (std::size_t n = fread(buf.data(), 1, buf.size(), pipe)) r.output.append(buf.data(), n);
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
-}
-
-// Headless Chromium with its own HOME and profile (it writes both), killed after the timeout. stderr (D-Bus noise
-// on a machine without a session bus) goes to a log that a failure prints.
-ShellRun Chromium(const std::string& chromium, const std::string& work, const std::string& name, const std::string& args) {
-  const std::string home = work + "/home-" + name, profile = work + "/profile-" + name, log = work + "/" + name + ".log";
-  fs::create_directories(home);
-  const std::string cmd =
-      fmt::format("env HOME={} timeout -k 5 {} {} --headless --no-sandbox --disable-gpu --no-first-run "
-                  "--no-default-browser-check --disable-extensions --hide-scrollbars --user-data-dir={} {} 2>{}",
-                  home, kChromiumTimeoutS, chromium, profile, args, log);
-  ShellRun r = Shell(cmd);
-  if (r.exit_code != 0) {
-    std::string err;
-    try {
-      err = model::ReadFile(log);
-    } catch (const std::exception&) {
-    }
-    r.output += "\n[chromium stderr]\n" + err;
-  }
-  return r;
-}
 
 std::size_t Count(const std::string& haystack, const std::string& needle) {
   std::size_t n = 0;
@@ -169,6 +126,49 @@ TEST(ReportInBrowser, ChromiumRendersPrintsAndShowsTheReport) {
   cv::inRange(shot_img, pass_bgr - tol, pass_bgr + tol, banner);
   EXPECT_GT(cv::countNonZero(banner), kMinBannerPixels) << "no PASS banner on the rendered page";
   // Three Chromium profiles are megabytes: keep them only to look at a failure.
+  if (!HasFailure()) fs::remove_all(work);
+}
+
+// The whole line: `topocal unit calibrate` on rendered images of a unit (tests/unit_fixture.h), `topocal report`
+// on the record it wrote, and the page in the browser: the real record's sixteen maps decoded, the verdict shown.
+TEST(ReportInBrowser, AUnitCalibratedFromImagesReportsAndRendersEndToEnd) {
+  const std::string chromium = FindChromium();
+  ASSERT_FALSE(chromium.empty()) << "headless Chromium is required (Debian package `chromium`)";
+  const std::string in = topocal::testing_cli::UnitInputsDir();
+  const std::string work = FreshDir("endtoend");
+  const std::string unit = work + "/units/SN-E2E-0001", html = work + "/SN-E2E-0001.html";
+  const auto calibrated = RunTopocal(fmt::format(
+      "unit calibrate --serial SN-E2E-0001 --target {0}/target.yaml --images {0}/view.png --reference-sphere "
+      "{0}/sphere.png --sphere-radius-mm {1} --camera {0}/camera.json --uncertainty 8 --out {2}",
+      in, topocal::testing_cli::kUnitSphereRadiusMm, unit));
+  ASSERT_EQ(calibrated.exit_code, 0) << calibrated.output;
+  const auto reported = RunTopocal("report --unit " + unit + " --out " + html);
+  ASSERT_EQ(reported.exit_code, 0) << reported.output;  // this unit passes every default limit once corrected
+  EXPECT_NE(reported.output.find("for unit SN-E2E-0001: PASS"), std::string::npos) << reported.output;
+
+  const ShellRun dumped = Chromium(chromium, work, "dom",
+                                   fmt::format("--virtual-time-budget={} --dump-dom file://{}", kVirtualTimeBudgetMs,
+                                               fs::absolute(html).string()));
+  ASSERT_EQ(dumped.exit_code, 0) << dumped.output;
+  const std::string& d = dumped.output;
+  // 2 cases (sphere, paper) x 2 stages x 4 maps, all decoded.
+  EXPECT_NE(d.find("data-images-decoded=\"16/16\""), std::string::npos) << "embedded maps not all decoded";
+  EXPECT_NE(d.find("data-verdict=\"PASS\""), std::string::npos);
+  EXPECT_NE(d.find("SN-E2E-0001-"), std::string::npos);  // the report id
+  EXPECT_EQ(Count(d, "<svg class=\"plot\""), 3u);
+
+  // Limits this unit cannot meet: the report is still written, says FAIL, and the exit code is 3.
+  const std::string strict = work + "/strict.json";
+  std::string limits = model::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json");
+  const std::string rms_key = "\"calibration_rms_px\": {\n      \"max\": 0.5";
+  ASSERT_NE(limits.find(rms_key), std::string::npos);
+  limits.replace(limits.find(rms_key), rms_key.size(), "\"calibration_rms_px\": {\n      \"max\": 0.001");
+  model::WriteFileAtomic(strict, limits);
+  fs::remove(html);
+  const auto failed = RunTopocal("report --unit " + unit + " --out " + html + " --limits " + strict);
+  EXPECT_EQ(failed.exit_code, 3) << failed.output;
+  EXPECT_NE(failed.output.find("for unit SN-E2E-0001: FAIL"), std::string::npos) << failed.output;
+  EXPECT_NE(model::ReadFile(html).find("data-verdict=\"FAIL\""), std::string::npos);
   if (!HasFailure()) fs::remove_all(work);
 }
 
