@@ -221,7 +221,7 @@ Config ParseConfig(const std::string& json_text, const std::string& origin) {
   json j;
   try {
     j = json::parse(json_text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e999
     throw ConfigError(fmt::format("{}: (file): not valid JSON: {}", origin, e.what()));
   }
   Config c;

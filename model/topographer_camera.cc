@@ -60,6 +60,8 @@ TopographerCamera ParseTopographerCamera(const std::string& json_text, const std
     j = json::parse(json_text);
   } catch (const json::parse_error& e) {
     throw InputError(fmt::format("{}: not valid JSON (byte {})", origin, e.byte));
+  } catch (const json::exception& e) {  // out_of_range for a number like 1e999: bad input too
+    throw InputError(fmt::format("{}: not valid JSON: {}", origin, e.what()));
   }
   if (!j.is_object()) Fail(origin, "(top level)", "must be a JSON object");
   const std::set<std::string> known(std::begin(kKeys), std::end(kKeys));
