@@ -11,6 +11,7 @@
 #include <map>
 #include <optional>
 #include <stdexcept>
+#include <tuple>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -157,25 +158,29 @@ class Staging {
   bool committed_ = false;
 };
 
-}  // namespace
+// The inputs, read and checked before any work, with their digests for the record.
+struct LoadedInputs {
+  model::Config config;
+  model::TopographerCamera camera;
+  calib::TargetDescription target;
+  calib::CalibrationOptions options;
+  cv::Mat sphere_image;  // empty without a reference sphere
+  json provenance = json::array();
+};
 
-bool IsValidSerial(const std::string& serial) {
-  if (serial.empty() || serial.size() > kMaxSerialLength || serial.front() == '.') return false;
-  return std::all_of(serial.begin(), serial.end(), [](char c) {
-    return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '.' || c == '_' ||
-           c == '-';
-  });
+void CheckImageSize(const cv::Mat& image, const std::string& path, const LoadedInputs& in, const UnitRequest& r) {
+  if (image.cols != in.camera.width_px || image.rows != in.camera.height_px) {
+    throw model::InputError(fmt::format("{}: the image is {} x {} px but {} says {} x {} px", path, image.cols,
+                                        image.rows, r.camera, in.camera.width_px, in.camera.height_px));
+  }
 }
 
-UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const std::string&)>& log) {
-  // --- Inputs: everything is checked before any work or output.
+LoadedInputs LoadInputs(const UnitRequest& r) {
   if (!IsValidSerial(r.serial)) {
     throw model::InputError(fmt::format("--serial '{}': use 1-{} characters of A-Z a-z 0-9 . _ - (not starting with .)",
                                         r.serial, kMaxSerialLength));
   }
   if (r.out.empty()) throw model::InputError("--out: the record directory is required");
-  const auto model_kind = calib::ParseDistortionModel(r.model);
-  if (!model_kind) throw model::InputError(fmt::format("--model: '{}' is not seidel or brown5", r.model));
   if (r.reference_sphere.empty() != (r.sphere_radius_mm == 0)) {
     throw model::InputError("--reference-sphere and --sphere-radius-mm go together");
   }
@@ -183,51 +188,67 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
     throw model::InputError(fmt::format("--uncertainty {}: 0 (none) or at least 2 draws", r.uncertainty_samples));
   }
   if (r.images.empty()) throw model::InputError("--images: no image given");
+  if (fs::exists(r.out) && !fs::exists(fs::path(r.out) / "unit.json")) {
+    throw model::InputError(fmt::format("--out {}: exists and is not a unit record; not overwriting it", r.out));
+  }
+  LoadedInputs in;
+  in.config = model::LoadConfig(r.config);
+  in.camera = model::LoadTopographerCamera(r.camera);
+  in.target = calib::LoadTargetDescription(r.target);
+
+  const auto model_kind = calib::ParseDistortionModel(r.model);
+  if (!model_kind) throw model::InputError(fmt::format("--model: '{}' is not seidel or brown5", r.model));
+  auto& o = in.options;
+  o.model = *model_kind;
+  o.fit_distortion_centre = r.fit_centre;
+  o.fixed = {r.fixed.begin(), r.fixed.end()};
+  // The topographer's geometry: the lens and sensor from the camera description, the target at the cornea position.
+  o.focal_mm = in.camera.a_mm;
+  o.pixel_pitch_um = in.camera.pixel_pitch_um;
+  o.distance_mm = in.config.topographer.b_mm;
+  o.magnification = in.config.distortion.magnification;
   for (const auto& f : r.fixed) {
     if (std::find(std::begin(calib::kParameterNames), std::end(calib::kParameterNames), f) ==
         std::end(calib::kParameterNames)) {
       throw model::InputError(fmt::format("--fix: '{}' is not a camera parameter (fx fy cx cy k1 k2 p1 p2 k3 ex ey)", f));
     }
   }
-  const fs::path out(r.out);
-  if (fs::exists(out) && !fs::exists(out / "unit.json")) {
-    throw model::InputError(fmt::format("--out {}: exists and is not a unit record; not overwriting it", r.out));
-  }
+  std::string why;
+  if (!o.IsValid(&why)) throw model::InputError(why);
 
-  const auto config = model::LoadConfig(r.config);
-  const auto camera = model::LoadTopographerCamera(r.camera);
-  const auto target = calib::LoadTargetDescription(r.target);
-  json inputs = json::array();
-  const auto add_input = [&](const std::string& role, const std::string& path) {
-    inputs.push_back({{"role", role}, {"path", path}, {"sha256", model::Sha256HexOfFile(path)}});
+  const auto add = [&](const std::string& role, const std::string& path) {
+    in.provenance.push_back({{"role", role}, {"path", path}, {"sha256", model::Sha256HexOfFile(path)}});
   };
-  add_input("config", r.config);
-  add_input("camera", r.camera);
-  add_input("target", r.target);
-  for (const auto& p : r.images) add_input("image", p);
-  cv::Mat sphere_image;
+  add("config", r.config);
+  add("camera", r.camera);
+  add("target", r.target);
+  for (const auto& path : r.images) add("image", path);
   if (!r.reference_sphere.empty()) {
-    add_input("reference_sphere", r.reference_sphere);
-    sphere_image = cv::imread(r.reference_sphere, cv::IMREAD_UNCHANGED);
-    if (sphere_image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", r.reference_sphere));
-    if (sphere_image.cols != camera.width_px || sphere_image.rows != camera.height_px) {
-      throw model::InputError(fmt::format("{}: the image is {} x {} px but {} says {} x {} px", r.reference_sphere,
-                                          sphere_image.cols, sphere_image.rows, r.camera, camera.width_px,
-                                          camera.height_px));
+    add("reference_sphere", r.reference_sphere);
+    in.sphere_image = cv::imread(r.reference_sphere, cv::IMREAD_UNCHANGED);
+    if (in.sphere_image.empty()) {
+      throw model::InputError(fmt::format("{}: not an image OpenCV can read", r.reference_sphere));
     }
+    CheckImageSize(in.sphere_image, r.reference_sphere, in, r);
   }
+  return in;
+}
 
-  // --- Calibration.
+struct Calibration {
+  calib::CalibrationResult result;
+  std::vector<std::string> view_paths;  // parallel to the views the calibration was given
+  bool single_view = false;
+};
+
+Calibration CalibrateViews(const UnitRequest& r, const LoadedInputs& in,
+                           const std::function<void(const std::string&)>& log) {
+  Calibration c;
   std::vector<calib::ViewObservations> views;
-  std::vector<std::string> view_paths;
   for (const auto& path : r.images) {
     const cv::Mat image = cv::imread(path, cv::IMREAD_GRAYSCALE);
     if (image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", path));
-    if (image.cols != camera.width_px || image.rows != camera.height_px) {
-      throw model::InputError(fmt::format("{}: the image is {} x {} px but {} says {} x {} px", path, image.cols,
-                                          image.rows, r.camera, camera.width_px, camera.height_px));
-    }
-    const auto found = calib::DetectTargetDetailed(target, image);
+    CheckImageSize(image, path, in, r);
+    const auto found = calib::DetectTargetDetailed(in.target, image);
     if (!found.view) {
       log(fmt::format("{}: skipping {}: no target found{}", r.serial, path,
                       found.message.empty() ? "" : ": " + found.message));
@@ -235,97 +256,45 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
     }
     views.push_back(*found.view);
     views.back().image_path = path;
-    view_paths.push_back(path);
+    c.view_paths.push_back(path);
   }
   if (views.empty()) throw std::runtime_error(fmt::format("{}: no target found in any image", r.serial));
-  calib::CalibrationOptions co;
-  co.model = *model_kind;
-  co.fit_distortion_centre = r.fit_centre;
-  co.fixed = {r.fixed.begin(), r.fixed.end()};
-  co.focal_mm = camera.a_mm;
-  co.pixel_pitch_um = camera.pixel_pitch_um;
-  co.distance_mm = config.topographer.b_mm;
-  co.magnification = config.distortion.magnification;
-  const bool single_view = r.images.size() == 1;
-  const auto result = single_view ? calib::CalibrateSingleView(views[0], co) : calib::CalibrateMultiView(views, co);
-  for (const auto& s : result.skipped_views) {
-    log(fmt::format("{}: not used {}: {}", r.serial, view_paths[static_cast<size_t>(s.view)], s.reason));
+  c.single_view = r.images.size() == 1;
+  c.result = c.single_view ? calib::CalibrateSingleView(views[0], in.options)
+                           : calib::CalibrateMultiView(views, in.options);
+  for (const auto& s : c.result.skipped_views) {
+    log(fmt::format("{}: not used {}: {}", r.serial, c.view_paths[static_cast<size_t>(s.view)], s.reason));
   }
-  if (!result.ok()) {
-    throw std::runtime_error(
-        fmt::format("{}: calibration failed ({}): {}", r.serial, calib::ToString(result.status), result.message));
+  if (!c.result.ok()) {
+    throw std::runtime_error(fmt::format("{}: calibration failed ({}): {}", r.serial,
+                                         calib::ToString(c.result.status), c.result.message));
   }
-  const std::string date = RecordDateUtc();
-  const calib::CalibrationProvenance provenance{r.target, view_paths, date};
-  const std::string cal_text = calib::CalibrationFileText(result, provenance);
+  return c;
+}
 
-  // --- Checks. The unit's calibration as the software will load it (so the checks use what is written).
-  pipeline::UnitCalibration unit;
-  unit.camera = result.camera;
-  unit.covariance.names.assign(std::begin(calib::kParameterNames), std::end(calib::kParameterNames));
-  unit.covariance.matrix = result.covariance;
-  unit.covariance.full = true;
-  const pipeline::CheckOptions check{r.uncertainty_samples, r.seed};
-  std::optional<pipeline::SphereVerification> sphere;
-  if (!sphere_image.empty()) {
-    try {
-      sphere = pipeline::VerifyOnReferenceSphere(sphere_image, r.sphere_radius_mm, unit, camera, config, check);
-    } catch (const std::invalid_argument& e) {
-      throw model::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
-    } catch (const std::runtime_error& e) {
-      throw std::runtime_error(fmt::format("{}: {}: {}", r.serial, r.reference_sphere, e.what()));
-    }
-  }
-  const auto paper = pipeline::SimulateThroughCalibratedCamera(unit, camera, config, check);
+// The size of the calibrated distortion over the spot pattern's field on the detection plane.
+struct DistortionField {
+  double field_radius_mm = 0;  // the outermost spot of the configured cornea
+  double max_um = 0, max_px = 0;
+};
+
+DistortionField MeasureDistortionField(const calib::CameraModel& calibrated, const LoadedInputs& in,
+                                       const std::string& serial) {
   std::string why;
-  const auto distortion = pipeline::DistortionOnDetectionPlane(result.camera, camera, &why);
-  if (!distortion) throw std::runtime_error(fmt::format("{}: {}", r.serial, why));
-  // The field the spot pattern covers on the detection plane: the outer ring's image radius, with a margin.
-  double field_radius_mm = 0;
-  {
-    const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
-    const auto ideal = model::SynthesizeImage(model::Biconic{config.cornea}, model::Topographer{config.topographer},
-                                              design.targets);
-    for (const auto& s : ideal.spots) field_radius_mm = std::max(field_radius_mm, s.position_mm.norm());
-  }
-  const auto [max_um, max_px] = MaxDisplacement(*distortion, field_radius_mm, camera.PitchMm());
+  const auto distortion = pipeline::DistortionOnDetectionPlane(calibrated, in.camera, &why);
+  if (!distortion) throw std::runtime_error(fmt::format("{}: {}", serial, why));
+  const auto& cfg = in.config;
+  const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
+  const auto ideal =
+      model::SynthesizeImage(model::Biconic{cfg.cornea}, model::Topographer{cfg.topographer}, design.targets);
+  DistortionField f;
+  for (const auto& s : ideal.spots) f.field_radius_mm = std::max(f.field_radius_mm, s.position_mm.norm());
+  std::tie(f.max_um, f.max_px) = MaxDisplacement(*distortion, f.field_radius_mm, in.camera.PitchMm());
+  return f;
+}
 
-  // --- The record, staged and committed whole.
-  Staging staging(out);
-  const fs::path dir = staging.path();
-  model::WriteFileAtomic((dir / "calibration.yaml").string(), cal_text);
-  std::string residuals = "view,image,corner_id,x_px,y_px,dx_px,dy_px,outlier\n";
-  for (const auto& c : result.residuals) {
-    residuals += fmt::format("{},{},{},{:.6f},{:.6f},{:.6f},{:.6f},{}\n", c.view,
-                             view_paths[static_cast<size_t>(c.view)], c.corner_id, c.observed_px.x(),
-                             c.observed_px.y(), c.residual_px.x(), c.residual_px.y(), c.outlier ? 1 : 0);
-  }
-  model::WriteFileAtomic((dir / "residuals.csv").string(), residuals);
-  const std::string maps = (dir / "maps").string();
-  // The PNGs go in the record, at half the default size (~0.15 MB each; the report embeds them all); the numbers
-  // are in unit.json (CSV grids would be ~0.6 MB each).
-  constexpr bool kMapCsv = false;
-  constexpr int kMapSizePx = 400;
-  if (sphere) {
-    const model::Config sphere_config = pipeline::WithSphere(config, r.sphere_radius_mm);
-    WriteAnalysisMaps(maps, "sphere_uncorrected_", " - reference sphere, uncorrected", sphere->uncorrected.analysis,
-                      &sphere_config.cornea, kMapCsv, kMapSizePx);
-    WriteAnalysisMaps(maps, "sphere_corrected_", " - reference sphere, corrected", sphere->corrected.analysis,
-                      &sphere_config.cornea, kMapCsv, kMapSizePx);
-  }
-  WriteAnalysisMaps(maps, "paper_uncorrected_", " - paper cornea, uncorrected", paper.uncorrected.analysis,
-                    &config.cornea, kMapCsv, kMapSizePx);
-  WriteAnalysisMaps(maps, "paper_corrected_", " - paper cornea, corrected", paper.corrected.analysis, &config.cornea,
-                    kMapCsv, kMapSizePx);
-
-  json files = json::array();
-  std::vector<std::string> names;
-  for (const auto& e : fs::recursive_directory_iterator(dir)) {
-    if (e.is_regular_file()) names.push_back(fs::relative(e.path(), dir).generic_string());
-  }
-  std::sort(names.begin(), names.end());
-  for (const auto& n : names) files.push_back({{"name", n}, {"sha256", model::Sha256HexOfFile((dir / n).string())}});
-
+json CalibrationJson(const Calibration& c, const DistortionField& field, const model::TopographerCamera& camera) {
+  const auto& result = c.result;
   json cal;
   cal["model"] = std::string(calib::ToString(result.model));
   cal["single_view"] = result.single_view;
@@ -338,18 +307,19 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
   for (const auto& p : result.parameters) {
     cal["parameters"].push_back({{"name", p.name}, {"value", p.value}, {"stddev", p.stddev}, {"fixed", p.fixed}});
   }
-  json cov_names = json::array(), cov_rows = json::array();
+  // The covariance of the free parameters only (the calibration file holds the full 11 x 11).
   std::vector<int> free_index;
   for (int i = 0; i < calib::kNumCameraParameters; ++i) {
     if (!result.parameters[static_cast<size_t>(i)].fixed) free_index.push_back(i);
   }
+  json names = json::array(), rows = json::array();
   for (const int i : free_index) {
-    cov_names.push_back(result.parameters[static_cast<size_t>(i)].name);
+    names.push_back(result.parameters[static_cast<size_t>(i)].name);
     json row = json::array();
     for (const int j : free_index) row.push_back(result.covariance(i, j));
-    cov_rows.push_back(row);
+    rows.push_back(row);
   }
-  cal["covariance"] = {{"names", cov_names}, {"matrix", cov_rows}};
+  cal["covariance"] = {{"names", names}, {"matrix", rows}};
   if (result.seidel) {
     cal["seidel"] = {{"sigma_per_mm2", result.seidel->sigma_per_mm2},
                      {"sigma_stddev_per_mm2", result.seidel->sigma_stddev_per_mm2},
@@ -358,91 +328,107 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
   }
   cal["views"] = json::array();
   for (size_t v = 0; v < result.views_used.size(); ++v) {
-    const auto idx = static_cast<size_t>(result.views_used[v]);
-    int corners = 0;
-    for (const auto& c : result.residuals) corners += (static_cast<size_t>(c.view) == idx && !c.outlier) ? 1 : 0;
-    cal["views"].push_back({{"image", view_paths[idx]}, {"rms_px", result.per_view_rms_px[v]}, {"corners", corners}});
+    const auto idx = result.views_used[v];
+    const auto corners = std::count_if(result.residuals.begin(), result.residuals.end(),
+                                       [&](const auto& r) { return r.view == idx && !r.outlier; });
+    cal["views"].push_back({{"image", c.view_paths[static_cast<size_t>(idx)]},
+                            {"rms_px", result.per_view_rms_px[v]},
+                            {"corners", corners}});
   }
-  cal["distortion_field"] = {{"max_displacement_um", max_um},
-                             {"max_displacement_px", max_px},
-                             {"field_radius_mm", field_radius_mm},
-                             {"field_radius_px", field_radius_mm / camera.PitchMm()}};
+  cal["distortion_field"] = {{"max_displacement_um", field.max_um},
+                             {"max_displacement_px", field.max_px},
+                             {"field_radius_mm", field.field_radius_mm},
+                             {"field_radius_px", field.field_radius_mm / camera.PitchMm()}};
+  return cal;
+}
 
-  json record;
-  record["format"] = kRecordFormat;
-  record["format_version"] = kRecordFormatVersion;
-  record["tool_version"] = kVersion;
-  record["serial"] = r.serial;
-  record["created_utc"] = date;
-  record["settings"] = {{"model", r.model},
-                        {"single_view", single_view},
-                        {"fit_centre", r.fit_centre},
-                        {"fixed", r.fixed},
-                        {"sphere_radius_mm", r.sphere_radius_mm},
-                        {"uncertainty_samples", r.uncertainty_samples},
-                        {"seed", r.seed}};
-  record["inputs"] = inputs;
-  record["files"] = files;
-  record["camera"] = {{"pixel_pitch_um", camera.pixel_pitch_um},
-                      {"width_px", camera.width_px},
-                      {"height_px", camera.height_px},
-                      {"a_mm", camera.a_mm},
-                      {"principal_point_px", {camera.principal_point_px.x(), camera.principal_point_px.y()}},
-                      {"rotated_180", camera.rotated_180}};
-  record["calibration"] = cal;
+json VerificationJson(const pipeline::SphereVerification& s, const UnitRequest& r, const pipeline::CheckOptions& check) {
+  json v = {{"image", r.reference_sphere},
+            {"radius_true_mm", s.radius_true_mm},
+            {"power_true_D", s.power_true_D},
+            {"keratometric_index", topo::kKeratometricIndex},
+            {"central_zone_diameter_mm", 2 * pipeline::kCentralPowerRadiusMm},
+            {"spots_indexed", s.spots_indexed},
+            {"spots_unassigned", s.spots_unassigned},
+            {"spots_missing", s.spots_missing},
+            {"undistort_failures", s.undistort_failures}};
+  for (const auto& [name, stage] : {std::pair{"uncorrected", &s.uncorrected}, std::pair{"corrected", &s.corrected}}) {
+    json n = Numbers(stage->numbers);
+    n["spots_indexed"] = s.spots_indexed;  // both stages use the same detected and indexed spots
+    n["radius_error_mm"] = s.RadiusErrorMm(*stage);
+    n["power_error_D"] = s.PowerErrorD(*stage);
+    v[name] = n;
+  }
+  v["uncertainty"] = Uncertainty(s.uncertainty, check);
+  return v;
+}
+
+json PaperCorneaJson(const pipeline::SimulatedCornea& paper, const pipeline::CheckOptions& check) {
+  const auto& t = paper.truth;
+  return {{"truth", {{"rx_mm", t.rx_mm}, {"ry_mm", t.ry_mm}, {"kx", t.kx}, {"ky", t.ky}, {"alpha_deg", t.alpha_deg}}},
+          {"max_displacement_um", paper.max_displacement_um},
+          {"uncorrected", Numbers(paper.uncorrected.numbers)},
+          {"corrected", Numbers(paper.corrected.numbers)},
+          {"uncertainty", Uncertainty(paper.uncertainty, check)}};
+}
+
+std::string ResidualsCsv(const Calibration& c) {
+  std::string csv = "view,image,corner_id,x_px,y_px,dx_px,dy_px,outlier\n";
+  for (const auto& r : c.result.residuals) {
+    csv += fmt::format("{},{},{},{:.6f},{:.6f},{:.6f},{:.6f},{}\n", r.view, c.view_paths[static_cast<size_t>(r.view)],
+                       r.corner_id, r.observed_px.x(), r.observed_px.y(), r.residual_px.x(), r.residual_px.y(),
+                       r.outlier ? 1 : 0);
+  }
+  return csv;
+}
+
+void WriteRecordMaps(const std::string& dir, const std::optional<pipeline::SphereVerification>& sphere,
+                     const pipeline::SimulatedCornea& paper, const model::Config& config) {
+  // The PNGs go in the record, at half the default size (~0.15 MB each; the report embeds them all); the numbers
+  // are in unit.json (CSV grids would be ~0.6 MB each).
+  constexpr bool kMapCsv = false;
+  constexpr int kMapSizePx = 400;
   if (sphere) {
-    json v = {{"image", r.reference_sphere},
-              {"radius_true_mm", sphere->radius_true_mm},
-              {"power_true_D", sphere->power_true_D},
-              {"keratometric_index", topo::kKeratometricIndex},
-              {"central_zone_diameter_mm", 2 * pipeline::kCentralPowerRadiusMm},
-              {"spots_indexed", sphere->spots_indexed},
-              {"spots_unassigned", sphere->spots_unassigned},
-              {"spots_missing", sphere->spots_missing},
-              {"undistort_failures", sphere->undistort_failures}};
-    for (const auto* stage : {&sphere->uncorrected, &sphere->corrected}) {
-      json n = Numbers(stage->numbers);
-      n["spots_indexed"] = sphere->spots_indexed;  // both stages use the same detected and indexed spots
-      n["radius_error_mm"] = sphere->RadiusErrorMm(*stage);
-      n["power_error_D"] = sphere->PowerErrorD(*stage);
-      v[stage == &sphere->uncorrected ? "uncorrected" : "corrected"] = n;
-    }
-    v["uncertainty"] = Uncertainty(sphere->uncertainty, check);
-    record["verification"] = v;
+    const auto truth = pipeline::WithSphere(config, sphere->radius_true_mm).cornea;
+    WriteAnalysisMaps(dir, "sphere_uncorrected_", " - reference sphere, uncorrected", sphere->uncorrected.analysis,
+                      &truth, kMapCsv, kMapSizePx);
+    WriteAnalysisMaps(dir, "sphere_corrected_", " - reference sphere, corrected", sphere->corrected.analysis, &truth,
+                      kMapCsv, kMapSizePx);
   }
-  record["paper_cornea"] = {{"truth",
-                             {{"rx_mm", paper.truth.rx_mm},
-                              {"ry_mm", paper.truth.ry_mm},
-                              {"kx", paper.truth.kx},
-                              {"ky", paper.truth.ky},
-                              {"alpha_deg", paper.truth.alpha_deg}}},
-                            {"max_displacement_um", paper.max_displacement_um},
-                            {"uncorrected", Numbers(paper.uncorrected.numbers)},
-                            {"corrected", Numbers(paper.corrected.numbers)},
-                            {"uncertainty", Uncertainty(paper.uncertainty, check)}};
-  try {
-    CheckFinite(record, "");
-  } catch (const std::runtime_error& e) {
-    throw std::runtime_error(fmt::format("{}: the result is not usable: {}", r.serial, e.what()));
-  }
-  const std::string text = record.dump(2) + "\n";
-  model::WriteFileAtomic((dir / "unit.json").string(), text);
-  staging.Commit(out);
+  WriteAnalysisMaps(dir, "paper_uncorrected_", " - paper cornea, uncorrected", paper.uncorrected.analysis,
+                    &config.cornea, kMapCsv, kMapSizePx);
+  WriteAnalysisMaps(dir, "paper_corrected_", " - paper cornea, corrected", paper.corrected.analysis, &config.cornea,
+                    kMapCsv, kMapSizePx);
+}
 
-  UnitOutcome o;
-  o.serial = r.serial;
-  o.out = r.out;
-  o.summary.push_back(fmt::format("{}: {} {} calibration, {} view(s), {} corners, rms {:.4f} px{}", r.serial,
-                                  calib::ToString(result.model), single_view ? "single-view" : "multi-view",
-                                  result.views_used.size(), result.corners_used, result.rms_px,
-                                  result.seidel ? fmt::format(", sigma {:.6g} +- {:.2g} mm^-2 (k=1)",
-                                                              result.seidel->sigma_per_mm2,
-                                                              result.seidel->sigma_stddev_per_mm2)
-                                                : std::string()));
-  o.summary.push_back(fmt::format("  distortion: up to {:.2f} um ({:.1f} px) over the spot field", max_um, max_px));
+// Every file under `dir`, sorted, with its digest.
+json FileDigests(const fs::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (e.is_regular_file()) names.push_back(fs::relative(e.path(), dir).generic_string());
+  }
+  std::sort(names.begin(), names.end());
+  json files = json::array();
+  for (const auto& n : names) files.push_back({{"name", n}, {"sha256", model::Sha256HexOfFile((dir / n).string())}});
+  return files;
+}
+
+std::vector<std::string> Summary(const UnitRequest& r, const Calibration& c, const DistortionField& field,
+                                 const std::optional<pipeline::SphereVerification>& sphere,
+                                 const pipeline::SimulatedCornea& paper) {
+  const auto& result = c.result;
+  std::vector<std::string> lines;
+  lines.push_back(fmt::format("{}: {} {} calibration, {} view(s), {} corners, rms {:.4f} px{}", r.serial,
+                              calib::ToString(result.model), c.single_view ? "single-view" : "multi-view",
+                              result.views_used.size(), result.corners_used, result.rms_px,
+                              result.seidel ? fmt::format(", sigma {:.6g} +- {:.2g} mm^-2 (k=1)",
+                                                          result.seidel->sigma_per_mm2,
+                                                          result.seidel->sigma_stddev_per_mm2)
+                                            : std::string()));
+  lines.push_back(fmt::format("  distortion: up to {:.2f} um ({:.1f} px) over the spot field", field.max_um, field.max_px));
   if (sphere) {
     const auto& s = *sphere;
-    o.summary.push_back(fmt::format(
+    lines.push_back(fmt::format(
         "  reference sphere R {} mm: radius error {:+.4f} -> {:+.4f} mm, central power error {:+.3f} -> {:+.3f} D",
         s.radius_true_mm, s.RadiusErrorMm(s.uncorrected), s.RadiusErrorMm(s.corrected), s.PowerErrorD(s.uncorrected),
         s.PowerErrorD(s.corrected)));
@@ -451,12 +437,90 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
     if (!paper.uncertainty || !paper.uncertainty->quantities.count(q)) return std::string();
     return fmt::format(" +- {:.2g}", paper.uncertainty->quantities.at(q).expanded_k2);
   };
-  o.summary.push_back(fmt::format("  paper cornea (simulated): kx {:.4f} -> {:.4f}{}, ky {:.4f} -> {:.4f}{} (truth {}, {})",
-                                  paper.uncorrected.numbers.kx, paper.corrected.numbers.kx, u("kx"),
-                                  paper.uncorrected.numbers.ky, paper.corrected.numbers.ky, u("ky"), paper.truth.kx,
-                                  paper.truth.ky));
-  o.summary.push_back(fmt::format("  -> {}", r.out));
-  return o;
+  lines.push_back(fmt::format("  paper cornea (simulated): kx {:.4f} -> {:.4f}{}, ky {:.4f} -> {:.4f}{} (truth {}, {})",
+                              paper.uncorrected.numbers.kx, paper.corrected.numbers.kx, u("kx"),
+                              paper.uncorrected.numbers.ky, paper.corrected.numbers.ky, u("ky"), paper.truth.kx,
+                              paper.truth.ky));
+  lines.push_back(fmt::format("  -> {}", r.out));
+  return lines;
+}
+
+}  // namespace
+
+bool IsValidSerial(const std::string& serial) {
+  if (serial.empty() || serial.size() > kMaxSerialLength || serial.front() == '.') return false;
+  return std::all_of(serial.begin(), serial.end(), [](char c) {
+    return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '.' || c == '_' ||
+           c == '-';
+  });
+}
+
+UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const std::string&)>& log) {
+  const LoadedInputs in = LoadInputs(r);  // everything checked before any work or output
+  const Calibration c = CalibrateViews(r, in, log);
+  const std::string date = RecordDateUtc();
+  const std::string cal_text = calib::CalibrationFileText(c.result, {r.target, c.view_paths, date});
+
+  // The checks use the calibration as the record stores it: the exact model and its full covariance.
+  pipeline::UnitCalibration unit;
+  unit.camera = c.result.camera;
+  unit.covariance.names.assign(std::begin(calib::kParameterNames), std::end(calib::kParameterNames));
+  unit.covariance.matrix = c.result.covariance;
+  unit.covariance.full = true;
+  const pipeline::CheckOptions check{r.uncertainty_samples, r.seed};
+  std::optional<pipeline::SphereVerification> sphere;
+  if (!in.sphere_image.empty()) {
+    try {
+      sphere = pipeline::VerifyOnReferenceSphere(in.sphere_image, r.sphere_radius_mm, unit, in.camera, in.config, check);
+    } catch (const std::invalid_argument& e) {
+      throw model::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(fmt::format("{}: {}: {}", r.serial, r.reference_sphere, e.what()));
+    }
+  }
+  const auto paper = pipeline::SimulateThroughCalibratedCamera(unit, in.camera, in.config, check);
+  const auto field = MeasureDistortionField(c.result.camera, in, r.serial);
+
+  // The record, staged and committed whole.
+  Staging staging(r.out);
+  const fs::path& dir = staging.path();
+  model::WriteFileAtomic((dir / "calibration.yaml").string(), cal_text);
+  model::WriteFileAtomic((dir / "residuals.csv").string(), ResidualsCsv(c));
+  WriteRecordMaps((dir / "maps").string(), sphere, paper, in.config);
+
+  json record;
+  record["format"] = kRecordFormat;
+  record["format_version"] = kRecordFormatVersion;
+  record["tool_version"] = kVersion;
+  record["serial"] = r.serial;
+  record["created_utc"] = date;
+  record["settings"] = {{"model", r.model},
+                        {"single_view", c.single_view},
+                        {"fit_centre", r.fit_centre},
+                        {"fixed", r.fixed},
+                        {"sphere_radius_mm", r.sphere_radius_mm},
+                        {"uncertainty_samples", r.uncertainty_samples},
+                        {"seed", r.seed}};
+  record["inputs"] = in.provenance;
+  record["files"] = FileDigests(dir);
+  const auto& cam = in.camera;
+  record["camera"] = {{"pixel_pitch_um", cam.pixel_pitch_um},
+                      {"width_px", cam.width_px},
+                      {"height_px", cam.height_px},
+                      {"a_mm", cam.a_mm},
+                      {"principal_point_px", {cam.principal_point_px.x(), cam.principal_point_px.y()}},
+                      {"rotated_180", cam.rotated_180}};
+  record["calibration"] = CalibrationJson(c, field, cam);
+  if (sphere) record["verification"] = VerificationJson(*sphere, r, check);
+  record["paper_cornea"] = PaperCorneaJson(paper, check);
+  try {
+    CheckFinite(record, "");
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(fmt::format("{}: the result is not usable: {}", r.serial, e.what()));
+  }
+  model::WriteFileAtomic((dir / "unit.json").string(), record.dump(2) + "\n");
+  staging.Commit(r.out);
+  return {r.serial, r.out, Summary(r, c, field, sphere, paper)};
 }
 
 UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults) {

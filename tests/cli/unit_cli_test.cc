@@ -151,6 +151,15 @@ TEST_F(UnitCli, BadInputIsOneLineAndLeavesNoRecord) {
                    "--reference-sphere {0}/sphere.png --sphere-radius-mm 0.5 --camera {0}/camera.json --out {1}",
                    in_, out),
        2, "sphere radius 0.5 mm is outside"},
+      // Options the calibration cannot honour are bad input, found before any image is read.
+      {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png "
+                   "--camera {0}/camera.json --model brown5 --fit-centre --out {1}",
+                   in_, out),
+       2, "fix p1,p2 or the centre"},
+      {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png "
+                   "--camera {0}/camera.json --fix k9 --out {1}",
+                   in_, out),
+       2, "--fix: 'k9' is not a camera parameter"},
   };
   for (const auto& c : cases) {
     SCOPED_TRACE(c.args);
