@@ -12,8 +12,9 @@ pkgs=(cmake g++ make pkg-config libopencv-dev libceres-dev libeigen3-dev libapri
       nlohmann-json3-dev libfmt-dev libssl-dev libgtest-dev libgmock-dev libbenchmark-dev)
 # The real chessboard photographs the calibration tests compare against cv::calibrateCamera.
 [ "$mode" = test ] && pkgs+=(opencv-doc)
-# Headless Chromium renders the QA report to PDF/PNG in tests/report (the browser test fails without it).
-[ "$mode" = test ] && pkgs+=(chromium)
+# Headless Chromium renders the QA report to PDF/PNG in tests/report (the browser test fails without it); the
+# report's font (DejaVu Sans) is named explicitly because --no-install-recommends leaves Chromium's fonts out.
+[ "$mode" = test ] && pkgs+=(chromium fonts-dejavu-core)
 
 missing=()
 for p in "${pkgs[@]}"; do
