@@ -9,6 +9,21 @@
 
 namespace topocal::pipeline {
 
+std::vector<topo::MeasuredSpot> UndistortSpots(const std::vector<MeasuredImageSpot>& detected,
+                                               const model::Distortion& distortion, int* failures) {
+  std::vector<Eigen::Vector2d> distorted;
+  distorted.reserve(detected.size());
+  for (const auto& s : detected) distorted.push_back(s.distorted_mm);
+  const auto undistorted = correct::UndistortPoints(distortion, distorted);
+  if (failures) *failures = static_cast<int>(undistorted.failures.size());
+  std::vector<topo::MeasuredSpot> spots;
+  spots.reserve(detected.size());
+  for (size_t i = 0; i < detected.size(); ++i) {
+    if (undistorted.ok[i]) spots.push_back({detected[i].id, undistorted.points_mm[i]});
+  }
+  return spots;
+}
+
 SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,
                              const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion) {
   const auto located = correct::DetectAndIndexSpots(image, camera, ideal);
@@ -22,14 +37,7 @@ SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamer
     for (const auto& s : located.spots) m.spots.push_back({s.id, s.position_mm});
     return m;
   }
-  std::vector<Eigen::Vector2d> distorted;
-  distorted.reserve(located.spots.size());
-  for (const auto& s : located.spots) distorted.push_back(s.position_mm);
-  const auto undistorted = correct::UndistortPoints(*distortion, distorted);
-  m.undistort_failures = static_cast<int>(undistorted.failures.size());
-  for (size_t i = 0; i < located.spots.size(); ++i) {
-    if (undistorted.ok[i]) m.spots.push_back({located.spots[i].id, undistorted.points_mm[i]});
-  }
+  m.spots = UndistortSpots(m.detected, *distortion, &m.undistort_failures);
   return m;
 }
 

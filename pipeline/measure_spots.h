@@ -29,6 +29,11 @@ struct SpotMeasurement {
   int undistort_failures = 0;              // identified spots outside the calibration's invertible domain
 };
 
+// The detected (distorted) spots undistorted with `distortion`. Spots outside its invertible domain are left out;
+// *failures (if given) counts them.
+std::vector<topo::MeasuredSpot> UndistortSpots(const std::vector<MeasuredImageSpot>& detected,
+                                               const model::Distortion& distortion, int* failures = nullptr);
+
 // Throws std::runtime_error (one line) when detection or indexing fails; std::invalid_argument for an image type
 // the detector cannot use.
 SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,

@@ -8,7 +8,6 @@
 
 #include <fmt/format.h>
 
-#include "correct/undistort_points.h"
 #include "pipeline/detection_plane.h"
 #include "topo/analysis.h"
 
@@ -66,9 +65,6 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
   const Eigen::MatrixXd factor = eigen.eigenvectors() * eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
 
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
-  std::vector<Eigen::Vector2d> distorted;
-  distorted.reserve(spots.size());
-  for (const auto& s : spots) distorted.push_back(s.distorted_mm);
 
   std::mt19937 rng(seed);
   std::normal_distribution<double> normal(0.0, 1.0);
@@ -85,11 +81,7 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
       ++u.failed_samples;
       continue;
     }
-    const auto undistorted = correct::UndistortPoints(*distortion, distorted);
-    std::vector<topo::MeasuredSpot> measured;
-    for (size_t k = 0; k < spots.size(); ++k) {
-      if (undistorted.ok[k]) measured.push_back({spots[k].id, undistorted.points_mm[k]});
-    }
+    const auto measured = UndistortSpots(spots, *distortion);
     try {
       const auto a = topo::AnalyzeSpots(measured, design.targets, config, nullptr);
       const auto& p = a.surface_fit.params;

@@ -105,15 +105,15 @@ SphereVerification VerifyOnReferenceSphere(const cv::Mat& image, double radius_m
   SphereVerification v;
   v.radius_true_mm = radius_mm;
   v.power_true_D = (topo::kKeratometricIndex - 1.0) / radius_mm * 1000.0;
+  // Detected and indexed once; the corrected stage undistorts the same spots.
   const auto raw = MeasureSpots(image, camera, sphere.ideal_image, std::nullopt);
-  const auto undistorted = MeasureSpots(image, camera, sphere.ideal_image, distortion);
   v.spots_indexed = raw.indexed;
   v.spots_unassigned = raw.unassigned;
   v.spots_missing = raw.missing;
-  v.undistort_failures = undistorted.undistort_failures;
+  const auto corrected = UndistortSpots(raw.detected, distortion, &v.undistort_failures);
   v.uncorrected = Analyze(raw.spots, design.targets, sphere, sphere.cornea, "reference sphere, uncorrected");
-  v.corrected = Analyze(undistorted.spots, design.targets, sphere, sphere.cornea, "reference sphere, corrected");
-  v.uncertainty = Uncertainty(undistorted.detected, unit, camera, sphere, options);
+  v.corrected = Analyze(corrected, design.targets, sphere, sphere.cornea, "reference sphere, corrected");
+  v.uncertainty = Uncertainty(raw.detected, unit, camera, sphere, options);
   return v;
 }
 
@@ -126,18 +126,17 @@ SimulatedCornea SimulateThroughCalibratedCamera(const UnitCalibration& unit, con
   std::vector<Eigen::Vector2d> ideal_mm;
   for (const auto& s : ideal.spots) ideal_mm.push_back(s.position_mm);
   const auto distorted_mm = correct::DistortPoints(distortion, ideal_mm);
-  const auto corrected_mm = correct::UndistortPoints(distortion, distorted_mm);
 
   SimulatedCornea out;
   out.truth = config.cornea;
-  std::vector<topo::MeasuredSpot> distorted, corrected;
+  std::vector<topo::MeasuredSpot> distorted;
   std::vector<MeasuredImageSpot> detected;
   for (size_t i = 0; i < ideal.spots.size(); ++i) {
     distorted.push_back({ideal.spots[i].id, distorted_mm[i]});
     detected.push_back({ideal.spots[i].id, distorted_mm[i]});
-    if (corrected_mm.ok[i]) corrected.push_back({ideal.spots[i].id, corrected_mm.points_mm[i]});
     out.max_displacement_um = std::max(out.max_displacement_um, (distorted_mm[i] - ideal_mm[i]).norm() * 1000.0);
   }
+  const auto corrected = UndistortSpots(detected, distortion);
   out.uncorrected = Analyze(distorted, design.targets, config, config.cornea, "paper cornea, uncorrected");
   out.corrected = Analyze(corrected, design.targets, config, config.cornea, "paper cornea, corrected");
   out.uncertainty = Uncertainty(detected, unit, camera, config, options);
