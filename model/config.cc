@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "model/json_section.h"
 #include "model/null_screen.h"
 #include "model/surface.h"
 
@@ -16,71 +17,7 @@ namespace {
 
 using nlohmann::json;
 
-// Strict reader of one JSON object: every key must be consumed or known; types and ranges are checked.
-class Section {
- public:
-  Section(const json& j, std::string origin, std::string prefix) : j_(j), origin_(std::move(origin)), prefix_(std::move(prefix)) {
-    if (!j_.is_object()) Fail(prefix_.empty() ? "(top level)" : prefix_, "must be a JSON object");
-  }
-
-  [[noreturn]] void Fail(const std::string& key, const std::string& problem) const {
-    throw ConfigError(fmt::format("{}: {}: {}", origin_, key, problem));
-  }
-  std::string Key(const std::string& k) const { return prefix_.empty() ? k : prefix_ + "." + k; }
-  bool Has(const std::string& k) const { return j_.contains(k); }
-
-  const json& Get(const std::string& k) {
-    seen_.insert(k);
-    if (!j_.contains(k)) Fail(Key(k), "missing");
-    return j_.at(k);
-  }
-
-  double Number(const std::string& k) {
-    const json& v = Get(k);
-    if (!v.is_number()) Fail(Key(k), fmt::format("must be a number (got {})", v.dump()));
-    const double d = v.get<double>();
-    if (!std::isfinite(d)) Fail(Key(k), "must be finite");
-    return d;
-  }
-  double Number(const std::string& k, double fallback) { return Has(k) ? Number(k) : fallback; }
-
-  int Integer(const std::string& k) {
-    const json& v = Get(k);
-    if (!v.is_number_integer()) Fail(Key(k), fmt::format("must be an integer (got {})", v.dump()));
-    return v.get<int>();
-  }
-  int Integer(const std::string& k, int fallback) { return Has(k) ? Integer(k) : fallback; }
-
-  std::string String(const std::string& k) {
-    const json& v = Get(k);
-    if (!v.is_string()) Fail(Key(k), fmt::format("must be a string (got {})", v.dump()));
-    return v.get<std::string>();
-  }
-  std::string String(const std::string& k, const std::string& fallback) { return Has(k) ? String(k) : fallback; }
-
-  void Positive(const std::string& k, double v) const {
-    if (!(v > 0)) Fail(Key(k), fmt::format("must be > 0 (got {})", v));
-  }
-  void AtLeast(const std::string& k, int v, int lo) const {
-    if (v < lo) Fail(Key(k), fmt::format("must be >= {} (got {})", lo, v));
-  }
-
-  Section Child(const std::string& k) { return Section(Get(k), origin_, Key(k)); }
-
-  // Any key present but never read is an error: a misspelt key must not silently fall back to a default.
-  void RejectUnknown() const {
-    for (auto it = j_.begin(); it != j_.end(); ++it) {
-      if (!seen_.count(it.key())) Fail(Key(it.key()), "unknown key");
-    }
-  }
-  void MarkSeen(const std::string& k) { seen_.insert(k); }
-
- private:
-  const json& j_;
-  std::string origin_;
-  std::string prefix_;
-  std::set<std::string> seen_;
-};
+using Section = JsonSection;
 
 void ParseIdealImage(Section s, IdealImageParams& p) {
   p.rho0_mm = s.Number("rho0_mm");

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "model/io.h"
+#include "model/json_section.h"
 #include "model/sha256.h"
 
 namespace topocal::pipeline {
@@ -19,55 +20,7 @@ using nlohmann::json;
 // A sweep larger than this is a configuration mistake, not a plan: 1e7 cases are ~1 CPU-day at ~10 ms a case.
 constexpr double kMaxCases = 1e7;
 
-// Strict reader of one JSON object (the same discipline as model/config.cc): every key must be read, types and
-// ranges are checked, and every failure is one line naming the file and the key.
-class Reader {
- public:
-  Reader(const json& j, std::string origin, std::string prefix)
-      : j_(j), origin_(std::move(origin)), prefix_(std::move(prefix)) {
-    if (!j_.is_object()) Fail(prefix_.empty() ? "(top level)" : prefix_, "must be a JSON object");
-  }
-  [[noreturn]] void Fail(const std::string& key, const std::string& problem) const {
-    throw model::ConfigError(fmt::format("{}: {}: {}", origin_, key, problem));
-  }
-  std::string Key(const std::string& k) const { return prefix_.empty() ? k : prefix_ + "." + k; }
-  bool Has(const std::string& k) const { return j_.contains(k); }
-  const json& Get(const std::string& k) {
-    seen_.insert(k);
-    if (!j_.contains(k)) Fail(Key(k), "missing");
-    return j_.at(k);
-  }
-  double Number(const std::string& k) {
-    const json& v = Get(k);
-    if (!v.is_number()) Fail(Key(k), fmt::format("must be a number (got {})", v.dump()));
-    const double d = v.get<double>();
-    if (!std::isfinite(d)) Fail(Key(k), "must be finite");
-    return d;
-  }
-  double Number(const std::string& k, double fallback) { return Has(k) ? Number(k) : fallback; }
-  double PositiveNumber(const std::string& k, double fallback) {
-    const double v = Number(k, fallback);
-    if (!(v > 0)) Fail(Key(k), fmt::format("must be > 0 (got {})", v));
-    return v;
-  }
-  std::string String(const std::string& k) {
-    const json& v = Get(k);
-    if (!v.is_string()) Fail(Key(k), fmt::format("must be a string (got {})", v.dump()));
-    return v.get<std::string>();
-  }
-  void RejectUnknown() const {
-    for (auto it = j_.begin(); it != j_.end(); ++it) {
-      if (!seen_.count(it.key())) Fail(Key(it.key()), "unknown key");
-    }
-  }
-  const std::string& origin() const { return origin_; }
-
- private:
-  const json& j_;
-  std::string origin_;
-  std::string prefix_;
-  std::set<std::string> seen_;
-};
+using Reader = model::JsonSection;
 
 // A list of values: explicit, or a range object (see harness_config.h).
 std::vector<double> ParseValues(Reader& parent, const std::string& k) {

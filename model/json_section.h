@@ -1,0 +1,91 @@
+#pragma once
+// Strict reading of one JSON object of a configuration file, shared by every configuration topocal reads
+// (model/config.cc, pipeline/harness_config.cc): every key must be read or known, types and ranges are checked, and
+// every failure is one ConfigError "ORIGIN: KEY: problem" naming the file and the dotted key.
+#include <cmath>
+#include <set>
+#include <string>
+#include <utility>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "model/config.h"
+
+namespace topocal::model {
+
+class JsonSection {
+ public:
+  using json = nlohmann::json;
+
+  JsonSection(const json& j, std::string origin, std::string prefix)
+      : j_(j), origin_(std::move(origin)), prefix_(std::move(prefix)) {
+    if (!j_.is_object()) Fail(prefix_.empty() ? "(top level)" : prefix_, "must be a JSON object");
+  }
+
+  [[noreturn]] void Fail(const std::string& key, const std::string& problem) const {
+    throw ConfigError(fmt::format("{}: {}: {}", origin_, key, problem));
+  }
+  std::string Key(const std::string& k) const { return prefix_.empty() ? k : prefix_ + "." + k; }
+  bool Has(const std::string& k) const { return j_.contains(k); }
+  const std::string& origin() const { return origin_; }
+
+  const json& Get(const std::string& k) {
+    seen_.insert(k);
+    if (!j_.contains(k)) Fail(Key(k), "missing");
+    return j_.at(k);
+  }
+
+  double Number(const std::string& k) {
+    const json& v = Get(k);
+    if (!v.is_number()) Fail(Key(k), fmt::format("must be a number (got {})", v.dump()));
+    const double d = v.get<double>();
+    if (!std::isfinite(d)) Fail(Key(k), "must be finite");
+    return d;
+  }
+  double Number(const std::string& k, double fallback) { return Has(k) ? Number(k) : fallback; }
+  double PositiveNumber(const std::string& k, double fallback) {
+    const double v = Number(k, fallback);
+    Positive(k, v);
+    return v;
+  }
+
+  int Integer(const std::string& k) {
+    const json& v = Get(k);
+    if (!v.is_number_integer()) Fail(Key(k), fmt::format("must be an integer (got {})", v.dump()));
+    return v.get<int>();
+  }
+  int Integer(const std::string& k, int fallback) { return Has(k) ? Integer(k) : fallback; }
+
+  std::string String(const std::string& k) {
+    const json& v = Get(k);
+    if (!v.is_string()) Fail(Key(k), fmt::format("must be a string (got {})", v.dump()));
+    return v.get<std::string>();
+  }
+  std::string String(const std::string& k, const std::string& fallback) { return Has(k) ? String(k) : fallback; }
+
+  void Positive(const std::string& k, double v) const {
+    if (!(v > 0)) Fail(Key(k), fmt::format("must be > 0 (got {})", v));
+  }
+  void AtLeast(const std::string& k, int v, int lo) const {
+    if (v < lo) Fail(Key(k), fmt::format("must be >= {} (got {})", lo, v));
+  }
+
+  JsonSection Child(const std::string& k) { return JsonSection(Get(k), origin_, Key(k)); }
+
+  // Any key present but never read is an error: a misspelt key must not silently fall back to a default.
+  void RejectUnknown() const {
+    for (auto it = j_.begin(); it != j_.end(); ++it) {
+      if (!seen_.count(it.key())) Fail(Key(it.key()), "unknown key");
+    }
+  }
+  void MarkSeen(const std::string& k) { seen_.insert(k); }
+
+ private:
+  const json& j_;
+  std::string origin_;
+  std::string prefix_;
+  std::set<std::string> seen_;
+};
+
+}  // namespace topocal::model
