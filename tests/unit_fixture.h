@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include <fmt/format.h>
 #include <opencv2/core.hpp>
@@ -22,11 +23,13 @@ namespace topocal::testing_cli {
 inline constexpr double kUnitSigmaPerMm2 = 6.3e-5;  // paper Table IV
 inline constexpr double kUnitSphereRadiusMm = 7.8;  // a common reference ball (the paper's design radius re_mm)
 
-// The directory with camera.json, target.yaml, view.png, sphere.png and blank.png (a grey frame: no target). Built under a temporary name and renamed
+// The directory with camera.json, target.yaml, view.png, sphere.png, blank.png (a grey frame: no target) and
+// views/*.png (view.png and the target turned by 12 degrees about x and about y: a multi-view calibration).
+// Built under a temporary name and renamed
 // into place, so that tests running in parallel (ctest -j) never see a half-written set.
 inline std::string UnitInputsDir() {
   namespace fs = std::filesystem;
-  const fs::path dir = fs::path(TOPOCAL_BINARY_DIR) / "test-data" / "unit-inputs-v1";
+  const fs::path dir = fs::path(TOPOCAL_BINARY_DIR) / "test-data" / "unit-inputs-v2";
   if (fs::exists(dir)) return dir.string();
   const fs::path tmp = dir.string() + fmt::format(".tmp-{}", ::getpid());
   fs::remove_all(tmp);
@@ -48,6 +51,17 @@ inline std::string UnitInputsDir() {
       "--out {1}/sphere.png",
       TOPOCAL_SOURCE_DIR, t, kUnitSigmaPerMm2, kUnitSphereRadiusMm));
   if (sphere.exit_code != 0) throw std::runtime_error("rendering the unit's reference sphere failed: " + sphere.output);
+  fs::create_directories(tmp / "views");
+  fs::copy_file(tmp / "view.png", tmp / "views" / "front.png");
+  for (const auto& [file, tilt] : {std::pair{"x12", "--tilt-x-deg 12"}, std::pair{"y12", "--tilt-y-deg 12"},
+                                  std::pair{"x-12", "--tilt-x-deg -12"}}) {
+    const std::string name = fmt::format("{}/views/{}.png", t, file);
+    const auto view = RunTopocal(fmt::format(
+        "render-target --target {0}/target.yaml --out {1} --width 1120 --height 1120 --focal-mm 5.2 "
+        "--pixel-pitch-um 1.12 --sigma {2} --distance-mm 70 {3} --supersampling 4 --noise 1",
+        t, name, kUnitSigmaPerMm2, tilt));
+    if (view.exit_code != 0) throw std::runtime_error("rendering a tilted view failed: " + view.output);
+  }
   cv::imwrite((tmp / "blank.png").string(), cv::Mat(1120, 1120, CV_8U, cv::Scalar(110)));
   std::error_code ec;
   fs::rename(tmp, dir, ec);  // fails if another process got there first: theirs is as good

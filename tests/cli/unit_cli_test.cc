@@ -101,6 +101,24 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
   EXPECT_GT(std::abs(p["uncorrected"]["kx"].get<double>() - p["truth"]["kx"].get<double>()), 0.1);
 }
 
+TEST_F(UnitCli, SeveralImagesAreAMultiViewCalibrationThatAlsoPasses) {
+  // The frontal view and three tilted ones: focal length and principal point are fitted with k1.
+  const auto out = (dir_ / "SN-MV").string();
+  const auto r = RunTopocal(fmt::format(
+      "unit calibrate --serial SN-MV --target {0}/target.yaml --images '{0}/views/*.png' --reference-sphere "
+      "{0}/sphere.png --sphere-radius-mm {1} --camera {0}/camera.json --uncertainty {2} --out {3}",
+      in_, kUnitSphereRadiusMm, kDraws, out));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("multi-view calibration, 4 view(s)"), std::string::npos) << r.output;
+  const json j = json::parse(model::ReadFile(out + "/unit.json"));
+  EXPECT_FALSE(j["settings"]["single_view"].get<bool>());
+  EXPECT_EQ(j["calibration"]["covariance"]["names"], json::array({"fx", "fy", "cx", "cy", "k1"}));
+  EXPECT_NEAR(j["calibration"]["seidel"]["sigma_per_mm2"].get<double>(), kUnitSigmaPerMm2,
+              kSigmaRelative * kUnitSigmaPerMm2);
+  EXPECT_LT(std::abs(j["verification"]["corrected"]["radius_error_mm"].get<double>()), kRadiusErrorMm);
+  EXPECT_LT(std::abs(j["verification"]["corrected"]["power_error_D"].get<double>()), kPowerErrorD);
+}
+
 TEST_F(UnitCli, ARerunWithTheSameInputsAndDateGivesTheSameRecord) {
   const auto a = (dir_ / "a").string(), b = (dir_ / "b").string();
   // SOURCE_DATE_EPOCH fixes the record's date (the reproducible-builds convention); the rest must follow from the
