@@ -102,16 +102,18 @@ void RunBatch(const BatchArgs& a) {
   const bool tty = ::isatty(STDERR_FILENO) != 0;
   std::mutex mutex;
   size_t finished = 0, failed = 0;
+  const auto draw_bar = [&](const std::string& last) {  // under the mutex
+    const int filled = static_cast<int>(kProgressBarWidth * finished / items.size());
+    fmt::print(stderr, "\r[{}{}] {}/{} units, {} failed  {:<24.24}", std::string(static_cast<size_t>(filled), '#'),
+               std::string(static_cast<size_t>(kProgressBarWidth - filled), '.'), finished, items.size(), failed, last);
+    if (finished == items.size()) fmt::print(stderr, "\n");
+  };
   const auto report = [&](const BatchItem& item) {  // under the mutex
     ++finished;
     if (!item.error.empty()) ++failed;
     const std::string name = item.request ? item.request->serial : item.inputs_path;
     if (tty) {
-      const int filled = static_cast<int>(kProgressBarWidth * finished / items.size());
-      fmt::print(stderr, "\r[{}{}] {}/{} units, {} failed  {:<24.24}", std::string(static_cast<size_t>(filled), '#'),
-                 std::string(static_cast<size_t>(kProgressBarWidth - filled), '.'), finished, items.size(), failed,
-                 name);
-      if (finished == items.size()) fmt::print(stderr, "\n");
+      draw_bar(name);
     } else {
       fmt::print(stderr, "[{}/{}] {}: {}\n", finished, items.size(), name,
                  item.error.empty() ? std::string("ok") : "FAILED: " + item.error);
@@ -122,6 +124,7 @@ void RunBatch(const BatchArgs& a) {
     for (auto& item : items) {
       if (!item.error.empty()) report(item);
     }
+    if (tty && finished == 0) draw_bar("");  // the empty bar at once: a unit takes seconds
   }
   std::atomic<size_t> next{0};
   const auto worker = [&] {
