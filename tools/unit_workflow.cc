@@ -502,6 +502,10 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
                         {"uncertainty_samples", r.uncertainty_samples},
                         {"seed", r.seed}};
   record["inputs"] = in.provenance;
+  // The design and camera as they were read (canonical form), so that the record says what it was computed with
+  // even after the files change; the digests above say whether they still match.
+  record["configuration"] = {{"design", json::parse(model::ConfigToJson(in.config))},
+                             {"camera", json::parse(model::TopographerCameraToJson(in.camera))}};
   record["files"] = FileDigests(dir);
   const auto& cam = in.camera;
   record["camera"] = {{"pixel_pitch_um", cam.pixel_pitch_um},

@@ -79,6 +79,9 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
     images += input["role"] == "image";
   }
   EXPECT_EQ(images, 1);
+  // The design and camera as read, so the record stands on its own.
+  EXPECT_EQ(j["configuration"]["camera"]["width_px"], 1120);
+  EXPECT_EQ(j["configuration"]["design"]["topographer"]["b_mm"], 70.0);
   EXPECT_GE(j["files"].size(), 10u);  // calibration, residuals, 2 x 2 stages x 4 maps
   for (const auto& f : j["files"]) {
     EXPECT_EQ(f["sha256"], model::Sha256HexOfFile(out + "/" + f["name"].get<std::string>())) << f["name"];
