@@ -4,7 +4,8 @@
 
 namespace topocal::model {
 
-bool Sphere::Evaluate(double x, double y, SurfaceDerivatives* d) const noexcept {
+bool Sphere::Evaluate(double x_mm, double y_mm, SurfaceDerivatives* d) const noexcept {
+  const double x = x_mm - x0_mm, y = y_mm - y0_mm;
   const double arg = radius_mm * radius_mm - x * x - y * y;
   if (!(arg > 0)) return false;
   const double root = std::sqrt(arg);

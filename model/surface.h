@@ -3,7 +3,8 @@
 // +z, i.e. away from the camera). Each surface evaluates its sag and gradient in a template usable with Ceres jets
 // (so Newton solvers get exact Jacobians), and its analytic Hessian in double.
 //
-//  * Sphere:  rho^2 - 2 r z + z^2 = 0, the root through the vertex: z = r - sqrt(r^2 - rho^2)   (paper Eq. 4)
+//  * Sphere:  rho^2 - 2 r z + z^2 = 0, the root through the vertex: z = r - sqrt(r^2 - rho^2)   (paper Eq. 4),
+//    with its vertex at (x0, y0, z0): a reference ball placed anywhere in front of the camera
 //  * Biconic: paper Eq. 12 with the rotation convention of docs/paper-decisions.md (surface rotated by +alpha):
 //        x_r = x cos(alpha) + y sin(alpha),   y_r = -x sin(alpha) + y cos(alpha)
 //        X = x_r - x0, Y = y_r - y0
@@ -26,16 +27,19 @@ struct SurfaceDerivatives {
 struct Sphere {
   double radius_mm = 7.8;
   double z0_mm = 0.0;  // axial position of the vertex
+  double x0_mm = 0.0;  // lateral position of the vertex (and of the centre)
+  double y0_mm = 0.0;
 
   template <typename T>
   bool SagAndGradient(const T& x, const T& y, T* z, T* zx, T* zy) const noexcept {
     using std::sqrt;
-    const T arg = T(radius_mm * radius_mm) - x * x - y * y;
+    const T X = x - x0_mm, Y = y - y0_mm;
+    const T arg = T(radius_mm * radius_mm) - X * X - Y * Y;
     if (!(arg > T(0))) return false;
     const T root = sqrt(arg);
     *z = T(z0_mm) + T(radius_mm) - root;
-    *zx = x / root;
-    *zy = y / root;
+    *zx = X / root;
+    *zy = Y / root;
     return true;
   }
   bool Evaluate(double x, double y, SurfaceDerivatives* d) const noexcept;
