@@ -24,12 +24,18 @@ std::optional<BrownOnDetectionPlane> BrownFromOpenCv(const OpenCvCamera& k, cons
     if (!std::isfinite(d)) return fail("distortion coefficients must be finite");
   }
   BrownOnDetectionPlane out;
-  const double s = camera.Sign(), p = camera.PitchMm();
+  const Eigen::Matrix2d mt = camera.Orientation().transpose();
+  const double p = camera.PitchMm();
   out.brown.focal_mm = std::sqrt(k.fx_px * k.fy_px) * p;
   if (!std::isfinite(k.centre_x) || !std::isfinite(k.centre_y)) return fail("distortion centre must be finite");
-  out.brown.centre_x_mm = s * p * (k.cx_px - camera.principal_point_px.x() + k.fx_px * k.centre_x);
-  out.brown.centre_y_mm = s * p * (k.cy_px - camera.principal_point_px.y() + k.fy_px * k.centre_y);
-  out.brown.k = {k.dist[0], k.dist[1], s * k.dist[2], s * k.dist[3], k.dist.size() == 5 ? k.dist[4] : 0.0};
+  const Eigen::Vector2d centre_mm =
+      p * (mt * Eigen::Vector2d(k.cx_px - camera.principal_point_px.x() + k.fx_px * k.centre_x,
+                                k.cy_px - camera.principal_point_px.y() + k.fy_px * k.centre_y));
+  out.brown.centre_x_mm = centre_mm.x();
+  out.brown.centre_y_mm = centre_mm.y();
+  // The tangential terms are r^2 q + 2 (n.q) n with q = (p2, p1): q turns with the frame, q_mm = M^T q_cv.
+  const Eigen::Vector2d q_mm = mt * Eigen::Vector2d(k.dist[3], k.dist[2]);
+  out.brown.k = {k.dist[0], k.dist[1], q_mm.y(), q_mm.x(), k.dist.size() == 5 ? k.dist[4] : 0.0};
   out.aspect_error = std::abs(k.fx_px / k.fy_px - 1.0);
   return out;
 }

@@ -2,10 +2,11 @@
 // An OpenCV calibration (camera matrix K and distCoeffs, in this camera's pixels) as a model::BrownParams on the
 // detection plane, so that points and images of the topographer can be undistorted in millimetres.
 //
-// With x_mm = s p (u - c_cam) (model/topographer_camera.h; s = +1, or -1 when rotated_180) and OpenCV's
+// With x_mm = p M^T (u - c_cam) (model/topographer_camera.h; M the image orientation) and OpenCV's
 // x_n = (u - c_x) / f_x, the distortion acting on v = x_n - e (e the distortion centre, normalised):
-//   s v = (x_mm - centre_mm) / focal_mm,  focal_mm = f p,  centre_mm = s p (c - c_cam + f e).
-// For s = -1 the radial terms are unchanged and the tangential ones (p1, p2) change sign.
+//   M^T v = (x_mm - centre_mm) / focal_mm,  focal_mm = f p,  centre_mm = p M^T (c - c_cam + f e).
+// The radial terms are unchanged by M; the tangential ones, r^2 q + 2 (n.q) n with q = (p2, p1), turn with it:
+// q_mm = M^T q (for a 180 deg rotation p1, p2 change sign).
 // OpenCV allows f_x != f_y; model::BrownParams has one focal length: f = sqrt(f_x f_y). The error this makes is
 // |f_x / f_y - 1| / 2 times the distortion displacement — reported as `aspect_error` so callers can refuse it.
 #include <optional>

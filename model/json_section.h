@@ -6,6 +6,7 @@
 #include <set>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -13,6 +14,13 @@
 #include "model/config.h"
 
 namespace topocal::model {
+
+// A JSON value as quoted in an error message, cut to ~100 characters: a bad value may be megabytes long.
+inline std::string QuoteJsonValue(const nlohmann::json& v) {
+  std::string s = v.dump();
+  if (s.size() > 100) s = s.substr(0, 97) + "...";
+  return s;
+}
 
 class JsonSection {
  public:
@@ -38,7 +46,7 @@ class JsonSection {
 
   double Number(const std::string& k) {
     const json& v = Get(k);
-    if (!v.is_number()) Fail(Key(k), fmt::format("must be a number (got {})", v.dump()));
+    if (!v.is_number()) Fail(Key(k), fmt::format("must be a number (got {})", QuoteJsonValue(v)));
     const double d = v.get<double>();
     if (!std::isfinite(d)) Fail(Key(k), "must be finite");
     return d;
@@ -52,17 +60,36 @@ class JsonSection {
 
   int Integer(const std::string& k) {
     const json& v = Get(k);
-    if (!v.is_number_integer()) Fail(Key(k), fmt::format("must be an integer (got {})", v.dump()));
+    if (!v.is_number_integer()) Fail(Key(k), fmt::format("must be an integer (got {})", QuoteJsonValue(v)));
     return v.get<int>();
   }
   int Integer(const std::string& k, int fallback) { return Has(k) ? Integer(k) : fallback; }
 
   std::string String(const std::string& k) {
     const json& v = Get(k);
-    if (!v.is_string()) Fail(Key(k), fmt::format("must be a string (got {})", v.dump()));
+    if (!v.is_string()) Fail(Key(k), fmt::format("must be a string (got {})", QuoteJsonValue(v)));
     return v.get<std::string>();
   }
   std::string String(const std::string& k, const std::string& fallback) { return Has(k) ? String(k) : fallback; }
+
+  // A number within [lo, hi] (fallback when absent).
+  double InRange(const std::string& k, double fallback, double lo, double hi) {
+    const double v = Number(k, fallback);
+    if (!(v >= lo && v <= hi)) Fail(Key(k), fmt::format("must be in [{}, {}] (got {})", lo, hi, v));
+    return v;
+  }
+  // An array of exactly n finite numbers.
+  std::vector<double> Numbers(const std::string& k, size_t n) {
+    const json& v = Get(k);
+    const auto bad = [&] { Fail(Key(k), fmt::format("must be an array of {} finite numbers (got {})", n, QuoteJsonValue(v))); };
+    if (!v.is_array() || v.size() != n) bad();
+    std::vector<double> out;
+    for (const auto& e : v) {
+      if (!e.is_number() || !std::isfinite(e.get<double>())) bad();
+      out.push_back(e.get<double>());
+    }
+    return out;
+  }
 
   void Positive(const std::string& k, double v) const {
     if (!(v > 0)) Fail(Key(k), fmt::format("must be > 0 (got {})", v));

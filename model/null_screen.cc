@@ -57,93 +57,57 @@ std::optional<Eigen::Vector3d> Topographer::HitCone(const Eigen::Vector3d& o, co
   return o + best * d;
 }
 
+std::optional<TargetPoint> TraceIdealPoint(const Topographer& topo, const Eigen::Vector2d& ideal_mm,
+                                           std::string* why) {
+  const Sphere sphere{topo.p.re_mm, 0.0};
+  const Eigen::Vector3d inc = topo.IncidentDirection(ideal_mm);  // Eq. 3
+  const auto p2 = topo.HitReferenceSphere(inc);                  // Eq. 5-7
+  if (!p2) {
+    if (why) *why = "backward ray misses the reference sphere";
+    return std::nullopt;
+  }
+  double z = 0, zx = 0, zy = 0;
+  sphere.SagAndGradient(p2->x(), p2->y(), &z, &zx, &zy);
+  const Eigen::Vector3d n = SurfaceNormal(zx, zy);
+  const Eigen::Vector3d refl = inc - 2.0 * inc.dot(n) * n;  // Eq. 8
+  const auto p3 = topo.HitCone(*p2, refl);                  // Eq. 9-11
+  if (!p3) {
+    if (why) *why = "reflected ray misses the cone";
+    return std::nullopt;
+  }
+  return TargetPoint{{}, ideal_mm, *p2, *p3};
+}
+
 NullScreenDesign DesignNullScreen(const IdealImageParams& ideal, const TopographerParams& topographer) {
   const Topographer topo{topographer};
-  const Sphere sphere{topographer.re_mm, 0.0};
   NullScreenDesign design;
   const auto spots = IdealImage(ideal);
   design.targets.reserve(spots.size());
   for (const auto& s : spots) {
-    const Eigen::Vector3d inc = topo.IncidentDirection(s.position_mm);
-    const auto p2 = topo.HitReferenceSphere(inc);
-    if (!p2) {
-      design.failures.push_back({s.id, "backward ray misses the reference sphere"});
+    std::string why;
+    auto t = TraceIdealPoint(topo, s.position_mm, &why);
+    if (!t) {
+      design.failures.push_back({s.id, why});
       continue;
     }
-    double z = 0, zx = 0, zy = 0;
-    sphere.SagAndGradient(p2->x(), p2->y(), &z, &zx, &zy);
-    const Eigen::Vector3d n = SurfaceNormal(zx, zy);
-    const Eigen::Vector3d refl = inc - 2.0 * inc.dot(n) * n;  // Eq. 8
-    const auto p3 = topo.HitCone(*p2, refl);
-    if (!p3) {
-      design.failures.push_back({s.id, "reflected ray misses the cone"});
-      continue;
-    }
-    design.targets.push_back({s.id, s.position_mm, *p2, *p3});
+    t->id = s.id;
+    design.targets.push_back(*t);
   }
   return design;
 }
 
-namespace {
-
-// Residual of the reflection conditions (Eq. 15) at the surface point over (x, y), for target P3 and pinhole h.
-template <typename T>
-bool ReflectionResidual(const Surface& surface, const Eigen::Vector3d& h, const Eigen::Vector3d& p3, const T& x,
-                        const T& y, T* f) {
-  T z, zx, zy;
-  const bool ok = std::visit([&](const auto& s) { return s.SagAndGradient(x, y, &z, &zx, &zy); }, surface);
-  if (!ok) return false;
-  using std::sqrt;
-  const T ix = x - h.x(), iy = y - h.y(), iz = z - h.z();
-  const T in = sqrt(ix * ix + iy * iy + iz * iz);
-  const T rx = p3.x() - x, ry = p3.y() - y, rz = p3.z() - z;
-  const T rn = sqrt(rx * rx + ry * ry + rz * rz);
-  const T dz = rz / rn - iz / in;
-  f[0] = (rx / rn - ix / in) + dz * zx;
-  f[1] = (ry / rn - iy / in) + dz * zy;
-  return true;
-}
-
-}  // namespace
 
 std::optional<Eigen::Vector3d> SolveReflectionPoint(const Surface& surface, const Topographer& topographer,
                                                     const Eigen::Vector3d& target_mm,
                                                     const Eigen::Vector2d& initial_xy_mm) {
-  // Newton's method on the 2x2 system of Eq. 15 with a jet Jacobian. Written by hand rather than with a
-  // ceres::Problem because it runs once per spot per image (624 x sweeps) and converges in ~5 steps from the
-  // designed point; the solver set-up would dominate. Convergence: |step| below 1e-13 mm (double floor at ~5 mm).
-  constexpr double kStepToleranceMm = 1e-13;
-  constexpr int kMaxIterations = 60;
-  using Jet = ceres::Jet<double, 2>;
-  const Eigen::Vector3d h = topographer.Pinhole();
-  double x = initial_xy_mm.x(), y = initial_xy_mm.y();
-  for (int it = 0; it < kMaxIterations; ++it) {
-    Jet f[2];
-    if (!ReflectionResidual(surface, h, target_mm, Jet(x, 0), Jet(y, 1), f)) return std::nullopt;
-    const double det = f[0].v[0] * f[1].v[1] - f[0].v[1] * f[1].v[0];
-    if (!(std::abs(det) > 0)) return std::nullopt;
-    double dx = (f[1].v[1] * f[0].a - f[0].v[1] * f[1].a) / det;
-    double dy = (-f[1].v[0] * f[0].a + f[0].v[0] * f[1].a) / det;
-    // Damp steps larger than 1 mm: far from the solution the quadratic model is poor.
-    const double step = std::hypot(dx, dy);
-    if (step > 1.0) {
-      dx /= step;
-      dy /= step;
-    }
-    x -= dx;
-    y -= dy;
-    if (!std::isfinite(x) || !std::isfinite(y)) return std::nullopt;
-    if (step < kStepToleranceMm) {
-      double z, zx, zy;
-      const bool ok = std::visit([&](const auto& s) { return s.SagAndGradient(x, y, &z, &zx, &zy); }, surface);
-      if (!ok) return std::nullopt;
-      const Eigen::Vector3d p2(x, y, z);
-      // The physical solution faces the camera: the incident ray travels towards +z and hits the front of the surface.
-      if (!(p2.z() > h.z())) return std::nullopt;
-      return p2;
-    }
-  }
-  return std::nullopt;
+  return std::visit(
+      [&](const auto& s) {
+        const auto sag = [&s](const auto& x, const auto& y, auto* z, auto* zx, auto* zy) {
+          return s.SagAndGradient(x, y, z, zx, zy);
+        };
+        return SolveReflectionPointOn(sag, topographer.Pinhole(), target_mm, initial_xy_mm);
+      },
+      surface);
 }
 
 SyntheticImage SynthesizeImage(const Surface& surface, const Topographer& topographer,

@@ -11,11 +11,13 @@
 // A spot is identified by (ring i = 1..N+1, index j = 0..eta0+(i-1)eta-1); its ideal position is
 //   rho_i = rho0 + (i-1)(rhoN - rho0)/N,  theta_ij = 2 pi j / (eta0 + (i-1) eta),
 //   (x1, y1) = rho_i (cos theta_ij, sin theta_ij)      (Eq. 1 with the sin of the paper README, item 1)
+#include <cmath>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
+#include <ceres/jet.h>
 
 #include "model/config.h"
 #include "model/surface.h"
@@ -74,11 +76,77 @@ struct NullScreenDesign {
 
 NullScreenDesign DesignNullScreen(const IdealImageParams& ideal, const TopographerParams& topographer);
 
+// The backward trace of one ideal-image point (Eq. 3 through the pinhole, Eq. 5-7 onto the reference sphere, Eq. 8
+// reflected, Eq. 9-11 onto the cone): the one implementation DesignNullScreen, the printable screen's outlines and
+// the spot-shape ground truth all use. On failure *why (if given) says which step missed.
+std::optional<TargetPoint> TraceIdealPoint(const Topographer& topographer, const Eigen::Vector2d& ideal_mm,
+                                           std::string* why = nullptr);
+
+// The law of reflection at a surface point (x, y, S(x, y)) for a ray from the pinhole h to the target p3 (paper
+// Eq. 15): f = (R - I) + (R_z - I_z) grad S with I, R the unit incident and reflected directions; zero at the
+// reflection point. `sag` is any callable sag(x, y, &z, &zx, &zy) -> bool; every argument may be a Ceres jet, so the
+// same residual serves the Newton solve below and the device calibration's autodiff (calib/device_fit.h).
+template <typename T, typename Sag>
+bool ReflectionResidual(const Sag& sag, const T* h, const T* p3, const T& x, const T& y, T* f) {
+  T z, zx, zy;
+  if (!sag(x, y, &z, &zx, &zy)) return false;
+  using std::sqrt;
+  const T ix = x - h[0], iy = y - h[1], iz = z - h[2];
+  const T in = sqrt(ix * ix + iy * iy + iz * iz);
+  const T rx = p3[0] - x, ry = p3[1] - y, rz = p3[2] - z;
+  const T rn = sqrt(rx * rx + ry * ry + rz * rz);
+  const T dz = rz / rn - iz / in;
+  f[0] = (rx / rn - ix / in) + dz * zx;
+  f[1] = (ry / rn - iy / in) + dz * zy;
+  return true;
+}
+
 // Reflection point of one target: the point P2 on the surface where the law of reflection sends the ray from
 // target_mm through the pinhole. Newton on Eq. 15 from `initial_xy_mm`; nullopt if it fails or leaves the surface.
 std::optional<Eigen::Vector3d> SolveReflectionPoint(const Surface& surface, const Topographer& topographer,
                                                     const Eigen::Vector3d& target_mm,
                                                     const Eigen::Vector2d& initial_xy_mm);
+// The same Newton solve for any sag callable (see ReflectionResidual) and any pinhole position.
+template <typename Sag>
+std::optional<Eigen::Vector3d> SolveReflectionPointOn(const Sag& sag, const Eigen::Vector3d& pinhole_mm,
+                                                      const Eigen::Vector3d& target_mm,
+                                                      const Eigen::Vector2d& initial_xy_mm) {
+  // Newton's method on the 2x2 system of Eq. 15 with a jet Jacobian. Written by hand rather than with a
+  // ceres::Problem because it runs once per spot per image (624 x sweeps) and converges in ~5 steps from the
+  // designed point; the solver set-up would dominate. Convergence: |step| below 1e-13 mm (double floor at ~5 mm).
+  constexpr double kStepToleranceMm = 1e-13;
+  constexpr int kMaxIterations = 60;
+  using Jet = ceres::Jet<double, 2>;
+  const Jet h[3] = {Jet(pinhole_mm.x()), Jet(pinhole_mm.y()), Jet(pinhole_mm.z())};
+  const Jet p3[3] = {Jet(target_mm.x()), Jet(target_mm.y()), Jet(target_mm.z())};
+  double x = initial_xy_mm.x(), y = initial_xy_mm.y();
+  for (int it = 0; it < kMaxIterations; ++it) {
+    Jet f[2];
+    if (!ReflectionResidual(sag, h, p3, Jet(x, 0), Jet(y, 1), f)) return std::nullopt;
+    const double det = f[0].v[0] * f[1].v[1] - f[0].v[1] * f[1].v[0];
+    if (!(std::abs(det) > 0)) return std::nullopt;
+    double dx = (f[1].v[1] * f[0].a - f[0].v[1] * f[1].a) / det;
+    double dy = (-f[1].v[0] * f[0].a + f[0].v[0] * f[1].a) / det;
+    // Damp steps larger than 1 mm: far from the solution the quadratic model is poor.
+    const double step = std::hypot(dx, dy);
+    if (step > 1.0) {
+      dx /= step;
+      dy /= step;
+    }
+    x -= dx;
+    y -= dy;
+    if (!std::isfinite(x) || !std::isfinite(y)) return std::nullopt;
+    if (step < kStepToleranceMm) {
+      double z, zx, zy;
+      if (!sag(x, y, &z, &zx, &zy)) return std::nullopt;
+      const Eigen::Vector3d p2(x, y, z);
+      // The physical solution faces the camera: the incident ray travels towards +z and hits the front of the surface.
+      if (!(p2.z() > pinhole_mm.z())) return std::nullopt;
+      return p2;
+    }
+  }
+  return std::nullopt;
+}
 
 struct ImageSpot {
   SpotId id;

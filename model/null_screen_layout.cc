@@ -63,16 +63,9 @@ Eigen::Vector3d ConeDevelopment::RollUp(const Eigen::Vector2d& q) const {
 }
 
 std::optional<Eigen::Vector3d> TraceImagePointToCone(const Topographer& topographer, const Eigen::Vector2d& image_mm) {
-  // The steps of DesignNullScreen (model/null_screen.cc) for one point: Eq. 3, the reference sphere, Eq. 8, the cone.
-  const Sphere sphere{topographer.p.re_mm, 0.0};
-  const Eigen::Vector3d inc = topographer.IncidentDirection(image_mm);
-  const auto p2 = topographer.HitReferenceSphere(inc);
-  if (!p2) return std::nullopt;
-  double z = 0, zx = 0, zy = 0;
-  sphere.SagAndGradient(p2->x(), p2->y(), &z, &zx, &zy);
-  const Eigen::Vector3d n = SurfaceNormal(zx, zy);
-  const Eigen::Vector3d refl = inc - 2.0 * inc.dot(n) * n;
-  return topographer.HitCone(*p2, refl);
+  const auto t = TraceIdealPoint(topographer, image_mm);
+  if (!t) return std::nullopt;
+  return t->on_cone_mm;
 }
 
 namespace {

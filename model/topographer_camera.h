@@ -6,8 +6,9 @@
 //   x1 = -a X / (b + Z), y1 = -a Y / (b + Z)       u right, v down, centre of the top-left pixel = (0, 0)
 //   (the physical image is inverted: M_T < 0)
 //
-//   default (rotated_180 = false):  u = c_u + x1 / pitch,  v = c_v + y1 / pitch
-//   rotated_180 = true:             u = c_u - x1 / pitch,  v = c_v - y1 / pitch
+//   (u, v) = c + M (x1, y1) / pitch,   (x1, y1) = pitch M^T ((u, v) - c)
+//   M, the image orientation, one of the eight axis-aligned orthogonal matrices (ImageOrientation below);
+//   identity by default, -I for a camera rolled by 180 deg (the old `rotated_180: true`).
 //
 // With the default the pixel image is the eye as seen from the camera, upright (a corneal point at +Y appears above
 // the centre), and the OpenCV camera frame is the paper's frame turned by 180 deg about z — so OpenCV's normalised
@@ -17,8 +18,23 @@
 #include <string>
 
 #include <Eigen/Core>
+#include <nlohmann/json_fwd.hpp>
 
 namespace topocal::model {
+
+// How the delivered image is turned or mirrored relative to the default mapping (u = c_u + x1/pitch,
+// v = c_v + y1/pitch). Each is the matrix M of (u - c_u, v - c_v) = M (x1, y1) / pitch:
+//   identity    [ 1  0;  0  1]      rotate_180  [-1  0;  0 -1]
+//   rotate_90   [ 0 -1;  1  0]      rotate_270  [ 0  1; -1  0]      (90: a point right of the centre moves down)
+//   flip_u      [-1  0;  0  1]      flip_v      [ 1  0;  0 -1]      (mirrored left-right / top-bottom)
+//   transpose   [ 0  1;  1  0]      transverse  [ 0 -1; -1  0]
+// A mirror (det M = -1) mirrors the eye if it is not declared: the null-screen pattern is mirror-symmetric, so the
+// spots alone cannot tell (docs/device.md).
+enum class ImageOrientation { kIdentity, kRotate90, kRotate180, kRotate270, kFlipU, kFlipV, kTranspose, kTransverse };
+
+Eigen::Matrix2d OrientationMatrix(ImageOrientation o) noexcept;
+const char* OrientationName(ImageOrientation o) noexcept;
+std::optional<ImageOrientation> OrientationFromName(const std::string& name) noexcept;
 
 struct TopographerCamera {
   double pixel_pitch_um = 1.12;
@@ -26,19 +42,19 @@ struct TopographerCamera {
   int height_px = 3000;
   Eigen::Vector2d principal_point_px{1999.5, 1499.5};  // where the optical axis meets the sensor
   double a_mm = 5.2;          // pinhole to detection plane (config topographer.a_mm)
-  bool rotated_180 = false;   // camera rolled by 180 deg about its axis (the pixel image shows the eye upside down)
+  ImageOrientation orientation = ImageOrientation::kIdentity;
 
   double PitchMm() const noexcept { return pixel_pitch_um * 1e-3; }
-  // +1 for the default orientation, -1 when rotated by 180 deg.
-  double Sign() const noexcept { return rotated_180 ? -1.0 : 1.0; }
+  // M of the orientation (see ImageOrientation).
+  Eigen::Matrix2d Orientation() const noexcept { return OrientationMatrix(orientation); }
   // Focal length in pixels, a / pitch: the fx = fy of the equivalent OpenCV camera matrix.
   double FocalPx() const noexcept { return a_mm / PitchMm(); }
 
   Eigen::Vector2d PixelFromDetectionPlane(const Eigen::Vector2d& point_mm) const noexcept {
-    return principal_point_px + (Sign() / PitchMm()) * point_mm;
+    return principal_point_px + Orientation() * point_mm / PitchMm();
   }
   Eigen::Vector2d DetectionPlaneFromPixel(const Eigen::Vector2d& point_px) const noexcept {
-    return (Sign() * PitchMm()) * (point_px - principal_point_px);
+    return PitchMm() * (Orientation().transpose() * (point_px - principal_point_px));
   }
   // True if the pixel centre lies on the sensor (OpenCV convention: [-0.5, width - 0.5) x [-0.5, height - 0.5)).
   bool OnSensor(const Eigen::Vector2d& point_px) const noexcept {
@@ -50,9 +66,13 @@ struct TopographerCamera {
 };
 
 // Strict loading of the camera file (JSON, docs/camera-conventions.md): unknown, missing or mistyped keys and
-// non-physical values throw InputError "FILE: key: problem".
+// non-physical values throw InputError "FILE: key: problem". A device file (model/device.h) is accepted too: its
+// camera section is returned (a device's pose and distortion then need LoadDevice).
 TopographerCamera LoadTopographerCamera(const std::string& path);
 TopographerCamera ParseTopographerCamera(const std::string& json_text, const std::string& origin);
 std::string TopographerCameraToJson(const TopographerCamera& camera);
+// The camera object itself (the camera file, or a device file's "camera" section); key_prefix names it in errors.
+TopographerCamera CameraFromJson(const nlohmann::json& j, const std::string& origin, const std::string& key_prefix);
+nlohmann::json CameraToJson(const TopographerCamera& camera);
 
 }  // namespace topocal::model

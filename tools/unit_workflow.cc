@@ -508,12 +508,7 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
                              {"camera", json::parse(model::TopographerCameraToJson(in.camera))}};
   record["files"] = FileDigests(dir);
   const auto& cam = in.camera;
-  record["camera"] = {{"pixel_pitch_um", cam.pixel_pitch_um},
-                      {"width_px", cam.width_px},
-                      {"height_px", cam.height_px},
-                      {"a_mm", cam.a_mm},
-                      {"principal_point_px", {cam.principal_point_px.x(), cam.principal_point_px.y()}},
-                      {"rotated_180", cam.rotated_180}};
+  record["camera"] = model::CameraToJson(cam);
   record["calibration"] = CalibrationJson(c, field, cam);
   if (sphere) record["verification"] = VerificationJson(*sphere, r, check);
   record["paper_cornea"] = PaperCorneaJson(paper, check);

@@ -28,7 +28,7 @@ TEST(TopographerCamera, OrientationAndRoundTrip) {
   const Eigen::Vector2d px = c.PixelFromDetectionPlane({c.PitchMm(), 2 * c.PitchMm()});
   EXPECT_NEAR(px.x() - c.principal_point_px.x(), 1.0, kRoundTripPx);
   EXPECT_NEAR(px.y() - c.principal_point_px.y(), 2.0, kRoundTripPx);
-  c.rotated_180 = true;
+  c.orientation = model::ImageOrientation::kRotate180;
   const Eigen::Vector2d rot = c.PixelFromDetectionPlane({c.PitchMm(), 2 * c.PitchMm()});
   EXPECT_NEAR(rot.x() - c.principal_point_px.x(), -1.0, kRoundTripPx);
   EXPECT_NEAR(rot.y() - c.principal_point_px.y(), -2.0, kRoundTripPx);

@@ -224,11 +224,12 @@ Eigen::Vector2d ProjectOpenCv(const OpenCvCamera& k, const Eigen::Vector2d& norm
 constexpr double kSameModelPx = 1e-9;
 
 TEST(BrownFromOpenCv, SameDistortionInPixelsForEveryOrientationAndCentre) {
-  for (const bool rotated : {false, true}) {
+  for (int o = 0; o < 8; ++o) {
     for (const double e : {0.0, 0.01}) {
-      SCOPED_TRACE(::testing::Message() << "rotated_180 " << rotated << " centre " << e);
+      const auto orientation = static_cast<model::ImageOrientation>(o);
+      SCOPED_TRACE(::testing::Message() << "orientation " << model::OrientationName(orientation) << " centre " << e);
       auto camera = testing::DefaultCamera();
-      camera.rotated_180 = rotated;
+      camera.orientation = orientation;
       const double f = camera.FocalPx();
       OpenCvCamera k{f, f, camera.principal_point_px.x() + 21.0, camera.principal_point_px.y() - 9.0,
                      {-0.12, 0.25, 8e-4, -5e-4, -0.1}, e, -0.5 * e};
