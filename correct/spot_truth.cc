@@ -3,44 +3,35 @@
 #include <optional>
 
 namespace topocal::correct {
-namespace {
-
-// The null-screen target of an arbitrary ideal-image point: the backward trace of model::DesignNullScreen
-// (pinhole -> reference sphere -> reflection -> cone) for one point.
-std::optional<model::TargetPoint> TargetOf(const model::Topographer& topo, const Eigen::Vector2d& ideal_mm) {
-  const model::Sphere sphere{topo.p.re_mm, 0.0};
-  const Eigen::Vector3d inc = topo.IncidentDirection(ideal_mm);
-  const auto p2 = topo.HitReferenceSphere(inc);
-  if (!p2) return std::nullopt;
-  double z = 0, zx = 0, zy = 0;
-  if (!sphere.SagAndGradient(p2->x(), p2->y(), &z, &zx, &zy)) return std::nullopt;
-  const Eigen::Vector3d n = model::SurfaceNormal(zx, zy);
-  const Eigen::Vector3d refl = inc - 2.0 * inc.dot(n) * n;
-  const auto p3 = topo.HitCone(*p2, refl);
-  if (!p3) return std::nullopt;
-  return model::TargetPoint{{}, ideal_mm, *p2, *p3};
-}
-
-}  // namespace
 
 SpotTruth SpotsOnSensor(const model::Surface& cornea, const model::IdealImageParams& ideal,
                         const model::TopographerParams& topographer, const model::Distortion& distortion,
                         const model::TopographerCamera& camera) {
-  const model::Topographer topo{topographer};
+  model::Device device = model::NominalDevice(camera);
+  device.camera.a_mm = topographer.a_mm;
+  device.distortion = distortion;
+  return SpotsOnSensor(cornea, ideal, topographer, device);
+}
+
+SpotTruth SpotsOnSensor(const model::Surface& cornea, const model::IdealImageParams& ideal,
+                        const model::TopographerParams& topographer, const model::Device& device) {
+  const model::Topographer design_topo{topographer};
+  const model::Topographer topo{device.AsBuilt(topographer)};
+  const auto& camera = device.camera;
   const auto design = model::DesignNullScreen(ideal, topographer);
-  const auto image = model::SynthesizeImage(cornea, topo, design.targets);
+  const auto image = model::SynthesizeImage(cornea, device, topographer, design.targets);
   SpotTruth out;
   out.failures = design.failures;
   out.failures.insert(out.failures.end(), image.failures.begin(), image.failures.end());
   const double radius_mm = ideal.spot_radius_um * 1e-3;
   // Sensor pixel of an ideal-image point, through cornea and distortion; nullopt if any step fails.
   const auto to_px = [&](const Eigen::Vector2d& ideal_mm, const Eigen::Vector2d& surface_guess) -> std::optional<Eigen::Vector2d> {
-    const auto t = TargetOf(topo, ideal_mm);
+    const auto t = model::TraceIdealPoint(design_topo, ideal_mm);
     if (!t) return std::nullopt;
-    const auto p2 = model::SolveReflectionPoint(cornea, topo, t->on_cone_mm, surface_guess);
+    const Eigen::Vector3d placed = device.screen.Apply(t->on_cone_mm, -topographer.b_mm);
+    const auto p2 = model::SolveReflectionPoint(cornea, topo, placed, surface_guess);
     if (!p2) return std::nullopt;
-    const Eigen::Vector2d undistorted = topo.ImagePoint((*p2 - topo.Pinhole()).normalized());
-    return camera.PixelFromDetectionPlane(model::Distort(distortion, undistorted));
+    return device.PixelOf(topo.ImagePoint((*p2 - topo.Pinhole()).normalized()));
   };
   std::vector<Eigen::Vector2d> ideal_of(image.spots.size());
   for (const auto& t : design.targets) {
@@ -50,7 +41,7 @@ SpotTruth SpotsOnSensor(const model::Surface& cornea, const model::IdealImagePar
   }
   for (size_t k = 0; k < image.spots.size(); ++k) {
     const auto& s = image.spots[k];
-    const Eigen::Vector2d d_mm = model::Distort(distortion, s.position_mm);
+    const Eigen::Vector2d d_mm = model::Distort(device.distortion, s.position_mm);
     SpotToRender r;
     r.id = s.id;
     r.centre_px = camera.PixelFromDetectionPlane(d_mm);

@@ -14,6 +14,7 @@
 
 #include "correct/spot_render.h"
 #include "model/config.h"
+#include "model/device.h"
 #include "model/distortion.h"
 #include "model/null_screen.h"
 #include "model/surface.h"
@@ -27,6 +28,11 @@ struct SpotTruth {
   std::vector<model::SpotFailure> failures;  // designed spots the cornea does not image
 };
 
+// Through an as-built device (model/device.h): the design's targets placed by the device's screen pose, imaged with
+// its a, distorted by its lens and mapped by its camera.
+SpotTruth SpotsOnSensor(const model::Surface& cornea, const model::IdealImageParams& ideal,
+                        const model::TopographerParams& design, const model::Device& device);
+// The same through a device whose screen sits exactly as designed (camera.a_mm is the design's a).
 SpotTruth SpotsOnSensor(const model::Surface& cornea, const model::IdealImageParams& ideal,
                         const model::TopographerParams& topographer, const model::Distortion& distortion,
                         const model::TopographerCamera& camera);

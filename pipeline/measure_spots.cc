@@ -41,4 +41,16 @@ SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamer
   return m;
 }
 
+SpotMeasurement MeasureSpots(const cv::Mat& image, const model::Device& device, const model::IdealImageParams& ideal) {
+  return MeasureSpots(image, device.camera, ideal, device.distortion);
+}
+
+topo::Analysis AnalyzeThroughDevice(const std::vector<topo::MeasuredSpot>& spots, const model::Device& device,
+                                    const model::Config& config, const model::BiconicParams* truth) {
+  const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
+  model::Config as_built = config;
+  as_built.topographer = device.AsBuilt(config.topographer);
+  return topo::AnalyzeSpots(spots, device.PlaceTargets(design.targets, config.topographer), as_built, truth);
+}
+
 }  // namespace topocal::pipeline

@@ -8,8 +8,10 @@
 #include <opencv2/core/mat.hpp>
 
 #include "model/config.h"
+#include "model/device.h"
 #include "model/distortion.h"
 #include "model/topographer_camera.h"
+#include "topo/analysis.h"
 #include "topo/reconstruction.h"
 
 namespace topocal::pipeline {
@@ -38,5 +40,14 @@ std::vector<topo::MeasuredSpot> UndistortSpots(const std::vector<MeasuredImageSp
 // the detector cannot use.
 SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,
                              const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion);
+
+// Through an as-built device: its camera maps pixels to the detection plane and its distortion is undone.
+SpotMeasurement MeasureSpots(const cv::Mat& image, const model::Device& device, const model::IdealImageParams& ideal);
+
+// Reconstruction, biconic fit and maps of undistorted spots measured through a device: the design's targets placed
+// where the device's screen puts them, rays traced with the device's a, the vertex reference of the configuration
+// (the datum of the device's calibration). Throws std::runtime_error like topo::AnalyzeSpots.
+topo::Analysis AnalyzeThroughDevice(const std::vector<topo::MeasuredSpot>& spots, const model::Device& device,
+                                    const model::Config& config, const model::BiconicParams* truth);
 
 }  // namespace topocal::pipeline

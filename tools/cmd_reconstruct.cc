@@ -39,31 +39,54 @@ void PrintAnalysis(const topo::Analysis& a) {
 }
 
 struct Inputs {
-  std::string spots, image, camera, calibration;
+  std::string spots, image, camera, calibration, device;
   int uncertainty_samples = 0;
   unsigned seed = 1;
 };
 
 // Spots from a CSV, or detected, indexed and (with a calibration) undistorted in a raw image.
-std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::Config& cfg, nlohmann::json* info,
+std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::Config& cfg,
+                                                const std::optional<model::Device>& device, nlohmann::json* info,
                                                 std::optional<pipeline::ClinicalUncertainty>* uncertainty) {
   std::vector<topo::MeasuredSpot> measured;
   if (!in.spots.empty()) {
-    if (!in.camera.empty() || !in.calibration.empty()) {
-      throw model::InputError("--camera and --calibration go with --image (a spots CSV is already in mm)");
+    if (!in.camera.empty() || !in.calibration.empty() || !in.device.empty()) {
+      throw model::InputError("--camera, --device and --calibration go with --image (a spots CSV is already in mm)");
     }
     for (const auto& r : ReadSpotsCsv(in.spots)) measured.push_back({r.id, Eigen::Vector2d(r.x_mm, r.y_mm)});
     (*info)["spots_read"] = measured.size();
     return measured;
   }
-  if (in.camera.empty()) throw model::InputError("--image: needs --camera (pixel pitch, principal point)");
-  const auto camera = model::LoadTopographerCamera(in.camera);
+  if (in.camera.empty() == in.device.empty()) {
+    throw model::InputError("--image: needs --camera (pixel pitch, principal point) or --device (the calibrated device)");
+  }
+  const auto camera = in.device.empty() ? model::LoadTopographerCamera(in.camera) : device->camera;
+  const std::string& camera_file = in.device.empty() ? in.camera : in.device;
   model::ReadFile(in.image);  // a missing or unreadable file is named as such, not as "not an image"
   const cv::Mat image = cv::imread(in.image, cv::IMREAD_UNCHANGED);
   if (image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", in.image));
   if (image.cols != camera.width_px || image.rows != camera.height_px) {
     throw model::InputError(fmt::format("{}: the image is {} x {} px but {} says {} x {} px", in.image, image.cols,
-                                        image.rows, in.camera, camera.width_px, camera.height_px));
+                                        image.rows, camera_file, camera.width_px, camera.height_px));
+  }
+  if (device) {
+    pipeline::SpotMeasurement m;
+    try {
+      m = pipeline::MeasureSpots(image, *device, cfg.ideal_image);
+    } catch (const std::invalid_argument& e) {
+      throw model::InputError(fmt::format("{}: {}", in.image, e.what()));
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(fmt::format("{}: {}", in.image, e.what()));
+    }
+    fmt::print("image: {} spots indexed, {} unassigned detections, {} designed spots missing, measured through the "
+               "device {} ({} outside its distortion's domain)\n",
+               m.indexed, m.unassigned, m.missing, in.device, m.undistort_failures);
+    (*info)["image"] = {{"indexed", m.indexed},
+                        {"unassigned", m.unassigned},
+                        {"missing", m.missing},
+                        {"device", in.device},
+                        {"undistort_failures", m.undistort_failures}};
+    return m.spots;
   }
   std::optional<model::Distortion> distortion;
   std::optional<calib::CalibrationFile> cal;
@@ -121,7 +144,12 @@ void AddReconstructCommand(CLI::App& app) {
   auto* image_opt = cmd->add_option("--image", in->image, "Raw sensor image of the spots (detected and indexed)");
   spots_opt->excludes(image_opt);
   cmd->add_option("--camera", in->camera, "Topographer camera (JSON) for --image");
-  cmd->add_option("--calibration", in->calibration, "Calibration file (YAML) to undistort the --image spots with");
+  auto* calibration_opt =
+      cmd->add_option("--calibration", in->calibration, "Calibration file (YAML) to undistort the --image spots with");
+  auto* device_opt = cmd->add_option("--device", in->device,
+                                     "Calibrated device (JSON, `device calibrate`): measure the --image through it "
+                                     "(its camera, distortion, screen pose and a)");
+  device_opt->excludes(calibration_opt);
   cmd->add_option("--uncertainty", in->uncertainty_samples,
                   "Monte Carlo draws of the calibration's parameters carried to the clinical numbers (with "
                   "--image and --calibration); reports mean +- U (k = 2)")
@@ -138,9 +166,12 @@ void AddReconstructCommand(CLI::App& app) {
     }
     nlohmann::json info;
     std::optional<pipeline::ClinicalUncertainty> uncertainty;
-    const auto measured = ReadMeasurement(*in, cfg, &info, &uncertainty);
+    std::optional<model::Device> device;
+    if (!in->device.empty()) device = model::LoadDevice(in->device).device;
+    const auto measured = ReadMeasurement(*in, cfg, device, &info, &uncertainty);
     const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
-    const auto analysis = topo::AnalyzeSpots(measured, design.targets, cfg, *truth ? &cfg.cornea : nullptr);
+    const auto analysis = device ? pipeline::AnalyzeThroughDevice(measured, *device, cfg, *truth ? &cfg.cornea : nullptr)
+                                 : topo::AnalyzeSpots(measured, design.targets, cfg, *truth ? &cfg.cornea : nullptr);
     PrintAnalysis(analysis);
     if (uncertainty) {
       fmt::print("calibration uncertainty carried through ({} draws of {}, {}; {} failed), mean +- U (k = 2):\n",

@@ -19,8 +19,9 @@ namespace topocal::tools {
 namespace {
 
 struct RenderSpotsArgs {
-  std::string config, camera, out, truth, spot = "ellipse";
+  std::string config, camera, device, out, truth, spot = "ellipse";
   double sigma = 0, psf_px = 1.0, drop = 0, sphere_radius_mm = 0;
+  std::vector<double> ball_at_mm;  // vertex of the reference ball (x, y, z)
   double background = NAN, peak = NAN, noise = NAN, gain = NAN;
   int bits = 16, glints = 0;
   uint32_t seed = 1;
@@ -40,17 +41,42 @@ void Run(const RenderSpotsArgs& a) {
   if (a.sphere_radius_mm < 0 || !std::isfinite(a.sphere_radius_mm)) {
     throw model::InputError(fmt::format("--sphere-radius-mm: must be a positive radius (got {})", a.sphere_radius_mm));
   }
-  auto cfg = model::LoadConfig(a.config);
-  if (a.sphere_radius_mm > 0) {  // a reference ball instead of the configured cornea
-    cfg.cornea = model::BiconicParams{};
-    cfg.cornea.rx_mm = cfg.cornea.ry_mm = a.sphere_radius_mm;
-    cfg.cornea.kx = cfg.cornea.ky = cfg.cornea.alpha_deg = 0.0;
+  if (a.camera.empty() == a.device.empty()) throw model::InputError("render-spots: give one of --camera or --device");
+  if (!a.ball_at_mm.empty() && a.sphere_radius_mm == 0) {
+    throw model::InputError("--ball-at: needs --sphere-radius-mm (the ball's radius)");
   }
-  const auto camera = model::LoadTopographerCamera(a.camera);
-  if (std::abs(camera.a_mm - cfg.topographer.a_mm) > 1e-9) {
-    throw model::InputError(fmt::format("{}: a_mm: {} differs from the configuration's topographer.a_mm = {} ({})",
-                                        a.camera, camera.a_mm, cfg.topographer.a_mm, a.config));
+  for (const double v : a.ball_at_mm) {
+    if (!(std::abs(v) <= 5.0)) throw model::InputError(fmt::format("--ball-at: {} mm is not near the cornea position (+-5 mm)", v));
   }
+  const auto cfg = model::LoadConfig(a.config);
+  model::Surface surface = model::Biconic{cfg.cornea};
+  if (a.sphere_radius_mm > 0) {  // a reference ball instead of the configured cornea, its vertex at --ball-at
+    model::Sphere ball;
+    ball.radius_mm = a.sphere_radius_mm;
+    if (!a.ball_at_mm.empty()) {
+      ball.x0_mm = a.ball_at_mm[0];
+      ball.y0_mm = a.ball_at_mm[1];
+      ball.z0_mm = a.ball_at_mm[2];
+    }
+    surface = ball;
+  }
+  model::Device device;
+  if (!a.device.empty()) {
+    device = model::LoadDevice(a.device).device;
+  } else {
+    device = model::NominalDevice(model::LoadTopographerCamera(a.camera));
+    if (std::abs(device.camera.a_mm - cfg.topographer.a_mm) > 1e-9) {
+      throw model::InputError(fmt::format("{}: a_mm: {} differs from the configuration's topographer.a_mm = {} ({})",
+                                          a.camera, device.camera.a_mm, cfg.topographer.a_mm, a.config));
+    }
+    model::SeidelParams seidel;
+    seidel.sigma_per_mm2 = a.sigma;
+    seidel.magnification = cfg.distortion.magnification;
+    seidel.centre_x_mm = cfg.distortion.centre_x_mm;
+    seidel.centre_y_mm = cfg.distortion.centre_y_mm;
+    device.distortion = seidel;
+  }
+  const auto& camera = device.camera;
   correct::SpotRenderOptions o;
   o.shape = a.spot == "psf" ? correct::SpotShape::kPsf : correct::SpotShape::kEllipse;
   o.psf_sigma_px = a.psf_px;
@@ -65,13 +91,8 @@ void Run(const RenderSpotsArgs& a) {
   std::string why;
   if (!o.IsValid(&why)) throw model::InputError("render-spots: " + why);
 
-  model::SeidelParams seidel;
-  seidel.sigma_per_mm2 = a.sigma;
-  seidel.magnification = cfg.distortion.magnification;
-  seidel.centre_x_mm = cfg.distortion.centre_x_mm;
-  seidel.centre_y_mm = cfg.distortion.centre_y_mm;
-  const auto truth = correct::SpotsOnSensor(model::Biconic{cfg.cornea}, cfg.ideal_image, cfg.topographer, seidel, camera);
-  if (truth.spots.empty()) throw std::runtime_error(fmt::format("{}: the cornea images no spot", a.config));
+  const auto truth = correct::SpotsOnSensor(surface, cfg.ideal_image, cfg.topographer, device);
+  if (truth.spots.empty()) throw std::runtime_error(fmt::format("{}: the surface images no spot", a.config));
   for (const auto& f : truth.failures) {
     fmt::print(stderr, "topocal render-spots: spot ({}, {}): {}\n", f.id.ring, f.id.index, f.reason);
   }
@@ -113,11 +134,18 @@ void AddRenderSpotsCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("render-spots", "Render the raw sensor image of the configured cornea's spot pattern");
   auto a = std::make_shared<RenderSpotsArgs>();
   cmd->add_option("--config", a->config, "Topographer configuration (JSON)")->required();
-  cmd->add_option("--camera", a->camera, "Topographer camera (JSON, docs/camera-conventions.md)")->required();
-  cmd->add_option("--sigma", a->sigma, "Seidel distortion coefficient sigma, mm^-2 (paper Eq. 18)")->required();
+  auto* camera = cmd->add_option("--camera", a->camera, "Topographer camera (JSON, docs/camera-conventions.md)");
+  auto* device = cmd->add_option("--device", a->device,
+                                 "As-built device (JSON, docs/device.md): camera, distortion and screen pose");
+  camera->excludes(device);
+  auto* sigma = cmd->add_option("--sigma", a->sigma, "Seidel distortion coefficient sigma, mm^-2 (paper Eq. 18), "
+                                                     "with --camera");
+  sigma->excludes(device);
   cmd->add_option("--out", a->out, "Output image (.png)")->required();
   cmd->add_option("--sphere-radius-mm", a->sphere_radius_mm,
                   "Image a reference sphere of this radius instead of the configured cornea, mm");
+  cmd->add_option("--ball-at", a->ball_at_mm, "Vertex of the reference sphere: x y z, mm (default 0 0 0)")
+      ->expected(3);
   cmd->add_option("--truth", a->truth, "Truth CSV: ring,index,x_px,y_px,x_mm,y_mm (distorted; ring 0 = glint)");
   cmd->add_option("--spot", a->spot, "Spot model: ellipse (image of the null-screen spot) or psf (point source)")
       ->check(CLI::IsMember({"ellipse", "psf"}));

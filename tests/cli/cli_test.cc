@@ -118,7 +118,7 @@ TEST_F(Cli, ReconstructFromARawImageDetectsIndexesAndReconstructs) {
   Write("s.csv", "ring,index,x_mm,y_mm\n");
   const auto mixed = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("s.csv") + " --camera " + camera);
   EXPECT_EQ(mixed.exit_code, 2);
-  EXPECT_NE(mixed.output.find("--camera and --calibration go with --image"), std::string::npos) << mixed.output;
+  EXPECT_NE(mixed.output.find("--camera, --device and --calibration go with --image"), std::string::npos) << mixed.output;
 }
 
 TEST_F(Cli, ReconstructRejectsBadSpotsFiles) {

@@ -1,0 +1,95 @@
+// Issue 19, item 8: a three-ball device calibration on the full 4000 x 3000 sensor, detection included (decoded
+// images in memory: detect + index each ball, then the bundle adjustment), on one core. Target <= 1 s.
+// The peer in the same run: OpenCV's cv::calibrateCamera on the same number of points (three views of a 624-point
+// planar pattern), the closest thing a general camera-calibration library does with comparable data.
+// Run: build/bench/bench_device --benchmark_min_time=1
+#include <benchmark/benchmark.h>
+
+#include <opencv2/calib3d.hpp>
+
+#include "correct/spot_render.h"
+#include "correct/spot_truth.h"
+#include "model/config.h"
+#include "model/device.h"
+#include "pipeline/device_calibration.h"
+
+namespace {
+
+using namespace topocal;
+
+struct Scene {
+  model::Config config;
+  model::Device nominal, unit;
+  std::vector<pipeline::BallImage> balls;
+};
+
+const Scene& GetScene() {
+  static const Scene scene = [] {
+    Scene s;
+    s.config = model::LoadConfig(TOPOCAL_PAPER_CONFIG);
+    s.nominal = model::LoadDevice(std::string(TOPOCAL_SOURCE_DIR) + "/data/device.json").device;
+    s.unit = model::LoadDevice(std::string(TOPOCAL_SOURCE_DIR) + "/data/demo-unit-device.json").device;
+    const double radii[] = {6.5, 7.8, 9.0};
+    const Eigen::Vector3d at[] = {{0.12, -0.2, 0.05}, {-0.25, 0.1, -0.15}, {0.2, 0.22, 0.1}};
+    for (int i = 0; i < 3; ++i) {
+      model::Sphere ball{radii[i], at[i].z(), at[i].x(), at[i].y()};
+      const auto truth = correct::SpotsOnSensor(ball, s.config.ideal_image, s.config.topographer, s.unit);
+      s.balls.push_back({"ball", correct::RenderSpotImage(truth.spots, s.unit.camera.width_px,
+                                                         s.unit.camera.height_px, {}),
+                         radii[i]});
+    }
+    return s;
+  }();
+  return scene;
+}
+
+void BM_DeviceCalibrationThreeBalls(benchmark::State& state) {
+  const auto& s = GetScene();
+  for (auto _ : state) {
+    const auto c = pipeline::CalibrateDevice(s.balls, s.nominal, s.config, {});
+    if (!c.fit.ok) state.SkipWithError(c.fit.message.c_str());
+    benchmark::DoNotOptimize(c.fit.parameters.data());
+  }
+}
+BENCHMARK(BM_DeviceCalibrationThreeBalls)->Unit(benchmark::kMillisecond);
+
+void BM_DeviceFitOnlyThreeBalls(benchmark::State& state) {
+  const auto& s = GetScene();
+  std::vector<calib::BallView> views;
+  for (const auto& b : s.balls) views.push_back(pipeline::DetectBall(b, s.nominal, s.config.ideal_image).view);
+  const auto design = model::DesignNullScreen(s.config.ideal_image, s.config.topographer);
+  for (auto _ : state) {
+    const auto fit = calib::FitDevice(s.nominal, s.config.topographer, design.targets, views);
+    benchmark::DoNotOptimize(fit.parameters.data());
+  }
+}
+BENCHMARK(BM_DeviceFitOnlyThreeBalls)->Unit(benchmark::kMillisecond);
+
+// Peer: cv::calibrateCamera, three views of a planar 624-point pattern (the spots' ideal image, scaled to a 26 x 26
+// mm target 100 mm away), intrinsics + 5 distortion coefficients + three poses.
+void BM_OpenCvCalibrateCameraThreeViews(benchmark::State& state) {
+  const auto& s = GetScene();
+  const auto ideal = model::IdealImage(s.config.ideal_image);
+  std::vector<cv::Point3f> object;
+  for (const auto& p : ideal) object.emplace_back(p.position_mm.x() * 40.0, p.position_mm.y() * 40.0, 0.0f);
+  const cv::Matx33d k(s.unit.camera.FocalPx(), 0, 1999.5, 0, s.unit.camera.FocalPx(), 1499.5, 0, 0, 1);
+  std::vector<std::vector<cv::Point3f>> objects;
+  std::vector<std::vector<cv::Point2f>> images;
+  const double tilts[] = {0.0, 0.2, -0.2};
+  for (const double t : tilts) {
+    std::vector<cv::Point2f> projected;
+    cv::projectPoints(object, cv::Vec3d(t, -t / 2, 0.1), cv::Vec3d(0.5, -0.3, 100.0), k, cv::noArray(), projected);
+    objects.push_back(object);
+    images.push_back(projected);
+  }
+  for (auto _ : state) {
+    cv::Mat camera, dist;
+    std::vector<cv::Mat> r, tv;
+    benchmark::DoNotOptimize(cv::calibrateCamera(objects, images, cv::Size(4000, 3000), camera, dist, r, tv));
+  }
+}
+BENCHMARK(BM_OpenCvCalibrateCameraThreeViews)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();

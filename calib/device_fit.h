@@ -1,0 +1,104 @@
+#pragma once
+// Calibration of the whole device (the paper's two stages at once: the pose of the null screen relative to the
+// camera, then the lens distortion) from images of reference balls — precision spheres of certified radius placed
+// roughly where the cornea goes. A Ceres bundle adjustment of
+//
+//   screen pose (rx, ry, rz deg about the mount; tx, ty, tz mm), optionally the screen's radial scale,
+//   principal point (px), a (pinhole to detection plane, mm), distortion (Seidel sigma, or Brown k1, k2),
+//   and every ball's vertex position (mm),
+//
+// to the identified spot centres of each ball image, through the exact forward model model::ProjectBallSpot
+// (Eq. 14-16 reflected off the ball, Eq. 18 or Brown, the camera's pixel mapping). Residuals are in pixels divided by
+// the spot-centre noise, so chi^2/dof is 1 when the model describes the images and the spot noise is as stated.
+// Each device parameter has a Gaussian prior about its nominal value with the configured tolerance (a 1-sigma
+// assembly tolerance); the balls' positions have a weak prior about their initial estimate.
+//
+// Gauge (docs/device.md): moving the balls and the cone together along the axis while a grows in proportion leaves
+// every image (almost) unchanged, so one axial coordinate is not observable. It is fixed by a datum: the vertex z of
+// one ball (the datum ball) is held at datum_z_mm (0: the nominal corneal vertex), which is also the reference the
+// reconstruction measures from.
+//
+// Brown p1, p2 (and k3) are held at their nominal values: balls alone cannot separate decentring distortion from a
+// screen tilt. They need target views (calibrate); the fit says so in its notes.
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "model/config.h"
+#include "model/device.h"
+#include "model/null_screen.h"
+
+namespace topocal::calib {
+
+// One reference-ball image: its certified radius and the identified spot centres in raw pixels.
+struct BallView {
+  std::string name;   // the image, for messages
+  double radius_mm = 0;
+  std::vector<std::pair<model::SpotId, Eigen::Vector2d>> spots_px;
+};
+
+// One standard deviation of each prior, about the nominal device (assembly tolerances).
+struct DeviceTolerances {
+  double tilt_deg = 1.0;             // rx, ry
+  double roll_deg = 2.0;             // rz
+  double lateral_mm = 0.5;           // tx, ty
+  double axial_mm = 1.0;             // tz
+  double principal_point_mm = 0.1;   // on the sensor (divided by the pitch for pixels)
+  double a_relative = 0.02;          // a / a_nominal - 1
+  double radial_scale = 0.01;        // s - 1
+  double sigma_per_mm2 = 1e-3;       // Seidel sigma (a weak prior: the balls determine it)
+  double brown_k = 1.0;              // Brown k1, k2
+  double ball_placement_mm = 1.0;    // each ball about its initial estimate
+  bool IsValid(std::string* why) const;
+};
+
+struct DeviceFitOptions {
+  DeviceTolerances priors;
+  double spot_sigma_px = 0.04;       // noise of one spot centre, per axis
+  int datum_ball = 0;                // the ball whose vertex z is held at datum_z_mm
+  double datum_z_mm = 0.0;
+  bool fit_radial_scale = false;
+  bool fit_distortion = true;
+  // chi^2/dof above this: the model does not describe the images (e.g. an elliptical cone) — flagged, not hidden.
+  double max_chi2_per_dof = 4.0;
+  int max_iterations = 100;
+  bool IsValid(std::string* why) const;
+};
+
+struct DeviceParameterEstimate {
+  std::string name;   // e.g. "rx_deg", "principal_point_u_px", "sigma_per_mm2"
+  double value = 0;
+  double stddev = 0;
+  double nominal = 0;
+};
+
+struct DeviceFit {
+  bool ok = false;
+  std::string message;                         // why it failed, or a one-line summary
+  model::Device device;                        // the calibrated device
+  std::vector<DeviceParameterEstimate> parameters;  // the fitted device parameters with standard deviations
+  Eigen::MatrixXd covariance;                  // of `parameters`, in their order and units
+  std::vector<Eigen::Vector3d> ball_vertex_mm;
+  std::vector<Eigen::Vector3d> ball_vertex_stddev_mm;
+  std::vector<double> ball_rms_px;             // per image: rms of |predicted - observed|
+  std::vector<int> ball_spots;                 // per image: spots used
+  double chi2_per_dof = 0;                     // spot residuals only (priors excluded)
+  int dof = 0;
+  double stddev_scale = 1;                     // max(1, sqrt(chi2/dof)): applied to the standard deviations
+  bool model_adequate = true;
+  std::string gauge;                           // how the axial gauge was fixed
+  std::vector<std::string> notes;              // what was held and why
+  int iterations = 0;
+  // The value and standard deviation of a named parameter (nullopt if not fitted).
+  std::optional<DeviceParameterEstimate> Parameter(const std::string& name) const;
+};
+
+// Fits the device. Never throws for data: too few balls or spots, or a solver failure give ok = false and a message.
+// Throws std::invalid_argument for invalid options.
+DeviceFit FitDevice(const model::Device& nominal, const model::TopographerParams& design,
+                    const std::vector<model::TargetPoint>& designed_targets, const std::vector<BallView>& balls,
+                    const DeviceFitOptions& options = {});
+
+}  // namespace topocal::calib

@@ -1,0 +1,171 @@
+// The device workflow on the command line (issue 19): render reference balls through an as-built device, calibrate
+// the device from them, measure a cornea through it; the refusals of bad input and the flag of a model that does not
+// describe the images.
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "tests/cli_harness.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using topocal::testing_cli::RunTopocal;
+
+// A small sensor (1120 x 1120 px: the spots span about +-400 px) keeps the renders fast.
+nlohmann::json UnitDevice(double radial_scale = 1.0) {
+  auto d = nlohmann::json::parse(R"({
+    "format": "topocal-device", "format_version": 1,
+    "camera": {"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120, "principal_point_px": [567.9, 552.3],
+               "a_mm": 5.23, "orientation": "identity"},
+    "distortion": {"model": "seidel", "sigma_per_mm2": 6.3e-5},
+    "screen_pose": {"rx_deg": 0.6, "ry_deg": -0.4, "rz_deg": 0.3, "tx_mm": 0.08, "ty_mm": -0.05, "tz_mm": 0.3}})");
+  d["screen_pose"]["radial_scale"] = radial_scale;
+  return d;
+}
+
+class DeviceCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("topocal_device_cli_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+    nominal_ = Path("nominal.json");
+    std::ofstream(nominal_) << nlohmann::json::parse(R"({
+      "format": "topocal-device", "format_version": 1,
+      "camera": {"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120, "principal_point_px": [559.5, 559.5],
+                 "a_mm": 5.2}})").dump(2);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+
+  // Writes the device and renders three balls (6.5, 7.8, 9.0 mm) placed by hand through it. The first, the datum,
+  // sits at the working position (vertex z = 0: where the eye will be), laterally off like the others.
+  void RenderBalls(const nlohmann::json& device) {
+    std::ofstream(Path("unit.json")) << device.dump(2);
+    const char* balls[][4] = {{"6.5", "0.12", "-0.20", "0.00"}, {"7.8", "-0.25", "0.10", "-0.15"},
+                              {"9.0", "0.20", "0.22", "0.10"}};
+    for (const auto& b : balls) {
+      const auto r = RunTopocal(fmt("render-spots --config {} --device {} --sphere-radius-mm {} --ball-at {} {} {} "
+                                    "--seed 3 --out {}",
+                                    paper_, Path("unit.json"), b[0], b[1], b[2], b[3], Path(std::string("b") + b[0] + ".png")));
+      ASSERT_EQ(r.exit_code, 0) << r.output;
+    }
+  }
+  std::string Balls() const {
+    return "--balls " + Path("b6.5.png") + " " + Path("b7.8.png") + " " + Path("b9.0.png") + " --radii-mm 6.5 7.8 9.0";
+  }
+  template <typename... Args>
+  static std::string fmt(const std::string& pattern, const Args&... args) {
+    std::string out = pattern;
+    for (const std::string& a : {std::string(args)...}) {
+      const auto at = out.find("{}");
+      out.replace(at, 2, a);
+    }
+    return out;
+  }
+
+  fs::path dir_;
+  std::string nominal_;
+  const std::string paper_ = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
+};
+
+// What the three balls recover of the demo unit (truth: rx 0.6, ry -0.4 deg, principal point (567.9, 552.3) px,
+// sigma 6.3e-5). The renders' spots are detected to ~0.003 px, far better than the 0.04 px design noise, so the fit
+// is far better than the issue's acceptance (tilt 0.01 deg, pp 1e-4 mm = 0.09 px, sigma 2e-7); the bounds are
+// regression bounds near the errors measured on 2026-12-01: tilt 1.9e-4 deg, pp 0.001 px, sigma 1.1e-9.
+constexpr double kTiltTolDeg = 0.002;
+constexpr double kPrincipalTolPx = 0.01;
+constexpr double kSigmaTol = 1e-8;
+// The paper cornea measured through the calibrated device against the truth; issue 19 acceptance |dk| 0.001,
+// |dr| 0.001 mm; measured |dk| 2.1e-5, |dr| 3.0e-5 mm.
+constexpr double kConicTol = 2e-4;
+constexpr double kRadiusTolMm = 3e-4;
+
+TEST_F(DeviceCli, CalibratesTheDeviceFromBallsAndMeasuresThroughIt) {
+  RenderBalls(UnitDevice());
+  const auto r = RunTopocal("device calibrate --config " + paper_ + " --device " + nominal_ + " " + Balls() +
+                            " --out " + Path("calibrated.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("gauge: axial gauge"), std::string::npos) << r.output;
+  const auto device = nlohmann::json::parse(std::ifstream(Path("calibrated.json")));
+  EXPECT_NEAR(device["screen_pose"]["rx_deg"].get<double>(), 0.6, kTiltTolDeg);
+  EXPECT_NEAR(device["screen_pose"]["ry_deg"].get<double>(), -0.4, kTiltTolDeg);
+  EXPECT_NEAR(device["camera"]["principal_point_px"][0].get<double>(), 567.9, kPrincipalTolPx);
+  EXPECT_NEAR(device["camera"]["principal_point_px"][1].get<double>(), 552.3, kPrincipalTolPx);
+  EXPECT_NEAR(device["distortion"]["sigma_per_mm2"].get<double>(), 6.3e-5, kSigmaTol);
+  const auto& cal = device["calibration"];
+  EXPECT_TRUE(cal["model_adequate"].get<bool>());
+  EXPECT_GT(cal["parameters"]["rx_deg"]["stddev"].get<double>(), 0.0);
+  EXPECT_EQ(cal["balls"].size(), 3u);
+  EXPECT_EQ(cal["balls"][0]["sha256"].get<std::string>().size(), 64u);
+
+  // A cornea through the unit, measured through the calibrated device.
+  const auto cornea = RunTopocal("render-spots --config " + paper_ + " --device " + Path("unit.json") + " --out " +
+                                 Path("cornea.png"));
+  ASSERT_EQ(cornea.exit_code, 0) << cornea.output;
+  const auto m = RunTopocal("reconstruct --config " + paper_ + " --image " + Path("cornea.png") + " --device " +
+                            Path("calibrated.json") + " --json " + Path("cornea.json"));
+  ASSERT_EQ(m.exit_code, 0) << m.output;
+  const auto j = nlohmann::json::parse(std::ifstream(Path("cornea.json")));
+  const auto& p = j["surface_fit"];
+  EXPECT_NEAR(p["kx"].get<double>(), -0.43, kConicTol) << m.output;
+  EXPECT_NEAR(p["ky"].get<double>(), -0.25, kConicTol) << m.output;
+  EXPECT_NEAR(p["rx_mm"].get<double>(), 8.35, kRadiusTolMm) << m.output;
+  EXPECT_NEAR(p["ry_mm"].get<double>(), 7.63, kRadiusTolMm) << m.output;
+  EXPECT_EQ(j["image"]["indexed"].get<int>(), 624);
+}
+
+TEST_F(DeviceCli, FlagsAScreenTheModelDoesNotDescribe) {
+  // The cone's print 1 % too large: with the radial scale held, chi2/dof says the model does not fit (exit 3, the
+  // file written and flagged); fitting the scale recovers it.
+  RenderBalls(UnitDevice(1.01));
+  const auto held = RunTopocal("device calibrate --config " + paper_ + " --device " + nominal_ + " " + Balls() +
+                               " --out " + Path("held.json"));
+  EXPECT_EQ(held.exit_code, 3) << held.output;
+  EXPECT_NE(held.output.find("does not describe these images"), std::string::npos) << held.output;
+  EXPECT_FALSE(nlohmann::json::parse(std::ifstream(Path("held.json")))["calibration"]["model_adequate"].get<bool>());
+  const auto fitted = RunTopocal("device calibrate --config " + paper_ + " --device " + nominal_ + " " + Balls() +
+                                 " --fit-radial-scale --out " + Path("fitted.json"));
+  ASSERT_EQ(fitted.exit_code, 0) << fitted.output;
+  const auto device = nlohmann::json::parse(std::ifstream(Path("fitted.json")));
+  // measured 1.00999 +- 6e-5 (2026-12-01)
+  EXPECT_NEAR(device["screen_pose"]["radial_scale"].get<double>(), 1.01, 3e-4);
+}
+
+TEST_F(DeviceCli, RefusesBadInputWithOneLineAndNoOutput) {
+  RenderBalls(UnitDevice());
+  const auto out = Path("out.json");
+  const auto run = [&](const std::string& args) { return RunTopocal("device calibrate --config " + paper_ + " " + args + " --out " + out); };
+  auto r = run("--device " + nominal_ + " --balls " + Path("b6.5.png") + " " + Path("b7.8.png") + " --radii-mm 6.5");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("--radii-mm: 1 radii for 2 ball images"), std::string::npos) << r.output;
+  r = run("--device " + nominal_ + " --balls " + Path("missing.png") + " --radii-mm 7.8");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("missing.png"), std::string::npos) << r.output;
+  r = run("--device " + nominal_ + " " + Balls() + " --datum 4");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("--datum: must name one of the 3 balls"), std::string::npos) << r.output;
+  r = run("--device " + nominal_ + " --balls " + Path("b6.5.png") + " --radii-mm 0.5");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("is not a reference-ball radius"), std::string::npos) << r.output;
+  std::ofstream(Path("bad-device.json")) << R"({"format": "topocal-device", "format_version": 1, "camera": {"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120, "principal_point_px": [559.5, 559.5], "a_mm": 5.2}, "screen_pose": {"tilt_deg": 1}})";
+  r = run("--device " + Path("bad-device.json") + " " + Balls());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("bad-device.json: screen_pose.tilt_deg: unknown key"), std::string::npos) << r.output;
+  // An image without spots: nothing to index (a computation that cannot be done: exit 1).
+  const auto blank = RunTopocal("render-spots --config " + paper_ + " --device " + Path("unit.json") +
+                                " --drop 0.99 --seed 1 --out " + Path("blank.png"));
+  ASSERT_EQ(blank.exit_code, 0) << blank.output;
+  r = run("--device " + nominal_ + " --balls " + Path("blank.png") + " --radii-mm 7.8");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("blank.png"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  // Every failure above was one line.
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+}
+
+}  // namespace

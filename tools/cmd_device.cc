@@ -1,0 +1,142 @@
+// topocal device calibrate: the whole device (screen pose, principal point, a, distortion) from reference-ball images.
+#include <memory>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "model/config.h"
+#include "model/device.h"
+#include "model/io.h"
+#include "model/sha256.h"
+#include "model/version.h"
+#include "pipeline/device_calibration.h"
+#include "tools/commands.h"
+
+namespace topocal::tools {
+namespace {
+
+struct DeviceArgs {
+  std::string config, device, out;
+  std::vector<std::string> balls;
+  std::vector<double> radii_mm;
+  calib::DeviceFitOptions options;
+  int datum = 1;
+  bool quiet = false;
+};
+
+void Calibrate(DeviceArgs a) {
+  if (a.balls.empty()) throw model::InputError("--balls: at least one reference-ball image is needed");
+  if (a.radii_mm.size() != a.balls.size()) {
+    throw model::InputError(fmt::format("--radii-mm: {} radii for {} ball images (one certified radius per image, in "
+                                        "the same order)", a.radii_mm.size(), a.balls.size()));
+  }
+  for (size_t i = 0; i < a.radii_mm.size(); ++i) {
+    // Reference balls for a topographer: radii of human corneas and a little beyond (5-12 mm).
+    if (!(a.radii_mm[i] >= 3.0 && a.radii_mm[i] <= 20.0)) {
+      throw model::InputError(fmt::format("--radii-mm: {} for {} is not a reference-ball radius (3-20 mm)",
+                                          a.radii_mm[i], a.balls[i]));
+    }
+  }
+  if (a.datum < 1 || a.datum > static_cast<int>(a.balls.size())) {
+    throw model::InputError(fmt::format("--datum: must name one of the {} balls (1..{})", a.balls.size(), a.balls.size()));
+  }
+  a.options.datum_ball = a.datum - 1;
+  std::string why;
+  if (!a.options.IsValid(&why)) throw model::InputError(why);
+  const auto cfg = model::LoadConfig(a.config);
+  const auto nominal = model::LoadDevice(a.device);
+  std::vector<pipeline::BallImage> images;
+  for (size_t i = 0; i < a.balls.size(); ++i) {
+    model::ReadFile(a.balls[i]);  // a missing or unreadable file is named as such, not as "not an image"
+    pipeline::BallImage b{a.balls[i], cv::imread(a.balls[i], cv::IMREAD_UNCHANGED), a.radii_mm[i]};
+    if (b.image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", a.balls[i]));
+    const auto& cam = nominal.device.camera;
+    if (b.image.cols != cam.width_px || b.image.rows != cam.height_px) {
+      throw model::InputError(fmt::format("{}: the image is {} x {} px but {} says {} x {} px", a.balls[i],
+                                          b.image.cols, b.image.rows, a.device, cam.width_px, cam.height_px));
+    }
+    images.push_back(std::move(b));
+  }
+  pipeline::DeviceCalibration result;
+  try {
+    result = pipeline::CalibrateDevice(images, nominal.device, cfg, a.options);
+  } catch (const std::invalid_argument& e) {
+    throw model::InputError(e.what());
+  }
+  const auto& fit = result.fit;
+  if (!fit.ok) throw std::runtime_error(fmt::format("device calibration failed: {}", fit.message));
+  auto report = pipeline::DeviceCalibrationJson(result);
+  report["tool"] = fmt::format("topocal {}", kVersion);
+  report["inputs"] = {{"configuration", {{"path", a.config}, {"sha256", model::Sha256HexOfFile(a.config)}}},
+                      {"nominal_device", {{"path", a.device}, {"sha256", model::Sha256HexOfFile(a.device)}}}};
+  for (size_t i = 0; i < a.balls.size(); ++i) {
+    report["balls"][i]["sha256"] = model::Sha256HexOfFile(a.balls[i]);
+  }
+  report["spot_sigma_px"] = a.options.spot_sigma_px;
+  model::WriteFileAtomic(a.out, model::DeviceToJson(fit.device, report));
+
+  if (!a.quiet) {
+    fmt::print("device calibration: {}\n", fit.message);
+    for (size_t b = 0; b < result.detections.size(); ++b) {
+      const auto& d = result.detections[b];
+      const auto& v = fit.ball_vertex_mm[b];
+      fmt::print("  {} (R {} mm): {} spots, rms {:.4f} px, vertex ({:+.4f}, {:+.4f}, {:+.4f}) mm\n", d.view.name,
+                 d.view.radius_mm, d.view.spots_px.size(), fit.ball_rms_px[b], v.x(), v.y(), v.z());
+    }
+    for (const auto& p : fit.parameters) {
+      fmt::print("  {:<22} {:>14.7g} +- {:<10.3g} (nominal {:.7g})\n", p.name, p.value, p.stddev, p.nominal);
+    }
+    fmt::print("  gauge: {}\n", fit.gauge);
+    for (const auto& n : fit.notes) fmt::print("  note: {}\n", n);
+    fmt::print("-> {}\n", a.out);
+  }
+  if (!fit.model_adequate) {
+    throw VerdictFailed(fmt::format("{}: chi2/dof = {:.3g} > {}: the device model does not describe these images "
+                                    "(the device file is written, flagged model_adequate = false)",
+                                    a.out, fit.chi2_per_dof, a.options.max_chi2_per_dof));
+  }
+}
+
+}  // namespace
+
+void AddDeviceCommand(CLI::App& app) {
+  auto* device = app.add_subcommand("device", "Calibrate the whole device (screen pose, camera, distortion)");
+  device->require_subcommand(1);
+  auto* cmd = device->add_subcommand(
+      "calibrate",
+      "Fit the null screen's pose, the principal point, a and the distortion from reference-ball images\n"
+      "Example: topocal device calibrate --config data/paper.json --device data/device.json \\\n"
+      "           --balls b65.png b78.png b90.png --radii-mm 6.5 7.8 9.0 --out unit-device.json");
+  auto a = std::make_shared<DeviceArgs>();
+  cmd->add_option("--config", a->config, "Topographer design (JSON)")->required();
+  cmd->add_option("--device", a->device, "Nominal device file (JSON, docs/device.md): the starting point and priors' centre")
+      ->required();
+  cmd->add_option("--balls", a->balls, "Raw images of the reference balls (space separated)")->required();
+  cmd->add_option("--radii-mm", a->radii_mm, "Certified radius of each ball, in the order of --balls, mm")->required();
+  cmd->add_option("--out", a->out, "Calibrated device file (JSON)")->required();
+  cmd->add_option("--datum", a->datum, "The ball whose vertex defines z = 0 (the axial gauge), 1-based")
+      ->capture_default_str();
+  cmd->add_option("--spot-sigma-px", a->options.spot_sigma_px, "Noise of one spot centre per axis, px")
+      ->capture_default_str();
+  cmd->add_option("--tol-tilt-deg", a->options.priors.tilt_deg, "Prior: screen tilt tolerance (1 sigma), deg")
+      ->capture_default_str();
+  cmd->add_option("--tol-roll-deg", a->options.priors.roll_deg, "Prior: screen roll tolerance, deg")->capture_default_str();
+  cmd->add_option("--tol-lateral-mm", a->options.priors.lateral_mm, "Prior: screen decentration tolerance, mm")
+      ->capture_default_str();
+  cmd->add_option("--tol-axial-mm", a->options.priors.axial_mm, "Prior: screen axial position tolerance, mm")
+      ->capture_default_str();
+  cmd->add_option("--tol-principal-point-mm", a->options.priors.principal_point_mm,
+                  "Prior: principal point tolerance on the sensor, mm")
+      ->capture_default_str();
+  cmd->add_option("--tol-a-relative", a->options.priors.a_relative, "Prior: relative tolerance of a")
+      ->capture_default_str();
+  cmd->add_flag("--fit-radial-scale", a->options.fit_radial_scale,
+                "Also fit the screen's radial scale (cone-angle or print-scale error)");
+  cmd->add_option("--max-chi2-per-dof", a->options.max_chi2_per_dof,
+                  "Above this chi2/dof the model is flagged as not describing the images (exit 3)")
+      ->capture_default_str();
+  cmd->add_flag("--quiet", a->quiet, "Print nothing but errors");
+  cmd->callback([a] { Calibrate(*a); });
+}
+
+}  // namespace topocal::tools
