@@ -115,6 +115,52 @@ Template MakeTemplate(const model::IdealImageParams& ideal) {
   return t;
 }
 
+// The start's centre, moved to where the two innermost rings are. On a misaligned device (a tilted cone, a decentred
+// screen or principal point) the rings are not concentric: the inner rings' centre sits up to a ring spacing or
+// more from the moments' centre (a 1.5 deg tilt: ~0.8 spacings), beyond the growth's gate, and ring 1 would be
+// lost. Score each candidate offset on a grid over a disc of `search_radius` by the truncated squared distances
+// from the predicted spots of rings 1 and 2 to their nearest detections; take the best.
+Eigen::Vector2d InnerRingsCentre(const std::vector<Eigen::Vector2d>& det, const Template& tpl,
+                                 const Eigen::Vector2d& mu, const Eigen::Matrix2d& a0, double search_radius,
+                                 double step, double gate) {
+  std::vector<Eigen::Vector2d> q;
+  for (int r = 0; r < std::min<int>(2, tpl.rings.size()); ++r) {
+    for (const int j : tpl.rings[r]) q.push_back(a0 * tpl.spots[j].position_mm);
+  }
+  double reach = 0;
+  for (const auto& v : q) reach = std::max(reach, v.norm());
+  // Only detections that a candidate's prediction could reach.
+  std::vector<Eigen::Vector2d> near;
+  for (const auto& p : det) {
+    if ((p - mu).norm() <= search_radius + reach + gate) near.push_back(p);
+  }
+  const double gate2 = gate * gate;
+  const auto score = [&](const Eigen::Vector2d& c) {
+    double sum = 0;
+    for (const auto& v : q) {
+      double best = gate2;
+      for (const auto& p : near) best = std::min(best, (p - c - v).squaredNorm());
+      sum += best;
+    }
+    return sum;
+  };
+  Eigen::Vector2d best_c = mu;
+  double best = score(mu);
+  const int n = static_cast<int>(std::ceil(search_radius / step));
+  for (int iy = -n; iy <= n; ++iy) {
+    for (int ix = -n; ix <= n; ++ix) {
+      const Eigen::Vector2d off(ix * step, iy * step);
+      if (off.norm() > search_radius) continue;
+      const double sc = score(mu + off);
+      if (sc < best) {
+        best = sc;
+        best_c = mu + off;
+      }
+    }
+  }
+  return best_c;
+}
+
 }  // namespace
 
 bool IndexingOptions::IsValid(std::string* why) const {
@@ -197,6 +243,13 @@ SpotIndexing IndexSpots(const std::vector<Eigen::Vector2d>& det, const model::Id
     for (int i = 0; i < n_det; ++i) out.unassigned_detections.push_back(i);
     for (const auto& s : tpl.spots) out.missing.push_back(s.id);
     return out;
+  }
+  {
+    // Ring spacing and ring 1's arc spacing as the start maps them (detection units).
+    const double scale = std::sqrt(a0.determinant());
+    const double ring_step = (ideal.rings_N > 0 ? (ideal.rhoN_mm - ideal.rho0_mm) / ideal.rings_N : ideal.rho0_mm) * scale;
+    const double inner_spacing = tpl.spacing[tpl.rings[0].front()] * scale;
+    mu = InnerRingsCentre(det, tpl, mu, a0, 2.0 * ring_step, inner_spacing / 8.0, options.gate_fraction * inner_spacing);
   }
   PolynomialMap map(1, rho_n);
   map.SetAffine(mu, a0);
