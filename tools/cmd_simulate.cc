@@ -1,33 +1,85 @@
+#include <cmath>
+
 #include <fmt/format.h>
 
 #include "model/config.h"
+#include "model/device.h"
 #include "model/io.h"
 #include "tools/commands.h"
 #include "tools/csv.h"
 #include "topo/sweep.h"
 
 namespace topocal::tools {
+namespace {
+
+struct SimulateArgs {
+  std::string config, device, out;
+  double sigma = NAN;
+  double sphere_radius_mm = 0;
+  std::vector<double> ball_at_mm;
+};
+
+void Run(const SimulateArgs& a) {
+  if (std::isnan(a.sigma) == a.device.empty()) throw model::InputError("simulate: give one of --sigma or --device");
+  if (!a.device.empty() || a.sphere_radius_mm > 0 || !a.ball_at_mm.empty()) {
+    if (a.device.empty()) throw model::InputError("--sphere-radius-mm and --ball-at go with --device");
+  }
+  if (!std::isnan(a.sigma) && !std::isfinite(a.sigma)) throw model::InputError("--sigma: must be a finite number");
+  if (!a.ball_at_mm.empty() && a.sphere_radius_mm == 0) {
+    throw model::InputError("--ball-at: needs --sphere-radius-mm (the ball's radius)");
+  }
+  if (a.sphere_radius_mm < 0 || !std::isfinite(a.sphere_radius_mm)) {
+    throw model::InputError(fmt::format("--sphere-radius-mm: must be a positive radius (got {})", a.sphere_radius_mm));
+  }
+  for (const double v : a.ball_at_mm) {
+    if (!(std::abs(v) <= 5.0)) throw model::InputError(fmt::format("--ball-at: {} mm is not near the cornea position (+-5 mm)", v));
+  }
+  const auto cfg = model::LoadConfig(a.config);
+  model::SyntheticImage image;
+  if (a.device.empty()) {
+    image = topo::SimulateSpots(cfg, a.sigma);
+  } else {
+    const auto device = model::LoadDevice(a.device).device;
+    model::Surface surface = model::Biconic{cfg.cornea};
+    if (a.sphere_radius_mm > 0) {
+      model::Sphere ball;
+      ball.radius_mm = a.sphere_radius_mm;
+      if (!a.ball_at_mm.empty()) {
+        ball.x0_mm = a.ball_at_mm[0];
+        ball.y0_mm = a.ball_at_mm[1];
+        ball.z0_mm = a.ball_at_mm[2];
+      }
+      surface = ball;
+    }
+    const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
+    image = model::SynthesizeImage(surface, device, cfg.topographer, design.targets);
+    image.failures.insert(image.failures.begin(), design.failures.begin(), design.failures.end());
+    for (auto& s : image.spots) s.position_mm = model::Distort(device.distortion, s.position_mm);
+  }
+  for (const auto& f : image.failures) {
+    fmt::print(stderr, "topocal simulate: spot ({}, {}): {}\n", f.id.ring, f.id.index, f.reason);
+  }
+  if (image.spots.empty()) throw std::runtime_error(fmt::format("{}: the surface images no spot", a.config));
+  model::WriteFileAtomic(a.out, SpotsCsv(image.spots));
+  fmt::print("simulated {} spots ({} not imaged) {} -> {}\n", image.spots.size(), image.failures.size(),
+             a.device.empty() ? fmt::format("at sigma = {} mm^-2", a.sigma) : "through the device " + a.device, a.out);
+}
+
+}  // namespace
 
 void AddSimulateCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("simulate", "Synthesise the (distorted) spot image of the configured cornea");
-  auto config = std::make_shared<std::string>();
-  auto out = std::make_shared<std::string>();
-  auto sigma = std::make_shared<double>(0.0);
-  cmd->add_option("--config", *config, "Topographer configuration (JSON)")->required();
-  cmd->add_option("--sigma", *sigma, "Seidel distortion coefficient sigma, mm^-2 (paper Eq. 18)")->required();
-  cmd->add_option("--out", *out, "Spots CSV on the detection plane: ring,index,x_mm,y_mm")->required();
-  cmd->callback([=] {
-    if (!std::isfinite(*sigma)) throw model::InputError("--sigma: must be a finite number");
-    const auto cfg = model::LoadConfig(*config);
-    const auto image = topo::SimulateSpots(cfg, *sigma);
-    for (const auto& f : image.failures) {
-      fmt::print(stderr, "topocal simulate: spot ({}, {}): {}\n", f.id.ring, f.id.index, f.reason);
-    }
-    if (image.spots.empty()) throw std::runtime_error(fmt::format("{}: the cornea images no spot", *config));
-    model::WriteFileAtomic(*out, SpotsCsv(image.spots));
-    fmt::print("simulated {} spots ({} not imaged) at sigma = {} mm^-2 -> {}\n", image.spots.size(),
-               image.failures.size(), *sigma, *out);
-  });
+  auto a = std::make_shared<SimulateArgs>();
+  cmd->add_option("--config", a->config, "Topographer configuration (JSON)")->required();
+  auto* sigma = cmd->add_option("--sigma", a->sigma, "Seidel distortion coefficient sigma, mm^-2 (paper Eq. 18)");
+  auto* device = cmd->add_option("--device", a->device,
+                                 "As-built device (JSON, docs/device.md): its screen pose, a and distortion");
+  sigma->excludes(device);
+  cmd->add_option("--sphere-radius-mm", a->sphere_radius_mm,
+                  "With --device: image a reference ball of this radius instead of the configured cornea, mm");
+  cmd->add_option("--ball-at", a->ball_at_mm, "Vertex of the reference ball: x y z, mm (default 0 0 0)")->expected(3);
+  cmd->add_option("--out", a->out, "Spots CSV on the detection plane (distorted): ring,index,x_mm,y_mm")->required();
+  cmd->callback([a] { Run(*a); });
 }
 
 }  // namespace topocal::tools

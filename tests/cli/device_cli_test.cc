@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -117,6 +118,23 @@ TEST_F(DeviceCli, CalibratesTheDeviceFromBallsAndMeasuresThroughIt) {
   EXPECT_NEAR(p["rx_mm"].get<double>(), 8.35, kRadiusTolMm) << m.output;
   EXPECT_NEAR(p["ry_mm"].get<double>(), 7.63, kRadiusTolMm) << m.output;
   EXPECT_EQ(j["image"]["indexed"].get<int>(), 624);
+}
+
+TEST_F(DeviceCli, SimulateThroughTheNominalDeviceIsThePapersImage) {
+  const auto device = std::string(TOPOCAL_SOURCE_DIR) + "/data/device.json";
+  ASSERT_EQ(RunTopocal("simulate --config " + paper_ + " --sigma 0 --out " + Path("paper.csv")).exit_code, 0);
+  const auto r = RunTopocal("simulate --config " + paper_ + " --device " + device + " --out " + Path("device.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto read = [](const std::string& path) { return std::string(std::istreambuf_iterator<char>(std::ifstream(path).rdbuf()), {}); };
+  EXPECT_EQ(read(Path("device.csv")), read(Path("paper.csv")));
+  // A ball placed off the axis images through the device; --ball-at alone, or with --sigma, is refused.
+  const auto ball = RunTopocal("simulate --config " + paper_ + " --device " + device +
+                               " --sphere-radius-mm 6.5 --ball-at 0.2 -0.1 0.3 --out " + Path("ball.csv"));
+  ASSERT_EQ(ball.exit_code, 0) << ball.output;
+  EXPECT_NE(read(Path("ball.csv")), read(Path("paper.csv")));
+  EXPECT_EQ(RunTopocal("simulate --config " + paper_ + " --device " + device + " --ball-at 0 0 0 --out " + Path("x.csv")).exit_code, 2);
+  EXPECT_EQ(RunTopocal("simulate --config " + paper_ + " --sigma 0 --sphere-radius-mm 7 --out " + Path("x.csv")).exit_code, 2);
+  EXPECT_FALSE(fs::exists(Path("x.csv")));
 }
 
 TEST_F(DeviceCli, FlagsAScreenTheModelDoesNotDescribe) {
