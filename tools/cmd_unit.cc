@@ -20,6 +20,7 @@
 #include "model/config.h"
 #include "model/io.h"
 #include "tools/commands.h"
+#include "tools/data_dir.h"
 #include "tools/file_glob.h"
 #include "tools/unit_workflow.h"
 
@@ -28,9 +29,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The bundled design and camera (data/), the defaults of --config and --camera.
-const std::string kDefaultConfig = std::string(TOPOCAL_DATA_DIR) + "/paper.json";
-const std::string kDefaultCamera = std::string(TOPOCAL_DATA_DIR) + "/camera.json";
+// The bundled design and camera (tools/data_dir.h), the defaults of --config and --camera, filled in when the
+// command runs (so that other verbs never depend on finding the data).
+void FillDefaults(UnitRequest* r) {
+  if (r->config.empty()) r->config = DataDir() + "/paper.json";
+  if (r->camera.empty()) r->camera = DataDir() + "/camera.json";
+}
 constexpr const char* kUnitInputsFile = "unit-inputs.json";
 constexpr int kProgressBarWidth = 30;
 
@@ -168,8 +172,6 @@ void AddUnitCommand(CLI::App& app) {
   auto* cal = unit->add_subcommand("calibrate",
                                    "Calibrate one unit, verify it on a reference sphere, write its unit record");
   auto r = std::make_shared<UnitRequest>();
-  r->config = kDefaultConfig;
-  r->camera = kDefaultCamera;
   auto images = std::make_shared<std::string>();
   cal->add_option("--serial", r->serial, "Unit serial number (A-Z a-z 0-9 . _ -)")->required();
   cal->add_option("--target", r->target, "Target description (Kalibr-style YAML)")->required();
@@ -181,6 +183,7 @@ void AddUnitCommand(CLI::App& app) {
   cal->callback([r, images] {
     QuietCeres();
     UnitRequest request = *r;
+    FillDefaults(&request);
     request.images = Glob(*images);
     const auto outcome = CalibrateUnit(request, [](const std::string& line) { fmt::print(stderr, "topocal unit: {}\n", line); });
     for (const auto& line : outcome.summary) fmt::print("{}\n", line);
@@ -189,13 +192,14 @@ void AddUnitCommand(CLI::App& app) {
   auto* batch = unit->add_subcommand(
       "calibrate-batch", "Calibrate every unit of a directory (DIR/<unit>/unit-inputs.json), in parallel");
   auto b = std::make_shared<BatchArgs>();
-  b->defaults.config = kDefaultConfig;
-  b->defaults.camera = kDefaultCamera;
   batch->add_option("dir", b->dir, "Directory of unit directories")->required();
   batch->add_option("--out", b->out, "Where the unit records go: OUT/<serial>/")->required();
   batch->add_option("--jobs", b->jobs, "Units calibrated at once [number of cores]")->check(CLI::Range(1, 256));
   AddCommonOptions(batch, &b->defaults);
-  batch->callback([b] { RunBatch(*b); });
+  batch->callback([b] {
+    FillDefaults(&b->defaults);
+    RunBatch(*b);
+  });
 }
 
 }  // namespace topocal::tools

@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <glog/logging.h>
 
 #include "model/config.h"
 #include "model/io.h"
@@ -13,6 +14,9 @@
 #include "tools/commands.h"
 
 int main(int argc, char** argv) {
+  // Ceres logs through glog (failed steps, rank-deficient covariances); every failure reaches the user as one line
+  // from the library's own result, so glog's lines would only be noise on stderr.
+  FLAGS_minloglevel = google::GLOG_FATAL;
   CLI::App app{"topocal: calibrate, correct and verify the camera of a cone (null-screen) corneal topographer"};
   app.set_version_flag("--version", std::string("topocal ") + topocal::kVersion);
   app.require_subcommand(1);

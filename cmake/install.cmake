@@ -1,0 +1,56 @@
+# Installation: the libraries (static, exported as topocal::<module>), the CLI, the public headers under
+# include/topocal/<module>/, the bundled data under share/topocal/data, a CMake package (topocalConfig.cmake +
+# version), a pkg-config file, and a Debian package through CPack (`cpack -G DEB` in the build tree).
+include(GNUInstallDirs)
+include(CMakePackageConfigHelpers)
+
+set(TOPOCAL_INSTALL_DATADIR ${CMAKE_INSTALL_DATADIR}/topocal/data)
+set(TOPOCAL_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/topocal)
+set(TOPOCAL_MODULES model calib correct topo pipeline report)
+
+foreach(module ${TOPOCAL_MODULES})
+  set_target_properties(topocal_${module} PROPERTIES EXPORT_NAME ${module})
+  # Consumers write #include <topocal/model/device.h>; topocal's own headers include "model/config.h", which the
+  # second directory resolves.
+  target_include_directories(topocal_${module} INTERFACE $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>
+                                                         $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}/topocal>)
+  install(DIRECTORY ${PROJECT_SOURCE_DIR}/${module}/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/topocal/${module}
+          COMPONENT dev FILES_MATCHING PATTERN "*.h")
+endforeach()
+list(TRANSFORM TOPOCAL_MODULES PREPEND topocal_ OUTPUT_VARIABLE TOPOCAL_LIBRARY_TARGETS)
+install(TARGETS ${TOPOCAL_LIBRARY_TARGETS} EXPORT topocalTargets
+        ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev)
+install(FILES ${PROJECT_BINARY_DIR}/generated/model/version.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/topocal/model
+        COMPONENT dev)
+install(TARGETS topocal RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT cli)
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/data/ DESTINATION ${TOPOCAL_INSTALL_DATADIR} COMPONENT cli)
+
+install(EXPORT topocalTargets NAMESPACE topocal:: DESTINATION ${TOPOCAL_INSTALL_CMAKEDIR} COMPONENT dev)
+configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/topocalConfig.cmake.in
+                              ${PROJECT_BINARY_DIR}/topocalConfig.cmake
+                              INSTALL_DESTINATION ${TOPOCAL_INSTALL_CMAKEDIR}
+                              PATH_VARS TOPOCAL_INSTALL_DATADIR)
+write_basic_package_version_file(${PROJECT_BINARY_DIR}/topocalConfigVersion.cmake COMPATIBILITY SameMinorVersion)
+install(FILES ${PROJECT_BINARY_DIR}/topocalConfig.cmake ${PROJECT_BINARY_DIR}/topocalConfigVersion.cmake
+        DESTINATION ${TOPOCAL_INSTALL_CMAKEDIR} COMPONENT dev)
+configure_file(${PROJECT_SOURCE_DIR}/cmake/topocal.pc.in ${PROJECT_BINARY_DIR}/topocal.pc @ONLY)
+install(FILES ${PROJECT_BINARY_DIR}/topocal.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig COMPONENT dev)
+
+# The build tree mirrors the installed layout for the data, so that build/tools/topocal finds it the same way an
+# installed binary does (relative to itself: <bindir>/../share/topocal/data), never through a source path.
+add_custom_target(topocal_data ALL
+  COMMAND ${CMAKE_COMMAND} -E copy_directory ${PROJECT_SOURCE_DIR}/data ${PROJECT_BINARY_DIR}/share/topocal/data
+  COMMENT "Copying the bundled data into the build tree")
+add_dependencies(topocal topocal_data)
+
+# Debian package: `cpack -G DEB` in the build tree. Runtime dependencies are Debian 12's packages.
+set(CPACK_PACKAGE_NAME topocal)
+set(CPACK_PACKAGE_VENDOR "topocal")
+set(CPACK_PACKAGE_CONTACT "topocal developers <topocal@localhost>")
+set(CPACK_PACKAGE_DESCRIPTION_SUMMARY "${PROJECT_DESCRIPTION}")
+set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
+set(CPACK_DEBIAN_PACKAGE_SECTION science)
+set(CPACK_DEBIAN_PACKAGE_DEPENDS
+    "libopencv-dev (>= 4.6), libceres-dev (>= 2.1), libeigen3-dev (>= 3.4), libapriltag-dev, nlohmann-json3-dev, libfmt-dev, libssl-dev")
+set(CPACK_GENERATOR DEB)
+include(CPack)

@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# Installs the build tree into a temporary prefix, builds and runs a consumer project against the installed CMake
+# package and pkg-config file, and runs the installed CLI from another directory (its data found next to itself).
+# Usage: install_test.sh BUILD_DIR SOURCE_DIR
+set -euo pipefail
+build=$1
+source=$2
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+prefix=$work/prefix
+cmake --install "$build" --prefix "$prefix" >/dev/null
+test -f "$prefix/lib/cmake/topocal/topocalConfig.cmake"
+test -f "$prefix/include/topocal/model/device.h"
+test -f "$prefix/share/topocal/data/paper.json"
+# The consumer, through find_package(topocal).
+cmake -S "$source/tests/install/consumer" -B "$work/consumer" -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$work/consumer" -j2 >/dev/null
+out=$("$work/consumer/consumer")
+echo "$out"
+case "$out" in *"rx 8.3500 mm kx -0.4300"*) ;; *) echo "consumer: unexpected result" >&2; exit 1 ;; esac
+# pkg-config sees the package.
+test -f "$(PKG_CONFIG_PATH="$prefix/lib/pkgconfig" pkg-config --variable=includedir topocal)/topocal/model/device.h"
+# The installed CLI, run from elsewhere, finds its data next to itself (no source or build path).
+cd "$work"
+"$prefix/bin/topocal" --version
+mkdir unit && cd unit
+"$prefix/bin/topocal" sweep --config "$prefix/share/topocal/data/paper.json" >/dev/null
+# `unit calibrate` takes its default design and camera from the installed data: a run without images fails on the
+# images, not on the data.
+set +e
+msg=$("$prefix/bin/topocal" unit calibrate --serial SN-1 --target "$prefix/share/topocal/data/target-topographer.yaml" \
+      --images 'none*.png' --out "$work/unit/SN-1/" 2>&1)
+set -e
+case "$msg" in *"no file matches"*|*"none*.png"*) ;; *) echo "installed unit calibrate: $msg" >&2; exit 1 ;; esac
+# The Debian package, with Debian 12's runtime dependencies.
+(cd "$build" && cpack -G DEB -B "$work/deb" >/dev/null)
+# (captured first: grep -q would close the pipe early and pipefail would report dpkg-deb's SIGPIPE)
+info=$(dpkg-deb -I "$work"/deb/topocal_*_amd64.deb)
+grep "Depends:.*libceres-dev" <<< "$info" >/dev/null
+contents=$(dpkg-deb -c "$work"/deb/topocal_*_amd64.deb)
+grep "usr/share/topocal/data/paper.json" <<< "$contents" >/dev/null
+echo "install test passed"
