@@ -27,5 +27,6 @@ void AddRenderTargetCommand(CLI::App& app);
 void AddUnitCommand(CLI::App& app);
 void AddHarnessCommand(CLI::App& app);
 void AddReportCommand(CLI::App& app);
+void AddFleetCommand(CLI::App& app);
 
 }  // namespace topocal::tools
