@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <set>
+#include <stdexcept>
 #include <tuple>
 
 #include <fmt/format.h>
@@ -82,6 +83,17 @@ std::optional<double> QuantityU(const std::optional<UncertaintyBlock>& block, co
   return it->second.U;
 }
 
+// The simulated cornea's truth is exact and its images noise-free: the calibration is the only input of U.
+Check PaperCheck(std::string id, std::string what, std::string unit, double error, std::optional<double> U,
+                 double limit) {
+  Check c{std::move(id), std::move(what), std::move(unit), error, U, {}, limit, false, ""};
+  if (U) {
+    c.budget = {{"calibration (Monte Carlo)", "unit.json: U (k = 2) halved; a simulation: truth exact, no image noise",
+                 0.5 * *U}};
+  }
+  return c;
+}
+
 }  // namespace
 
 Limits DefaultLimits() {
@@ -138,72 +150,133 @@ std::string ToString(DecisionRule rule) { return rule == DecisionRule::kGuarded 
 std::string DecisionRuleText(DecisionRule rule) {
   if (rule == DecisionRule::kGuarded) {
     return "Guarded acceptance (ILAC-G8:09/2019, guard band w = U; ISO 14253-1:2017 conformance zone): a check "
-           "passes when |error| + U \u2264 limit, U the expanded uncertainty (k = 2) of the calibration carried to "
-           "the number by Monte Carlo. A check without U in the record fails. The calibration RMS is compared "
+           "passes when |error| + U \u2264 limit, U the expanded uncertainty (k = 2) of the uncertainty budget: the "
+           "calibration carried to the number by Monte Carlo, the repeatability and the reference ball's "
+           "certificate. A check without the calibration's U in the record fails. The calibration RMS is compared "
            "with its limit directly.";
   }
   return "Simple acceptance (ILAC-G8:09/2019, shared risk): a check passes when |error| \u2264 limit; U (k = 2) "
          "is shown but not used.";
 }
 
-Verdict Evaluate(const UnitRecord& rec, const Limits& limits) {
+bool BudgetOptions::IsValid(std::string* why) const {
+  if (ball_radius_U_mm && !(std::isfinite(*ball_radius_U_mm) && *ball_radius_U_mm >= 0 && *ball_radius_U_mm < 1.0)) {
+    if (why) *why = "the ball's certificate U must be a finite number in [0, 1) mm";
+    return false;
+  }
+  return true;
+}
+
+double CombinedStandardUncertainty(const std::vector<BudgetTerm>& terms) {
+  double sum = 0;
+  for (const BudgetTerm& t : terms) sum += t.u * t.u;
+  return std::sqrt(sum);
+}
+
+std::string CanonicalLimits(const Limits& l) {
+  return fmt::format("decision_rule={};calibration_rms_px={};sphere_radius_error_mm={};sphere_power_error_D={};"
+                     "paper_radius_error_mm={};paper_conic_error={}",
+                     ToString(l.rule), l.calibration_rms_px.max, l.sphere_radius_error_mm.max,
+                     l.sphere_power_error_D.max, l.paper_radius_error_mm.max, l.paper_conic_error.max);
+}
+
+Verdict Evaluate(const UnitRecord& rec, const Limits& limits, const BudgetOptions& budget) {
+  std::string why;
+  if (!budget.IsValid(&why)) throw std::invalid_argument("BudgetOptions: " + why);
   Verdict v;
   {
     Check c{"calibration_rms_px", "calibration: reprojection RMS", "px", rec.calibration_rms_px, std::nullopt,
-            limits.calibration_rms_px.max, false, "a fit statistic: compared with the limit directly"};
+            {}, limits.calibration_rms_px.max, false, "a fit statistic: compared with the limit directly"};
     c.pass = rec.calibration_rms_px <= c.limit;
     v.checks.push_back(c);
   }
   if (rec.verification) {
     const SphereVerification& s = *rec.verification;
-    // The record's own U of the radius when it has one; else radius = (r_x + r_y) / 2 and the U of a mean is at
-    // most the mean of the U's (equality for full correlation).
+    // Calibration: the record's own U of the radius when it has one; else radius = (r_x + r_y) / 2 and the U of a
+    // mean is at most the mean of the U's (equality for full correlation).
     std::optional<double> u_radius = QuantityU(s.uncertainty, "radius_mm");
-    std::string radius_note = u_radius ? "U of (r_x + r_y) / 2 from the Monte Carlo" : "";
+    std::string radius_note = u_radius ? "U(calibration) of (r_x + r_y) / 2 from the Monte Carlo" : "";
     if (auto ux = QuantityU(s.uncertainty, "rx_mm"), uy = QuantityU(s.uncertainty, "ry_mm"); !u_radius && ux && uy) {
       u_radius = 0.5 * (*ux + *uy);
-      radius_note = "U = (U(r_x) + U(r_y)) / 2, the bound for fully correlated r_x, r_y";
+      radius_note = "U(calibration) = (U(r_x) + U(r_y)) / 2, the bound for fully correlated r_x, r_y";
     }
-    v.checks.push_back(Judge({"sphere_radius_error_mm", "reference sphere: radius error, corrected", "mm",
-                              std::abs(s.corrected.at("radius_error_mm")), u_radius,
-                              limits.sphere_radius_error_mm.max, false, radius_note},
-                             limits.rule));
-    // The record's U of the central power when it has one; else P = 1000 (n_k - 1) / R, so
-    // U(P) = 1000 (n_k - 1) U(R) / R^2 to first order.
     std::optional<double> u_power = QuantityU(s.uncertainty, "central_axial_power_D");
-    std::string power_note = u_power ? "U of the central power from the Monte Carlo" : "";
+    std::string power_note = u_power ? "U(calibration) of the central power from the Monte Carlo" : "";
     const double radius_mm = s.corrected.at("radius_mm");
+    // dP/dR at the ball's true radius: P = 1000 (n_k - 1) / R.
+    const double dP_dR = 1000.0 * (s.keratometric_index - 1.0) / (s.radius_true_mm * s.radius_true_mm);
     if (!u_power && u_radius && radius_mm > 0) {
       u_power = 1000.0 * (s.keratometric_index - 1.0) * *u_radius / (radius_mm * radius_mm);
-      power_note = "U = 1000 (n_k - 1) U(R) / R^2, first order";
+      power_note = "U(calibration) = 1000 (n_k - 1) U(R) / R^2, first order";
     }
-    v.checks.push_back(Judge({"sphere_power_error_D", "reference sphere: power error, corrected", "D",
-                              std::abs(s.corrected.at("power_error_D")), u_power, limits.sphere_power_error_D.max,
-                              false, power_note},
-                             limits.rule));
+    // The other two inputs, in mm of radius.
+    const bool cert_given = budget.ball_radius_U_mm.has_value();
+    const double u_cert_mm = 0.5 * budget.ball_radius_U_mm.value_or(kDefaultBallRadiusUMm);
+    const std::string cert_source =
+        cert_given ? fmt::format("certificate: U = {} mm (k = 2), halved", budget.ball_radius_U_mm.value())
+                   : fmt::format("default U = {} mm (k = 2), halved: no certificate value given (ISO 10343 test-sphere "
+                                 "requirement)",
+                                 kDefaultBallRadiusUMm);
+    BudgetTerm rep_radius{"repeatability", "", kDefaultRepeatabilityRadiusMm};
+    BudgetTerm rep_power{"repeatability", "", dP_dR * kDefaultRepeatabilityRadiusMm};
+    if (s.repeatability) {
+      rep_radius.u = s.repeatability->radius_stddev_mm;
+      rep_power.u = s.repeatability->power_stddev_D;
+      rep_radius.source = rep_power.source =
+          fmt::format("sample standard deviation of {} repeated images of the sphere (unit.json)",
+                      s.repeatability->images);
+    } else {
+      rep_radius.source = fmt::format("default {} mm (k = 1): no repeated images in the record", kDefaultRepeatabilityRadiusMm);
+      rep_power.source = fmt::format("default {} mm (k = 1) x dP/dR = {} D/mm: no repeated images in the record",
+                                     kDefaultRepeatabilityRadiusMm, fmt::format("{:.4g}", dP_dR));
+    }
+    Check radius{"sphere_radius_error_mm", "reference sphere: radius error, corrected", "mm",
+                 std::abs(s.corrected.at("radius_error_mm")), std::nullopt, {}, limits.sphere_radius_error_mm.max,
+                 false, radius_note};
+    Check power{"sphere_power_error_D", "reference sphere: power error, corrected", "D",
+                std::abs(s.corrected.at("power_error_D")), std::nullopt, {}, limits.sphere_power_error_D.max, false,
+                power_note};
+    if (u_radius) {
+      radius.budget = {{"calibration (Monte Carlo)", "unit.json: U (k = 2) halved", 0.5 * *u_radius},
+                       rep_radius,
+                       {"reference ball certificate", cert_source, u_cert_mm}};
+      radius.U = 2.0 * CombinedStandardUncertainty(radius.budget);
+      radius.note += "; U = 2 sqrt(sum of u^2) over the budget";
+    }
+    if (u_power) {
+      power.budget = {{"calibration (Monte Carlo)", "unit.json: U (k = 2) halved", 0.5 * *u_power},
+                      rep_power,
+                      {"reference ball certificate",
+                       cert_source + fmt::format(", x dP/dR = {:.4g} D/mm (true power from the certified radius)", dP_dR),
+                       dP_dR * u_cert_mm}};
+      power.U = 2.0 * CombinedStandardUncertainty(power.budget);
+      power.note += "; U = 2 sqrt(sum of u^2) over the budget";
+    }
+    v.checks.push_back(Judge(radius, limits.rule));
+    v.checks.push_back(Judge(power, limits.rule));
   } else {
     for (const auto& [id, what, unit, limit] :
          {std::tuple{"sphere_radius_error_mm", "reference sphere: radius error, corrected", "mm",
                      limits.sphere_radius_error_mm.max},
           std::tuple{"sphere_power_error_D", "reference sphere: power error, corrected", "D",
                      limits.sphere_power_error_D.max}}) {
-      v.checks.push_back({id, what, unit, std::nullopt, std::nullopt, limit, false,
+      v.checks.push_back({id, what, unit, std::nullopt, std::nullopt, {}, limit, false,
                           "not verified: the record has no reference-sphere verification"});
     }
   }
   const PaperCornea& p = rec.paper;
   for (const char* key : {"rx_mm", "ry_mm"}) {
     const std::string name = key[1] == 'x' ? "r_x" : "r_y";
-    v.checks.push_back(Judge({"paper_radius_error_mm", fmt::format("paper cornea: {} error, corrected", name), "mm",
-                              std::abs(p.corrected.at(key) - p.truth.at(key)), QuantityU(p.uncertainty, key),
-                              limits.paper_radius_error_mm.max, false, ""},
+    v.checks.push_back(Judge(PaperCheck("paper_radius_error_mm", fmt::format("paper cornea: {} error, corrected", name),
+                                        "mm", std::abs(p.corrected.at(key) - p.truth.at(key)),
+                                        QuantityU(p.uncertainty, key), limits.paper_radius_error_mm.max),
                              limits.rule));
   }
   for (const char* key : {"kx", "ky"}) {
     const std::string name = key[1] == 'x' ? "k_x" : "k_y";
-    v.checks.push_back(Judge({"paper_conic_error", fmt::format("paper cornea: {} error, corrected", name), "",
-                              std::abs(p.corrected.at(key) - p.truth.at(key)), QuantityU(p.uncertainty, key),
-                              limits.paper_conic_error.max, false, ""},
+    v.checks.push_back(Judge(PaperCheck("paper_conic_error", fmt::format("paper cornea: {} error, corrected", name), "",
+                                        std::abs(p.corrected.at(key) - p.truth.at(key)), QuantityU(p.uncertainty, key),
+                                        limits.paper_conic_error.max),
                              limits.rule));
   }
   v.pass = true;

@@ -63,12 +63,44 @@ std::string ToString(DecisionRule rule);
 // One sentence stating the rule, printed on the report.
 std::string DecisionRuleText(DecisionRule rule);
 
+// The measurement uncertainty of the reference-sphere checks beyond the calibration (issue 12). The error judged is
+// measured - true, so u(error)^2 = u(calibration)^2 + u(repeatability)^2 + u(certificate)^2 (GUM, Eq. 10, the
+// three inputs independent, sensitivity 1 once converted to the quantity's unit).
+//
+// Reference ball certificate: the expanded uncertainty (k = 2) of the ball's certified radius, from the user
+// (`topocal report --ball-radius-U-mm`). Without it the default below is used and the report says so.
+//  1 um: ISO 10343 (ophthalmometers) requires its test spheres' radius to be known to <= 1 um; a ball that does not
+//  meet it must be given with its own certificate's number.
+inline constexpr double kDefaultBallRadiusUMm = 0.001;
+// Repeatability (k = 1) of one measurement of the sphere's radius when the record holds no repeated images of it.
+//  5 um: half of the 0.01 mm radius accuracy topographer makers commonly state on calibration spheres; a
+//  conservative engineering default, to be replaced by the sample standard deviation of repeated images
+//  (unit.json verification.repeatability, docs/unit-record.md). Its power equivalent goes through
+//  dP/dR = -1000 (n_k - 1) / R^2 (0.028 D at 7.8 mm).
+inline constexpr double kDefaultRepeatabilityRadiusMm = 0.005;
+
+struct BudgetOptions {
+  std::optional<double> ball_radius_U_mm;  // the certificate's U (k = 2); default kDefaultBallRadiusUMm
+  bool IsValid(std::string* why) const;
+};
+
+// One input of a combined standard uncertainty, already in the quantity's unit.
+struct BudgetTerm {
+  std::string name;    // "calibration (Monte Carlo)", "reference ball certificate", "repeatability"
+  std::string source;  // where the number comes from
+  double u = 0;        // standard uncertainty, k = 1
+};
+
+// u_c = sqrt(sum u_i^2), U = 2 u_c.
+double CombinedStandardUncertainty(const std::vector<BudgetTerm>& terms);
+
 struct Check {
   std::string id;           // the limit's key
   std::string what;         // e.g. "reference sphere: radius error, corrected"
   std::string unit;         // "mm", "D", "px", ""
   std::optional<double> error;  // |error| (or the RMS); absent when the record has nothing to judge
-  std::optional<double> U;      // expanded uncertainty, k = 2
+  std::optional<double> U;      // expanded uncertainty, k = 2: 2 x CombinedStandardUncertainty(budget)
+  std::vector<BudgetTerm> budget;  // the contributions to U (empty when U is absent or not used)
   double limit = 0;
   bool pass = false;
   std::string note;         // how U was obtained, or why the check failed without a number
@@ -79,6 +111,10 @@ struct Verdict {
   bool pass = false;  // every check passes
 };
 
-Verdict Evaluate(const UnitRecord& record, const Limits& limits);
+Verdict Evaluate(const UnitRecord& record, const Limits& limits, const BudgetOptions& budget = {});
+
+// The limits as canonical text (rule and every max, shortest round-trip form; the sources are prose and left out):
+// hashed into the report id, so that the same record judged against other limits gets another id.
+std::string CanonicalLimits(const Limits& limits);
 
 }  // namespace topocal::report

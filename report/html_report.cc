@@ -9,6 +9,8 @@
 #include <fmt/format.h>
 
 #include "calib/camera.h"
+#include "model/io.h"
+#include "model/sha256.h"
 #include "model/version.h"
 #include "report/svg_plot.h"
 
@@ -247,7 +249,12 @@ figcaption { font-size: 9pt; color: #444; }
 .print-header, .print-footer { display: none; }
 table.page-frame { width: 100%; border-collapse: collapse; }
 table.page-frame > thead td, table.page-frame > tfoot td, table.page-frame > tbody > tr > td { padding: 0; }
-@page { size: A4; margin: 10mm 10mm 10mm 10mm; }
+@page { size: A4; margin: 10mm 10mm 12mm 10mm;
+  @bottom-right { content: "Page " counter(page) " of " counter(pages); font-family: "DejaVu Sans", Arial, sans-serif;
+                  font-size: 8pt; color: #333; } }
+table.budget td, table.budget th { font-size: 9pt; }
+.signoff td.blank { height: 11mm; border-bottom: 1px solid var(--ink); }
+.undefined { color: #555; font-style: italic; }
 @media print {
   body { font-size: 9.5pt; }
   main { max-width: none; padding: 0; }
@@ -262,6 +269,111 @@ table.page-frame > thead td, table.page-frame > tfoot td, table.page-frame > tbo
   svg.plot, table.data tr, .banner { break-inside: avoid; }
 }
 )css";
+
+// Signed value of check `id` (the n-th of that id) in a verdict, as |error| is what the check holds; the record's
+// signed numbers are read from the record itself below.
+const Check* FindCheck(const Verdict& v, const std::string& id, int nth = 0) {
+  for (const Check& c : v.checks) {
+    if (c.id == id && nth-- == 0) return &c;
+  }
+  return nullptr;
+}
+
+// The unit's previous calibration beside this one: the numbers a service engineer compares, their change, and
+// whether the change exceeds the U of a difference, sqrt(U_prev^2 + U_now^2) (k = 2, independent calibrations).
+std::string PreviousComparison(const UnitRecord& now, const UnitRecord& prev, const ReportInputs& in) {
+  const Verdict vn = Evaluate(now, in.limits, in.budget), vp = Evaluate(prev, in.limits, in.budget);
+  struct Row {
+    std::string label, unit;
+    std::optional<double> prev, now, U_prev, U_now;
+    int digits;
+  };
+  std::vector<Row> rows;
+  rows.push_back({"calibration RMS", "px", prev.calibration_rms_px, now.calibration_rms_px, {}, {}, 4});
+  if (prev.seidel_sigma_per_mm2 && now.seidel_sigma_per_mm2) {
+    rows.push_back({"Seidel \u03c3", "mm<sup>\u22122</sup>", prev.seidel_sigma_per_mm2, now.seidel_sigma_per_mm2,
+                    2 * prev.seidel_sigma_stddev_per_mm2.value_or(0), 2 * now.seidel_sigma_stddev_per_mm2.value_or(0), 5});
+  }
+  const auto sphere = [](const UnitRecord& r, const char* key) -> std::optional<double> {
+    if (!r.verification) return std::nullopt;
+    return r.verification->corrected.at(key);
+  };
+  const auto checkU = [](const Verdict& v, const char* id) -> std::optional<double> {
+    const Check* c = FindCheck(v, id);
+    return c ? c->U : std::nullopt;
+  };
+  rows.push_back({"sphere radius error, corrected", "mm", sphere(prev, "radius_error_mm"), sphere(now, "radius_error_mm"),
+                  checkU(vp, "sphere_radius_error_mm"), checkU(vn, "sphere_radius_error_mm"), 4});
+  rows.push_back({"sphere power error, corrected", "D", sphere(prev, "power_error_D"), sphere(now, "power_error_D"),
+                  checkU(vp, "sphere_power_error_D"), checkU(vn, "sphere_power_error_D"), 4});
+  for (const char* key : {"kx", "ky"}) {
+    const auto err = [&](const UnitRecord& r) { return r.paper.corrected.at(key) - r.paper.truth.at(key); };
+    const auto u = [&](const UnitRecord& r) -> std::optional<double> {
+      if (!r.paper.uncertainty || !r.paper.uncertainty->quantities.count(key)) return std::nullopt;
+      return r.paper.uncertainty->quantities.at(key).U;
+    };
+    rows.push_back({fmt::format("paper cornea k<sub>{}</sub> \u2212 truth, corrected", key + 1), "", err(prev), err(now),
+                    u(prev), u(now), 4});
+  }
+  std::string s = "<section id=\"previous\" class=\"keep\"><h2>Comparison with the previous calibration</h2>\n";
+  s += fmt::format("<p>Previous record {} (created {}, verdict under these limits: <strong>{}</strong>); this record "
+                   "created {} (<strong>{}</strong>).</p>\n",
+                   H(prev.directory), H(prev.created_utc), vp.pass ? "PASS" : "FAIL", H(now.created_utc),
+                   vn.pass ? "PASS" : "FAIL");
+  s += "<table class=\"data\" id=\"previous-table\"><tr><th>quantity</th><th>previous</th><th>now</th><th>change</th>"
+       "<th>U of the change (k = 2)</th><th></th></tr>\n";
+  for (const Row& r : rows) {
+    const std::string unit = r.unit.empty() ? "" : " " + r.unit;
+    if (!r.prev || !r.now) {
+      s += fmt::format("<tr><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td colspan=\"3\" "
+                       "class=\"note\">not in both records</td></tr>\n",
+                       r.label, r.prev ? Sig(*r.prev, r.digits) + unit : "\u2014",
+                       r.now ? Sig(*r.now, r.digits) + unit : "\u2014");
+      continue;
+    }
+    const double change = *r.now - *r.prev;
+    std::string u_text = "\u2014", flag;
+    if (r.U_prev && r.U_now) {
+      const double U = std::hypot(*r.U_prev, *r.U_now);
+      u_text = Sig(U, 2) + unit;
+      flag = std::abs(change) > U ? "changed beyond U" : "within U";
+    }
+    s += fmt::format("<tr><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td>"
+                     "<td class=\"num\">{}</td><td>{}</td></tr>\n",
+                     r.label, Sig(*r.prev, r.digits) + unit, Sig(*r.now, r.digits) + unit,
+                     (change > 0 ? "+" : "") + Sig(change, 3) + unit, u_text, flag);
+  }
+  s += "</table></section>\n";
+  return s;
+}
+
+// The budget of each check whose U has more than one input: every contribution, its share of u_c^2, the total.
+std::string BudgetTables(const Verdict& v) {
+  std::string s;
+  for (const Check& c : v.checks) {
+    if (c.budget.size() < 2 || !c.U) continue;
+    const double uc = CombinedStandardUncertainty(c.budget);
+    const std::string unit = c.unit.empty() ? "" : " " + c.unit;
+    s += fmt::format("<h3>Uncertainty budget: {}</h3>\n<table class=\"data budget\" data-budget=\"{}\"><tr>"
+                     "<th>input</th><th>source</th><th>u (k = 1)</th><th>share of u<sub>c</sub><sup>2</sup></th></tr>\n",
+                     H(c.what), H(c.id));
+    for (const BudgetTerm& t : c.budget) {
+      s += fmt::format("<tr><td>{}</td><td class=\"note\">{}</td><td class=\"num\">{}</td><td class=\"num\">{} %"
+                       "</td></tr>\n",
+                       H(t.name), H(t.source), Sig(t.u, 3) + unit,
+                       Fixed(uc > 0 ? 100.0 * t.u * t.u / (uc * uc) : 0.0, 1));
+    }
+    s += fmt::format("<tr><th>combined</th><td class=\"note\">u<sub>c</sub> = \u221a(\u03a3 u<sup>2</sup>), inputs "
+                     "independent</td><td class=\"num\">{}</td><td class=\"num\">100 %</td></tr>\n",
+                     Sig(uc, 3) + unit);
+    s += fmt::format("<tr><th>expanded</th><td class=\"note\">U = 2 u<sub>c</sub> (k = 2)</td><td class=\"num\" "
+                     "data-U=\"{}\">{}</td><td></td></tr>\n</table>\n",
+                     H(c.id), Sig(*c.U, 3) + unit);
+  }
+  s += "<p class=\"note\">The paper-cornea checks are a simulation (truth exact, images noise-free): their U is the "
+       "calibration's alone.</p>\n";
+  return s;
+}
 
 constexpr const char* kImageCheckScript = R"js(
 window.addEventListener('load', function () {
@@ -299,13 +411,39 @@ std::string Base64(std::string_view bytes) {
   return out;
 }
 
-std::string ReportId(const UnitRecord& record) {
-  return record.serial + "-" + record.unit_json_sha256.substr(0, kReportIdHexDigits);
+void ReportInputs::Validate(const UnitRecord& record) const {
+  std::string why;
+  if (!budget.IsValid(&why)) throw model::InputError("--ball-radius-U-mm: " + why);
+  if (previous && previous->serial != record.serial) {
+    throw model::InputError(fmt::format("{}: the previous record is of unit {}, not {}", previous->directory,
+                                        previous->serial, record.serial));
+  }
+  if (previous && previous->unit_json_sha256 == record.unit_json_sha256) {
+    throw model::InputError(fmt::format("{}: the previous record is the same record as {}", previous->directory,
+                                        record.directory));
+  }
 }
 
-std::string RenderHtmlReport(const UnitRecord& rec, const Limits& limits) {
-  const std::string id = ReportId(rec);
-  const Verdict verdict = Evaluate(rec, limits);
+std::string ReportIdText(const UnitRecord& record, const ReportInputs& in) {
+  const SignOff& so = in.sign_off;
+  return fmt::format(
+      "topocal-report-id 1\nunit_json_sha256={}\nlimits={}\nball_radius_U_mm={}\noperator={}\nstation={}\n"
+      "ball_certificate_id={}\ntarget_certificate_id={}\nprevious_unit_json_sha256={}\n",
+      record.unit_json_sha256, CanonicalLimits(in.limits),
+      in.budget.ball_radius_U_mm ? fmt::format("{}", *in.budget.ball_radius_U_mm) : std::string("default"),
+      so.operator_name, so.station, so.ball_certificate_id, so.target_certificate_id,
+      in.previous ? in.previous->unit_json_sha256 : std::string("none"));
+}
+
+std::string ReportId(const UnitRecord& record, const ReportInputs& inputs) {
+  return record.serial + "-" + model::Sha256Hex(ReportIdText(record, inputs)).substr(0, kReportIdHexDigits);
+}
+
+std::string RenderHtmlReport(const UnitRecord& rec, const ReportInputs& inputs) {
+  inputs.Validate(rec);
+  const Limits& limits = inputs.limits;
+  const std::string id = ReportId(rec, inputs);
+  const Verdict verdict = Evaluate(rec, limits, inputs.budget);
   const char* verdict_word = verdict.pass ? "PASS" : "FAIL";
   int failed = 0;
   for (const Check& c : verdict.checks) failed += c.pass ? 0 : 1;
@@ -348,9 +486,33 @@ std::string RenderHtmlReport(const UnitRecord& rec, const Limits& limits) {
   row("Calibration date", H(rec.calibration.date.empty() ? "not in calibration.yaml" : rec.calibration.date));
   row("Tool version", "topocal " + H(rec.tool_version));
   row("Record", H(rec.directory));
-  row("unit.json SHA-256", "<span class=\"hash\">" + H(rec.unit_json_sha256) + "</span>");
+  row("Record digests", "Appendix A (every file verified against its SHA-256 when this report was made)");
   row("Camera", fmt::format("{} \u00d7 {} px, pixel pitch {} \u00b5m, a = {} mm", rec.camera_width_px,
                             rec.camera_height_px, Sig(rec.camera_pixel_pitch_um), Sig(rec.camera_a_mm)));
+  s += "</table></section>\n";
+
+  // Sign-off: who measured, where, against which certified artefacts; lines to sign by hand.
+  const SignOff& so = inputs.sign_off;
+  const auto given = [](const std::string& v) {
+    return v.empty() ? std::string("<span class=\"undefined\">not given</span>") : H(v);
+  };
+  s += "<section id=\"sign-off\" class=\"keep signoff\"><h2>Sign-off</h2>\n<table class=\"data\">\n";
+  s += fmt::format("<tr><th>Operator</th><td data-field=\"operator\">{}</td><th>Station</th><td "
+                   "data-field=\"station\">{}</td></tr>\n",
+                   given(so.operator_name), given(so.station));
+  s += fmt::format("<tr><th>Reference ball certificate</th><td data-field=\"ball-certificate\">{}</td><th>Ball radius "
+                   "U (k = 2)</th><td>{}</td></tr>\n",
+                   given(so.ball_certificate_id),
+                   inputs.budget.ball_radius_U_mm
+                       ? Sig(*inputs.budget.ball_radius_U_mm, 3) + " mm (certificate)"
+                       : Sig(kDefaultBallRadiusUMm, 3) + " mm <span class=\"undefined\">(default: not given)</span>");
+  s += fmt::format("<tr><th>Calibration target certificate</th><td data-field=\"target-certificate\" "
+                   "colspan=\"3\">{}</td></tr>\n",
+                   given(so.target_certificate_id));
+  s += fmt::format("<tr><th>Verdict</th><td colspan=\"3\"><strong>{}</strong> (report <span class=\"report-id\">{}"
+                   "</span>)</td></tr>\n",
+                   verdict_word, H(id));
+  s += "<tr><th>Signature</th><td class=\"blank\"></td><th>Date</th><td class=\"blank\"></td></tr>\n";
   s += "</table></section>\n";
 
   // Method.
@@ -374,20 +536,6 @@ std::string RenderHtmlReport(const UnitRecord& rec, const Limits& limits) {
                                        rec.settings_uncertainty_samples, rec.settings_seed)
                          : std::string("not propagated (uncertainty samples = 0)"));
   row("Decision rule", H(DecisionRuleText(limits.rule)));
-  s += "</table></section>\n";
-
-  // Inputs and record files.
-  s += "<section id=\"inputs\"><h2>Inputs</h2>\n<table class=\"data\"><tr><th>role</th><th>path</th>"
-       "<th>SHA-256</th></tr>\n";
-  for (const InputFile& f : rec.inputs) {
-    s += fmt::format("<tr><td>{}</td><td>{}</td><td class=\"hash\">{}</td></tr>\n", H(f.role), H(f.path),
-                     H(f.sha256));
-  }
-  s += "</table>\n<h3>Record files (each verified against its SHA-256 when this report was made)</h3>\n"
-       "<table class=\"data\"><tr><th>file</th><th>SHA-256</th></tr>\n";
-  for (const RecordFile& f : rec.files) {
-    s += fmt::format("<tr><td>{}</td><td class=\"hash\">{}</td></tr>\n", H(f.name), H(f.sha256));
-  }
   s += "</table></section>\n";
 
   // Calibration.
@@ -460,7 +608,16 @@ std::string RenderHtmlReport(const UnitRecord& rec, const Limits& limits) {
                      Fixed(v.radius_true_mm, 4), Fixed(v.power_true_D, 3), Sig(v.keratometric_index, 5));
     s += "<table class=\"data\"><tr><th>quantity</th><th>truth</th><th>uncorrected</th><th>corrected</th>"
          "<th>corrected, Monte Carlo mean \u00b1 U (k = 2)</th></tr>\n";
+    constexpr const char* kUndefined = "<span class=\"undefined\">undefined</span>";
     for (const Quantity& q : kSphereRows) {
+      if (std::string_view(q.key) == "alpha_deg") {
+        // A sphere has no principal axes: any alpha fits it, and the fitted one only orients noise-level
+        // astigmatism. Printed as undefined; the fitted values are given below the table.
+        s += fmt::format("<tr data-quantity=\"alpha_deg\"><td>{} ({})</td><td class=\"num\">{}</td><td "
+                         "class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td></tr>\n",
+                         q.label, q.unit, kUndefined, kUndefined, kUndefined, kUndefined);
+        continue;
+      }
       std::string truth;
       if (std::string_view(q.key) == "rx_mm" || std::string_view(q.key) == "ry_mm" ||
           std::string_view(q.key) == "radius_mm") {
@@ -477,6 +634,13 @@ std::string RenderHtmlReport(const UnitRecord& rec, const Limits& limits) {
                        ValueU(v.uncertainty, q.key, q.decimals));
     }
     s += "</table>\n";
+    s += fmt::format("<p class=\"note\" id=\"alpha-note\">\u03b1 (the axis of r<sub>x</sub>) is undefined for a "
+                     "sphere: r<sub>x</sub> = r<sub>y</sub> and every axis fits equally. The biconic fit returned {}\u00b0 "
+                     "uncorrected and {}\u00b0 corrected for |r<sub>x</sub> \u2212 r<sub>y</sub>| = {} and {} mm: the "
+                     "orientation of noise, not of the surface.</p>\n",
+                     Lookup(v.uncorrected, "alpha_deg", 1), Lookup(v.corrected, "alpha_deg", 1),
+                     Sig(std::abs(v.uncorrected.at("rx_mm") - v.uncorrected.at("ry_mm")), 2),
+                     Sig(std::abs(v.corrected.at("rx_mm") - v.corrected.at("ry_mm")), 2));
   } else {
     s += "<p class=\"note\">No reference sphere was given: the unit is not verified.</p>\n";
   }
@@ -503,6 +667,8 @@ std::string RenderHtmlReport(const UnitRecord& rec, const Limits& limits) {
   s += MapsFigure(rec, "paper");
   s += "</section>\n";
 
+  if (inputs.previous) s += PreviousComparison(rec, *inputs.previous, inputs);
+
   // Acceptance.
   s += "<section id=\"acceptance\" class=\"page-break\"><h2>Acceptance</h2>\n";
   s += fmt::format("<p><strong>Decision rule.</strong> {}</p>\n", H(DecisionRuleText(limits.rule)));
@@ -517,6 +683,7 @@ std::string RenderHtmlReport(const UnitRecord& rec, const Limits& limits) {
                      c.pass ? "PASS" : "FAIL", H(c.note));
   }
   s += "</table>\n";
+  s += BudgetTables(verdict);
   s += fmt::format("<h3>Limits ({})</h3>\n<table class=\"data\"><tr><th>limit</th><th>value</th><th>source</th>"
                    "</tr>\n",
                    H(limits.origin));
@@ -535,10 +702,96 @@ std::string RenderHtmlReport(const UnitRecord& rec, const Limits& limits) {
                    verdict_word, H(id));
   s += "</section>\n";
 
+  // Inputs and record files.
+  s += "<section id=\"inputs\" class=\"page-break\"><h2>Appendix A: provenance</h2>\n";
+  s += fmt::format("<p>unit.json SHA-256 <span class=\"hash\">{}</span>; the report id hashes it with the limits, "
+                   "the decision rule, the certificate's U and the sign-off (docs/report.md).</p>\n",
+                   H(rec.unit_json_sha256));
+  if (inputs.previous) {
+    s += fmt::format("<p>Previous record {}: unit.json SHA-256 <span class=\"hash\">{}</span>.</p>\n",
+                     H(inputs.previous->directory), H(inputs.previous->unit_json_sha256));
+  }
+  s += "<h3>Inputs</h3>\n<table class=\"data\"><tr><th>role</th><th>path</th>"
+       "<th>SHA-256</th></tr>\n";
+  for (const InputFile& f : rec.inputs) {
+    s += fmt::format("<tr><td>{}</td><td>{}</td><td class=\"hash\">{}</td></tr>\n", H(f.role), H(f.path),
+                     H(f.sha256));
+  }
+  s += "</table>\n<h3>Record files (each verified against its SHA-256 when this report was made)</h3>\n"
+       "<table class=\"data\"><tr><th>file</th><th>SHA-256</th></tr>\n";
+  for (const RecordFile& f : rec.files) {
+    s += fmt::format("<tr><td>{}</td><td class=\"hash\">{}</td></tr>\n", H(f.name), H(f.sha256));
+  }
+  s += "</table></section>\n";
+
   s += "</main>\n</td></tr></tbody></table>\n";
   s += fmt::format("<script>{}</script>\n", kImageCheckScript);
   s += "</body>\n</html>\n";
   return s;
+}
+
+nlohmann::json ReportJson(const UnitRecord& rec, const ReportInputs& inputs) {
+  using nlohmann::json;
+  inputs.Validate(rec);
+  const Limits& l = inputs.limits;
+  const Verdict verdict = Evaluate(rec, l, inputs.budget);
+  json checks = json::array();
+  for (const Check& c : verdict.checks) {
+    json budget = json::array();
+    for (const BudgetTerm& t : c.budget) budget.push_back({{"input", t.name}, {"source", t.source}, {"u", t.u}});
+    json j = {{"id", c.id},
+              {"what", c.what},
+              {"unit", c.unit},
+              {"value", c.error ? json(*c.error) : json(nullptr)},
+              {"U", c.U ? json(*c.U) : json(nullptr)},
+              {"coverage_factor", 2},
+              {"budget", budget},
+              {"limit", c.limit},
+              {"verdict", c.pass ? "PASS" : "FAIL"},
+              {"note", c.note}};
+    if (!c.budget.empty()) j["combined_standard_uncertainty"] = CombinedStandardUncertainty(c.budget);
+    checks.push_back(j);
+  }
+  json limits = json::object();
+  for (const auto& [name, limit] : {std::pair{"calibration_rms_px", &l.calibration_rms_px},
+                                    std::pair{"sphere_radius_error_mm", &l.sphere_radius_error_mm},
+                                    std::pair{"sphere_power_error_D", &l.sphere_power_error_D},
+                                    std::pair{"paper_radius_error_mm", &l.paper_radius_error_mm},
+                                    std::pair{"paper_conic_error", &l.paper_conic_error}}) {
+    limits[name] = {{"max", limit->max}, {"source", limit->source}};
+  }
+  const SignOff& so = inputs.sign_off;
+  json out = {{"format", kReportJsonFormat},
+              {"format_version", kReportJsonFormatVersion},
+              {"tool_version", kVersion},
+              {"report_id", ReportId(rec, inputs)},
+              {"serial", rec.serial},
+              {"record", rec.directory},
+              {"unit_json_sha256", rec.unit_json_sha256},
+              {"record_created_utc", rec.created_utc},
+              {"decision_rule", ToString(l.rule)},
+              {"decision_rule_text", DecisionRuleText(l.rule)},
+              {"limits_origin", l.origin},
+              {"limits", limits},
+              {"ball_radius_U_mm", inputs.budget.ball_radius_U_mm.value_or(kDefaultBallRadiusUMm)},
+              {"ball_radius_U_is_default", !inputs.budget.ball_radius_U_mm.has_value()},
+              {"sign_off",
+               {{"operator", so.operator_name},
+                {"station", so.station},
+                {"ball_certificate_id", so.ball_certificate_id},
+                {"target_certificate_id", so.target_certificate_id}}},
+              {"checks", checks},
+              {"checks_passed", std::count_if(verdict.checks.begin(), verdict.checks.end(),
+                                              [](const Check& c) { return c.pass; })},
+              {"verdict", verdict.pass ? "PASS" : "FAIL"}};
+  if (inputs.previous) {
+    const Verdict vp = Evaluate(*inputs.previous, l, inputs.budget);
+    out["previous"] = {{"record", inputs.previous->directory},
+                       {"unit_json_sha256", inputs.previous->unit_json_sha256},
+                       {"record_created_utc", inputs.previous->created_utc},
+                       {"verdict", vp.pass ? "PASS" : "FAIL"}};
+  }
+  return out;
 }
 
 }  // namespace topocal::report

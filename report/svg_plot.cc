@@ -252,4 +252,184 @@ std::string SvgQuiver(const std::vector<Arrow>& arrows, const QuiverOptions& o) 
   return s;
 }
 
+namespace {
+
+struct Range {
+  double lo = 0, hi = 1;
+  double Y(double v, double top, double h) const { return top + h * (1 - (v - lo) / (hi - lo)); }
+};
+
+// Nice ticks covering [lo, hi].
+std::vector<double> AxisTicks(double lo, double hi) {
+  const double step = NiceFloor((hi - lo) / 4);
+  std::vector<double> t;
+  for (double v = std::ceil(lo / step - 1e-9) * step; v <= hi + 1e-9 * step; v += step) {
+    t.push_back(std::abs(v) < 1e-12 * step ? 0.0 : v);
+  }
+  return t;
+}
+
+// Widens [lo, hi] by 5 % each side; a zero-width range becomes +-1 (or +-10 % of the value).
+Range Padded(double lo, double hi) {
+  if (!(hi > lo)) {
+    const double d = lo == 0 ? 1.0 : 0.1 * std::abs(lo);
+    return {lo - d, hi + d};
+  }
+  const double pad = 0.05 * (hi - lo);
+  return {lo - pad, hi + pad};
+}
+
+}  // namespace
+
+std::string SvgControlChart(const ControlChartPlot& p) {
+  const double left = 62, right = 40, top = 24, bottom = 30;
+  const double w = p.width, h = p.height, pw = w - left - right, ph = h - top - bottom;
+  double lo = 0, hi = 0;
+  bool first = true;
+  for (double v : p.values) {
+    if (!std::isfinite(v)) continue;
+    lo = first ? v : std::min(lo, v);
+    hi = first ? v : std::max(hi, v);
+    first = false;
+  }
+  if (p.centre && p.sigma) {
+    lo = std::min(lo, *p.centre - 3 * *p.sigma);
+    hi = std::max(hi, *p.centre + 3 * *p.sigma);
+  }
+  // A signed quantity (errors) is judged on |value| <= limit: both lines; a positive one (RMS) only +limit.
+  const bool two_sided = lo < 0;
+  bool limit_on_scale = false;
+  if (p.limit) {
+    const double span = std::max(hi - lo, 1e-12);
+    limit_on_scale = *p.limit <= std::max(std::abs(hi), std::abs(lo)) + 2 * span;
+    if (limit_on_scale) {
+      hi = std::max(hi, *p.limit);
+      if (two_sided) lo = std::min(lo, -*p.limit);
+    }
+  }
+  const Range r = Padded(lo, hi);
+  const int n = static_cast<int>(p.values.size());
+  const auto x_of = [&](int i) { return left + (n <= 1 ? pw / 2 : pw * i / (n - 1)); };
+  std::string s = fmt::format("<svg class=\"plot chart\" viewBox=\"0 0 {} {}\" role=\"img\" aria-label=\"{}\">\n",
+                              Num(w, 0), Num(h, 0), EscapeXml(p.title));
+  s += fmt::format("<text x=\"{}\" y=\"15\" font-size=\"12\" font-weight=\"bold\" {}>{}</text>\n", Num(left), kFont,
+                   EscapeXml(p.title));
+  for (double v : AxisTicks(r.lo, r.hi)) {
+    const double y = r.Y(v, top, ph);
+    s += fmt::format("<line x1=\"{}\" x2=\"{}\" y1=\"{}\" y2=\"{}\" stroke=\"#eee\"/>\n", Num(left), Num(w - right),
+                     Num(y), Num(y));
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" text-anchor=\"end\" {}>{}</text>\n", Num(left - 4),
+                     Num(y + 3), kFont, Label(v));
+  }
+  s += fmt::format("<text transform=\"translate(11 {}) rotate(-90)\" font-size=\"10\" text-anchor=\"middle\" {}>{}"
+                   "</text>\n",
+                   Num(top + ph / 2), kFont, EscapeXml(p.value_label));
+  s += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#999\"/>\n", Num(left),
+                   Num(top), Num(pw), Num(ph));
+  const auto hline = [&](double v, const char* colour, const char* dash, const std::string& label) {
+    const double y = r.Y(v, top, ph);
+    s += fmt::format("<line class=\"{}\" x1=\"{}\" x2=\"{}\" y1=\"{}\" y2=\"{}\" stroke=\"{}\"{}/>\n",
+                     label.empty() ? "zone" : "ref", Num(left), Num(w - right), Num(y), Num(y), colour,
+                     *dash ? fmt::format(" stroke-dasharray=\"{}\"", dash) : std::string());
+    if (!label.empty()) {
+      s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" {} fill=\"{}\">{}</text>\n", Num(w - right + 2),
+                       Num(y + 3), kFont, colour, EscapeXml(label));
+    }
+  };
+  if (p.centre && p.sigma) {
+    for (int k : {1, 2}) {
+      hline(*p.centre + k * *p.sigma, "#bbb", "2 3", "");
+      hline(*p.centre - k * *p.sigma, "#bbb", "2 3", "");
+    }
+    hline(*p.centre + 3 * *p.sigma, "#c62828", "", "UCL");
+    hline(*p.centre - 3 * *p.sigma, "#c62828", "", "LCL");
+    hline(*p.centre, "#2e7d32", "", "CL");
+  }
+  if (p.limit && limit_on_scale) {
+    hline(*p.limit, "#000", "6 3", "+lim");
+    if (two_sided) hline(-*p.limit, "#000", "6 3", "\u2212lim");
+  }
+  std::string path;
+  for (int i = 0; i < n; ++i) {
+    if (!std::isfinite(p.values[i])) continue;
+    path += fmt::format("{}{} {} ", path.empty() ? "M" : "L", Num(x_of(i)), Num(r.Y(p.values[i], top, ph)));
+  }
+  if (!path.empty()) s += fmt::format("<path d=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"0.8\"/>\n", path, kArrowColour);
+  for (int i = 0; i < n; ++i) {
+    if (!std::isfinite(p.values[i])) continue;
+    const bool flag = i < static_cast<int>(p.flagged.size()) && p.flagged[i];
+    s += fmt::format("<circle class=\"{}\" cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{}\"/>\n", flag ? "point flagged" : "point",
+                     Num(x_of(i)), Num(r.Y(p.values[i], top, ph)), flag ? "3" : "2",
+                     flag ? kHighlightColour : kArrowColour);
+  }
+  if (p.x_labels.size() >= 2) {
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" {}>{}</text>\n", Num(left), Num(h - 8), kFont,
+                     EscapeXml(p.x_labels.front()));
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" text-anchor=\"end\" {}>{}</text>\n", Num(w - right),
+                     Num(h - 8), kFont, EscapeXml(p.x_labels.back()));
+  }
+  s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" text-anchor=\"middle\" {}>unit, in order of calibration "
+                   "({}){}</text>\n",
+                   Num(left + pw / 2), Num(h - 8), kFont, n,
+                   p.limit && !limit_on_scale ? fmt::format("; acceptance limit \u00b1{} off scale", Label(*p.limit))
+                                              : std::string());
+  s += "</svg>\n";
+  return s;
+}
+
+std::string SvgHistogram(const HistogramPlot& p) {
+  const double left = 40, right = 12, top = 24, bottom = 34;
+  const double w = p.width, h = p.height, pw = w - left - right, ph = h - top - bottom;
+  std::vector<double> v;
+  for (double x : p.values) {
+    if (std::isfinite(x)) v.push_back(x);
+  }
+  std::string s = fmt::format("<svg class=\"plot histogram\" viewBox=\"0 0 {} {}\" role=\"img\" aria-label=\"{}\">\n",
+                              Num(w, 0), Num(h, 0), EscapeXml(p.title));
+  s += fmt::format("<text x=\"{}\" y=\"15\" font-size=\"12\" font-weight=\"bold\" {}>{}</text>\n", Num(left), kFont,
+                   EscapeXml(p.title));
+  if (v.empty()) return s + "</svg>\n";
+  const auto [mn, mx] = std::minmax_element(v.begin(), v.end());
+  double lo = *mn, hi = *mx;
+  if (p.limit && *p.limit <= 2 * std::max(std::abs(lo), std::abs(hi))) {
+    hi = std::max(hi, *p.limit);
+    if (lo < 0) lo = std::min(lo, -*p.limit);
+  }
+  const Range r = Padded(lo, hi);
+  const int bins = std::max(5, static_cast<int>(std::ceil(std::sqrt(static_cast<double>(v.size())))));
+  const double bw = (*mx - *mn) / bins;
+  std::vector<int> count(bins, 0);
+  for (double x : v) count[bw > 0 ? std::min(bins - 1, static_cast<int>((x - *mn) / bw)) : bins / 2]++;
+  const int cmax = *std::max_element(count.begin(), count.end());
+  const auto x_of = [&](double x) { return left + pw * (x - r.lo) / (r.hi - r.lo); };
+  for (int b = 0; b < bins; ++b) {
+    const double x0 = bw > 0 ? *mn + b * bw : *mn - 0.5 * (r.hi - r.lo) / bins + (b - bins / 2) * (r.hi - r.lo) / bins;
+    const double x1 = bw > 0 ? x0 + bw : x0 + (r.hi - r.lo) / bins;
+    const double bh = ph * count[b] / std::max(1, cmax);
+    s += fmt::format("<rect class=\"bin\" x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\" stroke=\"#fff\" "
+                     "stroke-width=\"0.5\"/>\n",
+                     Num(x_of(x0)), Num(top + ph - bh), Num(std::max(0.5, x_of(x1) - x_of(x0))), Num(bh), kArrowColour);
+  }
+  s += fmt::format("<line x1=\"{}\" x2=\"{}\" y1=\"{}\" y2=\"{}\" stroke=\"#999\"/>\n", Num(left), Num(w - right),
+                   Num(top + ph), Num(top + ph));
+  s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" text-anchor=\"end\" {}>{}</text>\n", Num(left - 3),
+                   Num(top + 8), kFont, cmax);
+  for (double t : AxisTicks(r.lo, r.hi)) {
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" text-anchor=\"middle\" {}>{}</text>\n", Num(x_of(t)),
+                     Num(top + ph + 12), kFont, Label(t));
+  }
+  if (p.limit) {
+    for (double l : {*p.limit, -*p.limit}) {
+      if (l < r.lo || l > r.hi) continue;
+      s += fmt::format("<line class=\"ref\" x1=\"{0}\" x2=\"{0}\" y1=\"{1}\" y2=\"{2}\" stroke=\"#000\" "
+                       "stroke-dasharray=\"6 3\"/>\n",
+                       Num(x_of(l)), Num(top), Num(top + ph));
+    }
+  }
+  s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" text-anchor=\"middle\" {}>{} (n = {})</text>\n",
+                   Num(left + pw / 2), Num(h - 6), kFont, EscapeXml(p.value_label), v.size());
+  s += "</svg>\n";
+  return s;
+}
+
 }  // namespace topocal::report

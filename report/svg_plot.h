@@ -64,4 +64,28 @@ struct QuiverOptions {
 // size or a non-finite vector.
 std::string SvgQuiver(const std::vector<Arrow>& arrows, const QuiverOptions& options);
 
+// A series in time order with its control limits (report/control_chart.h): points joined by a line, the centre and
+// the 1, 2, 3 sigma lines, flagged points in the warning colour, and the acceptance limits +-limit as dashed lines
+// when they lie within twice the plotted range (else the caption says they are off scale).
+struct ControlChartPlot {
+  std::string title;
+  std::string value_label;          // axis label with unit
+  std::vector<double> values;
+  std::vector<bool> flagged;        // same size as values (or empty)
+  std::optional<double> centre, sigma;
+  std::optional<double> limit;      // acceptance: |value| <= limit
+  std::vector<std::string> x_labels;  // first and last tick labels (dates), may be empty
+  double width = 640, height = 220;
+};
+std::string SvgControlChart(const ControlChartPlot& plot);
+
+// Histogram of finite values (ceil(sqrt(n)) equal bins, at least 5), acceptance limits +-limit dashed when in range.
+struct HistogramPlot {
+  std::string title, value_label;
+  std::vector<double> values;
+  std::optional<double> limit;
+  double width = 320, height = 200;
+};
+std::string SvgHistogram(const HistogramPlot& plot);
+
 }  // namespace topocal::report

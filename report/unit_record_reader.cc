@@ -145,6 +145,34 @@ std::optional<UncertaintyBlock> ReadUncertainty(const JsonReader& r, const json&
   return block;
 }
 
+// Sample standard deviation (n - 1) of the values of verification.repeatability.KEY.
+double SampleStddev(const JsonReader& r, const json& rep, const char* key, std::size_t* count) {
+  const json& a = r.Array(rep, "verification.repeatability", key);
+  const std::string p = JsonReader::Join("verification.repeatability", key);
+  if (a.size() < 2) r.Fail(p, "needs at least 2 repeated measurements");
+  if (*count != 0 && a.size() != *count) r.Fail(p, "must have as many entries as radius_mm");
+  *count = a.size();
+  double sum = 0, sum2 = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (!a[i].is_number() || !std::isfinite(a[i].get<double>())) r.Fail(JsonReader::Index(p, i), "must be a finite number");
+    sum += a[i].get<double>();
+  }
+  const double mean = sum / static_cast<double>(a.size());
+  for (const auto& x : a) sum2 += (x.get<double>() - mean) * (x.get<double>() - mean);
+  return std::sqrt(sum2 / static_cast<double>(a.size() - 1));
+}
+
+std::optional<SphereRepeatability> ReadRepeatability(const JsonReader& r, const json& v) {
+  if (!r.Has(v, "repeatability")) return std::nullopt;
+  const json& rep = r.Object(v, "verification", "repeatability");
+  std::size_t n = 0;
+  SphereRepeatability out;
+  out.radius_stddev_mm = SampleStddev(r, rep, "radius_mm", &n);
+  out.power_stddev_D = SampleStddev(r, rep, "central_axial_power_D", &n);
+  out.images = static_cast<int>(n);
+  return out;
+}
+
 // A name in `files` must stay inside the record directory.
 bool IsSafeRelativeName(const std::string& name) {
   if (name.empty() || name.front() == '/') return false;
@@ -363,6 +391,7 @@ UnitRecord ReadUnitRecord(const std::string& directory) {
     s.uncorrected = ReadStage(r, v, "verification", "uncorrected", kSphereStageKeys);
     s.corrected = ReadStage(r, v, "verification", "corrected", kSphereStageKeys);
     s.uncertainty = ReadUncertainty(r, v, "verification");
+    s.repeatability = ReadRepeatability(r, v);
     rec.verification = std::move(s);
   }
   const json& paper = r.Object(root, "", "paper_cornea");

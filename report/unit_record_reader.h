@@ -71,11 +71,20 @@ struct UncertaintyBlock {
 // The numbers of one stage (uncorrected or corrected) of a case, by key as in unit.json (rx_mm, kx, ...).
 using StageValues = std::map<std::string, double>;
 
+// Repeated measurements of the reference sphere (optional unit.json key verification.repeatability: arrays
+// "radius_mm" and "central_axial_power_D" of the same length >= 2, one entry per image): the sample standard
+// deviations are the repeatability terms of the uncertainty budget (report/acceptance.h).
+struct SphereRepeatability {
+  int images = 0;
+  double radius_stddev_mm = 0, power_stddev_D = 0;
+};
+
 struct SphereVerification {
   std::string image;
   double radius_true_mm = 0, power_true_D = 0, keratometric_index = 0;
   StageValues uncorrected, corrected;
   std::optional<UncertaintyBlock> uncertainty;
+  std::optional<SphereRepeatability> repeatability;
 };
 
 struct PaperCornea {

@@ -9,12 +9,17 @@ mode=${1:-run}
 case "$mode" in run|test|build) ;; *) echo "usage: scripts/setup.sh run|test|build" >&2; exit 2 ;; esac
 
 pkgs=(cmake g++ make pkg-config libopencv-dev libceres-dev libeigen3-dev libapriltag-dev libcli11-dev
-      nlohmann-json3-dev libfmt-dev libssl-dev libgtest-dev libgmock-dev libbenchmark-dev)
+      nlohmann-json3-dev libfmt-dev libssl-dev libsqlite3-dev libgtest-dev libgmock-dev libbenchmark-dev
+      fonts-dejavu-core)
+# fonts-dejavu-core: the maps' text (µm, mm², °) is drawn in DejaVu Sans through OpenCV's FreeType module.
 # The real chessboard photographs the calibration tests compare against cv::calibrateCamera.
 [ "$mode" = test ] && pkgs+=(opencv-doc)
 # Headless Chromium renders the QA report to PDF/PNG in tests/report (the browser test fails without it); the
-# report's font (DejaVu Sans) is named explicitly because --no-install-recommends leaves Chromium's fonts out.
-[ "$mode" = test ] && pkgs+=(chromium fonts-dejavu-core)
+# report's font (DejaVu Sans, installed above) is named explicitly because --no-install-recommends leaves Chromium's
+# fonts out.
+[ "$mode" = test ] && pkgs+=(chromium)
+# pdftotext reads the printed report's text back ("Page n of N" on every page).
+[ "$mode" = test ] && pkgs+=(poppler-utils)
 
 missing=()
 for p in "${pkgs[@]}"; do

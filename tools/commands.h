@@ -28,5 +28,6 @@ void AddUnitCommand(CLI::App& app);
 void AddHarnessCommand(CLI::App& app);
 void AddReportCommand(CLI::App& app);
 void AddDeviceCommand(CLI::App& app);
+void AddFleetCommand(CLI::App& app);
 
 }  // namespace topocal::tools

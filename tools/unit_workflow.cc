@@ -1,7 +1,5 @@
 #include "tools/unit_workflow.h"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -28,6 +26,7 @@
 #include "model/version.h"
 #include "pipeline/detection_plane.h"
 #include "pipeline/unit_verification.h"
+#include "report/unit_record_writer.h"
 #include "tools/file_glob.h"
 #include "tools/map_output.h"
 
@@ -37,8 +36,6 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-constexpr const char* kRecordFormat = "topocal-unit-record";
-constexpr int kRecordFormatVersion = 1;
 constexpr size_t kMaxSerialLength = 64;
 
 // The record's date: SOURCE_DATE_EPOCH when set (the reproducible-builds convention, so that a rerun can be
@@ -101,62 +98,6 @@ std::pair<double, double> MaxDisplacement(const model::Distortion& d, double rad
   }
   return {max_mm * 1000.0, max_mm / pitch_mm};
 }
-
-// nlohmann writes a NaN or infinity as null, which a reader would take for a missing value: refuse instead,
-// naming the key, so that no record carries a number that is not one.
-void CheckFinite(const json& j, const std::string& where) {
-  if (j.is_object()) {
-    for (const auto& [k, v] : j.items()) CheckFinite(v, where.empty() ? k : where + "." + k);
-  } else if (j.is_array()) {
-    for (size_t i = 0; i < j.size(); ++i) CheckFinite(j[i], fmt::format("{}[{}]", where, i));
-  } else if (j.is_number_float() && !std::isfinite(j.get<double>())) {
-    throw std::runtime_error(fmt::format("{}: not a finite number", where));
-  }
-}
-
-// Replaces `out` by the complete directory `staged`: the old record (if any) is moved aside first and removed
-// only after the new one is in place, so every moment either the old or the new record is whole.
-void CommitDirectory(const fs::path& staged, const fs::path& out) {
-  std::error_code ec;
-  const fs::path aside = out.string() + fmt::format(".old-{}", ::getpid());
-  const bool had_old = fs::exists(out);
-  if (had_old) {
-    fs::rename(out, aside, ec);
-    if (ec) throw model::InputError(fmt::format("{}: cannot replace the existing record: {}", out.string(), ec.message()));
-  }
-  fs::rename(staged, out, ec);
-  if (ec) {
-    if (had_old) fs::rename(aside, out, ec);
-    throw model::InputError(fmt::format("{}: cannot write the record: {}", out.string(), ec.message()));
-  }
-  if (had_old) fs::remove_all(aside, ec);
-}
-
-// A staging directory that removes itself unless committed.
-class Staging {
- public:
-  explicit Staging(const fs::path& out) : path_(out.string() + fmt::format(".tmp-{}", ::getpid())) {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-    fs::create_directories(path_ / "maps", ec);
-    if (ec) throw model::InputError(fmt::format("{}: cannot create the record directory: {}", out.string(), ec.message()));
-  }
-  ~Staging() {
-    std::error_code ec;
-    if (!committed_) fs::remove_all(path_, ec);
-  }
-  Staging(const Staging&) = delete;
-  Staging& operator=(const Staging&) = delete;
-  const fs::path& path() const { return path_; }
-  void Commit(const fs::path& out) {
-    CommitDirectory(path_, out);
-    committed_ = true;
-  }
-
- private:
-  fs::path path_;
-  bool committed_ = false;
-};
 
 // The inputs, read and checked before any work, with their digests for the record.
 struct LoadedInputs {
@@ -401,18 +342,6 @@ void WriteRecordMaps(const std::string& dir, const std::optional<pipeline::Spher
                     kMapCsv, kMapSizePx);
 }
 
-// Every file under `dir`, sorted, with its digest.
-json FileDigests(const fs::path& dir) {
-  std::vector<std::string> names;
-  for (const auto& e : fs::recursive_directory_iterator(dir)) {
-    if (e.is_regular_file()) names.push_back(fs::relative(e.path(), dir).generic_string());
-  }
-  std::sort(names.begin(), names.end());
-  json files = json::array();
-  for (const auto& n : names) files.push_back({{"name", n}, {"sha256", model::Sha256HexOfFile((dir / n).string())}});
-  return files;
-}
-
 std::vector<std::string> Summary(const UnitRequest& r, const Calibration& c, const DistortionField& field,
                                  const std::optional<pipeline::SphereVerification>& sphere,
                                  const pipeline::SimulatedCornea& paper) {
@@ -482,16 +411,13 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
   const auto field = MeasureDistortionField(c.result.camera, in, r.serial);
 
   // The record, staged and committed whole.
-  Staging staging(r.out);
-  const fs::path& dir = staging.path();
+  report::UnitRecordWriter writer(r.out);
+  const fs::path& dir = writer.staging_dir();
   model::WriteFileAtomic((dir / "calibration.yaml").string(), cal_text);
   model::WriteFileAtomic((dir / "residuals.csv").string(), ResidualsCsv(c));
   WriteRecordMaps((dir / "maps").string(), sphere, paper, in.config);
 
   json record;
-  record["format"] = kRecordFormat;
-  record["format_version"] = kRecordFormatVersion;
-  record["tool_version"] = kVersion;
   record["serial"] = r.serial;
   record["created_utc"] = date;
   record["settings"] = {{"model", r.model},
@@ -506,19 +432,17 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
   // even after the files change; the digests above say whether they still match.
   record["configuration"] = {{"design", json::parse(model::ConfigToJson(in.config))},
                              {"camera", json::parse(model::TopographerCameraToJson(in.camera))}};
-  record["files"] = FileDigests(dir);
   const auto& cam = in.camera;
   record["camera"] = model::CameraToJson(cam);
   record["calibration"] = CalibrationJson(c, field, cam);
   if (sphere) record["verification"] = VerificationJson(*sphere, r, check);
   record["paper_cornea"] = PaperCorneaJson(paper, check);
   try {
-    CheckFinite(record, "");
+    report::RequireFiniteNumbers(record);
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(fmt::format("{}: the result is not usable: {}", r.serial, e.what()));
   }
-  model::WriteFileAtomic((dir / "unit.json").string(), record.dump(2) + "\n");
-  staging.Commit(r.out);
+  writer.Commit(std::move(record));  // adds format, versions and the files' digests
   return {r.serial, r.out, Summary(r, c, field, sphere, paper)};
 }
 

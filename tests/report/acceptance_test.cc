@@ -93,22 +93,93 @@ TEST(Acceptance, GuardedAddsUAndSimpleDoesNot) {
   EXPECT_TRUE(Evaluate(rec, DefaultLimits()).pass);
 }
 
-TEST(Acceptance, SphereUncertaintyComesFromRxRyAndPowerFromRadius) {
+TEST(Acceptance, SphereCalibrationTermComesFromRxRyAndPowerFromRadius) {
   const auto f = MakeRecord(FreshDir("sphereu"));
   const Verdict v = Evaluate(ReadUnitRecord(f.dir), DefaultLimits());
   ASSERT_EQ(v.checks[1].id, "sphere_radius_error_mm");
-  EXPECT_DOUBLE_EQ(*v.checks[1].U, 0.002);  // (U(r_x) + U(r_y)) / 2 with both 0.002
+  ASSERT_EQ(v.checks[1].budget.size(), 3u);
+  EXPECT_DOUBLE_EQ(v.checks[1].budget[0].u, 0.001);  // (U(r_x) + U(r_y)) / 2 with both 0.002, halved to k = 1
   ASSERT_EQ(v.checks[2].id, "sphere_power_error_D");
   const double r = 7.8005;
-  EXPECT_NEAR(*v.checks[2].U, 1000 * 0.3375 * 0.002 / (r * r), 1e-12);
+  EXPECT_NEAR(v.checks[2].budget[0].u, 0.5 * 1000 * 0.3375 * 0.002 / (r * r), 1e-12);
   // The record's own U of radius and central power (what `unit calibrate` writes) take precedence.
   auto g = MakeRecord(FreshDir("sphereu2"));
   g.unit["verification"]["uncertainty"]["quantities"]["radius_mm"] = {{"mean", 7.8005}, {"U", 0.0011}};
   g.unit["verification"]["uncertainty"]["quantities"]["central_axial_power_D"] = {{"mean", 43.27}, {"U", 0.007}};
   g.WriteUnitJson();
   const Verdict w = Evaluate(ReadUnitRecord(g.dir), DefaultLimits());
-  EXPECT_DOUBLE_EQ(*w.checks[1].U, 0.0011);
-  EXPECT_DOUBLE_EQ(*w.checks[2].U, 0.007);
+  EXPECT_DOUBLE_EQ(w.checks[1].budget[0].u, 0.00055);
+  EXPECT_DOUBLE_EQ(w.checks[2].budget[0].u, 0.0035);
+}
+
+// The budget's combination against a hand computation (GUM Eq. 10, independent inputs, k = 2).
+TEST(Acceptance, UncertaintyBudgetCombinesCalibrationRepeatabilityAndCertificate) {
+  auto g = MakeRecord(FreshDir("budget"));
+  auto& ver = g.unit["verification"];
+  ver["uncertainty"]["quantities"]["radius_mm"] = {{"mean", 7.8005}, {"U", 0.0011}};
+  ver["uncertainty"]["quantities"]["central_axial_power_D"] = {{"mean", 43.27}, {"U", 0.007}};
+  // Three repeated images: radii 7.801, 7.803, 7.802 mm (s = 0.001 mm), powers 43.25, 43.27, 43.26 D (s = 0.01 D).
+  ver["repeatability"] = {{"radius_mm", {7.801, 7.803, 7.802}}, {"central_axial_power_D", {43.25, 43.27, 43.26}}};
+  g.WriteUnitJson();
+  BudgetOptions budget;
+  budget.ball_radius_U_mm = 0.004;  // certificate: U = 4 um (k = 2), u = 2 um
+  const Verdict v = Evaluate(ReadUnitRecord(g.dir), DefaultLimits(), budget);
+  const Check& radius = v.checks[1];
+  ASSERT_EQ(radius.budget.size(), 3u);
+  EXPECT_DOUBLE_EQ(radius.budget[0].u, 0.00055);                   // calibration: 0.0011 / 2
+  EXPECT_NEAR(radius.budget[1].u, 0.001, 1e-12);                   // repeatability: s of the three radii
+  EXPECT_DOUBLE_EQ(radius.budget[2].u, 0.002);                     // certificate: 0.004 / 2
+  // U = 2 sqrt(0.00055^2 + 0.001^2 + 0.002^2) = 2 sqrt(5.3025e-6) = 0.0046054316 mm
+  EXPECT_NEAR(*radius.U, 0.0046054316, 1e-10);
+  const Check& power = v.checks[2];
+  ASSERT_EQ(power.budget.size(), 3u);
+  EXPECT_DOUBLE_EQ(power.budget[0].u, 0.0035);                     // calibration: 0.007 / 2
+  EXPECT_NEAR(power.budget[1].u, 0.01, 1e-12);                     // repeatability: s of the three powers
+  // certificate through dP/dR = 1000 (1.3375 - 1) / 7.8^2 = 5.5473373 D/mm: 0.002 mm -> 0.0110947 D
+  EXPECT_NEAR(power.budget[2].u, 0.0110946746, 1e-9);
+  // U = 2 sqrt(0.0035^2 + 0.01^2 + 0.0110947^2) = 0.0306817 D
+  EXPECT_NEAR(*power.U, 0.0306817081, 1e-9);
+  EXPECT_NE(radius.budget[1].source.find("3 repeated images"), std::string::npos);
+  EXPECT_NE(radius.budget[2].source.find("certificate: U = 0.004 mm"), std::string::npos);
+
+  // Without repeats and certificate: the documented defaults, u_rep = 5 um, u_cert = 1 um / 2.
+  const auto f = MakeRecord(FreshDir("budgetdefault"));
+  const Verdict d = Evaluate(ReadUnitRecord(f.dir), DefaultLimits());
+  EXPECT_DOUBLE_EQ(d.checks[1].budget[1].u, kDefaultRepeatabilityRadiusMm);
+  EXPECT_DOUBLE_EQ(d.checks[1].budget[2].u, 0.5 * kDefaultBallRadiusUMm);
+  // U = 2 sqrt(0.001^2 + 0.005^2 + 0.0005^2) = 0.0102469508 mm
+  EXPECT_NEAR(*d.checks[1].U, 0.0102469508, 1e-10);
+  EXPECT_NE(d.checks[1].budget[2].source.find("no certificate value given"), std::string::npos);
+
+  // The certificate's U is the user's number: a bad one is refused.
+  BudgetOptions bad;
+  bad.ball_radius_U_mm = -1;
+  EXPECT_THROW(Evaluate(ReadUnitRecord(f.dir), DefaultLimits(), bad), std::invalid_argument);
+}
+
+TEST(Acceptance, AGuardBandThatTheBudgetWidensTurnsAPassIntoAFail) {
+  // Radius error 0.0005 mm; with the default budget U = 0.0102 mm: a 0.01 mm limit passes by simple acceptance and
+  // fails by guarded acceptance; the calibration's U alone (0.002 mm) would have passed it.
+  const auto f = MakeRecord(FreshDir("guard"));
+  const UnitRecord rec = ReadUnitRecord(f.dir);
+  Limits l = DefaultLimits();
+  l.sphere_radius_error_mm.max = 0.01;
+  EXPECT_FALSE(Evaluate(rec, l).checks[1].pass);
+  l.rule = DecisionRule::kSimple;
+  EXPECT_TRUE(Evaluate(rec, l).checks[1].pass);
+}
+
+TEST(Acceptance, MalformedRepeatabilityIsRefused) {
+  auto f = MakeRecord(FreshDir("badrep"));
+  f.unit["verification"]["repeatability"] = {{"radius_mm", {7.8}}, {"central_axial_power_D", {43.2}}};
+  f.WriteUnitJson();
+  try {
+    ReadUnitRecord(f.dir);
+    FAIL() << "a single repeat was accepted";
+  } catch (const model::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("verification.repeatability.radius_mm: needs at least 2"), std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(Acceptance, WithoutVerificationOrUncertaintyTheGuardedRuleFails) {

@@ -95,6 +95,22 @@ TEST(ReportInBrowser, ChromiumRendersPrintsAndShowsTheReport) {
   EXPECT_GE(pages, kMinPdfPages);
   // A4 = 595.28 x 841.89 pt (210 x 297 mm) on every page.
   EXPECT_EQ(static_cast<int>(Count(pdf_bytes, "/MediaBox [0 0 594.95996 841.91998]")), pages) << "not A4";
+  // "Page n of N" on every page, N the page count (poppler's pdftotext reads the PDF's text back; one form feed
+  // ends each page).
+  const ShellRun text = testing::Shell("pdftotext -layout " + pdf + " - 2>&1");
+  ASSERT_EQ(text.exit_code, 0) << "pdftotext (Debian poppler-utils, installed by scripts/setup.sh test): "
+                               << text.output;
+  EXPECT_EQ(static_cast<int>(Count(text.output, "\f")), pages);
+  std::size_t page_start = 0;
+  for (int n = 1; n <= pages; ++n) {
+    const std::size_t page_end = text.output.find('\f', page_start);
+    ASSERT_NE(page_end, std::string::npos);
+    const std::string one_page = text.output.substr(page_start, page_end - page_start);
+    EXPECT_NE(one_page.find(fmt::format("Page {} of {}", n, pages)), std::string::npos) << "page " << n;
+    page_start = page_end + 1;
+  }
+  EXPECT_NE(text.output.find("Sign-off"), std::string::npos);
+  EXPECT_NE(text.output.find("Appendix A: provenance"), std::string::npos);
 
   // DOM after the load event: the id, the serial, the verdict, every embedded image decoded.
   ASSERT_EQ(dumped.exit_code, 0) << dumped.output;

@@ -4,6 +4,7 @@
 
 #include <cctype>
 #include <regex>
+#include <set>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -62,7 +63,7 @@ class HtmlReportTest : public ::testing::Test {
   static void SetUpTestSuite() {
     fixture_ = new testing::RecordFixture(MakeRecord(FreshDir("html")));
     record_ = new UnitRecord(ReadUnitRecord(fixture_->dir));
-    html_ = new std::string(RenderHtmlReport(*record_, DefaultLimits()));
+    html_ = new std::string(RenderHtmlReport(*record_, ReportInputs{}));
   }
   static void TearDownTestSuite() {
     delete html_;
@@ -77,15 +78,47 @@ testing::RecordFixture* HtmlReportTest::fixture_ = nullptr;
 UnitRecord* HtmlReportTest::record_ = nullptr;
 std::string* HtmlReportTest::html_ = nullptr;
 
-TEST_F(HtmlReportTest, ReportIdIsSerialAndUnitJsonDigest) {
-  const std::string id = ReportId(*record_);
+TEST_F(HtmlReportTest, ReportIdHashesTheRecordTheLimitsAndTheRule) {
+  const ReportInputs in;
+  const std::string id = ReportId(*record_, in);
   EXPECT_TRUE(std::regex_match(id, std::regex("SN-TEST-0001-[0-9a-f]{12}"))) << id;
-  EXPECT_EQ(id.substr(id.size() - 12), model::Sha256HexOfFile(fixture_->Path("unit.json")).substr(0, 12));
+  const std::string text = ReportIdText(*record_, in);
+  EXPECT_EQ(id.substr(id.size() - 12), model::Sha256Hex(text).substr(0, 12));
+  EXPECT_NE(text.find("unit_json_sha256=" + model::Sha256HexOfFile(fixture_->Path("unit.json"))), std::string::npos);
+  EXPECT_EQ(ReportId(*record_, ReportInputs{}), id);  // same inputs, same id
+  // Another limit, another rule, another certificate U, another operator: another id.
+  ReportInputs limit = in;
+  limit.limits.sphere_power_error_D.max = 0.5;
+  ReportInputs rule = in;
+  rule.limits.rule = DecisionRule::kSimple;
+  ReportInputs cert = in;
+  cert.budget.ball_radius_U_mm = 0.002;
+  ReportInputs signer = in;
+  signer.sign_off.operator_name = "A. Tester";
+  const std::set<std::string> ids = {id, ReportId(*record_, limit), ReportId(*record_, rule), ReportId(*record_, cert),
+                                     ReportId(*record_, signer)};
+  EXPECT_EQ(ids.size(), 5u);
+  // The limit's prose source is not part of the decision: it does not change the id.
+  ReportInputs source = in;
+  source.limits.sphere_power_error_D.source = "another wording";
+  EXPECT_EQ(ReportId(*record_, source), id);
+}
+
+TEST(HtmlReport, APassAndAFailReportOfOneRecordHaveDifferentIds) {
+  const auto f = MakeRecord(FreshDir("passfail"));
+  const UnitRecord rec = ReadUnitRecord(f.dir);
+  ReportInputs strict;
+  strict.limits.paper_conic_error.max = 1e-4;  // |k_x error| = 2e-4: FAIL
+  const std::string pass = RenderHtmlReport(rec, ReportInputs{}), fail = RenderHtmlReport(rec, strict);
+  EXPECT_NE(pass.find("data-verdict=\"PASS\""), std::string::npos);
+  EXPECT_NE(fail.find("data-verdict=\"FAIL\""), std::string::npos);
+  EXPECT_NE(ReportId(rec, ReportInputs{}), ReportId(rec, strict));
+  EXPECT_NE(fail.find("data-report-id=\"" + ReportId(rec, strict) + "\""), std::string::npos);
 }
 
 TEST_F(HtmlReportTest, IdInTitleHeaderFooterAndBody) {
   const std::string& h = *html_;
-  const std::string id = ReportId(*record_);
+  const std::string id = ReportId(*record_, ReportInputs{});
   EXPECT_NE(h.find("<title>topocal QA report " + id), std::string::npos);
   EXPECT_NE(h.find("<div class=\"print-header\">topocal QA report <span class=\"report-id\">" + id), std::string::npos);
   EXPECT_NE(h.find("<div class=\"print-footer\">Report <span class=\"report-id\">" + id), std::string::npos);
@@ -95,13 +128,16 @@ TEST_F(HtmlReportTest, IdInTitleHeaderFooterAndBody) {
   ASSERT_NE(print_css, std::string::npos);
   EXPECT_NE(h.find(".print-header, .print-footer { display: block; position: fixed;", print_css), std::string::npos);
   EXPECT_NE(h.find("@page { size: A4;"), std::string::npos);
+  // Page n of N in the bottom margin of every printed page (CSS paged media margin box).
+  EXPECT_NE(h.find("@bottom-right { content: \"Page \" counter(page) \" of \" counter(pages);"), std::string::npos);
   EXPECT_NE(h.find("<thead><tr><td><div class=\"header-space\">"), std::string::npos);
   EXPECT_NE(h.find("record created 2026-11-25T19:00:00Z"), std::string::npos);
 }
 
 TEST_F(HtmlReportTest, HasEverySection) {
   const std::string& h = *html_;
-  for (const char* id : {"id=\"verdict\"", "id=\"identity\"", "id=\"method\"", "id=\"inputs\"", "id=\"calibration\"",
+  for (const char* id : {"id=\"verdict\"", "id=\"identity\"", "id=\"sign-off\"", "id=\"method\"", "id=\"inputs\"",
+                         "id=\"calibration\"", "id=\"alpha-note\"",
                          "id=\"seidel-sigma\"", "id=\"residuals\"", "id=\"sphere\"", "id=\"paper\"",
                          "id=\"acceptance\"", "id=\"checks\""}) {
     EXPECT_NE(h.find(id), std::string::npos) << id;
@@ -111,6 +147,24 @@ TEST_F(HtmlReportTest, HasEverySection) {
   EXPECT_EQ(Count(h, "<tr data-check="), 7u);
   EXPECT_EQ(Count(h, "<svg class=\"plot\""), 3u);  // per-view RMS, residual vectors, distortion field
   EXPECT_EQ(Count(h, "<rect class=\"bar\""), 1u);  // one view
+  // The hashes are in the appendix, after the acceptance section, not on the first pages.
+  EXPECT_NE(h.find("Appendix A: provenance"), std::string::npos);
+  EXPECT_GT(h.find(record_->unit_json_sha256), h.find("id=\"acceptance\""));
+  EXPECT_GT(h.find(record_->files.front().sha256), h.find("id=\"acceptance\""));
+  // Sign-off fields not given are printed as such; blank lines for signature and date.
+  EXPECT_NE(h.find("<td data-field=\"operator\"><span class=\"undefined\">not given</span>"), std::string::npos);
+  EXPECT_EQ(Count(h, "<td class=\"blank\"></td>"), 2u);
+  // alpha of the sphere: undefined in all four columns, not a number.
+  const std::size_t alpha = h.find("<tr data-quantity=\"alpha_deg\">");
+  ASSERT_NE(alpha, std::string::npos);
+  const std::string alpha_row = h.substr(alpha, h.find("</tr>", alpha) - alpha);
+  EXPECT_EQ(Count(alpha_row, ">undefined<"), 4u) << alpha_row;
+  // The budgets of the two sphere checks (calibration, repeatability, certificate).
+  EXPECT_EQ(Count(h, "<table class=\"data budget\""), 2u);
+  EXPECT_NE(h.find("data-budget=\"sphere_radius_error_mm\""), std::string::npos);
+  EXPECT_NE(h.find("data-budget=\"sphere_power_error_D\""), std::string::npos);
+  EXPECT_NE(h.find("<td>reference ball certificate</td>"), std::string::npos);
+  EXPECT_NE(h.find("no repeated images in the record"), std::string::npos);
   // Every input and record file with its digest.
   for (const auto& in : record_->inputs) EXPECT_NE(h.find(in.sha256), std::string::npos) << in.path;
   for (const auto& f : record_->files) EXPECT_NE(h.find(f.sha256), std::string::npos) << f.name;
@@ -165,7 +219,38 @@ TEST_F(HtmlReportTest, NoNanAndDeterministic) {
   for (const std::string& w : Words(*html_)) {
     EXPECT_TRUE(w != "nan" && w != "inf" && w != "infinity") << w;
   }
-  EXPECT_EQ(RenderHtmlReport(ReadUnitRecord(fixture_->dir), DefaultLimits()), *html_);
+  EXPECT_EQ(RenderHtmlReport(ReadUnitRecord(fixture_->dir), ReportInputs{}), *html_);
+}
+
+TEST(HtmlReport, SignOffAndPreviousCalibrationAreShown) {
+  const auto f = MakeRecord(FreshDir("now"));
+  auto g = MakeRecord(FreshDir("before"));
+  g.unit["created_utc"] = "2025-11-25T19:00:00Z";
+  g.unit["verification"]["corrected"]["radius_error_mm"] = 0.03;  // drifted by 0.0295 mm, beyond U
+  g.WriteUnitJson();
+  const UnitRecord rec = ReadUnitRecord(f.dir), prev = ReadUnitRecord(g.dir);
+  ReportInputs in;
+  in.sign_off = {"A. Tester", "LINE-2", "BALL-7.8-0042", "TGT-2026-007"};
+  in.budget.ball_radius_U_mm = 0.0006;
+  in.previous = &prev;
+  const std::string h = RenderHtmlReport(rec, in);
+  EXPECT_NE(h.find("<td data-field=\"operator\">A. Tester</td>"), std::string::npos);
+  EXPECT_NE(h.find("<td data-field=\"station\">LINE-2</td>"), std::string::npos);
+  EXPECT_NE(h.find("<td data-field=\"ball-certificate\">BALL-7.8-0042</td>"), std::string::npos);
+  EXPECT_NE(h.find("TGT-2026-007"), std::string::npos);
+  EXPECT_NE(h.find("0.0006 mm (certificate)"), std::string::npos);
+  EXPECT_NE(h.find("id=\"previous\""), std::string::npos);
+  EXPECT_NE(h.find("created 2025-11-25T19:00:00Z"), std::string::npos);
+  const std::size_t row = h.find("<td>sphere radius error, corrected</td>", h.find("id=\"previous-table\""));
+  ASSERT_NE(row, std::string::npos);
+  EXPECT_NE(h.substr(row, h.find("</tr>", row) - row).find("changed beyond U"), std::string::npos);
+  // Another unit's record is not a previous calibration of this one.
+  auto other = MakeRecord(FreshDir("other"));
+  other.unit["serial"] = "SN-OTHER";
+  other.WriteUnitJson();
+  const UnitRecord o = ReadUnitRecord(other.dir);
+  in.previous = &o;
+  EXPECT_THROW(RenderHtmlReport(rec, in), model::InputError);
 }
 
 TEST(HtmlReport, FailingRecordSaysFailAndWhy) {
@@ -173,7 +258,7 @@ TEST(HtmlReport, FailingRecordSaysFailAndWhy) {
   f.unit["paper_cornea"]["corrected"]["kx"] = -0.61;  // the uncorrected value: correction did nothing
   f.unit.erase("verification");
   f.WriteUnitJson();
-  const std::string h = RenderHtmlReport(ReadUnitRecord(f.dir), DefaultLimits());
+  const std::string h = RenderHtmlReport(ReadUnitRecord(f.dir), ReportInputs{});
   EXPECT_NE(h.find("data-verdict=\"FAIL\">FAIL"), std::string::npos);
   EXPECT_NE(h.find("No reference sphere was given"), std::string::npos);
   EXPECT_NE(h.find("not verified: the record has no reference-sphere verification"), std::string::npos);

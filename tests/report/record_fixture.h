@@ -128,39 +128,27 @@ inline void WriteMapPng(const std::string& path, int seed) {
   ASSERT_TRUE(cv::imwrite(path, img)) << path;
 }
 
-// A complete, consistent record whose checks all pass the default limits.
-inline RecordFixture MakeRecord(const std::string& dir) {
-  RecordFixture f;
-  f.dir = dir;
-  fs::create_directories(dir);
-  f.calibration = FixtureCalibration();
-  const auto& r = f.calibration;
-  calib::WriteCalibrationFile(f.Path("calibration.yaml"), r, {"data/target-topographer.yaml", {"views/v1.png"},
-                                                              kCreatedUtc});
+inline std::string ResidualsCsv(const calib::CalibrationResult& r) {
   std::string csv = "view,image,corner_id,x_px,y_px,dx_px,dy_px,outlier\n";
   for (const auto& c : r.residuals) {
     csv += fmt::format("{},views/v1.png,{},{:.6f},{:.6f},{:.6f},{:.6f},{}\n", c.view, c.corner_id, c.observed_px.x(),
                        c.observed_px.y(), c.residual_px.x(), c.residual_px.y(), c.outlier ? 1 : 0);
   }
-  model::WriteFileAtomic(f.Path("residuals.csv"), csv);
-  fs::create_directories(f.Path("maps"));
-  int seed = 0;
-  for (const char* name : {"sphere_uncorrected_axial_power", "sphere_corrected_axial_power",
-                           "paper_uncorrected_axial_power", "paper_corrected_axial_power"}) {
-    WriteMapPng(f.Path(fmt::format("maps/{}.png", name)), seed++);
-  }
+  return csv;
+}
 
+// unit.json of a record calibrated with `r` whose checks all pass the default limits, without the keys the writer
+// adds (format, versions, files).
+inline json RecordBody(const calib::CalibrationResult& r, const std::string& serial = "SN-TEST-0001",
+                       const std::string& created_utc = kCreatedUtc) {
   json params = json::array();
   for (const auto& p : r.parameters) {
     params.push_back({{"name", p.name}, {"value", p.value}, {"stddev", p.stddev}, {"fixed", p.fixed}});
   }
   const std::string zero_hash(64, '0');
-  f.unit = {
-      {"format", "topocal-unit-record"},
-      {"format_version", 1},
-      {"tool_version", kVersion},
-      {"serial", "SN-TEST-0001"},
-      {"created_utc", kCreatedUtc},
+  return {
+      {"serial", serial},
+      {"created_utc", created_utc},
       {"settings",
        {{"model", "seidel"}, {"single_view", true}, {"fit_centre", false}, {"sphere_radius_mm", 7.8},
         {"uncertainty_samples", 200}, {"seed", 1}}},
@@ -207,6 +195,28 @@ inline RecordFixture MakeRecord(const std::string& dir) {
           {"pv_tangential_D", 5.6}, {"pv_axial_D", 2.9}, {"height_pv_um", 0.05}, {"height_rms_um", 0.01}}},
         {"uncertainty", Uncertainty(0.001, 0.003)}}},
   };
+}
+
+// A complete, consistent record whose checks all pass the default limits.
+inline RecordFixture MakeRecord(const std::string& dir) {
+  RecordFixture f;
+  f.dir = dir;
+  fs::create_directories(dir);
+  f.calibration = FixtureCalibration();
+  const auto& r = f.calibration;
+  calib::WriteCalibrationFile(f.Path("calibration.yaml"), r, {"data/target-topographer.yaml", {"views/v1.png"},
+                                                              kCreatedUtc});
+  model::WriteFileAtomic(f.Path("residuals.csv"), ResidualsCsv(r));
+  fs::create_directories(f.Path("maps"));
+  int seed = 0;
+  for (const char* name : {"sphere_uncorrected_axial_power", "sphere_corrected_axial_power",
+                           "paper_uncorrected_axial_power", "paper_corrected_axial_power"}) {
+    WriteMapPng(f.Path(fmt::format("maps/{}.png", name)), seed++);
+  }
+  f.unit = RecordBody(r);
+  f.unit["format"] = "topocal-unit-record";
+  f.unit["format_version"] = 1;
+  f.unit["tool_version"] = kVersion;
   f.Seal();
   return f;
 }

@@ -2,8 +2,11 @@
 // with one line, exit 2 and no report file.
 #include <filesystem>
 #include <fstream>
+#include <tuple>
+#include <vector>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "model/io.h"
 #include "tests/cli_harness.h"
@@ -56,6 +59,66 @@ TEST(ReportCli, WritesTheReportOfACompleteRecordTheSameTwice) {
             0);
   const std::string with_file = model::ReadFile(c.out);
   EXPECT_NE(with_file.find("/data/limits.json"), std::string::npos);
+}
+
+// The HTML's verdict attribute, data-verdict="PASS|FAIL" on <body>, and each check row's result.
+std::string HtmlVerdict(const std::string& html) {
+  const std::string key = "<body data-report-id=\"";
+  const std::size_t at = html.find("data-verdict=\"", html.find(key));
+  return html.substr(at + 14, 4);
+}
+std::vector<std::string> HtmlCheckResults(const std::string& html) {
+  std::vector<std::string> out;
+  for (std::size_t at = html.find("<tr data-check="); at != std::string::npos; at = html.find("<tr data-check=", at + 1)) {
+    const std::string row = html.substr(at, html.find("</tr>", at) - at);
+    out.push_back(row.find("<td class=\"pass\">PASS</td>") != std::string::npos ? "PASS" : "FAIL");
+  }
+  return out;
+}
+
+// report --json: the same verdict as the page, check by check, for a PASS and for a FAIL.
+TEST(ReportCli, JsonVerdictEqualsTheHtmlVerdict) {
+  const Case c = MakeCase("json");
+  const std::string dir = fs::path(c.out).parent_path().string();
+  std::string strict = model::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json");
+  const std::string key = "\"paper_conic_error\": {\n      \"max\": 0.05";
+  ASSERT_NE(strict.find(key), std::string::npos);
+  strict.replace(strict.find(key), key.size(), "\"paper_conic_error\": {\n      \"max\": 0.0001");
+  model::WriteFileAtomic(dir + "/strict.json", strict);
+  for (const auto& [limits, expected_exit, expected] :
+       {std::tuple{std::string(), 0, "PASS"}, std::tuple{" --limits " + dir + "/strict.json", 3, "FAIL"}}) {
+    const auto run = RunTopocal("report --unit " + c.record.dir + " --out " + c.out + " --json " + dir +
+                                "/report.json --operator 'A. Tester' --station LINE-2 --ball-certificate B-42 "
+                                "--target-certificate T-7 --ball-radius-U-mm 0.0008" + limits);
+    ASSERT_EQ(run.exit_code, expected_exit) << run.output;
+    const std::string html = model::ReadFile(c.out);
+    const auto j = nlohmann::json::parse(model::ReadFile(dir + "/report.json"));
+    EXPECT_EQ(j.at("format"), "topocal-report");
+    EXPECT_EQ(j.at("verdict"), expected);
+    EXPECT_EQ(HtmlVerdict(html), j.at("verdict").get<std::string>());
+    EXPECT_NE(html.find("data-report-id=\"" + j.at("report_id").get<std::string>() + "\""), std::string::npos);
+    const auto rows = HtmlCheckResults(html);
+    ASSERT_EQ(rows.size(), j.at("checks").size());
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      const auto& check = j.at("checks")[i];
+      EXPECT_EQ(rows[i], check.at("verdict").get<std::string>()) << check.dump();
+      for (const char* field : {"id", "value", "U", "limit", "budget"}) EXPECT_TRUE(check.contains(field)) << field;
+    }
+    EXPECT_EQ(j.at("decision_rule"), "guarded");
+    EXPECT_EQ(j.at("sign_off").at("operator"), "A. Tester");
+    EXPECT_EQ(j.at("sign_off").at("ball_certificate_id"), "B-42");
+    EXPECT_DOUBLE_EQ(j.at("ball_radius_U_mm").get<double>(), 0.0008);
+    EXPECT_EQ(j.at("checks")[1].at("budget").size(), 3u);  // sphere radius: calibration, repeatability, certificate
+  }
+}
+
+TEST(ReportCli, RefusesAPreviousRecordOfAnotherUnitAndABadCertificateU) {
+  Case c = MakeCase("prev");
+  auto other = MakeRecord(fs::path(c.out).parent_path().string() + "/units/SN-OTHER");
+  other.unit["serial"] = "SN-OTHER";
+  other.WriteUnitJson();
+  ExpectRefused(c, " --previous " + other.dir, "the previous record is of unit SN-OTHER, not SN-TEST-0001");
+  ExpectRefused(c, " --ball-radius-U-mm -0.1", "--ball-radius-U-mm");
 }
 
 TEST(ReportCli, RefusesAnIncompleteUnit) {

@@ -1,0 +1,75 @@
+#pragma once
+// The production line's fleet database (docs/fleet.md): unit records ingested into SQLite, the embedded default.
+//
+// Schema version 1 (PRAGMA user_version = 1, PRAGMA application_id = kFleetApplicationId):
+//   units(id INTEGER PRIMARY KEY, serial, unit_json_sha256 UNIQUE, created_utc, station, tool_version, model,
+//         source, ingested_utc)
+//   measurements(unit_id REFERENCES units(id), parameter, value, U, PRIMARY KEY(unit_id, parameter))
+// One row in `units` per record (its unit.json digest is the key: ingestion is idempotent, and a unit calibrated
+// again is a new row with the same serial); one row per charted number in `measurements` (FleetMeasurements).
+//
+// Concurrency: every write is one transaction begun with BEGIN IMMEDIATE (the write lock taken up front, so two
+// writers never deadlock upgrading a read lock) under a busy timeout: processes ingesting at the same time queue,
+// and each commits all of its records or none.
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "report/unit_record_reader.h"
+
+struct sqlite3;
+
+namespace topocal::report {
+
+inline constexpr int kFleetSchemaVersion = 1;
+inline constexpr std::int32_t kFleetApplicationId = 0x54504346;  // "TPCF"
+// How long a writer waits for another process's transaction before giving up (exit 1, nothing written).
+inline constexpr int kFleetBusyTimeoutMs = 60000;
+
+struct FleetMeasurement {
+  std::string parameter;    // e.g. "sphere_radius_error_mm" (docs/fleet.md lists them)
+  double value = 0;         // signed
+  std::optional<double> U;  // expanded uncertainty, k = 2, when known
+};
+
+// The numbers of one record that the fleet view charts: calibration RMS, Seidel sigma, every fitted calibration
+// parameter (calib_<name>), the reference sphere's corrected radius and power errors (U from the report's budget
+// with its defaults), the paper cornea's corrected - truth of r_x, r_y, k_x, k_y.
+std::vector<FleetMeasurement> FleetMeasurements(const UnitRecord& record);
+
+struct FleetUnit {
+  std::int64_t id = 0;
+  std::string serial, unit_json_sha256, created_utc, station, tool_version, model, source, ingested_utc;
+  std::map<std::string, FleetMeasurement> measurements;  // by parameter
+};
+
+struct IngestResult {
+  int added = 0;    // new records
+  int present = 0;  // already in the database (same unit.json digest): left as they were
+};
+
+class FleetDb {
+ public:
+  // Opens the database at `path`, creating it (and the schema) when `create` and it does not exist. Throws
+  // model::InputError "PATH: problem" when it cannot be opened or created, is read-only while `create` (a writer)
+  // asks for writing, is not a topocal fleet database, or has another schema version.
+  FleetDb(const std::string& path, bool create);
+  ~FleetDb();
+  FleetDb(const FleetDb&) = delete;
+  FleetDb& operator=(const FleetDb&) = delete;
+
+  // Adds the records in one transaction: all or none. `station` is stored with each new record.
+  IngestResult Ingest(const std::vector<UnitRecord>& records, const std::string& station);
+  // Every unit with its measurements, in order of created_utc, then id.
+  std::vector<FleetUnit> Units() const;
+
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  sqlite3* db_ = nullptr;
+};
+
+}  // namespace topocal::report

@@ -1,0 +1,43 @@
+#pragma once
+// Writing a unit record (docs/unit-record.md): the one writer of the format, beside its reader
+// (report/unit_record_reader.h). `topocal unit calibrate` fills it with a calibration; the report and fleet tests
+// and the fleet generator fill it with generated values, through the same code.
+//
+// The record is staged in a temporary sibling directory (`<out>.tmp-<pid>`) and renamed into place only when
+// complete: a failed write leaves no record, and an earlier record at `out` untouched until the new one is whole.
+// Commit() adds `format`, `format_version`, `tool_version` and `files` (every staged file except unit.json, sorted,
+// with its SHA-256) to the body, refuses a non-finite number (nlohmann writes it as null, which a reader would take
+// for a missing value) and writes unit.json with two-space indentation.
+#include <filesystem>
+#include <string>
+#include <string_view>
+
+#include <nlohmann/json.hpp>
+
+namespace topocal::report {
+
+// Throws std::runtime_error "KEY: not a finite number" for the first NaN or infinity in `j` (dotted key path).
+void RequireFiniteNumbers(const nlohmann::json& j);
+
+class UnitRecordWriter {
+ public:
+  // Creates the staging directory (with `maps/`). Throws model::InputError naming `out` when it cannot.
+  explicit UnitRecordWriter(std::filesystem::path out);
+  ~UnitRecordWriter();  // removes the staging directory unless committed
+  UnitRecordWriter(const UnitRecordWriter&) = delete;
+  UnitRecordWriter& operator=(const UnitRecordWriter&) = delete;
+
+  // Where the record's files go before the commit (callers may write there directly, e.g. maps/*.png).
+  const std::filesystem::path& staging_dir() const { return staging_; }
+  // Writes `name` (relative, inside the record) under the staging directory, creating parent directories.
+  void WriteFile(const std::string& name, std::string_view bytes) const;
+  // Completes and writes unit.json, then moves the record into place. Throws std::runtime_error for a non-finite
+  // number (nothing written), model::InputError when the record cannot be put in place.
+  void Commit(nlohmann::json body);
+
+ private:
+  std::filesystem::path out_, staging_;
+  bool committed_ = false;
+};
+
+}  // namespace topocal::report

@@ -1,0 +1,82 @@
+#pragma once
+// A generated production line for the fleet tests: unit records with seeded, varied numbers, written through the
+// project's record writer (report/unit_record_writer.h) so that their digests are valid. The calibration is one real
+// single-view Seidel calibration (record_fixture.h) whose k1 is scaled per unit; the reference-sphere and paper-cornea
+// numbers are drawn around what a corrected unit measures.
+#include <cmath>
+#include <ctime>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "calib/calibration_file.h"
+#include "report/unit_record_writer.h"
+#include "tests/report/record_fixture.h"
+
+namespace topocal::report::testing {
+
+struct LineUnit {
+  std::string serial, created_utc;
+  double sigma_scale = 1;        // k1 and sigma x this
+  double radius_error_mm = 0;    // reference sphere, corrected
+  double rms_px = 0.03;
+  double kx_error = 0, ky_error = 0;
+};
+
+// Scatter of the generated line (1 sigma), the size a corrected unit shows (docs/closed-loop.md: k within 4e-4).
+inline constexpr double kLineRadiusScatterMm = 0.002, kLineRmsScatterPx = 0.004, kLineConicScatter = 3e-4,
+                        kLineSigmaScatter = 0.01;
+
+// `n` units, one an hour from 2026-10-01T08:00Z, serials PREFIX-0001...; seeded. From unit `drift_from` on, the
+// sphere radius error grows by `drift_mm_per_unit` per unit.
+inline std::vector<LineUnit> GenerateLine(const std::string& prefix, int n, unsigned seed, int drift_from = -1,
+                                          double drift_mm_per_unit = 0, int first_hour = 0) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> z(0.0, 1.0);
+  std::vector<LineUnit> line;
+  for (int i = 0; i < n; ++i) {
+    LineUnit u;
+    u.serial = fmt::format("{}-{:04d}", prefix, i + 1);
+    const std::time_t t = 1790841600 + 3600 * static_cast<std::time_t>(first_hour + i);  // 2026-10-01T08:00:00Z
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+    u.created_utc = buf;
+    u.sigma_scale = 1 + kLineSigmaScatter * z(rng);
+    u.radius_error_mm = 0.001 + kLineRadiusScatterMm * z(rng);
+    if (drift_from >= 0 && i >= drift_from) u.radius_error_mm += drift_mm_per_unit * (i - drift_from + 1);
+    u.rms_px = 0.03 + kLineRmsScatterPx * z(rng);
+    u.kx_error = kLineConicScatter * z(rng);
+    u.ky_error = kLineConicScatter * z(rng);
+    line.push_back(u);
+  }
+  return line;
+}
+
+// Writes the record of `u` to `out` through report::UnitRecordWriter.
+inline void WriteLineUnit(const std::string& out, const calib::CalibrationResult& base, const LineUnit& u) {
+  calib::CalibrationResult r = base;
+  r.camera.dist[0] *= u.sigma_scale;
+  r.seidel->sigma_per_mm2 *= u.sigma_scale;
+  for (auto& p : r.parameters) {
+    if (p.name == "k1") p.value *= u.sigma_scale;
+  }
+  r.rms_px = u.rms_px;
+  r.per_view_rms_px.at(0) = u.rms_px;
+  json body = RecordBody(r, u.serial, u.created_utc);
+  auto& corrected = body["verification"]["corrected"];
+  corrected = StageSphere(7.8, u.radius_error_mm, 0.0002);
+  auto& paper = body["paper_cornea"]["corrected"];
+  paper["kx"] = -0.43 + u.kx_error;
+  paper["ky"] = -0.25 + u.ky_error;
+  UnitRecordWriter writer(out);
+  writer.WriteFile("calibration.yaml",
+                   calib::CalibrationFileText(r, {"data/target-topographer.yaml", {"views/v1.png"}, u.created_utc}));
+  writer.WriteFile("residuals.csv", ResidualsCsv(r));
+  writer.Commit(body);
+}
+
+}  // namespace topocal::report::testing

@@ -1,0 +1,81 @@
+// topocal fleet: the production line's unit records in a SQLite database (report/fleet_db.h) and its fleet report
+// (report/fleet_report.h). docs/fleet.md.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "model/io.h"
+#include "report/acceptance.h"
+#include "report/fleet_db.h"
+#include "report/fleet_report.h"
+#include "report/unit_record_reader.h"
+#include "tools/commands.h"
+
+namespace topocal::tools {
+namespace {
+
+struct IngestArgs {
+  std::string db, station = "unassigned";
+  std::vector<std::string> records;
+};
+
+struct FleetReportArgs {
+  std::string db, out, csv, json, limits;
+};
+
+void Ingest(const IngestArgs& a) {
+  if (a.station.empty()) throw model::InputError("--station: must not be empty");
+  // Every record is read and verified before the database is touched: one bad record refuses the batch.
+  std::vector<report::UnitRecord> records;
+  for (const std::string& dir : a.records) records.push_back(report::ReadUnitRecord(dir));
+  report::FleetDb db(a.db, /*create=*/true);
+  const report::IngestResult r = db.Ingest(records, a.station);
+  fmt::print("{}: {} record(s) added, {} already present; {} record(s) in the database\n", a.db, r.added, r.present,
+             db.Units().size());
+}
+
+void Report(const FleetReportArgs& a) {
+  const report::Limits limits = a.limits.empty() ? report::DefaultLimits() : report::LoadLimits(a.limits);
+  const report::FleetDb db(a.db, /*create=*/false);
+  const report::FleetAnalysis analysis = report::AnalyseFleet(a.db, db.Units(), limits);
+  if (analysis.units.empty()) throw model::InputError(fmt::format("{}: the fleet database holds no unit", a.db));
+  const std::string html = report::RenderFleetHtml(analysis);
+  const std::string csv = a.csv.empty() ? "" : report::FleetCsv(analysis);
+  const std::string json = a.json.empty() ? "" : report::FleetJson(analysis).dump(2) + "\n";
+  model::WriteFileAtomic(a.out, html);
+  if (!a.csv.empty()) model::WriteFileAtomic(a.csv, csv);
+  if (!a.json.empty()) model::WriteFileAtomic(a.json, json);
+  int passed = 0;
+  for (const auto& v : analysis.verdicts) passed += v.pass ? 1 : 0;
+  fmt::print("{}: {} records, {} PASS, {} FAIL, {} out-of-control signal(s)\n", a.out, analysis.units.size(), passed,
+             static_cast<int>(analysis.units.size()) - passed, analysis.out_of_control.size());
+}
+
+}  // namespace
+
+void AddFleetCommand(CLI::App& app) {
+  auto* fleet = app.add_subcommand("fleet", "The production line's unit records in a SQLite database, and its report");
+  fleet->require_subcommand(1);
+
+  auto ia = std::make_shared<IngestArgs>();
+  auto* ingest = fleet->add_subcommand("ingest", "Add unit records to the fleet database (idempotent; a record whose "
+                                                 "digests do not verify is refused and nothing is added)");
+  ingest->add_option("--db", ia->db, "Fleet database (SQLite; created when absent)")->required();
+  ingest->add_option("--station", ia->station, "Calibration station stored with the new records")
+      ->capture_default_str();
+  ingest->add_option("records", ia->records, "Unit record directories (units/*/)")->required();
+  ingest->callback([ia] { Ingest(*ia); });
+
+  auto ra = std::make_shared<FleetReportArgs>();
+  auto* rep = fleet->add_subcommand("report", "Fleet report: distributions, control charts, units to look at");
+  rep->add_option("--db", ra->db, "Fleet database")->required();
+  rep->add_option("--out", ra->out, "Output HTML file")->required();
+  rep->add_option("--csv", ra->csv, "Also write every unit's numbers as CSV");
+  rep->add_option("--json", ra->json, "Also write the analysis as JSON");
+  rep->add_option("--limits", ra->limits, "Acceptance limits (JSON, see data/limits.json); default: built in");
+  rep->callback([ra] { Report(*ra); });
+}
+
+}  // namespace topocal::tools
