@@ -66,8 +66,18 @@ void CommitDirectory(const fs::path& staged, const fs::path& out) {
 
 void RequireFiniteNumbers(const json& j) { CheckFinite(j, ""); }
 
+namespace {
+// "units/SN/" and "units/SN" are the same record: without the trailing separator, so that the staging directory
+// ("units/SN.tmp-PID") is a sibling of the record and not inside it (which made every such run fail).
+fs::path RecordPath(fs::path out) {
+  out = out.lexically_normal();
+  if (out.filename().empty() && out.has_parent_path()) out = out.parent_path();
+  return out;
+}
+}  // namespace
+
 UnitRecordWriter::UnitRecordWriter(fs::path out)
-    : out_(std::move(out)), staging_(out_.string() + fmt::format(".tmp-{}", ::getpid())) {
+    : out_(RecordPath(std::move(out))), staging_(out_.string() + fmt::format(".tmp-{}", ::getpid())) {
   std::error_code ec;
   fs::remove_all(staging_, ec);
   fs::create_directories(staging_ / "maps", ec);

@@ -178,6 +178,11 @@ void AddUnitCommand(CLI::App& app) {
   cal->add_option("--images", *images, "Target images, a glob(3) pattern (quote it); one image = single view")->required();
   cal->add_option("--reference-sphere", r->reference_sphere, "Raw spot image of the reference sphere");
   cal->add_option("--sphere-radius-mm", r->sphere_radius_mm, "Radius of the reference sphere, mm");
+  cal->add_option("--balls", r->balls,
+                  "Reference-ball images for the device stage (screen pose, principal point, a, distortion; "
+                  "docs/device.md); the reference sphere is then a held-out ball");
+  cal->add_option("--radii-mm", r->ball_radii_mm, "Certified radius of each ball, in the order of --balls, mm");
+  cal->add_option("--device", r->device, "Nominal device (JSON) the device stage starts from [the camera, nominal]");
   cal->add_option("--out", r->out, "Unit record directory (e.g. units/SN/)")->required();
   AddCommonOptions(cal, r.get());
   cal->callback([r, images] {

@@ -24,7 +24,10 @@
 #include "model/sha256.h"
 #include "model/topographer_camera.h"
 #include "model/version.h"
+#include "model/device.h"
 #include "pipeline/detection_plane.h"
+#include "pipeline/device_calibration.h"
+#include "pipeline/device_verification.h"
 #include "pipeline/unit_verification.h"
 #include "report/unit_record_writer.h"
 #include "tools/file_glob.h"
@@ -106,6 +109,8 @@ struct LoadedInputs {
   calib::TargetDescription target;
   calib::CalibrationOptions options;
   cv::Mat sphere_image;  // empty without a reference sphere
+  model::Device nominal_device;
+  std::vector<pipeline::BallImage> balls;  // empty: no device stage
   json provenance = json::array();
 };
 
@@ -129,12 +134,28 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
     throw model::InputError(fmt::format("--uncertainty {}: 0 (none) or at least 2 draws", r.uncertainty_samples));
   }
   if (r.images.empty()) throw model::InputError("--images: no image given");
+  if (r.balls.size() != r.ball_radii_mm.size()) {
+    throw model::InputError(fmt::format("--radii-mm: {} radii for {} ball images (one certified radius per image)",
+                                        r.ball_radii_mm.size(), r.balls.size()));
+  }
+  if (!r.device.empty() && r.balls.empty()) throw model::InputError("--device: goes with --balls (the device stage)");
   if (fs::exists(r.out) && !fs::exists(fs::path(r.out) / "unit.json")) {
     throw model::InputError(fmt::format("--out {}: exists and is not a unit record; not overwriting it", r.out));
   }
   LoadedInputs in;
   in.config = model::LoadConfig(r.config);
   in.camera = model::LoadTopographerCamera(r.camera);
+  if (!r.device.empty()) {
+    in.nominal_device = model::LoadDevice(r.device).device;
+    if (in.nominal_device.camera.width_px != in.camera.width_px ||
+        in.nominal_device.camera.height_px != in.camera.height_px) {
+      throw model::InputError(fmt::format("{}: the device's sensor is {} x {} px but {} says {} x {} px", r.device,
+                                          in.nominal_device.camera.width_px, in.nominal_device.camera.height_px,
+                                          r.camera, in.camera.width_px, in.camera.height_px));
+    }
+  } else {
+    in.nominal_device = model::NominalDevice(in.camera);
+  }
   in.target = calib::LoadTargetDescription(r.target);
 
   const auto model_kind = calib::ParseDistortionModel(r.model);
@@ -172,7 +193,79 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
     }
     CheckImageSize(in.sphere_image, r.reference_sphere, in, r);
   }
+  if (!r.device.empty()) add("device", r.device);
+  for (size_t i = 0; i < r.balls.size(); ++i) {
+    // Reference balls for a topographer: radii of human corneas and a little beyond.
+    if (!(r.ball_radii_mm[i] >= 3.0 && r.ball_radii_mm[i] <= 20.0)) {
+      throw model::InputError(fmt::format("--radii-mm: {} for {} is not a reference-ball radius (3-20 mm)",
+                                          r.ball_radii_mm[i], r.balls[i]));
+    }
+    add("ball", r.balls[i]);
+    pipeline::BallImage b{r.balls[i], cv::imread(r.balls[i], cv::IMREAD_UNCHANGED), r.ball_radii_mm[i]};
+    if (b.image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", r.balls[i]));
+    CheckImageSize(b.image, r.balls[i], in, r);
+    in.balls.push_back(std::move(b));
+  }
   return in;
+}
+
+// The device stage: the device fitted to the balls, and what it is worth beside the lens-only calibration.
+struct DeviceStage {
+  pipeline::DeviceCalibration calibration;
+  model::Device lens_only;
+  std::optional<pipeline::HeldOutBall> held_out;
+  pipeline::ThreeWay paper;
+};
+
+std::optional<DeviceStage> CalibrateDeviceStage(const UnitRequest& r, const LoadedInputs& in,
+                                                const model::Distortion& lens) {
+  if (in.balls.empty()) return std::nullopt;
+  DeviceStage d;
+  try {
+    d.calibration = pipeline::CalibrateDevice(in.balls, in.nominal_device, in.config, {});
+  } catch (const std::invalid_argument& e) {
+    throw model::InputError(e.what());
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(fmt::format("{}: {}", r.serial, e.what()));
+  }
+  if (!d.calibration.fit.ok) {
+    throw std::runtime_error(fmt::format("{}: device calibration failed: {}", r.serial, d.calibration.fit.message));
+  }
+  d.lens_only = in.nominal_device;
+  d.lens_only.distortion = lens;
+  const auto& device = d.calibration.fit.device;
+  try {
+    if (!in.sphere_image.empty()) {
+      d.held_out = pipeline::VerifyHeldOutBall(in.sphere_image, r.sphere_radius_mm, in.nominal_device, d.lens_only,
+                                               device, in.config);
+    }
+    d.paper = pipeline::PaperCorneaThroughDevice(in.nominal_device, d.lens_only, device, in.config);
+  } catch (const std::invalid_argument& e) {
+    throw model::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(fmt::format("{}: {}", r.serial, e.what()));
+  }
+  return d;
+}
+
+json ThreeWayJson(const pipeline::ThreeWay& t) {
+  return {{"uncorrected", Numbers(t.uncorrected.numbers)},
+          {"lens_only", Numbers(t.lens_only.numbers)},
+          {"device", Numbers(t.device.numbers)}};
+}
+
+json DeviceJson(const DeviceStage& d) {
+  json j = pipeline::DeviceCalibrationJson(d.calibration);
+  j["file"] = "device.json";
+  if (d.held_out) {
+    const auto& h = *d.held_out;
+    j["held_out_ball"] = ThreeWayJson(h.stages);
+    j["held_out_ball"]["radius_true_mm"] = h.radius_true_mm;
+    j["held_out_ball"]["power_true_D"] = h.power_true_D;
+    j["held_out_ball"]["spots_indexed"] = h.spots_indexed;
+  }
+  j["paper_cornea"] = ThreeWayJson(d.paper);
+  return j;
 }
 
 struct Calibration {
@@ -344,7 +437,7 @@ void WriteRecordMaps(const std::string& dir, const std::optional<pipeline::Spher
 
 std::vector<std::string> Summary(const UnitRequest& r, const Calibration& c, const DistortionField& field,
                                  const std::optional<pipeline::SphereVerification>& sphere,
-                                 const pipeline::SimulatedCornea& paper) {
+                                 const pipeline::SimulatedCornea& paper, const std::optional<DeviceStage>& device) {
   const auto& result = c.result;
   std::vector<std::string> lines;
   lines.push_back(fmt::format("{}: {} {} calibration, {} view(s), {} corners, rms {:.4f} px{}", r.serial,
@@ -370,6 +463,27 @@ std::vector<std::string> Summary(const UnitRequest& r, const Calibration& c, con
                               paper.uncorrected.numbers.kx, paper.corrected.numbers.kx, u("kx"),
                               paper.uncorrected.numbers.ky, paper.corrected.numbers.ky, u("ky"), paper.truth.kx,
                               paper.truth.ky));
+  if (device) {
+    const auto& f = device->calibration.fit;
+    lines.push_back(fmt::format("  device from {} balls: {}", device->calibration.detections.size(), f.message));
+    for (const char* name : {"rx_deg", "ry_deg", "principal_point_u_px", "principal_point_v_px", "a_mm"}) {
+      if (const auto p = f.Parameter(name)) {
+        lines.push_back(fmt::format("    {:<22} {:>12.6g} +- {:.2g}", p->name, p->value, p->stddev));
+      }
+    }
+    if (device->held_out) {
+      const auto& h = *device->held_out;
+      const auto err = [&](const pipeline::StageResult& st) { return st.numbers.radius_mm - h.radius_true_mm; };
+      lines.push_back(fmt::format("  held-out ball R {} mm: radius error {:+.4f} (uncorrected), {:+.4f} (lens only), "
+                                  "{:+.4f} mm (device)",
+                                  h.radius_true_mm, err(h.stages.uncorrected), err(h.stages.lens_only),
+                                  err(h.stages.device)));
+    }
+    const auto& pc = device->paper;
+    lines.push_back(fmt::format("  paper cornea through the unit: kx {:.4f} (uncorrected), {:.4f} (lens only), {:.4f} "
+                                "(device); truth {}",
+                                pc.uncorrected.numbers.kx, pc.lens_only.numbers.kx, pc.device.numbers.kx, paper.truth.kx));
+  }
   lines.push_back(fmt::format("  -> {}", r.out));
   return lines;
 }
@@ -409,6 +523,13 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
   }
   const auto paper = pipeline::SimulateThroughCalibratedCamera(unit, in.camera, in.config, check);
   const auto field = MeasureDistortionField(c.result.camera, in, r.serial);
+  std::optional<DeviceStage> device;
+  if (!in.balls.empty()) {
+    std::string why;
+    const auto lens = pipeline::DistortionOnDetectionPlane(c.result.camera, in.camera, &why);
+    if (!lens) throw std::runtime_error(fmt::format("{}: the calibration cannot be put on the detection plane: {}", r.serial, why));
+    device = CalibrateDeviceStage(r, in, *lens);
+  }
 
   // The record, staged and committed whole.
   report::UnitRecordWriter writer(r.out);
@@ -416,6 +537,10 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
   model::WriteFileAtomic((dir / "calibration.yaml").string(), cal_text);
   model::WriteFileAtomic((dir / "residuals.csv").string(), ResidualsCsv(c));
   WriteRecordMaps((dir / "maps").string(), sphere, paper, in.config);
+  if (device) {
+    model::WriteFileAtomic((dir / "device.json").string(),
+                           model::DeviceToJson(device->calibration.fit.device, pipeline::DeviceCalibrationJson(device->calibration)));
+  }
 
   json record;
   record["serial"] = r.serial;
@@ -425,6 +550,7 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
                         {"fit_centre", r.fit_centre},
                         {"fixed", r.fixed},
                         {"sphere_radius_mm", r.sphere_radius_mm},
+                        {"ball_radii_mm", r.ball_radii_mm},
                         {"uncertainty_samples", r.uncertainty_samples},
                         {"seed", r.seed}};
   record["inputs"] = in.provenance;
@@ -437,13 +563,14 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
   record["calibration"] = CalibrationJson(c, field, cam);
   if (sphere) record["verification"] = VerificationJson(*sphere, r, check);
   record["paper_cornea"] = PaperCorneaJson(paper, check);
+  if (device) record["device"] = DeviceJson(*device);
   try {
     report::RequireFiniteNumbers(record);
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(fmt::format("{}: the result is not usable: {}", r.serial, e.what()));
   }
   writer.Commit(std::move(record));  // adds format, versions and the files' digests
-  return {r.serial, r.out, Summary(r, c, field, sphere, paper)};
+  return {r.serial, r.out, Summary(r, c, field, sphere, paper, device)};
 }
 
 UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults) {
