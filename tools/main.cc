@@ -32,6 +32,7 @@ int main(int argc, char** argv) {
   topocal::tools::AddUnitCommand(app);
   topocal::tools::AddHarnessCommand(app);
   topocal::tools::AddReportCommand(app);
+  topocal::tools::AddDeviceCommand(app);
   topocal::tools::AddFleetCommand(app);
   try {
     app.parse(argc, argv);
