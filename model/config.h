@@ -12,12 +12,15 @@
 #include <vector>
 
 #include "model/distortion.h"
+#include "model/io.h"
 
 namespace topocal::model {
 
-class ConfigError : public std::runtime_error {
+// Bad input in a configuration-like file (JSON or YAML the user wrote): a kind of model::InputError, so that every
+// reader's bad input is caught, and reported with exit 2, the same way.
+class ConfigError : public InputError {
  public:
-  using std::runtime_error::runtime_error;
+  using InputError::InputError;
 };
 
 struct IdealImageParams {

@@ -162,14 +162,7 @@ std::optional<std::string> Device::Invalid() const {
 }
 
 DeviceFile ParseDevice(const std::string& json_text, const std::string& origin) {
-  json j;
-  try {
-    j = json::parse(json_text);
-  } catch (const json::parse_error& e) {
-    throw InputError(fmt::format("{}: not valid JSON (byte {})", origin, e.byte));
-  } catch (const json::exception& e) {  // out_of_range for a number like 1e999: bad input too
-    throw InputError(fmt::format("{}: not valid JSON: {}", origin, e.what()));
-  }
+  const json j = ParseJsonStrict(json_text, origin);
   JsonSection top(j, origin, "");
   if (top.String("format") != kFormat) top.Fail("format", fmt::format("must be \"{}\"", kFormat));
   const json& version = top.Get("format_version");

@@ -22,6 +22,15 @@ inline std::string QuoteJsonValue(const nlohmann::json& v) {
   return s;
 }
 
+// The one entry point for JSON text a reader takes from a file: refuses input that could crash or fool the parser
+// before parsing it — more than kMaxJsonBytes, nesting deeper than kMaxJsonDepth (nlohmann's parser and dump()
+// recurse: deeply nested input overflowed the stack) — and, while parsing, a key given twice in one object (which
+// nlohmann would silently resolve to the last) and a number beyond double's range. Every failure is one
+// ConfigError "ORIGIN: problem" (exit 2).
+inline constexpr size_t kMaxJsonBytes = 64u << 20;
+inline constexpr int kMaxJsonDepth = 64;
+nlohmann::json ParseJsonStrict(const std::string& text, const std::string& origin);
+
 class JsonSection {
  public:
   using json = nlohmann::json;

@@ -145,14 +145,7 @@ json CameraToJson(const TopographerCamera& c) {
 }
 
 TopographerCamera ParseTopographerCamera(const std::string& json_text, const std::string& origin) {
-  json j;
-  try {
-    j = json::parse(json_text);
-  } catch (const json::parse_error& e) {
-    throw InputError(fmt::format("{}: not valid JSON (byte {})", origin, e.byte));
-  } catch (const json::exception& e) {  // out_of_range for a number like 1e999: bad input too
-    throw InputError(fmt::format("{}: not valid JSON: {}", origin, e.what()));
-  }
+  const json j = ParseJsonStrict(json_text, origin);
   // A device file (model/device.h) carries the camera in its "camera" section.
   if (j.is_object() && j.contains("format") && j.contains("camera")) return CameraFromJson(j.at("camera"), origin, "camera");
   return CameraFromJson(j, origin, "");

@@ -151,6 +151,14 @@ TEST(DeviceFile, RoundTripsAndRefusesBadInput) {
   EXPECT_NE(error_of(bad.dump()).find("distortion.model: must be \"seidel\" or \"brown\""), std::string::npos);
   EXPECT_NE(error_of("{\"format\": \"topocal-device\", \"format_version\": 1e999}").find("not valid JSON"),
             std::string::npos);
+  // Input that could crash or fool a parser: nesting beyond the limit (a stack overflow in nlohmann's recursion),
+  // a key given twice (silently the last one before).
+  EXPECT_NE(error_of(std::string(100000, '[') + std::string(100000, ']')).find("nested deeper than 64 levels"),
+            std::string::npos);
+  bad = j;
+  std::string twice = bad.dump();
+  twice.insert(1, "\"format_version\": 7, ");
+  EXPECT_EQ(error_of(twice), "dev.json: format_version: given twice in one object");
   // A camera file given where a device is expected is a clear error; a device file works as a camera file.
   EXPECT_NE(error_of(model::TopographerCameraToJson(device.camera)).find("format: missing"), std::string::npos);
   EXPECT_EQ(model::ParseTopographerCamera(text, "dev.json").principal_point_px, device.camera.principal_point_px);
