@@ -25,8 +25,8 @@ constexpr int kFieldArrowsAcross = 16;
 constexpr double kZoomBelowFraction = 0.5;
 constexpr double kZoomMargin = 0.15;
 // Map kinds and stages in the order they are shown (docs/unit-record.md names: <case>_<stage>_<map>.png).
-constexpr const char* kMapKinds[] = {"axial_power", "tangential_power", "height", "height_difference"};
-constexpr const char* kMapTitles[] = {"Axial power", "Tangential power", "Height", "Height difference"};
+constexpr const char* kMapKinds[] = {"axial_power", "tangential_power", "elevation", "height_difference"};
+constexpr const char* kMapTitles[] = {"Axial power", "Tangential power", "Elevation above the best-fit sphere", "Height difference"};
 
 std::string H(std::string_view s) { return EscapeXml(s); }
 
