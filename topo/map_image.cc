@@ -298,6 +298,21 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   if (contour_step > 0) footer.push_back(fmt::format("contours every {:.{}f} {}", contour_step, Decimals(contour_step), map.unit));
   footer.push_back((options.eye.empty() ? std::string("test surface (no eye)") : "eye " + options.eye) + "; " +
                    options.orientation);
+  // How much of the map lies beyond the colour range (drawn in the end colours), from its samples with data.
+  int with_data = 0, below = 0, above = 0;
+  for (double v : map.values) {
+    if (!std::isfinite(v)) continue;
+    ++with_data;
+    below += v < vmin ? 1 : 0;
+    above += v > vmax ? 1 : 0;
+  }
+  if (below + above > 0) {
+    const auto pct = [&](int n) { return fmt::format("{:.0f} %", std::max(1.0, std::round(100.0 * n / with_data))); };
+    std::string beyond = "beyond the scale (end colours):";
+    if (below) beyond += fmt::format(" {} below {:.{}f} {}", pct(below), vmin, Decimals(tick_step), map.unit);
+    if (above) beyond += fmt::format("{} {} above {:.{}f} {}", below ? ";" : "", pct(above), vmax, Decimals(tick_step), map.unit);
+    footer.push_back(beyond);
+  }
   const int footer_lines = static_cast<int>(footer.size());
   const int y_axis_label_x = s + label_font.height_px + 2;  // centre of the rotated "y (mm)"
   const cv::Rect plot(y_axis_label_x + label_font.height_px + 2 + s + y_label_w + s / 2 + tick_len, header, plot_w,
@@ -600,9 +615,9 @@ MapScale SelectMapScale(const std::vector<const GridMap*>& maps, const MapScaleR
     if (request.low) {
       a = *request.low;
       b = *request.high;
-      // Widen by whole steps to hold every value (anchored on the standard range's boundaries).
-      if (has_data && lo < a) a -= step * std::ceil((a - lo) / step - 1e-9);
-      if (has_data && hi > b) b += step * std::ceil((hi - b) / step - 1e-9);
+      // Widen by whole steps to hold every value (anchored on the standard range's boundaries) when asked.
+      if (request.widen_to_data && has_data && lo < a) a -= step * std::ceil((a - lo) / step - 1e-9);
+      if (request.widen_to_data && has_data && hi > b) b += step * std::ceil((hi - b) / step - 1e-9);
     } else {
       if (!has_data) lo = 0, hi = 0;
       a = step * std::floor(lo / step + 1e-9);

@@ -51,20 +51,23 @@ struct MapImageOptions {
 // How the colour range of a set of maps is chosen (docs/maps.md, "Scales"). One scale is selected for every map of
 // a set meant to be compared (a sweep, before/after, a unit's maps of one kind) and drawn on each of them.
 enum class MapScaleKind {
-  kAbsolute,    // fixed steps: the range [low, high] when given, widened by whole steps to hold the data; else the
-                // data rounded out to whole steps, widened symmetrically to at least kMinAbsoluteSteps steps
+  kAbsolute,    // fixed steps: the range [low, high] when given (widened by whole steps to hold the data only when
+                // widen_to_data); else the data rounded out to whole steps, widened symmetrically to at least
+                // kMinAbsoluteSteps steps
   kNormalised,  // the set's own range, at least min_span wide (centred on the data), rounded out to round ticks
 };
 struct MapScaleRequest {
   MapScaleKind kind = MapScaleKind::kNormalised;
   double step = 0;                    // absolute: the colour step (> 0)
   std::optional<double> low, high;    // absolute: the standard range, multiples of step apart
+  bool widen_to_data = false;         // absolute with a range: widen it by whole steps to hold the set's data
   double min_span = 0;                // normalised: the smallest range drawn (so that a sphere looks flat)
   bool IsValid(std::string* why) const;
 };
 // The standard absolute power scale: 1.5 D steps over 35.5-50.5 D, the range of normal corneas, after the
-// Klyce-Wilson standardized scale (Wilson, Klyce & Husseini, Ophthalmology 1993;100:1723-7). Every power map on it
-// shares one scale, whatever its data (values outside widen it by whole steps).
+// Klyce-Wilson standardized scale (Wilson, Klyce & Husseini, Ophthalmology 1993;100:1723-7). Fixed: every power map
+// on it shares one scale whatever its data, even when drawn one at a time (a sweep, a unit's record); values beyond
+// it take the end colours and the map says how much of it lies beyond.
 inline constexpr double kStandardPowerStepD = 1.5, kStandardPowerLowD = 35.5, kStandardPowerHighD = 50.5;
 inline constexpr int kMinAbsoluteSteps = 10;
 // Normalised scales: the smallest span drawn. 1 D: four of the 0.25 D steps a clinician acts on, so a map varying

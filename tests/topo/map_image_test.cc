@@ -336,11 +336,22 @@ TEST(MapScale, AbsoluteScalesStepFromTheStandardRange) {
   EXPECT_DOUBLE_EQ(standard.value_max, 50.5);
   EXPECT_DOUBLE_EQ(standard.contour_step, 1.5);
   EXPECT_EQ(standard.label, "absolute scale, 1.5 D steps");
-  // A steep cornea beyond the range widens it by whole steps, anchored on the standard boundaries.
-  const GridMap steep = Disc(41, 4.0, "D", [](double, double) { return 52.0; });
-  const MapScale wide = SelectMapScale({&sphere, &steep}, StandardPowerScale());
+  // A steep cornea beyond the range: the standard scale stays fixed (shared by maps drawn one at a time) and the map
+  // says how much of it is beyond; asked to, the range widens by whole steps anchored on the standard boundaries.
+  const GridMap steep = Disc(41, 4.0, "D", [](double x, double) { return 49.0 + x; });  // 45-53 D
+  const MapScale fixed = SelectMapScale({&sphere, &steep}, StandardPowerScale());
+  EXPECT_DOUBLE_EQ(fixed.value_max, 50.5);
+  MapScaleRequest widen = StandardPowerScale();
+  widen.widen_to_data = true;
+  const MapScale wide = SelectMapScale({&sphere, &steep}, widen);
   EXPECT_DOUBLE_EQ(wide.value_min, 35.5);
-  EXPECT_DOUBLE_EQ(wide.value_max, 52.0);
+  EXPECT_DOUBLE_EQ(wide.value_max, 53.5);
+  MapImageOptions o;
+  o.size_px = 200;
+  ApplyMapScale(fixed, &o);
+  const MapImage clamped = RenderMap(steep, o);
+  ApplyMapScale(SelectMapScale({&sphere}, StandardPowerScale()), &o);
+  EXPECT_GT(clamped.height_px, RenderMap(sphere, o).height_px);  // one more footer line: "beyond the scale"
   // A user-set step without a standard range: the data in whole steps, at least kMinAbsoluteSteps wide.
   MapScaleRequest user;
   user.kind = MapScaleKind::kAbsolute;
