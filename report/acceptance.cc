@@ -241,7 +241,7 @@ Verdict Evaluate(const UnitRecord& rec, const Limits& limits, const BudgetOption
                        rep_radius,
                        {"reference ball certificate", cert_source, u_cert_mm}};
       radius.U = 2.0 * CombinedStandardUncertainty(radius.budget);
-      radius.note += "; U = 2 sqrt(sum of u^2) over the budget";
+      radius.note += "; U = 2 \u221a(\u03a3 u\u00b2) over the budget";
     }
     if (u_power) {
       power.budget = {{"calibration (Monte Carlo)", "unit.json: U (k = 2) halved", 0.5 * *u_power},
@@ -250,7 +250,7 @@ Verdict Evaluate(const UnitRecord& rec, const Limits& limits, const BudgetOption
                        cert_source + fmt::format(", x dP/dR = {:.4g} D/mm (true power from the certified radius)", dP_dR),
                        dP_dR * u_cert_mm}};
       power.U = 2.0 * CombinedStandardUncertainty(power.budget);
-      power.note += "; U = 2 sqrt(sum of u^2) over the budget";
+      power.note += "; U = 2 \u221a(\u03a3 u\u00b2) over the budget";
     }
     v.checks.push_back(Judge(radius, limits.rule));
     v.checks.push_back(Judge(power, limits.rule));

@@ -183,7 +183,8 @@ std::string RenderFleetHtml(const FleetAnalysis& a) {
 
   // Summary per station.
   s += "<section id=\"summary\"><h2>Verdicts</h2>\n<table class=\"data\" id=\"stations\"><tr><th>station</th>"
-       "<th>units</th><th>PASS</th><th>FAIL</th><th>near a limit</th><th>out-of-control signals</th></tr>\n";
+       "<th>units</th><th>PASS</th><th>FAIL</th><th>near a limit</th><th>points out of control on its own charts</th>"
+       "</tr>\n";
   for (const std::string& st : [&] {
          std::vector<std::string> v = a.stations;
          if (a.stations.size() > 1) v.push_back("");
@@ -196,9 +197,7 @@ std::string RenderFleetHtml(const FleetAnalysis& a) {
       pass += a.verdicts[i].pass ? 1 : 0;
       near += (a.verdicts[i].pass && !a.verdicts[i].near.empty()) ? 1 : 0;
     }
-    for (const OutOfControl& o : a.out_of_control) {
-      if (o.station == st || (st.empty() && o.station.empty())) ooc += (st.empty() || o.station == st) ? 1 : 0;
-    }
+    for (const OutOfControl& o : a.out_of_control) ooc += o.station == st ? 1 : 0;  // "" = the line's charts
     s += fmt::format("<tr><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td>"
                      "<td class=\"num\">{}</td><td class=\"num\">{}</td></tr>\n",
                      st.empty() ? "<strong>whole line</strong>" : H(st), n, pass, n - pass, near, ooc);

@@ -25,8 +25,8 @@ constexpr int kFieldArrowsAcross = 16;
 constexpr double kZoomBelowFraction = 0.5;
 constexpr double kZoomMargin = 0.15;
 // Map kinds and stages in the order they are shown (docs/unit-record.md names: <case>_<stage>_<map>.png).
-constexpr const char* kMapKinds[] = {"axial_power", "tangential_power", "height", "height_difference"};
-constexpr const char* kMapTitles[] = {"Axial power", "Tangential power", "Height", "Height difference"};
+constexpr const char* kMapKinds[] = {"axial_power", "tangential_power", "elevation", "height_difference"};
+constexpr const char* kMapTitles[] = {"Axial power", "Tangential power", "Elevation above the best-fit sphere", "Height difference"};
 
 std::string H(std::string_view s) { return EscapeXml(s); }
 
@@ -255,6 +255,7 @@ table.page-frame > thead td, table.page-frame > tfoot td, table.page-frame > tbo
 table.budget td, table.budget th { font-size: 9pt; }
 .signoff td.blank { height: 11mm; border-bottom: 1px solid var(--ink); }
 .undefined { color: #555; font-style: italic; }
+td.flag { white-space: nowrap; }
 @media print {
   body { font-size: 9.5pt; }
   main { max-width: none; padding: 0; }
@@ -339,7 +340,7 @@ std::string PreviousComparison(const UnitRecord& now, const UnitRecord& prev, co
       flag = std::abs(change) > U ? "changed beyond U" : "within U";
     }
     s += fmt::format("<tr><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td>"
-                     "<td class=\"num\">{}</td><td>{}</td></tr>\n",
+                     "<td class=\"num\">{}</td><td class=\"flag\">{}</td></tr>\n",
                      r.label, Sig(*r.prev, r.digits) + unit, Sig(*r.now, r.digits) + unit,
                      (change > 0 ? "+" : "") + Sig(change, 3) + unit, u_text, flag);
   }

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <optional>
 
 #include <fmt/format.h>
 
@@ -41,37 +42,90 @@ topo::GridMap CartesianGrid(double radius_mm, const std::string& title, const st
   return g;
 }
 
-void Write(const std::string& dir, const std::string& name, const topo::GridMap& g, bool csv, int size_px) {
-  const std::string base = (std::filesystem::path(dir) / name).string();
-  if (csv) topo::WriteMapCsv(base + ".csv", g);
-  topo::MapImageOptions o;
-  o.size_px = size_px;
-  topo::WriteMapPng(base + ".png", g, o);
+// The best-fit sphere under the elevation map's title: its radius, and its centre when it is off the axis.
+std::string BestFitSphereLine(const topo::SphereFitResult& fit) {
+  constexpr double kOnAxisMm = 0.0005;  // below the printed precision
+  if (std::hypot(fit.centre_x_mm, fit.centre_y_mm) < kOnAxisMm) {
+    return fmt::format("best-fit sphere R = {:.3f} mm", fit.radius_mm);
+  }
+  return fmt::format("best-fit sphere R = {:.3f} mm, centre ({:+.3f}, {:+.3f}) mm", fit.radius_mm, fit.centre_x_mm,
+                     fit.centre_y_mm);
+}
+
+struct PendingMap {
+  std::string file;  // without extension
+  topo::GridMap grid;
+  std::vector<std::string> annotations;
+};
+
+void WriteKind(const std::vector<PendingMap>& maps, const topo::MapScaleRequest& request, const MapSetOptions& o,
+               bool rings) {
+  if (maps.empty()) return;
+  std::vector<const topo::GridMap*> grids;
+  for (const PendingMap& m : maps) grids.push_back(&m.grid);
+  const topo::MapScale scale = topo::SelectMapScale(grids, request);
+  for (const PendingMap& m : maps) {
+    if (o.csv) topo::WriteMapCsv(m.file + ".csv", m.grid);
+    topo::MapImageOptions mo;
+    mo.size_px = o.size_px;
+    topo::ApplyMapScale(scale, &mo);
+    mo.annotations = m.annotations;
+    mo.eye = o.eye;
+    if (rings) mo.ring_radii_mm = o.power_ring_radii_mm;
+    topo::WriteMapPng(m.file + ".png", m.grid, mo);
+  }
 }
 
 }  // namespace
 
-void WriteAnalysisMaps(const std::string& dir, const std::string& prefix, const std::string& label,
-                       const topo::Analysis& a, const model::BiconicParams* truth, bool csv, int size_px) {
+void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEntry>& entries,
+                         const MapSetOptions& o) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw model::InputError(fmt::format("{}: cannot create directory: {}", dir, ec.message()));
-  const auto& pm = a.power;
-  Write(dir, prefix + "axial_power", PowerGrid(pm, pm.axial_D, fmt::format("Axial power{}", label)), csv, size_px);
-  Write(dir, prefix + "tangential_power", PowerGrid(pm, pm.tangential_D, fmt::format("Tangential power{}", label)), csv, size_px);
-  const double r = a.covered_radius_mm;
-  const auto& psi = a.reconstruction.surface;
-  Write(dir, prefix + "height", CartesianGrid(r, fmt::format("Height{}", label), "um", [&](double x, double y) {
-          return psi.Value(x, y) * 1e3;
-        }), csv, size_px);
-  if (truth) {
-    const model::Biconic b{*truth};
-    Write(dir, prefix + "height_difference",
-          CartesianGrid(r, fmt::format("Ideal - recovered height{}", label), "um", [&](double x, double y) {
-            model::SurfaceDerivatives d;
-            return b.Evaluate(x, y, &d) ? (d.z - psi.Value(x, y)) * 1e3 : NAN;
-          }), csv, size_px);
+  std::vector<PendingMap> axial, tangential, elevation, difference;
+  for (const AnalysisMapEntry& e : entries) {
+    const std::string base = (std::filesystem::path(dir) / e.prefix).string();
+    const topo::Analysis& a = *e.analysis;
+    const auto& pm = a.power;
+    axial.push_back({base + "axial_power", PowerGrid(pm, pm.axial_D, fmt::format("Axial power{}", e.label)),
+                     e.power_annotations});
+    tangential.push_back({base + "tangential_power",
+                          PowerGrid(pm, pm.tangential_D, fmt::format("Tangential power{}", e.label)),
+                          e.power_annotations});
+    const double r = a.covered_radius_mm;
+    const auto& psi = a.reconstruction.surface;
+    const topo::GridMap sag = CartesianGrid(r, "", "\u00b5m", [&](double x, double y) { return psi.Value(x, y) * 1e3; });
+    topo::SphereFitResult fit;
+    if (auto elev = topo::ElevationAboveBestFitSphere(sag, &fit)) {
+      elev->title = fmt::format("Elevation above the best-fit sphere{}", e.label);
+      elevation.push_back({base + "elevation", std::move(*elev),
+                           {BestFitSphereLine(fit)}});
+    }
+    if (e.truth) {
+      const model::Biconic b{*e.truth};
+      difference.push_back(
+          {base + "height_difference",
+           CartesianGrid(r, fmt::format("Ideal \u2212 recovered height{}", e.label), "\u00b5m",
+                         [&](double x, double y) {
+                           model::SurfaceDerivatives d;
+                           return b.Evaluate(x, y, &d) ? (d.z - psi.Value(x, y)) * 1e3 : NAN;
+                         }),
+           {}});
+    }
   }
+  WriteKind(axial, o.power, o, true);
+  WriteKind(tangential, o.power, o, true);
+  WriteKind(elevation, o.elevation, o, false);
+  WriteKind(difference, o.elevation, o, false);
+}
+
+void WriteAnalysisMaps(const std::string& dir, const std::string& prefix, const std::string& label,
+                       const topo::Analysis& a, const model::BiconicParams* truth, bool csv, int size_px) {
+  MapSetOptions o;
+  o.csv = csv;
+  o.size_px = size_px;
+  WriteAnalysisMapSet(dir, {{prefix, label, &a, truth, {}}}, o);
 }
 
 }  // namespace topocal::tools

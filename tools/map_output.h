@@ -1,6 +1,8 @@
 #pragma once
-// Writes the maps of one analysis into a directory: CSV grids and PNG images (topo/map_image.h).
+// Writes the maps of analyses into a directory: CSV grids and PNG images (topo/map_image.h), every map of one kind
+// in a set on one shared colour scale.
 #include <string>
+#include <vector>
 
 #include "model/config.h"
 #include "topo/analysis.h"
@@ -8,10 +10,34 @@
 
 namespace topocal::tools {
 
-// Files: <prefix>axial_power.{csv,png}, <prefix>tangential_power.{csv,png}, <prefix>height.{csv,png} and, when
-// `truth` is given, <prefix>height_difference.{csv,png} (Eq. 26, ideal - recovered, um); the CSV grids only when
-// `csv` (each is ~0.6 MB); `size_px` is the side of the PNGs' plot area. Creates `dir` if needed.
-// Throws model::InputError naming the path when a file cannot be written.
+// One analysis of a set (a sweep's sigma, a stage of a before/after pair).
+struct AnalysisMapEntry {
+  std::string prefix;                        // file name prefix, e.g. "sphere_corrected_"
+  std::string label;                         // appended to each title, e.g. " - reference sphere, corrected"
+  const topo::Analysis* analysis = nullptr;
+  const model::BiconicParams* truth = nullptr;  // the known surface: adds the height-difference map
+  // Printed under the power maps' titles (the hook for clinical indices: sim-K, steep/flat K and axes).
+  std::vector<std::string> power_annotations;
+};
+
+struct MapSetOptions {
+  bool csv = true;                                  // the CSV grid beside each PNG (~0.6 MB each)
+  int size_px = topo::MapImageOptions{}.size_px;    // side of the PNGs' plot area
+  topo::MapScaleRequest power = topo::StandardPowerScale();                           // axial and tangential
+  topo::MapScaleRequest elevation = topo::NormalisedScale(topo::kMinNormalisedSpanUm);  // elevation, height error
+  std::string eye;                                  // "OD", "OS" or empty (test surface)
+  std::vector<double> power_ring_radii_mm;          // rings on the power maps (the sim-K zone)
+};
+
+// Files per entry: <prefix>axial_power.{csv,png}, <prefix>tangential_power.{csv,png}, <prefix>elevation.{csv,png}
+// (elevation above the best-fit sphere, um, its radius in the title) and, with `truth`,
+// <prefix>height_difference.{csv,png} (Eq. 26, ideal - recovered, um). Each kind of map is drawn on one scale
+// selected over the whole set (topo::SelectMapScale). Creates `dir` if needed. Throws model::InputError naming the
+// path when a file cannot be written.
+void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEntry>& entries,
+                         const MapSetOptions& options = {});
+
+// One analysis (a set of one): the power maps on the standard absolute scale, the others normalised.
 void WriteAnalysisMaps(const std::string& dir, const std::string& prefix, const std::string& label,
                        const topo::Analysis& analysis, const model::BiconicParams* truth, bool csv = true,
                        int size_px = topo::MapImageOptions{}.size_px);

@@ -7,7 +7,11 @@
 #include <string_view>
 
 #include <fmt/format.h>
+#include <unistd.h>
+
+#include <Eigen/Dense>
 #include <opencv2/core.hpp>
+#include <opencv2/freetype.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -53,7 +57,21 @@ std::vector<double> Ticks(double lo, double hi, double step) {
   return t;
 }
 
-int Decimals(double step) { return std::max(0, static_cast<int>(-std::floor(std::log10(step) + 1e-9))); }
+// Decimals that print every multiple of `step` exactly (1.5 -> 1, 0.25 -> 2, 5 -> 0).
+// value_min + k step up to value_max: the band boundaries of a stepped scale.
+std::vector<double> StepTicks(double lo, double hi, double step) {
+  std::vector<double> t;
+  for (int k = 0; lo + k * step <= hi + 1e-9 * step; ++k) t.push_back(lo + k * step);
+  return t;
+}
+
+int Decimals(double step) {
+  for (int k = 0; k < 9; ++k) {
+    const double scaled = step * std::pow(10.0, k);
+    if (std::abs(scaled - std::round(scaled)) < 1e-6 * std::max(1.0, scaled)) return k;
+  }
+  return 9;
+}
 
 // OpenCV's Hershey fonts are ASCII only: transliterate the few symbols our titles and units use. "µ" is kept as
 // a marker (\x01) and drawn as a 'u' with a descender, which reads as µ.
@@ -80,29 +98,68 @@ std::string Transliterate(std::string_view s) {
   return out;
 }
 
+// Text is drawn with FreeType (OpenCV's freetype module, HarfBuzz shaping) in DejaVu Sans, so that µ, ², °, σ and
+// − print as themselves; OpenCV's own Hershey fonts are ASCII only. Without the font file (Debian fonts-dejavu-core,
+// installed by scripts/setup.sh) the Hershey font is used with the transliteration above.
+constexpr const char* kFontPath = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
+
+// One FreeType renderer per thread (calibrate-batch draws maps from several threads; the renderer has state).
+cv::freetype::FreeType2* TrueType() {
+  thread_local cv::Ptr<cv::freetype::FreeType2> ft = [] {
+    cv::Ptr<cv::freetype::FreeType2> f;
+    if (::access(kFontPath, R_OK) != 0) return f;
+    try {
+      f = cv::freetype::createFreeType2();
+      f->loadFontData(kFontPath, 0);
+    } catch (const cv::Exception&) {
+      f.release();
+    }
+    return f;
+  }();
+  return ft.get();
+}
+
 struct Font {
-  double scale;
-  int thickness;
+  int height_px;  // em height
 };
+
+double HersheyScale(const Font& f) { return f.height_px / 30.0; }
+int HersheyThickness(const Font& f) { return std::max(1, static_cast<int>(std::lround(f.height_px / 14.0))); }
 
 cv::Size TextSize(const std::string& text, const Font& f) {
   int baseline = 0;
-  std::string ascii = text;
+  if (auto* ft = TrueType()) {
+    const cv::Size size = ft->getTextSize(text, f.height_px, -1, &baseline);
+    return {size.width, size.height};
+  }
+  std::string ascii = Transliterate(text);
   std::replace(ascii.begin(), ascii.end(), '\x01', 'u');
-  return cv::getTextSize(ascii, cv::FONT_HERSHEY_SIMPLEX, f.scale, f.thickness, &baseline);
+  return cv::getTextSize(ascii, cv::FONT_HERSHEY_SIMPLEX, HersheyScale(f), HersheyThickness(f), &baseline);
 }
 
-// Draws transliterated text with its baseline-left corner at `org`.
+// Draws text with its baseline-left corner at `org`.
 void PutText(cv::Mat& img, const std::string& text, cv::Point org, const Font& f, const cv::Scalar& colour = kBlack) {
-  std::string ascii = text;
+  if (auto* ft = TrueType()) {
+    ft->putText(img, text, org, f.height_px, colour, -1, cv::LINE_AA, true);
+    return;
+  }
+  const std::string marked = Transliterate(text);
+  std::string ascii = marked;
   std::replace(ascii.begin(), ascii.end(), '\x01', 'u');
-  cv::putText(img, ascii, org, cv::FONT_HERSHEY_SIMPLEX, f.scale, colour, f.thickness, cv::LINE_AA);
+  cv::putText(img, ascii, org, cv::FONT_HERSHEY_SIMPLEX, HersheyScale(f), colour, HersheyThickness(f), cv::LINE_AA);
   // The descender that turns each 'u' standing for µ into a µ.
-  for (size_t p = text.find('\x01'); p != std::string::npos; p = text.find('\x01', p + 1)) {
-    const int x = org.x + TextSize(text.substr(0, p), f).width;
-    const int h = TextSize("u", f).height;
+  for (size_t p = marked.find('\x01'); p != std::string::npos; p = marked.find('\x01', p + 1)) {
+    int baseline = 0;
+    const auto size = [&](const std::string& t) {
+      std::string a = t;
+      std::replace(a.begin(), a.end(), '\x01', 'u');
+      return cv::getTextSize(a, cv::FONT_HERSHEY_SIMPLEX, HersheyScale(f), HersheyThickness(f), &baseline);
+    };
+    const int x = org.x + size(marked.substr(0, p)).width;
+    const int h = size("u").height;
     const int stem = x + std::max(1, static_cast<int>(std::lround(0.22 * h)));
-    cv::line(img, {stem, org.y - h / 2}, {stem, org.y + static_cast<int>(0.45 * h)}, colour, f.thickness, cv::LINE_AA);
+    cv::line(img, {stem, org.y - h / 2}, {stem, org.y + static_cast<int>(0.45 * h)}, colour, HersheyThickness(f),
+             cv::LINE_AA);
   }
 }
 
@@ -190,24 +247,79 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   double vmin = options.value_min.value_or(lo), vmax = options.value_max.value_or(hi);
   if (options.value_min && !options.value_max && !(vmax > vmin)) vmax = vmin + 1.0;
   if (options.value_max && !options.value_min && !(vmax > vmin)) vmin = vmax - 1.0;
-  const double tick_step = NiceStep(vmax - vmin, 8.0);  // 4 to 9 labelled ticks
+  // Labelled ticks: 4 to 9 round ones; on a stepped (absolute) scale of up to 16 steps, every step boundary.
+  const bool stepped = options.contour_step > 0 && options.value_min && options.value_max &&
+                       (*options.value_max - *options.value_min) / options.contour_step <= 16.0 + 1e-9;
+  const double tick_step = stepped ? options.contour_step : NiceStep(vmax - vmin, 8.0);
   if (!options.value_min) vmin = tick_step * std::floor(vmin / tick_step + 1e-9);
   if (!options.value_max) vmax = tick_step * std::ceil(vmax / tick_step - 1e-9);
   const double contour_step =
       options.contour_step > 0 ? options.contour_step : options.contour_step < 0 ? 0.0 : NiceStep(vmax - vmin, 10.0);
+  // Contour levels at origin + k step: the band boundaries of a stepped (absolute) scale start at its low end
+  // (35.5, 37, ... D), round levels elsewhere start at 0.
+  const double level_origin = stepped ? vmin : 0.0;
 
-  // Geometry: square pixels, equal mm scale on both axes; the longer side gets size_px.
-  const double fscale = options.size_px / 800.0;
-  const Font title_font{0.75 * fscale, std::max(1, static_cast<int>(std::lround(2 * fscale)))};
-  const Font label_font{0.55 * fscale, std::max(1, static_cast<int>(std::lround(1 * fscale)))};
+  // Geometry: square pixels, equal mm scale on both axes; the longer side gets size_px. Text scales with the plot so
+  // that a map printed 90 mm wide (two side by side on A4) has labels of about 8 pt: the label em is 1/20 of the plot.
+  const Font label_font{std::max(12, static_cast<int>(std::lround(options.size_px / 20.0)))};
+  const Font title_font{static_cast<int>(std::lround(label_font.height_px * 1.2))};
+  const Font small_font{std::max(11, static_cast<int>(std::lround(label_font.height_px * 0.85)))};
   const double wx = map.x_max_mm - map.x_min_mm, wy = map.y_max_mm - map.y_min_mm;
   const double px_per_mm = options.size_px / std::max(wx, wy);
   const int plot_w = std::max(2, static_cast<int>(std::lround(wx * px_per_mm)));
   const int plot_h = std::max(2, static_cast<int>(std::lround(wy * px_per_mm)));
-  const int s = static_cast<int>(std::lround(fscale * 10));  // layout unit
-  const cv::Rect plot(9 * s, 7 * s, plot_w, plot_h);
-  const cv::Rect bar(plot.x + plot.width + 5 * s, plot.y, std::max(8, 3 * s), plot.height);
-  const int width = bar.x + bar.width + 12 * s, height = plot.y + plot.height + 8 * s;
+  const int s = std::max(4, label_font.height_px / 3);  // layout unit
+  const int line_h = label_font.height_px + s;
+  // Left margin: the y tick labels, a gap, the vertical axis label (its rotated patch is twice the em high).
+  const double axis_step_mm = NiceStep(std::max(wx, wy), 8.0);
+  int y_label_w = 0;
+  for (double y : Ticks(map.y_min_mm, map.y_max_mm, axis_step_mm)) {
+    y_label_w = std::max(y_label_w, TextSize(fmt::format("{:.{}f}", y, Decimals(axis_step_mm)), label_font).width);
+  }
+  const int tick_len = std::max(4, s / 2);
+  // Title (wrapped at its " - " into two lines when it is wider than the image), annotation lines, and a line for
+  // the colour bar's unit above the plot. The image's width does not depend on the header.
+  const int image_w = (y_label_w + 2 * label_font.height_px + 4 + 2 * s + s / 2 + tick_len) + plot_w + 4 * s +
+                      std::max(8, 2 * s) + 14 * s;
+  std::vector<std::string> title_lines = {map.title};
+  if (TextSize(map.title, title_font).width > image_w - 2 * s) {
+    for (const char* sep : {" - ", " \u2014 ", ", "}) {
+      const std::size_t at = map.title.rfind(sep);
+      if (at == std::string::npos) continue;
+      title_lines = {map.title.substr(0, at), map.title.substr(at + std::string(sep).size())};
+      break;
+    }
+  }
+  const int title_h = static_cast<int>(title_lines.size()) * (title_font.height_px + s);
+  const int header = title_h + s + static_cast<int>(options.annotations.size()) * line_h + line_h + s;
+  // Footer lines under the x axis: the scale, the contour step, the eye and orientation.
+  std::vector<std::string> footer;
+  if (!options.scale_label.empty()) footer.push_back(options.scale_label);
+  if (contour_step > 0) footer.push_back(fmt::format("contours every {:.{}f} {}", contour_step, Decimals(contour_step), map.unit));
+  footer.push_back((options.eye.empty() ? std::string("test surface (no eye)") : "eye " + options.eye) + "; " +
+                   options.orientation);
+  // How much of the map lies beyond the colour range (drawn in the end colours), from its samples with data.
+  int with_data = 0, below = 0, above = 0;
+  for (double v : map.values) {
+    if (!std::isfinite(v)) continue;
+    ++with_data;
+    below += v < vmin ? 1 : 0;
+    above += v > vmax ? 1 : 0;
+  }
+  if (below + above > 0) {
+    const auto pct = [&](int n) { return fmt::format("{:.0f} %", std::max(1.0, std::round(100.0 * n / with_data))); };
+    std::string beyond = "beyond the scale (end colours):";
+    if (below) beyond += fmt::format(" {} below {:.{}f} {}", pct(below), vmin, Decimals(tick_step), map.unit);
+    if (above) beyond += fmt::format("{} {} above {:.{}f} {}", below ? ";" : "", pct(above), vmax, Decimals(tick_step), map.unit);
+    footer.push_back(beyond);
+  }
+  const int footer_lines = static_cast<int>(footer.size());
+  const int y_axis_label_x = s + label_font.height_px + 2;  // centre of the rotated "y (mm)"
+  const cv::Rect plot(y_axis_label_x + label_font.height_px + 2 + s + y_label_w + s / 2 + tick_len, header, plot_w,
+                      plot_h);
+  const cv::Rect bar(plot.x + plot.width + 4 * s, plot.y, std::max(8, 2 * s), plot.height);
+  const int width = bar.x + bar.width + 14 * s;
+  const int height = plot.y + plot.height + 2 * line_h + footer_lines * line_h + 2 * s;
   cv::Mat img(height, width, CV_8UC3, kWhite);
 
   // Sample the field at every plot pixel centre (bilinear, cv::remap). No data is carried as a weight: a pixel has
@@ -264,7 +376,7 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
     for (int r = 0; r < plot_h; ++r) {
       for (int c = 0; c < plot_w; ++c) {
         if (valid.at<std::uint8_t>(r, c)) {
-          band.at<int>(r, c) = static_cast<int>(std::floor(field.at<double>(r, c) / contour_step));
+          band.at<int>(r, c) = static_cast<int>(std::floor((field.at<double>(r, c) - level_origin) / contour_step));
         }
       }
     }
@@ -282,8 +394,7 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   cv::rectangle(img, {plot.x - 1, plot.y - 1}, {plot.x + plot.width, plot.y + plot.height}, kBlack, 1);
 
   // Axes in mm: ticks and labels on the left and bottom, light grid through the ticks.
-  const double axis_step = NiceStep(std::max(wx, wy), 8.0);
-  const int tick_len = std::max(4, s / 2);
+  const double axis_step = axis_step_mm;
   for (double x : Ticks(map.x_min_mm, map.x_max_mm, axis_step)) {
     const int c = plot.x + static_cast<int>(std::lround((x - map.x_min_mm) / wx * plot_w));
     cv::line(img, {c, plot.y + plot.height}, {c, plot.y + plot.height + tick_len}, kBlack, 1);
@@ -295,11 +406,32 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
     cv::line(img, {plot.x - tick_len, r}, {plot.x - 1, r}, kBlack, 1);
     PutRightMiddle(img, fmt::format("{:.{}f}", y, Decimals(axis_step)), {plot.x - tick_len - s / 2, r}, label_font);
   }
-  PutCentred(img, "x (mm)", {plot.x + plot.width / 2, plot.y + plot.height + 6 * s}, label_font);
-  PutVertical(img, "y (mm)", {plot.x - 7 * s, plot.y + plot.height / 2}, label_font);
+  PutCentred(img, "x (mm)", {plot.x + plot.width / 2, plot.y + plot.height + 2 * line_h}, label_font);
+  PutVertical(img, "y (mm)", {y_axis_label_x, plot.y + plot.height / 2}, label_font);
 
-  // Title.
-  PutCentred(img, Transliterate(map.title), {plot.x + plot.width / 2, plot.y - 3 * s}, title_font);
+  // Rings about the origin (the sim-K zone's meridian ring, when the caller gives one): dashed black on white.
+  for (double ring_mm : options.ring_radii_mm) {
+    if (!(ring_mm > 0) || !std::isfinite(ring_mm)) continue;
+    const cv::Point centre(plot.x + static_cast<int>(std::lround((0 - map.x_min_mm) * px_per_mm)),
+                           plot.y + plot.height - static_cast<int>(std::lround((0 - map.y_min_mm) * px_per_mm)));
+    const int radius = static_cast<int>(std::lround(ring_mm * px_per_mm));
+    cv::Mat roi = img(plot);
+    const cv::Point c_in_plot = centre - cv::Point(plot.x, plot.y);
+    cv::circle(roi, c_in_plot, radius, kWhite, 3, cv::LINE_AA);
+    for (int deg = 0; deg < 360; deg += 10) {
+      cv::ellipse(roi, c_in_plot, {radius, radius}, 0, deg, deg + 5, kBlack, 2, cv::LINE_AA);
+    }
+  }
+
+  // Title and the caller's annotation lines (sim-K etc.) above the plot.
+  for (std::size_t k = 0; k < title_lines.size(); ++k) {
+    PutCentred(img, title_lines[k],
+               {width / 2, s + title_font.height_px + static_cast<int>(k) * (title_font.height_px + s)}, title_font);
+  }
+  for (std::size_t k = 0; k < options.annotations.size(); ++k) {
+    PutCentred(img, options.annotations[k],
+               {width / 2, title_h + static_cast<int>(k + 1) * line_h - s}, label_font);
+  }
 
   // Colour bar: value_max at the top row, value_min at the bottom row; labelled ticks on the right, the contour
   // levels as short marks on the left, the unit above.
@@ -313,23 +445,22 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   const auto bar_row = [&](double v) {
     return bar.y + static_cast<int>(std::lround((vmax - v) / (vmax - vmin) * (bar.height - 1)));
   };
-  for (double v : Ticks(vmin, vmax, tick_step)) {
+  for (double v : stepped ? StepTicks(vmin, vmax, tick_step) : Ticks(vmin, vmax, tick_step)) {
     const int r = bar_row(v);
     cv::line(img, {bar.x + bar.width, r}, {bar.x + bar.width + tick_len, r}, kBlack, 1);
     PutLeftMiddle(img, fmt::format("{:.{}f}", v, Decimals(tick_step)), {bar.x + bar.width + tick_len + s / 2, r},
                   label_font);
   }
   if (contour_step > 0 && (vmax - vmin) / contour_step <= 200) {
-    for (double v : Ticks(vmin, vmax, contour_step)) {
+    for (double v : stepped ? StepTicks(vmin, vmax, contour_step) : Ticks(vmin, vmax, contour_step)) {
       const int r = bar_row(v);
       cv::line(img, {bar.x - tick_len, r}, {bar.x - 2, r}, kContourColour, 1);
     }
   }
-  PutCentred(img, Transliterate(map.unit), {bar.x + bar.width / 2, bar.y - 2 * s}, label_font);
-  if (contour_step > 0) {
-    const std::string note = fmt::format("contours every {:.{}f} {}", contour_step, Decimals(contour_step),
-                                         Transliterate(map.unit));
-    PutText(img, note, {plot.x + plot.width - TextSize(note, label_font).width, height - s}, label_font);
+  // The unit above the bar, clear of the top tick label (centred on the bar's top row).
+  PutCentred(img, map.unit, {bar.x + bar.width / 2, bar.y - label_font.height_px * 6 / 10 - s / 2}, label_font);
+  for (std::size_t k = 0; k < footer.size(); ++k) {
+    PutText(img, footer[k], {s, plot.y + plot.height + 2 * line_h + static_cast<int>(k + 1) * line_h}, small_font);
   }
 
   MapImage out;
@@ -422,6 +553,170 @@ GridMap ResamplePolar(const PolarField& field, int n, std::string title, std::st
     }
   }
   return g;
+}
+
+bool MapScaleRequest::IsValid(std::string* why) const {
+  const auto fail = [&](const std::string& m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (kind == MapScaleKind::kAbsolute) {
+    if (!(step > 0) || !std::isfinite(step)) return fail("an absolute scale needs a finite step > 0");
+    if (low.has_value() != high.has_value()) return fail("an absolute scale's low and high go together");
+    if (low && !(std::isfinite(*low) && std::isfinite(*high) && *high > *low)) {
+      return fail("an absolute scale needs finite low < high");
+    }
+    if (low) {
+      const double steps = (*high - *low) / step;
+      if (std::abs(steps - std::round(steps)) > 1e-9 * std::max(1.0, steps)) {
+        return fail("an absolute scale's high - low must be a whole number of steps");
+      }
+    }
+  }
+  if (!(min_span >= 0) || !std::isfinite(min_span)) return fail("min_span must be finite and >= 0");
+  return true;
+}
+
+MapScaleRequest StandardPowerScale() {
+  MapScaleRequest r;
+  r.kind = MapScaleKind::kAbsolute;
+  r.step = kStandardPowerStepD;
+  r.low = kStandardPowerLowD;
+  r.high = kStandardPowerHighD;
+  return r;
+}
+
+MapScaleRequest NormalisedScale(double min_span) {
+  MapScaleRequest r;
+  r.kind = MapScaleKind::kNormalised;
+  r.min_span = min_span;
+  return r;
+}
+
+MapScale SelectMapScale(const std::vector<const GridMap*>& maps, const MapScaleRequest& request) {
+  std::string why;
+  if (!request.IsValid(&why)) throw std::invalid_argument("MapScaleRequest: " + why);
+  if (maps.empty()) throw std::invalid_argument("SelectMapScale: no map");
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  std::string unit;
+  for (const GridMap* m : maps) {
+    if (!m) throw std::invalid_argument("SelectMapScale: null map");
+    unit = m->unit;
+    for (double v : m->values) {
+      if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
+    }
+  }
+  const bool has_data = std::isfinite(lo);
+  const std::string set_word = maps.size() > 1 ? fmt::format("these {} maps'", maps.size()) : std::string("this map's");
+  MapScale out;
+  if (request.kind == MapScaleKind::kAbsolute) {
+    const double step = request.step;
+    double a = 0, b = 0;
+    if (request.low) {
+      a = *request.low;
+      b = *request.high;
+      // Widen by whole steps to hold every value (anchored on the standard range's boundaries) when asked.
+      if (request.widen_to_data && has_data && lo < a) a -= step * std::ceil((a - lo) / step - 1e-9);
+      if (request.widen_to_data && has_data && hi > b) b += step * std::ceil((hi - b) / step - 1e-9);
+    } else {
+      if (!has_data) lo = 0, hi = 0;
+      a = step * std::floor(lo / step + 1e-9);
+      b = step * std::ceil(hi / step - 1e-9);
+      if (b <= a) b = a + step;
+      const int missing = kMinAbsoluteSteps - static_cast<int>(std::lround((b - a) / step));
+      if (missing > 0) {
+        a -= step * (missing / 2);
+        b += step * (missing - missing / 2);
+      }
+    }
+    out.value_min = a;
+    out.value_max = b;
+    out.contour_step = step;
+    out.label = fmt::format("absolute scale, {:.{}f} {} steps", step, Decimals(step), unit);
+    return out;
+  }
+  if (!has_data) lo = 0, hi = 1;
+  double span = hi - lo;
+  const bool widened = span < request.min_span;
+  if (widened) {
+    const double mid = 0.5 * (lo + hi);
+    lo = mid - 0.5 * request.min_span;
+    hi = mid + 0.5 * request.min_span;
+    span = request.min_span;
+  }
+  if (!(span > 0)) {  // a flat field with no minimum span: a unit-wide range around it, as RenderMap does
+    lo -= 0.5;
+    hi += 0.5;
+  }
+  const double tick = NiceStep(hi - lo, 8.0);
+  out.value_min = tick * std::floor(lo / tick + 1e-9);
+  out.value_max = tick * std::ceil(hi / tick - 1e-9);
+  out.contour_step = NiceStep(out.value_max - out.value_min, 10.0);
+  out.label = fmt::format("normalised: {} range{}", set_word,
+                          widened ? fmt::format(", min. span {} {}", request.min_span, unit) : std::string());
+  return out;
+}
+
+void ApplyMapScale(const MapScale& scale, MapImageOptions* options) {
+  options->value_min = scale.value_min;
+  options->value_max = scale.value_max;
+  options->contour_step = scale.contour_step;
+  options->scale_label = scale.label;
+}
+
+std::optional<GridMap> ElevationAboveBestFitSphere(const GridMap& sag_um, SphereFitResult* fit) {
+  std::string why;
+  if (!sag_um.IsValid(&why)) throw std::invalid_argument("GridMap: " + why);
+  // x^2 + y^2 + z^2 = 2 a x + 2 b y + 2 c z + d (Kasa's algebraic fit), mm.
+  std::vector<Eigen::Vector4d> rows;
+  std::vector<double> rhs;
+  const auto x_of = [&](int i) { return sag_um.x_min_mm + i * (sag_um.x_max_mm - sag_um.x_min_mm) / (sag_um.nx - 1); };
+  const auto y_of = [&](int j) { return sag_um.y_min_mm + j * (sag_um.y_max_mm - sag_um.y_min_mm) / (sag_um.ny - 1); };
+  for (int j = 0; j < sag_um.ny; ++j) {
+    for (int i = 0; i < sag_um.nx; ++i) {
+      const double v = sag_um.At(i, j);
+      if (!std::isfinite(v)) continue;
+      const double x = x_of(i), y = y_of(j), z = v * 1e-3;
+      rows.emplace_back(2 * x, 2 * y, 2 * z, 1.0);
+      rhs.push_back(x * x + y * y + z * z);
+    }
+  }
+  if (rows.size() < 4) return std::nullopt;
+  Eigen::MatrixX4d A(rows.size(), 4);
+  Eigen::VectorXd b(rows.size());
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    A.row(static_cast<Eigen::Index>(k)) = rows[k].transpose();
+    b(static_cast<Eigen::Index>(k)) = rhs[k];
+  }
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixX4d> qr(A);
+  if (qr.rank() < 4) return std::nullopt;
+  const Eigen::Vector4d p = qr.solve(b);
+  const double r2 = p(3) + p(0) * p(0) + p(1) * p(1) + p(2) * p(2);
+  if (!(r2 > 0) || !std::isfinite(r2)) return std::nullopt;
+  SphereFitResult f{std::sqrt(r2), p(0), p(1), p(2)};
+  // The cap facing the camera: the branch of the sphere on the data's side of the centre (z < c for a convex cornea
+  // whose sag grows into the eye).
+  double side = 0;
+  for (std::size_t k = 0; k < rows.size(); ++k) side += rows[k](2) / 2 - f.centre_z_mm;
+  const double sign = side < 0 ? -1.0 : 1.0;
+  GridMap out = sag_um;
+  for (int j = 0; j < sag_um.ny; ++j) {
+    for (int i = 0; i < sag_um.nx; ++i) {
+      double& v = out.values[static_cast<size_t>(j) * sag_um.nx + i];
+      if (!std::isfinite(v)) continue;
+      const double dx = x_of(i) - f.centre_x_mm, dy = y_of(j) - f.centre_y_mm;
+      const double h2 = r2 - dx * dx - dy * dy;
+      if (h2 < 0) {
+        v = kNaN;
+        continue;
+      }
+      const double sphere_z_mm = f.centre_z_mm + sign * std::sqrt(h2);
+      v = (sphere_z_mm - v * 1e-3) * 1e3;
+    }
+  }
+  out.unit = "\u00b5m";
+  if (fit) *fit = f;
+  return out;
 }
 
 }  // namespace topocal::topo

@@ -30,13 +30,74 @@ struct GridMap {
 // high = red, the clinical convention for power maps (steep = warm). Jet: the classic rainbow, for comparison.
 enum class ColourScale { kTurbo, kJet };
 
+// Printed at the bottom left of every map: how the picture is oriented (docs/maps.md).
+inline constexpr const char* kDefaultMapOrientation = "camera view: x right, y up";
+
 struct MapImageOptions {
   int size_px = 800;                        // side of the (square) plot area; the image adds axes and colour bar
   std::optional<double> value_min, value_max;  // colour range; default: the data's range (rounded out to ticks)
   double contour_step = 0;                  // 0: a round step giving about 10 levels; < 0: no contour lines
   ColourScale scale = ColourScale::kTurbo;
+  std::string scale_label;                  // printed under the plot, e.g. "absolute scale, 1.5 D steps"
+  // Lines printed under the title (a hook for clinical indices such as sim-K: the caller computes, the map prints).
+  std::vector<std::string> annotations;
+  // Circles about the origin, mm (a hook for the sim-K meridian ring), drawn dashed in black and white.
+  std::vector<double> ring_radii_mm;
+  std::string eye;                          // "OD", "OS"; empty: not an eye (a test surface) or not given
+  std::string orientation = kDefaultMapOrientation;
   bool IsValid(std::string* why) const;
 };
+
+// How the colour range of a set of maps is chosen (docs/maps.md, "Scales"). One scale is selected for every map of
+// a set meant to be compared (a sweep, before/after, a unit's maps of one kind) and drawn on each of them.
+enum class MapScaleKind {
+  kAbsolute,    // fixed steps: the range [low, high] when given (widened by whole steps to hold the data only when
+                // widen_to_data); else the data rounded out to whole steps, widened symmetrically to at least
+                // kMinAbsoluteSteps steps
+  kNormalised,  // the set's own range, at least min_span wide (centred on the data), rounded out to round ticks
+};
+struct MapScaleRequest {
+  MapScaleKind kind = MapScaleKind::kNormalised;
+  double step = 0;                    // absolute: the colour step (> 0)
+  std::optional<double> low, high;    // absolute: the standard range, multiples of step apart
+  bool widen_to_data = false;         // absolute with a range: widen it by whole steps to hold the set's data
+  double min_span = 0;                // normalised: the smallest range drawn (so that a sphere looks flat)
+  bool IsValid(std::string* why) const;
+};
+// The standard absolute power scale: 1.5 D steps over 35.5-50.5 D, the range of normal corneas, after the
+// Klyce-Wilson standardized scale (Wilson, Klyce & Husseini, Ophthalmology 1993;100:1723-7). Fixed: every power map
+// on it shares one scale whatever its data, even when drawn one at a time (a sweep, a unit's record); values beyond
+// it take the end colours and the map says how much of it lies beyond.
+inline constexpr double kStandardPowerStepD = 1.5, kStandardPowerLowD = 35.5, kStandardPowerHighD = 50.5;
+inline constexpr int kMinAbsoluteSteps = 10;
+// Normalised scales: the smallest span drawn. 1 D: four of the 0.25 D steps a clinician acts on, so a map varying
+// by less than 0.25 D uses at most a quarter of the palette. 1 um: elevation and height-error maps are read to a
+// micrometre; a 20 nm residual of a corrected sphere must not fill the palette.
+inline constexpr double kMinNormalisedSpanD = 1.0, kMinNormalisedSpanUm = 1.0;
+
+MapScaleRequest StandardPowerScale();
+MapScaleRequest NormalisedScale(double min_span);
+
+struct MapScale {
+  double value_min = 0, value_max = 1, contour_step = 0;
+  std::string label;  // e.g. "absolute scale, 1.5 D steps", "normalised scale (this set), minimum span 1 D"
+};
+// One scale for all `maps` (their finite values together; a set with no data gets [0, 1] widened as requested).
+// Throws std::invalid_argument for an invalid request or an empty set.
+MapScale SelectMapScale(const std::vector<const GridMap*>& maps, const MapScaleRequest& request);
+// The scale's range, contour step and label into the drawing options.
+void ApplyMapScale(const MapScale& scale, MapImageOptions* options);
+
+// The sphere best fitting a height map: sag in um (z into the eye, as topo/ heights), fitted algebraically
+// (x^2 + y^2 + z^2 = 2 a x + 2 b y + 2 c z + d, linear least squares over every sample with data; for a corneal cap
+// it agrees with the geometric fit to far below a micrometre of sag).
+struct SphereFitResult {
+  double radius_mm = 0, centre_x_mm = 0, centre_y_mm = 0, centre_z_mm = 0;
+};
+// Elevation above the best-fit sphere, um: sphere sag - surface sag, positive where the surface stands in front of
+// the sphere (towards the camera), the clinical sign. std::nullopt when fewer than 4 samples have data or the fit is
+// degenerate. Keeps the grid, no-data samples and unit ("µm"); the title is the caller's.
+std::optional<GridMap> ElevationAboveBestFitSphere(const GridMap& sag_um, SphereFitResult* fit);
 
 struct PixelRect {
   int x = 0, y = 0, width = 0, height = 0;  // top-left corner and size, pixels

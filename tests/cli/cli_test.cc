@@ -93,7 +93,7 @@ TEST_F(Cli, ReconstructFromSimulatedSpotsWritesJsonAndMaps) {
   for (const char* key : {"\"surface_fit\"", "\"stddev\"", "\"errors\"", "\"coefficients\"", "\"pv_um\""}) {
     EXPECT_NE(json.find(key), std::string::npos) << key;
   }
-  for (const char* f : {"axial_power.png", "tangential_power.csv", "height.png", "height_difference.png"}) {
+  for (const char* f : {"axial_power.png", "tangential_power.csv", "elevation.png", "elevation.csv", "height_difference.png"}) {
     EXPECT_TRUE(fs::exists(Path("maps/") + f)) << f;
   }
 }

@@ -3,6 +3,7 @@
 // `topocal fleet report` as HTML, CSV and JSON, rendered by headless Chromium.
 #include <sqlite3.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -46,7 +47,9 @@ class FleetTest : public ::testing::Test {
     }
   }
   static void TearDownTestSuite() {
-    if (!::testing::UnitTest::GetInstance()->Failed()) fs::remove_all(*work_);
+    // TOPOCAL_KEEP_FLEET=1 keeps the generated line, its databases and reports (to look at them).
+    const char* keep = std::getenv("TOPOCAL_KEEP_FLEET");
+    if (!::testing::UnitTest::GetInstance()->Failed() && !(keep && *keep)) fs::remove_all(*work_);
     delete work_;
   }
   static std::string Dir(const std::string& station) { return *work_ + "/line-" + station; }
@@ -223,6 +226,52 @@ TEST_F(FleetTest, ChromiumRendersTheFleetReport) {
   EXPECT_GE(pages, 3);
   EXPECT_NE(text.output.find(fmt::format("Page {} of {}", pages, pages)), std::string::npos);
   EXPECT_NE(text.output.find("Fleet report: the production line"), std::string::npos);
+}
+
+// The verdict of each unit against the limits, and the ones near them: built by hand, judged by AnalyseFleet.
+TEST(FleetAnalysis, UnitsBeyondAndNearTheirLimitsAreListed) {
+  const auto unit = [](const std::string& serial, double radius_error_mm, std::optional<double> U) {
+    FleetUnit u;
+    u.serial = serial;
+    u.created_utc = "2026-10-01T08:00:00Z";
+    u.station = "LINE-1";
+    for (const char* key : {"calibration_rms_px", "sphere_power_error_D", "paper_rx_error_mm", "paper_ry_error_mm",
+                            "paper_kx_error", "paper_ky_error"}) {
+      u.measurements[key] = {key, 0.01, 0.001};
+    }
+    u.measurements["sphere_radius_error_mm"] = {"sphere_radius_error_mm", radius_error_mm, U};
+    return u;
+  };
+  // Limit 0.05 mm, guarded: 0.02 + 0.01 = 0.03 passes clear; 0.032 + 0.01 = 0.042 >= 0.8 x 0.05 is near;
+  // -0.045 + 0.01 = 0.055 fails; 0.02 without U cannot be judged by the guarded rule and fails.
+  const FleetAnalysis a = AnalyseFleet("db", {unit("OK", 0.02, 0.01), unit("NEAR", 0.032, 0.01),
+                                              unit("FAIL", -0.045, 0.01), unit("NOU", 0.02, std::nullopt)},
+                                       DefaultLimits());
+  ASSERT_EQ(a.verdicts.size(), 4u);
+  EXPECT_TRUE(a.verdicts[0].pass);
+  EXPECT_TRUE(a.verdicts[0].near.empty());
+  EXPECT_TRUE(a.verdicts[1].pass);
+  EXPECT_EQ(a.verdicts[1].near, std::vector<std::string>{"sphere_radius_error_mm"});
+  EXPECT_FALSE(a.verdicts[2].pass);
+  EXPECT_EQ(a.verdicts[2].failed, std::vector<std::string>{"sphere_radius_error_mm"});
+  EXPECT_FALSE(a.verdicts[3].pass);
+  // Simple acceptance judges |value| alone: the one without U passes, -0.045 passes but is near.
+  Limits simple = DefaultLimits();
+  simple.rule = DecisionRule::kSimple;
+  const FleetAnalysis b = AnalyseFleet("db", a.units, simple);
+  EXPECT_TRUE(b.verdicts[3].pass);
+  EXPECT_TRUE(b.verdicts[2].pass);
+  EXPECT_EQ(b.verdicts[2].near, std::vector<std::string>{"sphere_radius_error_mm"});
+  // A unit without a sphere measurement is not verified.
+  FleetUnit bare = unit("BARE", 0.0, 0.0);
+  bare.measurements.erase("sphere_radius_error_mm");
+  const FleetAnalysis c = AnalyseFleet("db", {bare}, DefaultLimits());
+  EXPECT_FALSE(c.verdicts[0].pass);
+  EXPECT_EQ(c.verdicts[0].failed.front(), "sphere_radius_error_mm (not measured)");
+  const std::string html = RenderFleetHtml(a);
+  EXPECT_NE(html.find("<tr data-serial=\"NEAR\">"), std::string::npos);
+  EXPECT_NE(html.find("<tr data-serial=\"FAIL\">"), std::string::npos);
+  EXPECT_EQ(html.find("<tr data-serial=\"OK\">"), std::string::npos);
 }
 
 }  // namespace

@@ -282,5 +282,171 @@ TEST(MapImage, RejectsInconsistentInput) {
   EXPECT_THROW(ResamplePolar(p, 10, "", ""), std::invalid_argument);
 }
 
+// A disc of radius `radius_mm` on an n x n grid holding f(x, y), no data outside.
+template <typename F>
+GridMap Disc(int n, double radius_mm, const std::string& unit, F f) {
+  GridMap g;
+  g.x_min_mm = g.y_min_mm = -radius_mm;
+  g.x_max_mm = g.y_max_mm = radius_mm;
+  g.nx = g.ny = n;
+  g.title = "disc";
+  g.unit = unit;
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const double x = -radius_mm + 2 * radius_mm * i / (n - 1), y = -radius_mm + 2 * radius_mm * j / (n - 1);
+      g.values.push_back(std::hypot(x, y) <= radius_mm ? f(x, y) : std::numeric_limits<double>::quiet_NaN());
+    }
+  }
+  return g;
+}
+
+// The maps of issue 12's complaint: a corrected reference sphere (43.258-43.274 D) next to its uncorrected map
+// (43-45.5 D, astigmatic).
+GridMap CorrectedSphere() {
+  return Disc(81, 4.0, "D", [](double x, double y) { return 43.266 + 0.008 * (x * x - y * y) / 16.0; });
+}
+GridMap UncorrectedSphere() {
+  return Disc(81, 4.0, "D", [](double x, double y) { return 44.25 + 1.25 * (x * x - y * y) / 16.0; });
+}
+
+TEST(MapScale, SharedScaleHoldsEveryMapOfTheSet) {
+  const GridMap a = CorrectedSphere(), b = UncorrectedSphere();
+  for (const MapScaleRequest& r : {StandardPowerScale(), NormalisedScale(kMinNormalisedSpanD)}) {
+    const MapScale shared = SelectMapScale({&a, &b}, r);
+    EXPECT_LE(shared.value_min, 43.0);
+    EXPECT_GE(shared.value_max, 45.5);
+    // Drawn on both: the same range, contour step and colour bar.
+    MapImageOptions o;
+    o.size_px = 200;
+    ApplyMapScale(shared, &o);
+    const MapImage ia = RenderMap(a, o), ib = RenderMap(b, o);
+    EXPECT_EQ(ia.value_min, ib.value_min);
+    EXPECT_EQ(ia.value_max, ib.value_max);
+    EXPECT_EQ(ia.contour_step, ib.contour_step);
+    for (int y = ia.colour_bar.y; y < ia.colour_bar.y + ia.colour_bar.height; ++y) {
+      ASSERT_EQ(ia.Bgr(ia.colour_bar.x + 2, y), ib.Bgr(ib.colour_bar.x + 2, y));
+    }
+  }
+}
+
+TEST(MapScale, AbsoluteScalesStepFromTheStandardRange) {
+  const GridMap sphere = CorrectedSphere();
+  const MapScale standard = SelectMapScale({&sphere}, StandardPowerScale());
+  EXPECT_DOUBLE_EQ(standard.value_min, 35.5);
+  EXPECT_DOUBLE_EQ(standard.value_max, 50.5);
+  EXPECT_DOUBLE_EQ(standard.contour_step, 1.5);
+  EXPECT_EQ(standard.label, "absolute scale, 1.5 D steps");
+  // A steep cornea beyond the range: the standard scale stays fixed (shared by maps drawn one at a time) and the map
+  // says how much of it is beyond; asked to, the range widens by whole steps anchored on the standard boundaries.
+  const GridMap steep = Disc(41, 4.0, "D", [](double x, double) { return 49.0 + x; });  // 45-53 D
+  const MapScale fixed = SelectMapScale({&sphere, &steep}, StandardPowerScale());
+  EXPECT_DOUBLE_EQ(fixed.value_max, 50.5);
+  MapScaleRequest widen = StandardPowerScale();
+  widen.widen_to_data = true;
+  const MapScale wide = SelectMapScale({&sphere, &steep}, widen);
+  EXPECT_DOUBLE_EQ(wide.value_min, 35.5);
+  EXPECT_DOUBLE_EQ(wide.value_max, 53.5);
+  MapImageOptions o;
+  o.size_px = 200;
+  ApplyMapScale(fixed, &o);
+  const MapImage clamped = RenderMap(steep, o);
+  ApplyMapScale(SelectMapScale({&sphere}, StandardPowerScale()), &o);
+  EXPECT_GT(clamped.height_px, RenderMap(sphere, o).height_px);  // one more footer line: "beyond the scale"
+  // A user-set step without a standard range: the data in whole steps, at least kMinAbsoluteSteps wide.
+  MapScaleRequest user;
+  user.kind = MapScaleKind::kAbsolute;
+  user.step = 0.5;
+  const MapScale u = SelectMapScale({&sphere}, user);
+  EXPECT_NEAR((u.value_max - u.value_min) / 0.5, kMinAbsoluteSteps, 1e-9);
+  EXPECT_LE(u.value_min, 43.258);
+  EXPECT_GE(u.value_max, 43.274);
+  EXPECT_NEAR(std::remainder(u.value_min, 0.5), 0.0, 1e-9);
+  // Invalid requests say why.
+  user.step = 0;
+  EXPECT_THROW(SelectMapScale({&sphere}, user), std::invalid_argument);
+  user.step = 1.5;
+  user.low = 35.0;
+  user.high = 50.2;  // not a whole number of steps
+  EXPECT_THROW(SelectMapScale({&sphere}, user), std::invalid_argument);
+}
+
+// With the minimum span a sphere looks flat: its whole map falls in one or two contour bands and near the middle of
+// the palette, where the data's own range (0.016 D) would have spread it from blue to red.
+TEST(MapScale, MinimumSpanMakesASphereLookFlat) {
+  const GridMap sphere = CorrectedSphere();
+  const MapScale own = SelectMapScale({&sphere}, NormalisedScale(0));
+  EXPECT_LT(own.value_max - own.value_min, 0.05);
+  const MapScale flat = SelectMapScale({&sphere}, NormalisedScale(kMinNormalisedSpanD));
+  EXPECT_GE(flat.value_max - flat.value_min, kMinNormalisedSpanD);
+  EXPECT_NE(flat.label.find("min. span 1 D"), std::string::npos) << flat.label;
+  MapImageOptions o;
+  o.size_px = 200;
+  o.contour_step = -1;
+  ApplyMapScale(flat, &o);
+  o.contour_step = -1;  // colours only
+  const MapImage img = RenderMap(sphere, o);
+  int lo = 255, hi = 0;
+  for (int y = img.plot.y; y < img.plot.y + img.plot.height; ++y) {
+    for (int x = img.plot.x; x < img.plot.x + img.plot.width; ++x) {
+      const Bgr c = img.Bgr(x, y);
+      if (c == NoDataColour()) continue;
+      const int k = ScaleIndex(ColourScale::kTurbo, c);
+      lo = std::min(lo, k), hi = std::max(hi, k);
+    }
+  }
+  // 0.016 D of a >= 1 D range: at most 0.016 x 255 = 4 palette entries (+1 for rounding).
+  EXPECT_LE(hi - lo, 5) << lo << ".." << hi;
+  EXPECT_GT(lo, 64);
+  EXPECT_LT(hi, 192);
+}
+
+TEST(MapElevation, ASphereHasZeroElevationAndItsRadius) {
+  constexpr double kR = 7.8;
+  const GridMap sag = Disc(61, 4.0, "\u00b5m", [&](double x, double y) {
+    return (kR - std::sqrt(kR * kR - x * x - y * y)) * 1e3;
+  });
+  SphereFitResult fit;
+  const auto elev = ElevationAboveBestFitSphere(sag, &fit);
+  ASSERT_TRUE(elev.has_value());
+  // Noise-free sag: the algebraic fit is exact to rounding (sag up to 1.1 mm in um, 1e-9 relative).
+  EXPECT_NEAR(fit.radius_mm, kR, 1e-9);
+  EXPECT_NEAR(fit.centre_z_mm, kR, 1e-9);
+  for (double v : elev->values) {
+    if (std::isfinite(v)) {
+      ASSERT_NEAR(v, 0.0, 1e-6);
+    }
+  }
+  // A prolate surface (k < 0) flattens towards the edge: it stands below its sphere at the edge and above it at the
+  // centre, the clinical picture of a normal cornea.
+  const GridMap prolate = Disc(61, 4.0, "\u00b5m", [&](double x, double y) {
+    const double r2 = x * x + y * y, k = -0.43;
+    return r2 / (kR * (1 + std::sqrt(1 - (1 + k) * r2 / (kR * kR)))) * 1e3;
+  });
+  const auto pe = ElevationAboveBestFitSphere(prolate, &fit);
+  ASSERT_TRUE(pe.has_value());
+  EXPECT_GT(pe->At(30, 30), 0.0);   // centre: in front of the sphere
+  EXPECT_LT(pe->At(59, 30), pe->At(30, 30));
+  // No data: no fit.
+  const GridMap empty = Disc(5, 1.0, "\u00b5m", [](double, double) { return std::numeric_limits<double>::quiet_NaN(); });
+  EXPECT_FALSE(ElevationAboveBestFitSphere(empty, &fit).has_value());
+}
+
+TEST(MapImage, LabelsAreLegibleAtA4AndAnnotationsAreDrawn) {
+  GridMap g = CorrectedSphere();
+  g.unit = "\u00b5m\u00b2";
+  MapImageOptions o;
+  o.size_px = 400;
+  const MapImage plain = RenderMap(g, o);
+  o.annotations = {"Sim-K 43.27 D @ 90\u00b0 / 43.26 D @ 0\u00b0"};
+  o.ring_radii_mm = {1.5};
+  const MapImage annotated = RenderMap(g, o);
+  // One more line of text above the plot.
+  EXPECT_GT(annotated.plot.y, plain.plot.y);
+  EXPECT_EQ(annotated.height_px - plain.height_px, annotated.plot.y - plain.plot.y);
+  // Printed two across an A4 page (90 mm each), the label em of size/20 px is >= 7 pt (2.5 mm).
+  const double mm_per_px = 90.0 / plain.width_px;
+  EXPECT_GE(400 / 20.0 * mm_per_px, 2.5) << plain.width_px;
+}
+
 }  // namespace
 }  // namespace topocal::topo
