@@ -3,6 +3,7 @@
 #include <benchmark/benchmark.h>
 
 #include "model/config.h"
+#include "model/freeform_test_set.h"
 #include "model/null_screen.h"
 #include "topo/analysis.h"
 #include "topo/sweep.h"
@@ -38,14 +39,63 @@ void BM_Reconstruct(benchmark::State& state) {
 }
 BENCHMARK(BM_Reconstruct)->Unit(benchmark::kMillisecond);
 
+// One measurement of a keratoconic eye (off the axis, tilted; exact spots): the polynomial (paper) surface beside
+// the spline residual (issue 18), arg 0 = polynomial, 1 = spline.
+struct Keratoconus {
+  model::Config config = model::LoadConfig(TOPOCAL_PAPER_CONFIG);
+  model::NullScreenDesign design = model::DesignNullScreen(config.ideal_image, config.topographer);
+  std::vector<topo::MeasuredSpot> spots;
+  Keratoconus() {
+    const auto cornea = model::FreeformTestSubset({"kc-33um-0.85mm"}).front();
+    const auto image = model::SynthesizeImage(cornea.surface, model::Topographer{config.topographer}, design.targets);
+    for (const auto& s : image.spots) spots.push_back({s.id, s.position_mm});
+  }
+};
+
+void BM_ReconstructKeratoconus(benchmark::State& state) {
+  Keratoconus d;
+  d.config.reconstruction.surface_model = state.range(0) ? "spline" : "polynomial";
+  for (auto _ : state) {
+    auto r = topo::Reconstruct(d.spots, d.design.targets, d.config.topographer, d.config.reconstruction);
+    if (!r.ok) state.SkipWithError(r.message.c_str());
+    benchmark::DoNotOptimize(r.points.data());
+  }
+}
+BENCHMARK(BM_ReconstructKeratoconus)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// The paper cornea's measurement (sigma = 6.3e-5) with either surface model.
+void BM_ReconstructSurfaceModel(benchmark::State& state) {
+  OneSigma d;
+  d.config.reconstruction.surface_model = state.range(0) ? "spline" : "polynomial";
+  for (auto _ : state) {
+    auto r = topo::Reconstruct(d.spots, d.design.targets, d.config.topographer, d.config.reconstruction);
+    benchmark::DoNotOptimize(r.points.data());
+  }
+}
+BENCHMARK(BM_ReconstructSurfaceModel)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// The whole analysis of one measurement (reconstruction, biconic fit, maps, clinical indices), arg = spline.
+void BM_AnalyzeKeratoconus(benchmark::State& state) {
+  Keratoconus d;
+  d.config.reconstruction.surface_model = state.range(0) ? "spline" : "polynomial";
+  for (auto _ : state) {
+    auto a = topo::AnalyzeSpots(d.spots, d.design.targets, d.config, nullptr);
+    benchmark::DoNotOptimize(a.clinical.kmax_D);
+  }
+}
+BENCHMARK(BM_AnalyzeKeratoconus)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// The biconic fit: arg 0 = the paper's 6 parameters, 1 = free apex and tilt (10 parameters, the default).
 void BM_BiconicFit(benchmark::State& state) {
   const OneSigma d;
   const auto r = topo::Reconstruct(d.spots, d.design.targets, d.config.topographer, d.config.reconstruction);
   std::vector<Eigen::Vector3d> cloud;
   for (const auto& p : r.points) cloud.push_back(p.point_mm);
-  for (auto _ : state) benchmark::DoNotOptimize(topo::FitBiconic(cloud).params.rx_mm);
+  topo::BiconicFitOptions o;
+  o.mode = state.range(0) ? topo::BiconicFitMode::kFreeApex : topo::BiconicFitMode::kPaper;
+  for (auto _ : state) benchmark::DoNotOptimize(topo::FitBiconic(cloud, o).params.rx_mm);
 }
-BENCHMARK(BM_BiconicFit)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_BiconicFit)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 void BM_PowerMaps(benchmark::State& state) {
   const OneSigma d;

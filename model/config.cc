@@ -67,7 +67,12 @@ void ParseCornea(Section s, BiconicParams& p) {
   p.x0_mm = s.Number("x0_mm", 0.0);
   p.y0_mm = s.Number("y0_mm", 0.0);
   p.z0_mm = s.Number("z0_mm", 0.0);
+  p.tilt_x_deg = s.Number("tilt_x_deg", 0.0);
+  p.tilt_y_deg = s.Number("tilt_y_deg", 0.0);
   s.Positive("rx_mm", p.rx_mm);
+  // The tilted sag is solved by Newton from the untilted one (model/surface.h); beyond ~30 deg the cap folds over.
+  if (std::abs(p.tilt_x_deg) > 30.0) s.Fail(s.Key("tilt_x_deg"), fmt::format("must lie in [-30, 30] (got {})", p.tilt_x_deg));
+  if (std::abs(p.tilt_y_deg) > 30.0) s.Fail(s.Key("tilt_y_deg"), fmt::format("must lie in [-30, 30] (got {})", p.tilt_y_deg));
   s.Positive("ry_mm", p.ry_mm);
   s.RejectUnknown();
 }
@@ -124,6 +129,20 @@ void ParseReconstruction(Section s, ReconstructionSettings& p) {
   s.AtLeast("power_map_meridians", p.power_map_meridians, 4);
   p.power_map_radial_samples = s.Integer("power_map_radial_samples", p.power_map_radial_samples);
   s.AtLeast("power_map_radial_samples", p.power_map_radial_samples, 10);
+  p.spot_uncertainty_um = s.Number("spot_uncertainty_um", p.spot_uncertainty_um);
+  s.Positive("spot_uncertainty_um", p.spot_uncertainty_um);
+  p.surface_model = s.String("surface_model", p.surface_model);
+  if (p.surface_model != "polynomial" && p.surface_model != "spline") {
+    s.Fail(s.Key("surface_model"), fmt::format("must be \"polynomial\" or \"spline\" (got \"{}\")", p.surface_model));
+  }
+  p.spline_spacing_mm = s.Number("spline_spacing_mm", p.spline_spacing_mm);
+  if (!(p.spline_spacing_mm >= 0.1 && p.spline_spacing_mm <= 2.0)) {
+    s.Fail(s.Key("spline_spacing_mm"), fmt::format("must lie in [0.1, 2] mm (got {})", p.spline_spacing_mm));
+  }
+  p.biconic_fit = s.String("biconic_fit", p.biconic_fit);
+  if (p.biconic_fit != "free-apex" && p.biconic_fit != "paper") {
+    s.Fail(s.Key("biconic_fit"), fmt::format("must be \"free-apex\" or \"paper\" (got \"{}\")", p.biconic_fit));
+  }
   s.RejectUnknown();
 }
 
@@ -193,7 +212,8 @@ std::string ConfigToJson(const Config& c) {
                       {"cone_vertex_z_mm", c.topographer.cone_vertex_z_mm}};
   j["cornea"] = {{"rx_mm", c.cornea.rx_mm}, {"ry_mm", c.cornea.ry_mm}, {"kx", c.cornea.kx}, {"ky", c.cornea.ky},
                  {"alpha_deg", c.cornea.alpha_deg}, {"x0_mm", c.cornea.x0_mm}, {"y0_mm", c.cornea.y0_mm},
-                 {"z0_mm", c.cornea.z0_mm}};
+                 {"z0_mm", c.cornea.z0_mm}, {"tilt_x_deg", c.cornea.tilt_x_deg},
+                 {"tilt_y_deg", c.cornea.tilt_y_deg}};
   j["distortion"] = {{"model", c.distortion.model}, {"MT", c.distortion.magnification},
                      {"centre_x_mm", c.distortion.centre_x_mm}, {"centre_y_mm", c.distortion.centre_y_mm},
                      {"sigmas_per_mm2", c.distortion.sigmas_per_mm2}};
@@ -207,7 +227,9 @@ std::string ConfigToJson(const Config& c) {
                          {"power_map_radius_mm", r.power_map_radius_mm},
                          {"power_map_method", r.power_map_method},
                          {"power_map_meridians", r.power_map_meridians},
-                         {"power_map_radial_samples", r.power_map_radial_samples}};
+                         {"power_map_radial_samples", r.power_map_radial_samples},
+                         {"spot_uncertainty_um", r.spot_uncertainty_um}, {"surface_model", r.surface_model},
+                         {"spline_spacing_mm", r.spline_spacing_mm}, {"biconic_fit", r.biconic_fit}};
   return j.dump(2);
 }
 

@@ -50,6 +50,10 @@ struct BiconicParams {
   double x0_mm = 0.0;  // decentration of the biconic in its own (rotated) frame, Eq. 12
   double y0_mm = 0.0;
   double z0_mm = 0.0;  // axial offset of the vertex (the paper's cornea sits at z = 0)
+  // Tilt of the eye about its apex (model/surface.h): the surface of Eq. 12 is rotated by R = Ry(tilt_y) Rx(tilt_x)
+  // about its vertex, angles in the instrument frame. 0 = the paper's eye, looking along the axis.
+  double tilt_x_deg = 0.0;
+  double tilt_y_deg = 0.0;
 };
 
 struct DistortionSweep {
@@ -77,6 +81,15 @@ struct ReconstructionSettings {
   std::string power_map_method = "exact";    // "exact" derivatives of Psi or "polynomial" (Eq. 23 meridian fit)
   int power_map_meridians = 360;
   int power_map_radial_samples = 100;
+  double spot_uncertainty_um = 0.045;        // spot-centre uncertainty on the detection plane (0.04 px of the
+                                             // 1.12 um pixel of data/camera.json): the noise the model-adequacy
+                                             // figure compares the slope residual with
+  std::string surface_model = "polynomial";  // "polynomial" (Psi alone, the paper's Eq. 21) or "spline" (Psi plus
+                                             // a bicubic P-spline residual, GCV-smoothed: freeform corneas;
+                                             // docs/reconstruction.md)
+  double spline_spacing_mm = 0.33;           // knot spacing of the spline residual (spots lie ~0.35 mm apart)
+  std::string biconic_fit = "free-apex";     // "free-apex" (apex position and tilt free, default) or "paper"
+                                             // (Eq. 12 with x0 = y0 = 0 and no tilt: the paper's 6 parameters)
 };
 
 struct Config {

@@ -2,6 +2,8 @@
 
 #include <limits>
 
+#include <ceres/jet.h>
+
 namespace topocal::model {
 
 bool Sphere::Evaluate(double x_mm, double y_mm, SurfaceDerivatives* d) const noexcept {
@@ -20,6 +22,20 @@ bool Sphere::Evaluate(double x_mm, double y_mm, SurfaceDerivatives* d) const noe
 }
 
 bool Biconic::Evaluate(double x, double y, SurfaceDerivatives* d) const noexcept {
+  if (Tilted()) {
+    // The tilted sag has no closed form; its gradient from the kernel in jets carries the exact Hessian
+    // (d/dx, d/dy of z_x and z_y), since the kernel's final Newton step makes z exact to first order.
+    using Jet = ceres::Jet<double, 2>;
+    Jet z, zx, zy;
+    if (!SagAndGradient(Jet(x, 0), Jet(y, 1), &z, &zx, &zy)) return false;
+    d->z = z.a;
+    d->zx = zx.a;
+    d->zy = zy.a;
+    d->zxx = zx.v[0];
+    d->zxy = 0.5 * (zx.v[1] + zy.v[0]);
+    d->zyy = zy.v[1];
+    return true;
+  }
   const double alpha = params.alpha_deg * M_PI / 180.0;
   const double ca = std::cos(alpha), sa = std::sin(alpha);
   const double cx = 1.0 / params.rx_mm, cy = 1.0 / params.ry_mm;
@@ -58,6 +74,53 @@ double Biconic::DefinedRadiusMm() const noexcept {
   const double decentre = std::hypot(params.x0_mm, params.y0_mm);
   if (q <= 0) return std::numeric_limits<double>::infinity();
   return std::max(0.0, 1.0 / std::sqrt(q) - decentre);
+}
+
+}  // namespace topocal::model
+
+namespace topocal::model {
+
+Eigen::Vector3d Biconic::ApexMm() const noexcept {
+  const double a = params.alpha_deg * M_PI / 180.0;
+  return {std::cos(a) * params.x0_mm - std::sin(a) * params.y0_mm,
+          std::sin(a) * params.x0_mm + std::cos(a) * params.y0_mm, params.z0_mm};
+}
+
+}  // namespace topocal::model
+
+namespace topocal::model {
+
+bool Freeform::Evaluate(double x, double y, SurfaceDerivatives* d) const noexcept {
+  // Every term is analytic in its gradient; jets through the gradient give the exact Hessian.
+  using Jet = ceres::Jet<double, 2>;
+  Jet z, zx, zy;
+  if (!SagAndGradient(Jet(x, 0), Jet(y, 1), &z, &zx, &zy)) return false;
+  d->z = z.a;
+  d->zx = zx.a;
+  d->zy = zy.a;
+  d->zxx = zx.v[0];
+  d->zxy = 0.5 * (zx.v[1] + zy.v[0]);
+  d->zyy = zy.v[1];
+  return true;
+}
+
+}  // namespace topocal::model
+
+namespace topocal::model {
+
+// The sag of every surface here moves rigidly with z0 (the tilt turns about the apex, which moves with it).
+bool FocusOnAxis(Biconic* eye) noexcept {
+  SurfaceDerivatives d;
+  if (!eye->Evaluate(0.0, 0.0, &d)) return false;
+  eye->params.z0_mm -= d.z;
+  return true;
+}
+
+bool FocusOnAxis(Freeform* eye) noexcept {
+  SurfaceDerivatives d;
+  if (!eye->Evaluate(0.0, 0.0, &d)) return false;
+  eye->base.params.z0_mm -= d.z;
+  return true;
 }
 
 }  // namespace topocal::model

@@ -10,12 +10,16 @@
 //        X = x_r - x0, Y = y_r - y0
 //        S = z0 + (cx X^2 + cy Y^2) / (1 + sqrt(1 - Qx cx^2 X^2 - Qy cy^2 Y^2)),  c = 1/r, Q = 1 + k
 //    Defined where the square root's argument is positive; outside, Sag() returns false (never NaN).
+//    Optionally tilted about its vertex (the eye's rotation): BiconicKernel below.
 #include <cmath>
+#include <type_traits>
 #include <variant>
+#include <vector>
 
 #include <Eigen/Core>
 
 #include "model/config.h"
+#include "model/freeform_terms.h"
 
 namespace topocal::model {
 
@@ -45,37 +49,194 @@ struct Sphere {
   bool Evaluate(double x, double y, SurfaceDerivatives* d) const noexcept;
 };
 
-struct Biconic {
-  BiconicParams params;
+// The biconic of paper Eq. 12-13, once, on a parameter vector (so that the simulation with BiconicParams and the
+// least-squares fit in topo/biconic_fit.cc with Ceres jets share one definition).
+//
+// Parameter order (kIndex): c_x = 1/r_x, c_y = 1/r_y (1/mm), k_x, k_y, alpha (rad), x0, y0 (mm, decentration in the
+// rotated frame as in Eq. 12), z0 (mm, axial vertex position), tilt_x, tilt_y (rad).
+//
+// Untilted surface G (Eq. 12-13):   z = z0 + (c_x X^2 + c_y Y^2) / (1 + sqrt(1 - Q_x c_x^2 X^2 - Q_y c_y^2 Y^2))
+// with X = x_r - x0, Y = y_r - y0, (x_r, y_r) = (x, y) rotated by alpha, Q = 1 + k.
+//
+// Tilted eye: G is rotated about its vertex A = (Rot(-alpha) (x0, y0), z0) by R = Ry(tilt_y) Rx(tilt_x):
+// p lies on the surface iff u = A + R^T (p - A) lies on G, i.e.  F(x, y, z) = u_z - G(u_x, u_y) = 0.
+// The sag z(x, y) is the root of F near G's own sag: Newton in double to ~1e-15 mm (F_z = cos(tilt) ~ 1 for small
+// tilts, 3-4 steps), then ONE Newton step in the caller's type T, which makes z exact to first order in every jet
+// variable (implicit function theorem); the gradient is z_x = -F_x / F_z, z_y = -F_y / F_z. Zero tilt takes the
+// untilted formula directly (bit-identical to the paper's surface). Returns false where G is undefined (the
+// square root's argument is not positive) or the Newton iteration does not converge; never NaN.
+struct BiconicKernel {
+  enum Index : int { kCx = 0, kCy, kKx, kKy, kAlpha, kX0, kY0, kZ0, kTiltX, kTiltY, kNumParams };
 
-  template <typename T>
-  bool SagAndGradient(const T& x, const T& y, T* z, T* zx, T* zy) const noexcept {
+  static void FromParams(const BiconicParams& p, double* q) noexcept {
+    q[kCx] = 1.0 / p.rx_mm;
+    q[kCy] = 1.0 / p.ry_mm;
+    q[kKx] = p.kx;
+    q[kKy] = p.ky;
+    q[kAlpha] = p.alpha_deg * M_PI / 180.0;
+    q[kX0] = p.x0_mm;
+    q[kY0] = p.y0_mm;
+    q[kZ0] = p.z0_mm;
+    q[kTiltX] = p.tilt_x_deg * M_PI / 180.0;
+    q[kTiltY] = p.tilt_y_deg * M_PI / 180.0;
+  }
+  static BiconicParams ToParams(const double* q) noexcept {
+    BiconicParams p;
+    p.rx_mm = 1.0 / q[kCx];
+    p.ry_mm = 1.0 / q[kCy];
+    p.kx = q[kKx];
+    p.ky = q[kKy];
+    p.alpha_deg = q[kAlpha] * 180.0 / M_PI;
+    p.x0_mm = q[kX0];
+    p.y0_mm = q[kY0];
+    p.z0_mm = q[kZ0];
+    p.tilt_x_deg = q[kTiltX] * 180.0 / M_PI;
+    p.tilt_y_deg = q[kTiltY] * 180.0 / M_PI;
+    return p;
+  }
+
+  // Eq. 12-13 without tilt: sag and gradient of G at (x, y).
+  template <typename T, typename P>
+  static bool UntiltedSag(const P* q, const T& x, const T& y, T* z, T* zx, T* zy) noexcept {
+    using std::cos;
+    using std::sin;
     using std::sqrt;
-    const double ca = std::cos(params.alpha_deg * M_PI / 180.0), sa = std::sin(params.alpha_deg * M_PI / 180.0);
-    const double cx = 1.0 / params.rx_mm, cy = 1.0 / params.ry_mm;
-    const double qx = (1.0 + params.kx) * cx * cx, qy = (1.0 + params.ky) * cy * cy;
-    const T X = ca * x + sa * y - params.x0_mm;
-    const T Y = -sa * x + ca * y - params.y0_mm;
-    const T s2 = T(1) - qx * X * X - qy * Y * Y;
-    if (!(s2 > T(0))) return false;
+    const P ca = cos(q[kAlpha]), sa = sin(q[kAlpha]);
+    const P qx = (1.0 + q[kKx]) * q[kCx] * q[kCx], qy = (1.0 + q[kKy]) * q[kCy] * q[kCy];
+    const T X = ca * x + sa * y - q[kX0];
+    const T Y = -sa * x + ca * y - q[kY0];
+    const T s2 = 1.0 - qx * X * X - qy * Y * Y;
+    if (!(ScalarPart(s2) > 0.0)) return false;
     const T s = sqrt(s2);
-    const T den = T(1) + s;
-    const T num = cx * X * X + cy * Y * Y;
-    const T zz = num / den;
+    const T den = 1.0 + s;
+    const T zz = (q[kCx] * X * X + q[kCy] * Y * Y) / den;
     // z * den = num  =>  z_X = (num_X - z s_X) / den, with s_X = -qx X / s
-    const T zX = (2.0 * cx * X + zz * qx * X / s) / den;
-    const T zY = (2.0 * cy * Y + zz * qy * Y / s) / den;
-    *z = T(params.z0_mm) + zz;
+    const T zX = (2.0 * q[kCx] * X + zz * qx * X / s) / den;
+    const T zY = (2.0 * q[kCy] * Y + zz * qy * Y / s) / den;
+    *z = q[kZ0] + zz;
     *zx = ca * zX - sa * zY;
     *zy = sa * zX + ca * zY;
     return true;
   }
+
+  // Sag and gradient of the (possibly tilted) surface in the instrument frame. T: type of (x, y) and of the
+  // result; P: type of the parameters (double for simulation, a jet in the fit). Mixed double/jet arithmetic
+  // resolves to the jet type.
+  template <typename T, typename P>
+  static bool SagAndGradient(const P* q, const T& x, const T& y, T* z, T* zx, T* zy, bool tilted) noexcept {
+    if (!tilted) return UntiltedSag(q, x, y, z, zx, zy);
+    using std::cos;
+    using std::sin;
+    using R = decltype(T(0) * P(0));
+    // M = R^T (rows: u = A + M (p - A)); R = Ry(ty) Rx(tx).
+    const P cx = cos(q[kTiltX]), sx = sin(q[kTiltX]), cy = cos(q[kTiltY]), sy = sin(q[kTiltY]);
+    const P m[3][3] = {{cy, P(0.0), -sy}, {sx * sy, cx, sx * cy}, {cx * sy, -sx, cx * cy}};
+    const P ca = cos(q[kAlpha]), sa = sin(q[kAlpha]);
+    const P ax = ca * q[kX0] - sa * q[kY0], ay = sa * q[kX0] + ca * q[kY0], az = q[kZ0];
+    // F and its partials at (x, y, zz); Fp = (F_x, F_y, F_z).
+    const auto eval = [&](const auto& xx, const auto& yy, const auto& zz, auto* f, auto* fp) -> bool {
+      using V = std::decay_t<decltype(*f)>;
+      const V dx = xx - ax, dy = yy - ay, dz = zz - az;
+      const V ux = ax + m[0][0] * dx + m[0][1] * dy + m[0][2] * dz;
+      const V uy = ay + m[1][0] * dx + m[1][1] * dy + m[1][2] * dz;
+      const V uz = az + m[2][0] * dx + m[2][1] * dy + m[2][2] * dz;
+      V g, gx, gy;
+      if (!UntiltedSag(q, ux, uy, &g, &gx, &gy)) return false;
+      *f = uz - g;
+      for (int j = 0; j < 3; ++j) fp[j] = m[2][j] - gx * m[0][j] - gy * m[1][j];
+      return true;
+    };
+    // Newton in double on the scalar parts.
+    double qd[kNumParams];
+    for (int i = 0; i < kNumParams; ++i) qd[i] = ScalarPart(q[i]);
+    const double xd = ScalarPart(x), yd = ScalarPart(y);
+    double zd, gxd, gyd;
+    if (!UntiltedSag(qd, xd, yd, &zd, &gxd, &gyd)) return false;
+    // 1e-14 mm: the double floor of a sag of ~1 mm; 20 steps: Newton converges in 3-4 for tilts below 30 deg.
+    constexpr double kSagToleranceMm = 1e-14;
+    constexpr int kMaxNewton = 20;
+    bool converged = false;
+    for (int it = 0; it < kMaxNewton; ++it) {
+      double f, fp[3];
+      const double dxd = xd - ScalarPart(ax), dyd = yd - ScalarPart(ay), dzd = zd - ScalarPart(az);
+      double md[3][3];
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) md[i][j] = ScalarPart(m[i][j]);
+      const double ux = ScalarPart(ax) + md[0][0] * dxd + md[0][1] * dyd + md[0][2] * dzd;
+      const double uy = ScalarPart(ay) + md[1][0] * dxd + md[1][1] * dyd + md[1][2] * dzd;
+      const double uz = ScalarPart(az) + md[2][0] * dxd + md[2][1] * dyd + md[2][2] * dzd;
+      double g, gx, gy;
+      if (!UntiltedSag(qd, ux, uy, &g, &gx, &gy)) return false;
+      f = uz - g;
+      for (int j = 0; j < 3; ++j) fp[j] = md[2][j] - gx * md[0][j] - gy * md[1][j];
+      if (!(std::abs(fp[2]) > 1e-6)) return false;  // the ray along z grazes the tilted surface
+      const double step = f / fp[2];
+      zd -= step;
+      if (!std::isfinite(zd)) return false;
+      if (std::abs(step) < kSagToleranceMm) {
+        converged = true;
+        break;
+      }
+    }
+    if (!converged) return false;
+    // One Newton step in the full type: exact first derivatives in every jet variable.
+    R zr = R(zd), f, fp[3];
+    if (!eval(R(x), R(y), zr, &f, fp)) return false;
+    zr = zr - f / fp[2];
+    if (!eval(R(x), R(y), zr, &f, fp)) return false;
+    *z = zr;
+    *zx = -fp[0] / fp[2];
+    *zy = -fp[1] / fp[2];
+    return true;
+  }
+};
+
+struct Biconic {
+  BiconicParams params;
+
+  bool Tilted() const noexcept { return params.tilt_x_deg != 0.0 || params.tilt_y_deg != 0.0; }
+  template <typename T>
+  bool SagAndGradient(const T& x, const T& y, T* z, T* zx, T* zy) const noexcept {
+    double q[BiconicKernel::kNumParams];
+    BiconicKernel::FromParams(params, q);
+    return BiconicKernel::SagAndGradient(q, x, y, z, zx, zy, Tilted());
+  }
   bool Evaluate(double x, double y, SurfaceDerivatives* d) const noexcept;
   // Radius of the largest disc about the z axis on which the biconic is defined (infinite for oblate-free cases).
   double DefinedRadiusMm() const noexcept;
+  // The apex (vertex) in the instrument frame: (Rot(-alpha) (x0, y0), z0).
+  Eigen::Vector3d ApexMm() const noexcept;
 };
 
-using Surface = std::variant<Sphere, Biconic>;
+// A freeform cornea (issue 18's test set): a biconic base (possibly off the axis and tilted) plus local departures
+// added along z in the instrument frame — keratoconus cones, refractive ablations, Zernike irregularity
+// (model/freeform_terms.h). Sag and gradient analytic (the base's Newton root when tilted); Hessian from jets.
+struct Freeform {
+  Biconic base;
+  std::vector<GaussianCone> cones;
+  std::vector<Ablation> ablations;
+  std::vector<ZernikeTerm> zernike;
+
+  template <typename T>
+  bool SagAndGradient(const T& x, const T& y, T* z, T* zx, T* zy) const noexcept {
+    if (!base.SagAndGradient(x, y, z, zx, zy)) return false;
+    for (const auto& c : cones) c.Add(x, y, z, zx, zy);
+    for (const auto& a : ablations) a.Add(x, y, z, zx, zy);
+    for (const auto& t : zernike) t.Add(x, y, z, zx, zy);
+    return true;
+  }
+  bool Evaluate(double x, double y, SurfaceDerivatives* d) const noexcept;
+};
+
+using Surface = std::variant<Sphere, Biconic, Freeform>;
+
+// The eye as a topographer positions it: focused so that the corneal point ON THE INSTRUMENT AXIS sits at the
+// working distance, z(0, 0) = 0 (what the reconstruction assumes, Psi(0, 0) = t: one camera and one screen do not
+// observe the vertex height, docs/reconstruction.md). For an eye off the axis or tilted that point is not the apex:
+// the surface is moved along z (z0 changed) until it passes through the origin. Returns false where the surface
+// is undefined at the origin.
+bool FocusOnAxis(Biconic* eye) noexcept;
+bool FocusOnAxis(Freeform* eye) noexcept;
 
 inline bool EvaluateSurface(const Surface& s, double x, double y, SurfaceDerivatives* d) noexcept {
   return std::visit([&](const auto& surf) { return surf.Evaluate(x, y, d); }, s);

@@ -27,15 +27,37 @@ void PrintAnalysis(const topo::Analysis& a) {
   const auto& p = f.params;
   fmt::print("reconstruction: {}\n", r.message);
   if (!r.unmatched.empty()) fmt::print("spots not in the design (ignored): {}\n", r.unmatched.size());
-  fmt::print("biconic fit ({} points, rms {:.4f} um):\n", f.points, f.rms_residual_um);
+  fmt::print("biconic fit ({}, {} points, rms {:.4f} um):\n", topo::BiconicFitModeName(f.mode), f.points,
+             f.rms_residual_um);
   const auto& sd = f.stddev;
   fmt::print("  rx = {:.4f} +- {:.4f} mm   ry = {:.4f} +- {:.4f} mm\n", p.rx_mm, sd.rx_mm, p.ry_mm, sd.ry_mm);
   fmt::print("  kx = {:.4f} +- {:.4f}      ky = {:.4f} +- {:.4f}\n", p.kx, sd.kx, p.ky, sd.ky);
   fmt::print("  alpha = {:.4f} +- {:.4f} deg   vertex = {:.4f} +- {:.4f} um\n", p.alpha_deg, sd.alpha_deg,
              p.z0_mm * 1e3, sd.z0_mm * 1e3);
-  fmt::print("power maps (R = {:.2f} mm, points reach {:.2f} mm): pv tangential {:.3f} D, pv axial {:.3f} D\n",
-             a.power.radius_mm, a.covered_radius_mm, a.power.pv_tangential_D, a.power.pv_axial_D);
+  if (f.mode == topo::BiconicFitMode::kFreeApex) {
+    fmt::print("  apex at ({:.4f} +- {:.4f}, {:.4f} +- {:.4f}) mm: decentration {:.4f} mm\n", f.apex_mm.x(),
+               sd.apex_x_mm, f.apex_mm.y(), sd.apex_y_mm, f.DecentrationMm());
+    fmt::print("  tilt x = {:.3f} +- {:.3f} deg, y = {:.3f} +- {:.3f} deg: {:.3f} deg off the axis\n", p.tilt_x_deg,
+               sd.tilt_x_deg, p.tilt_y_deg, sd.tilt_y_deg, f.TiltDeg());
+  }
+  fmt::print("power maps (R = {:.2f} mm, points reach {:.2f} mm, every direction {:.2f} mm): pv tangential {:.3f} D, "
+             "pv axial {:.3f} D\n", a.power.radius_mm, a.covered_radius_mm, a.supported_radius_mm,
+             a.power.pv_tangential_D, a.power.pv_axial_D);
   if (a.errors) fmt::print("against the configured cornea: pv {:.4f} um, rms {:.4f} um\n", a.errors->pv_um, a.errors->rms_um);
+  fmt::print("model adequacy: slope residual {:.3g} = {:.2f} x the {:.3g} expected from spot-centre noise\n",
+             r.rms_slope_residual, r.adequacy_ratio, r.expected_slope_noise);
+  if (a.clinical_ok) {
+    const auto& c = a.clinical;
+    fmt::print("clinical (data to {:.2f} mm): sim-K {:.2f} D @ {:.0f} deg / {:.2f} D @ {:.0f} deg; Kmax {:.2f} D at "
+               "({:.2f}, {:.2f}) mm\n", c.supported_radius_mm, c.steep_k_D, c.steep_axis_deg, c.flat_k_D,
+               c.flat_axis_deg, c.kmax_D, c.kmax_at_mm.x(), c.kmax_at_mm.y());
+    fmt::print("  BFS {:.3f} mm over {:.2f} mm: elevation peak {:.2f} um at ({:.2f}, {:.2f}) mm{}\n", c.bfs_radius_mm,
+               c.bfs_zone_radius_mm, c.elevation_peak_um, c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y(),
+               c.is_available ? fmt::format("; I-S {:.2f} D", c.inferior_superior_D) : std::string());
+  } else {
+    fmt::print("clinical indices: {}\n", a.clinical_message);
+  }
+  for (const auto& w : a.warnings) fmt::print("WARNING: {}\n", w);
 }
 
 struct Inputs {
@@ -157,9 +179,15 @@ void AddReconstructCommand(CLI::App& app) {
   cmd->add_option("--seed", in->seed, "Seed of the --uncertainty draws")->capture_default_str();
   cmd->add_option("--json", *json_out, "Write the result as JSON");
   cmd->add_option("--maps", *maps, "Write power and height maps (CSV + PNG) into this directory");
+  auto biconic_fit = std::make_shared<std::string>();
+  cmd->add_option("--biconic-fit", *biconic_fit,
+                  "Biconic fit: free-apex (apex position and tilt of the eye free; default) or paper (the paper's "
+                  "6 parameters, apex on the axis); overrides reconstruction.biconic_fit")
+      ->check(CLI::IsMember({"free-apex", "paper"}));
   cmd->add_flag("--truth", *truth, "Compare with the configuration's cornea (pv and rms of the height difference)");
   cmd->callback([=] {
-    const auto cfg = model::LoadConfig(*config);
+    auto cfg = model::LoadConfig(*config);
+    if (!biconic_fit->empty()) cfg.reconstruction.biconic_fit = *biconic_fit;
     if (in->spots.empty() == in->image.empty()) throw model::InputError("reconstruct: give one of --spots or --image");
     if (in->uncertainty_samples > 0 && (in->image.empty() || in->calibration.empty())) {
       throw model::InputError("--uncertainty needs --image and --calibration");
@@ -198,6 +226,8 @@ void AddReconstructCommand(CLI::App& app) {
       j["power"] = {{"pv_tangential_D", analysis.power.pv_tangential_D}, {"pv_axial_D", analysis.power.pv_axial_D},
                     {"map_radius_mm", analysis.power.radius_mm}, {"covered_radius_mm", analysis.covered_radius_mm}};
       if (*truth) j["errors"] = ErrorsJson(analysis);
+      j["clinical"] = ClinicalJson(analysis);
+      j["adequacy"] = AdequacyJson(analysis);
       model::WriteFileAtomic(*json_out, j.dump(2) + "\n");
     }
     if (!maps->empty()) WriteAnalysisMaps(*maps, "", "", analysis, *truth ? &cfg.cornea : nullptr);

@@ -30,6 +30,8 @@ std::string SweepJson(const topo::SweepResult& r, const std::vector<pipeline::Cl
     jr["surface_fit"] = SurfaceFitJson(a.surface_fit);
     jr["reconstruction"] = ReconstructionJson(a.reconstruction);
     jr["errors"] = ErrorsJson(a);
+    jr["clinical"] = ClinicalJson(a);
+    jr["adequacy"] = AdequacyJson(a);
     const size_t i = j["rows"].size();
     if (i < corrected.size()) {
       const auto& c = corrected[i];
@@ -55,13 +57,30 @@ std::string SweepJson(const topo::SweepResult& r, const std::vector<pipeline::Cl
 }
 
 void PrintTableVI(const topo::SweepResult& r) {
-  fmt::print("\nTable VI — biconic fitted to the reconstructed surface (rx >= ry, alpha in [0, 180))\n");
-  fmt::print("{:>12}  {:>8}  {:>8}  {:>8}  {:>8}  {:>9}  {:>10}\n", "sigma/mm^2", "rx/mm", "ry/mm", "kx", "ky",
-             "alpha/deg", "vertex/um");
+  const char* mode = r.rows.empty() ? "" : topo::BiconicFitModeName(r.rows[0].analysis.surface_fit.mode);
+  fmt::print("\nTable VI — biconic fitted to the reconstructed surface (rx >= ry, alpha in [0, 180); {} fit)\n", mode);
+  fmt::print("{:>12}  {:>8}  {:>8}  {:>8}  {:>8}  {:>9}  {:>10}  {:>9}  {:>8}\n", "sigma/mm^2", "rx/mm", "ry/mm", "kx",
+             "ky", "alpha/deg", "vertex/um", "apex/mm", "tilt/deg");
   for (const auto& row : r.rows) {
-    const auto& p = row.analysis.surface_fit.params;
-    fmt::print("{:>12.3g}  {:>8.4f}  {:>8.4f}  {:>8.4f}  {:>8.4f}  {:>9.4f}  {:>10.4f}\n", row.sigma_per_mm2, p.rx_mm,
-               p.ry_mm, p.kx, p.ky, p.alpha_deg, p.z0_mm * 1e3);
+    const auto& f = row.analysis.surface_fit;
+    const auto& p = f.params;
+    fmt::print("{:>12.3g}  {:>8.4f}  {:>8.4f}  {:>8.4f}  {:>8.4f}  {:>9.4f}  {:>10.4f}  {:>9.5f}  {:>8.4f}\n",
+               row.sigma_per_mm2, p.rx_mm, p.ry_mm, p.kx, p.ky, p.alpha_deg, p.z0_mm * 1e3, f.DecentrationMm(),
+               f.TiltDeg());
+  }
+}
+
+void PrintClinical(const topo::SweepResult& r) {
+  fmt::print("\nModel adequacy and clinical indices (within the covered radius)\n");
+  fmt::print("{:>12}  {:>9}  {:>8}  {:>9}  {:>9}  {:>8}  {:>8}  {:>9}  {:>7}\n", "sigma/mm^2", "adequacy", "support",
+             "steepK/D", "flatK/D", "axis/deg", "Kmax/D", "elev/um", "I-S/D");
+  for (const auto& row : r.rows) {
+    const auto& a = row.analysis;
+    const auto& c = a.clinical;
+    fmt::print("{:>12.3g}  {:>9.3g}  {:>8.2f}  {:>9.3f}  {:>9.3f}  {:>8.1f}  {:>8.3f}  {:>9.3f}  {:>7.3f}{}\n",
+               row.sigma_per_mm2, a.reconstruction.adequacy_ratio, a.supported_radius_mm, c.steep_k_D, c.flat_k_D,
+               c.steep_axis_deg, c.kmax_D, c.elevation_peak_um, c.inferior_superior_D,
+               a.reconstruction.adequacy_ratio > topo::kAdequacyWarningRatio ? "  model does not fit" : "");
   }
 }
 
@@ -121,6 +140,11 @@ void AddSweepCommand(CLI::App& app) {
   cmd->add_option("--config", *config, "Topographer configuration (JSON)")->required();
   cmd->add_option("--json", *json_out, "Write the sweep as JSON");
   cmd->add_option("--maps", *maps, "Write every sigma's power, height and difference maps (CSV + PNG) here");
+  auto biconic_fit = std::make_shared<std::string>();
+  cmd->add_option("--biconic-fit", *biconic_fit,
+                  "Biconic fit: free-apex (apex position and tilt of the eye free; default) or paper (the paper's "
+                  "6 parameters, apex on the axis); overrides reconstruction.biconic_fit")
+      ->check(CLI::IsMember({"free-apex", "paper"}));
   auto correct = std::make_shared<bool>(false);
   auto camera = std::make_shared<std::string>();
   cmd->add_flag("--correct", *correct,
@@ -128,7 +152,8 @@ void AddSweepCommand(CLI::App& app) {
                 "sensor image, undistort, reconstruct; print before and after side by side");
   cmd->add_option("--camera", *camera, "Topographer camera (JSON) for --correct; default: 1.12 um pitch, a from the config");
   cmd->callback([=] {
-    const auto cfg = model::LoadConfig(*config);
+    auto cfg = model::LoadConfig(*config);
+    if (!biconic_fit->empty()) cfg.reconstruction.biconic_fit = *biconic_fit;
     if (!camera->empty() && !*correct) throw model::InputError("--camera goes with --correct");
     // Inputs are checked before any work: a bad camera file fails at once, not after the sweep.
     pipeline::ClosedLoopOptions options;
@@ -144,6 +169,7 @@ void AddSweepCommand(CLI::App& app) {
     PrintTableV(result);
     PrintTableVI(result);
     PrintTableVII(result);
+    PrintClinical(result);
     std::vector<pipeline::ClosedLoopResult> corrected;
     if (*correct) {
       for (const auto& row : result.rows) {

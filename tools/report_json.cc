@@ -7,10 +7,15 @@ nlohmann::json SurfaceFitJson(const topo::BiconicFit& f) {
   const auto& sd = f.stddev;
   nlohmann::json j = {{"rx_mm", p.rx_mm},     {"ry_mm", p.ry_mm},         {"kx", p.kx},
                       {"ky", p.ky},           {"alpha_deg", p.alpha_deg}, {"vertex_um", p.z0_mm * 1e3},
-                      {"rms_um", f.rms_residual_um}};
+                      {"rms_um", f.rms_residual_um}, {"mode", topo::BiconicFitModeName(f.mode)},
+                      {"apex_x_mm", f.apex_mm.x()}, {"apex_y_mm", f.apex_mm.y()},
+                      {"decentration_mm", f.DecentrationMm()}, {"tilt_x_deg", p.tilt_x_deg},
+                      {"tilt_y_deg", p.tilt_y_deg}, {"tilt_deg", f.TiltDeg()}};
   if (f.stddev_ok) {
     j["stddev"] = {{"rx_mm", sd.rx_mm}, {"ry_mm", sd.ry_mm},         {"kx", sd.kx},
-                   {"ky", sd.ky},       {"alpha_deg", sd.alpha_deg}, {"vertex_um", sd.z0_mm * 1e3}};
+                   {"ky", sd.ky},       {"alpha_deg", sd.alpha_deg}, {"vertex_um", sd.z0_mm * 1e3},
+                   {"apex_x_mm", sd.apex_x_mm}, {"apex_y_mm", sd.apex_y_mm},
+                   {"tilt_x_deg", sd.tilt_x_deg}, {"tilt_y_deg", sd.tilt_y_deg}};
   }
   return j;
 }
@@ -37,6 +42,42 @@ nlohmann::json ErrorsJson(const topo::Analysis& a) {
     j["rms_um"] = a.errors->rms_um;
   }
   return j;
+}
+
+nlohmann::json ClinicalJson(const topo::Analysis& a) {
+  if (!a.clinical_ok) return {{"error", a.clinical_message}};
+  const auto& c = a.clinical;
+  nlohmann::json j = {
+      {"supported_radius_mm", c.supported_radius_mm},
+      {"sim_k", {{"steep_D", c.steep_k_D}, {"steep_axis_deg", c.steep_axis_deg}, {"flat_D", c.flat_k_D},
+                 {"flat_axis_deg", c.flat_axis_deg}, {"cylinder_D", c.CylinderD()}}},
+      {"kmax", {{"power_D", c.kmax_D}, {"x_mm", c.kmax_at_mm.x()}, {"y_mm", c.kmax_at_mm.y()}}},
+      {"best_fit_sphere", {{"radius_mm", c.bfs_radius_mm}, {"zone_radius_mm", c.bfs_zone_radius_mm},
+                           {"centre_mm", {c.bfs_centre_mm.x(), c.bfs_centre_mm.y(), c.bfs_centre_mm.z()}},
+                           {"elevation_peak_um", c.elevation_peak_um},
+                           {"elevation_peak_x_mm", c.elevation_peak_at_mm.x()},
+                           {"elevation_peak_y_mm", c.elevation_peak_at_mm.y()},
+                           {"elevation_rms_um", c.elevation_rms_um}}}};
+  if (c.is_available) {
+    j["inferior_superior_D"] = c.inferior_superior_D;
+  } else {
+    j["inferior_superior_D"] = nullptr;
+  }
+  return j;
+}
+
+nlohmann::json AdequacyJson(const topo::Analysis& a) {
+  const auto& r = a.reconstruction;
+  return {{"rms_slope_residual", r.rms_slope_residual},
+          {"expected_slope_noise", r.expected_slope_noise},
+          {"ratio", r.adequacy_ratio},
+          {"warning_ratio", topo::kAdequacyWarningRatio},
+          {"model_fits_data", r.adequacy_ratio <= topo::kAdequacyWarningRatio},
+          {"covered_radius_mm", a.covered_radius_mm},
+          {"supported_radius_mm", a.supported_radius_mm},
+          {"map_radius_mm", a.power.radius_mm},
+          {"maps_extrapolated", a.maps_extrapolated},
+          {"warnings", a.warnings}};
 }
 
 nlohmann::json PolynomialJson(const topo::TaylorPolynomial& p) {

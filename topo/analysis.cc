@@ -1,6 +1,7 @@
 #include "topo/analysis.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <stdexcept>
 
@@ -39,6 +40,17 @@ SurfaceErrors HeightErrors(const std::vector<ReconstructedPoint>& points, const 
   return e;
 }
 
+double SupportedRadiusMm(const std::vector<ReconstructedPoint>& points) {
+  constexpr int kSectors = 36;
+  std::array<double, kSectors> reach{};
+  for (const auto& p : points) {
+    const double angle = std::atan2(p.point_mm.y(), p.point_mm.x());
+    const int sector = std::clamp(static_cast<int>(std::floor((angle + M_PI) / (2.0 * M_PI) * kSectors)), 0, kSectors - 1);
+    reach[sector] = std::max(reach[sector], p.point_mm.head<2>().norm());
+  }
+  return *std::min_element(reach.begin(), reach.end());
+}
+
 PowerMaps IdealPowerMaps(const model::BiconicParams& cornea, const model::ReconstructionSettings& settings) {
   const model::Biconic b{cornea};
   PowerMaps maps;
@@ -58,7 +70,9 @@ Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<
   std::vector<Eigen::Vector3d> cloud;
   cloud.reserve(a.reconstruction.points.size());
   for (const auto& p : a.reconstruction.points) cloud.push_back(p.point_mm);
-  a.surface_fit = FitBiconic(cloud);
+  BiconicFitOptions fit_options;
+  fit_options.mode = BiconicFitModeFromName(config.reconstruction.biconic_fit);
+  a.surface_fit = FitBiconic(cloud, fit_options);
   if (!a.surface_fit.ok) throw std::runtime_error(fmt::format("biconic fit failed: {}", a.surface_fit.message));
   // Sec. 4.2: piston B_1 and tilts B_2, B_3 do not affect the shape and are zeroed before the maps.
   TaylorPolynomial shape = a.reconstruction.surface;
@@ -71,9 +85,46 @@ Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<
     a.covered_radius_mm = std::max(a.covered_radius_mm, p.point_mm.head<2>().norm());
   }
   std::string why;
-  const bool maps_ok = ComputePowerMaps(shape, map_options, &a.power, &why);
+  // The spline residual (surface_model "spline") with its own tangent plane at the origin removed, like Psi's.
+  const BSplineSurface& spline = a.reconstruction.residual;
+  Eigen::Vector2d spline_tilt = Eigen::Vector2d::Zero();
+  if (!spline.empty()) {
+    double z, zxx, zxy, zyy;
+    spline.Derivatives(0.0, 0.0, &z, &spline_tilt.x(), &spline_tilt.y(), &zxx, &zxy, &zyy);
+  }
+  const SurfaceEvaluator shape_eval = [&](double x, double y, model::SurfaceDerivatives* d) {
+    shape.Derivatives(x, y, &d->z, &d->zx, &d->zy, &d->zxx, &d->zxy, &d->zyy);
+    if (spline.empty()) return true;
+    double s, sx, sy, sxx, sxy, syy;
+    spline.Derivatives(x, y, &s, &sx, &sy, &sxx, &sxy, &syy);
+    d->z += s - spline_tilt.dot(Eigen::Vector2d(x, y));
+    d->zx += sx - spline_tilt.x();
+    d->zy += sy - spline_tilt.y();
+    d->zxx += sxx;
+    d->zxy += sxy;
+    d->zyy += syy;
+    return true;
+  };
+  const bool maps_ok = spline.empty() ? ComputePowerMaps(shape, map_options, &a.power, &why)
+                                      : ComputePowerMaps(shape_eval, map_options, &a.power, &why);
   if (!maps_ok) throw std::runtime_error(fmt::format("power maps failed: {}", why));
   if (truth) a.errors = HeightErrors(a.reconstruction.points, model::Biconic{*truth});
+  a.supported_radius_mm = SupportedRadiusMm(a.reconstruction.points);
+  a.maps_extrapolated = a.power.radius_mm > a.supported_radius_mm;
+  if (a.maps_extrapolated) {
+    a.warnings.push_back(fmt::format("the power maps reach {:.2f} mm but the data cover every direction only to "
+                                     "{:.2f} mm: beyond, the maps are extrapolated (clinical indices use the "
+                                     "supported disc only)", a.power.radius_mm, a.supported_radius_mm));
+  }
+  const auto& r = a.reconstruction;
+  if (r.adequacy_ratio > kAdequacyWarningRatio) {
+    a.warnings.push_back(fmt::format("the surface model does not represent the data: slope residual {:.3g} is {:.1f} x "
+                                     "the {:.3g} expected from {:.3g} um spot-centre noise",
+                                     r.rms_slope_residual, r.adequacy_ratio, r.expected_slope_noise,
+                                     config.reconstruction.spot_uncertainty_um));
+  }
+  a.clinical_ok = ComputeClinicalIndices(a.power, shape_eval, a.supported_radius_mm, ClinicalOptions{}, &a.clinical,
+                                         &a.clinical_message);
   return a;
 }
 

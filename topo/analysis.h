@@ -7,6 +7,7 @@
 #include "model/config.h"
 #include "model/null_screen.h"
 #include "topo/biconic_fit.h"
+#include "topo/clinical_indices.h"
 #include "topo/power_map.h"
 #include "topo/reconstruction.h"
 
@@ -21,9 +22,24 @@ struct Analysis {
   Reconstruction reconstruction;
   BiconicFit surface_fit;
   PowerMaps power;                       // of Psi with piston and tilts removed (Sec. 4.2)
-  double covered_radius_mm = 0;          // radius the reconstructed points reach; maps beyond it extrapolate
+  double covered_radius_mm = 0;          // radius the reconstructed points reach (farthest point)
+  // Radius to which the data reach in EVERY direction: the smallest, over 36 sectors of 10 deg about the axis, of
+  // the farthest point in the sector. Maps beyond it extrapolate in some direction; the clinical indices and the
+  // truth comparisons use only the disc of this radius.
+  double supported_radius_mm = 0;
   std::optional<SurfaceErrors> errors;   // when the truth is given
+  ClinicalIndices clinical;              // within the covered radius (topo/clinical_indices.h)
+  bool clinical_ok = false;
+  std::string clinical_message;          // why the indices are missing, when they are
+  bool maps_extrapolated = false;        // the maps reach beyond supported_radius_mm
+  // Said in the JSON and on stdout: the surface model does not fit the data (adequacy ratio above
+  // kAdequacyWarningRatio), the maps extrapolate beyond the data.
+  std::vector<std::string> warnings;
 };
+
+// Above this ratio of slope residual to the expected noise the model, not the noise, leaves the residual: 3 x
+// (a fit that holds leaves ~1 x; the paper biconic from exact spots leaves 1e-3 x, the keratoconus 10-100 x).
+inline constexpr double kAdequacyWarningRatio = 3.0;
 
 PowerMapOptions PowerMapOptionsFrom(const model::ReconstructionSettings& settings);
 
@@ -33,6 +49,9 @@ Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<
 
 // Power maps of a known biconic (the "ideal" maps of paper Fig. 10c-d).
 PowerMaps IdealPowerMaps(const model::BiconicParams& cornea, const model::ReconstructionSettings& settings);
+
+// The supported radius of a point cloud (Analysis::supported_radius_mm).
+double SupportedRadiusMm(const std::vector<ReconstructedPoint>& points);
 
 // Eq. 26-27 for a recovered point cloud against a known surface.
 SurfaceErrors HeightErrors(const std::vector<ReconstructedPoint>& points, const model::Surface& truth);

@@ -1,45 +1,44 @@
 #include "topo/biconic_fit.h"
 
 #include <cmath>
+#include <stdexcept>
 
 #include <ceres/ceres.h>
 #include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 #include <fmt/format.h>
 
+#include "model/surface.h"
+
 namespace topocal::topo {
 namespace {
 
-enum Param : int { kCx = 0, kCy, kKx, kKy, kAlpha, kZ0, kX0, kY0, kNumParams };
+using K = model::BiconicKernel;
 
 struct BiconicSagResidual {
-  BiconicSagResidual(const Eigen::Vector3d& p) : x_mm(p.x()), y_mm(p.y()), z_mm(p.z()) {}
+  BiconicSagResidual(const Eigen::Vector3d& p, bool tilted) : x_mm(p.x()), y_mm(p.y()), z_mm(p.z()), tilted(tilted) {}
 
   template <typename T>
   bool operator()(const T* const q, T* residual) const {
-    using std::cos;
-    using std::sin;
-    using std::sqrt;
-    const T ca = cos(q[kAlpha]), sa = sin(q[kAlpha]);
-    const T X = ca * x_mm + sa * y_mm - q[kX0];
-    const T Y = -sa * x_mm + ca * y_mm - q[kY0];
-    const T arg = T(1) - (T(1) + q[kKx]) * q[kCx] * q[kCx] * X * X - (T(1) + q[kKy]) * q[kCy] * q[kCy] * Y * Y;
-    // Outside the biconic's domain: a large residual steers the solver back instead of producing NaN.
-    if (!(arg > T(0))) return false;
-    residual[0] = T(z_mm) - (q[kZ0] + (q[kCx] * X * X + q[kCy] * Y * Y) / (T(1) + sqrt(arg)));
+    T z, zx, zy;
+    // Outside the biconic's domain the kernel returns false: Ceres rejects the step instead of seeing NaN.
+    if (!K::SagAndGradient(q, T(x_mm), T(y_mm), &z, &zx, &zy, tilted)) return false;
+    residual[0] = T(z_mm) - z;
     return true;
   }
 
-  static ceres::CostFunction* Create(const Eigen::Vector3d& p) {
-    return new ceres::AutoDiffCostFunction<BiconicSagResidual, 1, kNumParams>(new BiconicSagResidual(p));
+  static ceres::CostFunction* Create(const Eigen::Vector3d& p, bool tilted) {
+    return new ceres::AutoDiffCostFunction<BiconicSagResidual, 1, K::kNumParams>(new BiconicSagResidual(p, tilted));
   }
 
   double x_mm, y_mm, z_mm;
+  bool tilted;
 };
 
 // Initial guess from a quadratic fit z ~ z0 + a x + b y + c x^2 + d xy + e y^2 to the central points: the
-// eigen-decomposition of the Hessian gives the vertex curvatures and the rotation.
-bool InitialGuess(const std::vector<Eigen::Vector3d>& pts, double* q) {
+// eigen-decomposition of the Hessian gives the vertex curvatures and the rotation, its stationary point the apex
+// (free-apex mode; the tilt starts at zero and the fit separates it from the decentration).
+bool InitialGuess(const std::vector<Eigen::Vector3d>& pts, bool free_apex, double* q) {
   double rmax = 0;
   for (const auto& p : pts) rmax = std::max(rmax, p.head<2>().norm());
   const double central = 0.5 * rmax;
@@ -65,12 +64,20 @@ bool InitialGuess(const std::vector<Eigen::Vector3d>& pts, double* q) {
   const double c_small = es.eigenvalues()(0), c_large = es.eigenvalues()(1);
   if (!(c_small > 0)) return false;
   const Eigen::Vector2d dir = es.eigenvectors().col(0);  // flatter meridian (larger radius) -> r_x
-  q[kCx] = c_small;
-  q[kCy] = c_large;
-  q[kKx] = q[kKy] = 0.0;
-  q[kAlpha] = std::atan2(dir.y(), dir.x());
-  q[kZ0] = s(0);
-  q[kX0] = q[kY0] = 0.0;
+  q[K::kCx] = c_small;
+  q[K::kCy] = c_large;
+  q[K::kKx] = q[K::kKy] = 0.0;
+  q[K::kAlpha] = std::atan2(dir.y(), dir.x());
+  q[K::kX0] = q[K::kY0] = 0.0;
+  q[K::kTiltX] = q[K::kTiltY] = 0.0;
+  q[K::kZ0] = s(0);
+  if (free_apex) {
+    const Eigen::Vector2d apex = H.ldlt().solve(-Eigen::Vector2d(s(1), s(2)));
+    const double ca = std::cos(q[K::kAlpha]), sa = std::sin(q[K::kAlpha]);
+    q[K::kX0] = ca * apex.x() + sa * apex.y();
+    q[K::kY0] = -sa * apex.x() + ca * apex.y();
+    q[K::kZ0] = s(0) + 0.5 * Eigen::Vector2d(s(1), s(2)).dot(apex);
+  }
   return true;
 }
 
@@ -82,6 +89,22 @@ double WrapDegrees180(double a) {
 }
 
 }  // namespace
+
+BiconicFitMode BiconicFitModeFromName(const std::string& name) {
+  if (name == "free-apex") return BiconicFitMode::kFreeApex;
+  if (name == "paper") return BiconicFitMode::kPaper;
+  throw std::invalid_argument(fmt::format("biconic fit must be \"free-apex\" or \"paper\" (got \"{}\")", name));
+}
+
+const char* BiconicFitModeName(BiconicFitMode mode) {
+  return mode == BiconicFitMode::kPaper ? "paper" : "free-apex";
+}
+
+double BiconicFit::TiltDeg() const {
+  const double tx = params.tilt_x_deg * M_PI / 180.0, ty = params.tilt_y_deg * M_PI / 180.0;
+  // The eye's axis R e_z with R = Ry(ty) Rx(tx) has z component cos(tx) cos(ty).
+  return std::acos(std::clamp(std::cos(tx) * std::cos(ty), -1.0, 1.0)) * 180.0 / M_PI;
+}
 
 model::BiconicParams CanonicalBiconic(const model::BiconicParams& p) {
   model::BiconicParams c = p;
@@ -106,26 +129,29 @@ model::BiconicParams CanonicalBiconic(const model::BiconicParams& p) {
 
 BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const BiconicFitOptions& options) {
   BiconicFit fit;
+  fit.mode = options.mode;
   fit.points = static_cast<int>(points_mm.size());
-  const int free_params = options.fit_decentration ? kNumParams : kNumParams - 2;
+  const bool free_apex = options.mode == BiconicFitMode::kFreeApex;
+  const int free_params = free_apex ? K::kNumParams : K::kNumParams - 4;
   if (fit.points < free_params + 1) {
     fit.message = fmt::format("{} points cannot determine {} biconic parameters", fit.points, free_params);
     return fit;
   }
-  double q[kNumParams];
-  if (!InitialGuess(points_mm, q)) {
+  double q[K::kNumParams];
+  if (!InitialGuess(points_mm, free_apex, q)) {
     fit.message = "the point cloud is not a convex cap (no positive vertex curvature)";
     return fit;
   }
   ceres::Problem problem;
-  for (const auto& p : points_mm) problem.AddResidualBlock(BiconicSagResidual::Create(p), nullptr, q);
-  if (!options.fit_decentration) {
-    problem.SetManifold(q, new ceres::SubsetManifold(kNumParams, {kX0, kY0}));
+  for (const auto& p : points_mm) problem.AddResidualBlock(BiconicSagResidual::Create(p, free_apex), nullptr, q);
+  if (!free_apex) {
+    problem.SetManifold(q, new ceres::SubsetManifold(K::kNumParams, {K::kX0, K::kY0, K::kTiltX, K::kTiltY}));
   }
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;
   so.max_num_iterations = options.max_iterations;
-  // Tight tolerances: the cloud is exact to nanometres and the conic constants are weakly determined.
+  // Tight tolerances: the cloud is exact to nanometres and the conic constants are weakly determined (and in
+  // free-apex mode the tilt and the decentration nearly trade against each other: a tilted sphere is a shifted one).
   so.function_tolerance = 1e-16;
   so.gradient_tolerance = 1e-16;
   so.parameter_tolerance = 1e-14;
@@ -133,22 +159,13 @@ BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const Bicon
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   fit.iterations = static_cast<int>(summary.iterations.size());
-  if (!summary.IsSolutionUsable() || !(q[kCx] > 0) || !(q[kCy] > 0)) {
+  if (!summary.IsSolutionUsable() || !(q[K::kCx] > 0) || !(q[K::kCy] > 0)) {
     fit.message = fmt::format("biconic fit failed: {}", summary.message);
     return fit;
   }
   const double ssr = 2.0 * summary.final_cost;
   fit.rms_residual_um = std::sqrt(ssr / fit.points) * 1e3;
-
-  model::BiconicParams p;
-  p.rx_mm = 1.0 / q[kCx];
-  p.ry_mm = 1.0 / q[kCy];
-  p.kx = q[kKx];
-  p.ky = q[kKy];
-  p.alpha_deg = q[kAlpha] * 180.0 / M_PI;
-  p.z0_mm = q[kZ0];
-  p.x0_mm = q[kX0];
-  p.y0_mm = q[kY0];
+  const model::BiconicParams p = K::ToParams(q);
 
   ceres::Covariance::Options co;
   co.algorithm_type = ceres::DENSE_SVD;
@@ -156,34 +173,50 @@ BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const Bicon
   ceres::Covariance covariance(co);
   std::vector<std::pair<const double*, const double*>> blocks = {{q, q}};
   if (covariance.Compute(blocks, &problem)) {
-    double cov[kNumParams * kNumParams];
-    covariance.GetCovarianceBlockInTangentSpace(q, q, cov);
+    // Ambient-space covariance: the parameters a "paper" fit holds fixed get zero rows and columns.
+    Eigen::Matrix<double, K::kNumParams, K::kNumParams, Eigen::RowMajor> cov;
+    covariance.GetCovarianceBlock(q, q, cov.data());
     const int dof = std::max(1, fit.points - free_params);
-    const double s2 = ssr / dof;
-    // Tangent-space order skips the fixed x0, y0.
-    const auto var = [&](int i) { return std::max(0.0, cov[i * free_params + i]) * s2; };
-    auto& sd = fit.stddev;
-    sd.rx_mm = std::sqrt(var(kCx)) / (q[kCx] * q[kCx]);
-    sd.ry_mm = std::sqrt(var(kCy)) / (q[kCy] * q[kCy]);
-    sd.kx = std::sqrt(var(kKx));
-    sd.ky = std::sqrt(var(kKy));
-    sd.alpha_deg = std::sqrt(var(kAlpha)) * 180.0 / M_PI;
-    sd.z0_mm = std::sqrt(var(kZ0));
-    if (options.fit_decentration) {
-      sd.x0_mm = std::sqrt(var(kX0));
-      sd.y0_mm = std::sqrt(var(kY0));
-    }
+    cov *= ssr / dof;
+    const auto sd = [&](int i) { return std::sqrt(std::max(0.0, cov(i, i))); };
+    auto& s = fit.stddev;
+    s.rx_mm = sd(K::kCx) / (q[K::kCx] * q[K::kCx]);
+    s.ry_mm = sd(K::kCy) / (q[K::kCy] * q[K::kCy]);
+    s.kx = sd(K::kKx);
+    s.ky = sd(K::kKy);
+    s.alpha_deg = sd(K::kAlpha) * 180.0 / M_PI;
+    s.z0_mm = sd(K::kZ0);
+    s.x0_mm = sd(K::kX0);
+    s.y0_mm = sd(K::kY0);
+    s.tilt_x_deg = sd(K::kTiltX) * 180.0 / M_PI;
+    s.tilt_y_deg = sd(K::kTiltY) * 180.0 / M_PI;
+    // apex = Rot(-alpha) (x0, y0): first-order propagation through (alpha, x0, y0).
+    const double ca = std::cos(q[K::kAlpha]), sa = std::sin(q[K::kAlpha]);
+    Eigen::Matrix<double, 2, 3> J;
+    J << -sa * q[K::kX0] - ca * q[K::kY0], ca, -sa, ca * q[K::kX0] - sa * q[K::kY0], sa, ca;
+    Eigen::Matrix3d c3;
+    const int idx[3] = {K::kAlpha, K::kX0, K::kY0};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) c3(i, j) = cov(idx[i], idx[j]);
+    const Eigen::Matrix2d ca2 = J * c3 * J.transpose();
+    s.apex_x_mm = std::sqrt(std::max(0.0, ca2(0, 0)));
+    s.apex_y_mm = std::sqrt(std::max(0.0, ca2(1, 1)));
     fit.stddev_ok = true;
   }
   const bool swapped = p.rx_mm < p.ry_mm;
   fit.params = CanonicalBiconic(p);
+  fit.apex_mm = model::Biconic{fit.params}.ApexMm();
   if (swapped) {
     std::swap(fit.stddev.rx_mm, fit.stddev.ry_mm);
     std::swap(fit.stddev.kx, fit.stddev.ky);
     std::swap(fit.stddev.x0_mm, fit.stddev.y0_mm);
   }
   fit.ok = true;
-  fit.message = fmt::format("{} points, rms {:.3g} um, {} iterations", fit.points, fit.rms_residual_um, fit.iterations);
+  fit.message = fmt::format("{} fit: {} points, rms {:.3g} um, {} iterations", BiconicFitModeName(options.mode),
+                            fit.points, fit.rms_residual_um, fit.iterations);
+  if (free_apex) {
+    fit.message += fmt::format(", apex ({:.4f}, {:.4f}) mm, tilt {:.3f} deg", fit.apex_mm.x(), fit.apex_mm.y(), fit.TiltDeg());
+  }
   return fit;
 }
 

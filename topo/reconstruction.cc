@@ -11,6 +11,7 @@ namespace {
 
 struct Ray {
   model::SpotId id;
+  Eigen::Vector2d image_mm;  // on the detection plane
   Eigen::Vector3d incident;  // I, unit, from the pinhole towards the cornea
   Eigen::Vector3d target;    // P3
 };
@@ -32,16 +33,31 @@ Prepared Prepare(const std::vector<MeasuredSpot>& spots, const std::vector<model
       p.unmatched.push_back(s.id);
       continue;
     }
-    p.rays.push_back({s.id, topo.IncidentDirection(s.image_mm), it->second->on_cone_mm});
+    p.rays.push_back({s.id, s.image_mm, topo.IncidentDirection(s.image_mm), it->second->on_cone_mm});
   }
   // Ring order (then index) makes the zonal integration paths and all outputs deterministic.
   std::sort(p.rays.begin(), p.rays.end(), [](const Ray& a, const Ray& b) { return a.id < b.id; });
   return p;
 }
 
-// Intersection of the ray h + lambda I with z = Psi(x, y), by Newton on lambda from lambda0.
-bool IntersectPolynomial(const TaylorPolynomial& psi, const Eigen::Vector3d& h, const Eigen::Vector3d& dir,
-                         double lambda0, Eigen::Vector3d* hit) {
+// Value and gradient of the recovered surface: Psi, plus the spline residual when there is one.
+struct RecoveredSurface {
+  const TaylorPolynomial& psi;
+  const BSplineSurface& spline;
+  void ValueAndGradient(double x, double y, double* z, double* zx, double* zy) const {
+    psi.ValueAndGradient(x, y, z, zx, zy);
+    if (spline.empty()) return;
+    double s, sx, sy, sxx, sxy, syy;
+    spline.Derivatives(x, y, &s, &sx, &sy, &sxx, &sxy, &syy);
+    *z += s;
+    *zx += sx;
+    *zy += sy;
+  }
+};
+
+// Intersection of the ray h + lambda I with z = S(x, y), by Newton on lambda from lambda0.
+bool IntersectSurface(const RecoveredSurface& psi, const Eigen::Vector3d& h, const Eigen::Vector3d& dir,
+                      double lambda0, Eigen::Vector3d* hit) {
   // 1e-12 mm on lambda: far below the nm accuracy the reconstruction targets, above the double floor at ~70 mm.
   constexpr double kLambdaToleranceMm = 1e-12;
   constexpr int kMaxIterations = 30;
@@ -69,8 +85,39 @@ Eigen::Vector3d NormalFromRays(const Eigen::Vector3d& incident, const Eigen::Vec
   return (reflected - incident).normalized();  // Eq. 19
 }
 
+Eigen::Vector2d SlopesOf(const Eigen::Vector3d& n) { return {-n.x() / n.z(), -n.y() / n.z()}; }
+
+// The rms slope noise a spot-centre uncertainty of sigma_mm produces: per spot, the 2x2 sensitivity of its slopes
+// to its image position (finite differences of 1e-4 mm, i.e. ~0.1 px: linear, far above rounding), through the
+// incident ray, its intersection with Psi and the reflected ray to the same target.
+double ExpectedSlopeNoise(const std::vector<Ray>& rays, const std::vector<Eigen::Vector3d>& p2,
+                          const std::vector<Eigen::Vector2d>& slopes, const RecoveredSurface& psi,
+                          const model::Topographer& topo, double sigma_mm, int parameters) {
+  constexpr double kStepMm = 1e-4;
+  const Eigen::Vector3d h = topo.Pinhole();
+  double sum = 0;
+  int n = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    Eigen::Matrix2d J;
+    bool ok = true;
+    for (int c = 0; c < 2 && ok; ++c) {
+      const Eigen::Vector2d image = rays[i].image_mm + kStepMm * Eigen::Vector2d::Unit(c);
+      const Eigen::Vector3d inc = topo.IncidentDirection(image);
+      Eigen::Vector3d hit;
+      ok = IntersectSurface(psi, h, inc, (p2[i] - h).norm(), &hit);
+      if (ok) J.col(c) = (SlopesOf(NormalFromRays(inc, hit, rays[i].target)) - slopes[i]) / kStepMm;
+    }
+    if (!ok) continue;
+    sum += sigma_mm * sigma_mm * J.squaredNorm() / 2.0;  // mean variance of the two slope components
+    ++n;
+  }
+  if (n == 0) return 0;
+  const double dof = std::max(0.0, 1.0 - static_cast<double>(parameters) / (2.0 * n));
+  return std::sqrt(sum / n * dof);
+}
+
 // Std of |U - n| (paper Sec. 4.1, Eq. 22 against Eq. 19), U = (Psi_x, Psi_y, -1)/norm.
-double Consistency(const TaylorPolynomial& psi, const std::vector<Eigen::Vector3d>& p2,
+double Consistency(const RecoveredSurface& psi, const std::vector<Eigen::Vector3d>& p2,
                    const std::vector<Eigen::Vector3d>& normals) {
   const int n = static_cast<int>(p2.size());
   double sum = 0, sum2 = 0;
@@ -157,6 +204,12 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   const double tolerance_mm = settings.convergence_um * 1e-3;
   const int max_iterations = iterate ? settings.max_iterations : 1;
   GradientFitter fitter;
+  const bool spline_mode = settings.surface_model == "spline";
+  BSplineSurface spline;
+  if (spline_mode) spline = BSplineSurface(norm_radius, settings.spline_spacing_mm);
+  const RecoveredSurface recovered{psi, spline};
+  double lambda = -1;  // chosen by GCV on the first fit, then kept (the residual's character does not change)
+  std::vector<Eigen::Vector2d> residual_slopes(n);
   for (int it = 0; it < max_iterations; ++it) {
     for (int i = 0; i < n; ++i) {
       normals[i] = NormalFromRays(prep.rays[i].incident, p2[i], prep.rays[i].target);
@@ -169,12 +222,28 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
       return r;
     }
     r.rms_slope_residual = fit.rms_slope_residual;
+    if (spline_mode) {
+      for (int i = 0; i < n; ++i) {
+        double z, zx, zy;
+        psi.ValueAndGradient(xy[i].x(), xy[i].y(), &z, &zx, &zy);
+        residual_slopes[i] = slopes[i] - Eigen::Vector2d(zx, zy);
+      }
+      const SplineFit sf = FitSplineToSlopes(xy, residual_slopes, lambda, SplineFitOptions{}, &spline);
+      if (!sf.ok) {
+        r.message = "the spline fit of the slope residual failed (singular system)";
+        return r;
+      }
+      if (lambda < 0) r.spline_effective_params = sf.effective_params;
+      lambda = sf.lambda;
+      r.spline_lambda = lambda;
+      r.rms_slope_residual = sf.rms_slope_residual;
+    }
     r.iterations = it + 1;
     if (!iterate) break;
     double moved = 0;
     for (int i = 0; i < n; ++i) {
       Eigen::Vector3d hit;
-      if (!IntersectPolynomial(psi, h, prep.rays[i].incident, (p2[i] - h).norm(), &hit)) {
+      if (!IntersectSurface(recovered, h, prep.rays[i].incident, (p2[i] - h).norm(), &hit)) {
         r.message = fmt::format("spot ({}, {}): its ray misses the reconstructed surface", prep.rays[i].id.ring,
                                 prep.rays[i].id.index);
         return r;
@@ -191,21 +260,45 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   }
   // Points on the recovered surface: for the paper's method the estimates P2' lie on G, not on Psi; report the
   // surface height Psi at their (x, y), as the paper's point cloud does.
-  r.consistency = Consistency(psi, p2, normals);
+  r.consistency = Consistency(recovered, p2, normals);
+  const int parameters = psi.terms() - 1 + static_cast<int>(std::lround(r.spline_effective_params));
+  r.expected_slope_noise = ExpectedSlopeNoise(prep.rays, p2, slopes, recovered, topo,
+                                              settings.spot_uncertainty_um * 1e-3, parameters);
+  r.adequacy_ratio = r.expected_slope_noise > 0 ? r.rms_slope_residual / r.expected_slope_noise : 0.0;
   const std::vector<double> zonal = ZonalHeights(prep.rays, p2, slopes, t_mm);
   r.points.resize(n);
   for (int i = 0; i < n; ++i) {
     r.points[i].id = prep.rays[i].id;
-    r.points[i].point_mm = Eigen::Vector3d(p2[i].x(), p2[i].y(), psi.Value(p2[i].x(), p2[i].y()));
+    double z, zx, zy;
+    recovered.ValueAndGradient(p2[i].x(), p2[i].y(), &z, &zx, &zy);
+    r.points[i].point_mm = Eigen::Vector3d(p2[i].x(), p2[i].y(), z);
     r.points[i].normal = normals[i];
     r.points[i].zonal_z_mm = zonal[i];
   }
   r.surface = std::move(psi);
+  r.residual = std::move(spline);
   r.ok = true;
   return r;
 }
 
 }  // namespace
+
+double Reconstruction::Height(double x, double y) const {
+  return surface.Value(x, y) + (residual.empty() ? 0.0 : residual.Value(x, y));
+}
+
+void Reconstruction::Derivatives(double x, double y, model::SurfaceDerivatives* d) const {
+  surface.Derivatives(x, y, &d->z, &d->zx, &d->zy, &d->zxx, &d->zxy, &d->zyy);
+  if (residual.empty()) return;
+  double s, sx, sy, sxx, sxy, syy;
+  residual.Derivatives(x, y, &s, &sx, &sy, &sxx, &sxy, &syy);
+  d->z += s;
+  d->zx += sx;
+  d->zy += sy;
+  d->zxx += sxx;
+  d->zxy += sxy;
+  d->zyy += syy;
+}
 
 Reconstruction ReconstructAt(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
                              const model::TopographerParams& topographer,

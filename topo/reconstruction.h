@@ -22,6 +22,8 @@
 
 #include "model/config.h"
 #include "model/null_screen.h"
+#include "model/surface.h"
+#include "topo/bspline_surface.h"
 #include "topo/taylor_polynomial.h"
 
 namespace topocal::topo {
@@ -43,10 +45,24 @@ struct Reconstruction {
   std::string message;              // why it failed, or a one-line summary
   std::string method;
   TaylorPolynomial surface;         // Psi
+  // surface_model "spline": a bicubic P-spline fitted to the slopes Psi leaves, with B(0, 0) = 0 (empty
+  // otherwise). The recovered surface is Psi + residual: use Height() / Derivatives(), not Psi alone.
+  BSplineSurface residual;
+  double spline_lambda = 0;          // GCV-chosen penalty weight
+  double spline_effective_params = 0;
+  double Height(double x_mm, double y_mm) const;
+  void Derivatives(double x_mm, double y_mm, model::SurfaceDerivatives* d) const;
   std::vector<ReconstructedPoint> points;
   double vertex_t_mm = 0;           // axial position of G / of Psi(0, 0)
   double consistency = 0;           // Delta: std of |U - n| over the spots at the chosen t
   double rms_slope_residual = 0;    // rms of the gradient fit
+  // Model adequacy (issue 18): the rms slope residual a perfect surface model would leave if the spot centres
+  // carried settings.spot_uncertainty_um of noise (each spot's slope sensitivity to its image position, by finite
+  // differences through the rays and Psi, times the uncertainty, reduced by the fit's 1 - p / (2n) degrees of
+  // freedom). adequacy_ratio = rms_slope_residual / expected_slope_noise: ~1 or below when the model holds, >> 1
+  // when the surface model cannot represent the data.
+  double expected_slope_noise = 0;
+  double adequacy_ratio = 0;
   int iterations = 0;               // normal-refinement iterations at the chosen t (iterative method)
   int vertex_evaluations = 0;       // t values tried
   int spots_used = 0;

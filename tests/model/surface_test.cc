@@ -1,6 +1,7 @@
 #include "model/surface.h"
 
 #include <ceres/jet.h>
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
 namespace topocal::model {
@@ -76,6 +77,109 @@ TEST(Surface, RotationIsPlusAlpha) {
   const double k_along = d.zxx * std::cos(a) * std::cos(a) + 2 * d.zxy * std::cos(a) * std::sin(a) +
                          d.zyy * std::sin(a) * std::sin(a);
   EXPECT_NEAR(k_along, 1.0 / 8.35, 1e-14);
+}
+
+TEST(Surface, TiltedBiconicDerivatives) {
+  // The tilted sag is a Newton root; its Hessian comes from jets through the kernel's final Newton step.
+  for (const BiconicParams& p : {BiconicParams{8.35, 7.63, -0.43, -0.25, 17.0, 0.3, -0.2, 0.01, 2.0, -3.0},
+                                 BiconicParams{7.2, 7.9, 0.3, -0.6, 123.0, -0.4, 0.1, 0.0, -3.0, 1.5}}) {
+    const Biconic b{p};
+    for (double x : {-4.0, 0.0, 1.3, 4.5}) {
+      for (double y : {-3.0, 0.0, 2.2}) CheckDerivatives(b, x, y);
+    }
+  }
+}
+
+TEST(Surface, TiltedBiconicIsTheUntiltedOneRotatedAboutItsApex) {
+  // Points of the untilted surface G, rotated by R = Ry(ty) Rx(tx) about the apex, must lie on the tilted sag,
+  // and G's normal rotated by R must be the tilted sag's normal. 1e-12: the Newton root is solved to 1e-14 mm.
+  constexpr double kOnSurfaceToleranceMm = 1e-12;
+  BiconicParams p{8.35, 7.63, -0.43, -0.25, 17.0, 0.3, -0.2, 0.01};
+  const Biconic untilted{p};
+  p.tilt_x_deg = 2.5;
+  p.tilt_y_deg = -3.0;
+  const Biconic tilted{p};
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(p.tilt_y_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()) *
+                             Eigen::AngleAxisd(p.tilt_x_deg * M_PI / 180.0, Eigen::Vector3d::UnitX()))
+                                .toRotationMatrix();
+  const Eigen::Vector3d apex = untilted.ApexMm();
+  SurfaceDerivatives at_apex;
+  ASSERT_TRUE(untilted.Evaluate(apex.x(), apex.y(), &at_apex));
+  EXPECT_NEAR(at_apex.z, apex.z(), 1e-15);
+  for (double ux : {-4.0, -1.0, 0.0, 2.5, 4.5}) {
+    for (double uy : {-3.5, 0.0, 1.7, 4.0}) {
+      SurfaceDerivatives g, t;
+      ASSERT_TRUE(untilted.Evaluate(ux, uy, &g));
+      const Eigen::Vector3d q = apex + R * (Eigen::Vector3d(ux, uy, g.z) - apex);
+      ASSERT_TRUE(tilted.Evaluate(q.x(), q.y(), &t));
+      EXPECT_NEAR(t.z, q.z(), kOnSurfaceToleranceMm);
+      const Eigen::Vector3d n = R * SurfaceNormal(g.zx, g.zy);
+      EXPECT_NEAR((n - SurfaceNormal(t.zx, t.zy)).norm(), 0.0, kOnSurfaceToleranceMm);
+    }
+  }
+  // The apex stays where it was.
+  SurfaceDerivatives t;
+  ASSERT_TRUE(tilted.Evaluate(apex.x(), apex.y(), &t));
+  EXPECT_NEAR(t.z, apex.z(), kOnSurfaceToleranceMm);
+}
+
+TEST(Surface, ZeroTiltIsThePaperBiconicBitForBit) {
+  const Biconic b{BiconicParams{8.35, 7.63, -0.43, -0.25, 17.0, 0, 0, 0}};
+  double q[BiconicKernel::kNumParams];
+  BiconicKernel::FromParams(b.params, q);
+  double z1, zx1, zy1, z2, zx2, zy2;
+  ASSERT_TRUE(b.SagAndGradient(1.3, -2.1, &z1, &zx1, &zy1));
+  // The general (tilted) path at zero tilt agrees to rounding.
+  ASSERT_TRUE(BiconicKernel::SagAndGradient(q, 1.3, -2.1, &z2, &zx2, &zy2, true));
+  EXPECT_NEAR(z1, z2, 1e-15);
+  EXPECT_NEAR(zx1, zx2, 1e-15);
+  EXPECT_NEAR(zy1, zy2, 1e-15);
+}
+
+Freeform KeratoconusOnATiltedEye() {
+  Freeform f;
+  f.base = Biconic{BiconicParams{7.8, 7.6, -0.3, -0.1, 40.0, 0.2, -0.3, 0.0, 1.5, -2.0}};
+  f.cones.push_back({25.0, 0.9, 0.8, -1.1});
+  f.ablations.push_back({-4.0, 6.0, 1.0, 0.1, 0.2});
+  f.zernike.push_back({3, -1, 2.0, 4.0, 0.0, 0.0});
+  f.zernike.push_back({6, 2, 1.0, 4.0, 0.0, 0.0});
+  return f;
+}
+
+TEST(Surface, FreeformDerivatives) {
+  const Freeform f = KeratoconusOnATiltedEye();
+  // Points inside the ablation zone, in its blend (r = 3.3 mm from its centre) and beyond it.
+  for (double x : {-4.0, 0.0, 0.8, 3.4, 4.5}) {
+    for (double y : {-3.0, -1.1, 0.2, 2.2}) CheckDerivatives(f, x, y);
+  }
+}
+
+TEST(Surface, ZernikeTermsAreTheTextbookPolynomials) {
+  // OSA Z(2,0) = 2 rho^2 - 1, Z(3,1) = (3 rho^3 - 2 rho) cos(theta), Z(4,-2) = (4 rho^4 - 3 rho^2) sin(2 theta).
+  const double rho = 0.7, th = 0.4, R = 4.0;
+  const double x = R * rho * std::cos(th), y = R * rho * std::sin(th);
+  const auto value = [&](int n, int m) {
+    double z = 0, zx = 0, zy = 0;
+    ZernikeTerm{n, m, 1000.0, R, 0.0, 0.0}.Add(x, y, &z, &zx, &zy);  // 1000 um = 1 mm: the value itself
+    return z;
+  };
+  EXPECT_NEAR(value(2, 0), 2 * rho * rho - 1, 1e-14);
+  EXPECT_NEAR(value(3, 1), (3 * std::pow(rho, 3) - 2 * rho) * std::cos(th), 1e-14);
+  EXPECT_NEAR(value(4, -2), (4 * std::pow(rho, 4) - 3 * rho * rho) * std::sin(2 * th), 1e-14);
+}
+
+TEST(Surface, AblationChangesThePowerInsideItsZoneOnly) {
+  Freeform with, without;
+  with.base = without.base = Biconic{BiconicParams{7.8, 7.8, 0, 0, 0, 0, 0, 0}};
+  with.ablations.push_back({-4.0, 6.0, 1.0, 0.0, 0.0});
+  SurfaceDerivatives a, b;
+  // At 1 mm (inside the zone) the curvature changes by dc = -4 D / 337.5; beyond 4 mm the surface is unchanged
+  // up to a piston.
+  ASSERT_TRUE(with.Evaluate(1.0, 0.0, &a) && without.Evaluate(1.0, 0.0, &b));
+  EXPECT_NEAR(a.zxx - b.zxx, -4.0 / 337.5, 1e-14);
+  ASSERT_TRUE(with.Evaluate(0.0, 4.2, &a) && without.Evaluate(0.0, 4.2, &b));
+  EXPECT_NEAR(a.zyy - b.zyy, 0.0, 1e-15);
+  EXPECT_NEAR(a.zy - b.zy, 0.0, 1e-15);
 }
 
 TEST(Surface, UndefinedRegionIsReportedNotNaN) {

@@ -1,0 +1,68 @@
+#pragma once
+// A local surface representation for freeform corneas (issue 18, item 2; docs/reconstruction.md gives the
+// measurements that chose it): uniform bicubic B-splines on the square [-L, L]^2,
+//   B(x, y) = sum_{i,j} c_ij N_i(x) N_j(y),   knots every h mm,
+// fitted to slope residuals with a difference penalty on the coefficients (a "P-spline", Eilers & Marx 1996):
+//   min  sum_k |grad B(p_k) - s_k|^2 + lambda |D c|^2,   D = differences of order `penalty_order` along x and y,
+// lambda chosen by generalised cross-validation, GCV(lambda) = m RSS / (m - tr H)^2 (m slope equations, H the hat
+// matrix; its trace estimated with seeded Rademacher probes, Hutchinson 1989). Solved with Eigen's sparse
+// Cholesky: each slope touches 16 coefficients, so the normal matrix is banded (~900 unknowns for 4.6 mm, h = 0.33).
+//
+// The piston is not observed by slopes nor by the penalty: B(0, 0) is set to 0 (the B-splines sum to one, so a
+// constant shift of all coefficients moves the piston alone). Outside the data the penalty alone shapes B: do not
+// use it beyond the covered radius (the analysis flags maps there).
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+namespace topocal::topo {
+
+class BSplineSurface {
+ public:
+  BSplineSurface() = default;
+  // Knots every about `spacing_mm` (rounded so that an integer number of intervals spans [-L, L]).
+  BSplineSurface(double half_width_mm, double spacing_mm);
+
+  bool empty() const { return n_ == 0; }
+  int unknowns() const { return n_ * n_; }
+  double half_width_mm() const { return half_width_; }
+  double spacing_mm() const { return h_; }
+  const Eigen::VectorXd& coefficients() const { return c_; }
+  Eigen::VectorXd& coefficients() { return c_; }
+
+  double Value(double x_mm, double y_mm) const;
+  void Derivatives(double x_mm, double y_mm, double* z, double* zx, double* zy, double* zxx, double* zxy,
+                   double* zyy) const;
+  // The 16 coefficients that act at (x, y) and the weights of d/dx and d/dy on them.
+  void GradientStencil(double x_mm, double y_mm, int* index, double* wx, double* wy) const;
+
+ private:
+  // Interval and the 4 basis values and derivatives along one axis.
+  void Basis(double t_mm, int* first, double* b, double* db, double* d2b) const;
+  int intervals_ = 0, n_ = 0;  // n_ = intervals_ + 3 coefficients per axis
+  double half_width_ = 0, h_ = 1;
+  Eigen::VectorXd c_;
+};
+
+struct SplineFitOptions {
+  int penalty_order = 3;      // differences of the coefficients: 3 leaves curvature unpenalised (cones keep
+                              // their peak power), penalising its change
+  int gcv_probes = 8;         // Rademacher vectors for tr H
+  unsigned seed = 1;          // of the probes (determinism)
+  double lambda_min = 1e-9;   // GCV search over lambda / lambda_scale in [min, max], factor 10 apart,
+  double lambda_max = 1e1;    // lambda_scale = tr(A^T A) / tr(D^T D)
+};
+
+struct SplineFit {
+  bool ok = false;
+  double lambda = 0;             // the penalty weight used (absolute)
+  double effective_params = 0;   // tr H at that lambda (when chosen by GCV)
+  double rms_slope_residual = 0;
+};
+
+// Fits `spline` (already sized) to the slopes; lambda < 0 chooses lambda by GCV, otherwise uses it.
+SplineFit FitSplineToSlopes(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes,
+                            double lambda, const SplineFitOptions& options, BSplineSurface* spline);
+
+}  // namespace topocal::topo

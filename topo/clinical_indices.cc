@@ -1,0 +1,187 @@
+#include "topo/clinical_indices.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include <ceres/ceres.h>
+#include <Eigen/QR>
+#include <fmt/format.h>
+
+namespace topocal::topo {
+namespace {
+
+bool Fail(std::string* why, std::string message) {
+  if (why) *why = std::move(message);
+  return false;
+}
+
+// Sag of the sphere with centre (a, b, c) and radius R, the cap facing the camera (-z): z = c - sqrt(R^2 - d^2).
+struct SphereSagResidual {
+  double x, y, z;
+  template <typename T>
+  bool operator()(const T* s, T* r) const {
+    using std::sqrt;
+    const T dx = x - s[0], dy = y - s[1];
+    const T arg = s[3] * s[3] - dx * dx - dy * dy;
+    if (!(arg > T(0))) return false;
+    r[0] = z - (s[2] - sqrt(arg));
+    return true;
+  }
+};
+
+// Axial power at (rho, theta) by linear interpolation along the nearest meridian; NaN outside the samples.
+double AxialAt(const PowerMaps& m, double rho_mm, double theta_deg) {
+  int j = static_cast<int>(std::lround(theta_deg / 360.0 * m.meridians)) % m.meridians;
+  if (j < 0) j += m.meridians;
+  const double kf = rho_mm / m.radius_mm * m.radial_samples - 1.0;  // RhoMm(k) = R (k + 1) / K
+  if (kf < 0 || kf > m.radial_samples - 1) return NAN;
+  const int k0 = std::min(static_cast<int>(kf), m.radial_samples - 2);
+  const double t = kf - k0;
+  const double* row = &m.axial_D[static_cast<size_t>(j) * m.radial_samples];
+  return (1 - t) * row[k0] + t * row[k0 + 1];
+}
+
+}  // namespace
+
+bool ComputeClinicalIndices(const PowerMaps& axial, const SurfaceEvaluator& surface, double supported_radius_mm,
+                            const ClinicalOptions& o, ClinicalIndices* out, std::string* why) {
+  ClinicalIndices ci;
+  const int M = axial.meridians, K = axial.radial_samples;
+  if (M < 4 || K < 2) return Fail(why, "clinical indices: the power map is empty");
+  const double supported = std::min(supported_radius_mm, axial.radius_mm);
+  ci.supported_radius_mm = supported;
+  if (supported < o.sim_k_outer_mm) {
+    return Fail(why, fmt::format("clinical indices: the data reach {:.2f} mm, less than the sim-K ring ({:.2f} mm)",
+                                 supported, o.sim_k_outer_mm));
+  }
+  // sim-K over the ring; meridian theta and theta + 180 together.
+  std::vector<double> meridian_mean(M, 0.0);
+  for (int j = 0; j < M; ++j) {
+    double sum = 0;
+    int n = 0;
+    for (int k = 0; k < K; ++k) {
+      const double rho = axial.RhoMm(k);
+      if (rho < o.sim_k_inner_mm || rho > o.sim_k_outer_mm) continue;
+      sum += axial.axial_D[static_cast<size_t>(j) * K + k];
+      ++n;
+    }
+    if (n == 0) return Fail(why, "clinical indices: no power-map sample lies in the sim-K ring");
+    meridian_mean[j] = sum / n;
+  }
+  const auto opposite = [&](int j, double deg) { return (j + static_cast<int>(std::lround(deg / 360.0 * M))) % M; };
+  int steep = 0;
+  std::vector<double> pair(M);
+  for (int j = 0; j < M; ++j) pair[j] = 0.5 * (meridian_mean[j] + meridian_mean[opposite(j, 180.0)]);
+  for (int j = 0; j < M; ++j) if (pair[j] > pair[steep]) steep = j;
+  const int flat = opposite(steep, 90.0);
+  ci.steep_k_D = pair[steep];
+  ci.flat_k_D = pair[flat];
+  ci.steep_axis_deg = std::fmod(axial.ThetaDeg(steep), 180.0);
+  ci.flat_axis_deg = std::fmod(axial.ThetaDeg(flat), 180.0);
+
+  // Kmax within the supported radius.
+  ci.kmax_D = -INFINITY;
+  for (int j = 0; j < M; ++j) {
+    for (int k = 0; k < K && axial.RhoMm(k) <= supported; ++k) {
+      const double p = axial.axial_D[static_cast<size_t>(j) * K + k];
+      if (p > ci.kmax_D) {
+        ci.kmax_D = p;
+        const double th = axial.ThetaDeg(j) * M_PI / 180.0;
+        ci.kmax_at_mm = axial.RhoMm(k) * Eigen::Vector2d(std::cos(th), std::sin(th));
+      }
+    }
+  }
+
+  // Best-fit sphere over the zone: algebraic fit for the start, then the sag residual with Ceres.
+  const double zone = std::min(o.bfs_radius_mm, supported);
+  ci.bfs_zone_radius_mm = zone;
+  std::vector<Eigen::Vector3d> pts;
+  const int half = static_cast<int>(std::floor(zone / o.bfs_step_mm));
+  for (int iy = -half; iy <= half; ++iy) {
+    for (int ix = -half; ix <= half; ++ix) {
+      const double x = ix * o.bfs_step_mm, y = iy * o.bfs_step_mm;
+      if (std::hypot(x, y) > zone) continue;
+      model::SurfaceDerivatives d;
+      if (!surface(x, y, &d)) return Fail(why, fmt::format("clinical indices: the surface is undefined at ({:.2f}, {:.2f}) mm", x, y));
+      pts.emplace_back(x, y, d.z);
+    }
+  }
+  if (pts.size() < 10) return Fail(why, "clinical indices: too few points for the best-fit sphere");
+  Eigen::MatrixXd A(pts.size(), 4);
+  Eigen::VectorXd b(pts.size());
+  for (size_t i = 0; i < pts.size(); ++i) {
+    A.row(i) << 2 * pts[i].x(), 2 * pts[i].y(), 2 * pts[i].z(), 1.0;
+    b(i) = pts[i].squaredNorm();
+  }
+  const Eigen::Vector4d alg = A.colPivHouseholderQr().solve(b);
+  double s[4] = {alg(0), alg(1), alg(2), std::sqrt(std::max(0.0, alg(3) + alg.head<3>().squaredNorm()))};
+  ceres::Problem problem;
+  for (const auto& p : pts) {
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SphereSagResidual, 1, 4>(
+                                 new SphereSagResidual{p.x(), p.y(), p.z()}),
+                             nullptr, s);
+  }
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.num_threads = 1;
+  so.function_tolerance = 1e-14;
+  so.parameter_tolerance = 1e-12;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  if (!summary.IsSolutionUsable() || !(s[3] > 0)) {
+    return Fail(why, fmt::format("clinical indices: best-fit sphere failed: {}", summary.message));
+  }
+  ci.bfs_centre_mm = Eigen::Vector3d(s[0], s[1], s[2]);
+  ci.bfs_radius_mm = s[3];
+  ci.elevation_peak_um = -INFINITY;
+  double sum2 = 0;
+  for (const auto& p : pts) {
+    const double dx = p.x() - s[0], dy = p.y() - s[1];
+    const double zs = s[2] - std::sqrt(std::max(0.0, s[3] * s[3] - dx * dx - dy * dy));
+    const double e_um = (zs - p.z()) * 1e3;  // in front of the sphere (towards the camera) is positive
+    sum2 += e_um * e_um;
+    if (e_um > ci.elevation_peak_um) {
+      ci.elevation_peak_um = e_um;
+      ci.elevation_peak_at_mm = p.head<2>();
+    }
+  }
+  ci.elevation_rms_um = std::sqrt(sum2 / pts.size());
+  // Refine the peak on a 0.01 mm grid around the best sample (within the zone).
+  const auto elevation_at = [&](double x, double y, double* e_um) {
+    model::SurfaceDerivatives d;
+    const double dx = x - s[0], dy = y - s[1];
+    if (std::hypot(x, y) > zone || !surface(x, y, &d)) return false;
+    *e_um = (s[2] - std::sqrt(std::max(0.0, s[3] * s[3] - dx * dx - dy * dy)) - d.z) * 1e3;
+    return true;
+  };
+  const Eigen::Vector2d coarse = ci.elevation_peak_at_mm;
+  constexpr double kFineStepMm = 0.01;
+  const int fine = static_cast<int>(std::lround(o.bfs_step_mm / kFineStepMm));
+  for (int iy = -fine; iy <= fine; ++iy) {
+    for (int ix = -fine; ix <= fine; ++ix) {
+      double e_um;
+      const double x = coarse.x() + ix * kFineStepMm, y = coarse.y() + iy * kFineStepMm;
+      if (elevation_at(x, y, &e_um) && e_um > ci.elevation_peak_um) {
+        ci.elevation_peak_um = e_um;
+        ci.elevation_peak_at_mm = Eigen::Vector2d(x, y);
+      }
+    }
+  }
+
+  // I-S at is_radius_mm.
+  if (o.is_radius_mm <= supported) {
+    double inf = 0, sup = 0;
+    for (int i = 0; i < 5; ++i) {
+      inf += AxialAt(axial, o.is_radius_mm, 210.0 + 30.0 * i);
+      sup += AxialAt(axial, o.is_radius_mm, 30.0 + 30.0 * i);
+    }
+    ci.inferior_superior_D = (inf - sup) / 5.0;
+    ci.is_available = std::isfinite(ci.inferior_superior_D);
+    if (!ci.is_available) ci.inferior_superior_D = 0;
+  }
+  *out = ci;
+  return true;
+}
+
+}  // namespace topocal::topo
