@@ -180,10 +180,14 @@ void AddSweepCommand(CLI::App& app) {
     }
     if (!json_out->empty()) model::WriteFileAtomic(*json_out, SweepJson(result, corrected));
     if (!maps->empty()) {
+      // One set: every sigma's map of a kind on the same scale, so that the sweep compares by eye.
+      std::vector<AnalysisMapEntry> entries;
       for (const auto& row : result.rows) {
-        WriteAnalysisMaps(*maps, fmt::format("sigma_{:+.3g}_", row.sigma_per_mm2),
-                          fmt::format(", sigma = {:.3g} /mm^2", row.sigma_per_mm2), row.analysis, &cfg.cornea);
+        entries.push_back({fmt::format("sigma_{:+.3g}_", row.sigma_per_mm2),
+                           fmt::format(", \u03c3 = {:.3g} mm\u207b\u00b2", row.sigma_per_mm2), &row.analysis,
+                           &cfg.cornea, {}});
       }
+      WriteAnalysisMapSet(*maps, entries);
     }
   });
 }

@@ -88,11 +88,18 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
     const std::string base = (std::filesystem::path(dir) / e.prefix).string();
     const topo::Analysis& a = *e.analysis;
     const auto& pm = a.power;
-    axial.push_back({base + "axial_power", PowerGrid(pm, pm.axial_D, fmt::format("Axial power{}", e.label)),
-                     e.power_annotations});
+    // The clinical summary under the power maps' titles (topo/clinical_indices.h), unless the caller gave its own.
+    std::vector<std::string> notes = e.power_annotations;
+    if (notes.empty() && a.clinical_ok) {
+      const auto& c = a.clinical;
+      notes.push_back(fmt::format("sim-K {:.2f} D @ {:.0f}\u00b0 / {:.2f} D @ {:.0f}\u00b0 (cyl {:.2f} D), Kmax {:.2f} D at "
+                                  "({:+.2f}, {:+.2f}) mm",
+                                  c.steep_k_D, c.steep_axis_deg, c.flat_k_D, c.flat_axis_deg, c.CylinderD(), c.kmax_D,
+                                  c.kmax_at_mm.x(), c.kmax_at_mm.y()));
+    }
+    axial.push_back({base + "axial_power", PowerGrid(pm, pm.axial_D, fmt::format("Axial power{}", e.label)), notes});
     tangential.push_back({base + "tangential_power",
-                          PowerGrid(pm, pm.tangential_D, fmt::format("Tangential power{}", e.label)),
-                          e.power_annotations});
+                          PowerGrid(pm, pm.tangential_D, fmt::format("Tangential power{}", e.label)), notes});
     const double r = a.covered_radius_mm;
     const auto& psi = a.reconstruction.surface;
     const topo::GridMap sag = CartesianGrid(r, "", "\u00b5m", [&](double x, double y) { return psi.Value(x, y) * 1e3; });
@@ -114,8 +121,14 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
            {}});
     }
   }
-  WriteKind(axial, o.power, o, true);
-  WriteKind(tangential, o.power, o, true);
+  // The sim-K zone drawn on the power maps unless the caller chose other rings.
+  MapSetOptions power_options = o;
+  if (power_options.power_ring_radii_mm.empty()) {
+    const topo::ClinicalOptions clinical;
+    power_options.power_ring_radii_mm = {clinical.sim_k_inner_mm, clinical.sim_k_outer_mm};
+  }
+  WriteKind(axial, o.power, power_options, true);
+  WriteKind(tangential, o.power, power_options, true);
   WriteKind(elevation, o.elevation, o, false);
   WriteKind(difference, o.elevation, o, false);
 }

@@ -16,7 +16,7 @@ struct AnalysisMapEntry {
   std::string label;                         // appended to each title, e.g. " - reference sphere, corrected"
   const topo::Analysis* analysis = nullptr;
   const model::BiconicParams* truth = nullptr;  // the known surface: adds the height-difference map
-  // Printed under the power maps' titles (the hook for clinical indices: sim-K, steep/flat K and axes).
+  // Printed under the power maps' titles; empty: the analysis's clinical summary (sim-K with axes, cylinder, Kmax).
   std::vector<std::string> power_annotations;
 };
 
@@ -26,7 +26,7 @@ struct MapSetOptions {
   topo::MapScaleRequest power = topo::StandardPowerScale();                           // axial and tangential
   topo::MapScaleRequest elevation = topo::NormalisedScale(topo::kMinNormalisedSpanUm);  // elevation, height error
   std::string eye;                                  // "OD", "OS" or empty (test surface)
-  std::vector<double> power_ring_radii_mm;          // rings on the power maps (the sim-K zone)
+  std::vector<double> power_ring_radii_mm;          // rings on the power maps; empty: the sim-K zone (0.5, 1.5 mm)
 };
 
 // Files per entry: <prefix>axial_power.{csv,png}, <prefix>tangential_power.{csv,png}, <prefix>elevation.{csv,png}

@@ -420,19 +420,23 @@ void WriteRecordMaps(const std::string& dir, const std::optional<pipeline::Spher
                      const pipeline::SimulatedCornea& paper, const model::Config& config) {
   // The PNGs go in the record, at half the default size (~0.15 MB each; the report embeds them all); the numbers
   // are in unit.json (CSV grids would be ~0.6 MB each).
-  constexpr bool kMapCsv = false;
+  constexpr bool kMapCsv = true;  // the numbers behind every picture (~0.6 MB a map, 16 maps)
   constexpr int kMapSizePx = 400;
+  // Each case's before/after pair is one set: both stages on the same scales, so that they compare by eye.
+  MapSetOptions o;
+  o.csv = kMapCsv;
+  o.size_px = kMapSizePx;
   if (sphere) {
     const auto truth = pipeline::WithSphere(config, sphere->radius_true_mm).cornea;
-    WriteAnalysisMaps(dir, "sphere_uncorrected_", " - reference sphere, uncorrected", sphere->uncorrected.analysis,
-                      &truth, kMapCsv, kMapSizePx);
-    WriteAnalysisMaps(dir, "sphere_corrected_", " - reference sphere, corrected", sphere->corrected.analysis, &truth,
-                      kMapCsv, kMapSizePx);
+    WriteAnalysisMapSet(dir,
+                        {{"sphere_uncorrected_", " - reference sphere, uncorrected", &sphere->uncorrected.analysis, &truth, {}},
+                         {"sphere_corrected_", " - reference sphere, corrected", &sphere->corrected.analysis, &truth, {}}},
+                        o);
   }
-  WriteAnalysisMaps(dir, "paper_uncorrected_", " - paper cornea, uncorrected", paper.uncorrected.analysis,
-                    &config.cornea, kMapCsv, kMapSizePx);
-  WriteAnalysisMaps(dir, "paper_corrected_", " - paper cornea, corrected", paper.corrected.analysis, &config.cornea,
-                    kMapCsv, kMapSizePx);
+  WriteAnalysisMapSet(dir,
+                      {{"paper_uncorrected_", " - paper cornea, uncorrected", &paper.uncorrected.analysis, &config.cornea, {}},
+                       {"paper_corrected_", " - paper cornea, corrected", &paper.corrected.analysis, &config.cornea, {}}},
+                      o);
 }
 
 std::vector<std::string> Summary(const UnitRequest& r, const Calibration& c, const DistortionField& field,
