@@ -22,26 +22,9 @@ constexpr double kMaxCases = 1e7;
 
 using Reader = model::JsonSection;
 
-// A list of values: explicit, or a range object (see harness_config.h).
-std::vector<double> ParseValues(Reader& parent, const std::string& k) {
-  const json& v = parent.Get(k);
-  const std::string key = parent.Key(k);
-  std::vector<double> out;
-  if (v.is_array()) {
-    if (v.empty()) parent.Fail(key, "must not be empty (give at least one value)");
-    for (size_t i = 0; i < v.size(); ++i) {
-      if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) {
-        parent.Fail(fmt::format("{}[{}]", key, i), fmt::format("must be a finite number (got {})", v[i].dump()));
-      }
-      out.push_back(v[i].get<double>());
-    }
-    return out;
-  }
-  if (!v.is_object()) {
-    parent.Fail(key, fmt::format("must be a list of numbers or a range {{\"from\", \"to\", \"count\", \"spacing\"}} "
-                                 "(got {})", v.dump()));
-  }
-  Reader r(v, parent.origin(), key);
+// A range object {"from", "to", "count", "spacing", "both_signs"} (see harness_config.h); `key` names it.
+std::vector<double> ParseRange(const json& v, const std::string& origin, const std::string& key) {
+  Reader r(v, origin, key);
   const double from = r.Number("from");
   const double to = r.Number("to");
   const json& count_json = r.Get("count");
@@ -73,10 +56,37 @@ std::vector<double> ParseValues(Reader& parent, const std::string& k) {
     positive.push_back(value);
   }
   if (!both_signs) return positive;
+  std::vector<double> out;
   for (auto it = positive.rbegin(); it != positive.rend(); ++it) {
     if (*it != 0) out.push_back(-*it);
   }
   out.insert(out.end(), positive.begin(), positive.end());
+  return out;
+}
+
+// A list of values: explicit, a range object, or a list mixing numbers and ranges (concatenated in order).
+std::vector<double> ParseValues(Reader& parent, const std::string& k) {
+  const json& v = parent.Get(k);
+  const std::string key = parent.Key(k);
+  if (v.is_object()) return ParseRange(v, parent.origin(), key);
+  if (!v.is_array()) {
+    parent.Fail(key, fmt::format("must be a list of numbers or a range {{\"from\", \"to\", \"count\", \"spacing\"}} "
+                                 "(got {})", v.dump()));
+  }
+  if (v.empty()) parent.Fail(key, "must not be empty (give at least one value)");
+  std::vector<double> out;
+  for (size_t i = 0; i < v.size(); ++i) {
+    const std::string item = fmt::format("{}[{}]", key, i);
+    if (v[i].is_object()) {
+      const auto range = ParseRange(v[i], parent.origin(), item);
+      out.insert(out.end(), range.begin(), range.end());
+      continue;
+    }
+    if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) {
+      parent.Fail(item, fmt::format("must be a finite number or a range (got {})", v[i].dump()));
+    }
+    out.push_back(v[i].get<double>());
+  }
   return out;
 }
 

@@ -68,6 +68,12 @@ TEST(HarnessConfig, RangesExpandAndTheCanonicalFormRoundTrips) {
   EXPECT_EQ(h.seidel_sigma_per_mm2[5], 1e-4);  // the stated end exactly
   ASSERT_EQ(h.corneas.size(), 1u);
   EXPECT_EQ(h.corneas[0].name, "design");
+  // A list may mix numbers and ranges: concatenated in order.
+  const auto mixed = Parse(Replace(SmallConfig(), "[6.3e-5]", R"([0, {"from": 1, "to": 3, "count": 3}, 7])"));
+  EXPECT_EQ(mixed.seidel_sigma_per_mm2, (std::vector<double>{0, 1, 2, 3, 7}));
+  EXPECT_NE(Refusal(Replace(SmallConfig(), "[6.3e-5]", R"([0, {"from": 1, "to": 3}])"))
+                .find("H.json: distortion.seidel_sigma_per_mm2[1].count: missing"),
+            std::string::npos);
   const std::string canonical = pipeline::CanonicalHarnessJson(h);
   const auto again = Parse(canonical);
   EXPECT_EQ(pipeline::CanonicalHarnessJson(again), canonical);
