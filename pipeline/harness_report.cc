@@ -196,6 +196,16 @@ std::string AssemblySentence(const HarnessRun& run) {
                      l.dk, l.dP_D, MapsName(run));
 }
 
+// Text for a markdown table cell: a | would end the cell.
+std::string Cell(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    if (c == '|') out += '\\';
+    out += c;
+  }
+  return out;
+}
+
 std::string AssemblyAnswerMd(const HarnessRun& run, const InverseAnswer& a) {
   std::string md = "## Assembly errors of the device (uncorrected)\n\n**Inverse answer:** " + AssemblySentence(run) +
                    ":\n\n| axis | largest error within the limits | limited by | grid: all pass up to | smallest "
@@ -204,7 +214,7 @@ std::string AssemblyAnswerMd(const HarnessRun& run, const InverseAnswer& a) {
     md += fmt::format("| {} | {} | {} | {:.4g} | {} | {} |\n", AssemblyAxisName(x.axis), AssemblyAnswerLine(run, x),
                       x.found ? x.limited_by : "-", x.grid_all_pass_up_to,
                       x.found ? fmt::format("{:.4g}", x.grid_first_failure) : "-",
-                      x.limiting_case >= 0 ? CaseDescription(run, x.limiting_case) : "none outside the limits");
+                      x.limiting_case >= 0 ? Cell(CaseDescription(run, x.limiting_case)) : "none outside the limits");
   }
   return md + "\n";
 }
