@@ -18,6 +18,7 @@
 #include "model/io.h"
 #include "model/null_screen.h"
 #include "model/version.h"
+#include "pipeline/measure_spots.h"
 #include "topo/analysis.h"
 
 namespace topocal::pipeline {
@@ -146,26 +147,50 @@ std::uint64_t HarnessCaseSeed(std::uint64_t config_seed, int index) {
 std::vector<HarnessCaseSpec> EnumerateHarnessCases(const HarnessConfig& config) {
   std::vector<HarnessCaseSpec> cases;
   int index = 0;
+  // The noise levels and draws of one swept setting.
+  auto add = [&](const HarnessCaseSpec& setting) {
+    for (const double noise : config.noise_px) {
+      const int draws = noise > 0 ? config.noise_draws : 1;
+      for (int d = 0; d < draws; ++d) {
+        HarnessCaseSpec s = setting;
+        s.index = index;
+        s.noise_px = noise;
+        s.draw = d;
+        s.seed = HarnessCaseSeed(config.seed, index);
+        cases.push_back(s);
+        ++index;
+      }
+    }
+  };
   for (size_t c = 0; c < config.corneas.size(); ++c) {
+    HarnessCaseSpec s;
+    s.cornea = static_cast<int>(c);
+    s.kind = HarnessCaseKind::kDistortion;
     for (const DistortionFamily family : kDistortionFamilies) {
       for (const double coefficient : config.Coefficients(family)) {
         for (const double e : config.calibration_errors) {
-          for (const double noise : config.noise_px) {
-            const int draws = noise > 0 ? config.noise_draws : 1;
-            for (int d = 0; d < draws; ++d) {
-              HarnessCaseSpec s;
-              s.index = index;
-              s.cornea = static_cast<int>(c);
-              s.family = family;
-              s.coefficient = coefficient;
-              s.calibration_error = e;
-              s.noise_px = noise;
-              s.draw = d;
-              s.seed = HarnessCaseSeed(config.seed, index);
-              cases.push_back(s);
-              ++index;
-            }
-          }
+          s.family = family;
+          s.coefficient = coefficient;
+          s.calibration_error = e;
+          add(s);
+        }
+      }
+    }
+    s = HarnessCaseSpec{};
+    s.cornea = static_cast<int>(c);
+    s.kind = HarnessCaseKind::kAssembly;
+    for (const AssemblyAxis axis : kAssemblyAxes) {
+      for (const double value : config.Errors(axis)) {
+        s.axis = axis;
+        s.error = value;
+        s.azimuth_deg = 0;
+        if (!IsDirectional(axis) || value == 0) {
+          add(s);  // a zero magnitude has no direction: one case
+          continue;
+        }
+        for (const double phi : config.assembly_azimuths_deg) {
+          s.azimuth_deg = phi;
+          add(s);
         }
       }
     }
@@ -173,13 +198,46 @@ std::vector<HarnessCaseSpec> EnumerateHarnessCases(const HarnessConfig& config) 
   return cases;
 }
 
+model::Device HarnessNominalDevice(const HarnessConfig& config) {
+  model::TopographerCamera camera;
+  camera.pixel_pitch_um = config.pixel_pitch_um;
+  camera.a_mm = config.design.topographer.a_mm;
+  return model::NominalDevice(camera);
+}
+
+model::Device AssembledDevice(const HarnessConfig& config, const HarnessCaseSpec& spec) {
+  model::Device device = HarnessNominalDevice(config);
+  if (spec.kind != HarnessCaseKind::kAssembly) return device;
+  const double phi = spec.azimuth_deg * M_PI / 180.0;
+  const double v = spec.error;
+  switch (spec.axis) {
+    case AssemblyAxis::kScreenTilt:
+      device.screen.rx_deg = v * std::cos(phi);
+      device.screen.ry_deg = v * std::sin(phi);
+      break;
+    case AssemblyAxis::kScreenRoll: device.screen.rz_deg = v; break;
+    case AssemblyAxis::kScreenDecentration:
+      device.screen.tx_mm = v * std::cos(phi);
+      device.screen.ty_mm = v * std::sin(phi);
+      break;
+    case AssemblyAxis::kScreenAxial: device.screen.tz_mm = v; break;
+    case AssemblyAxis::kPrincipalPoint:
+      device.camera.principal_point_px += Eigen::Vector2d(std::cos(phi), std::sin(phi)) * v / device.camera.PitchMm();
+      break;
+    case AssemblyAxis::kARelative: device.camera.a_mm *= 1.0 + v; break;
+  }
+  return device;
+}
+
 struct HarnessCaseRunner::CorneaData {
   model::Config config;                   // the design with this cornea
   std::vector<model::ImageSpot> spots;    // undistorted, noise-free
+  std::map<model::SpotId, Eigen::Vector2d> spot_mm;  // the same, by identity
   topo::Analysis truth;
 };
 
-HarnessCaseRunner::HarnessCaseRunner(const HarnessConfig& config) : config_(config) {
+HarnessCaseRunner::HarnessCaseRunner(const HarnessConfig& config)
+    : config_(config), nominal_(HarnessNominalDevice(config)) {
   const auto design = model::DesignNullScreen(config.design.ideal_image, config.design.topographer);
   if (design.targets.empty()) throw std::runtime_error("harness: no spot of the ideal image reaches the cone");
   targets_ = std::make_shared<const std::vector<model::TargetPoint>>(design.targets);
@@ -191,6 +249,7 @@ HarnessCaseRunner::HarnessCaseRunner(const HarnessConfig& config) : config_(conf
     d->spots = model::SynthesizeImage(model::Biconic{cornea.params}, model::Topographer{config.design.topographer},
                                       design.targets)
                    .spots;
+    for (const auto& s : d->spots) d->spot_mm.emplace(s.id, s.position_mm);
     std::vector<topo::MeasuredSpot> measured;
     for (const auto& s : d->spots) measured.push_back({s.id, s.position_mm});
     try {
@@ -212,6 +271,10 @@ HarnessCaseRunner::HarnessCaseRunner(const HarnessConfig& config) : config_(conf
 }
 
 HarnessCaseResult HarnessCaseRunner::Run(const HarnessCaseSpec& spec) const {
+  return spec.kind == HarnessCaseKind::kAssembly ? RunAssembly(spec) : RunDistortion(spec);
+}
+
+HarnessCaseResult HarnessCaseRunner::RunDistortion(const HarnessCaseSpec& spec) const {
   HarnessCaseResult r;
   r.spec = spec;
   const CorneaData& d = *data_.at(spec.cornea);
@@ -247,13 +310,61 @@ HarnessCaseResult HarnessCaseRunner::Run(const HarnessCaseSpec& spec) const {
     r.failure = "no spot could be undistorted with the estimated coefficient";
     return r;
   }
-  topo::Analysis a;
   try {
-    a = topo::AnalyzeSpots(measured, *targets_, d.config, nullptr);
+    Compare(topo::AnalyzeSpots(measured, *targets_, d.config, nullptr), d, &r);
   } catch (const std::runtime_error& e) {
     r.failure = e.what();
+  }
+  return r;
+}
+
+HarnessCaseResult HarnessCaseRunner::RunAssembly(const HarnessCaseSpec& spec) const {
+  HarnessCaseResult r;
+  r.spec = spec;
+  const CorneaData& d = *data_.at(spec.cornea);
+  const model::Device device = AssembledDevice(config_, spec);
+  // The cornea through the as-built device, exactly (the forward model of pipeline::SimulateBall).
+  const auto image = model::SynthesizeImage(model::Biconic{config_.corneas[spec.cornea].params}, device,
+                                            config_.design.topographer, *targets_);
+  NormalPairs noise(spec.seed);
+  std::vector<topo::MeasuredSpot> measured;
+  measured.reserve(image.spots.size());
+  double sum2 = 0;
+  int residual_spots = 0;
+  for (const auto& s : image.spots) {
+    const Eigen::Vector2d pixel = device.PixelOf(s.position_mm);
+    const Eigen::Vector2d z = spec.noise_px > 0 ? noise.Next() : Eigen::Vector2d::Zero();
+    // Measured uncorrected: through the nominal device (no distortion: always invertible).
+    const auto seen = nominal_.UndistortedOf(pixel);
+    const auto noisy = nominal_.UndistortedOf(pixel + spec.noise_px * z);
+    if (!seen || !noisy) {
+      ++r.undistort_failures;
+      continue;
+    }
+    if (const auto it = d.spot_mm.find(s.id); it != d.spot_mm.end()) {
+      const double e_mm = (*seen - it->second).norm();
+      r.residual_max_um = std::max(r.residual_max_um, e_mm * 1e3);
+      sum2 += e_mm * e_mm;
+      ++residual_spots;
+    }
+    measured.push_back({s.id, *noisy});
+  }
+  r.residual_rms_um = residual_spots > 0 ? std::sqrt(sum2 / residual_spots) * 1e3 : 0.0;
+  r.spots_used = static_cast<int>(measured.size());
+  if (measured.empty()) {
+    r.failure = "no spot images through the as-built device";
     return r;
   }
+  try {
+    Compare(AnalyzeThroughDevice(measured, nominal_, d.config, nullptr), d, &r);
+  } catch (const std::runtime_error& e) {
+    r.failure = e.what();
+  }
+  return r;
+}
+
+void HarnessCaseRunner::Compare(const topo::Analysis& a, const CorneaData& d, HarnessCaseResult* out) {
+  HarnessCaseResult& r = *out;
   const auto& fit = a.surface_fit.params;
   const auto& truth = d.truth.surface_fit.params;
   r.dk_x = fit.kx - truth.kx;
@@ -269,13 +380,13 @@ HarnessCaseResult HarnessCaseRunner::Run(const HarnessCaseSpec& spec) const {
   const double values[] = {r.dk_x, r.dk_y, r.dr_x_mm, r.dr_y_mm, r.dP_axial_max_D, r.dP_tangential_max_D,
                            r.dpv_axial_D, r.dpv_tangential_D, r.residual_max_um, r.residual_rms_um};
   if (!std::all_of(std::begin(values), std::end(values), [](double v) { return std::isfinite(v); })) {
+    const HarnessCaseSpec spec = r.spec;
     r = HarnessCaseResult{};
     r.spec = spec;
     r.failure = "a reconstructed value is not finite";
-    return r;
+    return;
   }
   r.ok = true;
-  return r;
 }
 
 HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs) {

@@ -1,6 +1,6 @@
 #pragma once
-// The residual-distortion harness (issue 7 item 4, docs/harness.md): how much residual distortion a topographer
-// design tolerates.
+// The harness (issue 7 item 4, issue 19 item 5, docs/harness.md): how much residual distortion, and how large an
+// assembly error of the device, a topographer design tolerates.
 //
 // A case is one cornea x one true distortion (one coefficient of one family) x one relative calibration error e x
 // one spot-position noise level x one seeded draw. For each case:
@@ -11,26 +11,45 @@
 // charged to the distortion). The residual distortion of a case is Undistort(est, Distort(true, p)) - p over the
 // noise-free spot field: e = 0 leaves none, e = -1 (no correction) leaves the whole distortion.
 //
-// Cases are enumerated in a fixed order (cornea, family, coefficient, calibration error, noise level, draw) with a
-// global index; the noise of a case is drawn from a generator seeded by (config seed, case index) only, so any
-// split into shards (index % N == i) merges into exactly the cases of a single run.
+// An assembly case is one cornea x one assembly error of the device (one axis, one value, one azimuth) x one noise
+// level x one draw: the cornea is imaged exactly through the as-built device (model::SynthesizeImage, then
+// Device::PixelOf, the forward model of pipeline::SimulateBall), noise is added in pixels, and the pixels are
+// measured through the nominal device (pipeline::AnalyzeThroughDevice), i.e. uncorrected, and compared with the
+// same truth reconstruction. Its "residual" is the displacement of the noise-free measured spots from the truth
+// spots on the detection plane.
+//
+// Cases are enumerated in a fixed order (cornea; then the distortion cases: family, coefficient, calibration error;
+// then the assembly cases: axis, value, azimuth; then noise level, draw) with a global index; the noise of a case is
+// drawn from a generator seeded by (config seed, case index) only, so any split into shards (index % N == i) merges
+// into exactly the cases of a single run. A configuration without assembly axes enumerates exactly as before.
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "model/config.h"
+#include "model/device.h"
 #include "model/null_screen.h"
 #include "pipeline/harness_config.h"
+#include "topo/analysis.h"
 
 namespace topocal::pipeline {
+
+enum class HarnessCaseKind { kDistortion, kAssembly };
 
 struct HarnessCaseSpec {
   int index = 0;
   int cornea = 0;  // into HarnessConfig::corneas
+  HarnessCaseKind kind = HarnessCaseKind::kDistortion;
+  // Distortion cases:
   DistortionFamily family = DistortionFamily::kSeidelSigma;
   double coefficient = 0;        // true value, in the family's unit
   double calibration_error = 0;  // e: the correction uses coefficient x (1 + e)
+  // Assembly cases:
+  AssemblyAxis axis = AssemblyAxis::kScreenTilt;
+  double error = 0;              // in the axis' unit (a magnitude >= 0 on a directional axis)
+  double azimuth_deg = 0;        // its direction on a directional axis (0 when the magnitude is 0), else 0
+  // Both:
   double noise_px = 0;
   int draw = 0;                  // 0..noise_draws-1 (always 0 when noise_px = 0)
   std::uint64_t seed = 0;        // of this case's noise generator: from (config seed, index) only
@@ -40,11 +59,13 @@ struct HarnessCaseResult {
   HarnessCaseSpec spec;
   bool ok = false;              // false: the reconstruction or fit failed (counts as outside the limits)
   std::string failure;          // why, when !ok
-  // Residual distortion over the noise-free spot field, on the detection plane.
+  // Residual distortion over the noise-free spot field, on the detection plane (assembly cases: the displacement
+  // of the noise-free spots measured through the nominal device from the truth spots).
   double residual_max_um = 0;
   double residual_rms_um = 0;
   int spots_used = 0;           // spots reconstructed
-  int undistort_failures = 0;   // spots the estimated model could not undistort (dropped)
+  int undistort_failures = 0;   // spots the estimated model could not undistort (dropped; assembly cases: 0, and
+                                // spots the as-built device does not image are simply missing from spots_used)
   // Errors against the truth reconstruction of the same cornea (all zero when !ok).
   double dk_x = 0, dk_y = 0;
   double dr_x_mm = 0, dr_y_mm = 0;
@@ -80,6 +101,13 @@ std::vector<HarnessCaseSpec> EnumerateHarnessCases(const HarnessConfig& config);
 // The seed of case `index`: SplitMix64 of (config seed, index).
 std::uint64_t HarnessCaseSeed(std::uint64_t config_seed, int index);
 
+// The nominal device of the harness: the design's a, the configuration's pixel pitch, no distortion, the screen where
+// the design puts it (the principal point, sensor size and orientation of model::TopographerCamera's defaults:
+// measuring through this device undoes its pixel mapping exactly).
+model::Device HarnessNominalDevice(const HarnessConfig& config);
+// The as-built device of an assembly case: the nominal device with the case's one error.
+model::Device AssembledDevice(const HarnessConfig& config, const HarnessCaseSpec& spec);
+
 // The cases of one shard (or of all: shard 0/1) and the truth reconstructions.
 struct HarnessRun {
   HarnessConfig config;
@@ -103,8 +131,13 @@ class HarnessCaseRunner {
 
  private:
   struct CorneaData;
+  HarnessCaseResult RunDistortion(const HarnessCaseSpec& spec) const;
+  HarnessCaseResult RunAssembly(const HarnessCaseSpec& spec) const;
+  // Fills the errors of `r` from the analysis of its measured spots against the truth of its cornea.
+  static void Compare(const topo::Analysis& analysis, const CorneaData& d, HarnessCaseResult* r);
   HarnessConfig config_;  // a copy: the runner may outlive the caller's configuration
   std::shared_ptr<const std::vector<model::TargetPoint>> targets_;
+  model::Device nominal_;
   std::vector<HarnessTruth> truth_;
   std::vector<std::shared_ptr<const CorneaData>> data_;
 };

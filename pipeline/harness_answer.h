@@ -15,6 +15,11 @@
 //  * The answer is the smallest crossing over all groups. The grid bounds are reported beside it: every tested case
 //    with a residual <= grid_all_pass_up_to_um is within the limits, and the smallest residual of a case outside
 //    them is grid_first_failure_um.
+//
+// Per assembly axis (issue 19 item 5) the same construction with the error itself in place of the residual: cases
+// of one axis are grouped by cornea, direction (azimuth on a directional axis, sign on the others), noise level and
+// draw, sorted by |error| and anchored at the worst zero-error case of the same cornea and noise level; the axis'
+// answer is its smallest crossing: the largest error that keeps |dk| and |dP| within the limits uncorrected.
 #include <string>
 #include <vector>
 
@@ -32,6 +37,18 @@ struct FamilyAnswer {
   double residual_max_um = 0;      // its smallest crossing; when !found, the largest residual tested
 };
 
+struct AssemblyAnswer {
+  AssemblyAxis axis = AssemblyAxis::kScreenTilt;
+  bool found = false;                // some case of the axis is outside the limits (else a lower bound)
+  bool noise_alone_exceeds = false;  // a zero-error case is outside the limits: the answer is 0
+  double max_error = 0;              // the answer, in the axis' unit (|error|; when !found: the largest tested)
+  double grid_all_pass_up_to = 0;    // every tested case of the axis with |error| up to this is within the limits
+  double grid_first_failure = 0;     // smallest |error| of a case of the axis outside the limits (when found)
+  double max_tested = 0;
+  int limiting_case = -1;            // the first case outside the limits of the limiting group
+  std::string limited_by;            // "dk", "dP" or "failure"
+};
+
 struct InverseAnswer {
   bool found = false;                  // some case is outside the limits (else the answer is a lower bound)
   bool noise_alone_exceeds = false;    // a case without residual distortion is already outside the limits
@@ -44,10 +61,12 @@ struct InverseAnswer {
   double max_tested_um = 0;
   int limiting_case = -1;              // the first case outside the limits of the limiting group
   std::string limited_by;              // "dk", "dP" or "failure" (reconstruction failed)
+  // The distortion answer above covers the distortion cases only; the counts below cover every case.
   int cases_within = 0;
   int cases_outside = 0;
   int cases_failed = 0;                // reconstruction or fit failed
   std::vector<FamilyAnswer> families;  // one per family present in the sweep
+  std::vector<AssemblyAnswer> assembly;  // one per assembly axis present in the sweep
 };
 
 // Utilisation of the limits by one case: max(|dk| / dk, |dP| / dP); +inf when the case failed.

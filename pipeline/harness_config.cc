@@ -22,26 +22,9 @@ constexpr double kMaxCases = 1e7;
 
 using Reader = model::JsonSection;
 
-// A list of values: explicit, or a range object (see harness_config.h).
-std::vector<double> ParseValues(Reader& parent, const std::string& k) {
-  const json& v = parent.Get(k);
-  const std::string key = parent.Key(k);
-  std::vector<double> out;
-  if (v.is_array()) {
-    if (v.empty()) parent.Fail(key, "must not be empty (give at least one value)");
-    for (size_t i = 0; i < v.size(); ++i) {
-      if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) {
-        parent.Fail(fmt::format("{}[{}]", key, i), fmt::format("must be a finite number (got {})", v[i].dump()));
-      }
-      out.push_back(v[i].get<double>());
-    }
-    return out;
-  }
-  if (!v.is_object()) {
-    parent.Fail(key, fmt::format("must be a list of numbers or a range {{\"from\", \"to\", \"count\", \"spacing\"}} "
-                                 "(got {})", v.dump()));
-  }
-  Reader r(v, parent.origin(), key);
+// A range object {"from", "to", "count", "spacing", "both_signs"} (see harness_config.h); `key` names it.
+std::vector<double> ParseRange(const json& v, const std::string& origin, const std::string& key) {
+  Reader r(v, origin, key);
   const double from = r.Number("from");
   const double to = r.Number("to");
   const json& count_json = r.Get("count");
@@ -73,10 +56,37 @@ std::vector<double> ParseValues(Reader& parent, const std::string& k) {
     positive.push_back(value);
   }
   if (!both_signs) return positive;
+  std::vector<double> out;
   for (auto it = positive.rbegin(); it != positive.rend(); ++it) {
     if (*it != 0) out.push_back(-*it);
   }
   out.insert(out.end(), positive.begin(), positive.end());
+  return out;
+}
+
+// A list of values: explicit, a range object, or a list mixing numbers and ranges (concatenated in order).
+std::vector<double> ParseValues(Reader& parent, const std::string& k) {
+  const json& v = parent.Get(k);
+  const std::string key = parent.Key(k);
+  if (v.is_object()) return ParseRange(v, parent.origin(), key);
+  if (!v.is_array()) {
+    parent.Fail(key, fmt::format("must be a list of numbers or a range {{\"from\", \"to\", \"count\", \"spacing\"}} "
+                                 "(got {})", v.dump()));
+  }
+  if (v.empty()) parent.Fail(key, "must not be empty (give at least one value)");
+  std::vector<double> out;
+  for (size_t i = 0; i < v.size(); ++i) {
+    const std::string item = fmt::format("{}[{}]", key, i);
+    if (v[i].is_object()) {
+      const auto range = ParseRange(v[i], parent.origin(), item);
+      out.insert(out.end(), range.begin(), range.end());
+      continue;
+    }
+    if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) {
+      parent.Fail(item, fmt::format("must be a finite number or a range (got {})", v[i].dump()));
+    }
+    out.push_back(v[i].get<double>());
+  }
   return out;
 }
 
@@ -154,6 +164,54 @@ std::vector<HarnessCornea> ParseCorneas(Reader& top, const model::Config& design
 
 json ValuesJson(const std::vector<double>& v) { return json(v); }
 
+void ParseAssembly(Reader& top, HarnessConfig* h) {
+  Reader a(top.Get("assembly"), top.origin(), "assembly");
+  bool directional = false;
+  for (const AssemblyAxis axis : kAssemblyAxes) {
+    const std::string name = AssemblyAxisName(axis);
+    if (!a.Has(name)) continue;
+    auto& values = h->Errors(axis);
+    values = ParseValues(a, name);
+    const std::string unit = AssemblyAxisUnit(axis);
+    const std::string with_unit = unit.empty() ? "" : " " + unit;
+    const double max = AssemblyAxisMaximum(axis);
+    for (size_t i = 0; i < values.size(); ++i) {
+      const std::string key = fmt::format("{}[{}]", a.Key(name), i);
+      if (IsDirectional(axis) && values[i] < 0) {
+        a.Fail(key, fmt::format("must be >= 0{} (a magnitude; assembly.azimuths_deg gives its directions; got {})",
+                                with_unit, values[i]));
+      }
+      if (!(std::abs(values[i]) <= max)) {
+        a.Fail(key, fmt::format("must be within +-{}{} (got {})", max, with_unit, values[i]));
+      }
+    }
+    directional = directional || IsDirectional(axis);
+  }
+  if (a.Has("azimuths_deg")) {
+    if (!directional) {
+      a.Fail(a.Key("azimuths_deg"), "applies to screen_tilt_deg, screen_decentration_mm and principal_point_offset_mm "
+                                    "only, and none is given");
+    }
+    h->assembly_azimuths_deg = ParseValues(a, "azimuths_deg");
+    for (size_t i = 0; i < h->assembly_azimuths_deg.size(); ++i) {
+      const double phi = h->assembly_azimuths_deg[i];
+      if (!(phi >= 0 && phi < 360)) {
+        a.Fail(fmt::format("{}[{}]", a.Key("azimuths_deg"), i), fmt::format("must lie in [0, 360) deg (got {})", phi));
+      }
+    }
+  } else if (directional) {
+    for (int k = 0; k < 8; ++k) h->assembly_azimuths_deg.push_back(45.0 * k);
+  }
+  a.RejectUnknown();
+  if (!h->HasAssembly()) {
+    top.Fail("assembly", fmt::format("must give at least one of {}", [] {
+               std::string names;
+               for (const AssemblyAxis axis : kAssemblyAxes) names += (names.empty() ? "" : ", ") + std::string(AssemblyAxisName(axis));
+               return names;
+             }()));
+  }
+}
+
 }  // namespace
 
 const char* DistortionFamilyName(DistortionFamily family) {
@@ -163,6 +221,58 @@ const char* DistortionFamilyName(DistortionFamily family) {
     case DistortionFamily::kBrownK2: return "brown_k2";
   }
   return "?";
+}
+
+const char* AssemblyAxisName(AssemblyAxis axis) {
+  switch (axis) {
+    case AssemblyAxis::kScreenTilt: return "screen_tilt_deg";
+    case AssemblyAxis::kScreenRoll: return "screen_roll_deg";
+    case AssemblyAxis::kScreenDecentration: return "screen_decentration_mm";
+    case AssemblyAxis::kScreenAxial: return "screen_axial_mm";
+    case AssemblyAxis::kPrincipalPoint: return "principal_point_offset_mm";
+    case AssemblyAxis::kARelative: return "a_relative_error";
+  }
+  return "?";
+}
+
+const char* AssemblyAxisUnit(AssemblyAxis axis) {
+  switch (axis) {
+    case AssemblyAxis::kScreenTilt:
+    case AssemblyAxis::kScreenRoll: return "deg";
+    case AssemblyAxis::kScreenDecentration:
+    case AssemblyAxis::kScreenAxial:
+    case AssemblyAxis::kPrincipalPoint: return "mm";
+    case AssemblyAxis::kARelative: return "";
+  }
+  return "";
+}
+
+bool IsDirectional(AssemblyAxis axis) {
+  return axis == AssemblyAxis::kScreenTilt || axis == AssemblyAxis::kScreenDecentration ||
+         axis == AssemblyAxis::kPrincipalPoint;
+}
+
+double AssemblyAxisMaximum(AssemblyAxis axis) {
+  switch (axis) {
+    case AssemblyAxis::kScreenTilt:
+    case AssemblyAxis::kScreenRoll: return 10.0;           // deg: the device file's +-10 deg
+    case AssemblyAxis::kScreenDecentration:
+    case AssemblyAxis::kScreenAxial: return 10.0;          // mm: the device file's +-10 mm
+    case AssemblyAxis::kPrincipalPoint: return 1.0;        // mm on the sensor: ~900 px, a fifth of its width
+    case AssemblyAxis::kARelative: return 0.1;             // 10 % of a
+  }
+  return 0.0;
+}
+
+bool HarnessConfig::HasDistortion() const {
+  return !seidel_sigma_per_mm2.empty() || !brown_k1.empty() || !brown_k2.empty();
+}
+
+bool HarnessConfig::HasAssembly() const {
+  for (const auto& v : assembly) {
+    if (!v.empty()) return true;
+  }
+  return false;
 }
 
 const std::vector<double>& HarnessConfig::Coefficients(DistortionFamily family) const {
@@ -195,7 +305,7 @@ HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string
     if (!s.is_number_unsigned()) top.Fail("seed", fmt::format("must be a non-negative integer (got {})", s.dump()));
     h.seed = s.get<std::uint64_t>();
   }
-  {
+  if (top.Has("distortion")) {
     Reader d(top.Get("distortion"), origin, "distortion");
     for (const DistortionFamily f : kDistortionFamilies) {
       const std::string name = DistortionFamilyName(f);
@@ -203,9 +313,13 @@ HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string
       h.Coefficients(f) = ParseValues(d, name);
     }
     d.RejectUnknown();
-    if (h.seidel_sigma_per_mm2.empty() && h.brown_k1.empty() && h.brown_k2.empty()) {
+    if (!h.HasDistortion()) {
       top.Fail("distortion", "must give at least one of seidel_sigma_per_mm2, brown_k1, brown_k2");
     }
+  }
+  if (top.Has("assembly")) ParseAssembly(top, &h);
+  if (!h.HasDistortion() && !h.HasAssembly()) {
+    top.Fail("distortion", "missing: give distortion coefficients, assembly errors or both");
   }
   h.corneas = ParseCorneas(top, h.design);
   h.noise_px = ParseValues(top, "noise_px");
@@ -219,12 +333,17 @@ HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string
     if (draws < 1 || draws > kMaxCases) top.Fail("noise_draws", fmt::format("must lie in [1, {:.0f}] (got {})", kMaxCases, draws));
     h.noise_draws = static_cast<int>(draws);
   }
-  h.calibration_errors = ParseValues(top, "calibration_errors");
-  for (size_t i = 0; i < h.calibration_errors.size(); ++i) {
-    if (h.calibration_errors[i] < -1) {
-      top.Fail(fmt::format("calibration_errors[{}]", i),
-               fmt::format("must be >= -1 (-1: no correction; got {})", h.calibration_errors[i]));
+  if (h.HasDistortion()) {
+    h.calibration_errors = ParseValues(top, "calibration_errors");
+    for (size_t i = 0; i < h.calibration_errors.size(); ++i) {
+      if (h.calibration_errors[i] < -1) {
+        top.Fail(fmt::format("calibration_errors[{}]", i),
+                 fmt::format("must be >= -1 (-1: no correction; got {})", h.calibration_errors[i]));
+      }
     }
+  } else if (top.Has("calibration_errors")) {
+    top.Fail("calibration_errors", "applies to distortion coefficients only, and none is given (assembly errors are "
+                                   "measured uncorrected)");
   }
   {
     Reader l(top.Get("limits"), origin, "limits");
@@ -244,8 +363,14 @@ HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string
   double noise_cases = 0;
   for (const double n : h.noise_px) noise_cases += n > 0 ? h.noise_draws : 1;
   const double distortions = static_cast<double>(h.seidel_sigma_per_mm2.size() + h.brown_k1.size() + h.brown_k2.size());
-  const double cases = distortions * static_cast<double>(h.corneas.size()) *
-                       static_cast<double>(h.calibration_errors.size()) * noise_cases;
+  double assemblies = 0;
+  for (const AssemblyAxis axis : kAssemblyAxes) {
+    for (const double v : h.Errors(axis)) {
+      assemblies += IsDirectional(axis) && v != 0 ? static_cast<double>(h.assembly_azimuths_deg.size()) : 1.0;
+    }
+  }
+  const double cases = (distortions * static_cast<double>(h.calibration_errors.size()) + assemblies) *
+                       static_cast<double>(h.corneas.size()) * noise_cases;
   if (cases > kMaxCases) {
     top.Fail("(top level)", fmt::format("{:.0f} cases: more than the {:.0f} a sweep may hold", cases, kMaxCases));
   }
@@ -267,11 +392,24 @@ std::string CanonicalHarnessJson(const HarnessConfig& h) {
   j["design"] = json::parse(model::ConfigToJson(h.design));
   j["pixel_pitch_um"] = h.pixel_pitch_um;
   j["seed"] = h.seed;
-  json d = json::object();
-  for (const DistortionFamily f : kDistortionFamilies) {
-    if (!h.Coefficients(f).empty()) d[DistortionFamilyName(f)] = ValuesJson(h.Coefficients(f));
+  if (h.HasDistortion()) {
+    json d = json::object();
+    for (const DistortionFamily f : kDistortionFamilies) {
+      if (!h.Coefficients(f).empty()) d[DistortionFamilyName(f)] = ValuesJson(h.Coefficients(f));
+    }
+    j["distortion"] = d;
   }
-  j["distortion"] = d;
+  if (h.HasAssembly()) {
+    json a = json::object();
+    bool directional = false;
+    for (const AssemblyAxis axis : kAssemblyAxes) {
+      if (h.Errors(axis).empty()) continue;
+      a[AssemblyAxisName(axis)] = ValuesJson(h.Errors(axis));
+      directional = directional || IsDirectional(axis);
+    }
+    if (directional) a["azimuths_deg"] = ValuesJson(h.assembly_azimuths_deg);
+    j["assembly"] = a;
+  }
   json corneas = json::array();
   for (const auto& c : h.corneas) {
     corneas.push_back({{"name", c.name}, {"rx_mm", c.params.rx_mm}, {"ry_mm", c.params.ry_mm}, {"kx", c.params.kx},
@@ -281,7 +419,7 @@ std::string CanonicalHarnessJson(const HarnessConfig& h) {
   j["corneas"] = corneas;
   j["noise_px"] = ValuesJson(h.noise_px);
   j["noise_draws"] = h.noise_draws;
-  j["calibration_errors"] = ValuesJson(h.calibration_errors);
+  if (h.HasDistortion()) j["calibration_errors"] = ValuesJson(h.calibration_errors);
   j["limits"] = {{"dk", h.limits.dk}, {"dP_D", h.limits.dP_D},
                  {"dP_maps", h.limits.tangential_map ? "axial+tangential" : "axial"}};
   return j.dump();

@@ -107,6 +107,45 @@ TEST_F(HarnessCli, ThreeShardsMergeIntoTheSingleRunByteForByte) {
   for (const char* d : {"m1", "m2", "m3"}) EXPECT_FALSE(fs::exists(Path(d))) << d;
 }
 
+// Assembly errors through the command line: the per-axis answer printed and written, its plots, two shards merged
+// into the single run's bytes, and a bad assembly value refused with one line.
+TEST_F(HarnessCli, AssemblyAxesAnswerPerAxisAndShardLikeTheRest) {
+  const std::string text = R"({"design": ")" + std::string(TOPOCAL_SOURCE_DIR) + R"(/data/paper.json", "seed": 3,
+      "assembly": {"screen_axial_mm": [0, 0.5], "principal_point_offset_mm": [0.01], "azimuths_deg": [0, 90]},
+      "noise_px": [0], "limits": {"dk": 0.05, "dP_D": 0.25, "dP_maps": "axial"}})";
+  std::ofstream(Path("a.json")) << text;
+  const auto r = RunTopocal("harness --config " + Path("a.json") + " --out " + Path("single"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("assembly answer: "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("  screen_axial_mm: "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("  principal_point_offset_mm: "), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("inverse answer: "), std::string::npos) << r.output;  // no distortion swept
+  const char* outputs[] = {"cases.csv", "summary.json", "table.md", "assembly_screen_axial_mm.svg",
+                           "assembly_principal_point_offset_mm.svg"};
+  for (const char* name : outputs) EXPECT_FALSE(Read(Path("single/") + name).empty()) << name;
+  EXPECT_FALSE(fs::exists(Path("single/dk_vs_residual.svg")));
+  const std::string csv = Read(Path("single/cases.csv"));
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1 + 2 + 2);
+  EXPECT_NE(Read(Path("single/summary.json")).find("\"assembly_answer\""), std::string::npos);
+  for (int i = 0; i < 2; ++i) {
+    const auto s = RunTopocal("harness --config " + Path("a.json") + " --shard " + std::to_string(i) + "/2 --out " +
+                              Path("s" + std::to_string(i)));
+    ASSERT_EQ(s.exit_code, 0) << s.output;
+  }
+  ASSERT_EQ(RunTopocal("harness merge --out " + Path("merged") + " " + Path("s1") + " " + Path("s0")).exit_code, 0);
+  for (const char* name : outputs) EXPECT_EQ(Read(Path("merged/") + name), Read(Path("single/") + name)) << name;
+
+  std::string bad = text;
+  bad.replace(bad.find("[0.01]"), 6, "[-0.01]");
+  std::ofstream(Path("bad.json")) << bad;
+  const auto refused = RunTopocal("harness --config " + Path("bad.json") + " --out " + Path("bad_out"));
+  EXPECT_EQ(refused.exit_code, 2) << refused.output;
+  EXPECT_NE(refused.output.find("bad.json: assembly.principal_point_offset_mm[0]: must be >= 0 mm"), std::string::npos)
+      << refused.output;
+  EXPECT_EQ(std::count(refused.output.begin(), refused.output.end(), '\n'), 1) << refused.output;
+  EXPECT_FALSE(fs::exists(Path("bad_out")));
+}
+
 TEST_F(HarnessCli, RefusesBadInputWithOneLineAndNoOutput) {
   const struct {
     std::string from, to, expect;
