@@ -208,7 +208,12 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   BSplineSurface spline;
   if (spline_mode) spline = BSplineSurface(norm_radius, settings.spline_spacing_mm);
   const RecoveredSurface recovered{psi, spline};
-  double lambda = -1;  // chosen by GCV on the first fit, then kept (the residual's character does not change)
+  // The spline joins once the polynomial alone has converged (or at once for the single-pass paper method): its
+  // penalty is then chosen by GCV on the residual the polynomial really leaves — on the first pass the normals
+  // still carry the error of the sphere estimate P2', smooth and large, and GCV would smooth the cone away — and
+  // kept for the remaining refinement.
+  bool spline_active = spline_mode && !iterate;
+  double lambda = -1;
   std::vector<Eigen::Vector2d> residual_slopes(n);
   for (int it = 0; it < max_iterations; ++it) {
     for (int i = 0; i < n; ++i) {
@@ -222,7 +227,7 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
       return r;
     }
     r.rms_slope_residual = fit.rms_slope_residual;
-    if (spline_mode) {
+    if (spline_active) {
       for (int i = 0; i < n; ++i) {
         double z, zx, zy;
         psi.ValueAndGradient(xy[i].x(), xy[i].y(), &z, &zx, &zy);
@@ -251,7 +256,13 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
       moved = std::max(moved, (hit - p2[i]).norm());
       p2[i] = hit;
     }
-    if (moved <= tolerance_mm) break;
+    if (moved <= tolerance_mm) {
+      if (spline_mode && !spline_active) {
+        spline_active = true;  // one more pass at least, now with the spline
+        continue;
+      }
+      break;
+    }
     if (it + 1 == max_iterations) {
       r.message = fmt::format("normal refinement did not converge in {} iterations (last move {:.3g} um)",
                               max_iterations, moved * 1e3);
