@@ -87,9 +87,10 @@ Eigen::Vector3d NormalFromRays(const Eigen::Vector3d& incident, const Eigen::Vec
 
 Eigen::Vector2d SlopesOf(const Eigen::Vector3d& n) { return {-n.x() / n.z(), -n.y() / n.z()}; }
 
-// The rms slope noise a spot-centre uncertainty of sigma_mm produces: per spot, the 2x2 sensitivity of its slopes
-// to its image position (finite differences of 1e-4 mm, i.e. ~0.1 px: linear, far above rounding), through the
-// incident ray, its intersection with Psi and the reflected ray to the same target.
+// The rms slope residual a spot-centre uncertainty of sigma_mm produces: per spot, the 2x2 sensitivity of its slope
+// residual (measured slope minus the surface's slope where the ray now lands) to its image position (finite
+// differences of 1e-4 mm, i.e. ~0.1 px: linear, far above rounding), through the incident ray, its intersection
+// with the surface and the reflected ray to the same target.
 double ExpectedSlopeNoise(const std::vector<Ray>& rays, const std::vector<Eigen::Vector3d>& p2,
                           const std::vector<Eigen::Vector2d>& slopes, const RecoveredSurface& psi,
                           const model::Topographer& topo, double sigma_mm, int parameters) {
@@ -105,7 +106,13 @@ double ExpectedSlopeNoise(const std::vector<Ray>& rays, const std::vector<Eigen:
       const Eigen::Vector3d inc = topo.IncidentDirection(image);
       Eigen::Vector3d hit;
       ok = IntersectSurface(psi, h, inc, (p2[i] - h).norm(), &hit);
-      if (ok) J.col(c) = (SlopesOf(NormalFromRays(inc, hit, rays[i].target)) - slopes[i]) / kStepMm;
+      if (!ok) break;
+      // What the fit sees: the measured slope against the surface's own slope at the (moved) incidence point.
+      double z, zx0, zy0, zx1, zy1;
+      psi.ValueAndGradient(p2[i].x(), p2[i].y(), &z, &zx0, &zy0);
+      psi.ValueAndGradient(hit.x(), hit.y(), &z, &zx1, &zy1);
+      const Eigen::Vector2d moved = SlopesOf(NormalFromRays(inc, hit, rays[i].target)) - Eigen::Vector2d(zx1, zy1);
+      J.col(c) = (moved - (slopes[i] - Eigen::Vector2d(zx0, zy0))) / kStepMm;
     }
     if (!ok) continue;
     sum += sigma_mm * sigma_mm * J.squaredNorm() / 2.0;  // mean variance of the two slope components
