@@ -71,7 +71,7 @@ void PrintTableVI(const topo::SweepResult& r) {
 }
 
 void PrintClinical(const topo::SweepResult& r) {
-  fmt::print("\nModel adequacy and clinical indices (within the covered radius)\n");
+  fmt::print("\nModel adequacy and clinical indices (within the supported radius: data in every direction)\n");
   fmt::print("{:>12}  {:>9}  {:>8}  {:>9}  {:>9}  {:>8}  {:>8}  {:>9}  {:>7}\n", "sigma/mm^2", "adequacy", "support",
              "steepK/D", "flatK/D", "axis/deg", "Kmax/D", "elev/um", "I-S/D");
   for (const auto& row : r.rows) {
