@@ -71,7 +71,7 @@ void PrintTableVI(const topo::SweepResult& r) {
 }
 
 void PrintClinical(const topo::SweepResult& r) {
-  fmt::print("\nModel adequacy and clinical indices (within the covered radius)\n");
+  fmt::print("\nModel adequacy and clinical indices (within the supported radius: data in every direction)\n");
   fmt::print("{:>12}  {:>9}  {:>8}  {:>9}  {:>9}  {:>8}  {:>8}  {:>9}  {:>7}\n", "sigma/mm^2", "adequacy", "support",
              "steepK/D", "flatK/D", "axis/deg", "Kmax/D", "elev/um", "I-S/D");
   for (const auto& row : r.rows) {
@@ -145,6 +145,11 @@ void AddSweepCommand(CLI::App& app) {
                   "Biconic fit: free-apex (apex position and tilt of the eye free; default) or paper (the paper's "
                   "6 parameters, apex on the axis); overrides reconstruction.biconic_fit")
       ->check(CLI::IsMember({"free-apex", "paper"}));
+  auto surface_model = std::make_shared<std::string>();
+  cmd->add_option("--surface-model", *surface_model,
+                  "Surface: polynomial (the paper's Psi; default) or spline (Psi plus a GCV-smoothed spline "
+                  "residual: keratoconus, ablations); overrides reconstruction.surface_model")
+      ->check(CLI::IsMember({"polynomial", "spline"}));
   auto correct = std::make_shared<bool>(false);
   auto camera = std::make_shared<std::string>();
   cmd->add_flag("--correct", *correct,
@@ -154,6 +159,7 @@ void AddSweepCommand(CLI::App& app) {
   cmd->callback([=] {
     auto cfg = model::LoadConfig(*config);
     if (!biconic_fit->empty()) cfg.reconstruction.biconic_fit = *biconic_fit;
+    if (!surface_model->empty()) cfg.reconstruction.surface_model = *surface_model;
     if (!camera->empty() && !*correct) throw model::InputError("--camera goes with --correct");
     // Inputs are checked before any work: a bad camera file fails at once, not after the sweep.
     pipeline::ClosedLoopOptions options;

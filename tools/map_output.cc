@@ -101,8 +101,9 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
     tangential.push_back({base + "tangential_power",
                           PowerGrid(pm, pm.tangential_D, fmt::format("Tangential power{}", e.label)), notes});
     const double r = a.covered_radius_mm;
-    const auto& psi = a.reconstruction.surface;
-    const topo::GridMap sag = CartesianGrid(r, "", "\u00b5m", [&](double x, double y) { return psi.Value(x, y) * 1e3; });
+    // The recovered surface: Psi plus the spline residual in spline mode (topo/reconstruction.h).
+    const auto& rec = a.reconstruction;
+    const topo::GridMap sag = CartesianGrid(r, "", "\u00b5m", [&](double x, double y) { return rec.Height(x, y) * 1e3; });
     topo::SphereFitResult fit;
     if (auto elev = topo::ElevationAboveBestFitSphere(sag, &fit)) {
       elev->title = fmt::format("Elevation above the best-fit sphere{}", e.label);
@@ -116,7 +117,7 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
            CartesianGrid(r, fmt::format("Ideal \u2212 recovered height{}", e.label), "\u00b5m",
                          [&](double x, double y) {
                            model::SurfaceDerivatives d;
-                           return b.Evaluate(x, y, &d) ? (d.z - psi.Value(x, y)) * 1e3 : NAN;
+                           return b.Evaluate(x, y, &d) ? (d.z - rec.Height(x, y)) * 1e3 : NAN;
                          }),
            {}});
     }

@@ -142,9 +142,15 @@ SplineFit FitSplineToSlopes(const std::vector<Eigen::Vector2d>& points_mm, const
   ridge *= 1e-12 * AtA.diagonal().sum() / p;
 
   Eigen::SimplicialLDLT<SparseMatrix> solver;
+  bool analysed = false;
   const auto solve = [&](double lam, Eigen::VectorXd* c) {
     const SparseMatrix M = AtA + lam * P + ridge;
-    solver.compute(M);
+    // The pattern does not depend on lambda: order (AMD) once, factorise per lambda.
+    if (!analysed) {
+      solver.analyzePattern(M);
+      analysed = true;
+    }
+    solver.factorize(M);
     if (solver.info() != Eigen::Success) return false;
     *c = solver.solve(Atb);
     return solver.info() == Eigen::Success && c->allFinite();
@@ -159,7 +165,7 @@ SplineFit FitSplineToSlopes(const std::vector<Eigen::Vector2d>& points_mm, const
       for (int i = 0; i < p; ++i) z(i) = coin(rng) ? 1.0 : -1.0;
     double best_gcv = INFINITY;
     const double m = 2.0 * n;
-    for (double rel = o.lambda_min; rel <= o.lambda_max * 1.0001; rel *= 10.0) {
+    for (double rel = o.lambda_min; rel <= o.lambda_max * 1.0001; rel *= o.lambda_step) {
       Eigen::VectorXd ci;
       if (!solve(rel * scale, &ci)) continue;
       const double rss = (A * ci - rhs).squaredNorm();

@@ -50,8 +50,9 @@ struct SplineFitOptions {
                               // their peak power), penalising its change
   int gcv_probes = 8;         // Rademacher vectors for tr H
   unsigned seed = 1;          // of the probes (determinism)
-  double lambda_min = 1e-9;   // GCV search over lambda / lambda_scale in [min, max], factor 10 apart,
-  double lambda_max = 1e1;    // lambda_scale = tr(A^T A) / tr(D^T D)
+  double lambda_min = 1e-8;   // GCV search over lambda / lambda_scale in [min, max], lambda_step apart,
+  double lambda_max = 1e2;    // lambda_scale = tr(A^T A) / tr(D^T D) (6 factorisations: the search is the
+  double lambda_step = 100;   // spline's main cost; GCV is flat within a factor 10 of its minimum)
 };
 
 struct SplineFit {

@@ -87,9 +87,10 @@ Eigen::Vector3d NormalFromRays(const Eigen::Vector3d& incident, const Eigen::Vec
 
 Eigen::Vector2d SlopesOf(const Eigen::Vector3d& n) { return {-n.x() / n.z(), -n.y() / n.z()}; }
 
-// The rms slope noise a spot-centre uncertainty of sigma_mm produces: per spot, the 2x2 sensitivity of its slopes
-// to its image position (finite differences of 1e-4 mm, i.e. ~0.1 px: linear, far above rounding), through the
-// incident ray, its intersection with Psi and the reflected ray to the same target.
+// The rms slope residual a spot-centre uncertainty of sigma_mm produces: per spot, the 2x2 sensitivity of its slope
+// residual (measured slope minus the surface's slope where the ray now lands) to its image position (finite
+// differences of 1e-4 mm, i.e. ~0.1 px: linear, far above rounding), through the incident ray, its intersection
+// with the surface and the reflected ray to the same target.
 double ExpectedSlopeNoise(const std::vector<Ray>& rays, const std::vector<Eigen::Vector3d>& p2,
                           const std::vector<Eigen::Vector2d>& slopes, const RecoveredSurface& psi,
                           const model::Topographer& topo, double sigma_mm, int parameters) {
@@ -105,7 +106,13 @@ double ExpectedSlopeNoise(const std::vector<Ray>& rays, const std::vector<Eigen:
       const Eigen::Vector3d inc = topo.IncidentDirection(image);
       Eigen::Vector3d hit;
       ok = IntersectSurface(psi, h, inc, (p2[i] - h).norm(), &hit);
-      if (ok) J.col(c) = (SlopesOf(NormalFromRays(inc, hit, rays[i].target)) - slopes[i]) / kStepMm;
+      if (!ok) break;
+      // What the fit sees: the measured slope against the surface's own slope at the (moved) incidence point.
+      double z, zx0, zy0, zx1, zy1;
+      psi.ValueAndGradient(p2[i].x(), p2[i].y(), &z, &zx0, &zy0);
+      psi.ValueAndGradient(hit.x(), hit.y(), &z, &zx1, &zy1);
+      const Eigen::Vector2d moved = SlopesOf(NormalFromRays(inc, hit, rays[i].target)) - Eigen::Vector2d(zx1, zy1);
+      J.col(c) = (moved - (slopes[i] - Eigen::Vector2d(zx0, zy0))) / kStepMm;
     }
     if (!ok) continue;
     sum += sigma_mm * sigma_mm * J.squaredNorm() / 2.0;  // mean variance of the two slope components
@@ -208,7 +215,12 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   BSplineSurface spline;
   if (spline_mode) spline = BSplineSurface(norm_radius, settings.spline_spacing_mm);
   const RecoveredSurface recovered{psi, spline};
-  double lambda = -1;  // chosen by GCV on the first fit, then kept (the residual's character does not change)
+  // The spline joins once the polynomial alone has converged (or at once for the single-pass paper method): its
+  // penalty is then chosen by GCV on the residual the polynomial really leaves — on the first pass the normals
+  // still carry the error of the sphere estimate P2', smooth and large, and GCV would smooth the cone away — and
+  // kept for the remaining refinement.
+  bool spline_active = spline_mode && !iterate;
+  double lambda = -1;
   std::vector<Eigen::Vector2d> residual_slopes(n);
   for (int it = 0; it < max_iterations; ++it) {
     for (int i = 0; i < n; ++i) {
@@ -222,7 +234,7 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
       return r;
     }
     r.rms_slope_residual = fit.rms_slope_residual;
-    if (spline_mode) {
+    if (spline_active) {
       for (int i = 0; i < n; ++i) {
         double z, zx, zy;
         psi.ValueAndGradient(xy[i].x(), xy[i].y(), &z, &zx, &zy);
@@ -251,7 +263,13 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
       moved = std::max(moved, (hit - p2[i]).norm());
       p2[i] = hit;
     }
-    if (moved <= tolerance_mm) break;
+    if (moved <= tolerance_mm) {
+      if (spline_mode && !spline_active) {
+        spline_active = true;  // one more pass at least, now with the spline
+        continue;
+      }
+      break;
+    }
     if (it + 1 == max_iterations) {
       r.message = fmt::format("normal refinement did not converge in {} iterations (last move {:.3g} um)",
                               max_iterations, moved * 1e3);

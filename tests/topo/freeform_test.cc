@@ -1,0 +1,122 @@
+// Issue 18, items 2-5 on topocal's own freeform test set (model/freeform_test_set.h): a handful of representative
+// corneas, off the axis and tilted, exact spots, against the item-4 targets over the supported disc. The whole set
+// is tabulated by build/bench/accuracy_tables freeform (docs/reconstruction.md).
+#include <gtest/gtest.h>
+
+#include "model/config.h"
+#include "model/freeform_test_set.h"
+#include "topo/truth_comparison.h"
+
+namespace topocal::topo {
+namespace {
+
+// Issue 18, item 4 (exact spots).
+constexpr double kAxialRmsD = 0.1, kAxialMaxD = 0.5, kTangentialRmsD = 0.25, kHeightRmsUm = 0.1;
+constexpr double kKmaxD = 0.25, kKmaxLocationMm = 0.1, kConeHeightRelative = 0.10, kSimKD = 0.1;
+
+model::Config SplineConfig() {
+  auto c = model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json");
+  c.reconstruction.surface_model = "spline";
+  return c;
+}
+
+TruthComparison Measure(const std::string& name, const model::Config& config, Analysis* analysis = nullptr) {
+  const auto cornea = model::FreeformTestSubset({name}).front();
+  auto m = MeasureSimulatedCornea(cornea.surface, config);
+  if (analysis) *analysis = m.analysis;
+  return m.comparison;
+}
+
+void ExpectAllTargets(const TruthComparison& e) {
+  EXPECT_LT(e.axial_rms_D, kAxialRmsD);
+  EXPECT_LT(e.axial_max_D, kAxialMaxD);
+  EXPECT_LT(e.tangential_rms_D, kTangentialRmsD);
+  EXPECT_LT(e.height_rms_um, kHeightRmsUm);
+  EXPECT_LT(std::abs(e.kmax_error_D), kKmaxD);
+  EXPECT_LT(e.kmax_location_error_mm, kKmaxLocationMm);
+  EXPECT_LT(std::abs(e.steep_k_error_D), kSimKD);
+  EXPECT_LT(std::abs(e.flat_k_error_D), kSimKD);
+}
+
+TEST(Freeform, SplineHoldsAKeratoconusCone) {
+  // 33 um cone, sigma 0.85 mm, 1.1 mm below-left of the axis; the eye 0.36 mm off the axis, tilted 2.1 deg.
+  const auto e = Measure("kc-33um-0.85mm", SplineConfig());
+  ExpectAllTargets(e);
+  EXPECT_NEAR(e.cone_height_recovered_um, e.cone_height_true_um, kConeHeightRelative * e.cone_height_true_um);
+  // Regression (measured 2026-12-01): axial rms 0.015 / max 0.122 D, tangential rms 0.089 D, height rms 0.027 um,
+  // Kmax -0.004 D at 0.059 mm, cone 19.99 -> 20.01 um.
+  EXPECT_LT(e.axial_rms_D, 0.03);
+  EXPECT_LT(e.axial_max_D, 0.25);
+  EXPECT_LT(e.tangential_rms_D, 0.18);
+  EXPECT_LT(e.height_rms_um, 0.055);
+  EXPECT_NEAR(e.cone_height_recovered_um, e.cone_height_true_um, 0.1);
+}
+
+TEST(Freeform, SplineHoldsANippleCone) {
+  const auto e = Measure("kc-14um-0.87mm-nipple", SplineConfig());
+  ExpectAllTargets(e);
+  EXPECT_NEAR(e.cone_height_recovered_um, e.cone_height_true_um, kConeHeightRelative * e.cone_height_true_um);
+  // Regression (2026-12-01): axial rms 0.007 / max 0.055 D, tangential rms 0.039 D, height 0.007 um.
+  EXPECT_LT(e.axial_rms_D, 0.015);
+  EXPECT_LT(e.tangential_rms_D, 0.08);
+}
+
+TEST(Freeform, SplineOnAMyopicAblation) {
+  // -5 D over 6 mm, decentred 0.5 mm. Axial map, Kmax and sim-K meet the targets; the tangential map and the
+  // height do NOT yet (the C2 blend's curvature kink at r = 3-4 mm is narrower than the spot spacing:
+  // tangential rms 1.37 D against 0.25 D, height rms 0.42 um against 0.1 um, measured 2026-12-01).
+  const auto e = Measure("lasik-myopic-5D-decentred", SplineConfig());
+  EXPECT_LT(e.axial_rms_D, kAxialRmsD);
+  EXPECT_LT(e.axial_max_D, kAxialMaxD);
+  EXPECT_LT(std::abs(e.kmax_error_D), kKmaxD);
+  EXPECT_LT(std::abs(e.steep_k_error_D), kSimKD);
+  EXPECT_LT(std::abs(e.flat_k_error_D), kSimKD);
+  // Regression bounds (measured 0.053 D axial rms, 1.37 D tangential rms, 0.42 um height rms).
+  EXPECT_LT(e.axial_rms_D, 0.1);
+  EXPECT_LT(e.tangential_rms_D, 2.8);
+  EXPECT_LT(e.height_rms_um, 0.85);
+}
+
+TEST(Freeform, BothModelsHoldAnObliqueToricBiconic) {
+  // r 8.5 / 7.0 mm, k -0.6 / +0.4, 140 deg; off the axis and tilted. Measured 2026-12-01: spline axial rms 2e-4 D,
+  // polynomial 1e-3 D within the supported disc.
+  for (const char* model : {"spline", "polynomial"}) {
+    auto config = SplineConfig();
+    config.reconstruction.surface_model = model;
+    SCOPED_TRACE(model);
+    const auto e = Measure("biconic-toric-1.5mm-oblique", config);
+    ExpectAllTargets(e);
+    EXPECT_LT(e.axial_rms_D, 0.01);
+  }
+}
+
+TEST(Freeform, ThePolynomialFlattensTheConeAndTheAdequacyFigureSaysSo) {
+  // Today's polynomial (degree 10) on the 33 um cone: the cone is flattened and the slope residual is tens of
+  // times the spot noise, which the analysis flags; the spline residual brings it back below the threshold.
+  auto config = SplineConfig();
+  config.reconstruction.surface_model = "polynomial";
+  Analysis poly, spline;
+  const auto ep = Measure("kc-33um-0.85mm", config, &poly);
+  const auto es = Measure("kc-33um-0.85mm", SplineConfig(), &spline);
+  EXPECT_GT(ep.axial_rms_D, 5 * es.axial_rms_D);
+  EXPECT_GT(poly.reconstruction.adequacy_ratio, kAdequacyWarningRatio);
+  bool warned = false;
+  for (const auto& w : poly.warnings) warned |= w.find("does not represent the data") != std::string::npos;
+  EXPECT_TRUE(warned);
+  EXPECT_LT(spline.reconstruction.adequacy_ratio, kAdequacyWarningRatio);
+}
+
+TEST(Freeform, TheModelFitsThePaperCorneaAndMapsBeyondTheDataAreFlagged) {
+  const auto c = model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json");
+  const auto m = MeasureSimulatedCornea(model::Biconic{c.cornea}, c);
+  // Measured 2026-12-01: 0.0097 (exact spots; a model that holds leaves <= 1).
+  EXPECT_LT(m.analysis.reconstruction.adequacy_ratio, 0.05);
+  EXPECT_GT(m.analysis.reconstruction.expected_slope_noise, 0.0);
+  EXPECT_LE(m.analysis.supported_radius_mm, m.analysis.covered_radius_mm);
+  EXPECT_EQ(m.analysis.maps_extrapolated, m.analysis.power.radius_mm > m.analysis.supported_radius_mm);
+  EXPECT_TRUE(m.analysis.clinical_ok) << m.analysis.clinical_message;
+  EXPECT_LE(m.analysis.clinical.supported_radius_mm, m.analysis.supported_radius_mm);
+}
+
+}  // namespace
+}  // namespace topocal::topo
