@@ -20,11 +20,16 @@
 namespace topocal::calib {
 
 struct SaddleFitOptions {
-  double window_sigma_px = 2.0;  // Gaussian weight sigma; the window extends to 3 sigma
+  double window_sigma_px = 2.0;  // Gaussian weight sigma; tapered to zero at 3.5 sigma
   int max_iterations = 30;
   double convergence_px = 1e-4;  // stop when a step is shorter than this
   double max_shift_px = 3.0;     // a corner that wanders further from its start is rejected
 };
+
+// Half-width (px) of the pixel window the fit reads around the (rounded) corner for a weight sigma, and the largest
+// sigma whose window stays within room_px of the corner (for corners near the image edge).
+int SaddleWindowHalfWidthPx(double window_sigma_px) noexcept;
+double SaddleSigmaForRoomPx(double room_px) noexcept;
 
 // Refines one corner of an 8-bit or float grey image; nullopt if the window leaves the image, the fit is not a
 // saddle (no X-junction there), or the iteration does not converge.

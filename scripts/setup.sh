@@ -9,7 +9,8 @@ mode=${1:-run}
 case "$mode" in run|test|build) ;; *) echo "usage: scripts/setup.sh run|test|build" >&2; exit 2 ;; esac
 
 pkgs=(cmake g++ make pkg-config libopencv-dev libceres-dev libeigen3-dev libapriltag-dev libcli11-dev
-      nlohmann-json3-dev libfmt-dev libssl-dev libgtest-dev libgmock-dev libbenchmark-dev)
+      nlohmann-json3-dev libfmt-dev libssl-dev libgtest-dev libgmock-dev libbenchmark-dev
+      libopencv-contrib-dev)  # OpenCV aruco (Kalibr AprilGrids: calib/kalibr_grid_detector.cc)
 # The real chessboard photographs the calibration tests compare against cv::calibrateCamera.
 [ "$mode" = test ] && pkgs+=(opencv-doc)
 # Headless Chromium renders the QA report to PDF/PNG in tests/report (the browser test fails without it); the
