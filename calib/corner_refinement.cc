@@ -1,24 +1,18 @@
 #include "calib/corner_refinement.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 
 namespace topocal::calib {
-namespace {
-
-constexpr double kTaperRadiusSigmas = 3.5;
-
-}  // namespace
 
 int SaddleWindowHalfWidthPx(double window_sigma_px) noexcept {
-  return static_cast<int>(std::ceil(kTaperRadiusSigmas * window_sigma_px)) + 1;
+  return static_cast<int>(std::ceil(3.0 * window_sigma_px));
 }
 
-double SaddleSigmaForRoomPx(double room_px) noexcept {
-  return std::max(0.0, (std::floor(room_px) - 1.0) / kTaperRadiusSigmas);
-}
+double SaddleSigmaForRoomPx(double room_px) noexcept { return std::max(0.0, std::floor(room_px) / 3.0); }
 
 std::optional<Eigen::Vector2d> RefineSaddle(const cv::Mat& gray, const Eigen::Vector2d& initial_px,
                                             const SaddleFitOptions& options) {
@@ -29,13 +23,6 @@ std::optional<Eigen::Vector2d> RefineSaddle(const cv::Mat& gray, const Eigen::Ve
   } else {
     gray.convertTo(image, CV_32F);
   }
-  // Weights: the Gaussian times a taper (1 - r^2 / R^2)^2 that reaches zero at R = 3.5 sigma. Both are functions of
-  // the distance to the current centre alone, so the point symmetry argument holds; the taper makes the fit a
-  // continuous function of the centre. A hard square window around the rounded centre (what a first version did,
-  // weights exp(-4.5) at its edge) makes it jump when the centre crosses a half pixel, so the iteration's end point
-  // depended on where it started: by ~0.003 px between OpenCV's two board detectors.
-  const double taper_radius = kTaperRadiusSigmas * options.window_sigma_px;
-  const double inv_taper2 = 1.0 / (taper_radius * taper_radius);
   const int radius = SaddleWindowHalfWidthPx(options.window_sigma_px);
   const double inv_two_sigma2 = 1.0 / (2.0 * options.window_sigma_px * options.window_sigma_px);
   Eigen::Vector2d centre = initial_px;
@@ -52,10 +39,7 @@ std::optional<Eigen::Vector2d> RefineSaddle(const cv::Mat& gray, const Eigen::Ve
       const double dy = y - centre.y();
       for (int x = cx - radius; x <= cx + radius; ++x) {
         const double dx = x - centre.x();
-        const double r2 = dx * dx + dy * dy;
-        const double taper = 1.0 - r2 * inv_taper2;
-        if (taper <= 0) continue;
-        const double w = std::exp(-r2 * inv_two_sigma2) * taper * taper;
+        const double w = std::exp(-(dx * dx + dy * dy) * inv_two_sigma2);
         const Eigen::Matrix<double, 6, 1> basis(dx * dx, dx * dy, dy * dy, dx, dy, 1.0);
         normal.selfadjointView<Eigen::Lower>().rankUpdate(basis, w);
         rhs += w * row[x] * basis;

@@ -20,7 +20,7 @@
 namespace topocal::calib {
 
 struct SaddleFitOptions {
-  double window_sigma_px = 2.0;  // Gaussian weight sigma; tapered to zero at 3.5 sigma
+  double window_sigma_px = 2.0;  // Gaussian weight sigma; the window extends to 3 sigma
   int max_iterations = 30;
   double convergence_px = 1e-4;  // stop when a step is shorter than this
   double max_shift_px = 3.0;     // a corner that wanders further from its start is rejected
