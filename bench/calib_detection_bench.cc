@@ -1,6 +1,8 @@
 // Detection speed: rendering a 640 x 480 view, and detecting checkerboard / AprilTag grid corners in it.
 // Run by hand: build-*/bench/bench_calib_detection
 #include <benchmark/benchmark.h>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "calib/detect.h"
 #include "calib/render_target.h"
@@ -26,7 +28,11 @@ TargetDescription Board() {
 }
 TargetDescription Grid() {
   return ParseTargetDescription("target_type: aprilgrid\ntagCols: 6\ntagRows: 5\ntagSize: 0.03\ntagSpacing: 0.3\n",
-                                "g");
+                                "g");  // Kalibr's layout (aruco + saddle fit)
+}
+TargetDescription GridOneCell() {
+  return ParseTargetDescription(
+      "target_type: aprilgrid\ntagCols: 6\ntagRows: 5\ntagSize: 0.03\ntagSpacing: 0.3\ntagBorderBits: 1\n", "g1");
 }
 
 void BM_RenderCheckerboard(benchmark::State& state) {
@@ -55,8 +61,75 @@ void BM_DetectAprilGrid(benchmark::State& state) {
   options.refinement = static_cast<CornerRefinement>(state.range(0));
   for (auto _ : state) benchmark::DoNotOptimize(DetectTarget(target, view->image, options));
 }
-// 0 = edge-model refinement, 2 = libapriltag's corners alone.
+// 0 = saddle fit, 2 = aruco's corners alone.
 BENCHMARK(BM_DetectAprilGrid)->Arg(0)->Arg(2)->Unit(benchmark::kMillisecond);
+
+void BM_DetectAprilGridOneCell(benchmark::State& state) {
+  const auto target = GridOneCell();
+  const auto view = RenderTarget(target, Camera(), PoseFacingTarget(target, 550.0, 30.0, 0.0, -3.0), RenderOptions{});
+  DetectionOptions options;
+  options.refinement = static_cast<CornerRefinement>(state.range(0));
+  for (auto _ : state) benchmark::DoNotOptimize(DetectTarget(target, view->image, options));
+}
+// 0 = edge-model refinement, 2 = libapriltag's corners alone.
+BENCHMARK(BM_DetectAprilGridOneCell)->Arg(0)->Arg(2)->Unit(benchmark::kMillisecond);
+
+// A unit's target image: data/target-topographer.yaml (13 x 13 inner corners of 0.9 mm) at 70 mm on the full
+// 4000 x 3000 sensor (a = 5.2 mm, 1.12 um pitch; README's demo), with OpenCV's detectors on the same image as peers.
+const RenderedView& UnitView() {
+  static const RenderedView view = [] {
+    const auto target = LoadTargetDescription(TOPOCAL_SOURCE_DIR "/data/target-topographer.yaml");
+    CameraModel camera;
+    camera.width_px = 4000;
+    camera.height_px = 3000;
+    camera.fx_px = camera.fy_px = 5.2 / 1.12e-3;
+    camera.cx_px = 1999.5;
+    camera.cy_px = 1499.5;
+    camera.dist = {-0.05, 0.0, 0.0, 0.0, 0.0};
+    RenderOptions options;
+    options.supersampling = 4;  // the detector's speed does not depend on the render's fidelity
+    options.noise_grey = 1.0;
+    return *RenderTarget(target, camera, PoseFacingTarget(target, 70.0, 5.0, -5.0, 2.0), options);
+  }();
+  return view;
+}
+
+void BM_DetectUnitTarget(benchmark::State& state) {
+  const auto target = LoadTargetDescription(TOPOCAL_SOURCE_DIR "/data/target-topographer.yaml");
+  const cv::Mat& image = UnitView().image;
+  size_t corners = 0;
+  for (auto _ : state) {
+    const auto view = DetectTarget(target, image);
+    corners = view ? view->corners.size() : 0;
+  }
+  state.counters["corners"] = static_cast<double>(corners);
+  state.SetLabel("topocal: classic on the pyramid + saddle fit, 4000 x 3000");
+}
+BENCHMARK(BM_DetectUnitTarget)->Unit(benchmark::kMillisecond);
+
+void BM_DetectUnitTargetOpenCv(benchmark::State& state) {
+  const cv::Mat& image = UnitView().image;
+  const bool sb = state.range(0) != 0;
+  size_t corners = 0;
+  for (auto _ : state) {
+    std::vector<cv::Point2f> found;
+    bool ok = false;
+    if (sb) {
+      ok = cv::findChessboardCornersSB(image, cv::Size(13, 13), found, cv::CALIB_CB_NORMALIZE_IMAGE);
+    } else {
+      ok = cv::findChessboardCorners(image, cv::Size(13, 13), found);
+      if (ok) {
+        cv::cornerSubPix(image, found, cv::Size(11, 11), cv::Size(-1, -1),
+                         cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 30, 1e-3));
+      }
+    }
+    corners = ok ? found.size() : 0;
+  }
+  state.counters["corners"] = static_cast<double>(corners);
+  state.SetLabel(sb ? "findChessboardCornersSB (topocal's old first choice)"
+                    : "findChessboardCorners + cornerSubPix, full resolution");
+}
+BENCHMARK(BM_DetectUnitTargetOpenCv)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace topocal::calib

@@ -243,9 +243,18 @@ AprilGridDetections DetectAprilGrid(const cv::Mat& gray, const AprilGridLayout& 
     apriltag_detection_t* det = nullptr;
     zarray_get(detections.get(), i, &det);
     const int index = det->id - grid.first_tag_id;
-    if (det->hamming > options.max_hamming || det->decision_margin < options.min_decision_margin || index < 0 ||
-        index >= grid.NumTags()) {
+    std::string reason;
+    if (index < 0 || index >= grid.NumTags()) {
+      reason = fmt::format("not on this grid (ids {}..{})", grid.first_tag_id, grid.first_tag_id + grid.NumTags() - 1);
+    } else if (det->hamming > options.max_hamming) {
+      reason = fmt::format("{} corrected bit(s), more than --max-hamming {}", det->hamming, options.max_hamming);
+    } else if (det->decision_margin < options.min_decision_margin) {
+      reason = fmt::format("decision margin {:.1f} below {:.1f} (low contrast or blur)", det->decision_margin,
+                           options.min_decision_margin);
+    }
+    if (!reason.empty()) {
       ++result.rejected;
+      result.reasons.push_back(fmt::format("tag id {}: {}", det->id, reason));
       continue;
     }
     TagDetection tag;
@@ -262,6 +271,8 @@ AprilGridDetections DetectAprilGrid(const cv::Mat& gray, const AprilGridLayout& 
       const auto refined = RefineTag(gray, tag.corners_px, grid, bits, cells);
       if (!refined) {
         ++result.rejected;
+        result.reasons.push_back(fmt::format("tag id {}: its edges could not be fitted (occluded or at the image edge)",
+                                             det->id));
         continue;
       }
       tag.corners_px = *refined;
@@ -277,6 +288,8 @@ AprilGridDetections DetectAprilGrid(const cv::Mat& gray, const AprilGridLayout& 
                      (i + 1 < result.tags.size() && result.tags[i + 1].tag_index == result.tags[i].tag_index);
     if (dup) {
       ++result.rejected;
+      result.reasons.push_back(
+          fmt::format("tag id {}: seen twice, both left out", result.tags[i].tag_index + grid.first_tag_id));
     } else {
       unique.push_back(result.tags[i]);
     }

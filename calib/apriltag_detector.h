@@ -32,6 +32,7 @@ inline constexpr double kAprilTagToOpenCvOffsetPx = -0.5;
 struct TagDetection {
   int tag_index = 0;                          // tag id - firstTagId
   std::array<Eigen::Vector2d, 4> corners_px;  // corner k as in calib/target.h, OpenCV convention
+  std::array<bool, 4> corner_found{true, true, true, true};  // false: corner k could not be refined (left out)
   double decision_margin = 0;
   int hamming = 0;
 };
@@ -39,6 +40,7 @@ struct TagDetection {
 struct AprilGridDetections {
   std::vector<TagDetection> tags;  // ascending tag_index, refined (unless options.refinement == kNone)
   int rejected = 0;                // dropped by hamming / margin / id / failed refinement
+  std::vector<std::string> reasons;  // one line per rejected tag or left-out corner ("tag 7: id not on the grid")
   std::string message;
 };
 

@@ -33,6 +33,8 @@ struct Parameters {
   std::array<double, kNumDistortion> dist{};
   std::array<double, kNumCentre> centre{};
   std::vector<std::array<double, kNumPose>> poses;  // one per used view
+  std::array<double, kNumWarp> warp{};                // sag_x, sag_y mm (held at 0 unless fitted)
+  BoardWarp warp_geometry;
 };
 
 // A view that takes part in the fit, with the inlier flag of each of its corners.
@@ -91,22 +93,26 @@ void BuildProblem(ceres::Problem& problem, Parameters& p, const std::vector<Used
   AddBlock(problem, p.intrinsics.data(), kNumIntrinsics, &free[kFx]);
   AddBlock(problem, p.dist.data(), kNumDistortion, &free[kK1]);
   AddBlock(problem, p.centre.data(), kNumCentre, &free[kEx]);
+  problem.AddParameterBlock(p.warp.data(), kNumWarp);
+  if (!o.fit_board_warp) problem.SetParameterBlockConstant(p.warp.data());
   for (size_t v = 0; v < views.size(); ++v) {
     problem.AddParameterBlock(p.poses[v].data(), kNumPose);
     const auto& corners = views[v].view->corners;
     for (size_t c = 0; c < corners.size(); ++c) {
       if (!views[v].inlier[c]) continue;
-      problem.AddResidualBlock(ReprojectionCost::Create(corners[c].image_px, corners[c].target_mm), MakeLoss(o),
-                               p.intrinsics.data(), p.dist.data(), p.centre.data(), p.poses[v].data());
+      problem.AddResidualBlock(
+          ReprojectionCost::Create(corners[c].image_px, corners[c].target_mm, p.warp_geometry), MakeLoss(o),
+          p.intrinsics.data(), p.dist.data(), p.centre.data(), p.poses[v].data(), p.warp.data());
     }
   }
 }
 
 std::optional<Eigen::Vector2d> Residual(const Parameters& p, const std::array<double, kNumPose>& pose,
                                         const CornerObservation& corner) {
-  const ReprojectionCost cost(corner.image_px, corner.target_mm);
+  const ReprojectionCost cost(corner.image_px, corner.target_mm, p.warp_geometry);
   Eigen::Vector2d r;
-  if (!cost(p.intrinsics.data(), p.dist.data(), p.centre.data(), pose.data(), r.data()) || !r.allFinite()) {
+  if (!cost(p.intrinsics.data(), p.dist.data(), p.centre.data(), pose.data(), p.warp.data(), r.data()) ||
+      !r.allFinite()) {
     return std::nullopt;
   }
   return r;
@@ -116,7 +122,7 @@ bool AllFinite(const Parameters& p) {
   const auto finite = [](const auto& a) {
     return std::all_of(a.begin(), a.end(), [](double x) { return std::isfinite(x); });
   };
-  return finite(p.intrinsics) && finite(p.dist) && finite(p.centre) &&
+  return finite(p.intrinsics) && finite(p.dist) && finite(p.centre) && finite(p.warp) &&
          std::all_of(p.poses.begin(), p.poses.end(), finite);
 }
 
@@ -127,7 +133,7 @@ int CountFree(const FreeMask& free, size_t views) {
 // Solves, optionally rejecting outliers, then fills the statistics and the covariance of `result`.
 CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, const FreeMask& free,
                                  const CalibrationOptions& o, CalibrationResult result) {
-  const int free_parameters = CountFree(free, views.size());
+  const int free_parameters = CountFree(free, views.size()) + (o.fit_board_warp ? kNumWarp : 0);
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::DENSE_SCHUR;
   solver_options.max_num_iterations = o.max_iterations;
@@ -251,6 +257,7 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
   for (size_t a = 0; a < active.size(); ++a) {
     for (size_t b = a; b < active.size(); ++b) blocks.emplace_back(active[a].first, active[b].first);
   }
+  if (o.fit_board_warp) blocks.emplace_back(p.warp.data(), p.warp.data());
   if (!covariance.Compute(blocks, &problem)) {
     return Failure(CalibrationStatus::kCovarianceFailed,
                    "the Jacobian is rank-deficient at the solution: some free parameter is not determined by these "
@@ -294,6 +301,18 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
     }
     result.parameters.push_back({std::string(kParameterNames[i]), values[static_cast<size_t>(i)],
                                  stddev[static_cast<size_t>(i)], !free[static_cast<size_t>(i)]});
+  }
+  if (o.fit_board_warp) {
+    std::array<double, kNumWarp * kNumWarp> warp_cov{};
+    covariance.GetCovarianceBlock(p.warp.data(), p.warp.data(), warp_cov.data());
+    BoardWarpEstimate w;
+    w.sag_x_mm = p.warp[0];
+    w.sag_y_mm = p.warp[1];
+    w.sag_x_stddev_mm = std::sqrt(std::max(0.0, warp_cov[0] * result.residual_variance_px2));
+    w.sag_y_stddev_mm = std::sqrt(std::max(0.0, warp_cov[3] * result.residual_variance_px2));
+    w.centre_mm = p.warp_geometry.centre_mm;
+    w.half_size_mm = p.warp_geometry.half_size_mm;
+    result.board_warp = w;
   }
   auto& cam = result.camera;
   cam.fx_px = p.intrinsics[0];
@@ -464,6 +483,18 @@ CalibrationResult CalibrateMultiView(const std::vector<ViewObservations>& views,
 
   Parameters p;
   p.intrinsics = {init->fx_px, init->fy_px, init->cx_px, init->cy_px};
+  if (options.fit_board_warp) {
+    // The warp's frame: the bounding box of every corner seen (the printed pattern as far as the views know it).
+    Eigen::Vector2d lo = Eigen::Vector2d::Constant(INFINITY), hi = Eigen::Vector2d::Constant(-INFINITY);
+    for (const auto& v : usable) {
+      for (const auto& c : v.corners) {
+        lo = lo.cwiseMin(c.target_mm.head<2>());
+        hi = hi.cwiseMax(c.target_mm.head<2>());
+      }
+    }
+    p.warp_geometry.centre_mm = 0.5 * (lo + hi);
+    p.warp_geometry.half_size_mm = 0.5 * (hi - lo);
+  }
   for (const auto& pose : init->cam_from_target) p.poses.push_back(ToArray(pose));
   // Refine each pose for the initial K (Zhang's rotation projection is only least-squares in the algebraic sense).
   const cv::Matx33d k(init->fx_px, 0, init->cx_px, 0, init->fy_px, init->cy_px, 0, 0, 1);
@@ -498,6 +529,10 @@ CalibrationResult CalibrateMultiView(const std::vector<ViewObservations>& views,
 CalibrationResult CalibrateSingleView(const ViewObservations& view, const CalibrationOptions& options) {
   std::string why;
   if (!options.IsValid(&why)) return Failure(CalibrationStatus::kInvalidOptions, why);
+  if (options.fit_board_warp) {
+    return Failure(CalibrationStatus::kInvalidOptions,
+                   "a board warp needs several views (one view cannot tell a warp from distortion)");
+  }
   if (!(options.focal_mm > 0 && options.pixel_pitch_um > 0 && options.distance_mm > 0)) {
     return Failure(CalibrationStatus::kInvalidOptions,
                    "single-view calibration needs the focal distance (mm), the pixel pitch (um) and the nominal "

@@ -59,6 +59,9 @@ struct CalibrationOptions {
   // ex, ey are fixed at 0 unless fit_distortion_centre.
   std::set<std::string> fixed;
   bool fit_distortion_centre = false;
+  // Multi-view: fit the board's parabolic sag with the camera (calib/cost_functions.h BoardWarp), for printed
+  // targets that are not flat.
+  bool fit_board_warp = false;
 
   RobustLoss loss = RobustLoss::kNone;
   double loss_scale_px = 1.0;          // where the robust loss leaves the quadratic regime
@@ -129,6 +132,15 @@ struct SeidelEstimate {
   double pixel_pitch_um = 0;
 };
 
+// The fitted board warp (calib/cost_functions.h BoardWarp): the middle of the board is sag_x + sag_y mm off the
+// plane through its edges; standard deviations from the same covariance as the camera's.
+struct BoardWarpEstimate {
+  double sag_x_mm = 0, sag_y_mm = 0;
+  double sag_x_stddev_mm = 0, sag_y_stddev_mm = 0;
+  Eigen::Vector2d centre_mm = Eigen::Vector2d::Zero();
+  Eigen::Vector2d half_size_mm = Eigen::Vector2d::Zero();
+};
+
 struct CalibrationResult {
   CalibrationStatus status = CalibrationStatus::kOk;
   std::string message;  // one line; for failures, what went wrong
@@ -142,6 +154,7 @@ struct CalibrationResult {
   // units), sigma^2 (J'J)^-1 with the poses marginalised; rows and columns of fixed parameters are zero.
   Eigen::MatrixXd covariance;
   std::optional<SeidelEstimate> seidel;        // Seidel model with a known focal length in mm
+  std::optional<BoardWarpEstimate> board_warp;  // when fitted (options.fit_board_warp)
   double pixel_pitch_um = 0;                   // from the options; 0 = unknown
   double focal_mm = 0;                         // given (single view), or fitted f_px x pitch; 0 = unknown
 

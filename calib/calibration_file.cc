@@ -337,6 +337,15 @@ std::string CalibrationReportJson(const CalibrationResult& result, const Calibra
                    {"magnification", result.seidel->magnification},
                    {"focal_mm", result.seidel->focal_mm}};
   }
+  if (result.board_warp) {
+    const auto& w = *result.board_warp;
+    j["board_warp"] = {{"sag_x_mm", w.sag_x_mm},
+                       {"sag_x_stddev_mm", w.sag_x_stddev_mm},
+                       {"sag_y_mm", w.sag_y_mm},
+                       {"sag_y_stddev_mm", w.sag_y_stddev_mm},
+                       {"centre_mm", {w.centre_mm.x(), w.centre_mm.y()}},
+                       {"half_size_mm", {w.half_size_mm.x(), w.half_size_mm.y()}}};
+  }
   if (const auto d = SingleViewDistance(result)) j["target_distance_mm"] = *d;
   if (result.focal_mm > 0) j["focal_mm"] = result.focal_mm;
   if (result.pixel_pitch_um > 0) j["pixel_pitch_um"] = result.pixel_pitch_um;

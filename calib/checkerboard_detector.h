@@ -18,11 +18,18 @@
 
 namespace topocal::calib {
 
-// Corners of the whole board, index = corner id; nullopt (with `why`) when the board is not found or a corner
-// cannot be refined. `gray` is CV_8UC1.
-std::optional<std::vector<Eigen::Vector2d>> DetectCheckerboardCorners(const cv::Mat& gray,
-                                                                      const CheckerboardLayout& board,
-                                                                      const DetectionOptions& options,
-                                                                      std::string* why);
+struct CheckerboardCorners {
+  std::vector<Eigen::Vector2d> corners_px;  // index = corner id
+  std::vector<bool> found;                  // false: this corner could not be refined and is left out
+  std::vector<std::string> reasons;         // one line per left-out corner
+};
+
+// Finding the board: cv::findChessboardCorners (the classic detector, fast) first, cv::findChessboardCornersSB only
+// when it fails; then the saddle fit. A corner whose window would leave the image is refined with the largest
+// window that fits (down to kMinEdgeWindowSigmaPx), else left out with its reason; the board is never dropped for
+// it. nullopt (with `why`, including a hint when the image shows a board one corner smaller in both directions, i.e.
+// squares were counted instead of inner corners) when the board is not found. `gray` is CV_8UC1.
+std::optional<CheckerboardCorners> DetectCheckerboardCorners(const cv::Mat& gray, const CheckerboardLayout& board,
+                                                             const DetectionOptions& options, std::string* why);
 
 }  // namespace topocal::calib

@@ -1,11 +1,18 @@
 #include "calib/corner_refinement.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 
 namespace topocal::calib {
+
+int SaddleWindowHalfWidthPx(double window_sigma_px) noexcept {
+  return static_cast<int>(std::ceil(3.0 * window_sigma_px));
+}
+
+double SaddleSigmaForRoomPx(double room_px) noexcept { return std::max(0.0, std::floor(room_px) / 3.0); }
 
 std::optional<Eigen::Vector2d> RefineSaddle(const cv::Mat& gray, const Eigen::Vector2d& initial_px,
                                             const SaddleFitOptions& options) {
@@ -16,7 +23,7 @@ std::optional<Eigen::Vector2d> RefineSaddle(const cv::Mat& gray, const Eigen::Ve
   } else {
     gray.convertTo(image, CV_32F);
   }
-  const int radius = static_cast<int>(std::ceil(3.0 * options.window_sigma_px));
+  const int radius = SaddleWindowHalfWidthPx(options.window_sigma_px);
   const double inv_two_sigma2 = 1.0 / (2.0 * options.window_sigma_px * options.window_sigma_px);
   Eigen::Vector2d centre = initial_px;
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {

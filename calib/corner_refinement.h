@@ -26,6 +26,11 @@ struct SaddleFitOptions {
   double max_shift_px = 3.0;     // a corner that wanders further from its start is rejected
 };
 
+// Half-width (px) of the pixel window the fit reads around the (rounded) corner for a weight sigma, and the largest
+// sigma whose window stays within room_px of the corner (for corners near the image edge).
+int SaddleWindowHalfWidthPx(double window_sigma_px) noexcept;
+double SaddleSigmaForRoomPx(double room_px) noexcept;
+
 // Refines one corner of an 8-bit or float grey image; nullopt if the window leaves the image, the fit is not a
 // saddle (no X-junction there), or the iteration does not converge.
 std::optional<Eigen::Vector2d> RefineSaddle(const cv::Mat& gray, const Eigen::Vector2d& initial_px,

@@ -7,7 +7,9 @@
 #include <opencv2/imgproc.hpp>
 
 #include "calib/apriltag_detector.h"
+#include "calib/charuco_detector.h"
 #include "calib/checkerboard_detector.h"
+#include "calib/kalibr_grid_detector.h"
 #include "model/io.h"
 
 namespace topocal::calib {
@@ -53,18 +55,29 @@ DetectionResult DetectTargetDetailed(const TargetDescription& target, const cv::
   if (const auto* board = std::get_if<CheckerboardLayout>(&target.layout)) {
     const auto corners = DetectCheckerboardCorners(gray, *board, options, &result.message);
     if (!corners) return result;
-    for (size_t id = 0; id < corners->size(); ++id) {
-      view.corners.push_back({static_cast<int>(id), (*corners)[id], *target.CornerMm(static_cast<int>(id))});
+    for (size_t id = 0; id < corners->corners_px.size(); ++id) {
+      if (!corners->found[id]) continue;
+      view.corners.push_back({static_cast<int>(id), corners->corners_px[id], *target.CornerMm(static_cast<int>(id))});
     }
+    result.reasons = corners->reasons;
     result.message = fmt::format("{} corners", view.corners.size());
+    if (!corners->reasons.empty()) result.message += fmt::format(" ({} left out)", corners->reasons.size());
+  } else if (const auto* charuco = std::get_if<CharucoLayout>(&target.layout)) {
+    const CharucoDetections found = DetectCharuco(gray, *charuco, options);
+    result.reasons = found.reasons;
+    result.message = found.message;
+    for (const auto& [id, px] : found.corners) view.corners.push_back({id, px, *target.CornerMm(id)});
   } else {
     const auto& grid = std::get<AprilGridLayout>(target.layout);
-    const AprilGridDetections tags = DetectAprilGrid(gray, grid, options);
+    const AprilGridDetections tags =
+        grid.KalibrLayout() ? DetectKalibrAprilGrid(gray, grid, options) : DetectAprilGrid(gray, grid, options);
     result.tags_detected = static_cast<int>(tags.tags.size());
     result.tags_rejected = tags.rejected;
+    result.reasons = tags.reasons;
     result.message = tags.message;
     for (const auto& tag : tags.tags) {
       for (int k = 0; k < 4; ++k) {
+        if (!tag.corner_found[static_cast<size_t>(k)]) continue;
         const int id = 4 * tag.tag_index + k;
         view.corners.push_back({id, tag.corners_px[static_cast<size_t>(k)], *target.CornerMm(id)});
       }

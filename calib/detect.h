@@ -7,12 +7,15 @@
 //
 // Checkerboards: OpenCV finds the board (cv::findChessboardCornersSB, then cv::findChessboardCorners as fallback),
 // and topocal refines every corner with a saddle-point fit (calib/corner_refinement.h); the whole board must be
-// visible. AprilTag grids: libapriltag 3 finds tag36h11 tags; tags with hamming distance > max_hamming, a decision
-// margin below min_decision_margin, or an id not on the grid are dropped; each tag's corners are refined by
-// fitting its four edges; partial views keep their corner ids (4 * (tag id - firstTagId) + k).
+// visible. AprilTag grids in Kalibr's layout (tagBorderBits 2, the default): OpenCV aruco finds the tags, each tag
+// corner is refined as an X-junction (calib/kalibr_grid_detector.h). 1-cell-border grids: libapriltag 3 finds
+// tag36h11 tags; tags with hamming distance > max_hamming, a decision margin below min_decision_margin, or an id
+// not on the grid are dropped; each tag's corners are refined by fitting its four edges. Partial views keep their
+// corner ids (4 * (tag id - firstTagId) + k); every dropped tag or corner has a line in DetectionResult::reasons.
 // All pixel coordinates follow OpenCV's convention (calib/observations.h); libapriltag's are converted.
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <opencv2/core/mat.hpp>
 
@@ -49,6 +52,7 @@ struct DetectionResult {
   std::string message;      // why nothing was found, or a one-line summary ("54 corners", "23/24 tags")
   int tags_detected = 0;    // AprilTag grids: tags kept after filtering
   int tags_rejected = 0;    // AprilTag grids: tags dropped by the filters
+  std::vector<std::string> reasons;  // one line per rejected tag or left-out corner, for the user
 };
 
 // Detects the target in an 8-bit grey (or BGR, converted) image. Never throws for image content; an empty image,

@@ -5,6 +5,7 @@
 #include <set>
 
 #include <fmt/format.h>
+#include <opencv2/aruco/dictionary.hpp>
 #include <opencv2/core.hpp>
 
 #include "model/io.h"
@@ -103,6 +104,10 @@ AprilGridLayout ParseAprilGrid(StrictMap& map) {
     if (g.family != "tag36h11") map.Fail("tagFamily", fmt::format("only tag36h11 is supported, got '{}'", g.family));
   }
   g.first_tag_id = map.NonNegativeInt("firstTagId", 0);
+  g.border_bits = map.NonNegativeInt("tagBorderBits", 2);
+  if (g.border_bits != 1 && g.border_bits != 2) {
+    map.Fail("tagBorderBits", fmt::format("must be 1 or 2 (Kalibr prints 2), got {}", g.border_bits));
+  }
   // tag36h11 has 587 codes (ids 0..586).
   constexpr int kTag36h11Codes = 587;
   if (g.first_tag_id + g.NumTags() > kTag36h11Codes) {
@@ -112,7 +117,56 @@ AprilGridLayout ParseAprilGrid(StrictMap& map) {
   return g;
 }
 
+CharucoLayout ParseCharuco(StrictMap& map) {
+  CharucoLayout c;
+  c.squares_x = map.PositiveInt("squaresX");
+  c.squares_y = map.PositiveInt("squaresY");
+  c.square_size_mm = map.PositiveReal("squareSizeMeters") * kMmPerMetre;
+  c.marker_size_mm = map.PositiveReal("markerSizeMeters") * kMmPerMetre;
+  if (map.Has("arucoDictionary")) c.dictionary = map.String("arucoDictionary");
+  // At least 2 x 2 inner corners, as for checkerboards.
+  if (c.squares_x < 3) map.Fail("squaresX", fmt::format("must be at least 3, got {}", c.squares_x));
+  if (c.squares_y < 3) map.Fail("squaresY", fmt::format("must be at least 3, got {}", c.squares_y));
+  if (!(c.marker_size_mm < c.square_size_mm)) {
+    map.Fail("markerSizeMeters", fmt::format("must be smaller than squareSizeMeters ({:g} >= {:g} mm)",
+                                             c.marker_size_mm, c.square_size_mm));
+  }
+  const auto dictionary = ArucoDictionaryId(c.dictionary);
+  if (!dictionary) map.Fail("arucoDictionary", fmt::format("unknown dictionary '{}' (e.g. DICT_4X4_50)", c.dictionary));
+  if (c.NumMarkers() > ArucoDictionarySize(*dictionary)) {
+    map.Fail("arucoDictionary", fmt::format("{} has {} markers, the board needs {}", c.dictionary,
+                                            ArucoDictionarySize(*dictionary), c.NumMarkers()));
+  }
+  return c;
+}
+
 }  // namespace
+
+std::optional<int> ArucoDictionaryId(std::string_view name) {
+  struct Named {
+    std::string_view name;
+    int id;
+  };
+  static constexpr Named kDictionaries[] = {
+      {"DICT_4X4_50", cv::aruco::DICT_4X4_50},     {"DICT_4X4_100", cv::aruco::DICT_4X4_100},
+      {"DICT_4X4_250", cv::aruco::DICT_4X4_250},   {"DICT_4X4_1000", cv::aruco::DICT_4X4_1000},
+      {"DICT_5X5_50", cv::aruco::DICT_5X5_50},     {"DICT_5X5_100", cv::aruco::DICT_5X5_100},
+      {"DICT_5X5_250", cv::aruco::DICT_5X5_250},   {"DICT_5X5_1000", cv::aruco::DICT_5X5_1000},
+      {"DICT_6X6_50", cv::aruco::DICT_6X6_50},     {"DICT_6X6_100", cv::aruco::DICT_6X6_100},
+      {"DICT_6X6_250", cv::aruco::DICT_6X6_250},   {"DICT_6X6_1000", cv::aruco::DICT_6X6_1000},
+      {"DICT_7X7_50", cv::aruco::DICT_7X7_50},     {"DICT_7X7_100", cv::aruco::DICT_7X7_100},
+      {"DICT_7X7_250", cv::aruco::DICT_7X7_250},   {"DICT_7X7_1000", cv::aruco::DICT_7X7_1000},
+      {"DICT_ARUCO_ORIGINAL", cv::aruco::DICT_ARUCO_ORIGINAL},
+  };
+  for (const auto& d : kDictionaries) {
+    if (d.name == name) return d.id;
+  }
+  return std::nullopt;
+}
+
+int ArucoDictionarySize(int dictionary_id) {
+  return cv::aruco::getPredefinedDictionary(dictionary_id)->bytesList.rows;
+}
 
 TargetDescription ParseTargetDescription(std::string_view yaml_text, const std::string& name) {
   // cv::FileStorage only reads YAML that starts with a "%YAML" directive; Kalibr's files have none.
@@ -138,8 +192,10 @@ TargetDescription ParseTargetDescription(std::string_view yaml_text, const std::
     target.layout = ParseCheckerboard(map);
   } else if (type == "aprilgrid") {
     target.layout = ParseAprilGrid(map);
+  } else if (type == "charuco") {
+    target.layout = ParseCharuco(map);
   } else {
-    map.Fail("target_type", fmt::format("must be checkerboard or aprilgrid, got '{}'", type));
+    map.Fail("target_type", fmt::format("must be checkerboard, aprilgrid or charuco, got '{}'", type));
   }
   map.RejectUnknownKeys();
   return target;
@@ -153,6 +209,7 @@ std::vector<int> TargetDescription::CornerIds() const {
   int count = 0;
   if (const auto* b = std::get_if<CheckerboardLayout>(&layout)) count = b->cols * b->rows;
   if (const auto* g = std::get_if<AprilGridLayout>(&layout)) count = 4 * g->NumTags();
+  if (const auto* c = std::get_if<CharucoLayout>(&layout)) count = c->InnerCols() * c->InnerRows();
   std::vector<int> ids(static_cast<size_t>(count));
   for (int i = 0; i < count; ++i) ids[static_cast<size_t>(i)] = i;
   return ids;
@@ -165,10 +222,16 @@ std::optional<Eigen::Vector3d> TargetDescription::CornerMm(int id) const {
     const int r = id / b->cols, c = id % b->cols;
     return Eigen::Vector3d(c * b->col_spacing_mm, r * b->row_spacing_mm, 0.0);
   }
+  if (const auto* ch = std::get_if<CharucoLayout>(&layout)) {
+    if (id >= ch->InnerCols() * ch->InnerRows()) return std::nullopt;
+    return Eigen::Vector3d((id % ch->InnerCols() + 1) * ch->square_size_mm,
+                           (id / ch->InnerCols() + 1) * ch->square_size_mm, 0.0);
+  }
   const auto& g = std::get<AprilGridLayout>(layout);
   if (id >= 4 * g.NumTags()) return std::nullopt;
   const int tag = id / 4, k = id % 4;
-  const double x0 = (tag % g.tag_cols) * g.PitchMm(), y0 = (tag / g.tag_cols) * g.PitchMm();
+  const Eigen::Vector2d origin = g.TagOriginMm(tag);
+  const double x0 = origin.x(), y0 = origin.y();
   const double s = g.tag_size_mm;
   // Corner k as drawn in target.h: 0 bottom-left, 1 bottom-right, 2 top-right, 3 top-left (y down).
   const double dx[4] = {0, s, s, 0};
@@ -180,8 +243,14 @@ TargetExtent TargetDescription::PatternExtent() const {
   if (const auto* b = std::get_if<CheckerboardLayout>(&layout)) {
     return {-b->col_spacing_mm, -b->row_spacing_mm, b->cols * b->col_spacing_mm, b->rows * b->row_spacing_mm};
   }
+  if (const auto* c = std::get_if<CharucoLayout>(&layout)) {
+    return {0.0, 0.0, c->squares_x * c->square_size_mm, c->squares_y * c->square_size_mm};
+  }
   const auto& g = std::get<AprilGridLayout>(layout);
-  return {0.0, 0.0, (g.tag_cols - 1) * g.PitchMm() + g.tag_size_mm, (g.tag_rows - 1) * g.PitchMm() + g.tag_size_mm};
+  // Kalibr's corner squares stick out by one gap beyond the outer tags.
+  const double squares_mm = g.KalibrLayout() ? g.GapMm() : 0.0;
+  return {-squares_mm, -squares_mm, (g.tag_cols - 1) * g.PitchMm() + g.tag_size_mm + squares_mm,
+          (g.tag_rows - 1) * g.PitchMm() + g.tag_size_mm + squares_mm};
 }
 
 TargetExtent TargetDescription::PaperExtent() const {
@@ -191,8 +260,11 @@ TargetExtent TargetDescription::PaperExtent() const {
     // One square of white around the outer squares: the board detectors need a light frame around the board.
     margin_x_mm = b->col_spacing_mm;
     margin_y_mm = b->row_spacing_mm;
+  } else if (const auto* c = std::get_if<CharucoLayout>(&layout)) {
+    // The markers identify the corners; half a square of white is only a printing margin.
+    margin_x_mm = margin_y_mm = 0.5 * c->square_size_mm;
   } else {
-    // Half a tag = 4 bit cells of white; libapriltag needs at least the one-cell white border of the tag.
+    // Half a tag (>= 4 bit cells) of white: both detectors need a white ring around each tag's black border.
     margin_x_mm = margin_y_mm = 0.5 * std::get<AprilGridLayout>(layout).tag_size_mm;
   }
   return {e.min_x_mm - margin_x_mm, e.min_y_mm - margin_y_mm, e.max_x_mm + margin_x_mm, e.max_y_mm + margin_y_mm};
@@ -203,9 +275,14 @@ std::string TargetDescription::Describe() const {
     return fmt::format("checkerboard {}x{} inner corners, {:g} x {:g} mm squares", b->cols, b->rows,
                        b->col_spacing_mm, b->row_spacing_mm);
   }
+  if (const auto* c = std::get_if<CharucoLayout>(&layout)) {
+    return fmt::format("charuco {}x{} squares of {:g} mm, {:g} mm {} markers", c->squares_x, c->squares_y,
+                       c->square_size_mm, c->marker_size_mm, c->dictionary);
+  }
   const auto& g = std::get<AprilGridLayout>(layout);
-  return fmt::format("aprilgrid {}x{} {} tags from id {}, {:g} mm tags, spacing {:g}", g.tag_cols, g.tag_rows,
-                     g.family, g.first_tag_id, g.tag_size_mm, g.tag_spacing_ratio);
+  return fmt::format("aprilgrid {}x{} {} tags from id {}, {:g} mm tags, spacing {:g}, {}", g.tag_cols, g.tag_rows,
+                     g.family, g.first_tag_id, g.tag_size_mm, g.tag_spacing_ratio,
+                     g.KalibrLayout() ? "Kalibr layout (2-cell border, corner squares)" : "1-cell border");
 }
 
 }  // namespace topocal::calib

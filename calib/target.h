@@ -12,6 +12,7 @@
 //   colSpacingMeters: 0.025  # square, x      tagSpacing: 0.3        # gap between tags / tagSize
 //                                             tagFamily: tag36h11    # topocal: optional, only tag36h11
 //                                             firstTagId: 0          # topocal: optional, default 0
+//                                             tagBorderBits: 2       # topocal: optional, 2 (Kalibr) or 1
 //
 // Parsing is strict: a missing, unknown, wrongly typed or non-positive key is a model::InputError
 // "FILE: KEY: problem". A leading "%YAML:1.0" line is optional (plain Kalibr files are accepted).
@@ -36,20 +37,28 @@
 //               8---------9--------10--------11
 //   (one square of white quiet border surrounds the outer squares)
 //
-// AprilTag grid. The tag at column i, row j (row 0 at the top) has id firstTagId + j * tagCols + i; its black
-// square spans [i * p, i * p + s] x [j * p, j * p + s] with s = tagSize, p = s * (1 + tagSpacing). The tag is
-// printed in libapriltag's canonical orientation (apriltag_to_image, bitmap row 0 at the top, y down).
-// Its four corners, numbered as libapriltag numbers them for an upright tag:
+// AprilTag grid, as Kalibr prints it (kalibr_create_target_pdf). The tag at column i, row j -- row 0 at the BOTTOM
+// of the print, rows counted upwards, as Kalibr numbers them -- has id firstTagId + j * tagCols + i; its black square
+// spans [i * p, i * p + s] x [(tagRows - 1 - j) * p, (tagRows - 1 - j) * p + s] (y down) with s = tagSize,
+// p = s * (1 + tagSpacing). Tags are printed in libapriltag's canonical orientation (apriltag_to_image, bitmap row 0
+// at the top, y down: the real Kalibr photos in data/ decode so).
 //
-//        x -->
-//   y    3 ------------ 2        corner id = 4 * (tag id - firstTagId) + k    (k = 0..3)
-//   |    | ############ |        0 = (x0,     y0 + s)   bottom-left
-//   v    | ##  tag   ## |        1 = (x0 + s, y0 + s)   bottom-right
-//        | ############ |        2 = (x0 + s, y0)       top-right
-//        0 ------------ 1        3 = (x0,     y0)       top-left
+//   tagBorderBits: 2 (Kalibr, the default)         tagBorderBits: 1 (topocal option: libapriltag's own tags)
+//   the 6 x 6 data bits inside a 2-cell black      the 6 x 6 data bits inside a 1-cell black border (8 cells
+//   border (10 cells across s), plus a black       across s), no corner squares
+//   square of side g = tagSpacing * s in every
+//   gap crossing (Kalibr's "symmCorners"):
 //
-// Corner ids are relative to firstTagId so that ids stay small; CornerObservation::id uses the same ids.
-// The paper margin around the grid is half a tag (>= 4 bit cells of white), without Kalibr's corner squares.
+//        x -->                                  so each tag corner is an X-junction:
+//   y    ##   3 ------------ 2   ##                    gap   | corner square
+//   |         | ############ |                   --------+--------   black tag opposite black square,
+//   v         | ##  tag   ## |                     tag   |  gap      white gap opposite white gap
+//             | ############ |
+//        ##   0 ------------ 1   ##   corner id = 4 * (tag id - firstTagId) + k    (k = 0..3)
+//                                     0 = (x0, y0 + s) bottom-left   1 = (x0 + s, y0 + s) bottom-right
+//                                     2 = (x0 + s, y0) top-right     3 = (x0, y0) top-left
+// (libapriltag's p[k] numbering for an upright tag). Corner ids are relative to firstTagId so that ids stay small;
+// CornerObservation::id uses the same ids. The paper margin is half a tag of white beyond the pattern.
 #include <optional>
 #include <string>
 #include <string_view>
@@ -74,10 +83,48 @@ struct AprilGridLayout {
   double tag_spacing_ratio = 0;   // gap between neighbouring tags / tag size (Kalibr tagSpacing)
   std::string family = "tag36h11";
   int first_tag_id = 0;
+  int border_bits = 2;            // black border of a tag in bit cells: 2 = Kalibr (with corner squares), 1 = plain
+
+  bool KalibrLayout() const noexcept { return border_bits == 2; }
+  double GapMm() const noexcept { return tag_size_mm * tag_spacing_ratio; }
+  // Top-left corner (x0, y0) of the black square of tag index t (= tag id - firstTagId), mm.
+  Eigen::Vector2d TagOriginMm(int t) const noexcept {
+    return {(t % tag_cols) * PitchMm(), (tag_rows - 1 - t / tag_cols) * PitchMm()};
+  }
 
   double PitchMm() const noexcept { return tag_size_mm * (1.0 + tag_spacing_ratio); }
   int NumTags() const noexcept { return tag_cols * tag_rows; }
 };
+
+// ChArUco board (topocal's keys, OpenCV 4.6 contrib aruco's layout, y down as drawn by cv::aruco::CharucoBoard):
+// squaresX x squaresY squares of squareSize, the top-left square black; a marker of markerSize centred in every
+// white square (those with (x + y) odd), marker ids 0, 1, ... row-major from the top-left. Corner id i (the
+// (squaresX - 1) x (squaresY - 1) inner corners, row-major) sits at ((i % (squaresX - 1) + 1) s,
+// (i / (squaresX - 1) + 1) s). The markers give every corner its identity, so a partial view keeps its ids.
+//
+//   target_type: charuco
+//   squaresX: 7                  # squares along x
+//   squaresY: 5                  # squares along y
+//   squareSizeMeters: 0.04
+//   markerSizeMeters: 0.03       # < squareSize
+//   arucoDictionary: DICT_4X4_50 # optional; any cv::aruco predefined DICT_4X4_50 .. DICT_7X7_1000 name
+struct CharucoLayout {
+  int squares_x = 0;
+  int squares_y = 0;
+  double square_size_mm = 0;
+  double marker_size_mm = 0;
+  std::string dictionary = "DICT_4X4_50";
+
+  int InnerCols() const noexcept { return squares_x - 1; }
+  int InnerRows() const noexcept { return squares_y - 1; }
+  int NumMarkers() const noexcept { return squares_x * squares_y / 2; }
+  // White margin between a marker and its square's edge: the corner's point symmetry holds within this radius.
+  double MarginMm() const noexcept { return 0.5 * (square_size_mm - marker_size_mm); }
+};
+
+// The cv::aruco predefined dictionary of a name ("DICT_4X4_50"), and its number of markers; nullopt if unknown.
+std::optional<int> ArucoDictionaryId(std::string_view name);
+int ArucoDictionarySize(int dictionary_id);
 
 struct TargetExtent {
   double min_x_mm = 0, min_y_mm = 0, max_x_mm = 0, max_y_mm = 0;
@@ -86,7 +133,7 @@ struct TargetExtent {
 };
 
 struct TargetDescription {
-  std::variant<CheckerboardLayout, AprilGridLayout> layout;
+  std::variant<CheckerboardLayout, AprilGridLayout, CharucoLayout> layout;
   std::string source;  // the file it was read from (for messages)
 
   bool IsCheckerboard() const noexcept { return std::holds_alternative<CheckerboardLayout>(layout); }

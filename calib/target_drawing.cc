@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include <fmt/format.h>
+#include <opencv2/aruco.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "calib/apriltag_raii.h"
@@ -22,7 +23,43 @@ TargetPattern::TargetPattern(const TargetDescription& target) : target_(target),
   if (const auto* g = std::get_if<AprilGridLayout>(&target_.layout)) {
     const auto family = apriltag_raii::MakeTag36h11();
     if (!family) throw std::runtime_error("libapriltag: cannot create the tag36h11 family");
-    for (int i = 0; i < g->NumTags(); ++i) tag_bits_.push_back(apriltag_raii::TagBitmap(family.get(), g->first_tag_id + i, &tag_cells_));
+    for (int i = 0; i < g->NumTags(); ++i) {
+      int cells = 0;
+      auto bits = apriltag_raii::TagBitmap(family.get(), g->first_tag_id + i, &cells);
+      if (g->KalibrLayout()) {
+        // Kalibr's tag: the same data bits inside a border one cell wider (libapriltag's 8 cells -> 10).
+        const int wide = cells + 2;
+        std::vector<uint8_t> kalibr(static_cast<size_t>(wide * wide), 1);
+        for (int y = 1; y + 1 < cells; ++y) {
+          for (int x = 1; x + 1 < cells; ++x) {
+            kalibr[static_cast<size_t>((y + 1) * wide + x + 1)] = bits[static_cast<size_t>(y * cells + x)];
+          }
+        }
+        bits = std::move(kalibr);
+        cells = wide;
+      }
+      tag_cells_ = cells;
+      tag_bits_.push_back(std::move(bits));
+    }
+  }
+  if (const auto* c = std::get_if<CharucoLayout>(&target_.layout)) {
+    // OpenCV's own marker bitmaps, one pixel per cell (the marker's 1-cell border included).
+    const auto dictionary = cv::aruco::getPredefinedDictionary(*ArucoDictionaryId(c->dictionary));
+    tag_cells_ = dictionary->markerSize + 2;
+    for (int id = 0; id < c->NumMarkers(); ++id) {
+      cv::Mat marker;
+      cv::aruco::drawMarker(dictionary, id, tag_cells_, marker, 1);
+      std::vector<uint8_t> bits(static_cast<size_t>(tag_cells_ * tag_cells_));
+      for (int y = 0; y < tag_cells_; ++y) {
+        for (int x = 0; x < tag_cells_; ++x) bits[static_cast<size_t>(y * tag_cells_ + x)] = marker.at<uint8_t>(y, x) < 128;
+      }
+      tag_bits_.push_back(std::move(bits));
+    }
+    // Markers fill the white squares ((x + y) odd) row-major from the top-left, as cv::aruco::CharucoBoard does.
+    int next = 0;
+    for (int y = 0; y < c->squares_y; ++y) {
+      for (int x = 0; x < c->squares_x; ++x) marker_of_square_.push_back((x + y) % 2 == 1 ? next++ : -1);
+    }
   }
 }
 
@@ -38,15 +75,38 @@ bool TargetPattern::IsBlack(double x_mm, double y_mm) const noexcept {
     if (fi < 0 || fj < 0 || fi > b->cols || fj > b->rows) return false;
     return (static_cast<long>(fi) + static_cast<long>(fj)) % 2 == 0;
   }
+  if (const auto* c = std::get_if<CharucoLayout>(&target_.layout)) {
+    const double fi = std::floor(x_mm / c->square_size_mm), fj = std::floor(y_mm / c->square_size_mm);
+    if (fi < 0 || fj < 0 || fi >= c->squares_x || fj >= c->squares_y) return false;
+    const int marker = marker_of_square_[static_cast<size_t>(static_cast<int>(fj) * c->squares_x + static_cast<int>(fi))];
+    if (marker < 0) return true;  // black square
+    const double u = (x_mm - fi * c->square_size_mm - c->MarginMm()) / c->marker_size_mm;
+    const double v = (y_mm - fj * c->square_size_mm - c->MarginMm()) / c->marker_size_mm;
+    if (u < 0 || v < 0 || u >= 1.0 || v >= 1.0) return false;  // white margin around the marker
+    const int cx = std::min(tag_cells_ - 1, static_cast<int>(u * tag_cells_));
+    const int cy = std::min(tag_cells_ - 1, static_cast<int>(v * tag_cells_));
+    return tag_bits_[static_cast<size_t>(marker)][static_cast<size_t>(cy * tag_cells_ + cx)] != 0;
+  }
   const auto& g = std::get<AprilGridLayout>(target_.layout);
   const double pitch = g.PitchMm();
+  if (g.KalibrLayout()) {
+    // Corner squares fill every gap crossing: x in [k p - gap, k p) for k = 0 .. tag_cols, likewise y.
+    const double gap = g.GapMm();
+    const double kx = std::floor((x_mm + gap) / pitch), ky = std::floor((y_mm + gap) / pitch);
+    if (kx >= 0 && ky >= 0 && kx <= g.tag_cols && ky <= g.tag_rows && x_mm + gap - kx * pitch < gap &&
+        y_mm + gap - ky * pitch < gap) {
+      return true;
+    }
+  }
   const double fi = std::floor(x_mm / pitch), fj = std::floor(y_mm / pitch);
   if (fi < 0 || fj < 0 || fi >= g.tag_cols || fj >= g.tag_rows) return false;
   const double u = (x_mm - fi * pitch) / g.tag_size_mm, v = (y_mm - fj * pitch) / g.tag_size_mm;
   if (u >= 1.0 || v >= 1.0) return false;  // in the white gap
   const int cx = std::min(tag_cells_ - 1, static_cast<int>(u * tag_cells_));
   const int cy = std::min(tag_cells_ - 1, static_cast<int>(v * tag_cells_));
-  const auto& bits = tag_bits_[static_cast<size_t>(static_cast<int>(fj) * g.tag_cols + static_cast<int>(fi))];
+  // Rows are numbered from the bottom of the print (calib/target.h).
+  const int tag = (g.tag_rows - 1 - static_cast<int>(fj)) * g.tag_cols + static_cast<int>(fi);
+  const auto& bits = tag_bits_[static_cast<size_t>(tag)];
   return bits[static_cast<size_t>(cy * tag_cells_ + cx)] != 0;
 }
 
@@ -72,12 +132,45 @@ std::string TargetSvg(const TargetDescription& target) {
                                    b->row_spacing_mm);
       }
     }
+  } else if (const auto* c = std::get_if<CharucoLayout>(&target.layout)) {
+    const int n = pattern.tag_cells();
+    const double cell_mm = c->marker_size_mm / n;
+    int marker = 0;
+    for (int j = 0; j < c->squares_y; ++j) {
+      for (int i = 0; i < c->squares_x; ++i) {
+        if ((i + j) % 2 == 0) {
+          rect(i * c->square_size_mm, j * c->square_size_mm, c->square_size_mm, c->square_size_mm);
+          continue;
+        }
+        const double x0 = i * c->square_size_mm + c->MarginMm(), y0 = j * c->square_size_mm + c->MarginMm();
+        const auto& bits = pattern.tag_bits()[static_cast<size_t>(marker)];
+        svg += fmt::format("<!-- marker {} -->\n", marker++);
+        for (int y = 0; y < n; ++y) {
+          for (int x = 0; x < n;) {
+            if (!bits[static_cast<size_t>(y * n + x)]) { ++x; continue; }
+            int end = x;
+            while (end < n && bits[static_cast<size_t>(y * n + end)]) ++end;
+            rect(x0 + x * cell_mm, y0 + y * cell_mm, (end - x) * cell_mm, cell_mm);
+            x = end;
+          }
+        }
+      }
+    }
   } else {
     const auto& g = std::get<AprilGridLayout>(target.layout);
     const int n = pattern.tag_cells();
     const double cell_mm = g.tag_size_mm / n;
+    if (g.KalibrLayout()) {
+      svg += "<!-- corner squares (Kalibr) -->\n";
+      for (int ky = 0; ky <= g.tag_rows; ++ky) {
+        for (int kx = 0; kx <= g.tag_cols; ++kx) {
+          rect(kx * g.PitchMm() - g.GapMm(), ky * g.PitchMm() - g.GapMm(), g.GapMm(), g.GapMm());
+        }
+      }
+    }
     for (int t = 0; t < g.NumTags(); ++t) {
-      const double x0 = (t % g.tag_cols) * g.PitchMm(), y0 = (t / g.tag_cols) * g.PitchMm();
+      const Eigen::Vector2d origin = g.TagOriginMm(t);
+      const double x0 = origin.x(), y0 = origin.y();
       const auto& bits = pattern.tag_bits()[static_cast<size_t>(t)];
       svg += fmt::format("<!-- tag {} -->\n", g.first_tag_id + t);
       for (int y = 0; y < n; ++y) {

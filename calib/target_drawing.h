@@ -3,8 +3,9 @@
 // print-ready drawings of it at physical scale.
 //
 // The pattern is what calib/target.h draws: checkerboard squares inside a one-square white border; AprilTag grids
-// as plain tag36h11 tags (libapriltag's own bitmaps, black border + 6 x 6 data bits) in white paper, without Kalibr's
-// small corner squares (libapriltag 3 does not detect Kalibr's layout reliably).
+// as Kalibr prints them (tag36h11 data bits from libapriltag's bitmaps inside a 2-cell black border, black squares
+// in the gap crossings) or, with tagBorderBits: 1, as plain libapriltag tags without corner squares; ChArUco boards
+// as cv::aruco::CharucoBoard lays them out.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -25,8 +26,9 @@ class TargetPattern {
   bool OnPaper(double x_mm, double y_mm) const noexcept;
   const TargetDescription& target() const noexcept { return target_; }
 
-  // Tag bitmaps: for each tag of the grid, cells x cells values (row-major, y down), true = black; the outermost
-  // ring is the black border. Empty for checkerboards.
+  // Tag bitmaps: for each tag index (id - firstTagId), cells x cells values (row-major, y down), true = black; the
+  // outermost ring (two rings for Kalibr's layout: 10 cells, else 8) is the black border. ChArUco: the markers by
+  // id (OpenCV's bitmaps with their 1-cell border). Empty for checkerboards.
   int tag_cells() const noexcept { return tag_cells_; }
   const std::vector<std::vector<uint8_t>>& tag_bits() const noexcept { return tag_bits_; }
 
@@ -35,6 +37,7 @@ class TargetPattern {
   TargetExtent paper_;
   int tag_cells_ = 0;
   std::vector<std::vector<uint8_t>> tag_bits_;
+  std::vector<int> marker_of_square_;  // ChArUco: marker index of each square (row-major), -1 for black squares
 };
 
 // SVG in millimetre units (width/height in mm, viewBox in mm), paper included, origin at the paper's top-left.

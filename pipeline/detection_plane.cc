@@ -1,13 +1,22 @@
 #include "pipeline/detection_plane.h"
 
+#include <algorithm>
+
 #include <fmt/format.h>
 
 #include "correct/opencv_brown.h"
 
 namespace topocal::pipeline {
+namespace {
 
-std::optional<model::Distortion> DistortionOnDetectionPlane(const calib::CameraModel& c,
-                                                            const model::TopographerCamera& camera, std::string* why) {
+// Samples per sensor side for the model error: the error grows with the distortion's displacement, largest at the
+// sensor's edges and corners, which the grid includes.
+constexpr int kErrorGridSteps = 16;
+
+}  // namespace
+
+std::optional<DetectionPlaneModel> DetectionPlaneModelOf(const calib::CameraModel& c,
+                                                         const model::TopographerCamera& camera, std::string* why) {
   correct::OpenCvCamera k;
   k.fx_px = c.fx_px;
   k.fy_px = c.fy_px;
@@ -18,14 +27,38 @@ std::optional<model::Distortion> DistortionOnDetectionPlane(const calib::CameraM
   k.centre_y = c.distortion_centre.y();
   const auto brown = correct::BrownFromOpenCv(k, camera, why);
   if (!brown) return std::nullopt;
-  if (brown->aspect_error > kMaxAspectError) {
+  DetectionPlaneModel result{model::Distortion{brown->brown}, 0.0};
+  if (brown->aspect_error > 0) {
+    for (int j = 0; j <= kErrorGridSteps; ++j) {
+      for (int i = 0; i <= kErrorGridSteps; ++i) {
+        const Eigen::Vector2d px((camera.width_px - 1.0) * i / kErrorGridSteps,
+                                 (camera.height_px - 1.0) * j / kErrorGridSteps);
+        const auto normalised = c.PixelToNormalized(px);
+        const auto undistorted_mm = model::Undistort(result.distortion, camera.DetectionPlaneFromPixel(px));
+        // Beyond the distortion's fold neither side has an undistorted point to compare.
+        if (!normalised || !undistorted_mm) continue;
+        const Eigen::Vector2d exact_px(c.cx_px + c.fx_px * normalised->x(), c.cy_px + c.fy_px * normalised->y());
+        result.model_error_px =
+            std::max(result.model_error_px, (camera.PixelFromDetectionPlane(*undistorted_mm) - exact_px).norm());
+      }
+    }
+  }
+  if (result.model_error_px > kMaxModelErrorPx) {
     if (why) {
-      *why = fmt::format("fx / fy = {:.6f}; the detection-plane model has one focal length and accepts "
-                         "|fx / fy - 1| <= {}", c.fx_px / c.fy_px, kMaxAspectError);
+      *why = fmt::format("fx / fy = {:.6f}: the detection-plane model (one focal length) would misplace undistorted "
+                         "points by up to {:.3f} px (> {} px)",
+                         c.fx_px / c.fy_px, result.model_error_px, kMaxModelErrorPx);
     }
     return std::nullopt;
   }
-  return model::Distortion{brown->brown};
+  return result;
+}
+
+std::optional<model::Distortion> DistortionOnDetectionPlane(const calib::CameraModel& c,
+                                                            const model::TopographerCamera& camera, std::string* why) {
+  auto result = DetectionPlaneModelOf(c, camera, why);
+  if (!result) return std::nullopt;
+  return result->distortion;
 }
 
 }  // namespace topocal::pipeline

@@ -3,6 +3,13 @@
 // centre) to the distortion on the detection plane in mm that correction and reconstruction work with, through the
 // topographer's camera (docs/camera-conventions.md). One place for the conversion, used by the closed loop and by
 // the command line.
+//
+// fx != fy. Real cameras calibrate to |fx / fy - 1| ~ 1e-4 (13 opencv-doc photos: 0.999788). The detection-plane
+// model (model::BrownParams) has one focal length, f = sqrt(fx fy) (correct/opencv_brown.h). Its undistortion
+// agrees with the calibration's own -- undistorted pixel (cx + fx x_n, cy + fy y_n), the sensor's own pixel scale --
+// except for |fx / fy - 1| / 2 times the distortion's displacement. That error is computed, not assumed: the
+// worst over a grid of sensor pixels (ModelErrorPx). A calibration is accepted when it is at most
+// kMaxModelErrorPx, and refused with that number otherwise.
 #include <optional>
 #include <string>
 
@@ -12,11 +19,19 @@
 
 namespace topocal::pipeline {
 
-// Largest |fx / fy - 1| accepted: the detection-plane model has one focal length. 2e-4 is ~10x the scatter of fx/fy
-// in calibrations of square-pixel cameras (docs/calibration.md).
-inline constexpr double kMaxAspectError = 2e-4;
+// Largest acceptable error of the one-focal-length model over the sensor, px: a quarter of the 0.04 px RMS of a
+// good unit calibration (README), so it never dominates the calibration's own uncertainty.
+inline constexpr double kMaxModelErrorPx = 0.01;
 
-// nullopt with *why when the calibration cannot be expressed on the detection plane (aspect ratio, model).
+struct DetectionPlaneModel {
+  model::Distortion distortion;
+  double model_error_px = 0;  // worst |undistorted pixel, detection-plane model - calibration| over the sensor
+};
+
+// nullopt with *why when the calibration cannot be expressed on the detection plane (model error, model).
+std::optional<DetectionPlaneModel> DetectionPlaneModelOf(const calib::CameraModel& calibrated,
+                                                         const model::TopographerCamera& camera, std::string* why);
+// The same, the distortion alone.
 std::optional<model::Distortion> DistortionOnDetectionPlane(const calib::CameraModel& calibrated,
                                                             const model::TopographerCamera& camera, std::string* why);
 

@@ -1,5 +1,7 @@
 // topocal calibrate: detect a planar target in a set of images and fit the camera (calib/calibrate.h).
+#include <limits>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -10,9 +12,11 @@
 
 #include "calib/calibrate.h"
 #include "calib/calibration_file.h"
+#include "calib/cross_validation.h"
 #include "calib/detect.h"
 #include "calib/target.h"
 #include "model/io.h"
+#include "pipeline/svg_plot.h"
 #include "tools/commands.h"
 #include "tools/file_glob.h"
 
@@ -23,13 +27,42 @@ namespace {
 constexpr size_t kProgressFromImages = 5;
 
 struct CalibrateArgs {
-  std::string target, images, model = "brown5", out, json;
-  bool single_view = false, robust = false, fit_centre = false;
+  std::string target, images, model = "brown5", out, json, cross_validate_svg;
+  bool single_view = false, robust = false, fit_centre = false, board_warp = false;
   double focal_mm = 0, pixel_pitch_um = 0, distance_mm = 0, magnification = calib::kPaperMagnification;
   std::vector<std::string> fix;
   std::string loss = "huber";
   double loss_scale_px = 1.0, outlier_threshold = 4.0;
 };
+
+// The two halves' difference over the image as a map: one series per band of difference, so the existing scatter
+// plot (pipeline/svg_plot.h) shows where the models disagree.
+std::string CrossValidationSvg(const calib::CrossValidationResult& cv, int height_px) {
+  pipeline::ScatterPlot plot;
+  plot.title = fmt::format("Cross-validation: two halves of the views ({} and {}), homography removed",
+                           cv.half_views[0].size(), cv.half_views[1].size());
+  plot.x_label = "x (px)";
+  plot.y_label = "image height - y (px)";
+  plot.log_x = plot.log_y = false;
+  struct Band {
+    double upper_px;
+    const char* label;
+    const char* colour;
+  };
+  const Band bands[] = {{0.05, "< 0.05 px", "#2ca02c"},
+                        {0.1, "0.05 - 0.1 px", "#bcbd22"},
+                        {0.2, "0.1 - 0.2 px", "#ff7f0e"},
+                        {std::numeric_limits<double>::infinity(), ">= 0.2 px", "#d62728"}};
+  for (const Band& band : bands) plot.series.push_back({band.label, band.colour, {}});
+  for (const auto& s : cv.samples) {
+    size_t b = 0;
+    while (s.difference_px >= bands[b].upper_px) ++b;
+    plot.series[b].points.push_back({s.pixel.x(), height_px - s.pixel.y()});
+  }
+  plot.note = fmt::format("difference of the two models: RMS {:.4f} px, max {:.4f} px over {} samples", cv.rms_px,
+                          cv.max_px, cv.samples.size());
+  return pipeline::RenderScatterSvg(plot);
+}
 
 void Run(const CalibrateArgs& a) {
   // Ceres logs through glog (e.g. a rank-deficient covariance); the calibration's status already says it in one
@@ -41,6 +74,7 @@ void Run(const CalibrateArgs& a) {
   options.model = *model;
   options.fixed = {a.fix.begin(), a.fix.end()};
   options.fit_distortion_centre = a.fit_centre;
+  options.fit_board_warp = a.board_warp;
   options.focal_mm = a.focal_mm;
   options.pixel_pitch_um = a.pixel_pitch_um;
   options.distance_mm = a.distance_mm;
@@ -56,6 +90,12 @@ void Run(const CalibrateArgs& a) {
   if (a.single_view && !(a.focal_mm > 0 && a.pixel_pitch_um > 0 && a.distance_mm > 0)) {
     throw model::InputError("--single-view needs --focal-mm, --pixel-pitch-um and --distance-mm (all > 0)");
   }
+  if (a.single_view && a.board_warp) {
+    throw model::InputError("--board-warp needs several views; it does not apply to --single-view");
+  }
+  if (a.single_view && !a.cross_validate_svg.empty()) {
+    throw model::InputError("--cross-validate needs several views; it does not apply to --single-view");
+  }
   std::string why;
   if (!options.IsValid(&why)) throw model::InputError(why);
 
@@ -66,13 +106,26 @@ void Run(const CalibrateArgs& a) {
   }
   std::vector<calib::ViewObservations> views;
   std::vector<std::string> view_paths;
+  cv::Size image_size;  // of the first readable image: the camera's; other sizes are another camera or a crop
   for (size_t i = 0; i < paths.size(); ++i) {
-    const cv::Mat image = cv::imread(paths[i], cv::IMREAD_GRAYSCALE);
+    cv::Mat image;
+    try {
+      image = cv::imread(paths[i], cv::IMREAD_GRAYSCALE);
+    } catch (const cv::Exception&) {
+      image.release();  // a corrupt file is reported below like an unreadable one
+    }
     if (image.empty()) {
       fmt::print(stderr, "topocal calibrate: skipping {}: cannot be read as an image\n", paths[i]);
       continue;
     }
+    if (image_size.empty()) image_size = image.size();
+    if (image.size() != image_size) {
+      fmt::print(stderr, "topocal calibrate: skipping {}: {} x {} px, not the {} x {} px of the first image\n",
+                 paths[i], image.cols, image.rows, image_size.width, image_size.height);
+      continue;
+    }
     const auto found = calib::DetectTargetDetailed(target, image);
+    for (const auto& reason : found.reasons) fmt::print(stderr, "topocal calibrate: {}: {}\n", paths[i], reason);
     if (!found.view) {
       fmt::print(stderr, "topocal calibrate: skipping {}: no target found{}\n", paths[i],
                  found.message.empty() ? "" : ": " + found.message);
@@ -82,8 +135,7 @@ void Run(const CalibrateArgs& a) {
     views.back().image_path = paths[i];
     view_paths.push_back(paths[i]);
     if (paths.size() > kProgressFromImages) {
-      fmt::print(stderr, "topocal calibrate: [{}/{}] {}: {} corners\n", i + 1, paths.size(), paths[i],
-                 views.back().corners.size());
+      fmt::print(stderr, "topocal calibrate: [{}/{}] {}: {}\n", i + 1, paths.size(), paths[i], found.message);
     }
   }
 
@@ -104,13 +156,23 @@ void Run(const CalibrateArgs& a) {
     fmt::print(stderr, "topocal calibrate: outlier {} corner {}: residual {:.3f} px\n",
                view_paths[static_cast<size_t>(o.view)], o.corner_id, o.residual_px.norm());
   }
+  std::optional<calib::CrossValidationResult> cross;
+  std::string cross_svg;
+  if (!a.cross_validate_svg.empty()) {
+    // Only the views the full calibration used (an unusable view would fail a half for no reason of its own).
+    std::vector<calib::ViewObservations> used;
+    for (const int v : result.views_used) used.push_back(views[static_cast<size_t>(v)]);
+    cross = calib::CrossValidate(used, options);
+    if (!cross->ok) throw std::runtime_error(cross->message);
+    cross_svg = CrossValidationSvg(*cross, result.camera.height_px);
+  }
   const calib::CalibrationProvenance provenance{a.target, view_paths, {}};
-  // Both texts are complete before either file is written, so a failure leaves neither behind.
+  // All texts are complete before any file is written, so a failure leaves none behind.
   const std::string cal_text = calib::CalibrationFileText(result, provenance);
   const std::string json_text = a.json.empty() ? std::string() : calib::CalibrationReportJson(result, provenance);
   model::WriteFileAtomic(a.out, cal_text);
   if (!a.json.empty()) model::WriteFileAtomic(a.json, json_text);
-
+  if (cross) model::WriteFileAtomic(a.cross_validate_svg, cross_svg);
   const auto& c = result.camera;
   fmt::print("{} {} calibration from {} view(s), {} corners: rms {:.4f} px, {} outlier(s)\n", calib::ToString(result.model),
              result.single_view ? "single-view" : "multi-view", result.views_used.size(), result.corners_used,
@@ -123,7 +185,19 @@ void Run(const CalibrateArgs& a) {
     fmt::print("  Seidel sigma = {:.6g} +- {:.2g} mm^-2 (M_T = {}, f = {:.4g} mm)\n", result.seidel->sigma_per_mm2,
                result.seidel->sigma_stddev_per_mm2, result.seidel->magnification, result.seidel->focal_mm);
   }
+  if (result.board_warp) {
+    const auto& w = *result.board_warp;
+    fmt::print("  board warp: sag_x = {:.4f} +- {:.4f} mm, sag_y = {:.4f} +- {:.4f} mm (middle of the board vs its "
+               "edges, + = away from the camera)\n",
+               w.sag_x_mm, w.sag_x_stddev_mm, w.sag_y_mm, w.sag_y_stddev_mm);
+  }
   fmt::print("  -> {}\n", a.out);
+  if (cross) {
+    fmt::print("cross-validation: halves of {} and {} views differ by RMS {:.4f} px, max {:.4f} px over the image "
+               "(homography removed) -> {}\n",
+               cross->half_views[0].size(), cross->half_views[1].size(), cross->rms_px, cross->max_px,
+               a.cross_validate_svg);
+  }
 }
 
 }  // namespace
@@ -145,12 +219,17 @@ void AddCalibrateCommand(CLI::App& app) {
       ->delimiter(',');
   cmd->add_flag("--fit-centre", a->fit_centre, "Fit the radial distortion centre (Seidel; brown5 needs --fix p1,p2)");
   cmd->add_flag("--robust", a->robust, "Robust loss and iterative outlier rejection");
+  cmd->add_flag("--board-warp", a->board_warp,
+                "Fit the target's parabolic sag with the camera (a printed board that is not flat; multi-view)");
   cmd->add_option("--loss", a->loss, "Robust loss with --robust: huber or cauchy")->capture_default_str();
   cmd->add_option("--loss-scale-px", a->loss_scale_px, "Robust loss scale, px")->capture_default_str();
   cmd->add_option("--outlier-threshold", a->outlier_threshold, "Reject corners beyond this many robust sigmas")
       ->capture_default_str();
   cmd->add_option("--out", a->out, "Calibration file (OpenCV FileStorage YAML)")->required();
   cmd->add_option("--json", a->json, "Also write a JSON report");
+  cmd->add_option("--cross-validate", a->cross_validate_svg,
+                  "Also fit two interleaved halves of the views and compare them over the image (homography "
+                  "removed): the difference as a number, and its map as an SVG to this file");
   cmd->callback([a] { Run(*a); });
 }
 

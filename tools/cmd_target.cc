@@ -12,7 +12,7 @@ void AddTargetCommand(CLI::App& app) {
   auto target = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto dpi = std::make_shared<double>(300.0);
-  cmd->add_option("--target", *target, "Target description (Kalibr YAML: checkerboard or aprilgrid)")->required();
+  cmd->add_option("--target", *target, "Target description (Kalibr YAML: checkerboard, aprilgrid; or charuco)")->required();
   cmd->add_option("--out", *out, "Drawing: FILE.svg (mm units) or FILE.png (at --dpi)")->required();
   cmd->add_option("--dpi", *dpi, "Resolution of a PNG drawing, dots per inch")->capture_default_str();
   cmd->callback([=] {

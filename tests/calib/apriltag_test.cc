@@ -120,7 +120,9 @@ TEST(AprilGrid, PartialViewsKeepTheirIds) {
 TEST(AprilGrid, TagsOfAnotherGridAreRejected) {
   // The same layout printed from id 100: none of its ids is on a grid starting at 0.
   const auto other = ParseTargetDescription(
-      "target_type: aprilgrid\ntagCols: 6\ntagRows: 5\ntagSize: 0.03\ntagSpacing: 0.3\nfirstTagId: 100\n", "other");
+      "target_type: aprilgrid\ntagCols: 6\ntagRows: 5\ntagSize: 0.03\ntagSpacing: 0.3\nfirstTagId: 100\n"
+      "tagBorderBits: 1\n",
+      "other");
   const RenderedView view = Render(other, kScenes[0], 0.0, 7);
   const auto result = DetectTargetDetailed(testing::AprilGrid6x5(), view.image);
   EXPECT_FALSE(result.view.has_value());

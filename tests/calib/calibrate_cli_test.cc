@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 namespace {
 
@@ -97,6 +98,70 @@ TEST_F(CalibrateCli, ImagesWithoutTargetAreListedAndSkipped) {
   EXPECT_NE(r.output.find("skipping " + Path("left99.png") + ": no target found"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("skipping " + Path("left98.png") + ": cannot be read"), std::string::npos) << r.output;
   EXPECT_TRUE(fs::exists(Path("cal.yaml")));
+}
+
+// Bad input per view: another image size, a truncated JPEG, a photo without a board, a target file that
+// contradicts the photos (8 x 5 for a 9 x 6 board): one line each naming the file, the good views are used.
+TEST_F(CalibrateCli, BadViewsAreNamedAndTheRunGoesOnWithTheGoodOnes) {
+  CopyImages({1, 2, 3, 4, 5});
+  cv::Mat small = cv::imread(Path("left01.jpg"), cv::IMREAD_GRAYSCALE);
+  cv::resize(small, small, cv::Size(320, 240));
+  cv::imwrite(Path("left90.png"), small);
+  std::ifstream original(Path("left02.jpg"), std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(original)), std::istreambuf_iterator<char>());
+  Write("left91.jpg", bytes.substr(0, 100));  // truncated in its header: not an image
+  cv::imwrite(Path("left92.png"), cv::Mat(480, 640, CV_8UC1, cv::Scalar(128)));
+  const auto r = RunTopocal("calibrate --target " + Path("board.yaml") + " --images '" + Path("left*") +
+                            "' --out " + Path("cal.yaml"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("skipping " + Path("left90.png") + ": 320 x 240 px, not the 640 x 480 px of the first"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("skipping " + Path("left91.jpg") + ": cannot be read"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("skipping " + Path("left92.png") + ": no target found"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("from 5 view(s)"), std::string::npos) << r.output;
+
+  // 8 x 5 inner corners written for the 9 x 6 board: no view passes silently.
+  Write("wrong.yaml",
+        "target_type: checkerboard\ntargetCols: 8\ntargetRows: 5\nrowSpacingMeters: 0.025\ncolSpacingMeters: 0.025\n");
+  const auto wrong = RunTopocal("calibrate --target " + Path("wrong.yaml") + " --images '" + Path("left0*.jpg") +
+                                "' --out " + Path("wrong.yaml.cal"));
+  EXPECT_EQ(wrong.exit_code, 1) << wrong.output;
+  EXPECT_NE(wrong.output.find("no 8x5 checkerboard found"), std::string::npos) << wrong.output;
+  EXPECT_FALSE(fs::exists(Path("wrong.yaml.cal")));
+}
+
+TEST_F(CalibrateCli, SquaresCountedInsteadOfInnerCornersGetAHint) {
+  CopyImages({1, 2, 3});
+  Write("squares.yaml",
+        "target_type: checkerboard\ntargetCols: 10\ntargetRows: 7\nrowSpacingMeters: 0.025\ncolSpacingMeters: 0.025\n");
+  const auto r = RunTopocal("calibrate --target " + Path("squares.yaml") + " --images '" + Path("left*.jpg") +
+                            "' --out " + Path("cal.yaml"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("hint: the image shows a 9x6 board"), std::string::npos) << r.output;
+}
+
+TEST_F(CalibrateCli, CrossValidationWritesItsMapAndBoardWarpIsReported) {
+  const auto r = RunTopocal("calibrate --target " + Path("board.yaml") + " --images '" + kDataDir +
+                            "left[0-9][0-9].jpg' --out " + Path("cal.yaml") + " --json " + Path("report.json") +
+                            " --cross-validate " + Path("cv.svg") + " --board-warp");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::printf("%s", r.output.substr(r.output.find("brown5")).c_str());
+  EXPECT_NE(r.output.find("cross-validation: halves of 7 and 6 views differ by RMS"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("board warp: sag_x ="), std::string::npos) << r.output;
+  std::ifstream svg(Path("cv.svg"));
+  const std::string text((std::istreambuf_iterator<char>(svg)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("<svg"), std::string::npos);
+  EXPECT_NE(text.find("homography removed"), std::string::npos);
+  std::ifstream in(Path("report.json"));
+  const auto j = nlohmann::json::parse(in);
+  EXPECT_TRUE(j.contains("board_warp"));
+  // Single view: neither applies, bad input.
+  const auto single = RunTopocal("calibrate --target " + Path("board.yaml") + " --images '" + kDataDir +
+                                 "left01.jpg' --single-view --focal-mm 4 --pixel-pitch-um 6 --distance-mm 400 --out " +
+                                 Path("s.yaml") + " --cross-validate " + Path("s.svg"));
+  EXPECT_EQ(single.exit_code, 2) << single.output;
+  EXPECT_FALSE(fs::exists(Path("s.yaml")));
 }
 
 TEST_F(CalibrateCli, TooFewViewsIsOneLineExitOneAndNoOutput) {

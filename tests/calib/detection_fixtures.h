@@ -32,9 +32,17 @@ inline TargetDescription Checkerboard9x6() {
       "checkerboard-9x6");
 }
 
+// libapriltag's 1-cell-border tags (tagBorderBits: 1).
 inline TargetDescription AprilGrid6x5() {
   return ParseTargetDescription(
-      "target_type: aprilgrid\ntagCols: 6\ntagRows: 5\ntagSize: 0.03\ntagSpacing: 0.3\n", "aprilgrid-6x5");
+      "target_type: aprilgrid\ntagCols: 6\ntagRows: 5\ntagSize: 0.03\ntagSpacing: 0.3\ntagBorderBits: 1\n",
+      "aprilgrid-6x5");
+}
+
+// Kalibr's print (2-cell border, corner squares): a Kalibr YAML file unchanged.
+inline TargetDescription KalibrGrid6x5() {
+  return ParseTargetDescription(
+      "target_type: aprilgrid\ntagCols: 6\ntagRows: 5\ntagSize: 0.03\ntagSpacing: 0.3\n", "kalibr-grid-6x5");
 }
 
 struct ErrorStats {

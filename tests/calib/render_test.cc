@@ -4,6 +4,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "calib/corner_refinement.h"
 #include "calib/detect.h"
 #include "calib/render_target.h"
 #include "detection_fixtures.h"
@@ -85,11 +86,18 @@ TEST(RenderTarget, DefaultSupersamplingAgreesWithDenseSampling) {
   dense.supersampling = 24;
   const auto a = RenderTarget(target, camera, pose, coarse), b = RenderTarget(target, camera, pose, dense);
   ASSERT_TRUE(a && b);
-  const auto da = DetectTarget(target, a->image), db = DetectTarget(target, b->image);
-  ASSERT_TRUE(da && db);
-  ASSERT_EQ(da->corners.size(), db->corners.size());
+  const auto da = DetectTarget(target, a->image);
+  ASSERT_TRUE(da.has_value());
+  // Both renders are refined from the same start (the N = 16 corners), so that only the renderer differs: the
+  // saddle fit's window is centred on the rounded estimate and its end point can move by a few thousandths of a
+  // pixel with the start (calib/corner_refinement.h), which is the detector's property, not the renderer's.
   double sum2 = 0;
-  for (size_t i = 0; i < da->corners.size(); ++i) sum2 += (da->corners[i].image_px - db->corners[i].image_px).squaredNorm();
+  for (const auto& c : da->corners) {
+    const auto ra = RefineSaddle(a->image, c.image_px, SaddleFitOptions{3.0});
+    const auto rb = RefineSaddle(b->image, c.image_px, SaddleFitOptions{3.0});
+    ASSERT_TRUE(ra && rb) << "corner " << c.id;
+    sum2 += (*ra - *rb).squaredNorm();
+  }
   const double rms = std::sqrt(sum2 / static_cast<double>(da->corners.size()));
   std::printf("corner shift between N=16 and N=24 renders: RMS %.4f px\n", rms);
   // Quasi-Monte-Carlo error of a rank-1 lattice on a step edge falls as S^(-3/4): with S = 233 (N = 16) about

@@ -78,6 +78,8 @@ TEST(TargetDescription, RejectsBadFilesNamingFileAndKey) {
   EXPECT_EQ(ErrorOf("target_type: checkerboard\ntargetCols: 9\nrowSpacingMeters: 0.02\ncolSpacingMeters: 0.02\n"),
             "T.yaml: targetRows: missing");
   EXPECT_EQ(ErrorOf(cb + "tagSize: 0.02\n"), "T.yaml: tagSize: unknown key");
+  EXPECT_EQ(ErrorOf(std::string(kKalibrAprilGrid) + "tagBorderBits: 3\n"),
+            "T.yaml: tagBorderBits: must be 1 or 2 (Kalibr prints 2), got 3");
   EXPECT_EQ(ErrorOf(std::regex_replace(cb, std::regex("targetCols: 9"), "targetCols: nine")),
             "T.yaml: targetCols: must be an integer");
   EXPECT_EQ(ErrorOf(std::regex_replace(cb, std::regex("targetCols: 9"), "targetCols: 9.5")),
@@ -87,7 +89,7 @@ TEST(TargetDescription, RejectsBadFilesNamingFileAndKey) {
   EXPECT_EQ(ErrorOf(std::regex_replace(cb, std::regex("0.025"), "-0.025")),
             "T.yaml: rowSpacingMeters: must be a positive number, got -0.025");
   EXPECT_EQ(ErrorOf(std::regex_replace(cb, std::regex("'checkerboard'"), "circlegrid")),
-            "T.yaml: target_type: must be checkerboard or aprilgrid, got 'circlegrid'");
+            "T.yaml: target_type: must be checkerboard, aprilgrid or charuco, got 'circlegrid'");
   EXPECT_EQ(ErrorOf(std::string(kKalibrAprilGrid) + "tagFamily: tag25h9\n"),
             "T.yaml: tagFamily: only tag36h11 is supported, got 'tag25h9'");
   EXPECT_EQ(ErrorOf(std::string(kKalibrAprilGrid) + "firstTagId: 580\n"),
@@ -110,11 +112,13 @@ TEST(TargetDescription, CornerPositionsFollowTheDrawnOrdering) {
 
   const auto ag = ParseTargetDescription(kKalibrAprilGrid, "ag.yaml");
   const double pitch = 88.0 * 1.3;
-  // Tag 7 = column 1, row 1: corners 0 bottom-left, 1 bottom-right, 2 top-right, 3 top-left (y down).
-  EXPECT_TRUE(ag.CornerMm(28)->isApprox(Eigen::Vector3d(pitch, pitch + 88, 0)));
-  EXPECT_TRUE(ag.CornerMm(29)->isApprox(Eigen::Vector3d(pitch + 88, pitch + 88, 0)));
-  EXPECT_TRUE(ag.CornerMm(30)->isApprox(Eigen::Vector3d(pitch + 88, pitch, 0)));
-  EXPECT_TRUE(ag.CornerMm(31)->isApprox(Eigen::Vector3d(pitch, pitch, 0)));
+  // Tag 7 = column 1, row 1 counted from the bottom (Kalibr), i.e. y0 = 3 pitches down from the top of 5 rows:
+  // corners 0 bottom-left, 1 bottom-right, 2 top-right, 3 top-left (y down).
+  const double y0 = 3 * pitch;
+  EXPECT_TRUE(ag.CornerMm(28)->isApprox(Eigen::Vector3d(pitch, y0 + 88, 0)));
+  EXPECT_TRUE(ag.CornerMm(29)->isApprox(Eigen::Vector3d(pitch + 88, y0 + 88, 0)));
+  EXPECT_TRUE(ag.CornerMm(30)->isApprox(Eigen::Vector3d(pitch + 88, y0, 0)));
+  EXPECT_TRUE(ag.CornerMm(31)->isApprox(Eigen::Vector3d(pitch, y0, 0)));
   EXPECT_FALSE(ag.CornerMm(120).has_value());
 }
 
@@ -130,7 +134,8 @@ TEST(TargetPattern, CheckerboardColoursAndQuietBorder) {
 }
 
 TEST(TargetPattern, TagsHaveTheirBlackBorderAndDifferentCodes) {
-  const auto ag = ParseTargetDescription(kKalibrAprilGrid, "ag.yaml");
+  // tagBorderBits 1: libapriltag's own tags (8 cells, one black ring), no corner squares.
+  const auto ag = ParseTargetDescription(std::string(kKalibrAprilGrid) + "tagBorderBits: 1\n", "ag.yaml");
   const TargetPattern pattern(ag);
   ASSERT_EQ(pattern.tag_cells(), 8);
   ASSERT_EQ(pattern.tag_bits().size(), 30u);
@@ -143,8 +148,39 @@ TEST(TargetPattern, TagsHaveTheirBlackBorderAndDifferentCodes) {
     }
   }
   EXPECT_NE(pattern.tag_bits()[0], pattern.tag_bits()[1]);
-  EXPECT_TRUE(pattern.IsBlack(1.0, 1.0));          // border cell of tag 0
-  EXPECT_FALSE(pattern.IsBlack(88.0 + 5.0, 10.0));  // gap between tags 0 and 1
+  EXPECT_TRUE(pattern.IsBlack(1.0, 1.0));          // border cell of the top-left tag
+  EXPECT_FALSE(pattern.IsBlack(88.0 + 5.0, 10.0));  // gap between two tags
+  EXPECT_FALSE(pattern.IsBlack(88.0 + 5.0, 88.0 + 5.0));  // gap crossing: no corner square
+}
+
+TEST(TargetPattern, KalibrLayoutHasTwoCellBorderAndCornerSquares) {
+  const auto ag = ParseTargetDescription(kKalibrAprilGrid, "ag.yaml");
+  const auto& grid = std::get<AprilGridLayout>(ag.layout);
+  ASSERT_EQ(grid.border_bits, 2);  // Kalibr's YAML unchanged means Kalibr's print
+  const TargetPattern pattern(ag);
+  ASSERT_EQ(pattern.tag_cells(), 10);
+  for (const auto& bits : pattern.tag_bits()) {
+    for (int i = 0; i < 10; ++i) {
+      for (const int ring : {0, 1, 8, 9}) {
+        EXPECT_TRUE(bits[static_cast<size_t>(ring * 10 + i)]);  // two rows at the top and the bottom
+        EXPECT_TRUE(bits[static_cast<size_t>(i * 10 + ring)]);  // two columns at the left and the right
+      }
+    }
+  }
+  // Kalibr numbers rows from the bottom of the print: tag 0 is bottom-left, tag 24 (row 4 of 5) at the top-left.
+  EXPECT_NEAR(grid.TagOriginMm(0).y(), 4 * 88.0 * 1.3, kLengthTolMm * 1e3);
+  EXPECT_NEAR(grid.TagOriginMm(24).y(), 0.0, kLengthTolMm);
+  EXPECT_NEAR(ag.CornerMm(4 * 24 + 3)->norm(), 0.0, kLengthTolMm);  // top-left corner of tag 24 is the origin
+  // Corner squares of side gap = 26.4 mm fill every gap crossing, the outer ones included.
+  const double gap = 0.3 * 88.0, pitch = 1.3 * 88.0;
+  EXPECT_TRUE(pattern.IsBlack(pitch - 0.5 * gap, pitch - 0.5 * gap));
+  EXPECT_TRUE(pattern.IsBlack(-0.5 * gap, -0.5 * gap));
+  EXPECT_TRUE(pattern.IsBlack(6 * pitch - 0.5 * gap, 5 * pitch - 0.5 * gap));
+  EXPECT_FALSE(pattern.IsBlack(pitch - 0.5 * gap, 0.5 * 88.0));  // gap beside a tag stays white
+  EXPECT_FALSE(pattern.IsBlack(-1.5 * gap, -0.5 * gap));          // beyond the outer squares
+  const TargetExtent extent = ag.PatternExtent();
+  EXPECT_NEAR(extent.min_x_mm, -gap, kLengthTolMm * 1e3);
+  EXPECT_NEAR(extent.max_x_mm, 6 * pitch, kLengthTolMm * 1e3);
 }
 
 TEST(TargetDrawing, SvgIsInMillimetresWithPaperMargin) {
