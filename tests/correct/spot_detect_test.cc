@@ -90,12 +90,13 @@ TEST_P(SpotDetect, CentroidsWithinTwoHundredthsOfAPixel) {
   const auto& scene = GetParam();
   const auto truth = testing::Truth(cfg, cfg.cornea, scene.sigma, camera);
   const cv::Mat image = RenderSpotImage(truth.spots, camera.width_px, camera.height_px, Realistic(scene.shape, scene.psf_px));
-  for (const auto method : {CentroidMethod::kIntensityWeighted, CentroidMethod::kGaussianFit}) {
+  for (const auto method :
+       {CentroidMethod::kIntensityWeighted, CentroidMethod::kGaussianFit, CentroidMethod::kWeightedPsfFit}) {
     SpotDetectionOptions o;
     o.method = method;
     const auto det = DetectSpots(image, o);
     const auto e = Compare(det.spots, truth.spots);
-    const char* name = method == CentroidMethod::kGaussianFit ? "gaussian-fit" : "centroid";
+    const char* name = CentroidMethodName(method);
     std::cout << scene.name << " " << name << ": matched " << e.matched << "/" << truth.spots.size() << ", bias ("
               << e.mean.x() << ", " << e.mean.y() << ") px, rms " << e.rms << " px\n";
     EXPECT_EQ(e.matched, static_cast<int>(truth.spots.size())) << name;
