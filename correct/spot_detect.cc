@@ -185,7 +185,21 @@ struct Component {
   cv::Rect roi;      // window bounding box, box coordinates
   cv::Mat window;    // CV_8U mask over roi: the component grown by the margin
   DetectedSpot spot; // centroid, flux, peak, area, flags (box coordinates)
+  std::vector<double> values;  // the component's own pixels above background (for the profile test)
 };
+
+// Is the spot's profile that of the PSF (a Gaussian) or flat-topped (the image of a screen disc several PSF widths
+// across)? A Gaussian of peak p covers 2 pi s^2 ln(p / L) pixels above level L, so the share of the thresholded
+// pixels above half the peak is ln 2 / ln(p / t) (t: threshold above background); a flat top has nearly all of
+// them above half its plateau. The spot is taken as PSF-like when the share is nearer the Gaussian's value than 1.
+// On flat-topped spots the PSF model does not hold and its fit is worse than the centroid (docs/spot-noise.md).
+bool PsfLike(const std::vector<double>& values, double peak_dn, double threshold_above_bg_dn) {
+  if (values.empty() || !(peak_dn > 1.01 * threshold_above_bg_dn) || !(threshold_above_bg_dn > 0)) return true;
+  const double gaussian_share = std::log(2.0) / std::log(peak_dn / threshold_above_bg_dn);
+  const auto above_half = std::count_if(values.begin(), values.end(), [&](double w) { return w > 0.5 * peak_dn; });
+  const double share = static_cast<double>(above_half) / values.size();
+  return share <= 0.5 * (gaussian_share + 1.0);
+}
 
 bool Saturates(const cv::Mat& img, double value) {
   return (img.depth() == CV_8U && value >= 255.0) || (img.depth() == CV_16U && value >= 65535.0);
@@ -323,6 +337,7 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
     }
     double sw = 0, su = 0, sv = 0, peak = 0;
     bool crowded = false;
+    std::vector<double>& values = comp.values;
     for (int r = r0; r <= r1; ++r) {
       const int* lab = labels.ptr<int>(r);
       const uint8_t* win = comp.window.ptr<uint8_t>(r - r0) - c0;
@@ -339,6 +354,7 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
         su += w * c;
         sv += w * r;
         peak = std::max(peak, w);
+        if (lab[c] == k) values.push_back(w);
       }
     }
     if (!(sw > 0)) continue;
@@ -409,7 +425,7 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
     // Quantisation adds 1/12 DN^2 of uniform noise to every pixel (the background's MAD of an integer image does
     // not resolve it when the read noise is ~1 DN).
     const double read_var = read_noise * read_noise + (image.depth() == CV_32F ? 0.0 : 1.0 / 12.0);
-    std::vector<std::array<double, 5>> params(comps.size());
+    std::vector<std::array<double, 5>> params(comps.size(), {0, 0, 0, 0, 0});
     std::vector<char> ok(comps.size(), 0);
     std::vector<FitPixel> pixels;
     // Pass 1: read-noise weights. Its residuals against the model signal give the gain: E[r^2] = read + s / gain,
@@ -418,6 +434,7 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
     for (size_t i = 0; i < comps.size(); ++i) {
       const auto& comp = comps[i];
       const DetectedSpot& s = comp.spot;
+      if (!PsfLike(comp.values, s.peak_dn, out.threshold_dn - bg)) continue;  // flat-topped: keeps its centroid
       const double sigma0 = std::max(0.7, std::sqrt(s.area_px / M_PI) / 1.1774);
       params[i] = {1.0, s.centre_px.x() - comp.roi.x, s.centre_px.y() - comp.roi.y, sigma0, bg};
       ok[i] = FitPsf(image_box, labels, comp, read_var, 0.0, params[i].data(), &pixels);
@@ -439,6 +456,7 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
       if (ok[i] && inv_gain > 0) {
         ok[i] = FitPsf(image_box, labels, comps[i], read_var, inv_gain, params[i].data(), &pixels);
       }
+      if (!ok[i] && params[i][3] == 0) continue;  // not fitted (flat-topped): the centroid stands
       const Eigen::Vector2d fit(params[i][1] + comps[i].roi.x, params[i][2] + comps[i].roi.y);
       s.fit_converged = ok[i] && (fit - s.centre_px).norm() < 2.0;  // a fit that wanders off the blob is no centre
       if (s.fit_converged) s.centre_px = fit;

@@ -18,7 +18,10 @@
 //       (Poisson + read noise: var_i = read_noise^2 + signal_i / gain), saturated pixels left out. Two solves: the
 //       first with read-noise weights gives the model signal from which the gain is estimated (unless given) and
 //       the weights of the second are computed. This is the maximum-likelihood centre of a Gaussian-approximated
-//       Poisson + read noise image; it reaches the Cramer-Rao bound (tests/correct/spot_crb_test.cc).
+//       Poisson + read noise image; it reaches the Cramer-Rao bound (tests/correct/spot_crb_test.cc). Spots whose
+//       profile is flat-topped rather than PSF-like (the image of a screen disc several PSF widths across: more of
+//       the thresholded pixels above half the peak than a Gaussian has) keep their centroid, which is the better
+//       estimator there (docs/spot-noise.md has the measurements).
 //  5. Flags per spot (SpotFlag): kNearBlob when another blob's above-threshold pixels come within near_blob_gap_px
 //     of this spot's window (so that its tail light falls in it), kSaturated when a pixel of the window is at full scale, kTruncated when the window
 //     is cut by the image border.
@@ -52,7 +55,7 @@ struct SpotDetectionOptions {
   double read_noise_dn = 0;
   // kNearBlob when another blob's pixels lie within near_blob_gap_px of this spot's window (the window is the spot
   // grown by window_margin_px): its tail light then reaches the window.
-  int near_blob_gap_px = 3;
+  int near_blob_gap_px = 1;
   double threshold_sigmas = 8.0;
   double threshold_fraction = 0.25;
   int min_area_px = 3;
