@@ -131,6 +131,8 @@ struct PsfCost {
   const std::vector<FitPixel>* pixels;
   int cols, rows;
   double flux0;
+  double bg0, bg_scale;  // background = bg0 + p[4] bg_scale: all parameters O(1), so that the solver's relative
+                         // step tolerance means the same on 8- and 16-bit images
   int NumResiduals() const { return static_cast<int>(pixels->size()); }
   bool operator()(const double* p, double* residuals, double* jacobian) const {
     const double sigma = p[3];
@@ -158,13 +160,13 @@ struct PsfCost {
       const FitPixel& px = (*pixels)[i];
       const double w = 1.0 / px.sd_dn;
       const double e = eu[px.u] * ev[px.v];
-      residuals[i] = w * (flux * e + p[4] - px.value_dn);
+      residuals[i] = w * (flux * e + bg0 + p[4] * bg_scale - px.value_dn);
       if (jacobian) {
         jacobian[i] = w * flux0 * e;
         jacobian[n + i] = w * flux * du[px.u] * ev[px.v];
         jacobian[2 * n + i] = w * flux * eu[px.u] * dv[px.v];
         jacobian[3 * n + i] = w * flux * (su[px.u] * ev[px.v] + eu[px.u] * sv[px.v]);
-        jacobian[4 * n + i] = w;
+        jacobian[4 * n + i] = w * bg_scale;
       }
     }
     return true;
@@ -207,7 +209,7 @@ bool Saturates(const cv::Mat& img, double value) {
 
 // The weighted PSF fit of one component. `read_var` and `inv_gain` make the noise model; `first`: weights from the
 // read noise only (the model signal is not known yet). Returns false (centre untouched) if the fit fails.
-bool FitPsf(const cv::Mat& image_box, const cv::Mat& labels, const Component& comp, double read_var,
+bool FitPsf(const cv::Mat& image_box, const cv::Mat& labels, const Component& comp, double bg, double read_var,
             double inv_gain, double* params, std::vector<FitPixel>* pixels) {
   pixels->clear();
   const int c0 = comp.roi.x, r0 = comp.roi.y;
@@ -222,15 +224,17 @@ bool FitPsf(const cv::Mat& image_box, const cv::Mat& labels, const Component& co
     }
   }
   if (pixels->size() < 8) return false;
-  PsfCost cost{pixels, comp.roi.width, comp.roi.height, comp.spot.flux_dn};
+  PsfCost cost{pixels, comp.roi.width, comp.roi.height, comp.spot.flux_dn, bg, std::sqrt(read_var)};
   if (inv_gain > 0) {
     for (auto& px : *pixels) px.sd_dn = std::sqrt(read_var + std::max(0.0, cost.Signal(params, px)) * inv_gain);
   }
   ceres::TinySolver<PsfCost> solver;
+  // Parameters are O(1) (flux ratio, centre and width in px, background in noise sigmas): a relative step of 1e-7
+  // is < 1e-6 px, far below the centre's noise (>= 1e-3 px).
   solver.options.max_num_iterations = 30;
-  solver.options.parameter_tolerance = 1e-10;
-  solver.options.function_tolerance = 1e-12;
-  solver.options.gradient_tolerance = 1e-12;
+  solver.options.parameter_tolerance = 1e-7;
+  solver.options.function_tolerance = 1e-10;
+  solver.options.gradient_tolerance = 1e-10;
   Eigen::Matrix<double, 5, 1> x = Eigen::Map<Eigen::Matrix<double, 5, 1>>(params);
   const auto summary = solver.Solve(cost, &x);
   if (summary.status == decltype(solver)::HIT_MAX_ITERATIONS || !x.allFinite() || !(x[3] > 0.05)) return false;
@@ -436,13 +440,13 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
       const DetectedSpot& s = comp.spot;
       if (!PsfLike(comp.values, s.peak_dn, out.threshold_dn - bg)) continue;  // flat-topped: keeps its centroid
       const double sigma0 = std::max(0.7, std::sqrt(s.area_px / M_PI) / 1.1774);
-      params[i] = {1.0, s.centre_px.x() - comp.roi.x, s.centre_px.y() - comp.roi.y, sigma0, bg};
-      ok[i] = FitPsf(image_box, labels, comp, read_var, 0.0, params[i].data(), &pixels);
+      params[i] = {1.0, s.centre_px.x() - comp.roi.x, s.centre_px.y() - comp.roi.y, sigma0, 0.0};
+      ok[i] = FitPsf(image_box, labels, comp, bg, read_var, 0.0, params[i].data(), &pixels);
       if (!ok[i] || options.gain_e_per_dn > 0 || (comp.spot.flags & (kNearBlob | kTruncated))) continue;
-      PsfCost cost{&pixels, comp.roi.width, comp.roi.height, comp.spot.flux_dn};
+      PsfCost cost{&pixels, comp.roi.width, comp.roi.height, comp.spot.flux_dn, bg, std::sqrt(read_var)};
       for (const auto& px : pixels) {
         const double sig = cost.Signal(params[i].data(), px);
-        const double res = px.value_dn - params[i][4] - sig;
+        const double res = px.value_dn - (bg + params[i][4] * cost.bg_scale) - sig;
         num += (res * res - read_var) * sig;
         den += sig * sig;
       }
@@ -454,7 +458,7 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
     for (size_t i = 0; i < comps.size(); ++i) {
       DetectedSpot& s = comps[i].spot;
       if (ok[i] && inv_gain > 0) {
-        ok[i] = FitPsf(image_box, labels, comps[i], read_var, inv_gain, params[i].data(), &pixels);
+        ok[i] = FitPsf(image_box, labels, comps[i], bg, read_var, inv_gain, params[i].data(), &pixels);
       }
       if (!ok[i] && params[i][3] == 0) continue;  // not fitted (flat-topped): the centroid stands
       const Eigen::Vector2d fit(params[i][1] + comps[i].roi.x, params[i][2] + comps[i].roi.y);

@@ -133,9 +133,13 @@ TEST(DetectAndIndex, RawImageWithDropsAndGlints) {
   ASSERT_TRUE(r.ok) << r.message;
   int real = 0;
   for (const auto& s : spots) real += s.id.ring != 0;
-  EXPECT_EQ(static_cast<int>(r.spots.size()), real);
+  // Identified: the usable spots and those flagged near a glint (kept out of a measurement, identity still given).
+  EXPECT_EQ(static_cast<int>(r.spots.size() + r.excluded.size()), real);
   EXPECT_EQ(r.unassigned.size(), 5u);
-  for (const auto& s : r.spots) {
+  for (const auto& s : r.excluded) EXPECT_TRUE(s.flags & kNearBlob) << SpotFlagsText(s.flags);
+  auto identified = r.spots;
+  identified.insert(identified.end(), r.excluded.begin(), r.excluded.end());
+  for (const auto& s : identified) {
     // The truth spot with this identity must be where the detection is.
     const auto it = std::find_if(spots.begin(), spots.end(), [&](const auto& t) { return t.id == s.id; });
     ASSERT_NE(it, spots.end());
