@@ -1,5 +1,14 @@
 #include "correct/detect_and_index.h"
 
+#include <algorithm>
+#include <set>
+
+#include <Eigen/LU>
+
+#include <fmt/format.h>
+
+#include "model/null_screen_layout.h"
+
 namespace topocal::correct {
 
 std::vector<model::ImageSpot> DetectAndIndexResult::AsImageSpots() const {
@@ -15,6 +24,80 @@ std::vector<model::ImageSpot> DetectAndIndexResult::AsImageSpots() const {
   return out;
 }
 
+namespace {
+
+// Which of the eight orientations the key's gaps support. The image's identities are those of the pattern as the
+// declared orientation maps it; if the image is really turned by R relative to the declaration (R = M_declared^T
+// M_actual), the gap at ideal position q shows at R q, so the identity nearest R q is missing and the one at q is
+// taken by a real spot. Hypothesis R is consistent when none of the identities at R q_k is taken.
+OrientationCheck CheckOrientation(const std::set<model::SpotId>& taken, const model::TopographerCamera& camera,
+                                  const model::IdealImageParams& ideal) {
+  OrientationCheck out;
+  const auto keys = model::OrientationKeySpots(ideal);
+  if (keys.empty()) {
+    out.message = "orientation: NOT verifiable (the null screen has no orientation key): an undeclared mirrored or "
+                  "rotated image mirrors or turns the astigmatism axis unnoticed (docs/image-orientation.md)";
+    return out;
+  }
+  const auto ideal_spots = model::IdealImage(ideal);
+  const auto position_of = [&](const model::SpotId& id) {
+    for (const auto& s : ideal_spots) {
+      if (s.id == id) return s.position_mm;
+    }
+    return Eigen::Vector2d(Eigen::Vector2d::Zero());
+  };
+  const auto nearest_id = [&](const Eigen::Vector2d& q) {
+    const model::IdealSpot* best = &ideal_spots.front();
+    for (const auto& s : ideal_spots) {
+      if ((s.position_mm - q).squaredNorm() < (best->position_mm - q).squaredNorm()) best = &s;
+    }
+    return best->id;
+  };
+  out.key_spots = static_cast<int>(keys.size());
+  std::vector<model::ImageOrientation> consistent;
+  constexpr model::ImageOrientation kAll[] = {
+      model::ImageOrientation::kIdentity, model::ImageOrientation::kRotate90,  model::ImageOrientation::kRotate180,
+      model::ImageOrientation::kRotate270, model::ImageOrientation::kFlipU,    model::ImageOrientation::kFlipV,
+      model::ImageOrientation::kTranspose, model::ImageOrientation::kTransverse};
+  for (const auto r : kAll) {
+    const Eigen::Matrix2d rm = model::OrientationMatrix(r);
+    int occupied = 0;
+    for (const auto& k : keys) occupied += taken.count(nearest_id(rm * position_of(k))) > 0;
+    if (r == model::ImageOrientation::kIdentity) out.key_occupied = occupied;
+    if (occupied == 0) consistent.push_back(r);
+  }
+  const char* declared = model::OrientationName(camera.orientation);
+  if (out.key_occupied == 0) {
+    out.status = consistent.size() == 1 ? OrientationCheck::Status::kConfirmed : OrientationCheck::Status::kUndetermined;
+    out.message = consistent.size() == 1
+                      ? fmt::format("orientation: confirmed by the null screen's key ({} as declared)", declared)
+                      : fmt::format("orientation: the key's gaps fit the declared {} but also {} other orientation(s) "
+                                    "(too many spots missing around them); not confirmed",
+                                    declared, consistent.size() - 1);
+    return out;
+  }
+  out.status = OrientationCheck::Status::kMismatch;
+  std::string apparent_text = "no orientation fits the key's gaps either (a wrong configuration or device?)";
+  if (!consistent.empty()) {
+    // M_actual = M_declared R.
+    const Eigen::Matrix2d actual = camera.Orientation() * model::OrientationMatrix(consistent.front());
+    for (const auto o : kAll) {
+      if ((model::OrientationMatrix(o) - actual).norm() < 1e-9) out.apparent = o;
+    }
+    const bool mirrored = model::OrientationMatrix(consistent.front()).determinant() < 0;
+    apparent_text = fmt::format("the image looks {} relative to the declaration, i.e. its orientation is {}",
+                                mirrored ? "mirrored" : "rotated", model::OrientationName(*out.apparent));
+  }
+  out.message = fmt::format(
+      "orientation refused: {} of the null screen's {} orientation-key gaps are occupied, so the image is not "
+      "oriented as the camera file declares ({}); {}. Likely cause: a mirrored or rotated image (sensor readout, "
+      "mirror, phone API) or a wrong `orientation` in the camera/device file",
+      out.key_occupied, out.key_spots, declared, apparent_text);
+  return out;
+}
+
+}  // namespace
+
 DetectAndIndexResult DetectAndIndexSpots(const cv::Mat& image, const model::TopographerCamera& camera,
                                          const model::IdealImageParams& ideal, const DetectAndIndexOptions& options) {
   DetectAndIndexResult out;
@@ -23,16 +106,28 @@ DetectAndIndexResult DetectAndIndexSpots(const cv::Mat& image, const model::Topo
   mm.reserve(out.detection.spots.size());
   for (const auto& s : out.detection.spots) mm.push_back(camera.DetectionPlaneFromPixel(s.centre_px));
   const SpotIndexing idx = IndexSpots(mm, ideal, options.indexing);
+  std::set<model::SpotId> taken;
   for (const auto& s : idx.spots) {
-    out.spots.push_back({s.id, out.detection.spots[s.detection].centre_px, mm[s.detection]});
+    const auto& d = out.detection.spots[s.detection];
+    LocatedSpot l{s.id, d.flags, d.centre_px, mm[s.detection]};
+    (d.flags & options.exclude_flags ? out.excluded : out.spots).push_back(l);
+    taken.insert(s.id);
   }
   for (const int i : idx.unassigned_detections) {
-    out.unassigned.push_back({model::SpotId{0, i}, out.detection.spots[i].centre_px, mm[i]});
+    const auto& d = out.detection.spots[i];
+    out.unassigned.push_back({model::SpotId{0, i}, d.flags, d.centre_px, mm[i]});
   }
   out.missing = idx.missing;
   out.index_residual_rms_mm = idx.residual_rms;
   out.ok = idx.ok;
   out.message = idx.message;
+  if (out.ok) {
+    out.orientation = CheckOrientation(taken, camera, ideal);
+    if (out.orientation.status == OrientationCheck::Status::kMismatch) {
+      out.ok = false;
+      out.message = out.orientation.message;
+    }
+  }
   return out;
 }
 

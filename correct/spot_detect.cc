@@ -1,10 +1,12 @@
 #include "correct/spot_detect.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <stdexcept>
 
 #include <ceres/ceres.h>
+#include <ceres/tiny_solver.h>
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
@@ -110,7 +112,162 @@ const cv::Mat& Disc(int radius) {
   return cache[radius];
 }
 
+// A window's pixels for the PSF fit: position relative to the window origin, value (DN, background included) and
+// the noise standard deviation assigned to it.
+struct FitPixel {
+  int u, v;  // relative to (u0, v0)
+  double value_dn;
+  double sd_dn;
+};
+
+// Pixel-integrated isotropic Gaussian PSF + constant background, residuals weighted by 1 / sd. Parameters:
+// flux / flux0, centre u and v relative to the window origin (px), sigma (px), background (DN). The pixel integral
+// is separable, E_u(c) = Phi((c + 1/2 - u) / s) - Phi((c - 1/2 - u) / s), so the erf terms are computed once per
+// column and per row. Analytic Jacobian: TinySolver (Ceres' small dense LM without a Problem's per-call set-up
+// cost) needs one, and the model is simple enough to write it exactly.
+struct PsfCost {
+  using Scalar = double;
+  enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = 5 };
+  const std::vector<FitPixel>* pixels;
+  int cols, rows;
+  double flux0;
+  double bg0, bg_scale;  // background = bg0 + p[4] bg_scale: all parameters O(1), so that the solver's relative
+                         // step tolerance means the same on 8- and 16-bit images
+  int NumResiduals() const { return static_cast<int>(pixels->size()); }
+  bool operator()(const double* p, double* residuals, double* jacobian) const {
+    const double sigma = p[3];
+    if (!(sigma > 0.05)) return false;
+    thread_local std::vector<double> eu, du, su, ev, dv, sv;
+    const auto profile = [sigma](int n, double centre, std::vector<double>& e, std::vector<double>& d,
+                                 std::vector<double>& s) {
+      e.resize(n);
+      d.resize(n);
+      s.resize(n);
+      constexpr double kInvSqrt2Pi = 0.3989422804014327;
+      for (int c = 0; c < n; ++c) {
+        const double a = (c + 0.5 - centre) / sigma, b = (c - 0.5 - centre) / sigma;
+        const double pa = kInvSqrt2Pi * std::exp(-0.5 * a * a), pb = kInvSqrt2Pi * std::exp(-0.5 * b * b);
+        e[c] = 0.5 * (std::erfc(-a * M_SQRT1_2) - std::erfc(-b * M_SQRT1_2));
+        d[c] = -(pa - pb) / sigma;          // dE / dcentre
+        s[c] = -(pa * a - pb * b) / sigma;  // dE / dsigma
+      }
+    };
+    profile(cols, p[1], eu, du, su);
+    profile(rows, p[2], ev, dv, sv);
+    const double flux = p[0] * flux0;
+    const int n = NumResiduals();
+    for (int i = 0; i < n; ++i) {
+      const FitPixel& px = (*pixels)[i];
+      const double w = 1.0 / px.sd_dn;
+      const double e = eu[px.u] * ev[px.v];
+      residuals[i] = w * (flux * e + bg0 + p[4] * bg_scale - px.value_dn);
+      if (jacobian) {
+        jacobian[i] = w * flux0 * e;
+        jacobian[n + i] = w * flux * du[px.u] * ev[px.v];
+        jacobian[2 * n + i] = w * flux * eu[px.u] * dv[px.v];
+        jacobian[3 * n + i] = w * flux * (su[px.u] * ev[px.v] + eu[px.u] * sv[px.v]);
+        jacobian[4 * n + i] = w * bg_scale;
+      }
+    }
+    return true;
+  }
+  // The model's signal above background at pixel i (DN).
+  double Signal(const double* p, const FitPixel& px) const {
+    const auto e = [&](int c, double centre) {
+      const double a = (c + 0.5 - centre) / p[3], b = (c - 0.5 - centre) / p[3];
+      return 0.5 * (std::erfc(-a * M_SQRT1_2) - std::erfc(-b * M_SQRT1_2));
+    };
+    return p[0] * flux0 * e(px.u, p[1]) * e(px.v, p[2]);
+  }
+};
+
+// One component: what segmentation found, and the window its centre is estimated in.
+struct Component {
+  int label = 0;
+  cv::Rect roi;      // window bounding box, box coordinates
+  cv::Mat window;    // CV_8U mask over roi: the component grown by the margin
+  DetectedSpot spot; // centroid, flux, peak, area, flags (box coordinates)
+  std::vector<double> values;  // the component's own pixels above background (for the profile test)
+};
+
+// Is the spot's profile that of the PSF (a Gaussian) or flat-topped (the image of a screen disc several PSF widths
+// across)? A Gaussian of peak p covers 2 pi s^2 ln(p / L) pixels above level L, so the share of the thresholded
+// pixels above half the peak is ln 2 / ln(p / t) (t: threshold above background); a flat top has nearly all of
+// them above half its plateau. The spot is taken as PSF-like when the share is nearer the Gaussian's value than 1.
+// On flat-topped spots the PSF model does not hold and its fit is worse than the centroid (docs/spot-noise.md).
+bool PsfLike(const std::vector<double>& values, double peak_dn, double threshold_above_bg_dn) {
+  if (values.empty() || !(peak_dn > 1.01 * threshold_above_bg_dn) || !(threshold_above_bg_dn > 0)) return true;
+  const double gaussian_share = std::log(2.0) / std::log(peak_dn / threshold_above_bg_dn);
+  const auto above_half = std::count_if(values.begin(), values.end(), [&](double w) { return w > 0.5 * peak_dn; });
+  const double share = static_cast<double>(above_half) / values.size();
+  return share <= 0.5 * (gaussian_share + 1.0);
+}
+
+bool Saturates(const cv::Mat& img, double value) {
+  return (img.depth() == CV_8U && value >= 255.0) || (img.depth() == CV_16U && value >= 65535.0);
+}
+
+// The weighted PSF fit of one component. `read_var` and `inv_gain` make the noise model; `first`: weights from the
+// read noise only (the model signal is not known yet). Returns false (centre untouched) if the fit fails.
+bool FitPsf(const cv::Mat& image_box, const cv::Mat& labels, const Component& comp, double bg, double read_var,
+            double inv_gain, double* params, std::vector<FitPixel>* pixels) {
+  pixels->clear();
+  const int c0 = comp.roi.x, r0 = comp.roi.y;
+  for (int r = r0; r < r0 + comp.roi.height; ++r) {
+    const int* lab = labels.ptr<int>(r);
+    const uint8_t* win = comp.window.ptr<uint8_t>(r - r0) - c0;
+    for (int c = c0; c < c0 + comp.roi.width; ++c) {
+      if (!win[c] || (lab[c] != 0 && lab[c] != comp.label)) continue;
+      const double value = At(image_box, r, c);
+      if (Saturates(image_box, value)) continue;  // clipped: carries no information on the spot's shape
+      pixels->push_back({c - c0, r - r0, value, std::sqrt(read_var)});
+    }
+  }
+  if (pixels->size() < 8) return false;
+  PsfCost cost{pixels, comp.roi.width, comp.roi.height, comp.spot.flux_dn, bg, std::sqrt(read_var)};
+  if (inv_gain > 0) {
+    for (auto& px : *pixels) px.sd_dn = std::sqrt(read_var + std::max(0.0, cost.Signal(params, px)) * inv_gain);
+  }
+  ceres::TinySolver<PsfCost> solver;
+  // Parameters are O(1) (flux ratio, centre and width in px, background in noise sigmas): a relative step of 1e-7
+  // is < 1e-6 px, far below the centre's noise (>= 1e-3 px).
+  solver.options.max_num_iterations = 30;
+  solver.options.parameter_tolerance = 1e-7;
+  solver.options.function_tolerance = 1e-10;
+  solver.options.gradient_tolerance = 1e-10;
+  Eigen::Matrix<double, 5, 1> x = Eigen::Map<Eigen::Matrix<double, 5, 1>>(params);
+  const auto summary = solver.Solve(cost, &x);
+  if (summary.status == decltype(solver)::HIT_MAX_ITERATIONS || !x.allFinite() || !(x[3] > 0.05)) return false;
+  std::copy(x.data(), x.data() + 5, params);
+  return true;
+}
+
 }  // namespace
+
+CentroidMethod CentroidMethodFromName(const std::string& name) {
+  if (name == "centroid") return CentroidMethod::kIntensityWeighted;
+  if (name == "gaussian") return CentroidMethod::kGaussianFit;
+  if (name == "psf") return CentroidMethod::kWeightedPsfFit;
+  throw std::invalid_argument(fmt::format("unknown estimator '{}' (centroid, gaussian or psf)", name));
+}
+
+const char* CentroidMethodName(CentroidMethod method) noexcept {
+  switch (method) {
+    case CentroidMethod::kIntensityWeighted: return "centroid";
+    case CentroidMethod::kGaussianFit: return "gaussian";
+    case CentroidMethod::kWeightedPsfFit: return "psf";
+  }
+  return "?";
+}
+
+std::string SpotFlagsText(unsigned flags) {
+  std::string out;
+  const auto add = [&out](const char* s) { out += out.empty() ? s : std::string("|") + s; };
+  if (flags & kNearBlob) add("near_blob");
+  if (flags & kSaturated) add("saturated");
+  if (flags & kTruncated) add("truncated");
+  return out;
+}
 
 bool SpotDetectionOptions::IsValid(std::string* why) const {
   const auto fail = [why](std::string m) {
@@ -121,6 +278,9 @@ bool SpotDetectionOptions::IsValid(std::string* why) const {
   if (!(threshold_fraction >= 0 && threshold_fraction < 1)) return fail("threshold_fraction must be in [0, 1)");
   if (min_area_px < 1 || max_area_px < min_area_px) return fail("need 1 <= min_area_px <= max_area_px");
   if (window_margin_px < 0) return fail("window_margin_px must be >= 0");
+  if (!(gain_e_per_dn >= 0) || !std::isfinite(gain_e_per_dn)) return fail("gain_e_per_dn must be >= 0 (0: estimate)");
+  if (!(read_noise_dn >= 0) || !std::isfinite(read_noise_dn)) return fail("read_noise_dn must be >= 0 (0: estimate)");
+  if (near_blob_gap_px < 0) return fail("near_blob_gap_px must be >= 0");
   return true;
 }
 
@@ -146,6 +306,9 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
   cv::Mat labels, stats, centroids;
   const int n = cv::connectedComponentsWithStats(full_mask(box), labels, stats, centroids, 8, CV_32S);
   const double bg = out.background_dn;
+  const int m = options.window_margin_px;
+  std::vector<Component> comps;
+  comps.reserve(n);
   for (int k = 1; k < n; ++k) {
     const int area = stats.at<int>(k, cv::CC_STAT_AREA);
     if (area < options.min_area_px) {
@@ -156,37 +319,85 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
       ++out.rejected_large;
       continue;
     }
-    const int m = options.window_margin_px;
-    const int c0 = std::max(0, stats.at<int>(k, cv::CC_STAT_LEFT) - m);
-    const int r0 = std::max(0, stats.at<int>(k, cv::CC_STAT_TOP) - m);
-    const int c1 = std::min(image_box.cols - 1, stats.at<int>(k, cv::CC_STAT_LEFT) + stats.at<int>(k, cv::CC_STAT_WIDTH) - 1 + m);
-    const int r1 = std::min(image_box.rows - 1, stats.at<int>(k, cv::CC_STAT_TOP) + stats.at<int>(k, cv::CC_STAT_HEIGHT) - 1 + m);
+    const int left = stats.at<int>(k, cv::CC_STAT_LEFT), top = stats.at<int>(k, cv::CC_STAT_TOP);
+    const int right = left + stats.at<int>(k, cv::CC_STAT_WIDTH) - 1, bottom = top + stats.at<int>(k, cv::CC_STAT_HEIGHT) - 1;
+    const int c0 = std::max(0, left - m);
+    const int r0 = std::max(0, top - m);
+    const int c1 = std::min(image_box.cols - 1, right + m);
+    const int r1 = std::min(image_box.rows - 1, bottom + m);
+    Component comp;
+    comp.label = k;
     // The window: the component grown by `m` pixels (a disc kernel), other components excluded. Following the
     // spot's own outline rather than its bounding box keeps the far window corners — pure noise with the largest
     // lever arm — out of the centroid.
-    const cv::Rect roi(c0, r0, c1 - c0 + 1, r1 - r0 + 1);
-    cv::Mat window = labels(roi) == k;
-    if (m > 0) cv::dilate(window, window, Disc(m));
+    comp.roi = cv::Rect(c0, r0, c1 - c0 + 1, r1 - r0 + 1);
+    comp.window = labels(comp.roi) == k;
+    if (m > 0) cv::dilate(comp.window, comp.window, Disc(m));
+    unsigned flags = 0;
+    // Cut by the image's border (the box never cuts a window that the image does not: it is grown by m + 1).
+    if (left + box.x - m < 0 || top + box.y - m < 0 || right + box.x + m > image.cols - 1 ||
+        bottom + box.y + m > image.rows - 1) {
+      flags |= kTruncated;
+    }
     double sw = 0, su = 0, sv = 0, peak = 0;
+    bool crowded = false;
+    std::vector<double>& values = comp.values;
     for (int r = r0; r <= r1; ++r) {
       const int* lab = labels.ptr<int>(r);
-      const uint8_t* win = window.ptr<uint8_t>(r - r0) - c0;
+      const uint8_t* win = comp.window.ptr<uint8_t>(r - r0) - c0;
       for (int c = c0; c <= c1; ++c) {
-        if (!win[c] || (lab[c] != 0 && lab[c] != k)) continue;
-        const double w = At(image_box, r, c) - bg;
+        if (!win[c]) continue;
+        if (lab[c] != 0 && lab[c] != k) {
+          crowded = true;
+          continue;
+        }
+        const double value = At(image_box, r, c);
+        if (Saturates(image_box, value)) flags |= kSaturated;
+        const double w = value - bg;
         sw += w;
         su += w * c;
         sv += w * r;
         peak = std::max(peak, w);
+        if (lab[c] == k) values.push_back(w);
       }
     }
     if (!(sw > 0)) continue;
-    DetectedSpot s;
+    if (!crowded && options.near_blob_gap_px > 0) {
+      // Another blob's pixels within the gap of the window: grow the component by margin + gap and look.
+      const int g = m + options.near_blob_gap_px;
+      const cv::Rect wide = cv::Rect(left - g, top - g, right - left + 1 + 2 * g, bottom - top + 1 + 2 * g) &
+                            cv::Rect(0, 0, labels.cols, labels.rows);
+      cv::Mat grown = labels(wide) == k;
+      cv::dilate(grown, grown, Disc(g));
+      for (int r = 0; r < wide.height && !crowded; ++r) {
+        const int* lab = labels.ptr<int>(r + wide.y) + wide.x;
+        const uint8_t* gr = grown.ptr<uint8_t>(r);
+        for (int c = 0; c < wide.width; ++c) {
+          if (gr[c] && lab[c] != 0 && lab[c] != k && stats.at<int>(lab[c], cv::CC_STAT_AREA) >= options.min_area_px) {
+            crowded = true;
+            break;
+          }
+        }
+      }
+    }
+    if (crowded) flags |= kNearBlob;
+    DetectedSpot& s = comp.spot;
     s.centre_px = {su / sw, sv / sw};
     s.flux_dn = sw;
     s.peak_dn = peak;
     s.area_px = area;
-    if (options.method == CentroidMethod::kGaussianFit) {
+    s.flags = flags;
+    comps.push_back(std::move(comp));
+  }
+
+  if (options.method == CentroidMethod::kGaussianFit) {
+    for (auto& comp : comps) {
+      DetectedSpot& s = comp.spot;
+      const int c0 = comp.roi.x, r0 = comp.roi.y, c1 = c0 + comp.roi.width - 1, r1 = r0 + comp.roi.height - 1;
+      const cv::Mat& window = comp.window;
+      const int k = comp.label;
+      const int area = s.area_px;
+      const double peak = s.peak_dn;
       // Initial shape from the thresholded area: a Gaussian whose half-maximum disc has that area.
       const double sigma0 = std::max(0.7, std::sqrt(area / M_PI) / 1.1774);
       double p[7] = {peak, s.centre_px.x(), s.centre_px.y(), 1.0 / sigma0, 0.0, 1.0 / sigma0, 0.0};
@@ -213,8 +424,51 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
                         (fit - s.centre_px).norm() < 2.0;  // a fit that wanders off the blob is not a centre
       if (s.fit_converged) s.centre_px = fit;
     }
-    s.centre_px += Eigen::Vector2d(box.x, box.y);
-    out.spots.push_back(s);
+  } else if (options.method == CentroidMethod::kWeightedPsfFit) {
+    const double read_noise = options.read_noise_dn > 0 ? options.read_noise_dn : out.noise_dn;
+    // Quantisation adds 1/12 DN^2 of uniform noise to every pixel (the background's MAD of an integer image does
+    // not resolve it when the read noise is ~1 DN).
+    const double read_var = read_noise * read_noise + (image.depth() == CV_32F ? 0.0 : 1.0 / 12.0);
+    std::vector<std::array<double, 5>> params(comps.size(), {0, 0, 0, 0, 0});
+    std::vector<char> ok(comps.size(), 0);
+    std::vector<FitPixel> pixels;
+    // Pass 1: read-noise weights. Its residuals against the model signal give the gain: E[r^2] = read + s / gain,
+    // so 1 / gain = sum((r^2 - read) s) / sum(s^2) over the spots' pixels (least squares through the origin).
+    double num = 0, den = 0;
+    for (size_t i = 0; i < comps.size(); ++i) {
+      const auto& comp = comps[i];
+      const DetectedSpot& s = comp.spot;
+      if (!PsfLike(comp.values, s.peak_dn, out.threshold_dn - bg)) continue;  // flat-topped: keeps its centroid
+      const double sigma0 = std::max(0.7, std::sqrt(s.area_px / M_PI) / 1.1774);
+      params[i] = {1.0, s.centre_px.x() - comp.roi.x, s.centre_px.y() - comp.roi.y, sigma0, 0.0};
+      ok[i] = FitPsf(image_box, labels, comp, bg, read_var, 0.0, params[i].data(), &pixels);
+      if (!ok[i] || options.gain_e_per_dn > 0 || (comp.spot.flags & (kNearBlob | kTruncated))) continue;
+      PsfCost cost{&pixels, comp.roi.width, comp.roi.height, comp.spot.flux_dn, bg, std::sqrt(read_var)};
+      for (const auto& px : pixels) {
+        const double sig = cost.Signal(params[i].data(), px);
+        const double res = px.value_dn - (bg + params[i][4] * cost.bg_scale) - sig;
+        num += (res * res - read_var) * sig;
+        den += sig * sig;
+      }
+    }
+    double inv_gain = options.gain_e_per_dn > 0 ? 1.0 / options.gain_e_per_dn : (den > 0 ? std::max(0.0, num / den) : 0.0);
+    out.read_noise_dn = std::sqrt(read_var);
+    out.gain_e_per_dn = inv_gain > 0 ? 1.0 / inv_gain : 0.0;
+    // Pass 2: the noise model's weights from pass 1's model signal (a pure read-noise model needs no second pass).
+    for (size_t i = 0; i < comps.size(); ++i) {
+      DetectedSpot& s = comps[i].spot;
+      if (ok[i] && inv_gain > 0) {
+        ok[i] = FitPsf(image_box, labels, comps[i], bg, read_var, inv_gain, params[i].data(), &pixels);
+      }
+      if (!ok[i] && params[i][3] == 0) continue;  // not fitted (flat-topped): the centroid stands
+      const Eigen::Vector2d fit(params[i][1] + comps[i].roi.x, params[i][2] + comps[i].roi.y);
+      s.fit_converged = ok[i] && (fit - s.centre_px).norm() < 2.0;  // a fit that wanders off the blob is no centre
+      if (s.fit_converged) s.centre_px = fit;
+    }
+  }
+  for (auto& comp : comps) {
+    comp.spot.centre_px += Eigen::Vector2d(box.x, box.y);
+    out.spots.push_back(comp.spot);
   }
   return out;
 }

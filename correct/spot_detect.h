@@ -12,7 +12,19 @@
 //     * kIntensityWeighted: centroid of (I - bg), no clipping (clipping negative noise would bias towards the
 //       window centre);
 //     * kGaussianFit: elliptical 2-D Gaussian + constant background fitted by Ceres to the same pixels, started at
-//       the centroid.
+//       the centroid (unweighted, saturated pixels kept: kept for comparison).
+//     * kWeightedPsfFit (default): a pixel-integrated isotropic Gaussian PSF (flux, centre, width) + local background,
+//       fitted to the same pixels by weighted least squares with the noise model of docs/spot-noise.md
+//       (Poisson + read noise: var_i = read_noise^2 + signal_i / gain), saturated pixels left out. Two solves: the
+//       first with read-noise weights gives the model signal from which the gain is estimated (unless given) and
+//       the weights of the second are computed. This is the maximum-likelihood centre of a Gaussian-approximated
+//       Poisson + read noise image; it reaches the Cramer-Rao bound (tests/correct/spot_crb_test.cc). Spots whose
+//       profile is flat-topped rather than PSF-like (the image of a screen disc several PSF widths across: more of
+//       the thresholded pixels above half the peak than a Gaussian has) keep their centroid, which is the better
+//       estimator there (docs/spot-noise.md has the measurements).
+//  5. Flags per spot (SpotFlag): kNearBlob when another blob's above-threshold pixels come within near_blob_gap_px
+//     of this spot's window (so that its tail light falls in it), kSaturated when a pixel of the window is at full scale, kTruncated when the window
+//     is cut by the image border.
 //  The centres are OpenCV pixel coordinates (centre of the top-left pixel = (0, 0)).
 #include <string>
 #include <vector>
@@ -22,10 +34,28 @@
 
 namespace topocal::correct {
 
-enum class CentroidMethod { kIntensityWeighted, kGaussianFit };
+enum class CentroidMethod { kIntensityWeighted, kGaussianFit, kWeightedPsfFit };
+// The names the command line uses: "centroid", "gaussian", "psf" (default). Throws std::invalid_argument.
+CentroidMethod CentroidMethodFromName(const std::string& name);
+const char* CentroidMethodName(CentroidMethod method) noexcept;
+
+enum SpotFlag : unsigned {
+  kNearBlob = 1u,   // another blob's light reaches the spot's window (glint or neighbour): centre may be pulled
+  kSaturated = 2u,  // a window pixel at full scale (left out by kWeightedPsfFit)
+  kTruncated = 4u,  // the window is cut by the image border: centre biased towards the inside
+};
+// "near_blob|saturated|truncated" (empty for 0).
+std::string SpotFlagsText(unsigned flags);
 
 struct SpotDetectionOptions {
-  CentroidMethod method = CentroidMethod::kIntensityWeighted;
+  CentroidMethod method = CentroidMethod::kWeightedPsfFit;
+  // Noise model of kWeightedPsfFit (docs/spot-noise.md). gain_e_per_dn 0: estimated from the image (the spots' fit
+  // residuals against their model signal); read_noise_dn 0: the background's robust sigma.
+  double gain_e_per_dn = 0;
+  double read_noise_dn = 0;
+  // kNearBlob when another blob's pixels lie within near_blob_gap_px of this spot's window (the window is the spot
+  // grown by window_margin_px): its tail light then reaches the window.
+  int near_blob_gap_px = 1;
   double threshold_sigmas = 8.0;
   double threshold_fraction = 0.25;
   int min_area_px = 3;
@@ -39,13 +69,16 @@ struct DetectedSpot {
   double flux_dn = 0;        // sum of background-subtracted intensity in the window
   double peak_dn = 0;        // brightest pixel above background
   int area_px = 0;           // pixels above threshold
-  bool fit_converged = true; // kGaussianFit only; false: the centroid is kept
+  bool fit_converged = true; // fits only; false: the centroid is kept
+  unsigned flags = 0;        // SpotFlag bits
 };
 
 struct SpotDetection {
   std::vector<DetectedSpot> spots;
   double background_dn = 0, noise_dn = 0, threshold_dn = 0;
   int rejected_small = 0, rejected_large = 0;
+  // The noise model used by kWeightedPsfFit (given or estimated); 0 for the other methods.
+  double read_noise_dn = 0, gain_e_per_dn = 0;
 };
 
 // `image`: CV_8UC1, CV_16UC1 or CV_32FC1. Throws std::invalid_argument for other types or invalid options.

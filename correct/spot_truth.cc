@@ -2,6 +2,8 @@
 
 #include <optional>
 
+#include "model/null_screen_layout.h"
+
 namespace topocal::correct {
 
 SpotTruth SpotsOnSensor(const model::Surface& cornea, const model::IdealImageParams& ideal,
@@ -41,6 +43,7 @@ SpotTruth SpotsOnSensor(const model::Surface& cornea, const model::IdealImagePar
   }
   for (size_t k = 0; k < image.spots.size(); ++k) {
     const auto& s = image.spots[k];
+    if (model::IsOrientationKeySpot(ideal, s.id)) continue;  // a gap of the orientation key: not on the screen
     const Eigen::Vector2d d_mm = model::Distort(device.distortion, s.position_mm);
     SpotToRender r;
     r.id = s.id;

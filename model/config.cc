@@ -26,6 +26,11 @@ void ParseIdealImage(Section s, IdealImageParams& p) {
   p.eta0 = s.Integer("eta0");
   p.eta = s.Integer("eta");
   p.spot_radius_um = s.Number("spot_radius_um", p.spot_radius_um);
+  if (s.Has("orientation_key")) {
+    const json& v = s.Get("orientation_key");
+    if (!v.is_boolean()) s.Fail(s.Key("orientation_key"), "must be true or false");
+    p.orientation_key = v.get<bool>();
+  }
   s.Positive("rho0_mm", p.rho0_mm);
   s.Positive("rhoN_mm", p.rhoN_mm);
   if (p.rhoN_mm <= p.rho0_mm) s.Fail(s.Key("rhoN_mm"), fmt::format("must exceed rho0_mm (got {} <= {})", p.rhoN_mm, p.rho0_mm));
@@ -34,6 +39,8 @@ void ParseIdealImage(Section s, IdealImageParams& p) {
   s.AtLeast("eta0", p.eta0, 1);
   s.AtLeast("eta", p.eta, 0);
   s.Positive("spot_radius_um", p.spot_radius_um);
+  // The key's three spots sit on three different rings (model::OrientationKeySpots).
+  if (p.orientation_key && p.rings_N < 4) s.Fail(s.Key("orientation_key"), "needs rings_N >= 4 (three distinct key rings)");
   s.RejectUnknown();
 }
 
@@ -207,6 +214,7 @@ std::string ConfigToJson(const Config& c) {
   j["ideal_image"] = {{"rho0_mm", c.ideal_image.rho0_mm}, {"rhoN_mm", c.ideal_image.rhoN_mm},
                       {"rings_N", c.ideal_image.rings_N}, {"eta0", c.ideal_image.eta0},
                       {"eta", c.ideal_image.eta}, {"spot_radius_um", c.ideal_image.spot_radius_um}};
+  if (c.ideal_image.orientation_key) j["ideal_image"]["orientation_key"] = true;  // absent: the paper's design
   j["topographer"] = {{"a_mm", c.topographer.a_mm}, {"b_mm", c.topographer.b_mm}, {"re_mm", c.topographer.re_mm},
                       {"cone_semi_angle_deg", c.topographer.cone_semi_angle_deg},
                       {"cone_vertex_z_mm", c.topographer.cone_vertex_z_mm}};

@@ -30,6 +30,9 @@ struct IdealImageParams {
   int eta0 = 8;            // spots on the first ring
   int eta = 8;             // extra spots per ring
   double spot_radius_um = 8.0;  // radius of each ideal-image circle (only for drawing the null screen)
+  // Optional (false): leave three spots out of the printed screen so that the pattern's orientation is observable
+  // (model::OrientationKeySpots, docs/image-orientation.md). False keeps the paper's design.
+  bool orientation_key = false;
   int SpotCount() const { return (rings_N + 1) * eta0 + eta * rings_N * (rings_N + 1) / 2; }
 };
 

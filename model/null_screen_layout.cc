@@ -104,6 +104,28 @@ double ChooseCutAzimuth(const std::vector<std::pair<double, double>>& intervals)
 
 }  // namespace
 
+std::vector<SpotId> OrientationKeySpots(const IdealImageParams& ideal) {
+  if (!ideal.orientation_key) return {};
+  std::vector<SpotId> out;
+  constexpr double kRadiusFraction[3] = {0.3, 0.5, 0.7};
+  constexpr double kAngleDeg[3] = {0.0, 90.0, 225.0};
+  for (int k = 0; k < 3; ++k) {
+    const int ring = 1 + static_cast<int>(std::lround(kRadiusFraction[k] * ideal.rings_N));
+    const int count = ideal.eta0 + (ring - 1) * ideal.eta;
+    const int index = static_cast<int>(std::lround(kAngleDeg[k] / 360.0 * count)) % count;
+    out.push_back({ring, index});
+  }
+  return out;
+}
+
+bool IsOrientationKeySpot(const IdealImageParams& ideal, const SpotId& id) {
+  if (!ideal.orientation_key) return false;
+  for (const auto& k : OrientationKeySpots(ideal)) {
+    if (k == id) return true;
+  }
+  return false;
+}
+
 NullScreenLayout LayoutNullScreen(const IdealImageParams& ideal, const TopographerParams& topographer,
                                   const NullScreenLayoutOptions& options) {
   std::string why;
@@ -124,6 +146,7 @@ NullScreenLayout LayoutNullScreen(const IdealImageParams& ideal, const Topograph
   }
   std::vector<std::pair<double, double>> azimuth_intervals;
   for (const auto& t : design.targets) {
+    if (IsOrientationKeySpot(ideal, t.id)) continue;  // the key's gaps are not printed
     SpotOutline o;
     o.id = t.id;
     o.target_on_cone_mm = t.on_cone_mm;

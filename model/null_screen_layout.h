@@ -81,6 +81,15 @@ struct NullScreenLayout {
   int overlapping_pairs = 0;
 };
 
+// The orientation key (config ideal_image.orientation_key; docs/image-orientation.md): three spots left out of the
+// printed screen, on three different rings at about 30 %, 50 % and 70 % of the pattern's radius, at the angles
+// nearest 0, 90 and 225 deg (ideal-image frame, from +x towards +y). No rotation by 90-deg steps and no mirror maps
+// this set of gaps onto itself (a symmetry would have to fix each gap, the rings being different, and no mirror
+// axis holds two of these directions), so the gaps seen in an image tell which of the eight axis-aligned
+// orientations it has. Empty when the key is off.
+std::vector<SpotId> OrientationKeySpots(const IdealImageParams& ideal);
+bool IsOrientationKeySpot(const IdealImageParams& ideal, const SpotId& id);
+
 // Backward trace of one detection-plane point to the cone, step for step as DesignNullScreen does for spot
 // centres. nullopt if the ray misses the reference sphere or the reflected ray misses the cone.
 std::optional<Eigen::Vector3d> TraceImagePointToCone(const Topographer& topographer, const Eigen::Vector2d& image_mm);

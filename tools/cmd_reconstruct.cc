@@ -5,6 +5,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "calib/calibration_file.h"
+#include "correct/detect_and_index.h"
 #include "model/config.h"
 #include "model/topographer_camera.h"
 #include "pipeline/detection_plane.h"
@@ -61,10 +62,44 @@ void PrintAnalysis(const topo::Analysis& a) {
 }
 
 struct Inputs {
-  std::string spots, image, camera, calibration, device;
+  std::string spots, image, camera, calibration, device, estimator = "psf";
   int uncertainty_samples = 0;
   unsigned seed = 1;
 };
+
+// pipeline::MeasureSpots with the user's estimator (MeasureSpots takes no detection options yet; this is the same
+// sequence: detect and index, refuse a mismatched orientation, undistort when a distortion is given).
+pipeline::SpotMeasurement MeasureImage(const cv::Mat& image, const model::TopographerCamera& camera,
+                                       const model::IdealImageParams& ideal,
+                                       const std::optional<model::Distortion>& distortion, const Inputs& in) {
+  correct::DetectAndIndexOptions options;
+  options.detection.method = correct::CentroidMethodFromName(in.estimator);
+  correct::DetectAndIndexResult located;
+  try {
+    located = correct::DetectAndIndexSpots(image, camera, ideal, options);
+  } catch (const std::invalid_argument& e) {
+    throw model::InputError(fmt::format("{}: {}", in.image, e.what()));
+  }
+  if (located.orientation.status == correct::OrientationCheck::Status::kMismatch) {
+    throw model::InputError(fmt::format("{}: {}", in.image, located.orientation.message));
+  }
+  if (!located.ok) throw std::runtime_error(fmt::format("{}: spot detection/indexing: {}", in.image, located.message));
+  fmt::print("{}\n", located.orientation.message);
+  pipeline::SpotMeasurement m;
+  m.indexed = static_cast<int>(located.spots.size());
+  m.unassigned = static_cast<int>(located.unassigned.size());
+  m.missing = static_cast<int>(located.missing.size());
+  for (const auto& s : located.spots) m.detected.push_back({s.id, s.position_mm});
+  if (!located.excluded.empty()) {
+    fmt::print("{} identified spots flagged near another blob or at the border: left out\n", located.excluded.size());
+  }
+  if (!distortion) {
+    for (const auto& s : located.spots) m.spots.push_back({s.id, s.position_mm});
+    return m;
+  }
+  m.spots = pipeline::UndistortSpots(m.detected, *distortion, &m.undistort_failures);
+  return m;
+}
 
 // Spots from a CSV, or detected, indexed and (with a calibration) undistorted in a raw image.
 std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::Config& cfg,
@@ -84,22 +119,9 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
   }
   const auto camera = in.device.empty() ? model::LoadTopographerCamera(in.camera) : device->camera;
   const std::string& camera_file = in.device.empty() ? in.camera : in.device;
-  model::ReadFile(in.image);  // a missing or unreadable file is named as such, not as "not an image"
-  const cv::Mat image = cv::imread(in.image, cv::IMREAD_UNCHANGED);
-  if (image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", in.image));
-  if (image.cols != camera.width_px || image.rows != camera.height_px) {
-    throw model::InputError(fmt::format("{}: the image is {} x {} px but {} says {} x {} px", in.image, image.cols,
-                                        image.rows, camera_file, camera.width_px, camera.height_px));
-  }
+  const cv::Mat image = ReadSpotImage(in.image, camera, camera_file);
   if (device) {
-    pipeline::SpotMeasurement m;
-    try {
-      m = pipeline::MeasureSpots(image, *device, cfg.ideal_image);
-    } catch (const std::invalid_argument& e) {
-      throw model::InputError(fmt::format("{}: {}", in.image, e.what()));
-    } catch (const std::runtime_error& e) {
-      throw std::runtime_error(fmt::format("{}: {}", in.image, e.what()));
-    }
+    const auto m = MeasureImage(image, device->camera, cfg.ideal_image, device->distortion, in);
     fmt::print("image: {} spots indexed, {} unassigned detections, {} designed spots missing, measured through the "
                "device {} ({} outside its distortion's domain)\n",
                m.indexed, m.unassigned, m.missing, in.device, m.undistort_failures);
@@ -123,14 +145,7 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
     distortion = pipeline::DistortionOnDetectionPlane(cal->camera, camera, &why);
     if (!distortion) throw model::InputError(fmt::format("{}: {}", in.calibration, why));
   }
-  pipeline::SpotMeasurement m;
-  try {
-    m = pipeline::MeasureSpots(image, camera, cfg.ideal_image, distortion);
-  } catch (const std::invalid_argument& e) {
-    throw model::InputError(fmt::format("{}: {}", in.image, e.what()));
-  } catch (const std::runtime_error& e) {
-    throw std::runtime_error(fmt::format("{}: {}", in.image, e.what()));
-  }
+  const auto m = MeasureImage(image, camera, cfg.ideal_image, distortion, in);
   fmt::print("image: {} spots indexed, {} unassigned detections, {} designed spots missing{}\n", m.indexed,
              m.unassigned, m.missing,
              distortion ? fmt::format(", undistorted with {} ({} outside its domain)", in.calibration,
@@ -177,6 +192,9 @@ void AddReconstructCommand(CLI::App& app) {
                   "--image and --calibration); reports mean +- U (k = 2)")
       ->check(CLI::Range(2, 100000));
   cmd->add_option("--seed", in->seed, "Seed of the --uncertainty draws")->capture_default_str();
+  cmd->add_option("--estimator", in->estimator, "Spot centre estimator for --image: psf (default), centroid, gaussian")
+      ->check(CLI::IsMember({"psf", "centroid", "gaussian"}))
+      ->capture_default_str();
   cmd->add_option("--json", *json_out, "Write the result as JSON");
   cmd->add_option("--maps", *maps, "Write power and height maps (CSV + PNG) into this directory");
   auto biconic_fit = std::make_shared<std::string>();

@@ -5,6 +5,9 @@
 #include <stdexcept>
 
 #include <CLI/CLI.hpp>
+#include <opencv2/core/mat.hpp>
+
+#include "model/topographer_camera.h"
 
 namespace topocal::tools {
 
@@ -29,5 +32,9 @@ void AddHarnessCommand(CLI::App& app);
 void AddReportCommand(CLI::App& app);
 void AddDeviceCommand(CLI::App& app);
 void AddFleetCommand(CLI::App& app);
+void AddDetectCommand(CLI::App& app);
+
+// A raw spot image (cmd_detect.cc), checked against the camera's sensor size; InputError naming the file otherwise.
+cv::Mat ReadSpotImage(const std::string& path, const model::TopographerCamera& camera, const std::string& camera_file);
 
 }  // namespace topocal::tools

@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   topocal::tools::AddSweepCommand(app);
   topocal::tools::AddReconstructCommand(app);
   topocal::tools::AddRenderSpotsCommand(app);
+  topocal::tools::AddDetectCommand(app);
   topocal::tools::AddUndistortCommand(app);
   topocal::tools::AddCalibrateCommand(app);
   topocal::tools::AddTargetCommand(app);

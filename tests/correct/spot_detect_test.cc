@@ -90,12 +90,13 @@ TEST_P(SpotDetect, CentroidsWithinTwoHundredthsOfAPixel) {
   const auto& scene = GetParam();
   const auto truth = testing::Truth(cfg, cfg.cornea, scene.sigma, camera);
   const cv::Mat image = RenderSpotImage(truth.spots, camera.width_px, camera.height_px, Realistic(scene.shape, scene.psf_px));
-  for (const auto method : {CentroidMethod::kIntensityWeighted, CentroidMethod::kGaussianFit}) {
+  for (const auto method :
+       {CentroidMethod::kIntensityWeighted, CentroidMethod::kGaussianFit, CentroidMethod::kWeightedPsfFit}) {
     SpotDetectionOptions o;
     o.method = method;
     const auto det = DetectSpots(image, o);
     const auto e = Compare(det.spots, truth.spots);
-    const char* name = method == CentroidMethod::kGaussianFit ? "gaussian-fit" : "centroid";
+    const char* name = CentroidMethodName(method);
     std::cout << scene.name << " " << name << ": matched " << e.matched << "/" << truth.spots.size() << ", bias ("
               << e.mean.x() << ", " << e.mean.y() << ") px, rms " << e.rms << " px\n";
     EXPECT_EQ(e.matched, static_cast<int>(truth.spots.size())) << name;
@@ -132,9 +133,13 @@ TEST(DetectAndIndex, RawImageWithDropsAndGlints) {
   ASSERT_TRUE(r.ok) << r.message;
   int real = 0;
   for (const auto& s : spots) real += s.id.ring != 0;
-  EXPECT_EQ(static_cast<int>(r.spots.size()), real);
+  // Identified: the usable spots and those flagged near a glint (kept out of a measurement, identity still given).
+  EXPECT_EQ(static_cast<int>(r.spots.size() + r.excluded.size()), real);
   EXPECT_EQ(r.unassigned.size(), 5u);
-  for (const auto& s : r.spots) {
+  for (const auto& s : r.excluded) EXPECT_TRUE(s.flags & kNearBlob) << SpotFlagsText(s.flags);
+  auto identified = r.spots;
+  identified.insert(identified.end(), r.excluded.begin(), r.excluded.end());
+  for (const auto& s : identified) {
     // The truth spot with this identity must be where the detection is.
     const auto it = std::find_if(spots.begin(), spots.end(), [&](const auto& t) { return t.id == s.id; });
     ASSERT_NE(it, spots.end());

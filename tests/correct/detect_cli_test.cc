@@ -1,0 +1,141 @@
+// topocal detect (issue 17): the detected, indexed and flagged spots of a raw image, end to end through files;
+// the orientation key refusing an undeclared mirror; reconstruct --image with the same estimator option.
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "model/null_screen_layout.h"
+#include "synthetic.h"
+#include "tests/cli_harness.h"
+
+namespace topocal::correct {
+namespace {
+
+namespace fs = std::filesystem;
+using topocal::testing_cli::RunTopocal;
+
+constexpr double kMatchPx = 1.0;  // far above the centre error, far below the spot spacing
+
+class DetectCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("topocal_detect_cli_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+    auto cam = testing::DefaultCamera();
+    cam.width_px = 1000;
+    cam.height_px = 1000;
+    cam.principal_point_px = {499.5, 499.5};
+    Write("identity.json", model::TopographerCameraToJson(cam));
+    cam.orientation = model::ImageOrientation::kFlipV;
+    Write("flip_v.json", model::TopographerCameraToJson(cam));
+    auto cfg = testing::PaperConfig();
+    cfg.ideal_image.orientation_key = true;
+    Write("keyed.json", model::ConfigToJson(cfg));
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  void Write(const std::string& name, const std::string& text) const { std::ofstream(Path(name)) << text; }
+  fs::path dir_;
+};
+
+struct Row {
+  double u, v;
+  std::string flags;
+};
+
+// ring,index -> row of a CSV with header `header` (u, v in columns 4 and 5 of the detect file, 2 and 3 of truth).
+std::map<std::pair<int, int>, Row> ReadRows(const std::string& path, std::vector<Row>* ring0, int u_col) {
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  std::map<std::pair<int, int>, Row> out;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+    if (f.size() < 6) continue;
+    Row r{std::stod(f[u_col]), std::stod(f[u_col + 1]), f.size() > 6 ? f[6] : ""};
+    const int ring = std::stoi(f[0]);
+    if (ring == 0) {
+      if (ring0) ring0->push_back(r);
+    } else {
+      out[{ring, std::stoi(f[1])}] = r;
+    }
+  }
+  return out;
+}
+
+// Issue 17, item 4: 100 % indexing with 5 % missing spots and 6 glints, no glint accepted; a mirrored image
+// measured when declared, refused when not (keyed screen).
+TEST_F(DetectCli, IndexesEverySpotAcceptsNoGlintAndRefusesAnUndeclaredMirror) {
+  const auto render = RunTopocal("render-spots --config " + Path("keyed.json") + " --camera " + Path("flip_v.json") +
+                                 " --spot psf --psf-px 2 --bits 8 --background 4 --peak 160 --noise 1 --gain 1" +
+                                 " --drop 0.05 --glints 6 --seed 3 --out " + Path("img.png") + " --truth " +
+                                 Path("truth.csv"));
+  ASSERT_EQ(render.exit_code, 0) << render.output;
+  const auto r = RunTopocal("detect --image " + Path("img.png") + " --camera " + Path("flip_v.json") + " --config " +
+                            Path("keyed.json") + " --out " + Path("spots.csv") + " --json " + Path("spots.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("orientation: confirmed"), std::string::npos) << r.output;
+  std::vector<Row> glints_truth, unassigned;
+  const auto truth = ReadRows(Path("truth.csv"), &glints_truth, 2);
+  const auto found = ReadRows(Path("spots.csv"), &unassigned, 4);
+  ASSERT_EQ(glints_truth.size(), 6u);
+  EXPECT_EQ(found.size(), truth.size());  // every real spot identified (100 %)
+  for (const auto& [id, t] : truth) {
+    const auto it = found.find(id);
+    ASSERT_NE(it, found.end()) << id.first << "," << id.second;
+    EXPECT_LT(std::hypot(it->second.u - t.u, it->second.v - t.v), kMatchPx) << id.first << "," << id.second;
+  }
+  for (const auto& [id, f] : found) EXPECT_TRUE(truth.count(id)) << "identity given to a glint: " << id.first;
+  EXPECT_EQ(unassigned.size(), 6u);  // every glint left without identity
+  const auto j = nlohmann::json::parse(std::ifstream(Path("spots.json")));
+  const auto cfg = testing::PaperConfig();
+  EXPECT_EQ(j["missing"].size(), static_cast<size_t>(cfg.ideal_image.SpotCount()) - truth.size());
+  EXPECT_EQ(j["estimator"], "psf");
+
+  // The same image with the camera file that does not declare the mirror: refused, no output.
+  const auto wrong = RunTopocal("detect --image " + Path("img.png") + " --camera " + Path("identity.json") +
+                                " --config " + Path("keyed.json") + " --out " + Path("wrong.csv"));
+  EXPECT_EQ(wrong.exit_code, 2) << wrong.output;
+  EXPECT_NE(wrong.output.find("orientation refused"), std::string::npos) << wrong.output;
+  EXPECT_NE(wrong.output.find("flip_v"), std::string::npos) << wrong.output;
+  EXPECT_FALSE(fs::exists(Path("wrong.csv")));
+
+  // reconstruct --image takes the estimator and states the orientation.
+  const auto rec = RunTopocal("reconstruct --config " + Path("keyed.json") + " --image " + Path("img.png") +
+                              " --camera " + Path("flip_v.json") + " --estimator centroid");
+  EXPECT_EQ(rec.exit_code, 0) << rec.output;
+  EXPECT_NE(rec.output.find("orientation: confirmed"), std::string::npos) << rec.output;
+  const auto rec_wrong = RunTopocal("reconstruct --config " + Path("keyed.json") + " --image " + Path("img.png") +
+                                    " --camera " + Path("identity.json"));
+  EXPECT_EQ(rec_wrong.exit_code, 2) << rec_wrong.output;
+  EXPECT_NE(rec_wrong.output.find("orientation refused"), std::string::npos) << rec_wrong.output;
+}
+
+TEST_F(DetectCli, AnUnkeyedScreenSaysTheRiskAndBadInputIsOneLine) {
+  const std::string paper = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
+  ASSERT_EQ(RunTopocal("render-spots --config " + paper + " --camera " + Path("identity.json") + " --out " +
+                       Path("img.png")).exit_code, 0);
+  const auto r = RunTopocal("detect --image " + Path("img.png") + " --camera " + Path("identity.json") + " --config " +
+                            paper + " --out " + Path("spots.csv") + " --estimator centroid");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("orientation: NOT verifiable"), std::string::npos) << r.output;
+  const auto bad = RunTopocal("detect --image " + Path("missing.png") + " --camera " + Path("identity.json") +
+                              " --config " + paper + " --out " + Path("x.csv"));
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("missing.png"), std::string::npos) << bad.output;
+  EXPECT_FALSE(fs::exists(Path("x.csv")));
+  const auto est = RunTopocal("detect --image " + Path("img.png") + " --camera " + Path("identity.json") +
+                              " --config " + paper + " --out " + Path("x.csv") + " --estimator median");
+  EXPECT_NE(est.exit_code, 0);
+  EXPECT_FALSE(fs::exists(Path("x.csv")));
+}
+
+}  // namespace
+}  // namespace topocal::correct

@@ -1,0 +1,92 @@
+// topocal detect: the spots of a raw image, detected, indexed and flagged, with the estimator a user chooses.
+#include <memory>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "correct/detect_and_index.h"
+#include "correct/detected_spots_csv.h"
+#include "model/config.h"
+#include "model/device.h"
+#include "model/io.h"
+#include "model/topographer_camera.h"
+#include "tools/commands.h"
+
+namespace topocal::tools {
+namespace {
+
+struct DetectArgs {
+  std::string image, camera, device, config, out, json, estimator = "psf";
+};
+
+void Run(const DetectArgs& a) {
+  if (a.camera.empty() == a.device.empty()) throw model::InputError("detect: give one of --camera or --device");
+  const auto cfg = model::LoadConfig(a.config);
+  const auto camera = a.device.empty() ? model::LoadTopographerCamera(a.camera) : model::LoadDevice(a.device).device.camera;
+  const std::string& camera_file = a.device.empty() ? a.camera : a.device;
+  correct::DetectAndIndexOptions options;
+  options.detection.method = correct::CentroidMethodFromName(a.estimator);
+  const cv::Mat image = ReadSpotImage(a.image, camera, camera_file);
+  correct::DetectAndIndexResult r;
+  try {
+    r = correct::DetectAndIndexSpots(image, camera, cfg.ideal_image, options);
+  } catch (const std::invalid_argument& e) {
+    throw model::InputError(fmt::format("{}: {}", a.image, e.what()));
+  }
+  if (r.orientation.status == correct::OrientationCheck::Status::kMismatch) {
+    throw model::InputError(fmt::format("{}: {}", a.image, r.orientation.message));
+  }
+  if (!r.ok) throw std::runtime_error(fmt::format("{}: spot detection/indexing: {}", a.image, r.message));
+  nlohmann::json j;
+  j["image"] = a.image;
+  j["estimator"] = correct::CentroidMethodName(options.detection.method);
+  j["indexed"] = r.spots.size() + r.excluded.size();
+  j["excluded"] = r.excluded.size();
+  j["unassigned"] = r.unassigned.size();
+  j["missing"] = nlohmann::json::array();
+  for (const auto& m : r.missing) j["missing"].push_back({m.ring, m.index});
+  j["noise_model"] = {{"background_dn", r.detection.background_dn},
+                      {"read_noise_dn", r.detection.read_noise_dn},
+                      {"gain_e_per_dn", r.detection.gain_e_per_dn}};
+  j["orientation"] = r.orientation.message;
+  model::WriteFileAtomic(a.out, correct::DetectedSpotsCsv(r));
+  if (!a.json.empty()) model::WriteFileAtomic(a.json, j.dump(2) + "\n");
+  fmt::print("detect ({}): {} spots indexed ({} flagged near a blob or at the border, left out of a measurement), "
+             "{} unassigned blobs, {} designed spots missing -> {}\n",
+             j["estimator"].get<std::string>(), r.spots.size() + r.excluded.size(), r.excluded.size(),
+             r.unassigned.size(), r.missing.size(), a.out);
+  fmt::print("{}\n", r.orientation.message);
+}
+
+}  // namespace
+
+cv::Mat ReadSpotImage(const std::string& path, const model::TopographerCamera& camera, const std::string& camera_file) {
+  model::ReadFile(path);  // a missing or unreadable file is named as such, not as "not an image"
+  const cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
+  if (image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", path));
+  if (image.cols != camera.width_px || image.rows != camera.height_px) {
+    throw model::InputError(fmt::format("{}: the image is {} x {} px but {} says {} x {} px", path, image.cols,
+                                        image.rows, camera_file, camera.width_px, camera.height_px));
+  }
+  return image;
+}
+
+void AddDetectCommand(CLI::App& app) {
+  auto* cmd = app.add_subcommand("detect", "Detect, index and flag the spots of a raw image (CSV + JSON summary)");
+  auto a = std::make_shared<DetectArgs>();
+  cmd->add_option("--image", a->image, "Raw sensor image of the spots")->required();
+  auto* camera = cmd->add_option("--camera", a->camera, "Topographer camera (JSON, docs/camera-conventions.md)");
+  auto* device = cmd->add_option("--device", a->device, "Device (JSON, docs/device.md): its camera is used");
+  camera->excludes(device);
+  cmd->add_option("--config", a->config, "Topographer configuration (JSON)")->required();
+  cmd->add_option("--out", a->out, "Spots CSV: ring,index,x_mm,y_mm,u_px,v_px,flags (ring 0: unassigned blob)")
+      ->required();
+  cmd->add_option("--json", a->json, "Summary JSON: counts, missing identities, noise model, orientation");
+  cmd->add_option("--estimator", a->estimator, "Spot centre estimator: psf (default), centroid or gaussian")
+      ->check(CLI::IsMember({"psf", "centroid", "gaussian"}))
+      ->capture_default_str();
+  cmd->callback([a] { Run(*a); });
+}
+
+}  // namespace topocal::tools
