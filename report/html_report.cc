@@ -83,6 +83,67 @@ std::string Lookup(const StageValues& v, const char* key, int decimals) {
   return it == v.end() ? "" : Fixed(it->second, decimals);
 }
 
+// The device stage (issue 19): the calibrated device's parameters from device.json, and the held-out ball and the
+// paper cornea measured uncorrected, with the lens calibration only, and through the calibrated device.
+std::string DeviceSection(const UnitRecord& rec) {
+  const auto& d = *rec.device;
+  const auto& cal = d.file.calibration;
+  std::string s = "<section id=\"device\" class=\"page-break\"><h2>Device calibration from reference balls: screen "
+                  "pose, camera and lens</h2>\n";
+  s += "<table class=\"data\"><tr><th>parameter</th><th>value</th><th>U (k = 2)</th><th>nominal</th></tr>\n";
+  if (cal.is_object() && cal.contains("parameters") && cal["parameters"].is_object()) {
+    for (const auto& [name, p] : cal["parameters"].items()) {
+      if (!p.is_object() || !p.contains("value") || !p.contains("stddev") || !p.contains("nominal")) continue;
+      s += fmt::format("<tr><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td></tr>\n",
+                       H(name), Sig(p["value"].get<double>(), 7), Sig(2.0 * p["stddev"].get<double>(), 2),
+                       Sig(p["nominal"].get<double>(), 7));
+    }
+  }
+  s += "</table>\n";
+  const auto text = [&](const char* key) {
+    return cal.is_object() && cal.contains(key) && cal[key].is_string() ? cal[key].get<std::string>() : std::string();
+  };
+  if (cal.is_object() && cal.contains("chi2_per_dof") && cal["chi2_per_dof"].is_number()) {
+    const bool adequate = cal.value("model_adequate", true);
+    s += fmt::format("<p>\u03c7\u00b2/dof {} \u2014 {}.</p>\n", Sig(cal["chi2_per_dof"].get<double>(), 3),
+                     adequate ? "the device model describes the ball images"
+                              : "<strong>the device model does not describe the ball images</strong>");
+  }
+  if (!text("gauge").empty()) s += fmt::format("<p class=\"note\">Gauge: {}.</p>\n", H(text("gauge")));
+  if (cal.is_object() && cal.contains("notes") && cal["notes"].is_array()) {
+    for (const auto& n : cal["notes"]) {
+      if (n.is_string()) s += fmt::format("<p class=\"note\">{}</p>\n", H(n.get<std::string>()));
+    }
+  }
+  const auto three_way = [&](const std::map<std::string, StageValues>& stages, const char* key, int decimals,
+                             const std::string& truth) {
+    std::string row;
+    for (const char* st : kThreeWayStages) row += fmt::format("<td class=\"num\">{}</td>", Lookup(stages.at(st), key, decimals));
+    return fmt::format("<td class=\"num\">{}</td>{}", truth, row);
+  };
+  const std::string head = "<tr><th>quantity</th><th>truth</th><th>uncorrected</th><th>lens only</th>"
+                           "<th>through the device</th></tr>\n";
+  if (!d.held_out.empty()) {
+    s += "<h3>Held-out reference ball (not used in the fit)</h3>\n<table class=\"data\">" + head;
+    s += "<tr><td>radius (mm)</td>" + three_way(d.held_out, "radius_mm", 4, Fixed(d.held_out_radius_true_mm, 4)) + "</tr>\n";
+    s += "<tr><td>mean axial power, central 3 mm (D)</td>" +
+         three_way(d.held_out, "central_axial_power_D", 3, Fixed(d.held_out_power_true_D, 3)) + "</tr>\n";
+    s += "</table>\n";
+  }
+  s += "<h3>Paper cornea imaged through the calibrated unit</h3>\n<table class=\"data\">" + head;
+  for (const Quantity& q : kPaperRows) {
+    const auto t = rec.paper.truth.find(q.key);
+    if (!d.paper.at("device").count(q.key)) continue;
+    s += fmt::format("<tr><td>{}{}</td>", q.label, *q.unit ? fmt::format(" ({})", q.unit) : std::string()) +
+         three_way(d.paper, q.key, q.decimals, t != rec.paper.truth.end() ? Fixed(t->second, q.decimals) : "") +
+         "</tr>\n";
+  }
+  s += "</table>\n<p class=\"note\">Through the device the simulation reproduces the truth by construction; the "
+       "other columns are what this unit would report without the device stage (docs/device.md).</p>\n";
+  s += "</section>\n";
+  return s;
+}
+
 std::string MapsFigure(const UnitRecord& rec, const std::string& case_name) {
   std::string s;
   for (std::size_t m = 0; m < std::size(kMapKinds); ++m) {
@@ -668,6 +729,7 @@ std::string RenderHtmlReport(const UnitRecord& rec, const ReportInputs& inputs) 
   s += MapsFigure(rec, "paper");
   s += "</section>\n";
 
+  if (rec.device) s += DeviceSection(rec);
   if (inputs.previous) s += PreviousComparison(rec, *inputs.previous, inputs);
 
   // Acceptance.

@@ -1,5 +1,6 @@
 #include "report/unit_record_reader.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <set>
@@ -400,6 +401,26 @@ UnitRecord ReadUnitRecord(const std::string& directory) {
   rec.paper.corrected = ReadStage(r, paper, "paper_cornea", "corrected", kPaperStageKeys);
   rec.paper.uncertainty = ReadUncertainty(r, paper, "paper_cornea");
 
+  if (r.Has(root, "device")) {
+    // The device itself comes from device.json (its digest is checked below with every file); unit.json's copy of
+    // the parameters is not trusted for anything the report shows.
+    const json& d = r.Object(root, "", "device");
+    DeviceStageRecord dev;
+    const json& paper_dev = r.Object(d, "device", "paper_cornea");
+    for (const char* stage : kThreeWayStages) {
+      dev.paper[stage] = ReadStage(r, paper_dev, "device.paper_cornea", stage, kDeviceStageKeys);
+    }
+    if (r.Has(d, "held_out_ball")) {
+      const json& h = r.Object(d, "device", "held_out_ball");
+      dev.held_out_radius_true_mm = r.Number(h, "device.held_out_ball", "radius_true_mm");
+      dev.held_out_power_true_D = r.Number(h, "device.held_out_ball", "power_true_D");
+      for (const char* stage : kThreeWayStages) {
+        dev.held_out[stage] = ReadStage(r, h, "device.held_out_ball", stage, kDeviceStageKeys);
+      }
+    }
+    rec.device = std::move(dev);
+  }
+
   // The files, now known to be the ones the record was written with.
   rec.calibration_path = (fs::path(directory) / kCalibrationYaml).string();
   rec.calibration = calib::LoadCalibrationFile(rec.calibration_path);
@@ -411,6 +432,11 @@ UnitRecord ReadUnitRecord(const std::string& directory) {
                                                      rec.calibration.camera.height_px));
   }
   rec.residuals = ReadResiduals((fs::path(directory) / kResidualsCsv).string());
+  if (rec.device) {
+    const auto listed = std::find_if(rec.files.begin(), rec.files.end(), [](const RecordFile& f) { return f.name == "device.json"; });
+    if (listed == rec.files.end()) r.Fail("device", "the record has a device stage but no device.json in files");
+    rec.device->file = model::LoadDevice((fs::path(directory) / "device.json").string());
+  }
   for (const RecordFile& f : rec.files) {
     const fs::path name(f.name);
     if (name.parent_path() == "maps" && name.extension() == ".png") {

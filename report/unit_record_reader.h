@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "calib/calibration_file.h"
+#include "model/device.h"
 
 namespace topocal::report {
 
@@ -100,6 +101,18 @@ inline constexpr const char* kPaperStageKeys[] = {"rx_mm", "ry_mm", "kx", "ky", 
                                                   "pv_axial_D", "height_pv_um", "height_rms_um"};
 inline constexpr const char* kPaperTruthKeys[] = {"rx_mm", "ry_mm", "kx", "ky", "alpha_deg"};
 
+// The device stage of a record (issue 19; docs/unit-record.md): the calibrated device as device.json holds it (read
+// and checked like any record file), and the three-way measurements of the held-out ball and the paper cornea.
+inline constexpr const char* kDeviceStageKeys[] = {"rx_mm", "ry_mm", "kx", "ky", "radius_mm", "central_axial_power_D",
+                                                   "pv_tangential_D", "pv_axial_D"};
+inline constexpr const char* kThreeWayStages[] = {"uncorrected", "lens_only", "device"};
+struct DeviceStageRecord {
+  model::DeviceFile file;                          // device.json
+  std::map<std::string, StageValues> paper;        // by kThreeWayStages
+  std::map<std::string, StageValues> held_out;     // empty without a held-out ball
+  double held_out_radius_true_mm = 0, held_out_power_true_D = 0;
+};
+
 struct UnitRecord {
   std::string directory;
   std::string unit_json_path;
@@ -136,6 +149,7 @@ struct UnitRecord {
 
   std::optional<SphereVerification> verification;
   PaperCornea paper;
+  std::optional<DeviceStageRecord> device;
 
   // The files themselves.
   calib::CalibrationFile calibration;

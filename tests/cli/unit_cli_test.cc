@@ -155,9 +155,15 @@ TEST_F(UnitCli, TheDeviceStageFromBallsFixesWhatTheLensCalibrationCannot) {
   const auto& p = d["paper_cornea"];
   EXPECT_NEAR(p["device"]["kx"].get<double>(), -0.43, 1e-4);
   EXPECT_GT(std::abs(p["lens_only"]["kx"].get<double>() + 0.43), 0.01) << r.output;
-  // The record still reports.
+  // The QA report shows the device stage: parameters from device.json, the held-out ball and the paper cornea
+  // three ways.
   const auto rep = RunTopocal(fmt::format("report --unit {} --out {}/r.html", out, dir_.string()));
-  EXPECT_TRUE(rep.exit_code == 0 || rep.exit_code == 3) << rep.output;
+  ASSERT_TRUE(rep.exit_code == 0 || rep.exit_code == 3) << rep.output;
+  const std::string html = model::ReadFile((dir_ / "r.html").string());
+  EXPECT_NE(html.find("<section id=\"device\""), std::string::npos);
+  EXPECT_NE(html.find("Held-out reference ball"), std::string::npos);
+  EXPECT_NE(html.find("<td>rx_deg</td>"), std::string::npos);
+  EXPECT_NE(html.find("axial gauge"), std::string::npos);
 }
 
 TEST_F(UnitCli, SeveralImagesAreAMultiViewCalibrationThatAlsoPasses) {
