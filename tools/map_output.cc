@@ -92,10 +92,9 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
     std::vector<std::string> notes = e.power_annotations;
     if (notes.empty() && a.clinical_ok) {
       const auto& c = a.clinical;
-      notes.push_back(fmt::format("sim-K {:.2f} D @ {:.0f}\u00b0 / {:.2f} D @ {:.0f}\u00b0 (cyl {:.2f} D), Kmax {:.2f} D at "
-                                  "({:+.2f}, {:+.2f}) mm",
-                                  c.steep_k_D, c.steep_axis_deg, c.flat_k_D, c.flat_axis_deg, c.CylinderD(), c.kmax_D,
-                                  c.kmax_at_mm.x(), c.kmax_at_mm.y()));
+      notes.push_back(fmt::format("sim-K {:.2f} D @ {:.0f}\u00b0 / {:.2f} D @ {:.0f}\u00b0 (cyl {:.2f} D)", c.steep_k_D,
+                                  c.steep_axis_deg, c.flat_k_D, c.flat_axis_deg, c.CylinderD()));
+      notes.push_back(fmt::format("Kmax {:.2f} D at ({:+.2f}, {:+.2f}) mm", c.kmax_D, c.kmax_at_mm.x(), c.kmax_at_mm.y()));
     }
     axial.push_back({base + "axial_power", PowerGrid(pm, pm.axial_D, fmt::format("Axial power{}", e.label)), notes});
     tangential.push_back({base + "tangential_power",
