@@ -14,6 +14,7 @@
 #include "model/io.h"
 #include "model/topographer_camera.h"
 #include "tools/commands.h"
+#include "tools/surface_option.h"
 
 namespace topocal::tools {
 namespace {
@@ -38,28 +39,9 @@ void Run(const RenderSpotsArgs& a) {
   if (!std::isfinite(a.sigma)) throw model::InputError("--sigma: must be a finite number");
   if (!(a.drop >= 0 && a.drop < 1)) throw model::InputError(fmt::format("--drop: must be in [0, 1) (got {})", a.drop));
   if (a.glints < 0) throw model::InputError(fmt::format("--glints: must be >= 0 (got {})", a.glints));
-  if (a.sphere_radius_mm < 0 || !std::isfinite(a.sphere_radius_mm)) {
-    throw model::InputError(fmt::format("--sphere-radius-mm: must be a positive radius (got {})", a.sphere_radius_mm));
-  }
   if (a.camera.empty() == a.device.empty()) throw model::InputError("render-spots: give one of --camera or --device");
-  if (!a.ball_at_mm.empty() && a.sphere_radius_mm == 0) {
-    throw model::InputError("--ball-at: needs --sphere-radius-mm (the ball's radius)");
-  }
-  for (const double v : a.ball_at_mm) {
-    if (!(std::abs(v) <= 5.0)) throw model::InputError(fmt::format("--ball-at: {} mm is not near the cornea position (+-5 mm)", v));
-  }
   const auto cfg = model::LoadConfig(a.config);
-  model::Surface surface = model::Biconic{cfg.cornea};
-  if (a.sphere_radius_mm > 0) {  // a reference ball instead of the configured cornea, its vertex at --ball-at
-    model::Sphere ball;
-    ball.radius_mm = a.sphere_radius_mm;
-    if (!a.ball_at_mm.empty()) {
-      ball.x0_mm = a.ball_at_mm[0];
-      ball.y0_mm = a.ball_at_mm[1];
-      ball.z0_mm = a.ball_at_mm[2];
-    }
-    surface = ball;
-  }
+  const model::Surface surface = SurfaceToImage(cfg, a.sphere_radius_mm, a.ball_at_mm);
   model::Device device;
   if (!a.device.empty()) {
     device = model::LoadDevice(a.device).device;

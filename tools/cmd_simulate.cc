@@ -7,6 +7,7 @@
 #include "model/io.h"
 #include "tools/commands.h"
 #include "tools/csv.h"
+#include "tools/surface_option.h"
 #include "topo/sweep.h"
 
 namespace topocal::tools {
@@ -21,36 +22,17 @@ struct SimulateArgs {
 
 void Run(const SimulateArgs& a) {
   if (std::isnan(a.sigma) == a.device.empty()) throw model::InputError("simulate: give one of --sigma or --device");
-  if (!a.device.empty() || a.sphere_radius_mm > 0 || !a.ball_at_mm.empty()) {
-    if (a.device.empty()) throw model::InputError("--sphere-radius-mm and --ball-at go with --device");
+  if (a.device.empty() && (a.sphere_radius_mm != 0 || !a.ball_at_mm.empty())) {
+    throw model::InputError("--sphere-radius-mm and --ball-at go with --device");
   }
   if (!std::isnan(a.sigma) && !std::isfinite(a.sigma)) throw model::InputError("--sigma: must be a finite number");
-  if (!a.ball_at_mm.empty() && a.sphere_radius_mm == 0) {
-    throw model::InputError("--ball-at: needs --sphere-radius-mm (the ball's radius)");
-  }
-  if (a.sphere_radius_mm < 0 || !std::isfinite(a.sphere_radius_mm)) {
-    throw model::InputError(fmt::format("--sphere-radius-mm: must be a positive radius (got {})", a.sphere_radius_mm));
-  }
-  for (const double v : a.ball_at_mm) {
-    if (!(std::abs(v) <= 5.0)) throw model::InputError(fmt::format("--ball-at: {} mm is not near the cornea position (+-5 mm)", v));
-  }
   const auto cfg = model::LoadConfig(a.config);
+  const model::Surface surface = SurfaceToImage(cfg, a.sphere_radius_mm, a.ball_at_mm);
   model::SyntheticImage image;
   if (a.device.empty()) {
     image = topo::SimulateSpots(cfg, a.sigma);
   } else {
     const auto device = model::LoadDevice(a.device).device;
-    model::Surface surface = model::Biconic{cfg.cornea};
-    if (a.sphere_radius_mm > 0) {
-      model::Sphere ball;
-      ball.radius_mm = a.sphere_radius_mm;
-      if (!a.ball_at_mm.empty()) {
-        ball.x0_mm = a.ball_at_mm[0];
-        ball.y0_mm = a.ball_at_mm[1];
-        ball.z0_mm = a.ball_at_mm[2];
-      }
-      surface = ball;
-    }
     const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
     image = model::SynthesizeImage(surface, device, cfg.topographer, design.targets);
     image.failures.insert(image.failures.begin(), design.failures.begin(), design.failures.end());
