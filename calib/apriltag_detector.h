@@ -47,4 +47,8 @@ struct AprilGridDetections {
 // `gray` is CV_8UC1. Never throws for image content.
 AprilGridDetections DetectAprilGrid(const cv::Mat& gray, const AprilGridLayout& grid, const DetectionOptions& options);
 
+// The last step of both AprilGrid detectors (libapriltag's and the Kalibr-print one): tags sorted by index, a tag
+// id seen twice dropped (both: a misdetection of one of them, which is not guessed) with its reason, the summary.
+void FinishAprilGridDetections(const AprilGridLayout& grid, AprilGridDetections* detections);
+
 }  // namespace topocal::calib

@@ -108,23 +108,7 @@ AprilGridDetections DetectKalibrAprilGrid(const cv::Mat& gray, const AprilGridLa
     }
     result.tags.push_back(tag);
   }
-  std::sort(result.tags.begin(), result.tags.end(),
-            [](const TagDetection& a, const TagDetection& b) { return a.tag_index < b.tag_index; });
-  // A tag id seen twice is a misdetection of one of them: drop both rather than guess.
-  std::vector<TagDetection> unique;
-  for (size_t i = 0; i < result.tags.size(); ++i) {
-    const bool dup = (i > 0 && result.tags[i - 1].tag_index == result.tags[i].tag_index) ||
-                     (i + 1 < result.tags.size() && result.tags[i + 1].tag_index == result.tags[i].tag_index);
-    if (dup) {
-      ++result.rejected;
-      result.reasons.push_back(
-          fmt::format("tag id {}: seen twice, both left out", result.tags[i].tag_index + grid.first_tag_id));
-    } else {
-      unique.push_back(result.tags[i]);
-    }
-  }
-  result.tags = std::move(unique);
-  result.message = fmt::format("{}/{} tags ({} rejected)", result.tags.size(), grid.NumTags(), result.rejected);
+  FinishAprilGridDetections(grid, &result);
   return result;
 }
 
