@@ -21,21 +21,28 @@ bool Sphere::Evaluate(double x_mm, double y_mm, SurfaceDerivatives* d) const noe
   return true;
 }
 
+namespace {
+// Sag, gradient and Hessian of any surface whose SagAndGradient is exact in jets: the jets of the gradient over
+// (x, y) are the Hessian (symmetrised).
+template <typename S>
+bool EvaluateByJets(const S& surface, double x, double y, SurfaceDerivatives* d) noexcept {
+  using Jet = ceres::Jet<double, 2>;
+  Jet z, zx, zy;
+  if (!surface.SagAndGradient(Jet(x, 0), Jet(y, 1), &z, &zx, &zy)) return false;
+  d->z = z.a;
+  d->zx = zx.a;
+  d->zy = zy.a;
+  d->zxx = zx.v[0];
+  d->zxy = 0.5 * (zx.v[1] + zy.v[0]);
+  d->zyy = zy.v[1];
+  return true;
+}
+}  // namespace
+
 bool Biconic::Evaluate(double x, double y, SurfaceDerivatives* d) const noexcept {
-  if (Tilted()) {
-    // The tilted sag has no closed form; its gradient from the kernel in jets carries the exact Hessian
-    // (d/dx, d/dy of z_x and z_y), since the kernel's final Newton step makes z exact to first order.
-    using Jet = ceres::Jet<double, 2>;
-    Jet z, zx, zy;
-    if (!SagAndGradient(Jet(x, 0), Jet(y, 1), &z, &zx, &zy)) return false;
-    d->z = z.a;
-    d->zx = zx.a;
-    d->zy = zy.a;
-    d->zxx = zx.v[0];
-    d->zxy = 0.5 * (zx.v[1] + zy.v[0]);
-    d->zyy = zy.v[1];
-    return true;
-  }
+  // The tilted sag has no closed form; its gradient from the kernel in jets carries the exact Hessian, since the
+  // kernel's final Newton step makes z exact to first order.
+  if (Tilted()) return EvaluateByJets(*this, x, y, d);
   const double alpha = params.alpha_deg * M_PI / 180.0;
   const double ca = std::cos(alpha), sa = std::sin(alpha);
   const double cx = 1.0 / params.rx_mm, cy = 1.0 / params.ry_mm;
@@ -92,16 +99,7 @@ namespace topocal::model {
 
 bool Freeform::Evaluate(double x, double y, SurfaceDerivatives* d) const noexcept {
   // Every term is analytic in its gradient; jets through the gradient give the exact Hessian.
-  using Jet = ceres::Jet<double, 2>;
-  Jet z, zx, zy;
-  if (!SagAndGradient(Jet(x, 0), Jet(y, 1), &z, &zx, &zy)) return false;
-  d->z = z.a;
-  d->zx = zx.a;
-  d->zy = zy.a;
-  d->zxx = zx.v[0];
-  d->zxy = 0.5 * (zx.v[1] + zy.v[0]);
-  d->zyy = zy.v[1];
-  return true;
+  return EvaluateByJets(*this, x, y, d);
 }
 
 }  // namespace topocal::model
