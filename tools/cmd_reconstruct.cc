@@ -14,6 +14,7 @@
 #include "model/io.h"
 #include "model/null_screen.h"
 #include "tools/commands.h"
+#include "tools/surface_option.h"
 #include "tools/csv.h"
 #include "tools/map_output.h"
 #include "tools/report_json.h"
@@ -197,21 +198,12 @@ void AddReconstructCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--json", *json_out, "Write the result as JSON");
   cmd->add_option("--maps", *maps, "Write power and height maps (CSV + PNG) into this directory");
-  auto biconic_fit = std::make_shared<std::string>();
-  cmd->add_option("--biconic-fit", *biconic_fit,
-                  "Biconic fit: free-apex (apex position and tilt of the eye free; default) or paper (the paper's "
-                  "6 parameters, apex on the axis); overrides reconstruction.biconic_fit")
-      ->check(CLI::IsMember({"free-apex", "paper"}));
-  auto surface_model = std::make_shared<std::string>();
-  cmd->add_option("--surface-model", *surface_model,
-                  "Surface: polynomial (the paper's Psi; default) or spline (Psi plus a GCV-smoothed spline "
-                  "residual: keratoconus, ablations); overrides reconstruction.surface_model")
-      ->check(CLI::IsMember({"polynomial", "spline"}));
+  auto overrides = std::make_shared<ReconstructionOverrides>();
+  overrides->AddTo(cmd);
   cmd->add_flag("--truth", *truth, "Compare with the configuration's cornea (pv and rms of the height difference)");
   cmd->callback([=] {
     auto cfg = model::LoadConfig(*config);
-    if (!biconic_fit->empty()) cfg.reconstruction.biconic_fit = *biconic_fit;
-    if (!surface_model->empty()) cfg.reconstruction.surface_model = *surface_model;
+    overrides->ApplyTo(&cfg);
     if (in->spots.empty() == in->image.empty()) throw model::InputError("reconstruct: give one of --spots or --image");
     if (in->uncertainty_samples > 0 && (in->image.empty() || in->calibration.empty())) {
       throw model::InputError("--uncertainty needs --image and --calibration");

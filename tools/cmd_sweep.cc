@@ -6,6 +6,7 @@
 #include "model/topographer_camera.h"
 #include "pipeline/closed_loop.h"
 #include "tools/commands.h"
+#include "tools/surface_option.h"
 #include "tools/map_output.h"
 #include "tools/report_json.h"
 #include "topo/sweep.h"
@@ -140,16 +141,8 @@ void AddSweepCommand(CLI::App& app) {
   cmd->add_option("--config", *config, "Topographer configuration (JSON)")->required();
   cmd->add_option("--json", *json_out, "Write the sweep as JSON");
   cmd->add_option("--maps", *maps, "Write every sigma's power, height and difference maps (CSV + PNG) here");
-  auto biconic_fit = std::make_shared<std::string>();
-  cmd->add_option("--biconic-fit", *biconic_fit,
-                  "Biconic fit: free-apex (apex position and tilt of the eye free; default) or paper (the paper's "
-                  "6 parameters, apex on the axis); overrides reconstruction.biconic_fit")
-      ->check(CLI::IsMember({"free-apex", "paper"}));
-  auto surface_model = std::make_shared<std::string>();
-  cmd->add_option("--surface-model", *surface_model,
-                  "Surface: polynomial (the paper's Psi; default) or spline (Psi plus a GCV-smoothed spline "
-                  "residual: keratoconus, ablations); overrides reconstruction.surface_model")
-      ->check(CLI::IsMember({"polynomial", "spline"}));
+  auto overrides = std::make_shared<ReconstructionOverrides>();
+  overrides->AddTo(cmd);
   auto correct = std::make_shared<bool>(false);
   auto camera = std::make_shared<std::string>();
   cmd->add_flag("--correct", *correct,
@@ -158,8 +151,7 @@ void AddSweepCommand(CLI::App& app) {
   cmd->add_option("--camera", *camera, "Topographer camera (JSON) for --correct; default: 1.12 um pitch, a from the config");
   cmd->callback([=] {
     auto cfg = model::LoadConfig(*config);
-    if (!biconic_fit->empty()) cfg.reconstruction.biconic_fit = *biconic_fit;
-    if (!surface_model->empty()) cfg.reconstruction.surface_model = *surface_model;
+    overrides->ApplyTo(&cfg);
     if (!camera->empty() && !*correct) throw model::InputError("--camera goes with --correct");
     // Inputs are checked before any work: a bad camera file fails at once, not after the sweep.
     pipeline::ClosedLoopOptions options;

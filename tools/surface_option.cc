@@ -33,4 +33,20 @@ model::Surface SurfaceToImage(const model::Config& config, double sphere_radius_
   return ball;
 }
 
+void ReconstructionOverrides::AddTo(CLI::App* cmd) {
+  cmd->add_option("--biconic-fit", biconic_fit,
+                  "Biconic fit: free-apex (apex position and tilt of the eye free; default) or paper (the paper's "
+                  "6 parameters, apex on the axis); overrides reconstruction.biconic_fit")
+      ->check(CLI::IsMember({"free-apex", "paper"}));
+  cmd->add_option("--surface-model", surface_model,
+                  "Surface: polynomial (the paper's Psi; default) or spline (Psi plus a GCV-smoothed spline "
+                  "residual: keratoconus, ablations); overrides reconstruction.surface_model")
+      ->check(CLI::IsMember({"polynomial", "spline"}));
+}
+
+void ReconstructionOverrides::ApplyTo(model::Config* config) const {
+  if (!biconic_fit.empty()) config->reconstruction.biconic_fit = biconic_fit;
+  if (!surface_model.empty()) config->reconstruction.surface_model = surface_model;
+}
+
 }  // namespace topocal::tools

@@ -1,7 +1,11 @@
 #pragma once
 // The surface a simulation verb images: the configuration's cornea, or a reference ball (--sphere-radius-mm R) with
 // its vertex at --ball-at X Y Z (default the origin). One place for both options' checks (simulate, render-spots).
+#include <memory>
+#include <string>
 #include <vector>
+
+#include <CLI/CLI.hpp>
 
 #include "model/config.h"
 #include "model/surface.h"
@@ -11,5 +15,12 @@ namespace topocal::tools {
 // Throws model::InputError naming the option for a non-physical radius, --ball-at without a radius, or a vertex
 // more than 5 mm from the cornea position.
 model::Surface SurfaceToImage(const model::Config& config, double sphere_radius_mm, const std::vector<double>& ball_at_mm);
+
+// --biconic-fit and --surface-model (reconstruct, sweep): each overrides its configuration key when given.
+struct ReconstructionOverrides {
+  std::string biconic_fit, surface_model;
+  void AddTo(CLI::App* cmd);
+  void ApplyTo(model::Config* config) const;
+};
 
 }  // namespace topocal::tools

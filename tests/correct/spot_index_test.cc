@@ -41,6 +41,21 @@ std::vector<Case> Cases() {
   return cases;
 }
 
+// Every real spot has its own identity, no glint (ring 0 in the truth) has one, no real spot is left unassigned.
+void ExpectEveryIdentityRight(const SpotIndexing& idx, const std::vector<SpotToRender>& truth) {
+  int wrong = 0, glints_assigned = 0;
+  for (const auto& s : idx.spots) {
+    const auto& t = truth[s.detection].id;
+    if (t.ring == 0) ++glints_assigned;
+    else if (!(t == s.id)) ++wrong;
+  }
+  int real_unassigned = 0;
+  for (const int i : idx.unassigned_detections) real_unassigned += truth[i].id.ring != 0;
+  EXPECT_EQ(wrong, 0);
+  EXPECT_EQ(glints_assigned, 0);
+  EXPECT_EQ(real_unassigned, 0) << idx.message;
+}
+
 TEST(SpotIndex, AllCorrectWithDropsAndGlints) {
   const auto cfg = testing::PaperConfig();
   const auto camera = testing::DefaultCamera();
@@ -54,17 +69,7 @@ TEST(SpotIndex, AllCorrectWithDropsAndGlints) {
     for (const auto& s : perturbed) mm.push_back(camera.DetectionPlaneFromPixel(s.centre_px));
     const auto idx = IndexSpots(mm, cfg.ideal_image);
     ASSERT_TRUE(idx.ok) << idx.message;
-    int wrong = 0, glints_assigned = 0;
-    for (const auto& s : idx.spots) {
-      const auto& t = perturbed[s.detection].id;
-      if (t.ring == 0) ++glints_assigned;
-      else if (!(t == s.id)) ++wrong;
-    }
-    int real_unassigned = 0;
-    for (const int i : idx.unassigned_detections) real_unassigned += perturbed[i].id.ring != 0;
-    EXPECT_EQ(wrong, 0);
-    EXPECT_EQ(glints_assigned, 0);
-    EXPECT_EQ(real_unassigned, 0) << idx.message;
+    ExpectEveryIdentityRight(idx, perturbed);
     EXPECT_EQ(idx.spots.size() + idx.missing.size(), static_cast<size_t>(cfg.ideal_image.SpotCount()));
   }
 }
@@ -94,17 +99,7 @@ TEST(SpotIndex, AllCorrectOnMisalignedDevices) {
       for (const auto& s : perturbed) mm.push_back(testing::DefaultCamera().DetectionPlaneFromPixel(s.centre_px));
       const auto idx = IndexSpots(mm, cfg.ideal_image);
       ASSERT_TRUE(idx.ok) << idx.message;
-      int wrong = 0, glints_assigned = 0;
-      for (const auto& s : idx.spots) {
-        const auto& t = perturbed[s.detection].id;
-        if (t.ring == 0) ++glints_assigned;
-        else if (!(t == s.id)) ++wrong;
-      }
-      int real_unassigned = 0;
-      for (const int i : idx.unassigned_detections) real_unassigned += perturbed[i].id.ring != 0;
-      EXPECT_EQ(wrong, 0);
-      EXPECT_EQ(glints_assigned, 0);
-      EXPECT_EQ(real_unassigned, 0) << idx.message;
+      ExpectEveryIdentityRight(idx, perturbed);
     }
   }
 }
