@@ -11,6 +11,7 @@
 #include <opencv2/calib3d.hpp>
 
 #include "calib/cost_functions.h"
+#include "calib/jacobian_covariance.h"
 #include "model/distortion.h"
 
 namespace topocal::calib {
@@ -236,52 +237,50 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
   result.free_parameters = free_parameters;
   result.residual_variance_px2 = ssr / (2 * inliers - free_parameters);
 
-  // Covariance of the camera parameters at the solution (the poses take part in J but are not reported).
+  // Covariance of the camera parameters at the solution (the poses take part in J but are not reported). Every
+  // pair of reported parameters, cross terms included: the covariance is what carries the calibration's uncertainty
+  // to the clinic (pipeline/uncertainty.h), and k1, k2, k3 are strongly correlated.
   ceres::Problem problem;
   BuildProblem(problem, p, views, free, o);
-  ceres::Covariance::Options cov_options;
-  cov_options.algorithm_type = ceres::DENSE_SVD;
-  cov_options.null_space_rank = 0;  // a rank-deficient Jacobian is an error, not a pseudo-inverse
-  cov_options.num_threads = 1;
-  ceres::Covariance covariance(cov_options);
-  std::vector<std::pair<const double*, const double*>> blocks;
-  std::vector<std::pair<double*, int>> reported = {
-      {p.intrinsics.data(), kFx}, {p.dist.data(), kK1}, {p.centre.data(), kEx}};
   std::array<double, kNumCameraParameters> stddev{};
-  std::vector<std::pair<double*, int>> active;
-  for (const auto& [block, first] : reported) {
-    if (!problem.IsParameterBlockConstant(block)) active.emplace_back(block, first);
+  struct Reported {
+    double* block;
+    int first;  // index of its first component in kParameterNames
+    int size;
+  };
+  const Reported reported[] = {
+      {p.intrinsics.data(), kFx, kNumIntrinsics}, {p.dist.data(), kK1, kNumDistortion}, {p.centre.data(), kEx, kNumCentre}};
+  std::vector<double*> blocks;
+  std::array<int, kNumCameraParameters> row{};  // tangent row of each camera parameter, -1 when held
+  row.fill(-1);
+  int next_row = 0;
+  for (const auto& r : reported) {
+    if (problem.IsParameterBlockConstant(r.block)) continue;
+    blocks.push_back(r.block);
+    for (int i = 0; i < r.size; ++i) {
+      if (free[static_cast<size_t>(r.first + i)]) row[static_cast<size_t>(r.first + i)] = next_row++;
+    }
   }
-  // Every pair of reported blocks, cross terms included: the covariance is what carries the calibration's
-  // uncertainty to the clinic (pipeline/uncertainty.h), and k1, k2, k3 are strongly correlated.
-  for (size_t a = 0; a < active.size(); ++a) {
-    for (size_t b = a; b < active.size(); ++b) blocks.emplace_back(active[a].first, active[b].first);
+  int warp_row = -1;
+  if (o.fit_board_warp) {
+    blocks.push_back(p.warp.data());
+    warp_row = next_row;
+    next_row += kNumWarp;
   }
-  if (o.fit_board_warp) blocks.emplace_back(p.warp.data(), p.warp.data());
-  if (!covariance.Compute(blocks, &problem)) {
+  for (auto& pose : p.poses) blocks.push_back(pose.data());
+  std::string covariance_why;
+  const auto covariance = TangentCovariance(problem, blocks, &covariance_why);
+  if (!covariance) {
     return Failure(CalibrationStatus::kCovarianceFailed,
                    "the Jacobian is rank-deficient at the solution: some free parameter is not determined by these "
                    "views (fix it or add views)");
   }
-  const auto block_size = [](int first) { return first == kFx ? kNumIntrinsics : first == kK1 ? kNumDistortion : kNumCentre; };
   result.covariance = Eigen::MatrixXd::Zero(kNumCameraParameters, kNumCameraParameters);
-  for (size_t a = 0; a < active.size(); ++a) {
-    for (size_t b = a; b < active.size(); ++b) {
-      const auto [block_a, first_a] = active[a];
-      const auto [block_b, first_b] = active[b];
-      const int size_a = block_size(first_a), size_b = block_size(first_b);
-      std::vector<double> cov(static_cast<size_t>(size_a * size_b));
-      covariance.GetCovarianceBlock(block_a, block_b, cov.data());
-      for (int i = 0; i < size_a; ++i) {
-        for (int j = 0; j < size_b; ++j) {
-          const int gi = first_a + i, gj = first_b + j;
-          // Ceres gives zero rows for parameters held constant inside a block (SubsetManifold); keep them zero.
-          const bool both_free = free[static_cast<size_t>(gi)] && free[static_cast<size_t>(gj)];
-          const double c = both_free ? cov[static_cast<size_t>(i * size_b + j)] * result.residual_variance_px2 : 0.0;
-          result.covariance(gi, gj) = c;
-          result.covariance(gj, gi) = c;
-        }
-      }
+  for (int i = 0; i < kNumCameraParameters; ++i) {
+    for (int j = 0; j < kNumCameraParameters; ++j) {
+      const int ri = row[static_cast<size_t>(i)], rj = row[static_cast<size_t>(j)];
+      // Parameters held fixed have zero rows.
+      if (ri >= 0 && rj >= 0) result.covariance(i, j) = covariance->matrix(ri, rj) * result.residual_variance_px2;
     }
   }
   for (int i = 0; i < kNumCameraParameters; ++i) {
@@ -303,13 +302,12 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
                                  stddev[static_cast<size_t>(i)], !free[static_cast<size_t>(i)]});
   }
   if (o.fit_board_warp) {
-    std::array<double, kNumWarp * kNumWarp> warp_cov{};
-    covariance.GetCovarianceBlock(p.warp.data(), p.warp.data(), warp_cov.data());
+    const auto& warp_cov = covariance->matrix;
     BoardWarpEstimate w;
     w.sag_x_mm = p.warp[0];
     w.sag_y_mm = p.warp[1];
-    w.sag_x_stddev_mm = std::sqrt(std::max(0.0, warp_cov[0] * result.residual_variance_px2));
-    w.sag_y_stddev_mm = std::sqrt(std::max(0.0, warp_cov[3] * result.residual_variance_px2));
+    w.sag_x_stddev_mm = std::sqrt(std::max(0.0, warp_cov(warp_row, warp_row) * result.residual_variance_px2));
+    w.sag_y_stddev_mm = std::sqrt(std::max(0.0, warp_cov(warp_row + 1, warp_row + 1) * result.residual_variance_px2));
     w.centre_mm = p.warp_geometry.centre_mm;
     w.half_size_mm = p.warp_geometry.half_size_mm;
     result.board_warp = w;

@@ -8,8 +8,9 @@
 
 #include <ceres/ceres.h>
 #include <ceres/normal_prior.h>
-#include <Eigen/Cholesky>
 #include <fmt/format.h>
+
+#include "calib/jacobian_covariance.h"
 
 namespace topocal::calib {
 namespace {
@@ -320,33 +321,18 @@ DeviceFit FitDevice(const model::Device& nominal, const model::TopographerParams
   fit.stddev_scale = std::max(1.0, std::sqrt(fit.chi2_per_dof));
 
   // Covariance of the free parameters: (J^T J)^-1 from the Jacobian of every residual (spots and priors) in the
-  // tangent space of the blocks. Computed here rather than with ceres::Covariance, whose SVD truncates the weak
-  // directions (it returned near-zero variances for the principal point, whose partner directions are exactly
-  // those weak ones); the columns are scaled to unit norm first, since sigma (~1e-5 mm^-2) and the pixel and degree
-  // parameters differ by ten orders of magnitude.
+  // tangent space of the blocks (calib/jacobian_covariance.h says why not ceres::Covariance).
   std::vector<double*> blocks = {blk.pose.data(), blk.principal.data(), &blk.a};
   if (options.fit_radial_scale) blocks.push_back(&blk.radial_scale);
   if (options.fit_distortion) blocks.push_back(blk.distortion.data());
   for (auto& b : blk.balls) blocks.push_back(b.data());
-  ceres::Problem::EvaluateOptions eval;
-  eval.parameter_blocks = blocks;
-  eval.num_threads = 1;
-  ceres::CRSMatrix crs;
-  if (!problem.Evaluate(eval, nullptr, nullptr, nullptr, &crs)) return fail("the device fit's Jacobian could not be evaluated");
-  Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
-  for (int r = 0; r < crs.num_rows; ++r) {
-    for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) jac(r, crs.cols[k]) = crs.values[k];
+  std::string covariance_why;
+  const auto covariance = TangentCovariance(problem, blocks, &covariance_why);
+  if (!covariance) {
+    return fail("the device fit's covariance failed: " + covariance_why +
+                " (a parameter is not determined by these images)");
   }
-  const Eigen::VectorXd col_norm = jac.colwise().norm().transpose().cwiseMax(1e-300);
-  const Eigen::MatrixXd scaled = jac * col_norm.cwiseInverse().asDiagonal();
-  const Eigen::MatrixXd info = scaled.transpose() * scaled;
-  Eigen::LDLT<Eigen::MatrixXd> ldlt(info);
-  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 1e-14 * ldlt.vectorD().maxCoeff())) {
-    return fail("the device fit's covariance is singular: a parameter is not determined by these images");
-  }
-  const Eigen::MatrixXd tangent_cov = col_norm.cwiseInverse().asDiagonal() *
-                                      ldlt.solve(Eigen::MatrixXd::Identity(info.rows(), info.cols())) *
-                                      col_norm.cwiseInverse().asDiagonal();
+  const Eigen::MatrixXd& tangent_cov = covariance->matrix;
   // Which ambient components are free, per block, in tangent order.
   std::map<const double*, std::vector<int>> free_components;
   {
