@@ -3,14 +3,12 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
 #include <filesystem>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <stdexcept>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include <fmt/format.h>
@@ -19,6 +17,7 @@
 
 #include "model/config.h"
 #include "model/io.h"
+#include "model/parallel.h"
 #include "tools/commands.h"
 #include "tools/data_dir.h"
 #include "tools/file_glob.h"
@@ -99,8 +98,7 @@ void RunBatch(const BatchArgs& a) {
     }
   }
 
-  const unsigned hardware = std::max(1u, std::thread::hardware_concurrency());
-  const unsigned jobs = a.jobs > 0 ? static_cast<unsigned>(a.jobs) : hardware;
+  const unsigned jobs = static_cast<unsigned>(a.jobs > 0 ? a.jobs : model::AvailableCores());
   // Parallel across units, one core each: OpenCV's own thread pool would only compete with the workers.
   if (jobs > 1) cv::setNumThreads(1);
   const bool tty = ::isatty(STDERR_FILENO) != 0;
@@ -130,28 +128,22 @@ void RunBatch(const BatchArgs& a) {
     }
     if (tty && finished == 0) draw_bar("");  // the empty bar at once: a unit takes seconds
   }
-  std::atomic<size_t> next{0};
-  const auto worker = [&] {
-    for (size_t i = next++; i < items.size(); i = next++) {
-      auto& item = items[i];
-      if (!item.error.empty()) continue;
-      try {
-        const auto outcome = CalibrateUnit(*item.request, [&](const std::string& line) {
-          std::lock_guard lock(mutex);
-          if (tty) fmt::print(stderr, "\n");
-          fmt::print(stderr, "topocal unit: {}\n", line);
-        });
-        item.summary = outcome.summary;
-      } catch (const std::exception& e) {
-        item.error = e.what();
-      }
-      std::lock_guard lock(mutex);
-      report(item);
+  model::ParallelFor(items.size(), static_cast<int>(jobs), [&](size_t i) {
+    auto& item = items[i];
+    if (!item.error.empty()) return;
+    try {
+      const auto outcome = CalibrateUnit(*item.request, [&](const std::string& line) {
+        std::lock_guard lock(mutex);
+        if (tty) fmt::print(stderr, "\n");
+        fmt::print(stderr, "topocal unit: {}\n", line);
+      });
+      item.summary = outcome.summary;
+    } catch (const std::exception& e) {
+      item.error = e.what();
     }
-  };
-  std::vector<std::thread> threads;
-  for (unsigned t = 0; t < std::min<size_t>(jobs, items.size()); ++t) threads.emplace_back(worker);
-  for (auto& t : threads) t.join();
+    std::lock_guard lock(mutex);
+    report(item);
+  });
 
   for (const auto& item : items) {
     for (const auto& line : item.summary) fmt::print("{}\n", line);
