@@ -1,6 +1,8 @@
 #include "calib/detect.h"
 
+#include <algorithm>
 #include <cmath>
+#include <mutex>
 
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
@@ -11,6 +13,7 @@
 #include "calib/checkerboard_detector.h"
 #include "calib/kalibr_grid_detector.h"
 #include "model/io.h"
+#include "model/parallel.h"
 
 namespace topocal::calib {
 
@@ -108,6 +111,46 @@ std::optional<ViewObservations> DetectTargetInFile(const TargetDescription& targ
   auto view = DetectTarget(target, image, options);
   if (view) view->image_path = image_path;
   return view;
+}
+
+std::vector<FileDetection> DetectTargetInFiles(const TargetDescription& target, const std::vector<std::string>& paths,
+                                               const FileSetOptions& options) {
+  std::vector<FileDetection> out(paths.size());
+  std::mutex callback_mutex;
+  // Each image is read, detected and released inside its own task: at most `jobs` images are in memory at once.
+  model::ParallelFor(paths.size(), options.jobs, [&](size_t i) {
+    FileDetection& f = out[i];
+    f.path = paths[i];
+    cv::Mat image;
+    try {
+      image = cv::imread(f.path, cv::IMREAD_GRAYSCALE);
+    } catch (const cv::Exception& e) {
+      image.release();
+      f.skipped = fmt::format("cannot be read as an image ({})", e.err);
+    }
+    if (image.empty()) {
+      if (f.skipped.empty()) f.skipped = "cannot be read as an image";
+    } else {
+      f.width_px = image.cols;
+      f.height_px = image.rows;
+      f.detection = DetectTargetDetailed(target, image, options.detection);
+      if (f.detection.view) f.detection.view->image_path = f.path;
+    }
+    if (options.on_done) {
+      const std::lock_guard lock(callback_mutex);
+      options.on_done(i, f);
+    }
+  });
+  if (options.require_same_size) {
+    const auto first = std::find_if(out.begin(), out.end(), [](const FileDetection& f) { return f.skipped.empty(); });
+    for (auto it = first; it != out.end(); ++it) {
+      if (!it->skipped.empty() || (it->width_px == first->width_px && it->height_px == first->height_px)) continue;
+      it->skipped = fmt::format("{} x {} px, not the {} x {} px of the first image ({})", it->width_px, it->height_px,
+                                first->width_px, first->height_px, first->path);
+      it->detection.view.reset();
+    }
+  }
+  return out;
 }
 
 }  // namespace topocal::calib

@@ -13,6 +13,7 @@
 // not on the grid are dropped; each tag's corners are refined by fitting its four edges. Partial views keep their
 // corner ids (4 * (tag id - firstTagId) + k); every dropped tag or corner has a line in DetectionResult::reasons.
 // All pixel coordinates follow OpenCV's convention (calib/observations.h); libapriltag's are converted.
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -65,5 +66,29 @@ std::optional<ViewObservations> DetectTarget(const TargetDescription& target, co
 // file if it cannot be read as an image.
 std::optional<ViewObservations> DetectTargetInFile(const TargetDescription& target, const std::string& image_path,
                                                    const DetectionOptions& options = {});
+
+// One image of a set: what the detector made of it, or why it was not used.
+struct FileDetection {
+  std::string path;
+  DetectionResult detection;  // detection.view is set (with image_path) when the target was found
+  std::string skipped;        // non-empty when the image was not used: unreadable, or not the set's size
+  int width_px = 0, height_px = 0;
+};
+
+struct FileSetOptions {
+  DetectionOptions detection;
+  int jobs = 0;  // images detected at once; 0 = every available core. The results do not depend on it.
+  // Views of one camera have one size: images whose size differs from the first readable one (in the order given)
+  // are skipped with a reason naming both sizes.
+  bool require_same_size = true;
+  // Called once per image as its detection finishes (in completion order, one call at a time), for progress lines.
+  std::function<void(size_t index, const FileDetection&)> on_done;
+};
+
+// Reads and detects every image of a calibration set, several at once. Results are in the order of `paths` and
+// identical whatever `jobs`. Never throws for an image's content or an unreadable file: those are skipped with
+// their reason; the caller decides whether enough views remain.
+std::vector<FileDetection> DetectTargetInFiles(const TargetDescription& target, const std::vector<std::string>& paths,
+                                               const FileSetOptions& options = {});
 
 }  // namespace topocal::calib

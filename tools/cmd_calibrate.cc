@@ -8,7 +8,6 @@
 
 #include <fmt/format.h>
 #include <glog/logging.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include "calib/calibrate.h"
 #include "calib/calibration_file.h"
@@ -33,6 +32,7 @@ struct CalibrateArgs {
   std::vector<std::string> fix;
   std::string loss = "huber";
   double loss_scale_px = 1.0, outlier_threshold = 4.0;
+  int jobs = 0;
 };
 
 // The two halves' difference over the image as a map: one series per band of difference, so the existing scatter
@@ -104,39 +104,29 @@ void Run(const CalibrateArgs& a) {
   if (a.single_view && paths.size() != 1) {
     throw model::InputError(fmt::format("--single-view takes one image; '{}' matches {}", a.images, paths.size()));
   }
+  calib::FileSetOptions detect;
+  detect.jobs = a.jobs;
+  if (paths.size() > kProgressFromImages) {
+    detect.on_done = [&, done = size_t{0}](size_t, const calib::FileDetection& f) mutable {
+      fmt::print(stderr, "topocal calibrate: [{}/{}] {}: {}\n", ++done, paths.size(), f.path,
+                 f.skipped.empty() ? f.detection.message : f.skipped);
+    };
+  }
   std::vector<calib::ViewObservations> views;
   std::vector<std::string> view_paths;
-  cv::Size image_size;  // of the first readable image: the camera's; other sizes are another camera or a crop
-  for (size_t i = 0; i < paths.size(); ++i) {
-    cv::Mat image;
-    try {
-      image = cv::imread(paths[i], cv::IMREAD_GRAYSCALE);
-    } catch (const cv::Exception&) {
-      image.release();  // a corrupt file is reported below like an unreadable one
-    }
-    if (image.empty()) {
-      fmt::print(stderr, "topocal calibrate: skipping {}: cannot be read as an image\n", paths[i]);
+  for (auto& f : calib::DetectTargetInFiles(target, paths, detect)) {
+    if (!f.skipped.empty()) {
+      fmt::print(stderr, "topocal calibrate: skipping {}: {}\n", f.path, f.skipped);
       continue;
     }
-    if (image_size.empty()) image_size = image.size();
-    if (image.size() != image_size) {
-      fmt::print(stderr, "topocal calibrate: skipping {}: {} x {} px, not the {} x {} px of the first image\n",
-                 paths[i], image.cols, image.rows, image_size.width, image_size.height);
+    for (const auto& reason : f.detection.reasons) fmt::print(stderr, "topocal calibrate: {}: {}\n", f.path, reason);
+    if (!f.detection.view) {
+      fmt::print(stderr, "topocal calibrate: skipping {}: no target found{}\n", f.path,
+                 f.detection.message.empty() ? "" : ": " + f.detection.message);
       continue;
     }
-    const auto found = calib::DetectTargetDetailed(target, image);
-    for (const auto& reason : found.reasons) fmt::print(stderr, "topocal calibrate: {}: {}\n", paths[i], reason);
-    if (!found.view) {
-      fmt::print(stderr, "topocal calibrate: skipping {}: no target found{}\n", paths[i],
-                 found.message.empty() ? "" : ": " + found.message);
-      continue;
-    }
-    views.push_back(*found.view);
-    views.back().image_path = paths[i];
-    view_paths.push_back(paths[i]);
-    if (paths.size() > kProgressFromImages) {
-      fmt::print(stderr, "topocal calibrate: [{}/{}] {}: {}\n", i + 1, paths.size(), paths[i], found.message);
-    }
+    views.push_back(std::move(*f.detection.view));
+    view_paths.push_back(f.path);
   }
 
   calib::CalibrationResult result;
@@ -225,6 +215,9 @@ void AddCalibrateCommand(CLI::App& app) {
   cmd->add_option("--loss-scale-px", a->loss_scale_px, "Robust loss scale, px")->capture_default_str();
   cmd->add_option("--outlier-threshold", a->outlier_threshold, "Reject corners beyond this many robust sigmas")
       ->capture_default_str();
+  cmd->add_option("--jobs", a->jobs, "Images detected at once (0: every available core); the result does not depend on it")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1024));
   cmd->add_option("--out", a->out, "Calibration file (OpenCV FileStorage YAML)")->required();
   cmd->add_option("--json", a->json, "Also write a JSON report");
   cmd->add_option("--cross-validate", a->cross_validate_svg,

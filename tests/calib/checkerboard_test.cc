@@ -1,7 +1,10 @@
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <random>
 
 #include <fmt/format.h>
@@ -153,6 +156,59 @@ TEST(Checkerboard, FindsTheBoardInRealPhotographs) {
     }
   }
   EXPECT_EQ(found, 13);
+}
+
+// A calibration set read and detected on several threads: the same views, bit for bit, as one after the other, in
+// the order given; an unreadable file and an image of another size are skipped with their reason.
+TEST(Checkerboard, ImageSetsAreDetectedInParallelWithTheSameResult) {
+  const auto target = testing::Checkerboard9x6();
+  const auto dir = std::filesystem::temp_directory_path() / fmt::format("topocal_fileset_{}", ::getpid());
+  std::filesystem::create_directories(dir);
+  std::vector<std::string> paths;
+  uint32_t seed = 21;
+  for (const Scene& scene : kScenes) {
+    paths.push_back((dir / fmt::format("view{}.png", paths.size())).string());
+    ASSERT_TRUE(cv::imwrite(paths.back(), AddSensorNoise(Render(target, scene, 0.0, seed).irradiance, 1.0, seed)));
+    ++seed;
+  }
+  paths.push_back((dir / "broken.png").string());
+  std::ofstream(paths.back()) << "not an image";
+  paths.push_back((dir / "small.png").string());
+  cv::Mat small;
+  cv::resize(cv::imread(paths[0], cv::IMREAD_GRAYSCALE), small, cv::Size(), 0.5, 0.5);
+  ASSERT_TRUE(cv::imwrite(paths.back(), small));
+
+  FileSetOptions one, two;
+  one.jobs = 1;
+  two.jobs = 2;
+  size_t callbacks = 0;
+  two.on_done = [&](size_t index, const FileDetection& f) {
+    ++callbacks;
+    EXPECT_EQ(f.path, paths[index]);
+  };
+  const auto serial = DetectTargetInFiles(target, paths, one);
+  const auto parallel = DetectTargetInFiles(target, paths, two);
+  std::filesystem::remove_all(dir);
+  EXPECT_EQ(callbacks, paths.size());
+  ASSERT_EQ(serial.size(), paths.size());
+  ASSERT_EQ(parallel.size(), paths.size());
+  for (size_t i = 0; i < std::size(kScenes); ++i) {
+    SCOPED_TRACE(paths[i]);
+    ASSERT_TRUE(serial[i].detection.view.has_value()) << serial[i].detection.message;
+    ASSERT_TRUE(parallel[i].detection.view.has_value());
+    EXPECT_EQ(parallel[i].detection.view->image_path, paths[i]);
+    const auto& a = serial[i].detection.view->corners;
+    const auto& b = parallel[i].detection.view->corners;
+    ASSERT_EQ(a.size(), b.size());
+    for (size_t c = 0; c < a.size(); ++c) {
+      EXPECT_EQ(a[c].id, b[c].id);
+      EXPECT_EQ(a[c].image_px, b[c].image_px);  // bit for bit
+    }
+  }
+  EXPECT_NE(parallel[4].skipped.find("cannot be read"), std::string::npos) << parallel[4].skipped;
+  EXPECT_NE(parallel[5].skipped.find("not the 640 x 480 px of the first image"), std::string::npos)
+      << parallel[5].skipped;
+  EXPECT_FALSE(parallel[5].detection.view.has_value());
 }
 
 }  // namespace
