@@ -389,7 +389,8 @@ void HarnessCaseRunner::Compare(const topo::Analysis& a, const CorneaData& d, Ha
   r.ok = true;
 }
 
-HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs) {
+HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs,
+                      const std::function<void(std::size_t, std::size_t)>& progress) {
   HarnessRun run;
   run.config = config;
   run.config_sha256 = HarnessConfigSha256(config);
@@ -404,7 +405,7 @@ HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs) {
   run.truth = runner.truth();
   run.cases.resize(mine.size());
   // Each case writes only its own slot, from its own seed: the results do not depend on the number of threads.
-  std::atomic<size_t> next{0};
+  std::atomic<size_t> next{0}, done{0};
   std::exception_ptr error;
   std::mutex error_mutex;
   auto work = [&] {
@@ -415,6 +416,7 @@ HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs) {
         const std::lock_guard lock(error_mutex);
         if (!error) error = std::current_exception();
       }
+      if (progress) progress(++done, mine.size());
     }
   };
   const int threads = std::max(1, std::min<int>(jobs, static_cast<int>(mine.size())));

@@ -215,7 +215,7 @@ void AddCalibrateCommand(CLI::App& app) {
   cmd->add_option("--distance-mm", a->distance_mm, "Nominal target distance from the pinhole, mm (single view)");
   cmd->add_option("--magnification", a->magnification, "Transverse magnification M_T for the Seidel sigma")
       ->capture_default_str();
-  cmd->add_option("--fix", a->fix, "Parameters to hold fixed, comma-separated: fx,fy,cx,cy,k1,k2,p1,p2,k3,ex,ey")
+  cmd->add_option("--fix", a->fix, "Parameters to hold fixed (spaces or commas): fx fy cx cy k1 k2 p1 p2 k3 ex ey")
       ->delimiter(',');
   cmd->add_flag("--fit-centre", a->fit_centre, "Fit the radial distortion centre (Seidel; brown5 needs --fix p1,p2)");
   cmd->add_flag("--robust", a->robust, "Robust loss and iterative outlier rejection");
