@@ -13,6 +13,7 @@
 
 #include "calib/calibration_file.h"
 #include "calib/camera.h"
+#include "calib/distortion_valid_region.h"
 
 namespace topocal::calib {
 
@@ -36,7 +37,9 @@ std::string ExportCalibration(const CalibrationFile& calibration, ExportFormat f
 // Individual writers (the camera must have a zero distortion centre; std::invalid_argument otherwise).
 std::string RosCameraInfoYaml(const CameraModel& camera, const std::string& camera_name);
 std::string KalibrCamchainYaml(const CameraModel& camera, const std::string& ros_topic);
-std::string MrcalCameraModelText(const CameraModel& camera);
+// With `valid_region` (when it does not cover the sensor): mrcal's valid_intrinsics_region, the circle of
+// valid_radius_px about (cx, cy) as a closed 64-gon, which mrcal's tools draw and use to mask.
+std::string MrcalCameraModelText(const CameraModel& camera, const DistortionValidRegion* valid_region = nullptr);
 // A plain OpenCV calibration file (image_width, image_height, camera_matrix, distortion_coefficients) that
 // cv::FileStorage, cv::undistort and LoadCalibrationFile read; `imported_from` is recorded beside them.
 std::string OpenCvCalibrationText(const CameraModel& camera, const std::string& imported_from);

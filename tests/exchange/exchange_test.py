@@ -187,6 +187,20 @@ k, d, w, h = read_opencv("fitted.yaml")
 topocal("export", "--calibration", "fitted.yaml", "--to", "mrcal", "--out", "fitted.cameramodel")
 fitted = mrcal.cameramodel(os.path.join(WORK, "fitted.cameramodel"))
 close(fitted.intrinsics()[1], [k[0, 0], k[1, 1], k[0, 2], k[1, 2], *d.ravel()], "mrcal (fitted): intrinsics")
+# k1 = -6.2 folds well inside this sensor: mrcal gets the valid region as its valid_intrinsics_region contour.
+fs = cv2.FileStorage(os.path.join(WORK, "fitted.yaml"), cv2.FILE_STORAGE_READ)
+valid_radius_px = fs.getNode("valid_radius_px").real()
+check(fs.getNode("valid_region_covers_sensor").real() == 0, "fitted: the valid region does not cover the sensor")
+fs.release()
+region = fitted.valid_intrinsics_region()
+check(region is not None and region.shape[0] >= 4, "mrcal (fitted): valid_intrinsics_region present")
+if region is not None:
+    close(np.hypot(region[:, 0] - k[0, 2], region[:, 1] - k[1, 2]), np.full(region.shape[0], valid_radius_px),
+          "mrcal (fitted): valid_intrinsics_region is the valid circle", rel=1e-12)
+fs = cv2.FileStorage(os.path.join(WORK, "cal5.yaml"), cv2.FILE_STORAGE_READ)
+covers5 = fs.getNode("valid_region_covers_sensor").real() == 1
+fs.release()
+check((model.valid_intrinsics_region() is None) == covers5, "mrcal: a valid region only where the model folds")
 topocal("export", "--calibration", "fitted.yaml", "--to", "ros", "--out", "fitted-ros.yaml")
 with open(os.path.join(WORK, "fitted-ros.yaml")) as f:
     close(yaml.safe_load(f)["distortion_coefficients"]["data"], d, "ros (fitted): distortion_coefficients")
