@@ -17,9 +17,9 @@
 #include "pipeline/harness_config.h"
 #include "pipeline/harness_report.h"
 #include "tools/commands.h"
+#include "tools/cores.h"
 #include "tools/output_dir.h"
 #include "tools/progress.h"
-#include "tools/cores.h"
 
 namespace topocal::tools {
 namespace {

@@ -1,7 +1,5 @@
 // topocal unit calibrate | calibrate-batch: the per-unit calibration workflow on the production line
 // (tools/unit_workflow.h, docs/unit-record.md).
-#include <unistd.h>
-
 #include <algorithm>
 #include <atomic>
 #include <filesystem>
@@ -21,11 +19,11 @@
 #include "model/io.h"
 #include "pipeline/harness.h"
 #include "tools/commands.h"
-#include "tools/progress.h"
-#include "tools/output_dir.h"
 #include "tools/cores.h"
 #include "tools/data_dir.h"
 #include "tools/file_glob.h"
+#include "tools/output_dir.h"
+#include "tools/progress.h"
 #include "tools/unit_workflow.h"
 
 namespace topocal::tools {
