@@ -110,6 +110,37 @@ void SetDistortion(const cv::Mat& d, CameraModel& cam) {
   for (int i = 0; i < 5; ++i) cam.dist[static_cast<size_t>(i)] = d.at<double>(i);
 }
 
+// OpenCV writes 4, 5, 8, 12 or 14 distortion coefficients (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]) depending
+// on the calibration flags of the tool that made the file. topocal's model holds the first five: a shorter vector
+// means k3 = 0, a longer one is accepted only when the rational, thin-prism and tilt terms are all zero.
+cv::Mat ReadOpenCvDistortion(const cv::FileStorage& fs, const std::string& path, const std::string& key) {
+  cv::Mat d;
+  try {
+    fs[key] >> d;
+  } catch (const cv::Exception&) {
+    Bad(path, key, "not an OpenCV matrix");
+  }
+  const int n = static_cast<int>(d.total());
+  if (fs[key].empty()) Bad(path, key, "missing");
+  if (d.empty() || d.channels() != 1 || (d.rows != 1 && d.cols != 1) || (n != 4 && n != 5 && n != 8 && n != 12 && n != 14)) {
+    Bad(path, key, fmt::format("expected 4, 5, 8, 12 or 14 coefficients in a row or column, found {}x{}", d.rows, d.cols));
+  }
+  if (n == 5) return ReadMatrix(fs, path, key, 1, 5, true);
+  d.convertTo(d, CV_64F);
+  cv::Mat five = cv::Mat::zeros(1, 5, CV_64F);
+  for (int i = 0; i < n; ++i) {
+    const double v = d.at<double>(i);
+    if (!std::isfinite(v)) Bad(path, key, "non-finite value");
+    if (i < 5) {
+      five.at<double>(i) = v;
+    } else if (v != 0) {
+      Bad(path, key, fmt::format("coefficient {} is {} but topocal's model ends at k3 (OpenCV's rational, thin-prism "
+                                 "and tilt terms must be 0)", i + 1, v));
+    }
+  }
+  return five;
+}
+
 }  // namespace
 
 std::string CalibrationFileText(const CalibrationResult& result, const CalibrationProvenance& provenance) {
@@ -176,6 +207,9 @@ std::string CalibrationFileText(const CalibrationResult& result, const Calibrati
   if (result.pixel_pitch_um > 0) fs << "pixel_pitch_um" << result.pixel_pitch_um;
   if (const auto d = SingleViewDistance(result)) fs << "target_distance_mm" << *d;
   if (!provenance.target_path.empty()) fs << "target" << provenance.target_path;
+  const DistortionValidRegion region = ValidRegionOf(result.camera);
+  fs << "valid_radius_px" << region.radius_px;
+  fs << "valid_region_covers_sensor" << (region.covers_sensor ? 1 : 0);
   return fs.releaseAndGetString();
 }
 
@@ -204,7 +238,7 @@ CalibrationFile LoadCalibrationFile(const std::string& path) {
   cv_cam.width_px = ReadPositiveInt(fs, path, "image_width");
   cv_cam.height_px = ReadPositiveInt(fs, path, "image_height");
   SetIntrinsics(ReadMatrix(fs, path, "camera_matrix", 3, 3, true), path, "camera_matrix", cv_cam);
-  SetDistortion(ReadMatrix(fs, path, "distortion_coefficients", 1, 5, true), cv_cam);
+  SetDistortion(ReadOpenCvDistortion(fs, path, "distortion_coefficients"), cv_cam);
   out.opencv_camera = cv_cam;
   out.camera = cv_cam;
 
@@ -263,6 +297,19 @@ CalibrationFile LoadCalibrationFile(const std::string& path) {
     out.target = ReadOptionalString(fs, path, "target");
     out.date = ReadOptionalString(fs, path, "calibration_date");
     out.tool_version = ReadOptionalString(fs, path, "tool_version");
+  }
+  // The valid region: stored by topocal since it states it, computed for older and plain OpenCV files.
+  const auto radius_px = ReadOptionalReal(fs, path, "valid_radius_px");
+  if (radius_px) {
+    if (!(*radius_px > 0)) Bad(path, "valid_radius_px", "must be > 0");
+    out.valid_region.radius_px = *radius_px;
+    out.valid_region.covers_sensor = *radius_px >= FarthestSensorPixelPx(out.camera);
+    const auto covers = ReadOptionalReal(fs, path, "valid_region_covers_sensor");
+    if (covers && (*covers != 0) != out.valid_region.covers_sensor) {
+      Bad(path, "valid_region_covers_sensor", "contradicts valid_radius_px and the image size");
+    }
+  } else {
+    out.valid_region = ValidRegionOf(out.camera);
   }
   return out;
 }

@@ -25,6 +25,8 @@
 //   focal_mm, pixel_pitch_um               # whenever known (given, or fitted f_px x pitch)
 //   target_distance_mm                     # single view: the fitted distance of the target origin
 //   target                                 # the target description file
+//   valid_radius_px, valid_region_covers_sensor   # where the distortion model is monotonic and invertible
+//                                          # (calib/distortion_valid_region.h); optional on read: computed if absent
 #include <map>
 #include <optional>
 #include <string>
@@ -34,6 +36,7 @@
 
 #include "calib/calibrate.h"
 #include "calib/camera.h"
+#include "calib/distortion_valid_region.h"
 
 namespace topocal::calib {
 
@@ -56,6 +59,8 @@ struct CalibrationFile {
   std::optional<Eigen::MatrixXd> covariance;  // parameter_names order; absent in older files
   std::optional<double> sigma_per_mm2, magnification, focal_mm, pixel_pitch_um;
   std::string target, date, tool_version;
+  // Of `camera`: as stored (topocal files since 0.1.0), else computed when the file is read.
+  DistortionValidRegion valid_region;
 };
 
 // The YAML text for a successful result. Throws std::invalid_argument for a failed result and std::runtime_error

@@ -1,6 +1,7 @@
 #include "pipeline/harness.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -386,7 +387,8 @@ void HarnessCaseRunner::Compare(const topo::Analysis& a, const CorneaData& d, Ha
   r.ok = true;
 }
 
-HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs) {
+HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs,
+                      const std::function<void(std::size_t, std::size_t)>& progress) {
   HarnessRun run;
   run.config = config;
   run.config_sha256 = HarnessConfigSha256(config);
@@ -401,7 +403,11 @@ HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs) {
   run.truth = runner.truth();
   run.cases.resize(mine.size());
   // Each case writes only its own slot, from its own seed: the results do not depend on the number of threads.
-  model::ParallelFor(mine.size(), std::max(1, jobs), [&](size_t i) { run.cases[i] = runner.Run(mine[i]); });
+  std::atomic<size_t> done{0};
+  model::ParallelFor(mine.size(), std::max(1, jobs), [&](size_t i) {
+    run.cases[i] = runner.Run(mine[i]);
+    if (progress) progress(++done, mine.size());
+  });
   return run;
 }
 

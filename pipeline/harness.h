@@ -23,6 +23,7 @@
 // drawn from a generator seeded by (config seed, case index) only, so any split into shards (index % N == i) merges
 // into exactly the cases of a single run. A configuration without assembly axes enumerates exactly as before.
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -120,7 +121,9 @@ struct HarnessRun {
 
 // Runs the shard's cases on `jobs` threads (results do not depend on jobs). Throws std::runtime_error when a truth
 // reconstruction fails (the design cannot reconstruct that cornea at all).
-HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs = 1);
+// `progress`, when given, is called from the worker threads after each case with (cases done, cases of the shard).
+HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs = 1,
+                      const std::function<void(std::size_t, std::size_t)>& progress = {});
 
 // Runs one case against its truth (exposed for tests and the benchmark).
 class HarnessCaseRunner {

@@ -21,6 +21,9 @@ pkgs=(cmake g++ make pkg-config libopencv-dev libceres-dev libeigen3-dev libapri
 [ "$mode" = test ] && pkgs+=(chromium)
 # pdftotext reads the printed report's text back ("Page n of N" on every page).
 [ "$mode" = test ] && pkgs+=(poppler-utils)
+# The consumers' own libraries check topocal's exports and imports (tests/exchange): PyYAML reads ROS camera_info and
+# Kalibr camchains, cv2 OpenCV calibration files, mrcal its .cameramodel.
+[ "$mode" = test ] && pkgs+=(python3-yaml python3-opencv python3-mrcal)
 
 missing=()
 for p in "${pkgs[@]}"; do

@@ -15,6 +15,7 @@
 #include "calib/detect.h"
 #include "calib/target.h"
 #include "model/io.h"
+#include "model/parallel.h"
 #include "pipeline/svg_plot.h"
 #include "tools/commands.h"
 #include "tools/file_glob.h"
@@ -32,7 +33,7 @@ struct CalibrateArgs {
   std::vector<std::string> fix;
   std::string loss = "huber";
   double loss_scale_px = 1.0, outlier_threshold = 4.0;
-  int jobs = 0;
+  int jobs = model::AvailableCores();
 };
 
 // The two halves' difference over the image as a map: one series per band of difference, so the existing scatter
@@ -205,7 +206,7 @@ void AddCalibrateCommand(CLI::App& app) {
   cmd->add_option("--distance-mm", a->distance_mm, "Nominal target distance from the pinhole, mm (single view)");
   cmd->add_option("--magnification", a->magnification, "Transverse magnification M_T for the Seidel sigma")
       ->capture_default_str();
-  cmd->add_option("--fix", a->fix, "Parameters to hold fixed, comma-separated: fx,fy,cx,cy,k1,k2,p1,p2,k3,ex,ey")
+  cmd->add_option("--fix", a->fix, "Parameters to hold fixed (spaces or commas): fx fy cx cy k1 k2 p1 p2 k3 ex ey")
       ->delimiter(',');
   cmd->add_flag("--fit-centre", a->fit_centre, "Fit the radial distortion centre (Seidel; brown5 needs --fix p1,p2)");
   cmd->add_flag("--robust", a->robust, "Robust loss and iterative outlier rejection");
@@ -215,9 +216,9 @@ void AddCalibrateCommand(CLI::App& app) {
   cmd->add_option("--loss-scale-px", a->loss_scale_px, "Robust loss scale, px")->capture_default_str();
   cmd->add_option("--outlier-threshold", a->outlier_threshold, "Reject corners beyond this many robust sigmas")
       ->capture_default_str();
-  cmd->add_option("--jobs", a->jobs, "Images detected at once (0: every available core); the result does not depend on it")
+  cmd->add_option("--jobs", a->jobs, "Images detected at once (default: the cores available); the result does not depend on it")
       ->capture_default_str()
-      ->check(CLI::Range(0, 1024));
+      ->check(CLI::Range(1, 1024));
   cmd->add_option("--out", a->out, "Calibration file (OpenCV FileStorage YAML)")->required();
   cmd->add_option("--json", a->json, "Also write a JSON report");
   cmd->add_option("--cross-validate", a->cross_validate_svg,

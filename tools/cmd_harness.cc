@@ -12,11 +12,14 @@
 
 #include "model/config.h"
 #include "model/io.h"
+#include "model/parallel.h"
 #include "pipeline/harness.h"
 #include "pipeline/harness_answer.h"
 #include "pipeline/harness_config.h"
 #include "pipeline/harness_report.h"
 #include "tools/commands.h"
+#include "tools/output_dir.h"
+#include "tools/progress.h"
 
 namespace topocal::tools {
 namespace {
@@ -87,12 +90,12 @@ void AddHarnessCommand(CLI::App& app) {
   auto config = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto shard = std::make_shared<std::string>();
-  auto jobs = std::make_shared<int>(1);
+  auto jobs = std::make_shared<int>(model::AvailableCores());
   cmd->add_option("--config", *config, "Harness configuration (JSON, docs/harness.md)");
   cmd->add_option("--out", *out, "Output directory (created if missing)");
   cmd->add_option("--shard", *shard,
                   "Run only shard i of N (cases with index % N == i) and write DIR/shard-<i>-of-<N>.json for merge");
-  cmd->add_option("--jobs", *jobs, "Threads in this process (the results do not depend on it)");
+  cmd->add_option("--jobs", *jobs, "Threads in this process (the results do not depend on it) [the cores available]");
 
   auto* merge = cmd->add_subcommand("merge", "Merge the shard files of one configuration into the outputs of a "
                                              "single run");
@@ -101,6 +104,7 @@ void AddHarnessCommand(CLI::App& app) {
   merge->add_option("--out", *merge_out, "Output directory (created if missing)")->required();
   merge->add_option("shards", *inputs, "Shard files, or directories holding shard-<i>-of-<N>.json files")->required();
   merge->callback([=] {
+    const NewDirectoryGuard out_guard(*merge_out);  // a failed merge leaves no empty folder
     std::vector<pipeline::HarnessRun> shards;
     std::vector<std::string> origins;
     for (const auto& arg : *inputs) {
@@ -118,12 +122,16 @@ void AddHarnessCommand(CLI::App& app) {
     if (merge->parsed()) return;
     if (config->empty()) throw model::InputError("harness: --config is required (or: topocal harness merge)");
     if (out->empty()) throw model::InputError("harness: --out is required");
+    const NewDirectoryGuard out_guard(*out);  // a failed run leaves no empty folder
     if (*jobs < 1) throw model::InputError(fmt::format("--jobs: must be >= 1 (got {})", *jobs));
     const pipeline::ShardSpec spec = shard->empty() ? pipeline::ShardSpec{} : pipeline::ParseShardSpec(*shard);
     const auto cfg = pipeline::LoadHarnessConfig(*config);
     PrepareOutputDirectory(*out);
     const auto t0 = std::chrono::steady_clock::now();
-    const auto run = pipeline::RunHarness(cfg, spec, *jobs);
+    Progress progress("topocal harness: cases");
+    const auto run = pipeline::RunHarness(cfg, spec, *jobs, [&progress](std::size_t done, std::size_t total) {
+      progress.Update(done, total);
+    });
     const double seconds = SecondsSince(t0);
     fmt::print(stderr, "topocal harness: {} of {} cases in {:.1f} s ({:.1f} ms per case, {} job{})\n",
                run.cases.size(), run.total_cases, seconds, run.cases.empty() ? 0.0 : 1e3 * seconds / run.cases.size(),

@@ -14,6 +14,8 @@
 #include "model/io.h"
 #include "model/null_screen.h"
 #include "tools/commands.h"
+#include "tools/output_dir.h"
+#include "tools/progress.h"
 #include "tools/surface_option.h"
 #include "tools/csv.h"
 #include "tools/map_output.h"
@@ -159,6 +161,7 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
                       {"undistort_failures", m.undistort_failures}};
   if (in.uncertainty_samples > 0) {
     try {
+      const Progress progress(fmt::format("topocal reconstruct: {} uncertainty draws", in.uncertainty_samples));
       *uncertainty = pipeline::PropagateCalibrationUncertainty(m.detected, cal->camera, calib::ParameterCovarianceOf(*cal), camera, cfg,
                                                                in.uncertainty_samples, in.seed);
     } catch (const std::invalid_argument& e) {
@@ -202,6 +205,7 @@ void AddReconstructCommand(CLI::App& app) {
   overrides->AddTo(cmd);
   cmd->add_flag("--truth", *truth, "Compare with the configuration's cornea (pv and rms of the height difference)");
   cmd->callback([=] {
+    const NewDirectoryGuard maps_guard(*maps);  // a failed run leaves no empty --maps folder
     auto cfg = model::LoadConfig(*config);
     overrides->ApplyTo(&cfg);
     if (in->spots.empty() == in->image.empty()) throw model::InputError("reconstruct: give one of --spots or --image");

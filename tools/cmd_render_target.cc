@@ -13,6 +13,7 @@
 #include "model/distortion.h"
 #include "model/io.h"
 #include "tools/commands.h"
+#include "tools/progress.h"
 
 namespace topocal::tools {
 namespace {
@@ -204,7 +205,10 @@ void AddRenderTargetCommand(CLI::App& app) {
     const calib::CamFromTarget pose = BuildPose(*a, target);
     std::string why;
     if (!a->render.IsValid(&why)) throw model::InputError(fmt::format("rendering options: {}", why));
-    const auto view = calib::RenderTarget(target, camera, pose, a->render, &why);
+    const auto view = [&] {
+      const Progress progress(fmt::format("topocal render-target: rendering {} x {}", camera.width_px, camera.height_px));
+      return calib::RenderTarget(target, camera, pose, a->render, &why);
+    }();
     if (!view) throw model::InputError(fmt::format("cannot render: {}", why));
     std::vector<uchar> png;
     if (!cv::imencode(".png", view->image, png)) throw std::runtime_error("cannot encode the PNG");

@@ -6,6 +6,7 @@
 #include "model/topographer_camera.h"
 #include "pipeline/closed_loop.h"
 #include "tools/commands.h"
+#include "tools/output_dir.h"
 #include "tools/surface_option.h"
 #include "tools/map_output.h"
 #include "tools/report_json.h"
@@ -150,6 +151,7 @@ void AddSweepCommand(CLI::App& app) {
                 "sensor image, undistort, reconstruct; print before and after side by side");
   cmd->add_option("--camera", *camera, "Topographer camera (JSON) for --correct; default: 1.12 um pitch, a from the config");
   cmd->callback([=] {
+    const NewDirectoryGuard maps_guard(*maps);  // a failed run leaves no empty --maps folder
     auto cfg = model::LoadConfig(*config);
     overrides->ApplyTo(&cfg);
     if (!camera->empty() && !*correct) throw model::InputError("--camera goes with --correct");

@@ -1,4 +1,5 @@
 // topocal undistort: correct a spots CSV or an image with a calibration file (calib/calibration_file.h).
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -6,6 +7,8 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "calib/calibration_file.h"
+#include "calib/distortion_valid_region.h"
+#include "correct/undistort_coverage.h"
 #include "correct/undistort_map.h"
 #include "correct/undistort_points.h"
 #include "model/io.h"
@@ -69,9 +72,23 @@ void Run(const UndistortArgs& a) {
       fmt::print(stderr, "topocal undistort: spot ({}, {}): {}\n", rows[f.index].id.ring, rows[f.index].id.index,
                  f.reason);
     }
+    // Beyond the fold an inverse may converge, but to one of two answers: such a spot is refused, with the reason.
+    size_t outside = 0;
+    std::vector<bool> inside(rows.size(), true);
+    for (size_t i = 0; i < rows.size(); ++i) {
+      const Eigen::Vector2d px = camera.PixelFromDetectionPlane(mm[i]);
+      if (calib::InsideValidRegion(cal.valid_region, cal.camera, px)) continue;
+      inside[i] = false;
+      if (!result.ok[i]) continue;  // already reported
+      ++outside;
+      fmt::print(stderr, "topocal undistort: spot ({}, {}): at {:.0f} px from the principal point, beyond the {:.0f} px "
+                 "within which {}'s distortion model is invertible (valid_radius_px): refused\n",
+                 rows[i].id.ring, rows[i].id.index, (px - Eigen::Vector2d(cal.camera.cx_px, cal.camera.cy_px)).norm(),
+                 cal.valid_region.radius_px, a.calibration);
+    }
     std::vector<model::ImageSpot> out;
     for (size_t i = 0; i < rows.size(); ++i) {
-      if (!result.ok[i]) continue;
+      if (!result.ok[i] || !inside[i]) continue;
       model::ImageSpot s;
       s.id = rows[i].id;
       s.position_mm = result.points_mm[i];
@@ -80,7 +97,8 @@ void Run(const UndistortArgs& a) {
     }
     if (out.empty() && !rows.empty()) throw std::runtime_error(fmt::format("{}: no spot could be undistorted", a.spots));
     model::WriteFileAtomic(a.out, SpotsCsv(out));
-    fmt::print("undistorted {} of {} spots ({} failed) -> {}\n", out.size(), rows.size(), result.failures.size(), a.out);
+    fmt::print("undistorted {} of {} spots ({} failed, {} beyond the valid region) -> {}\n", out.size(), rows.size(),
+               result.failures.size(), outside, a.out);
     return;
   }
   if (a.out.size() < 4 || a.out.substr(a.out.size() - 4) != ".png") {
@@ -95,11 +113,26 @@ void Run(const UndistortArgs& a) {
   }
   const auto map = correct::BuildUndistortMap(distortion, camera);
   const cv::Mat out = correct::UndistortImage(image, map);
+  const auto coverage = correct::CoverageOf(map, camera);
   std::vector<uchar> png;
   if (!cv::imencode(".png", out, png)) throw std::runtime_error(fmt::format("{}: PNG encoding failed", a.out));
   model::WriteFileAtomic(a.out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
-  fmt::print("undistorted {} x {} image ({} px beyond the fold left empty) -> {}\n", image.cols, image.rows,
-             map.invalid_px, a.out);
+  fmt::print("undistorted {} x {} image -> {}\n", image.cols, image.rows, a.out);
+  const auto percent = [&](int n) { return 100.0 * n / std::max(1, coverage.total_px); };
+  if (coverage.beyond_fold_px > 0) {
+    fmt::print(stderr,
+               "topocal undistort: {:.1f} % of the output ({} px) left black: beyond the fold of {}'s distortion "
+               "model, which is monotonic and invertible only within {:.0f} px of the principal point "
+               "(valid_radius_px; the sensor reaches {:.0f} px), so no unique source pixel exists there\n",
+               percent(coverage.beyond_fold_px), coverage.beyond_fold_px, a.calibration, cal.valid_region.radius_px,
+               calib::FarthestSensorPixelPx(cal.camera));
+  }
+  if (coverage.outside_sensor_px > 0) {
+    fmt::print(stderr,
+               "topocal undistort: {:.1f} % of the output ({} px) left black: they look at directions the sensor did "
+               "not see (the undistorted frame keeps the sensor's size and camera matrix)\n",
+               percent(coverage.outside_sensor_px), coverage.outside_sensor_px);
+  }
 }
 
 }  // namespace

@@ -1,7 +1,5 @@
 // topocal unit calibrate | calibrate-batch: the per-unit calibration workflow on the production line
 // (tools/unit_workflow.h, docs/unit-record.md).
-#include <unistd.h>
-
 #include <algorithm>
 #include <filesystem>
 #include <map>
@@ -18,9 +16,12 @@
 #include "model/config.h"
 #include "model/io.h"
 #include "model/parallel.h"
+#include "pipeline/harness.h"
 #include "tools/commands.h"
 #include "tools/data_dir.h"
 #include "tools/file_glob.h"
+#include "tools/output_dir.h"
+#include "tools/progress.h"
 #include "tools/unit_workflow.h"
 
 namespace topocal::tools {
@@ -55,8 +56,8 @@ void AddCommonOptions(CLI::App* cmd, UnitRequest* r) {
 }
 
 struct BatchArgs {
-  std::string dir, out;
-  int jobs = 0;
+  std::string dir, out, shard;
+  int jobs = model::AvailableCores();
   UnitRequest defaults;
 };
 
@@ -81,6 +82,20 @@ void RunBatch(const BatchArgs& a) {
     throw model::InputError(fmt::format("{}: no unit directory (none has a {})", a.dir, kUnitInputsFile));
   }
   std::sort(items.begin(), items.end(), [](const auto& x, const auto& y) { return x.inputs_path < y.inputs_path; });
+  // Shard i of N: the units whose place in the sorted list is i modulo N. Each unit's record depends only on its
+  // own inputs, so the shards' OUT/<serial>/ folders together are the unsharded run's (docs/scale-out.md).
+  if (!a.shard.empty()) {
+    const pipeline::ShardSpec spec = pipeline::ParseShardSpec(a.shard);
+    std::vector<BatchItem> mine;
+    for (size_t i = 0; i < items.size(); ++i) {
+      if (static_cast<int>(i % static_cast<size_t>(spec.count)) == spec.index) mine.push_back(std::move(items[i]));
+    }
+    items = std::move(mine);
+    if (items.empty()) {
+      fmt::print("shard {}/{}: no unit (fewer units than shards)\n", spec.index, spec.count);
+      return;
+    }
+  }
 
   // Read every unit's inputs first: a bad one fails that unit only; two units with one serial both fail.
   std::map<std::string, size_t> first_with_serial;
@@ -98,10 +113,10 @@ void RunBatch(const BatchArgs& a) {
     }
   }
 
-  const unsigned jobs = static_cast<unsigned>(a.jobs > 0 ? a.jobs : model::AvailableCores());
+  const unsigned jobs = static_cast<unsigned>(std::max(1, a.jobs));
   // Parallel across units, one core each: OpenCV's own thread pool would only compete with the workers.
   if (jobs > 1) cv::setNumThreads(1);
-  const bool tty = ::isatty(STDERR_FILENO) != 0;
+  const bool tty = ProgressEnabled();  // a redrawn bar on a terminal; one line per unit in logs or with --quiet
   std::mutex mutex;
   size_t finished = 0, failed = 0;
   const auto draw_bar = [&](const std::string& last) {  // under the mutex
@@ -178,11 +193,14 @@ void AddUnitCommand(CLI::App& app) {
   cal->add_option("--out", r->out, "Unit record directory (e.g. units/SN/)")->required();
   AddCommonOptions(cal, r.get());
   cal->callback([r, images] {
+    const NewDirectoryGuard out_guard(r->out);  // a failed unit leaves no empty units/ behind
     QuietCeres();
     UnitRequest request = *r;
     FillDefaults(&request);
     request.images = Glob(*images);
-    const auto outcome = CalibrateUnit(request, [](const std::string& line) { fmt::print(stderr, "topocal unit: {}\n", line); });
+    Progress progress("topocal unit calibrate: " + request.serial);
+    const auto outcome =
+        CalibrateUnit(request, [&progress](const std::string& line) { progress.Line("topocal unit: " + line); });
     for (const auto& line : outcome.summary) fmt::print("{}\n", line);
   });
 
@@ -191,9 +209,12 @@ void AddUnitCommand(CLI::App& app) {
   auto b = std::make_shared<BatchArgs>();
   batch->add_option("dir", b->dir, "Directory of unit directories")->required();
   batch->add_option("--out", b->out, "Where the unit records go: OUT/<serial>/")->required();
-  batch->add_option("--jobs", b->jobs, "Units calibrated at once [number of cores]")->check(CLI::Range(1, 256));
+  batch->add_option("--jobs", b->jobs, "Units calibrated at once [the cores available]")->check(CLI::Range(1, 256));
+  batch->add_option("--shard", b->shard, "Only shard i/N of the units (sorted by folder, index % N == i), e.g. "
+                                         "from a Slurm array or a Kubernetes Indexed Job (docs/scale-out.md)");
   AddCommonOptions(batch, &b->defaults);
   batch->callback([b] {
+    const NewDirectoryGuard out_guard(b->out);
     FillDefaults(&b->defaults);
     RunBatch(*b);
   });

@@ -12,6 +12,7 @@
 #include "model/io.h"
 #include "model/version.h"
 #include "tools/commands.h"
+#include "tools/progress.h"
 
 int main(int argc, char** argv) {
   // Ceres logs through glog (failed steps, rank-deficient covariances); every failure reaches the user as one line
@@ -20,6 +21,13 @@ int main(int argc, char** argv) {
   CLI::App app{"topocal: calibrate, correct and verify the camera of a cone (null-screen) corneal topographer"};
   app.set_version_flag("--version", std::string("topocal ") + topocal::kVersion);
   app.require_subcommand(1);
+  // Every option shows its default in --help (subcommands inherit this when they are created).
+  app.option_defaults()->always_capture_default();
+  // --quiet anywhere on the line (before or after the verb): no progress lines on stderr.
+  bool quiet = false;
+  app.add_flag("--quiet", quiet, "No progress lines on stderr (they are off anyway when stderr is not a terminal)");
+  app.fallthrough();
+  app.parse_complete_callback([&quiet] { topocal::tools::SetQuiet(quiet); });
   topocal::tools::AddDesignCommand(app);
   topocal::tools::AddSimulateCommand(app);
   topocal::tools::AddSweepCommand(app);
@@ -35,6 +43,8 @@ int main(int argc, char** argv) {
   topocal::tools::AddReportCommand(app);
   topocal::tools::AddDeviceCommand(app);
   topocal::tools::AddFleetCommand(app);
+  topocal::tools::AddExportCommands(app);
+  topocal::tools::FinishHelp(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

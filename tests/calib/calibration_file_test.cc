@@ -196,8 +196,23 @@ TEST_F(CalibrationFileTest, BadFilesAreOneLineNamingFileAndKey) {
                          "   data: [ -0.1, 0.01, 0., 0. ]\n";
   Write("missing_width.yaml", "%YAML:1.0\n---\nimage_height: 480\n" + k + d4);
   EXPECT_EQ(message("missing_width.yaml"), Path("missing_width.yaml") + ": image_width: missing");
+  // Four coefficients (OpenCV with CALIB_FIX_K3 in some tools) are k3 = 0; three are nothing OpenCV writes.
   Write("four.yaml", "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n" + k + d4);
-  EXPECT_EQ(message("four.yaml"), Path("four.yaml") + ": distortion_coefficients: expected 1x5, found 1x4");
+  EXPECT_EQ(message("four.yaml"), "no error");
+  EXPECT_EQ(LoadCalibrationFile(Path("four.yaml")).camera.dist[4], 0.0);
+  Write("three.yaml", "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n" + k +
+                          "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 3\n   dt: d\n"
+                          "   data: [ -0.1, 0.01, 0. ]\n");
+  EXPECT_EQ(message("three.yaml"), Path("three.yaml") + ": distortion_coefficients: expected 4, 5, 8, 12 or 14 "
+                                                        "coefficients in a row or column, found 1x3");
+  // The rational model (8 coefficients) is accepted only when k4..k6 are 0: topocal's model cannot hold them.
+  const std::string d8 = "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 8\n   dt: d\n"
+                         "   data: [ -0.1, 0.01, 0., 0., 0.002, ";
+  Write("eight_zero.yaml", "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n" + k + d8 + "0., 0., 0. ]\n");
+  EXPECT_EQ(LoadCalibrationFile(Path("eight_zero.yaml")).camera.dist[4], 0.002);
+  Write("rational.yaml", "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n" + k + d8 + "0.3, 0., 0. ]\n");
+  EXPECT_NE(message("rational.yaml").find(Path("rational.yaml") + ": distortion_coefficients: coefficient 6 is 0.3"),
+            std::string::npos) << message("rational.yaml");
   Write("other.yaml", "%YAML:1.0\n---\nfoo: 1\n");
   EXPECT_EQ(message("other.yaml"),
             Path("other.yaml") + ": camera_matrix: missing: not a topocal or OpenCV calibration file");

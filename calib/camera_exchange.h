@@ -1,0 +1,55 @@
+#pragma once
+// Calibrations exchanged with other tools: the writers of ROS camera_info YAML, Kalibr camchain YAML, mrcal
+// .cameramodel and a plain OpenCV calibration YAML, and the reader of a Kalibr camchain. topocal's own file is read
+// and written by calib/calibration_file.h only (also for plain OpenCV files from other tools); this module starts
+// from what that reader returns. Formats, key by key, in docs/exchange.md.
+//
+// Every format here holds OpenCV's Brown model (fx, fy, cx, cy, k1, k2, p1, p2, k3, no distortion centre): the
+// export writes CalibrationFile::opencv_camera, the closest OpenCV model when the topocal model has a centre
+// (calib/opencv_equivalent.h states how close). Kalibr's radtan has no k3: exporting a camera whose k3 moves the
+// image by more than kKalibrDropK3TolerancePx is refused.
+#include <optional>
+#include <string>
+
+#include "calib/calibration_file.h"
+#include "calib/camera.h"
+#include "calib/distortion_valid_region.h"
+
+namespace topocal::calib {
+
+enum class ExportFormat { kRos, kKalibr, kMrcal, kOpenCv };
+// "ros", "kalibr", "mrcal", "opencv"; nullopt otherwise.
+std::optional<ExportFormat> ParseExportFormat(const std::string& name);
+
+// Largest shift (px, over the image border) that dropping k3 may cause in a Kalibr radtan export.
+inline constexpr double kKalibrDropK3TolerancePx = 0.01;
+
+struct ExportOptions {
+  std::string camera_name = "topocal";  // ROS camera_name; Kalibr camchain key is always cam0
+  std::string ros_topic = "/cam0/image_raw";  // Kalibr's rostopic
+};
+
+// The file's text in the chosen format. Throws model::InputError (naming `source`) when the format cannot hold the
+// camera (Kalibr with a significant k3).
+std::string ExportCalibration(const CalibrationFile& calibration, ExportFormat format, const std::string& source,
+                              const ExportOptions& options = {});
+
+// Individual writers (the camera must have a zero distortion centre; std::invalid_argument otherwise).
+std::string RosCameraInfoYaml(const CameraModel& camera, const std::string& camera_name);
+std::string KalibrCamchainYaml(const CameraModel& camera, const std::string& ros_topic);
+// With `valid_region` (when it does not cover the sensor): mrcal's valid_intrinsics_region, the circle of
+// valid_radius_px about (cx, cy) as a closed 64-gon, which mrcal's tools draw and use to mask.
+std::string MrcalCameraModelText(const CameraModel& camera, const DistortionValidRegion* valid_region = nullptr);
+// A plain OpenCV calibration file (image_width, image_height, camera_matrix, distortion_coefficients) that
+// cv::FileStorage, cv::undistort and LoadCalibrationFile read; `imported_from` is recorded beside them.
+std::string OpenCvCalibrationText(const CameraModel& camera, const std::string& imported_from);
+
+// The largest pixel shift over the image border from setting k3 to zero (what a radtan export loses).
+double DropK3ShiftPx(const CameraModel& camera);
+
+// Reads camera `camera_key` (cam0, cam1, ...) of a Kalibr camchain YAML: camera_model pinhole, distortion_model
+// radtan, intrinsics [fu fv pu pv], distortion_coeffs [k1 k2 r1 r2], resolution [w h]. Other models, missing or
+// wrongly sized keys throw model::InputError "PATH: KEY: problem".
+CameraModel ReadKalibrCamchain(const std::string& path, const std::string& camera_key = "cam0");
+
+}  // namespace topocal::calib
