@@ -110,10 +110,22 @@ SparseMatrix DifferencePenalty(int n, int order) {
 
 SplineFit FitSplineToSlopes(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes,
                             double lambda, const SplineFitOptions& o, BSplineSurface* spline) {
+  return SplineSlopeFitter().Fit(points_mm, slopes, lambda, o, spline);
+}
+
+SplineFit SplineSlopeFitter::Fit(const std::vector<Eigen::Vector2d>& points_mm,
+                                 const std::vector<Eigen::Vector2d>& slopes, double lambda, const SplineFitOptions& o,
+                                 BSplineSurface* spline) {
   SplineFit fit;
   const int n = static_cast<int>(points_mm.size());
   const int p = spline->unknowns();
   if (n == 0 || slopes.size() != points_mm.size() || p == 0) return fit;
+  if (p != unknowns_) {  // another spline: nothing of the previous one applies
+    factorised_ = false;
+    unknowns_ = p;
+  }
+  // The sparsity pattern of A^T A depends on which knot cells hold points: a refactorisation orders afresh.
+  bool analysed = false;
   const int side = static_cast<int>(std::lround(std::sqrt(p)));
   std::vector<Eigen::Triplet<double>> t;
   t.reserve(32 * n);
@@ -141,19 +153,54 @@ SplineFit FitSplineToSlopes(const std::vector<Eigen::Vector2d>& points_mm, const
   const double scale = AtA.diagonal().sum() / std::max(1e-300, P.diagonal().sum());
   ridge *= 1e-12 * AtA.diagonal().sum() / p;
 
-  Eigen::SimplicialLDLT<SparseMatrix> solver;
-  bool analysed = false;
-  const auto solve = [&](double lam, Eigen::VectorXd* c) {
-    const SparseMatrix M = AtA + lam * P + ridge;
-    // The pattern does not depend on lambda: order (AMD) once, factorise per lambda.
+  const auto factorise = [&](const SparseMatrix& M, double lam) {
+    // The pattern does not depend on lambda: order (AMD) once per call, factorise per lambda.
     if (!analysed) {
-      solver.analyzePattern(M);
+      solver_.analyzePattern(M);
       analysed = true;
     }
-    solver.factorize(M);
-    if (solver.info() != Eigen::Success) return false;
-    *c = solver.solve(Atb);
-    return solver.info() == Eigen::Success && c->allFinite();
+    solver_.factorize(M);
+    factorised_ = solver_.info() == Eigen::Success;
+    factorised_lambda_ = lam;
+    return factorised_;
+  };
+  const auto solve = [&](double lam, Eigen::VectorXd* c) {
+    const SparseMatrix M = AtA + lam * P + ridge;
+    if (!factorise(M, lam)) return false;
+    *c = solver_.solve(Atb);
+    return solver_.info() == Eigen::Success && c->allFinite();
+  };
+  // Conjugate gradients on M c = Atb preconditioned by the factorisation of a nearby M. Hand-written (a dozen
+  // lines) because Eigen's ConjugateGradient takes its preconditioner by type and would copy the factorisation.
+  const auto solve_by_cg = [&](double lam, Eigen::VectorXd* c) {
+    constexpr int kMaxSteps = 12;
+    constexpr double kRelativeResidual = 1e-13;
+    const SparseMatrix M = AtA + lam * P + ridge;
+    Eigen::VectorXd x = solver_.solve(Atb);
+    Eigen::VectorXd r = Atb - M * x;
+    const double target = kRelativeResidual * Atb.norm();
+    Eigen::VectorXd z = solver_.solve(r);
+    Eigen::VectorXd d = z;
+    double rz = r.dot(z);
+    for (int step = 0; step < kMaxSteps; ++step) {
+      if (r.norm() <= target) {
+        *c = std::move(x);
+        return c->allFinite();
+      }
+      const Eigen::VectorXd Md = M * d;
+      const double alpha = rz / d.dot(Md);
+      x += alpha * d;
+      r -= alpha * Md;
+      z = solver_.solve(r);
+      const double rz_next = r.dot(z);
+      d = z + (rz_next / rz) * d;
+      rz = rz_next;
+    }
+    if (r.norm() <= target) {
+      *c = std::move(x);
+      return c->allFinite();
+    }
+    return false;
   };
   Eigen::VectorXd c;
   if (lambda < 0) {
@@ -170,7 +217,7 @@ SplineFit FitSplineToSlopes(const std::vector<Eigen::Vector2d>& points_mm, const
       if (!solve(rel * scale, &ci)) continue;
       const double rss = (A * ci - rhs).squaredNorm();
       double trace = 0;
-      for (const auto& z : probes) trace += z.dot(solver.solve(AtA * z));
+      for (const auto& z : probes) trace += z.dot(solver_.solve(AtA * z));
       trace /= o.gcv_probes;
       const double denom = m - trace;
       if (!(denom > 0)) continue;
@@ -183,9 +230,16 @@ SplineFit FitSplineToSlopes(const std::vector<Eigen::Vector2d>& points_mm, const
       }
     }
     if (!std::isfinite(best_gcv)) return fit;
+    // The factorisation left behind is the grid's last lambda: refactorise at the chosen one for the refits.
+    factorised_ = false;
   } else {
     fit.lambda = lambda;
-    if (!solve(lambda, &c)) return fit;
+    const bool reused = factorised_ && factorised_lambda_ == lambda && solve_by_cg(lambda, &c);
+    if (reused) {
+      ++refits_by_cg_;
+    } else if (!solve(lambda, &c)) {
+      return fit;
+    }
   }
   spline->coefficients() = c;
   // Piston: B(0, 0) = 0 (the basis is a partition of unity).

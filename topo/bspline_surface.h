@@ -14,6 +14,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 
 namespace topocal::topo {
@@ -65,5 +66,28 @@ struct SplineFit {
 // Fits `spline` (already sized) to the slopes; lambda < 0 chooses lambda by GCV, otherwise uses it.
 SplineFit FitSplineToSlopes(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes,
                             double lambda, const SplineFitOptions& options, BSplineSurface* spline);
+
+// The same fit, repeated as the reconstruction refines its points: a refit with the previous lambda on the same
+// spline reuses the previous factorisation of M = A^T A + lambda P as the preconditioner of conjugate gradients on
+// the new system. Between iterations the points move by micrometres, M changes by far less than itself, and a few
+// CG steps reach the direct solution (relative residual 1e-13); the sparse factorisation was ~40 % of a spline
+// reconstruction (about one per iteration, 3 ms each for 961 unknowns). If CG does not converge in a few steps the
+// system is factorised afresh, so the result never depends on the history beyond rounding.
+class SplineSlopeFitter {
+ public:
+  SplineFit Fit(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes, double lambda,
+                const SplineFitOptions& options, BSplineSurface* spline);
+
+ private:
+  using SparseMatrix = Eigen::SparseMatrix<double>;
+  Eigen::SimplicialLDLT<SparseMatrix> solver_;
+  bool factorised_ = false;    // solver_ holds a factorisation of M for factorised_lambda_
+  double factorised_lambda_ = -1;
+  int unknowns_ = 0;
+  int refits_by_cg_ = 0;
+
+ public:
+  int refits_by_cg() const { return refits_by_cg_; }  // refits that reused a factorisation (diagnostics, tests)
+};
 
 }  // namespace topocal::topo

@@ -222,6 +222,7 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   bool spline_active = spline_mode && !iterate;
   double lambda = -1;
   std::vector<Eigen::Vector2d> residual_slopes(n);
+  SplineSlopeFitter spline_fitter;  // keeps its factorisation from one refinement to the next
   for (int it = 0; it < max_iterations; ++it) {
     for (int i = 0; i < n; ++i) {
       normals[i] = NormalFromRays(prep.rays[i].incident, p2[i], prep.rays[i].target);
@@ -240,7 +241,7 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
         psi.ValueAndGradient(xy[i].x(), xy[i].y(), &z, &zx, &zy);
         residual_slopes[i] = slopes[i] - Eigen::Vector2d(zx, zy);
       }
-      const SplineFit sf = FitSplineToSlopes(xy, residual_slopes, lambda, SplineFitOptions{}, &spline);
+      const SplineFit sf = spline_fitter.Fit(xy, residual_slopes, lambda, SplineFitOptions{}, &spline);
       if (!sf.ok) {
         r.message = "the spline fit of the slope residual failed (singular system)";
         return r;
