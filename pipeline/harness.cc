@@ -1,15 +1,12 @@
 #include "pipeline/harness.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <exception>
 #include <map>
 #include <memory>
-#include <mutex>
 #include <random>
 #include <stdexcept>
-#include <thread>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -19,6 +16,7 @@
 #include "model/null_screen.h"
 #include "model/version.h"
 #include "pipeline/measure_spots.h"
+#include "pipeline/parallel_for.h"
 #include "topo/analysis.h"
 
 namespace topocal::pipeline {
@@ -404,25 +402,7 @@ HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs) {
   run.truth = runner.truth();
   run.cases.resize(mine.size());
   // Each case writes only its own slot, from its own seed: the results do not depend on the number of threads.
-  std::atomic<size_t> next{0};
-  std::exception_ptr error;
-  std::mutex error_mutex;
-  auto work = [&] {
-    for (size_t i = next++; i < mine.size(); i = next++) {
-      try {
-        run.cases[i] = runner.Run(mine[i]);
-      } catch (...) {
-        const std::lock_guard lock(error_mutex);
-        if (!error) error = std::current_exception();
-      }
-    }
-  };
-  const int threads = std::max(1, std::min<int>(jobs, static_cast<int>(mine.size())));
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(work);
-  work();
-  for (auto& t : pool) t.join();
-  if (error) std::rethrow_exception(error);
+  ParallelFor(mine.size(), std::max(1, jobs), [&](size_t i) { run.cases[i] = runner.Run(mine[i]); });
   return run;
 }
 
