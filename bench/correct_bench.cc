@@ -171,6 +171,23 @@ void BM_UndistortWithPrecomputedFixedPointMap(benchmark::State& state) {
 }
 BENCHMARK(BM_UndistortWithPrecomputedFixedPointMap)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// One image, nothing precomputed (the `undistort` verb): topocal's banded one-shot against cv::undistort, which
+// does the same job the same way (below).
+void BM_UndistortOneShot(benchmark::State& state) {
+  const auto& s = GetScene();
+  for (auto _ : state) benchmark::DoNotOptimize(correct::UndistortImage(s.grey8, s.brown, s.camera).data);
+}
+BENCHMARK(BM_UndistortOneShot)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The one-shot as it was before issue 15: two whole maps allocated and built, then one remap.
+void BM_UndistortOneShotWholeMaps(benchmark::State& state) {
+  const auto& s = GetScene();
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(correct::UndistortImage(s.grey8, correct::BuildUndistortMap(s.brown, s.camera)).data);
+  }
+}
+BENCHMARK(BM_UndistortOneShotWholeMaps)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 void BM_CvUndistort(benchmark::State& state) {
   const auto& s = GetScene();
   const cv::Matx33d k(s.lens.fx_px, 0, s.lens.cx_px, 0, s.lens.fy_px, s.lens.cy_px, 0, 0, 1);

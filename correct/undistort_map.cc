@@ -1,5 +1,6 @@
 #include "correct/undistort_map.h"
 
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -42,10 +43,11 @@ Eigen::Vector2d CentreMm(const model::Distortion& d) {
   return {b.centre_x_mm, b.centre_y_mm};
 }
 
-// Fills rows [r0, r1) of the map with `distort` (mm -> mm), marking radii >= fold_radius_mm invalid.
+// Fills image rows [r0, r1) of the map with `distort` (mm -> mm), marking radii >= fold_radius_mm invalid; image
+// row v goes to map row v - row_offset (a band of the map).
 template <typename Distort>
 void FillRows(const Distort& distort, const model::TopographerCamera& camera, const Eigen::Vector2d& centre_mm,
-              double fold_radius_mm, int r0, int r1, cv::Mat* map_x, cv::Mat* map_y) {
+              double fold_radius_mm, int r0, int r1, cv::Mat* map_x, cv::Mat* map_y, int row_offset = 0) {
   // mm = pitch M^T (px - c) and px = c + M mm / pitch (model/topographer_camera.h); M has entries 0, +-1.
   const Eigen::Matrix2d m = camera.Orientation();
   const double p_mm = camera.PitchMm();
@@ -53,8 +55,8 @@ void FillRows(const Distort& distort, const model::TopographerCamera& camera, co
   const double cu = camera.principal_point_px.x(), cv_ = camera.principal_point_px.y();
   const double fold2 = fold_radius_mm * fold_radius_mm;
   for (int v = r0; v < r1; ++v) {
-    float* mx = map_x->ptr<float>(v);
-    float* my = map_y->ptr<float>(v);
+    float* mx = map_x->ptr<float>(v - row_offset);
+    float* my = map_y->ptr<float>(v - row_offset);
     const double dv = v - cv_;
     // Branch-free so that the compiler can vectorise the row: evaluate everywhere, then select.
     for (int u = 0; u < camera.width_px; ++u) {
@@ -98,6 +100,48 @@ UndistortMap BuildUndistortMap(const model::Distortion& distortion, const model:
   return out;
 }
 
+namespace {
+
+// Largest radius about the distortion centre that the sensor reaches (the farthest corner), and the fold within it.
+double SensorFoldRadiusMm(const model::Distortion& distortion, const model::TopographerCamera& camera) {
+  const Eigen::Vector2d centre = CentreMm(distortion);
+  double max_r = 0;
+  for (const double u : {-0.5, camera.width_px - 0.5}) {
+    for (const double v : {-0.5, camera.height_px - 0.5}) {
+      max_r = std::max(max_r, (camera.DetectionPlaneFromPixel({u, v}) - centre).norm());
+    }
+  }
+  return FoldRadiusMm(distortion, max_r * 1.001);
+}
+
+// Calls fill(kernel) with the per-pixel forward model (mm -> mm) of `distortion`: the model is chosen once, outside
+// the pixel loop, and the kernel is a few multiply-adds.
+template <typename Fill>
+void WithKernel(const model::Distortion& distortion, const Fill& fill) {
+  if (const auto* s = std::get_if<model::SeidelParams>(&distortion)) {
+    const double c = s->sigma_per_mm2 / std::pow(s->magnification, 3);
+    const Eigen::Vector2d centre(s->centre_x_mm, s->centre_y_mm);
+    fill([c, centre](double x, double y, double* ox, double* oy) {
+      const double dx = x - centre.x(), dy = y - centre.y();
+      const double f = 1.0 + c * (dx * dx + dy * dy);
+      *ox = centre.x() + f * dx;
+      *oy = centre.y() + f * dy;
+    });
+  } else {
+    const auto b = std::get<model::BrownParams>(distortion);
+    const double inv_f = 1.0 / b.focal_mm;  // a multiply per pixel instead of a divide
+    fill([b, inv_f](double x, double y, double* ox, double* oy) {
+      const double xn[2] = {(x - b.centre_x_mm) * inv_f, (y - b.centre_y_mm) * inv_f};
+      double xd[2];
+      model::BrownConrady::DistortNormalized(b.k.data(), xn, xd);
+      *ox = b.centre_x_mm + b.focal_mm * xd[0];
+      *oy = b.centre_y_mm + b.focal_mm * xd[1];
+    });
+  }
+}
+
+}  // namespace
+
 void BuildUndistortMap(const model::Distortion& distortion, const model::TopographerCamera& camera,
                        UndistortMap* map) {
   UndistortMap& out = *map;
@@ -105,44 +149,47 @@ void BuildUndistortMap(const model::Distortion& distortion, const model::Topogra
   out.map_x.create(camera.height_px, camera.width_px, CV_32FC1);
   out.map_y.create(camera.height_px, camera.width_px, CV_32FC1);
   const Eigen::Vector2d centre = CentreMm(distortion);
-  // Largest radius about the distortion centre that the sensor reaches: the farthest corner.
-  double max_r = 0;
-  for (const double u : {-0.5, camera.width_px - 0.5}) {
-    for (const double v : {-0.5, camera.height_px - 0.5}) {
-      max_r = std::max(max_r, (camera.DetectionPlaneFromPixel({u, v}) - centre).norm());
-    }
-  }
-  out.fold_radius_mm = FoldRadiusMm(distortion, max_r * 1.001);
+  out.fold_radius_mm = SensorFoldRadiusMm(distortion, camera);
   const double fold = out.fold_radius_mm;
   cv::Mat* mx = &out.map_x;
   cv::Mat* my = &out.map_y;
-  // The model is chosen once, outside the pixel loop: the per-pixel kernel is a few multiply-adds.
-  if (const auto* s = std::get_if<model::SeidelParams>(&distortion)) {
-    const double c = s->sigma_per_mm2 / std::pow(s->magnification, 3);
-    const auto kernel = [c, centre](double x, double y, double* ox, double* oy) {
-      const double dx = x - centre.x(), dy = y - centre.y();
-      const double f = 1.0 + c * (dx * dx + dy * dy);
-      *ox = centre.x() + f * dx;
-      *oy = centre.y() + f * dy;
-    };
+  WithKernel(distortion, [&](const auto& kernel) {
     cv::parallel_for_(cv::Range(0, camera.height_px), [&](const cv::Range& r) {
       FillRows(kernel, camera, centre, fold, r.start, r.end, mx, my);
     });
-  } else {
-    const auto b = std::get<model::BrownParams>(distortion);
-    const double inv_f = 1.0 / b.focal_mm;  // a multiply per pixel instead of a divide
-    const auto kernel = [b, inv_f](double x, double y, double* ox, double* oy) {
-      const double xn[2] = {(x - b.centre_x_mm) * inv_f, (y - b.centre_y_mm) * inv_f};
-      double xd[2];
-      model::BrownConrady::DistortNormalized(b.k.data(), xn, xd);
-      *ox = b.centre_x_mm + b.focal_mm * xd[0];
-      *oy = b.centre_y_mm + b.focal_mm * xd[1];
-    };
-    cv::parallel_for_(cv::Range(0, camera.height_px), [&](const cv::Range& r) {
-      FillRows(kernel, camera, centre, fold, r.start, r.end, mx, my);
-    });
-  }
+  });
   if (std::isfinite(fold)) out.invalid_px = cv::countNonZero(out.map_x == -1.f);
+}
+
+cv::Mat UndistortImage(const cv::Mat& distorted, const model::Distortion& distortion,
+                       const model::TopographerCamera& camera, int* invalid_px, int interpolation,
+                       double border_value) {
+  if (distorted.cols != camera.width_px || distorted.rows != camera.height_px) {
+    throw std::invalid_argument("UndistortImage: image size differs from the camera's sensor size");
+  }
+  // Bands of rows, as cv::undistort works: each band's map (2 x 4 B x width x kBandRows, ~1 MB at 4000 px) is built
+  // and used while it is in cache, instead of two 48 MB maps written to memory and read back.
+  constexpr int kBandRows = 32;
+  const Eigen::Vector2d centre = CentreMm(distortion);
+  const double fold = SensorFoldRadiusMm(distortion, camera);
+  cv::Mat out(distorted.size(), distorted.type());
+  const int bands = (camera.height_px + kBandRows - 1) / kBandRows;
+  std::atomic<int> invalid{0};
+  WithKernel(distortion, [&](const auto& kernel) {
+    cv::parallel_for_(cv::Range(0, bands), [&](const cv::Range& r) {
+      cv::Mat mx(kBandRows, camera.width_px, CV_32FC1), my(kBandRows, camera.width_px, CV_32FC1);
+      for (int band = r.start; band < r.end; ++band) {
+        const int r0 = band * kBandRows, r1 = std::min(camera.height_px, r0 + kBandRows);
+        FillRows(kernel, camera, centre, fold, r0, r1, &mx, &my, r0);
+        if (std::isfinite(fold)) invalid += cv::countNonZero(mx.rowRange(0, r1 - r0) == -1.f);
+        cv::Mat dst = out.rowRange(r0, r1);
+        cv::remap(distorted, dst, mx.rowRange(0, r1 - r0), my.rowRange(0, r1 - r0), interpolation,
+                  cv::BORDER_CONSTANT, cv::Scalar::all(border_value));
+      }
+    });
+  });
+  if (invalid_px) *invalid_px = invalid;
+  return out;
 }
 
 cv::Mat UndistortImage(const cv::Mat& distorted, const UndistortMap& map, int interpolation, double border_value) {

@@ -34,6 +34,13 @@ void BuildUndistortMap(const model::Distortion& distortion, const model::Topogra
 cv::Mat UndistortImage(const cv::Mat& distorted, const UndistortMap& map, int interpolation = cv::INTER_LINEAR,
                        double border_value = 0.0);
 
+// The same in one pass for a single image (the `undistort` verb): the map is built band by band, each band used for
+// its rows of the output while it is still in cache and never stored whole; rows in parallel. Bit-identical to
+// UndistortImage(distorted, BuildUndistortMap(distortion, camera)); *invalid_px (when given) = the map's invalid_px.
+cv::Mat UndistortImage(const cv::Mat& distorted, const model::Distortion& distortion,
+                       const model::TopographerCamera& camera, int* invalid_px = nullptr,
+                       int interpolation = cv::INTER_LINEAR, double border_value = 0.0);
+
 // The radius (mm on the detection plane, about the distortion centre) where the radial part of the model first
 // stretches by less than 0.01 (d r_d / d r <= 0.01, just short of its fold) within `max_radius_mm`; +infinity if it
 // never does out to there.

@@ -95,14 +95,33 @@ struct BiconicKernel {
     return p;
   }
 
+  // What G needs from the parameters alone: computed once per evaluation of the (tilted) surface rather than once
+  // per Newton step (the trigonometry of a jet is the costliest part of the fit's residual).
+  template <typename P>
+  struct Frame {
+    P ca, sa;  // cos, sin alpha
+    P qx, qy;  // Q_x c_x^2, Q_y c_y^2
+  };
+  template <typename P>
+  static Frame<P> FrameOf(const P* q) noexcept {
+    using std::cos;
+    using std::sin;
+    return {cos(q[kAlpha]), sin(q[kAlpha]), (1.0 + q[kKx]) * q[kCx] * q[kCx], (1.0 + q[kKy]) * q[kCy] * q[kCy]};
+  }
+
   // Eq. 12-13 without tilt: sag and gradient of G at (x, y).
   template <typename T, typename P>
   static bool UntiltedSag(const P* q, const T& x, const T& y, T* z, T* zx, T* zy) noexcept {
-    using std::cos;
-    using std::sin;
+    return UntiltedSag(FrameOf(q), q, x, y, z, zx, zy);
+  }
+  // The same with the frame given; zx == nullptr: the sag alone.
+  template <typename T, typename P>
+  static bool UntiltedSag(const Frame<P>& fr, const P* q, const T& x, const T& y, T* z, T* zx, T* zy) noexcept {
     using std::sqrt;
-    const P ca = cos(q[kAlpha]), sa = sin(q[kAlpha]);
-    const P qx = (1.0 + q[kKx]) * q[kCx] * q[kCx], qy = (1.0 + q[kKy]) * q[kCy] * q[kCy];
+    const P& ca = fr.ca;
+    const P& sa = fr.sa;
+    const P& qx = fr.qx;
+    const P& qy = fr.qy;
     const T X = ca * x + sa * y - q[kX0];
     const T Y = -sa * x + ca * y - q[kY0];
     const T s2 = 1.0 - qx * X * X - qy * Y * Y;
@@ -110,10 +129,11 @@ struct BiconicKernel {
     const T s = sqrt(s2);
     const T den = 1.0 + s;
     const T zz = (q[kCx] * X * X + q[kCy] * Y * Y) / den;
+    *z = q[kZ0] + zz;
+    if (!zx) return true;
     // z * den = num  =>  z_X = (num_X - z s_X) / den, with s_X = -qx X / s
     const T zX = (2.0 * q[kCx] * X + zz * qx * X / s) / den;
     const T zY = (2.0 * q[kCy] * Y + zz * qy * Y / s) / den;
-    *z = q[kZ0] + zz;
     *zx = ca * zX - sa * zY;
     *zy = sa * zX + ca * zY;
     return true;
@@ -124,14 +144,27 @@ struct BiconicKernel {
   // resolves to the jet type.
   template <typename T, typename P>
   static bool SagAndGradient(const P* q, const T& x, const T& y, T* z, T* zx, T* zy, bool tilted) noexcept {
-    if (!tilted) return UntiltedSag(q, x, y, z, zx, zy);
+    return Evaluate(q, x, y, z, zx, zy, tilted);
+  }
+  // The sag alone (the fit's residual): the same z as SagAndGradient, bit for bit, without the gradient's work.
+  template <typename T, typename P>
+  static bool Sag(const P* q, const T& x, const T& y, T* z, bool tilted) noexcept {
+    return Evaluate(q, x, y, z, static_cast<T*>(nullptr), static_cast<T*>(nullptr), tilted);
+  }
+
+ private:
+  template <typename T, typename P>
+  static bool Evaluate(const P* q, const T& x, const T& y, T* z, T* zx, T* zy, bool tilted) noexcept {
+    const Frame<P> fr = FrameOf(q);
+    if (!tilted) return UntiltedSag(fr, q, x, y, z, zx, zy);
     using std::cos;
     using std::sin;
     using R = decltype(T(0) * P(0));
     // M = R^T (rows: u = A + M (p - A)); R = Ry(ty) Rx(tx).
     const P cx = cos(q[kTiltX]), sx = sin(q[kTiltX]), cy = cos(q[kTiltY]), sy = sin(q[kTiltY]);
     const P m[3][3] = {{cy, P(0.0), -sy}, {sx * sy, cx, sx * cy}, {cx * sy, -sx, cx * cy}};
-    const P ca = cos(q[kAlpha]), sa = sin(q[kAlpha]);
+    const P& ca = fr.ca;
+    const P& sa = fr.sa;
     const P ax = ca * q[kX0] - sa * q[kY0], ay = sa * q[kX0] + ca * q[kY0], az = q[kZ0];
     // F and its partials at (x, y, zz); Fp = (F_x, F_y, F_z).
     const auto eval = [&](const auto& xx, const auto& yy, const auto& zz, auto* f, auto* fp) -> bool {
@@ -141,7 +174,7 @@ struct BiconicKernel {
       const V uy = ay + m[1][0] * dx + m[1][1] * dy + m[1][2] * dz;
       const V uz = az + m[2][0] * dx + m[2][1] * dy + m[2][2] * dz;
       V g, gx, gy;
-      if (!UntiltedSag(q, ux, uy, &g, &gx, &gy)) return false;
+      if (!UntiltedSag(fr, q, ux, uy, &g, &gx, &gy)) return false;
       *f = uz - g;
       for (int j = 0; j < 3; ++j) fp[j] = m[2][j] - gx * m[0][j] - gy * m[1][j];
       return true;
@@ -149,9 +182,13 @@ struct BiconicKernel {
     // Newton in double on the scalar parts.
     double qd[kNumParams];
     for (int i = 0; i < kNumParams; ++i) qd[i] = ScalarPart(q[i]);
+    const Frame<double> frd = FrameOf(qd);
     const double xd = ScalarPart(x), yd = ScalarPart(y);
     double zd, gxd, gyd;
-    if (!UntiltedSag(qd, xd, yd, &zd, &gxd, &gyd)) return false;
+    if (!UntiltedSag(frd, qd, xd, yd, &zd, &gxd, &gyd)) return false;
+    double md[3][3];
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) md[i][j] = ScalarPart(m[i][j]);
     // 1e-14 mm: the double floor of a sag of ~1 mm; 20 steps: Newton converges in 3-4 for tilts below 30 deg.
     constexpr double kSagToleranceMm = 1e-14;
     constexpr int kMaxNewton = 20;
@@ -159,14 +196,11 @@ struct BiconicKernel {
     for (int it = 0; it < kMaxNewton; ++it) {
       double f, fp[3];
       const double dxd = xd - ScalarPart(ax), dyd = yd - ScalarPart(ay), dzd = zd - ScalarPart(az);
-      double md[3][3];
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) md[i][j] = ScalarPart(m[i][j]);
       const double ux = ScalarPart(ax) + md[0][0] * dxd + md[0][1] * dyd + md[0][2] * dzd;
       const double uy = ScalarPart(ay) + md[1][0] * dxd + md[1][1] * dyd + md[1][2] * dzd;
       const double uz = ScalarPart(az) + md[2][0] * dxd + md[2][1] * dyd + md[2][2] * dzd;
       double g, gx, gy;
-      if (!UntiltedSag(qd, ux, uy, &g, &gx, &gy)) return false;
+      if (!UntiltedSag(frd, qd, ux, uy, &g, &gx, &gy)) return false;
       f = uz - g;
       for (int j = 0; j < 3; ++j) fp[j] = md[2][j] - gx * md[0][j] - gy * md[1][j];
       if (!(std::abs(fp[2]) > 1e-6)) return false;  // the ray along z grazes the tilted surface
@@ -183,6 +217,20 @@ struct BiconicKernel {
     R zr = R(zd), f, fp[3];
     if (!eval(R(x), R(y), zr, &f, fp)) return false;
     zr = zr - f / fp[2];
+    if (!zx) {
+      // The sag alone: the second evaluation below only serves the gradient, apart from its check that G is defined
+      // at the corrected point. That check reads scalar parts only, which a jet computes with the same double
+      // operations: done in double, it accepts and rejects exactly as before.
+      const double dxd = xd - ScalarPart(ax), dyd = yd - ScalarPart(ay), dzd = ScalarPart(zr) - ScalarPart(az);
+      double g;
+      if (!UntiltedSag(frd, qd, ScalarPart(ax) + md[0][0] * dxd + md[0][1] * dyd + md[0][2] * dzd,
+                       ScalarPart(ay) + md[1][0] * dxd + md[1][1] * dyd + md[1][2] * dzd, &g,
+                       static_cast<double*>(nullptr), static_cast<double*>(nullptr))) {
+        return false;
+      }
+      *z = zr;
+      return true;
+    }
     if (!eval(R(x), R(y), zr, &f, fp)) return false;
     *z = zr;
     *zx = -fp[0] / fp[2];

@@ -1,6 +1,9 @@
 #include "pipeline/uncertainty.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <optional>
 #include <random>
 #include <stdexcept>
 
@@ -8,6 +11,7 @@
 
 #include <fmt/format.h>
 
+#include "model/parallel.h"
 #include "pipeline/detection_plane.h"
 #include "topo/analysis.h"
 
@@ -25,13 +29,18 @@ double* Parameter(calib::CameraModel& c, const std::string& name) {
   return nullptr;
 }
 
+// The quantities of ClinicalUncertainty, in the order a draw stores them.
+constexpr std::array<const char*, 9> kQuantities = {"rx_mm", "ry_mm", "kx", "ky", "alpha_deg", "pv_tangential_D",
+                                                     "pv_axial_D", "radius_mm", "central_axial_power_D"};
+
 }  // namespace
 
 ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredImageSpot>& spots,
                                                     const calib::CameraModel& calibrated,
                                                     const calib::ParameterCovariance& covariance,
                                                     const model::TopographerCamera& camera,
-                                                    const model::Config& config, int samples, std::uint32_t seed) {
+                                                    const model::Config& config, int samples, std::uint32_t seed,
+                                                    int jobs) {
   if (samples < 2) throw std::invalid_argument("uncertainty: at least 2 samples are needed");
   const auto n_names = static_cast<Eigen::Index>(covariance.names.size());
   if (covariance.matrix.rows() != n_names || covariance.matrix.cols() != n_names) {
@@ -66,10 +75,34 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
 
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
 
-  std::mt19937 rng(seed);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  std::map<std::string, std::vector<double>> draws;
-  for (int i = 0; i < samples; ++i) {
+  // The nominal analysis (the calibration as it is): every draw moves the spots by micrometres from it, so its
+  // slope-fit factor starts each draw's slope fits, and no draw factorises the least-squares matrix anew.
+  // Draws read only the biconic parameters and the power maps: no standard deviations, adequacy or clinical indices.
+  std::optional<topo::Analysis> nominal;
+  {
+    std::string why;
+    if (const auto distortion = DistortionOnDetectionPlane(calibrated, camera, &why)) {
+      topo::AnalysisOptions o;
+      o.stddev = o.adequacy = o.clinical = false;
+      try {
+        nominal = topo::AnalyzeSpots(UndistortSpots(spots, *distortion), design.targets, config, nullptr, o);
+      } catch (const std::runtime_error&) {
+        // No start then: every draw starts cold (and fails or not on its own).
+      }
+    }
+  }
+  topo::AnalysisOptions draw_options;
+  draw_options.stddev = draw_options.adequacy = draw_options.clinical = false;
+  draw_options.start = nominal ? &*nominal : nullptr;
+
+  // Each draw's normals come from its own generator seeded by (seed, draw index) and each draw writes only its own
+  // slot, so the draws are the same whatever the number of threads and the statistics (summed in draw order below)
+  // are bit-identical.
+  std::vector<std::optional<std::array<double, kQuantities.size()>>> per_draw(static_cast<size_t>(samples));
+  model::ParallelFor(static_cast<size_t>(samples), std::max(0, jobs), [&](size_t i) {
+    std::seed_seq seq{seed, static_cast<std::uint32_t>(i)};
+    std::mt19937 rng(seq);
+    std::normal_distribution<double> normal(0.0, 1.0);
     calib::CameraModel c = calibrated;
     Eigen::VectorXd z(m);
     for (Eigen::Index k = 0; k < m; ++k) z(k) = normal(rng);
@@ -77,26 +110,24 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
     for (Eigen::Index k = 0; k < m; ++k) *Parameter(c, u.drawn[static_cast<size_t>(k)]) += delta(k);
     std::string why;
     const auto distortion = DistortionOnDetectionPlane(c, camera, &why);
-    if (!distortion) {
+    if (!distortion) return;  // counted as failed below
+    try {
+      const auto a = topo::AnalyzeSpots(UndistortSpots(spots, *distortion), design.targets, config, nullptr, draw_options);
+      const auto& p = a.surface_fit.params;
+      per_draw[i] = std::array<double, kQuantities.size()>{
+          p.rx_mm, p.ry_mm, p.kx, p.ky, p.alpha_deg, a.power.pv_tangential_D, a.power.pv_axial_D,
+          0.5 * (p.rx_mm + p.ry_mm), topo::MeanAxialPowerD(a.power, kCentralPowerRadiusMm)};
+    } catch (const std::runtime_error&) {
+      // counted as failed below
+    }
+  });
+  std::map<std::string, std::vector<double>> draws;
+  for (const auto& v : per_draw) {
+    if (!v) {
       ++u.failed_samples;
       continue;
     }
-    const auto measured = UndistortSpots(spots, *distortion);
-    try {
-      const auto a = topo::AnalyzeSpots(measured, design.targets, config, nullptr);
-      const auto& p = a.surface_fit.params;
-      draws["rx_mm"].push_back(p.rx_mm);
-      draws["ry_mm"].push_back(p.ry_mm);
-      draws["kx"].push_back(p.kx);
-      draws["ky"].push_back(p.ky);
-      draws["alpha_deg"].push_back(p.alpha_deg);
-      draws["pv_tangential_D"].push_back(a.power.pv_tangential_D);
-      draws["pv_axial_D"].push_back(a.power.pv_axial_D);
-      draws["radius_mm"].push_back(0.5 * (p.rx_mm + p.ry_mm));
-      draws["central_axial_power_D"].push_back(topo::MeanAxialPowerD(a.power, kCentralPowerRadiusMm));
-    } catch (const std::runtime_error&) {
-      ++u.failed_samples;
-    }
+    for (size_t q = 0; q < kQuantities.size(); ++q) draws[kQuantities[q]].push_back((*v)[q]);
   }
   u.samples = samples - u.failed_samples;
   if (u.samples < 2 || 2 * u.failed_samples > samples) {

@@ -41,6 +41,9 @@ struct ClinicalUncertainty {
   std::map<std::string, Quantity> quantities;
 };
 
+// The draws run on `jobs` threads (<= 0: every core; model/parallel.h); draw i takes its normals from
+// std::seed_seq{seed, i}, so the result is bit-identical whatever `jobs` is. Each draw starts its slope fits from the
+// nominal analysis (the calibration as it is) and computes only what the quantities need.
 // Throws std::invalid_argument for samples < 2, a covariance whose size does not match its names, or no distortion
 // parameter with a positive variance;
 // std::runtime_error when more than half of the draws fail.
@@ -48,6 +51,7 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
                                                     const calib::CameraModel& calibrated,
                                                     const calib::ParameterCovariance& covariance,
                                                     const model::TopographerCamera& camera,
-                                                    const model::Config& config, int samples, std::uint32_t seed);
+                                                    const model::Config& config, int samples, std::uint32_t seed,
+                                                    int jobs = 0);
 
 }  // namespace topocal::pipeline

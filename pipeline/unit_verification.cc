@@ -41,7 +41,7 @@ std::optional<ClinicalUncertainty> Uncertainty(const std::vector<MeasuredImageSp
   if (options.uncertainty_samples <= 0) return std::nullopt;
   try {
     return PropagateCalibrationUncertainty(detected, unit.camera, unit.covariance, camera, config,
-                                           options.uncertainty_samples, options.seed);
+                                           options.uncertainty_samples, options.seed, options.jobs);
   } catch (const std::invalid_argument&) {
     // No distortion parameter with a spread (e.g. all fixed): nothing to propagate, and the record says so by
     // leaving the uncertainty out.

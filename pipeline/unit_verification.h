@@ -43,6 +43,7 @@ struct UnitCalibration {
 struct CheckOptions {
   int uncertainty_samples = 200;  // 0 = no Monte Carlo
   std::uint32_t seed = 1;
+  int jobs = 0;                   // threads for the draws (0 = every core); the result does not depend on it
 };
 
 struct StageResult {

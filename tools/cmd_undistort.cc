@@ -104,8 +104,10 @@ void Run(const UndistortArgs& a) {
   if (a.out.size() < 4 || a.out.substr(a.out.size() - 4) != ".png") {
     throw model::InputError(fmt::format("--out: {}: the output image must be a .png file", a.out));
   }
-  model::ReadFile(a.image);  // a missing or unreadable file is named as such, not as "not an image"
-  const cv::Mat image = cv::imread(a.image, cv::IMREAD_UNCHANGED);
+  // Read once (a missing or unreadable file is named as such, not as "not an image") and decoded from memory.
+  const std::string bytes = model::ReadFile(a.image);
+  const cv::Mat image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8U, const_cast<char*>(bytes.data())),
+                                     cv::IMREAD_UNCHANGED);
   if (image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", a.image));
   if (image.cols != camera.width_px || image.rows != camera.height_px) {
     throw model::InputError(fmt::format("{}: the image is {} x {} px but the camera is {} x {} px", a.image, image.cols,

@@ -116,6 +116,11 @@ void RunBatch(const BatchArgs& a) {
   const unsigned jobs = static_cast<unsigned>(std::max(1, a.jobs));
   // Parallel across units, one core each: OpenCV's own thread pool would only compete with the workers.
   if (jobs > 1) cv::setNumThreads(1);
+  // The cores the concurrent units leave over go to each unit's Monte Carlo draws (same record either way).
+  const int draw_jobs = static_cast<int>(std::max<size_t>(1, jobs / std::max<size_t>(1, std::min<size_t>(jobs, items.size()))));
+  for (auto& item : items) {
+    if (item.request) item.request->jobs = draw_jobs;
+  }
   const bool tty = ProgressEnabled();  // a redrawn bar on a terminal; one line per unit in logs or with --quiet
   std::mutex mutex;
   size_t finished = 0, failed = 0;

@@ -514,7 +514,7 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
   unit.covariance.names.assign(std::begin(calib::kParameterNames), std::end(calib::kParameterNames));
   unit.covariance.matrix = c.result.covariance;
   unit.covariance.full = true;
-  const pipeline::CheckOptions check{r.uncertainty_samples, r.seed};
+  const pipeline::CheckOptions check{r.uncertainty_samples, r.seed, r.jobs};
   std::optional<pipeline::SphereVerification> sphere;
   if (!in.sphere_image.empty()) {
     try {

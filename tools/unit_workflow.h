@@ -26,6 +26,7 @@ struct UnitRequest {
   std::vector<std::string> fixed;     // parameters held at their initial value (calib::kParameterNames)
   int uncertainty_samples = 200;      // Monte Carlo draws; 0 = none
   unsigned seed = 1;
+  int jobs = 0;                       // threads for the Monte Carlo draws (0 = every core; same record either way)
   std::string out;                    // the record directory
 };
 

@@ -63,15 +63,20 @@ PowerMaps IdealPowerMaps(const model::BiconicParams& cornea, const model::Recons
 }
 
 Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
-                      const model::Config& config, const model::BiconicParams* truth) {
+                      const model::Config& config, const model::BiconicParams* truth,
+                      const AnalysisOptions& options) {
   Analysis a;
-  a.reconstruction = Reconstruct(spots, targets, config.topographer, config.reconstruction);
+  ReconstructOptions reconstruct_options;
+  reconstruct_options.adequacy = options.adequacy;
+  if (options.start) reconstruct_options.start = &options.start->reconstruction;
+  a.reconstruction = Reconstruct(spots, targets, config.topographer, config.reconstruction, reconstruct_options);
   if (!a.reconstruction.ok) throw std::runtime_error(fmt::format("reconstruction failed: {}", a.reconstruction.message));
   std::vector<Eigen::Vector3d> cloud;
   cloud.reserve(a.reconstruction.points.size());
   for (const auto& p : a.reconstruction.points) cloud.push_back(p.point_mm);
   BiconicFitOptions fit_options;
   fit_options.mode = BiconicFitModeFromName(config.reconstruction.biconic_fit);
+  fit_options.stddev = options.stddev;
   a.surface_fit = FitBiconic(cloud, fit_options);
   if (!a.surface_fit.ok) throw std::runtime_error(fmt::format("biconic fit failed: {}", a.surface_fit.message));
   // Sec. 4.2: piston B_1 and tilts B_2, B_3 do not affect the shape and are zeroed before the maps.
@@ -117,14 +122,18 @@ Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<
                                      "supported disc only)", a.power.radius_mm, a.supported_radius_mm));
   }
   const auto& r = a.reconstruction;
-  if (r.adequacy_ratio > kAdequacyWarningRatio) {
+  if (options.adequacy && r.adequacy_ratio > kAdequacyWarningRatio) {
     a.warnings.push_back(fmt::format("the surface model does not represent the data: slope residual {:.3g} is {:.1f} x "
                                      "the {:.3g} expected from {:.3g} um spot-centre noise",
                                      r.rms_slope_residual, r.adequacy_ratio, r.expected_slope_noise,
                                      config.reconstruction.spot_uncertainty_um));
   }
-  a.clinical_ok = ComputeClinicalIndices(a.power, shape_eval, a.supported_radius_mm, ClinicalOptions{}, &a.clinical,
-                                         &a.clinical_message);
+  if (options.clinical) {
+    a.clinical_ok = ComputeClinicalIndices(a.power, shape_eval, a.supported_radius_mm, ClinicalOptions{}, &a.clinical,
+                                           &a.clinical_message);
+  } else {
+    a.clinical_message = "not computed";
+  }
   return a;
 }
 

@@ -43,9 +43,23 @@ inline constexpr double kAdequacyWarningRatio = 3.0;
 
 PowerMapOptions PowerMapOptionsFrom(const model::ReconstructionSettings& settings);
 
+// What an analysis computes beyond the reconstruction, the biconic parameters and the power maps, and where it
+// starts. A Monte Carlo draw (pipeline/uncertainty.h) turns off what it does not read and starts from the nominal
+// analysis of the same spots.
+struct AnalysisOptions {
+  bool stddev = true;     // the biconic's standard deviations
+  bool adequacy = true;   // Reconstruction::expected_slope_noise, adequacy_ratio (and its warning)
+  bool clinical = true;   // Analysis::clinical (sim-K, Kmax, best-fit sphere, I-S)
+  // The analysis of nearly the same spots: its slope-fit factor starts this one's slope fits (results agree with a
+  // cold start to ~1e-13; starting the biconic fit from its parameters was tried and took more iterations, 12
+  // against 9, as Ceres' trust region starts wide either way).
+  const Analysis* start = nullptr;
+};
+
 // Runs reconstruction, fit and maps. Throws std::runtime_error (one line) when the reconstruction or the fit fails.
 Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
-                      const model::Config& config, const model::BiconicParams* truth);
+                      const model::Config& config, const model::BiconicParams* truth,
+                      const AnalysisOptions& options = {});
 
 // Power maps of a known biconic (the "ideal" maps of paper Fig. 10c-d).
 PowerMaps IdealPowerMaps(const model::BiconicParams& cornea, const model::ReconstructionSettings& settings);

@@ -20,9 +20,9 @@ struct BiconicSagResidual {
 
   template <typename T>
   bool operator()(const T* const q, T* residual) const {
-    T z, zx, zy;
+    T z;
     // Outside the biconic's domain the kernel returns false: Ceres rejects the step instead of seeing NaN.
-    if (!K::SagAndGradient(q, T(x_mm), T(y_mm), &z, &zx, &zy, tilted)) return false;
+    if (!K::Sag(q, T(x_mm), T(y_mm), &z, tilted)) return false;
     residual[0] = T(z_mm) - z;
     return true;
   }
@@ -167,41 +167,43 @@ BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const Bicon
   fit.rms_residual_um = std::sqrt(ssr / fit.points) * 1e3;
   const model::BiconicParams p = K::ToParams(q);
 
-  ceres::Covariance::Options co;
-  co.algorithm_type = ceres::DENSE_SVD;
-  co.null_space_rank = -1;  // drop directions below min_reciprocal_condition_number instead of failing
-  ceres::Covariance covariance(co);
-  std::vector<std::pair<const double*, const double*>> blocks = {{q, q}};
-  if (covariance.Compute(blocks, &problem)) {
-    // Ambient-space covariance: the parameters a "paper" fit holds fixed get zero rows and columns.
-    Eigen::Matrix<double, K::kNumParams, K::kNumParams, Eigen::RowMajor> cov;
-    covariance.GetCovarianceBlock(q, q, cov.data());
-    const int dof = std::max(1, fit.points - free_params);
-    cov *= ssr / dof;
-    const auto sd = [&](int i) { return std::sqrt(std::max(0.0, cov(i, i))); };
-    auto& s = fit.stddev;
-    s.rx_mm = sd(K::kCx) / (q[K::kCx] * q[K::kCx]);
-    s.ry_mm = sd(K::kCy) / (q[K::kCy] * q[K::kCy]);
-    s.kx = sd(K::kKx);
-    s.ky = sd(K::kKy);
-    s.alpha_deg = sd(K::kAlpha) * 180.0 / M_PI;
-    s.z0_mm = sd(K::kZ0);
-    s.x0_mm = sd(K::kX0);
-    s.y0_mm = sd(K::kY0);
-    s.tilt_x_deg = sd(K::kTiltX) * 180.0 / M_PI;
-    s.tilt_y_deg = sd(K::kTiltY) * 180.0 / M_PI;
-    // apex = Rot(-alpha) (x0, y0): first-order propagation through (alpha, x0, y0).
-    const double ca = std::cos(q[K::kAlpha]), sa = std::sin(q[K::kAlpha]);
-    Eigen::Matrix<double, 2, 3> J;
-    J << -sa * q[K::kX0] - ca * q[K::kY0], ca, -sa, ca * q[K::kX0] - sa * q[K::kY0], sa, ca;
-    Eigen::Matrix3d c3;
-    const int idx[3] = {K::kAlpha, K::kX0, K::kY0};
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) c3(i, j) = cov(idx[i], idx[j]);
-    const Eigen::Matrix2d ca2 = J * c3 * J.transpose();
-    s.apex_x_mm = std::sqrt(std::max(0.0, ca2(0, 0)));
-    s.apex_y_mm = std::sqrt(std::max(0.0, ca2(1, 1)));
-    fit.stddev_ok = true;
+  if (options.stddev) {
+    ceres::Covariance::Options co;
+    co.algorithm_type = ceres::DENSE_SVD;
+    co.null_space_rank = -1;  // drop directions below min_reciprocal_condition_number instead of failing
+    ceres::Covariance covariance(co);
+    std::vector<std::pair<const double*, const double*>> blocks = {{q, q}};
+    if (covariance.Compute(blocks, &problem)) {
+      // Ambient-space covariance: the parameters a "paper" fit holds fixed get zero rows and columns.
+      Eigen::Matrix<double, K::kNumParams, K::kNumParams, Eigen::RowMajor> cov;
+      covariance.GetCovarianceBlock(q, q, cov.data());
+      const int dof = std::max(1, fit.points - free_params);
+      cov *= ssr / dof;
+      const auto sd = [&](int i) { return std::sqrt(std::max(0.0, cov(i, i))); };
+      auto& s = fit.stddev;
+      s.rx_mm = sd(K::kCx) / (q[K::kCx] * q[K::kCx]);
+      s.ry_mm = sd(K::kCy) / (q[K::kCy] * q[K::kCy]);
+      s.kx = sd(K::kKx);
+      s.ky = sd(K::kKy);
+      s.alpha_deg = sd(K::kAlpha) * 180.0 / M_PI;
+      s.z0_mm = sd(K::kZ0);
+      s.x0_mm = sd(K::kX0);
+      s.y0_mm = sd(K::kY0);
+      s.tilt_x_deg = sd(K::kTiltX) * 180.0 / M_PI;
+      s.tilt_y_deg = sd(K::kTiltY) * 180.0 / M_PI;
+      // apex = Rot(-alpha) (x0, y0): first-order propagation through (alpha, x0, y0).
+      const double ca = std::cos(q[K::kAlpha]), sa = std::sin(q[K::kAlpha]);
+      Eigen::Matrix<double, 2, 3> J;
+      J << -sa * q[K::kX0] - ca * q[K::kY0], ca, -sa, ca * q[K::kX0] - sa * q[K::kY0], sa, ca;
+      Eigen::Matrix3d c3;
+      const int idx[3] = {K::kAlpha, K::kX0, K::kY0};
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) c3(i, j) = cov(idx[i], idx[j]);
+      const Eigen::Matrix2d ca2 = J * c3 * J.transpose();
+      s.apex_x_mm = std::sqrt(std::max(0.0, ca2(0, 0)));
+      s.apex_y_mm = std::sqrt(std::max(0.0, ca2(1, 1)));
+      fit.stddev_ok = true;
+    }
   }
   const bool swapped = p.rx_mm < p.ry_mm;
   fit.params = CanonicalBiconic(p);

@@ -28,6 +28,7 @@ enum class BiconicFitMode {
 struct BiconicFitOptions {
   BiconicFitMode mode = BiconicFitMode::kFreeApex;
   int max_iterations = 200;
+  bool stddev = true;  // the covariance of the fit (BiconicFit::stddev); a Monte Carlo draw does not need it
 };
 
 // "free-apex" / "paper" (the configuration key reconstruction.biconic_fit and the CLI's --biconic-fit).

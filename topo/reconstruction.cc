@@ -177,7 +177,8 @@ std::vector<double> ZonalHeights(const std::vector<Ray>& rays, const std::vector
 }
 
 Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
-                     const model::ReconstructionSettings& settings, double t_mm, bool iterate) {
+                     const model::ReconstructionSettings& settings, double t_mm, bool iterate,
+                     const ReconstructOptions& options = {}) {
   Reconstruction r;
   r.method = iterate ? "iterative" : "paper";
   r.vertex_t_mm = t_mm;
@@ -211,6 +212,10 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   const double tolerance_mm = settings.convergence_um * 1e-3;
   const int max_iterations = iterate ? settings.max_iterations : 1;
   GradientFitter fitter;
+  if (const Reconstruction* start = options.start;
+      start && start->slope_fit_norm_radius_mm == norm_radius && start->slope_fit_factor.rows() == psi.terms() - 1) {
+    fitter.StartFrom(start->slope_fit_factor);
+  }
   const bool spline_mode = settings.surface_model == "spline";
   BSplineSurface spline;
   if (spline_mode) spline = BSplineSurface(norm_radius, settings.spline_spacing_mm);
@@ -280,10 +285,12 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   // Points on the recovered surface: for the paper's method the estimates P2' lie on G, not on Psi; report the
   // surface height Psi at their (x, y), as the paper's point cloud does.
   r.consistency = Consistency(recovered, p2, normals);
-  const int parameters = psi.terms() - 1 + static_cast<int>(std::lround(r.spline_effective_params));
-  r.expected_slope_noise = ExpectedSlopeNoise(prep.rays, p2, slopes, recovered, topo,
-                                              settings.spot_uncertainty_um * 1e-3, parameters);
-  r.adequacy_ratio = r.expected_slope_noise > 0 ? r.rms_slope_residual / r.expected_slope_noise : 0.0;
+  if (options.adequacy) {
+    const int parameters = psi.terms() - 1 + static_cast<int>(std::lround(r.spline_effective_params));
+    r.expected_slope_noise = ExpectedSlopeNoise(prep.rays, p2, slopes, recovered, topo,
+                                                settings.spot_uncertainty_um * 1e-3, parameters);
+    r.adequacy_ratio = r.expected_slope_noise > 0 ? r.rms_slope_residual / r.expected_slope_noise : 0.0;
+  }
   const std::vector<double> zonal = ZonalHeights(prep.rays, p2, slopes, t_mm);
   r.points.resize(n);
   for (int i = 0; i < n; ++i) {
@@ -294,6 +301,9 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
     r.points[i].normal = normals[i];
     r.points[i].zonal_z_mm = zonal[i];
   }
+  r.slope_fit_factor = fitter.factor();
+  r.slope_fit_factorizations = fitter.factorizations();
+  r.slope_fit_norm_radius_mm = norm_radius;
   r.surface = std::move(psi);
   r.residual = std::move(spline);
   r.ok = true;
@@ -327,13 +337,14 @@ Reconstruction ReconstructAt(const std::vector<MeasuredSpot>& spots, const std::
 }
 
 Reconstruction Reconstruct(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
-                           const model::TopographerParams& topographer, const model::ReconstructionSettings& settings) {
+                           const model::TopographerParams& topographer, const model::ReconstructionSettings& settings,
+                           const ReconstructOptions& options) {
   const Prepared prep = Prepare(spots, targets, model::Topographer{topographer});
   const bool iterate = settings.method == "iterative";
   if (iterate) {
     // The consistency Delta(t) is monotone in t for this geometry (docs/reconstruction.md): a single camera and
     // screen do not fix the vertex height, so the iterative method works at the nominal position.
-    Reconstruction r = Solve(prep, topographer, settings, settings.vertex_t_um * 1e-3, true);
+    Reconstruction r = Solve(prep, topographer, settings, settings.vertex_t_um * 1e-3, true, options);
     r.vertex_evaluations = 1;
     if (r.ok) {
       r.message = fmt::format("iterative method: {} spots, t = {:.4f} um, {} iterations, slope rms {:.3g}",
@@ -351,7 +362,7 @@ Reconstruction Reconstruct(const std::vector<MeasuredSpot>& spots, const std::ve
     const double step = 2.0 * half / (k - 1);
     for (int i = 0; i < k; ++i) {
       const double t = centre - half + i * step;
-      Reconstruction r = Solve(prep, topographer, settings, t, iterate);
+      Reconstruction r = Solve(prep, topographer, settings, t, iterate, options);
       ++evaluations;
       if (!r.ok) continue;
       if (!best.ok || r.consistency < best.consistency) best = std::move(r);

@@ -67,12 +67,28 @@ struct Reconstruction {
   int vertex_evaluations = 0;       // t values tried
   int spots_used = 0;
   std::vector<model::SpotId> unmatched;  // spots whose identity is not in the design
+  // The R factor of the slope fit's last QR and the normalisation radius it belongs to: hand it to
+  // ReconstructOptions::start to reconstruct slightly moved spots without a factorisation of their own.
+  Eigen::MatrixXd slope_fit_factor;
+  double slope_fit_norm_radius_mm = 0;
+  int slope_fit_factorizations = 0;  // QR factorisations the slope fits needed at the chosen t
+};
+
+struct ReconstructOptions {
+  // Model adequacy (expected_slope_noise, adequacy_ratio): finite differences through every ray, which a Monte
+  // Carlo draw does not need (both are left 0 when false).
+  bool adequacy = true;
+  // A reconstruction of nearly the same spots (micrometres apart) whose slope-fit factor starts the fits here
+  // (preconditioned CGLS instead of a new QR, topo/taylor_polynomial.h); results agree with a fresh QR to ~1e-13.
+  // Ignored when the polynomial's degree or normalisation radius differ.
+  const Reconstruction* start = nullptr;
 };
 
 // Reconstructs from any subset of spots (unordered, some missing). Fails (ok = false, message) with fewer spots
 // than the polynomial needs, or when a ray misses the surface estimate.
 Reconstruction Reconstruct(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
-                           const model::TopographerParams& topographer, const model::ReconstructionSettings& settings);
+                           const model::TopographerParams& topographer, const model::ReconstructionSettings& settings,
+                           const ReconstructOptions& options = {});
 
 // One evaluation at a fixed vertex offset t (exposed for tests and the investigation in docs/reconstruction.md).
 Reconstruction ReconstructAt(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,

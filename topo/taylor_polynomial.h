@@ -64,6 +64,10 @@ class GradientFitter {
   GradientFit Fit(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes,
                   double z_at_origin_mm, TaylorPolynomial* poly);
   int factorizations() const { return factorizations_; }
+  // The R of the last QR (empty before the first), and a fitter that starts from another fit's R: refits of
+  // slightly moved points (Monte Carlo draws of a calibration) then need no factorisation of their own.
+  const Eigen::MatrixXd& factor() const { return r_; }
+  void StartFrom(const Eigen::MatrixXd& r) { r_ = r; }
 
  private:
   Eigen::MatrixXd r_;        // upper-triangular factor of the last QR (empty before the first fit)

@@ -172,6 +172,12 @@ TEST(UndistortMap, RemapOfARenderedPatternMatchesTheTruth) {
     }
     const auto map = BuildUndistortMap(d, camera);
     const cv::Mat undistorted = UndistortImage(distorted, map);
+    // The one-shot path (map built band by band, never whole) gives the same image bit for bit, and the same count
+    // of pixels beyond the fold.
+    int invalid_px = -1;
+    const cv::Mat one_shot = UndistortImage(distorted, d, camera, &invalid_px);
+    EXPECT_EQ(cv::norm(one_shot, undistorted, cv::NORM_INF), 0.0);
+    EXPECT_EQ(invalid_px, map.invalid_px);
     // Compared within half the fold radius (or the crop's inscribed circle), where the local compression of the
     // distorted image is at most J = 1 + 3 c r^2 >= 0.75. Bilinear interpolation errs by at most
     // (|f_uu| + |f_vv|) / 8 per unit pixel: 2 * 0.25 (2 pi / (lambda J))^2 / 8.

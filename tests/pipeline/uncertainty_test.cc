@@ -82,6 +82,24 @@ TEST(Uncertainty, IsDeterministicForASeed) {
   EXPECT_EQ(a.quantities.at("kx").expanded_k2, b.quantities.at("kx").expanded_k2);
 }
 
+TEST(Uncertainty, IsBitIdenticalWhateverTheThreadCount) {
+  const Fixture f;
+  // Draw i takes its normals from seed_seq{seed, i} and the statistics are summed in draw order: one thread and
+  // three threads (more than this machine's cores, so the draws interleave) must agree to the last bit.
+  const auto cov = K1K2(1e-3, 0.05, 0.5);
+  const auto one = PropagateCalibrationUncertainty(f.spots, f.calibrated, cov, f.camera, f.config, 12, 11, 1);
+  const auto three = PropagateCalibrationUncertainty(f.spots, f.calibrated, cov, f.camera, f.config, 12, 11, 3);
+  EXPECT_EQ(one.samples, three.samples);
+  EXPECT_EQ(one.failed_samples, three.failed_samples);
+  ASSERT_EQ(one.quantities.size(), 9u);
+  ASSERT_EQ(one.quantities.size(), three.quantities.size());
+  for (const auto& [name, q] : one.quantities) {
+    SCOPED_TRACE(name);
+    EXPECT_EQ(q.mean, three.quantities.at(name).mean);
+    EXPECT_EQ(q.expanded_k2, three.quantities.at(name).expanded_k2);
+  }
+}
+
 TEST(Uncertainty, CorrelationsOfTheCalibrationChangeTheClinicalUncertainty) {
   const Fixture f;
   // Over the spot field (r ~ 0.1 in normalised units) k2 r^4 moves the spots the same way as k1 r^2, so both push

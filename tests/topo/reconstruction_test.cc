@@ -169,3 +169,44 @@ TEST(Reconstruction, SweepReproducesTablesVIAndVII) {
 
 }  // namespace
 }  // namespace topocal::topo
+
+namespace topocal::topo {
+namespace {
+
+// A Monte Carlo draw starts from the nominal analysis (its slope-fit factor) and skips what it does
+// not read; what it does compute must be the cold analysis' result. The draw here: the paper cornea at sigma =
+// 6.3e-5, every spot moved by 0.5 um (a calibration draw moves them by less).
+TEST(AnalysisStart, AWarmStartedDrawAgreesWithAColdAnalysis) {
+  const model::Config config = PaperConfig();
+  const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
+  const auto nominal_spots = Spots(SimulateSpots(config, 6.3e-5));
+  std::vector<MeasuredSpot> moved = nominal_spots;
+  for (auto& s : moved) s.image_mm *= 1.0 + 0.5e-3 / std::max(1e-3, s.image_mm.norm());
+  AnalysisOptions draw;
+  draw.stddev = draw.adequacy = draw.clinical = false;
+  const Analysis nominal = AnalyzeSpots(nominal_spots, design.targets, config, nullptr, draw);
+  draw.start = &nominal;
+  const Analysis warm = AnalyzeSpots(moved, design.targets, config, nullptr, draw);
+  const Analysis cold = AnalyzeSpots(moved, design.targets, config, nullptr);
+  // CGLS from the nominal factor stops at 1e-13 of the normal residual and both biconic fits at Ceres' tolerances
+  // (1e-16 in cost): the clinical numbers agree far below their own uncertainty (U(k) ~ 2e-4).
+  // Measured on 2026-12-01: |dk| 9e-14, |dr| 4e-14 mm, |dpv| 1.9e-11 D.
+  constexpr double kConicTol = 1e-9, kRadiusTolMm = 1e-10, kPowerTolD = 1e-9;
+  EXPECT_NEAR(warm.surface_fit.params.kx, cold.surface_fit.params.kx, kConicTol);
+  EXPECT_NEAR(warm.surface_fit.params.ky, cold.surface_fit.params.ky, kConicTol);
+  EXPECT_NEAR(warm.surface_fit.params.rx_mm, cold.surface_fit.params.rx_mm, kRadiusTolMm);
+  EXPECT_NEAR(warm.surface_fit.params.ry_mm, cold.surface_fit.params.ry_mm, kRadiusTolMm);
+  EXPECT_NEAR(warm.power.pv_axial_D, cold.power.pv_axial_D, kPowerTolD);
+  EXPECT_NEAR(warm.power.pv_tangential_D, cold.power.pv_tangential_D, kPowerTolD);
+  // No factorisation of its own, and nothing computed that a draw does not read.
+  EXPECT_EQ(warm.reconstruction.slope_fit_factorizations, 0);
+  EXPECT_EQ(cold.reconstruction.slope_fit_factorizations, 1);
+  EXPECT_EQ(warm.reconstruction.expected_slope_noise, 0.0);
+  EXPECT_FALSE(warm.surface_fit.stddev_ok);
+  EXPECT_FALSE(warm.clinical_ok);
+  EXPECT_TRUE(cold.surface_fit.stddev_ok);
+  EXPECT_GT(cold.reconstruction.expected_slope_noise, 0.0);
+}
+
+}  // namespace
+}  // namespace topocal::topo

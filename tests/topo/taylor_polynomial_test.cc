@@ -1,0 +1,78 @@
+// The Horner evaluation of Psi (topo/taylor_polynomial.cc) against the plain sum over monomials it replaced, kept
+// here as the reference.
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "topo/taylor_polynomial.h"
+
+namespace topocal::topo {
+namespace {
+
+struct Reference {
+  double z = 0, zx = 0, zy = 0, zxx = 0, zxy = 0, zyy = 0;
+  double magnitude = 0;  // sum of |c_k psi_k| and of the derivatives' terms: the scale rounding errors are relative to
+};
+
+// The formula before issue 15: sum_k c_k u^a v^b and its derivatives term by term (powers from a table).
+Reference SumOfMonomials(const TaylorPolynomial& p, double x_mm, double y_mm) {
+  const double r = p.norm_radius_mm(), u = x_mm / r, v = y_mm / r;
+  Reference out;
+  for (int k = 0; k < p.terms(); ++k) {
+    const auto [a, b] = p.Exponents(k);
+    const double c = p.coefficients()[k];
+    const auto pw = [](double t, int e) { return e < 0 ? 0.0 : std::pow(t, e); };
+    const double terms[6] = {c * pw(u, a) * pw(v, b),
+                             c * a * pw(u, a - 1) * pw(v, b) / r,
+                             c * b * pw(u, a) * pw(v, b - 1) / r,
+                             c * a * (a - 1) * pw(u, a - 2) * pw(v, b) / (r * r),
+                             c * a * b * pw(u, a - 1) * pw(v, b - 1) / (r * r),
+                             c * b * (b - 1) * pw(u, a) * pw(v, b - 2) / (r * r)};
+    out.z += terms[0];
+    out.zx += terms[1];
+    out.zy += terms[2];
+    out.zxx += terms[3];
+    out.zxy += terms[4];
+    out.zyy += terms[5];
+    for (double t : terms) out.magnitude += std::abs(t);
+  }
+  return out;
+}
+
+TEST(TaylorPolynomial, HornerMatchesTheSumOfMonomials) {
+  // 1e-12 of the terms' magnitudes (the issue's bound); both evaluations are ~1e-16 relative to that scale, so
+  // anything above 1e-12 is a wrong index or exponent, not rounding. Measured 2026-12-01: largest 1.3e-15.
+  constexpr double kRelTol = 1e-12;
+  constexpr double kRegressionRelTol = 1e-14;
+  std::mt19937 rng(15);
+  std::uniform_real_distribution<double> coefficient(-1.0, 1.0), position(-6.0, 6.0);
+  double worst = 0;
+  for (int degree : {0, 1, 2, 5, 9, 10, 14}) {
+    TaylorPolynomial p(degree, 5.3);
+    // Coefficients falling with the degree as a cornea's do (sag ~ mm, higher orders ~ um), both signs.
+    for (int k = 0; k < p.terms(); ++k) {
+      const auto [a, b] = p.Exponents(k);
+      p.coefficients()[k] = coefficient(rng) * std::pow(0.3, a + b);
+    }
+    for (int i = 0; i < 200; ++i) {
+      const double x = position(rng), y = position(rng);
+      const Reference ref = SumOfMonomials(p, x, y);
+      double z, zx, zy, hz, hzx, hzy, hzxx, hzxy, hzyy;
+      p.ValueAndGradient(x, y, &z, &zx, &zy);
+      p.Derivatives(x, y, &hz, &hzx, &hzy, &hzxx, &hzxy, &hzyy);
+      const double got[] = {z, zx, zy, hz, hzx, hzy, hzxx, hzxy, hzyy};
+      const double want[] = {ref.z, ref.zx, ref.zy, ref.z, ref.zx, ref.zy, ref.zxx, ref.zxy, ref.zyy};
+      for (int j = 0; j < 9; ++j) {
+        const double rel = std::abs(got[j] - want[j]) / ref.magnitude;
+        worst = std::max(worst, rel);
+        ASSERT_LE(rel, kRelTol) << "degree " << degree << " at (" << x << ", " << y << "), output " << j;
+      }
+      EXPECT_EQ(p.Value(x, y), z);
+    }
+  }
+  EXPECT_LE(worst, kRegressionRelTol);
+}
+
+}  // namespace
+}  // namespace topocal::topo
