@@ -22,7 +22,7 @@
 // fitted centre; kBrown5 = OpenCV's k1, k2, p1, p2, k3.
 //
 // Residuals are predicted - observed, px. RMS is OpenCV's: sqrt(sum over corners |r|^2 / corners).
-// Parameter standard deviations: sqrt(diag(sigma^2 (J'J)^-1)) from ceres::Covariance with the residual variance
+// Parameter standard deviations: sqrt(diag(sigma^2 (J'J)^-1)) (calib/jacobian_covariance.h) with the residual variance
 // sigma^2 = SSR / (2 corners - free parameters).
 #include <optional>
 #include <set>

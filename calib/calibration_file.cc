@@ -361,7 +361,7 @@ std::string CalibrationReportJson(const CalibrationResult& result, const Calibra
     j["covariance"] = json::array();
     for (Eigen::Index r = 0; r < result.covariance.rows(); ++r) {
       json row = json::array();
-      for (Eigen::Index c = 0; c < result.covariance.cols(); ++c) row.push_back(result.covariance(r, c));
+      for (Eigen::Index col = 0; col < result.covariance.cols(); ++col) row.push_back(result.covariance(r, col));
       j["covariance"].push_back(row);
     }
   }

@@ -410,6 +410,25 @@ TEST(RealPhotographs, AgreesWithOpenCvCalibrateCamera) {
               r.camera.fy_px, r.camera.cx_px, r.camera.cy_px, r.camera.dist[0], r.camera.dist[1], r.camera.dist[2],
               r.camera.dist[3], r.camera.dist[4], r.rms_px);
   for (const auto& p : r.parameters) std::printf("  %s = %.6g +- %.3g\n", p.name.c_str(), p.value, p.stddev);
+  // The standard deviations against OpenCV's own: both are sqrt(diag(sigma^2 (J^T J)^-1)) with the poses in J, but
+  // OpenCV's sigma^2 divides the sum of squared residuals by (points - free parameters) where topocal divides by
+  // (2 points - free parameters), the residual count (calib/calibrate.h); the ratio is put back before comparing.
+  cv::Mat k2, dist2, std_intrinsics, std_extrinsics, per_view;
+  std::vector<cv::Mat> rvecs2, tvecs2;
+  cv::calibrateCamera(set.object, set.image, set.size, k2, dist2, rvecs2, tvecs2, std_intrinsics, std_extrinsics,
+                      per_view);
+  const double points = static_cast<double>(r.corners_used), free = static_cast<double>(r.free_parameters);
+  const double opencv_sigma_ratio = std::sqrt((2 * points - free) / (points - free));
+  double worst = 0;
+  for (int i = 0; i < 9; ++i) {
+    const double cv_std = std_intrinsics.at<double>(i);
+    ASSERT_GT(cv_std, 0) << i;
+    worst = std::max(worst,
+                     std::abs(r.parameters[static_cast<size_t>(i)].stddev * opencv_sigma_ratio / cv_std - 1.0));
+  }
+  std::printf("largest relative difference of the standard deviations from OpenCV's: %.2e\n", worst);
+  EXPECT_LT(worst, 0.05);  // acceptance: the same uncertainty within 5 %
+  EXPECT_LT(worst, 1e-6);  // regression bound; measured 5.7e-9 (2026-12-01)
 
   CalibrationOptions robust;
   robust.loss = RobustLoss::kHuber;
