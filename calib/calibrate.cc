@@ -435,7 +435,14 @@ bool CalibrationOptions::IsValid(std::string* why) const {
   if (min_views < 2) return fail("min views must be >= 2");
   if (min_corners_per_view < 4) return fail("min corners per view must be >= 4");
   if (max_iterations < 1) return fail("max iterations must be >= 1");
-  if (focal_mm < 0 || pixel_pitch_um < 0 || distance_mm < 0) return fail("focal, pitch and distance must be >= 0");
+  // Finite, and finite in pixels too: --focal-mm inf (or a pitch of 1e-300 um) reached Ceres as an Inf parameter.
+  if (!(std::isfinite(focal_mm) && std::isfinite(pixel_pitch_um) && std::isfinite(distance_mm)) || focal_mm < 0 ||
+      pixel_pitch_um < 0 || distance_mm < 0) {
+    return fail("focal, pitch and distance must be finite and >= 0");
+  }
+  if (focal_mm > 0 && pixel_pitch_um > 0 && !std::isfinite(focal_mm / (pixel_pitch_um * 1e-3))) {
+    return fail("focal / pixel pitch is not a finite focal length in pixels");
+  }
   if (!(magnification != 0) || !std::isfinite(magnification)) return fail("magnification M_T must be non-zero");
   return true;
 }

@@ -1,5 +1,6 @@
 #include "calib/calibration_file.h"
 
+#include <algorithm>
 #include <cmath>
 #include <ctime>
 #include <filesystem>
@@ -9,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
+#include "calib/file_storage.h"
 #include "calib/opencv_equivalent.h"
 #include "model/io.h"
 #include "model/version.h"
@@ -49,6 +51,18 @@ cv::Mat ReadMatrix(const cv::FileStorage& fs, const std::string& path, const std
   if (node.empty()) {
     if (required) Bad(path, key, "missing");
     return {};
+  }
+  // The declared size first: "rows: 100000, cols: 100000" would have OpenCV allocate 80 GB before it notices that
+  // the data are missing.
+  if (node.isMap()) {
+    const cv::FileNode r = node["rows"], c = node["cols"];
+    if (!r.isInt() || !c.isInt()) Bad(path, key, "not an OpenCV matrix (rows, cols)");
+    const int nr = static_cast<int>(r), nc = static_cast<int>(c);
+    const bool vector_shape = (rows == 1 || cols == 1) && (nr == 1 || nc == 1) &&
+                              static_cast<long long>(nr) * nc == static_cast<long long>(rows) * cols;
+    if (!(nr == rows && nc == cols) && !vector_shape) {
+      Bad(path, key, fmt::format("expected {}x{}, found {}x{}", rows, cols, nr, nc));
+    }
   }
   cv::Mat m;
   try {
@@ -105,6 +119,8 @@ void SetIntrinsics(const cv::Mat& k, const std::string& path, const std::string&
   cam.cx_px = k.at<double>(0, 2);
   cam.cy_px = k.at<double>(1, 2);
 }
+
+CalibrationFile ReadCalibration(const cv::FileStorage& fs, const std::string& path);
 
 void SetDistortion(const cv::Mat& d, CameraModel& cam) {
   for (int i = 0; i < 5; ++i) cam.dist[static_cast<size_t>(i)] = d.at<double>(i);
@@ -220,12 +236,23 @@ void WriteCalibrationFile(const std::string& path, const CalibrationResult& resu
 
 CalibrationFile LoadCalibrationFile(const std::string& path) {
   if (!std::filesystem::is_regular_file(path)) throw model::InputError(fmt::format("{}: cannot be opened", path));
-  cv::FileStorage fs;
+  return ParseCalibrationFile(model::ReadFile(path), path);
+}
+
+CalibrationFile ParseCalibrationFile(const std::string& text, const std::string& path) {
+  const cv::FileStorage fs = OpenFileStorage(text, path);
   try {
-    if (!fs.open(path, cv::FileStorage::READ)) Bad(path, "file", "not an OpenCV FileStorage file");
-  } catch (const cv::Exception&) {
-    Bad(path, "file", "not an OpenCV FileStorage file (YAML/XML/JSON)");
+    return ReadCalibration(fs, path);
+  } catch (const cv::Exception& e) {  // a node of an unexpected type deep in the file: bad input, not a crash
+    std::string why = e.err.substr(0, 100);
+    std::replace(why.begin(), why.end(), '\n', ' ');
+    Bad(path, "file", fmt::format("not readable as a calibration ({})", why));
   }
+}
+
+namespace {
+
+CalibrationFile ReadCalibration(const cv::FileStorage& fs, const std::string& path) {
   if (fs["camera_matrix"].empty() && fs["distortion_coefficients"].empty()) {
     Bad(path, "camera_matrix", "missing: not a topocal or OpenCV calibration file");
   }
@@ -313,6 +340,8 @@ CalibrationFile LoadCalibrationFile(const std::string& path) {
   }
   return out;
 }
+
+}  // namespace
 
 ParameterCovariance ParameterCovarianceOf(const CalibrationFile& file) {
   ParameterCovariance c;

@@ -73,6 +73,8 @@ void WriteCalibrationFile(const std::string& path, const CalibrationResult& resu
 // Reads a topocal or plain OpenCV calibration file. Strict: a missing key, a wrongly sized or non-finite matrix,
 // or a file that is not a calibration throws model::InputError "PATH: KEY: problem".
 CalibrationFile LoadCalibrationFile(const std::string& path);
+// The same from the file's text; `path` names it in errors (calib/file_storage.h guards the parser).
+CalibrationFile ParseCalibrationFile(const std::string& text, const std::string& path);
 
 // The parameters' covariance in parameter_names order: the stored one (full = true) or, for a file without it,
 // the diagonal of the standard deviations (full = false: correlations unknown).

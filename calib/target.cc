@@ -8,12 +8,18 @@
 #include <opencv2/aruco/dictionary.hpp>
 #include <opencv2/core.hpp>
 
+#include "calib/file_storage.h"
 #include "model/io.h"
 
 namespace topocal::calib {
 namespace {
 
 constexpr double kMmPerMetre = 1000.0;
+// Physical sanity of a printed target (issue 16: colSpacingMeters 1e308 passed the finiteness check in metres and
+// overflowed to an SVG width="infmm" in mm): lengths up to 10 m, grids up to 1000 per side, ids up to 1e6.
+constexpr double kMaxTargetLengthMm = 10000.0;
+constexpr int kMaxGridSide = 1000;
+constexpr int kMaxTagId = 1000000;
 
 // Reads the keys of one YAML mapping strictly: every key must be consumed exactly as its expected type.
 class StrictMap {
@@ -30,11 +36,11 @@ class StrictMap {
     while (!value.empty() && std::isspace(static_cast<unsigned char>(value.back()))) value.pop_back();
     return value;
   }
-  int PositiveInt(const std::string& key) {
+  int PositiveInt(const std::string& key, int max = kMaxGridSide) {
     const cv::FileNode node = Find(key);
     if (!node.isInt()) Fail(key, "must be an integer");
     const int value = static_cast<int>(node);
-    if (value <= 0) Fail(key, fmt::format("must be positive, got {}", value));
+    if (value <= 0 || value > max) Fail(key, fmt::format("must be in [1, {}], got {}", max, value));
     return value;
   }
   int NonNegativeInt(const std::string& key, int fallback) {
@@ -42,7 +48,7 @@ class StrictMap {
     const cv::FileNode node = Find(key);
     if (!node.isInt()) Fail(key, "must be an integer");
     const int value = static_cast<int>(node);
-    if (value < 0) Fail(key, fmt::format("must not be negative, got {}", value));
+    if (value < 0 || value > kMaxTagId) Fail(key, fmt::format("must be in [0, {}], got {}", kMaxTagId, value));
     return value;
   }
   double PositiveReal(const std::string& key) {
@@ -52,6 +58,14 @@ class StrictMap {
     const double value = static_cast<double>(node);
     if (!std::isfinite(value) || value <= 0) Fail(key, fmt::format("must be a positive number, got {}", value));
     return value;
+  }
+  // A length given in metres (Kalibr's unit), returned in mm and checked after the conversion.
+  double LengthMm(const std::string& key) {
+    const double mm = PositiveReal(key) * kMmPerMetre;
+    if (!(std::isfinite(mm) && mm <= kMaxTargetLengthMm)) {
+      Fail(key, fmt::format("must be at most {:g} m, got {:g} m", kMaxTargetLengthMm / kMmPerMetre, mm / kMmPerMetre));
+    }
+    return mm;
   }
   bool Has(const std::string& key) const {
     const cv::FileNode node = root_[key];
@@ -85,8 +99,8 @@ CheckerboardLayout ParseCheckerboard(StrictMap& map) {
   CheckerboardLayout b;
   b.cols = map.PositiveInt("targetCols");
   b.rows = map.PositiveInt("targetRows");
-  b.row_spacing_mm = map.PositiveReal("rowSpacingMeters") * kMmPerMetre;
-  b.col_spacing_mm = map.PositiveReal("colSpacingMeters") * kMmPerMetre;
+  b.row_spacing_mm = map.LengthMm("rowSpacingMeters");
+  b.col_spacing_mm = map.LengthMm("colSpacingMeters");
   // OpenCV's board detectors need at least 2 x 2 inner corners (3 x 3 squares).
   if (b.cols < 2) map.Fail("targetCols", fmt::format("must be at least 2, got {}", b.cols));
   if (b.rows < 2) map.Fail("targetRows", fmt::format("must be at least 2, got {}", b.rows));
@@ -97,8 +111,13 @@ AprilGridLayout ParseAprilGrid(StrictMap& map) {
   AprilGridLayout g;
   g.tag_cols = map.PositiveInt("tagCols");
   g.tag_rows = map.PositiveInt("tagRows");
-  g.tag_size_mm = map.PositiveReal("tagSize") * kMmPerMetre;
+  g.tag_size_mm = map.LengthMm("tagSize");
   g.tag_spacing_ratio = map.PositiveReal("tagSpacing");
+  constexpr double kMaxTagSpacingRatio = 10;  // Kalibr's boards use 0.3; a gap ten tags wide is no grid
+  if (g.tag_spacing_ratio > kMaxTagSpacingRatio) {
+    map.Fail("tagSpacing", fmt::format("must be at most {:g} (a fraction of tagSize), got {:g}", kMaxTagSpacingRatio,
+                                       g.tag_spacing_ratio));
+  }
   if (map.Has("tagFamily")) {
     g.family = map.String("tagFamily");
     if (g.family != "tag36h11") map.Fail("tagFamily", fmt::format("only tag36h11 is supported, got '{}'", g.family));
@@ -121,8 +140,8 @@ CharucoLayout ParseCharuco(StrictMap& map) {
   CharucoLayout c;
   c.squares_x = map.PositiveInt("squaresX");
   c.squares_y = map.PositiveInt("squaresY");
-  c.square_size_mm = map.PositiveReal("squareSizeMeters") * kMmPerMetre;
-  c.marker_size_mm = map.PositiveReal("markerSizeMeters") * kMmPerMetre;
+  c.square_size_mm = map.LengthMm("squareSizeMeters");
+  c.marker_size_mm = map.LengthMm("markerSizeMeters");
   if (map.Has("arucoDictionary")) c.dictionary = map.String("arucoDictionary");
   // At least 2 x 2 inner corners, as for checkerboards.
   if (c.squares_x < 3) map.Fail("squaresX", fmt::format("must be at least 3, got {}", c.squares_x));
@@ -169,18 +188,11 @@ int ArucoDictionarySize(int dictionary_id) {
 }
 
 TargetDescription ParseTargetDescription(std::string_view yaml_text, const std::string& name) {
-  // cv::FileStorage only reads YAML that starts with a "%YAML" directive; Kalibr's files have none.
-  std::string text(yaml_text);
-  const auto first = text.find_first_not_of(" \t\r\n");
-  if (first == std::string::npos) throw model::InputError(fmt::format("{}: empty target description", name));
-  if (text.compare(first, 5, "%YAML") != 0) text = "%YAML:1.0\n---\n" + text;
-
-  cv::FileStorage fs;
-  try {
-    fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
-  } catch (const cv::Exception& e) {
-    throw model::InputError(fmt::format("{}: not valid YAML ({})", name, e.err));
+  const std::string text(yaml_text);
+  if (text.find_first_not_of(" \t\r\n") == std::string::npos) {
+    throw model::InputError(fmt::format("{}: empty target description", name));
   }
+  const cv::FileStorage fs = OpenFileStorage(text, name);
   if (!fs.isOpened() || !fs.root().isMap()) {
     throw model::InputError(fmt::format("{}: not a YAML mapping of target keys", name));
   }

@@ -97,11 +97,24 @@ void ParseDistortion(Section s, DistortionSweep& p) {
   p.sigmas_per_mm2.clear();
   for (size_t i = 0; i < sig.size(); ++i) {
     if (!sig[i].is_number() || !std::isfinite(sig[i].get<double>())) {
-      s.Fail(fmt::format("{}[{}]", s.Key("sigmas_per_mm2"), i), fmt::format("must be a finite number (got {})", sig[i].dump()));
+      s.Fail(fmt::format("{}[{}]", s.Key("sigmas_per_mm2"), i), fmt::format("must be a finite number (got {})", QuoteJsonValue(sig[i])));
     }
     p.sigmas_per_mm2.push_back(sig[i].get<double>());
   }
   s.RejectUnknown();
+}
+
+// After ideal_image and distortion are read: every sigma must leave the image unfolded.
+void CheckSigmas(const Config& c) {
+  const double max = MaxFoldFreeSigmaPerMm2(c.ideal_image, c.distortion);
+  for (size_t i = 0; i < c.distortion.sigmas_per_mm2.size(); ++i) {
+    const double sigma = c.distortion.sigmas_per_mm2[i];
+    if (!(std::abs(sigma) < max) && sigma != 0) {
+      throw ConfigError(fmt::format("{}: distortion.sigmas_per_mm2[{}]: |{}| mm^-2 folds the image (must be below "
+                                    "{:.3g} for rhoN_mm and MT; docs/robustness.md)",
+                                    c.path, i, sigma, max));
+    }
+  }
 }
 
 void ParseReconstruction(Section s, ReconstructionSettings& p) {
@@ -180,13 +193,15 @@ void CheckGeometry(const Config& c) {
 
 }  // namespace
 
+double MaxFoldFreeSigmaPerMm2(const IdealImageParams& image, const DistortionSweep& distortion) {
+  constexpr double kCorneaMargin = 1.1;
+  const double r_max_mm = kCorneaMargin * (std::abs(image.rhoN_mm) + std::hypot(distortion.centre_x_mm, distortion.centre_y_mm));
+  const double m = std::abs(distortion.magnification);
+  return m * m * m / (3 * r_max_mm * r_max_mm);
+}
+
 Config ParseConfig(const std::string& json_text, const std::string& origin) {
-  json j;
-  try {
-    j = json::parse(json_text);
-  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e999
-    throw ConfigError(fmt::format("{}: (file): not valid JSON: {}", origin, e.what()));
-  }
+  const json j = ParseJsonStrict(json_text, origin);
   Config c;
   c.path = origin;
   Section top(j, origin, "");
@@ -196,6 +211,7 @@ Config ParseConfig(const std::string& json_text, const std::string& origin) {
   ParseDistortion(top.Child("distortion"), c.distortion);
   if (top.Has("reconstruction")) ParseReconstruction(top.Child("reconstruction"), c.reconstruction);
   top.RejectUnknown();
+  CheckSigmas(c);
   CheckGeometry(c);
   return c;
 }

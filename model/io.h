@@ -1,8 +1,13 @@
 #pragma once
-// File output that never leaves a partial file behind: write to a temporary file beside the target, then rename.
+// File output that is whole or absent: every output is written to a staging file beside its target, then renamed
+// into place; several outputs of one run are staged together and published only once all are written; SIGINT and
+// SIGTERM remove whatever is staged (docs/robustness.md).
+#include <cstddef>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace topocal::model {
 
@@ -12,9 +17,57 @@ class InputError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// Writes `content` to `path` atomically (temporary file + rename). Throws InputError naming the path on failure.
+// The outputs of one run, published all or nothing. What an output path is decides how it is written:
+//  - a regular file or a new name: a staging file ".NAME.tmp-PID-N" in the same directory, renamed over it at
+//    Commit (atomic; a failed or interrupted run leaves the old file);
+//  - a symbolic link: written through — the file the link points to is replaced as above, the link stays;
+//  - a FIFO, a character device (/dev/null, a terminal) or any path under /dev or /proc (/dev/stdout): written
+//    directly at Commit (after every staged file is in place), never replaced by a regular file;
+//  - "-", a directory, a block device or a socket: refused (InputError); "-" because every verb prints its summary
+//    on standard output, which would mix with the file (/dev/stdout asks for exactly that).
+// A file's directory must exist; a directory output is created with its parents (removed again if the run fails).
+// Errors name the path and the cause
+// (strerror; "disk full" for ENOSPC). Destroying an uncommitted set removes everything it staged.
+class StagedOutputs {
+ public:
+  StagedOutputs();
+  ~StagedOutputs();
+  StagedOutputs(const StagedOutputs&) = delete;
+  StagedOutputs& operator=(const StagedOutputs&) = delete;
+
+  // Stages one file now (its bytes are on disk, or in memory for a stream, when this returns).
+  void AddFile(const std::string& path, std::string_view content);
+  // Stages a directory of outputs: returns a fresh staging directory to fill; at Commit its files are moved into
+  // `path` (created if missing; other files already in `path` are left alone).
+  std::string AddDirectory(const std::string& path);
+  // Publishes everything. Throws InputError naming the path when a rename or a stream write fails.
+  void Commit();
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+// One output, published at once (a StagedOutputs of one file).
 void WriteFileAtomic(const std::string& path, std::string_view content);
 // Reads a whole file; throws InputError naming the path if it cannot be read.
 std::string ReadFile(const std::string& path);
+
+// SIGINT, SIGTERM and SIGHUP remove every path registered here (staging files and directories), then end the
+// process with the same signal. Call InstallSignalCleanup() once at the start of main(), before any thread starts:
+// it blocks these signals in the calling thread (so in every thread created later) and waits for them in a thread
+// of its own, where removing files is safe (a signal handler could not call std::filesystem).
+void InstallSignalCleanup();
+void RegisterCleanupPath(const std::string& path);
+void UnregisterCleanupPath(const std::string& path);
+// While one exists, the cleanup waits (a signal arriving meanwhile is acted on when it is destroyed): for renames
+// that must not be cut in two, such as moving an old record aside and the new one into place.
+class DeferSignalCleanup {
+ public:
+  DeferSignalCleanup();
+  ~DeferSignalCleanup();
+  DeferSignalCleanup(const DeferSignalCleanup&) = delete;
+  DeferSignalCleanup& operator=(const DeferSignalCleanup&) = delete;
+};
 
 }  // namespace topocal::model

@@ -3,6 +3,24 @@
 #include <vector>
 
 namespace topocal::model {
+namespace {
+
+// "a.b[].c", each key cut to 40 characters: keys come from the input and may be long.
+std::string DottedPath(const std::vector<std::string>& path) {
+  std::string out;
+  for (const std::string& p : path) {
+    if (p.empty()) continue;
+    if (p == "[]") {
+      out += p;
+      continue;
+    }
+    if (!out.empty()) out += '.';
+    out += p.size() > 40 ? p.substr(0, 37) + "..." : p;
+  }
+  return out;
+}
+
+}  // namespace
 
 nlohmann::json ParseJsonStrict(const std::string& text, const std::string& origin) {
   using json = nlohmann::json;
@@ -30,14 +48,28 @@ nlohmann::json ParseJsonStrict(const std::string& text, const std::string& origi
       --depth;
     }
   }
-  std::vector<std::set<std::string>> keys;  // per open object
+  // Per open object, the keys seen (a key given twice is refused); per open container, the key or "[]" it sits
+  // under, so that an error of the lexer (a number beyond double's range) can name where it is.
+  std::vector<std::set<std::string>> keys;
+  std::vector<std::string> path;
   std::string duplicate;
   const json::parser_callback_t check = [&](int /*depth*/, json::parse_event_t event, json& parsed) {
-    if (event == json::parse_event_t::object_start) keys.emplace_back();
-    if (event == json::parse_event_t::object_end && !keys.empty()) keys.pop_back();
-    if (event == json::parse_event_t::key && !keys.empty() && !keys.back().insert(parsed.get<std::string>()).second &&
-        duplicate.empty()) {
-      duplicate = parsed.get<std::string>();
+    switch (event) {
+      case json::parse_event_t::object_start: keys.emplace_back(); path.emplace_back(); break;
+      case json::parse_event_t::array_start: path.emplace_back("[]"); break;
+      case json::parse_event_t::object_end:
+        if (!keys.empty()) keys.pop_back();
+        [[fallthrough]];
+      case json::parse_event_t::array_end:
+        if (!path.empty()) path.pop_back();
+        break;
+      case json::parse_event_t::key: {
+        const std::string& k = parsed.get_ref<const std::string&>();
+        if (!path.empty()) path.back() = k;
+        if (!keys.empty() && !keys.back().insert(k).second && duplicate.empty()) duplicate = DottedPath(path);
+        break;
+      }
+      case json::parse_event_t::value: break;
     }
     return true;
   };
@@ -46,12 +78,14 @@ nlohmann::json ParseJsonStrict(const std::string& text, const std::string& origi
     j = json::parse(text, check);
   } catch (const json::parse_error& e) {
     throw ConfigError(fmt::format("{}: not valid JSON (byte {})", origin, e.byte));
-  } catch (const json::exception& e) {  // out_of_range for a number like 1e999
-    throw ConfigError(fmt::format("{}: not valid JSON: a number out of range or malformed ({})", origin, e.id));
+  } catch (const json::out_of_range& e) {  // 406: a number like 1e999; its text is not echoed (it may be huge)
+    const std::string where = DottedPath(path);
+    throw ConfigError(fmt::format("{}: {}: a number beyond the range of a double", origin,
+                                  where.empty() ? "(top level)" : where));
+  } catch (const json::exception& e) {
+    throw ConfigError(fmt::format("{}: not valid JSON (nlohmann error {})", origin, e.id));
   }
-  if (!duplicate.empty()) {
-    throw ConfigError(fmt::format("{}: {}: given twice in one object", origin, duplicate.substr(0, 100)));
-  }
+  if (!duplicate.empty()) throw ConfigError(fmt::format("{}: {}: given twice in one object", origin, duplicate));
   return j;
 }
 

@@ -2,7 +2,9 @@
 // Strict reading of one JSON object of a configuration file, shared by every configuration topocal reads
 // (model/config.cc, pipeline/harness_config.cc): every key must be read or known, types and ranges are checked, and
 // every failure is one ConfigError "ORIGIN: KEY: problem" naming the file and the dotted key.
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <set>
 #include <string>
 #include <utility>
@@ -20,6 +22,18 @@ inline std::string QuoteJsonValue(const nlohmann::json& v) {
   std::string s = v.dump();
   if (s.size() > 100) s = s.substr(0, 97) + "...";
   return s;
+}
+
+// Whether an integer JSON value lies in [lo, hi], without the truncation of get<int>() (an unsigned value above
+// LLONG_MAX is out of every int range).
+inline bool JsonIntegerWithin(const nlohmann::json& v, long long lo, long long hi) {
+  if (v.is_number_unsigned()) {
+    const unsigned long long u = v.get<unsigned long long>();
+    return hi >= 0 && u <= static_cast<unsigned long long>(hi) && static_cast<long long>(u) >= lo;
+  }
+  if (!v.is_number_integer()) return false;
+  const long long i = v.get<long long>();
+  return i >= lo && i <= hi;
 }
 
 // The one entry point for JSON text a reader takes from a file: refuses input that could crash or fool the parser
@@ -67,12 +81,20 @@ class JsonSection {
     return v;
   }
 
-  int Integer(const std::string& k) {
+  // An integer that fits an int: nlohmann's get<int>() truncates silently (4294967297 became 1), so the range is
+  // checked on the 64-bit value first.
+  int Integer(const std::string& k) { return IntegerInRange(k, std::numeric_limits<int>::min(), std::numeric_limits<int>::max()); }
+  int Integer(const std::string& k, int fallback) { return Has(k) ? Integer(k) : fallback; }
+  // An integer within [lo, hi] (fallback when absent).
+  int IntegerInRange(const std::string& k, int lo, int hi) {
     const json& v = Get(k);
     if (!v.is_number_integer()) Fail(Key(k), fmt::format("must be an integer (got {})", QuoteJsonValue(v)));
-    return v.get<int>();
+    if (!JsonIntegerWithin(v, lo, hi)) Fail(Key(k), fmt::format("must be in [{}, {}] (got {})", lo, hi, QuoteJsonValue(v)));
+    return static_cast<int>(v.get<long long>());
   }
-  int Integer(const std::string& k, int fallback) { return Has(k) ? Integer(k) : fallback; }
+  int IntegerInRange(const std::string& k, int fallback, int lo, int hi) {
+    return Has(k) ? IntegerInRange(k, lo, hi) : fallback;
+  }
 
   std::string String(const std::string& k) {
     const json& v = Get(k);

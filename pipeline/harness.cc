@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <memory>
 #include <random>
@@ -13,6 +14,7 @@
 
 #include "model/distortion.h"
 #include "model/io.h"
+#include "model/json_section.h"
 #include "model/null_screen.h"
 #include "model/parallel.h"
 #include "model/version.h"
@@ -98,6 +100,11 @@ double NumberField(const json& j, const std::string& key, const std::string& ori
 long long IntegerField(const json& j, const std::string& key, const std::string& origin, const std::string& path) {
   const json& v = Field(j, key, origin, path);
   if (!v.is_number_integer()) ShardFail(origin, path + key, "must be an integer");
+  // Every integer of a shard is a count or an index well inside int; beyond it is a corrupt shard, not a wrap.
+  if (!model::JsonIntegerWithin(v, 0, std::numeric_limits<int>::max())) {
+    ShardFail(origin, path + key, fmt::format("must be in [0, {}] (got {})", std::numeric_limits<int>::max(),
+                                              model::QuoteJsonValue(v)));
+  }
   return v.get<long long>();
 }
 std::string StringField(const json& j, const std::string& key, const std::string& origin, const std::string& path) {
@@ -444,12 +451,7 @@ std::string HarnessShardJson(const HarnessRun& run) {
 }
 
 HarnessRun ParseHarnessShard(const std::string& text, const std::string& origin) {
-  json j;
-  try {
-    j = json::parse(text);
-  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e999
-    throw model::InputError(fmt::format("{}: (file): not valid JSON: {}", origin, e.what()));
-  }
+  const json j = model::ParseJsonStrict(text, origin);
   if (!j.is_object() || !j.contains("format") || j["format"] != kShardFormat) {
     ShardFail(origin, "format", fmt::format("not a harness shard (expected \"{}\")", kShardFormat));
   }

@@ -28,18 +28,24 @@ std::vector<double> ParseRange(const json& v, const std::string& origin, const s
   const double from = r.Number("from");
   const double to = r.Number("to");
   const json& count_json = r.Get("count");
-  if (!count_json.is_number_integer()) r.Fail(r.Key("count"), fmt::format("must be an integer (got {})", count_json.dump()));
-  const long long count = count_json.get<long long>();
+  if (!count_json.is_number_integer()) r.Fail(r.Key("count"), fmt::format("must be an integer (got {})", model::QuoteJsonValue(count_json)));
+  // The 64-bit value, clamped: an unsigned count beyond LLONG_MAX must not wrap to a negative one.
+  const long long count =
+      !count_json.is_number_unsigned()                                            ? count_json.get<long long>()
+      : count_json.get<unsigned long long>() > static_cast<unsigned long long>(kMaxCases) ? static_cast<long long>(kMaxCases) + 1
+                                                                                  : static_cast<long long>(count_json.get<unsigned long long>());
   const std::string spacing = r.Has("spacing") ? r.String("spacing") : "linear";
   bool both_signs = false;
   if (r.Has("both_signs")) {
     const json& b = r.Get("both_signs");
-    if (!b.is_boolean()) r.Fail(r.Key("both_signs"), fmt::format("must be true or false (got {})", b.dump()));
+    if (!b.is_boolean()) r.Fail(r.Key("both_signs"), fmt::format("must be true or false (got {})", model::QuoteJsonValue(b)));
     both_signs = b.get<bool>();
   }
   r.RejectUnknown();
-  if (count < 1) r.Fail(r.Key("count"), fmt::format("must be >= 1 (got {})", count));
-  if (count > kMaxCases) r.Fail(r.Key("count"), fmt::format("must be <= {:.0f} (got {})", kMaxCases, count));
+  if (count < 1) r.Fail(r.Key("count"), fmt::format("must be >= 1 (got {})", model::QuoteJsonValue(count_json)));
+  if (count > kMaxCases) {
+    r.Fail(r.Key("count"), fmt::format("must be <= {:.0f} (got {})", kMaxCases, model::QuoteJsonValue(count_json)));
+  }
   if (from > to) r.Fail(r.Key("from"), fmt::format("must not exceed to (got from {} > to {})", from, to));
   if (count == 1 && from != to) r.Fail(r.Key("count"), fmt::format("1 value needs from == to (got {} and {})", from, to));
   if (spacing != "log" && spacing != "linear") {
@@ -71,7 +77,7 @@ std::vector<double> ParseValues(Reader& parent, const std::string& k) {
   if (v.is_object()) return ParseRange(v, parent.origin(), key);
   if (!v.is_array()) {
     parent.Fail(key, fmt::format("must be a list of numbers or a range {{\"from\", \"to\", \"count\", \"spacing\"}} "
-                                 "(got {})", v.dump()));
+                                 "(got {})", model::QuoteJsonValue(v)));
   }
   if (v.empty()) parent.Fail(key, "must not be empty (give at least one value)");
   std::vector<double> out;
@@ -83,7 +89,7 @@ std::vector<double> ParseValues(Reader& parent, const std::string& k) {
       continue;
     }
     if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) {
-      parent.Fail(item, fmt::format("must be a finite number or a range (got {})", v[i].dump()));
+      parent.Fail(item, fmt::format("must be a finite number or a range (got {})", model::QuoteJsonValue(v[i])));
     }
     out.push_back(v[i].get<double>());
   }
@@ -110,7 +116,7 @@ model::Config ParseDesign(Reader& top, const std::string& base_dir) {
   const json& d = top.Get("design");
   const std::string origin = fmt::format("{}: design", top.origin());
   if (d.is_object()) return model::ParseConfig(d.dump(), origin);
-  if (!d.is_string()) top.Fail("design", fmt::format("must be a configuration file path or object (got {})", d.dump()));
+  if (!d.is_string()) top.Fail("design", fmt::format("must be a configuration file path or object (got {})", model::QuoteJsonValue(d)));
   std::filesystem::path path(d.get<std::string>());
   if (path.is_relative() && !base_dir.empty()) path = std::filesystem::path(base_dir) / path;
   try {
@@ -129,7 +135,7 @@ std::vector<HarnessCornea> ParseCorneas(Reader& top, const model::Config& design
     return out;
   }
   const json& list = top.Get("corneas");
-  if (!list.is_array()) top.Fail("corneas", fmt::format("must be a list of biconics (got {})", list.dump()));
+  if (!list.is_array()) top.Fail("corneas", fmt::format("must be a list of biconics (got {})", model::QuoteJsonValue(list)));
   if (list.empty()) top.Fail("corneas", "must not be empty (leave it out for the design's own cornea)");
   std::set<std::string> names;
   for (size_t i = 0; i < list.size(); ++i) {
@@ -289,12 +295,7 @@ std::vector<double>& HarnessConfig::Coefficients(DistortionFamily family) {
 }
 
 HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string& origin, const std::string& base_dir) {
-  json j;
-  try {
-    j = json::parse(json_text);
-  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e999
-    throw model::ConfigError(fmt::format("{}: (file): not valid JSON: {}", origin, e.what()));
-  }
+  const json j = model::ParseJsonStrict(json_text, origin);
   HarnessConfig h;
   Reader top(j, origin, "");
   if (top.Has("description")) top.String("description");  // free text for the reader; not part of the identity
@@ -302,7 +303,7 @@ HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string
   h.pixel_pitch_um = top.PositiveNumber("pixel_pitch_um", h.pixel_pitch_um);
   if (top.Has("seed")) {
     const json& s = top.Get("seed");
-    if (!s.is_number_unsigned()) top.Fail("seed", fmt::format("must be a non-negative integer (got {})", s.dump()));
+    if (!s.is_number_unsigned()) top.Fail("seed", fmt::format("must be a non-negative integer (got {})", model::QuoteJsonValue(s)));
     h.seed = s.get<std::uint64_t>();
   }
   if (top.Has("distortion")) {
@@ -328,9 +329,9 @@ HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string
   }
   if (top.Has("noise_draws")) {
     const json& n = top.Get("noise_draws");
-    if (!n.is_number_integer()) top.Fail("noise_draws", fmt::format("must be an integer (got {})", n.dump()));
-    const long long draws = n.get<long long>();
-    if (draws < 1 || draws > kMaxCases) top.Fail("noise_draws", fmt::format("must lie in [1, {:.0f}] (got {})", kMaxCases, draws));
+    if (!n.is_number_integer()) top.Fail("noise_draws", fmt::format("must be an integer (got {})", model::QuoteJsonValue(n)));
+    const long long draws = model::JsonIntegerWithin(n, 1, static_cast<long long>(kMaxCases)) ? n.get<long long>() : -1;
+    if (draws < 1 || draws > kMaxCases) top.Fail("noise_draws", fmt::format("must lie in [1, {:.0f}] (got {})", kMaxCases, model::QuoteJsonValue(n)));
     h.noise_draws = static_cast<int>(draws);
   }
   if (h.HasDistortion()) {

@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "model/json_section.h"
 #include "model/io.h"
 
 namespace topocal::report {
@@ -110,17 +111,12 @@ Limits DefaultLimits() {
 
 Limits LoadLimits(const std::string& path) {
   const std::string text = model::ReadFile(path);
-  json root;
-  try {
-    root = json::parse(text);
-  } catch (const json::parse_error& e) {
-    throw model::InputError(fmt::format("{}: not valid JSON: {}", path, e.what()));
-  }
+  const json root = model::ParseJsonStrict(text, path);
   RequireExactKeys(path, "", root, {"format", "format_version", "decision_rule", "limits"});
   if (!root["format"].is_string() || root["format"].get<std::string>() != kLimitsFormat) {
     Fail(path, "format", fmt::format("must be \"{}\"", kLimitsFormat));
   }
-  if (!root["format_version"].is_number_integer() || root["format_version"].get<int>() != kLimitsFormatVersion) {
+  if (!model::JsonIntegerWithin(root["format_version"], kLimitsFormatVersion, kLimitsFormatVersion)) {
     Fail(path, "format_version", fmt::format("must be {}", kLimitsFormatVersion));
   }
   Limits l;

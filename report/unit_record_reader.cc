@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <set>
 #include <span>
 #include <sstream>
@@ -10,6 +11,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "model/json_section.h"
 #include "model/io.h"
 #include "model/sha256.h"
 #include "model/version.h"
@@ -64,6 +66,10 @@ class JsonReader {
   int Integer(const json& obj, const std::string& prefix, const char* name) const {
     const json& v = Member(obj, prefix, name);
     if (!v.is_number_integer()) Fail(Join(prefix, name), "must be an integer");
+    // get<int>() truncates silently (4294967297 became 1): the range is checked on the 64-bit value first.
+    if (!model::JsonIntegerWithin(v, std::numeric_limits<int>::min(), std::numeric_limits<int>::max())) {
+      Fail(Join(prefix, name), fmt::format("out of range (got {})", model::QuoteJsonValue(v)));
+    }
     return v.get<int>();
   }
   int NonNegativeInteger(const json& obj, const std::string& prefix, const char* name) const {
@@ -258,12 +264,7 @@ UnitRecord ReadUnitRecord(const std::string& directory) {
   }
   const std::string text = model::ReadFile(rec.unit_json_path);
   rec.unit_json_sha256 = model::Sha256Hex(text);
-  json root;
-  try {
-    root = json::parse(text);
-  } catch (const json::parse_error& e) {
-    throw model::InputError(fmt::format("{}: not valid JSON: {}", rec.unit_json_path, e.what()));
-  }
+  const json root = model::ParseJsonStrict(text, rec.unit_json_path);
   const JsonReader r(rec.unit_json_path);
   if (!root.is_object()) r.Fail("(top level)", "must be an object");
 

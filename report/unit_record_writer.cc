@@ -47,6 +47,7 @@ json FileDigests(const fs::path& dir) {
 // Replaces `out` by the complete directory `staged`: the old record (if any) is moved aside first and removed
 // only after the new one is in place, so every moment either the old or the new record is whole.
 void CommitDirectory(const fs::path& staged, const fs::path& out) {
+  const model::DeferSignalCleanup defer;  // a signal between the two renames would lose both records
   std::error_code ec;
   const fs::path aside = out.string() + fmt::format(".old-{}", ::getpid());
   const bool had_old = fs::exists(out);
@@ -80,6 +81,7 @@ UnitRecordWriter::UnitRecordWriter(fs::path out)
     : out_(RecordPath(std::move(out))), staging_(out_.string() + fmt::format(".tmp-{}", ::getpid())) {
   std::error_code ec;
   fs::remove_all(staging_, ec);
+  model::RegisterCleanupPath(staging_.string());  // SIGINT/SIGTERM remove it (issue 16: 8 of 8 kills left it)
   fs::create_directories(staging_ / "maps", ec);
   if (ec) throw model::InputError(fmt::format("{}: cannot create the record directory: {}", out_.string(), ec.message()));
 }
@@ -87,6 +89,7 @@ UnitRecordWriter::UnitRecordWriter(fs::path out)
 UnitRecordWriter::~UnitRecordWriter() {
   std::error_code ec;
   if (!committed_) fs::remove_all(staging_, ec);
+  model::UnregisterCleanupPath(staging_.string());
 }
 
 void UnitRecordWriter::WriteFile(const std::string& name, std::string_view bytes) const {

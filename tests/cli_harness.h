@@ -1,7 +1,10 @@
 #pragma once
 // Running the `topocal` binary from a test: its exit code and everything it printed (stdout and stderr together).
 // TOPOCAL_EXE is defined by the test's CMakeLists.txt.
+#include <signal.h>
+#include <spawn.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
 #include <cstdio>
@@ -23,6 +26,23 @@ inline Run RunTopocal(const std::string& args) {
   while (size_t n = fread(buf.data(), 1, buf.size(), pipe)) out.append(buf.data(), n);
   const int status = pclose(pipe);
   return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), out};
+}
+
+// Starts `topocal ARGS` in the background (its output discarded) and returns its process id: for tests that send
+// it a signal. Reap it with WaitTopocal.
+inline pid_t SpawnTopocal(const std::string& args) {
+  const std::string cmd = std::string("exec ") + TOPOCAL_EXE + " " + args + " >/dev/null 2>&1";
+  const char* argv[] = {"/bin/sh", "-c", cmd.c_str(), nullptr};
+  pid_t pid = -1;
+  if (posix_spawn(&pid, "/bin/sh", nullptr, nullptr, const_cast<char* const*>(argv), environ) != 0) return -1;
+  return pid;
+}
+
+// Waits for a spawned process; its exit code, or 128 + the signal that ended it.
+inline int WaitTopocal(pid_t pid) {
+  int status = 0;
+  if (waitpid(pid, &status, 0) != pid) return -1;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 
 }  // namespace topocal::testing_cli

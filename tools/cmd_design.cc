@@ -43,10 +43,12 @@ void AddDesignCommand(CLI::App& app) {
       }
       svg_text = NullScreenSvg(layout, {.title = std::filesystem::path(*config).stem().string()});
     }
-    model::WriteFileAtomic(*out, csv);
+    model::StagedOutputs outputs;  // the CSV and the SVG are published together or not at all
+    outputs.AddFile(*out, csv);
+    if (!svg->empty()) outputs.AddFile(*svg, svg_text);
+    outputs.Commit();
     fmt::print("designed {} target points ({} failed) -> {}\n", design.targets.size(), design.failures.size(), *out);
     if (!svg->empty()) {
-      model::WriteFileAtomic(*svg, svg_text);
       fmt::print("printable null screen (unrolled cone, 1:1, print at 100 %) -> {}\n", *svg);
     }
   });

@@ -31,25 +31,15 @@ void PrepareOutputDirectory(const std::string& dir) {
   if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
     throw model::InputError(fmt::format("{}: --out: exists and is not a directory", dir));
   }
-  fs::create_directories(dir, ec);
-  if (ec) throw model::InputError(fmt::format("{}: --out: cannot be created: {}", dir, ec.message()));
+  // Created with the outputs (model::StagedOutputs), so that an interrupted run leaves no empty directory.
 }
 
-// Writes every file atomically; if one cannot be written, the ones already written by this call are removed, so a
-// failed run leaves no partial set of outputs behind.
+// Stages every file, then publishes them together: a failed or interrupted run leaves no partial set of outputs.
 void WriteAll(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files) {
-  std::vector<fs::path> written;
-  try {
-    for (const auto& [name, content] : files) {
-      const fs::path path = fs::path(dir) / name;
-      model::WriteFileAtomic(path.string(), content);
-      written.push_back(path);
-    }
-  } catch (...) {
-    std::error_code ec;
-    for (const auto& p : written) fs::remove(p, ec);
-    throw;
-  }
+  model::StagedOutputs outputs;
+  const fs::path staging = outputs.AddDirectory(dir);  // DIR is created only when the outputs are published
+  for (const auto& [name, content] : files) model::WriteFileAtomic((staging / name).string(), content);
+  outputs.Commit();
 }
 
 void WriteOutputs(const std::string& dir, const pipeline::HarnessRun& run) {
@@ -95,7 +85,9 @@ void AddHarnessCommand(CLI::App& app) {
   cmd->add_option("--out", *out, "Output directory (created if missing)");
   cmd->add_option("--shard", *shard,
                   "Run only shard i of N (cases with index % N == i) and write DIR/shard-<i>-of-<N>.json for merge");
-  cmd->add_option("--jobs", *jobs, "Threads in this process (the results do not depend on it) [the cores available]");
+  cmd->add_option("--jobs", *jobs, "Threads in this process (the results do not depend on it; default: the cores available)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 256));
 
   auto* merge = cmd->add_subcommand("merge", "Merge the shard files of one configuration into the outputs of a "
                                              "single run");

@@ -238,6 +238,7 @@ void AddReconstructCommand(CLI::App& app) {
       for (const auto& [name, q] : uncertainty->quantities) u[name] = {{"mean", q.mean}, {"expanded", q.expanded_k2}};
       info["uncertainty"] = u;
     }
+    model::StagedOutputs outputs;  // the JSON and the maps are published together or not at all
     if (!json_out->empty()) {
       nlohmann::json j = info;
       j["reconstruction"] = ReconstructionJson(analysis.reconstruction);
@@ -248,9 +249,10 @@ void AddReconstructCommand(CLI::App& app) {
       if (*truth) j["errors"] = ErrorsJson(analysis);
       j["clinical"] = ClinicalJson(analysis);
       j["adequacy"] = AdequacyJson(analysis);
-      model::WriteFileAtomic(*json_out, j.dump(2) + "\n");
+      outputs.AddFile(*json_out, j.dump(2) + "\n");
     }
-    if (!maps->empty()) WriteAnalysisMaps(*maps, "", "", analysis, *truth ? &cfg.cornea : nullptr);
+    if (!maps->empty()) WriteAnalysisMaps(outputs.AddDirectory(*maps), "", "", analysis, *truth ? &cfg.cornea : nullptr);
+    outputs.Commit();
   });
 }
 

@@ -51,6 +51,11 @@ void Run(const RenderSpotsArgs& a) {
       throw model::InputError(fmt::format("{}: a_mm: {} differs from the configuration's topographer.a_mm = {} ({})",
                                           a.camera, device.camera.a_mm, cfg.topographer.a_mm, a.config));
     }
+    if (const double max = model::MaxFoldFreeSigmaPerMm2(cfg.ideal_image, cfg.distortion);
+        a.sigma != 0 && !(std::abs(a.sigma) < max)) {  // issue 16: 1e308 wrote rows of -inf
+      throw model::InputError(fmt::format("--sigma {}: folds the image of {} (|sigma| must be below {:.3g} mm^-2)",
+                                          a.sigma, a.config, max));
+    }
     model::SeidelParams seidel;
     seidel.sigma_per_mm2 = a.sigma;
     seidel.magnification = cfg.distortion.magnification;

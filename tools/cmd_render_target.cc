@@ -7,6 +7,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "calib/calibration_file.h"
 #include "calib/camera.h"
 #include "calib/render_target.h"
 #include "calib/target.h"
@@ -40,37 +41,8 @@ void RequireFinite(double value, const char* option) {
 // An OpenCV calibration file (camera_matrix, distortion_coefficients, image_width, image_height), as written by
 // `topocal calibrate` or cv::FileStorage.
 calib::CameraModel LoadOpenCvCamera(const std::string& path) {
-  // Read the file ourselves: cv::FileStorage logs its own error line for a missing file.
-  std::string text = model::ReadFile(path);
-  if (text.rfind("%YAML", 0) != 0) text = "%YAML:1.0\n---\n" + text;
-  cv::FileStorage fs;
-  try {
-    fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
-  } catch (const cv::Exception& e) {
-    throw model::InputError(fmt::format("{}: cannot read calibration ({})", path, e.err));
-  }
-  if (!fs.isOpened()) throw model::InputError(fmt::format("{}: cannot read calibration", path));
-  cv::Mat k, d;
-  fs["camera_matrix"] >> k;
-  fs["distortion_coefficients"] >> d;
-  if (k.rows != 3 || k.cols != 3) throw model::InputError(fmt::format("{}: camera_matrix: must be 3x3", path));
-  if (d.total() < 4 || d.total() > 5) {
-    throw model::InputError(fmt::format("{}: distortion_coefficients: need 4 or 5 (k1 k2 p1 p2 [k3])", path));
-  }
-  k.convertTo(k, CV_64F);
-  d.convertTo(d, CV_64F);
-  calib::CameraModel camera;
-  camera.width_px = static_cast<int>(fs["image_width"]);
-  camera.height_px = static_cast<int>(fs["image_height"]);
-  camera.fx_px = k.at<double>(0, 0);
-  camera.fy_px = k.at<double>(1, 1);
-  camera.cx_px = k.at<double>(0, 2);
-  camera.cy_px = k.at<double>(1, 2);
-  for (size_t i = 0; i < d.total(); ++i) camera.dist[i] = d.at<double>(static_cast<int>(i));
-  if (camera.width_px < 1 || camera.height_px < 1) {
-    throw model::InputError(fmt::format("{}: image_width/image_height: missing or not positive", path));
-  }
-  return camera;
+  // The one calibration-file reader (calib/calibration_file.h): strict sizes, finite values, guarded parser.
+  return calib::LoadCalibrationFile(path).opencv_camera;
 }
 
 calib::CameraModel BuildCamera(const RenderArgs& a, const CLI::App& cmd) {

@@ -178,7 +178,8 @@ void AddSweepCommand(CLI::App& app) {
       }
       PrintCorrection(result, corrected);
     }
-    if (!json_out->empty()) model::WriteFileAtomic(*json_out, SweepJson(result, corrected));
+    model::StagedOutputs outputs;  // the JSON and the maps are published together or not at all
+    if (!json_out->empty()) outputs.AddFile(*json_out, SweepJson(result, corrected));
     if (!maps->empty()) {
       // One set: every sigma's map of a kind on the same scale, so that the sweep compares by eye.
       std::vector<AnalysisMapEntry> entries;
@@ -187,8 +188,9 @@ void AddSweepCommand(CLI::App& app) {
                            fmt::format(", \u03c3 = {:.3g} mm\u207b\u00b2", row.sigma_per_mm2), &row.analysis,
                            &cfg.cornea, {}});
       }
-      WriteAnalysisMapSet(*maps, entries);
+      WriteAnalysisMapSet(outputs.AddDirectory(*maps), entries);
     }
+    outputs.Commit();
   });
 }
 

@@ -51,7 +51,7 @@ void AddCommonOptions(CLI::App* cmd, UnitRequest* r) {
   cmd->add_option("--fix", r->fixed, "Hold these parameters at their initial value (e.g. --fix k3 p1 p2)");
   cmd->add_option("--uncertainty", r->uncertainty_samples,
                   "Monte Carlo draws of the calibration covariance carried to the clinical numbers (0 = none)")
-      ->check(CLI::Range(0, 100000));
+      ->check(CLI::Range(0, kMaxUncertaintySamples));
   cmd->add_option("--seed", r->seed, "Seed of the Monte Carlo draws");
 }
 
@@ -65,6 +65,7 @@ struct BatchItem {
   std::string inputs_path;
   std::optional<UnitRequest> request;
   std::string error;  // set when the unit failed
+  bool bad_input = false;  // the failure was bad input (exit 2 when every failure is)
   std::vector<std::string> summary;
   bool done = false;
 };
@@ -75,7 +76,7 @@ void RunBatch(const BatchArgs& a) {
   std::vector<BatchItem> items;
   for (const auto& e : fs::directory_iterator(a.dir)) {
     if (e.is_directory() && fs::exists(e.path() / kUnitInputsFile)) {
-      items.push_back({(e.path() / kUnitInputsFile).string(), std::nullopt, {}, {}, false});
+      items.push_back({(e.path() / kUnitInputsFile).string(), std::nullopt, {}, false, {}, false});
     }
   }
   if (items.empty()) {
@@ -107,7 +108,11 @@ void RunBatch(const BatchArgs& a) {
       const auto [it, inserted] = first_with_serial.emplace(item.request->serial, i);
       if (!inserted) {
         item.error = fmt::format("serial {} is also used by {}", item.request->serial, items[it->second].inputs_path);
+        item.bad_input = true;
       }
+    } catch (const model::InputError& e) {
+      item.error = e.what();
+      item.bad_input = true;
     } catch (const std::exception& e) {
       item.error = e.what();
     }
@@ -158,6 +163,9 @@ void RunBatch(const BatchArgs& a) {
         fmt::print(stderr, "topocal unit: {}\n", line);
       });
       item.summary = outcome.summary;
+    } catch (const model::InputError& e) {
+      item.error = e.what();
+      item.bad_input = true;
     } catch (const std::exception& e) {
       item.error = e.what();
     }
@@ -172,7 +180,14 @@ void RunBatch(const BatchArgs& a) {
   for (const auto& item : items) {
     if (!item.error.empty()) fmt::print("  FAILED {}: {}\n", item.inputs_path, item.error);
   }
-  if (failed > 0) throw std::runtime_error(fmt::format("calibrate-batch: {} of {} unit(s) failed", failed, items.size()));
+  if (failed > 0) {
+    const std::string what = fmt::format("calibrate-batch: {} of {} unit(s) failed", failed, items.size());
+    // Exit 2 when every failure was bad input (the operator fixes the inputs), 1 when a computation failed.
+    if (std::all_of(items.begin(), items.end(), [](const BatchItem& i) { return i.error.empty() || i.bad_input; })) {
+      throw model::InputError(what + " (bad input)");
+    }
+    throw std::runtime_error(what);
+  }
 }
 
 }  // namespace

@@ -15,6 +15,8 @@
 #include "tools/progress.h"
 
 int main(int argc, char** argv) {
+  // Before any thread starts: SIGINT/SIGTERM/SIGHUP remove staged outputs, then end the process (model/io.h).
+  topocal::model::InstallSignalCleanup();
   // Ceres logs through glog (failed steps, rank-deficient covariances); every failure reaches the user as one line
   // from the library's own result, so glog's lines would only be noise on stderr.
   FLAGS_minloglevel = google::GLOG_FATAL;

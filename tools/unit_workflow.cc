@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <optional>
 #include <stdexcept>
@@ -21,6 +22,7 @@
 #include "calib/target.h"
 #include "model/config.h"
 #include "model/io.h"
+#include "model/json_section.h"
 #include "model/sha256.h"
 #include "model/topographer_camera.h"
 #include "model/version.h"
@@ -130,8 +132,9 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   if (r.reference_sphere.empty() != (r.sphere_radius_mm == 0)) {
     throw model::InputError("--reference-sphere and --sphere-radius-mm go together");
   }
-  if (r.uncertainty_samples != 0 && r.uncertainty_samples < 2) {
-    throw model::InputError(fmt::format("--uncertainty {}: 0 (none) or at least 2 draws", r.uncertainty_samples));
+  if (r.uncertainty_samples != 0 && (r.uncertainty_samples < 2 || r.uncertainty_samples > kMaxUncertaintySamples)) {
+    throw model::InputError(fmt::format("--uncertainty {}: 0 (none) or 2 to {} draws", r.uncertainty_samples,
+                                        kMaxUncertaintySamples));
   }
   if (r.images.empty()) throw model::InputError("--images: no image given");
   if (r.balls.size() != r.ball_radii_mm.size()) {
@@ -578,69 +581,58 @@ UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const s
 }
 
 UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults) {
-  const std::string text = model::ReadFile(path);
-  json j;
-  try {
-    j = json::parse(text);
-  } catch (const json::parse_error& e) {
-    throw model::InputError(fmt::format("{}: not valid JSON: {}", path, e.what()));
+  const json j = model::ParseJsonStrict(model::ReadFile(path), path);
+  model::JsonSection s(j, path, "");
+  // Unknown keys first: a misspelt key is the likelier cause of whatever would fail next.
+  for (const char* key : {"serial", "target", "images", "reference_sphere", "sphere_radius_mm", "model", "fit_centre",
+                          "fix", "config", "camera", "uncertainty_samples", "seed"}) {
+    s.MarkSeen(key);
   }
-  if (!j.is_object()) throw model::InputError(fmt::format("{}: expected a JSON object", path));
-  static const std::vector<std::string> kKeys = {"serial", "target",           "images",      "reference_sphere",
-                                                 "sphere_radius_mm", "model",  "fit_centre",  "fix", "config",
-                                                 "camera",  "uncertainty_samples", "seed"};
-  for (const auto& [key, value] : j.items()) {
-    if (std::find(kKeys.begin(), kKeys.end(), key) == kKeys.end()) {
-      throw model::InputError(fmt::format("{}: {}: unknown key", path, key));
-    }
-  }
+  s.RejectUnknown();
   const fs::path base = fs::path(path).parent_path();
   const auto relative = [&](const std::string& p) { return fs::path(p).is_absolute() ? p : (base / p).string(); };
   const auto str = [&](const char* key, bool required) -> std::optional<std::string> {
-    if (!j.contains(key)) {
-      if (required) throw model::InputError(fmt::format("{}: {}: missing", path, key));
+    if (!s.Has(key)) {
+      if (required) s.Get(key);  // fails: missing
       return std::nullopt;
     }
-    if (!j[key].is_string() || j[key].get<std::string>().empty()) {
-      throw model::InputError(fmt::format("{}: {}: expected a non-empty string", path, key));
-    }
-    return j[key].get<std::string>();
+    const std::string v = s.String(key);
+    if (v.empty()) s.Fail(key, "expected a non-empty string");
+    return v;
   };
   UnitRequest r = defaults;
   r.serial = *str("serial", true);
   r.target = relative(*str("target", true));
   r.images = Glob(relative(*str("images", true)), fmt::format("{}: images", path));
-  if (const auto s = str("reference_sphere", false)) r.reference_sphere = relative(*s);
-  if (j.contains("sphere_radius_mm")) {
-    if (!j["sphere_radius_mm"].is_number() || !(j["sphere_radius_mm"].get<double>() > 0)) {
-      throw model::InputError(fmt::format("{}: sphere_radius_mm: expected a positive number", path));
-    }
-    r.sphere_radius_mm = j["sphere_radius_mm"].get<double>();
+  if (const auto v = str("reference_sphere", false)) r.reference_sphere = relative(*v);
+  if (s.Has("sphere_radius_mm")) r.sphere_radius_mm = s.PositiveNumber("sphere_radius_mm", 0);
+  if (const auto v = str("model", false)) r.model = *v;
+  if (const auto v = str("config", false)) r.config = relative(*v);
+  if (const auto v = str("camera", false)) r.camera = relative(*v);
+  if (s.Has("fit_centre")) {
+    const json& v = s.Get("fit_centre");
+    if (!v.is_boolean()) s.Fail("fit_centre", fmt::format("expected true or false (got {})", model::QuoteJsonValue(v)));
+    r.fit_centre = v.get<bool>();
   }
-  if (const auto s = str("model", false)) r.model = *s;
-  if (const auto s = str("config", false)) r.config = relative(*s);
-  if (const auto s = str("camera", false)) r.camera = relative(*s);
-  if (j.contains("fit_centre")) {
-    if (!j["fit_centre"].is_boolean()) throw model::InputError(fmt::format("{}: fit_centre: expected true or false", path));
-    r.fit_centre = j["fit_centre"].get<bool>();
-  }
-  if (j.contains("fix")) {
-    if (!j["fix"].is_array()) throw model::InputError(fmt::format("{}: fix: expected a list of parameter names", path));
+  if (s.Has("fix")) {
+    const json& v = s.Get("fix");
+    const auto bad = [&] { s.Fail("fix", fmt::format("expected a list of parameter names (got {})", model::QuoteJsonValue(v))); };
+    if (!v.is_array()) bad();
     r.fixed.clear();
-    for (const auto& f : j["fix"]) {
-      if (!f.is_string()) throw model::InputError(fmt::format("{}: fix: expected a list of parameter names", path));
+    for (const auto& f : v) {
+      if (!f.is_string()) bad();
       r.fixed.push_back(f.get<std::string>());
     }
   }
-  if (j.contains("uncertainty_samples")) {
-    if (!j["uncertainty_samples"].is_number_integer()) {
-      throw model::InputError(fmt::format("{}: uncertainty_samples: expected an integer", path));
+  // The same range as --uncertainty: 0 (none) or 2 to kMaxUncertaintySamples draws.
+  r.uncertainty_samples = s.IntegerInRange("uncertainty_samples", r.uncertainty_samples, 0, kMaxUncertaintySamples);
+  if (s.Has("seed")) {
+    const json& v = s.Get("seed");
+    if (!model::JsonIntegerWithin(v, 0, std::numeric_limits<std::uint32_t>::max())) {
+      s.Fail("seed", fmt::format("expected an integer in [0, {}] (got {})", std::numeric_limits<std::uint32_t>::max(),
+                                 model::QuoteJsonValue(v)));
     }
-    r.uncertainty_samples = j["uncertainty_samples"].get<int>();
-  }
-  if (j.contains("seed")) {
-    if (!j["seed"].is_number_unsigned()) throw model::InputError(fmt::format("{}: seed: expected a non-negative integer", path));
-    r.seed = j["seed"].get<unsigned>();
+    r.seed = static_cast<unsigned>(v.get<unsigned long long>());
   }
   return r;
 }

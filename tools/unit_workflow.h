@@ -8,6 +8,10 @@
 
 namespace topocal::tools {
 
+// Monte Carlo draws of a unit's verification: the range of --uncertainty and of unit-inputs.json's
+// uncertainty_samples (200 draws take ~1 s; 1e5 bounds the work at a few minutes per unit).
+inline constexpr int kMaxUncertaintySamples = 100000;
+
 struct UnitRequest {
   std::string serial;
   std::string target;                 // target description (Kalibr YAML)
@@ -24,7 +28,7 @@ struct UnitRequest {
   std::string model = "seidel";       // seidel | brown5
   bool fit_centre = false;
   std::vector<std::string> fixed;     // parameters held at their initial value (calib::kParameterNames)
-  int uncertainty_samples = 200;      // Monte Carlo draws; 0 = none
+  int uncertainty_samples = 200;      // Monte Carlo draws; 0 = none, else 2 to kMaxUncertaintySamples
   unsigned seed = 1;
   int jobs = 0;                       // threads for the Monte Carlo draws (0 = every core; same record either way)
   std::string out;                    // the record directory

@@ -385,8 +385,8 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
         if (!valid.at<std::uint8_t>(r, c)) continue;
         const int b = band.at<int>(r, c);
         const bool right = c + 1 < plot_w && valid.at<std::uint8_t>(r, c + 1) && band.at<int>(r, c + 1) != b;
-        const bool below = r + 1 < plot_h && valid.at<std::uint8_t>(r + 1, c) && band.at<int>(r + 1, c) != b;
-        if (right || below) coloured.at<cv::Vec3b>(r, c) = cv::Vec3b(30, 30, 30);
+        const bool edge_below = r + 1 < plot_h && valid.at<std::uint8_t>(r + 1, c) && band.at<int>(r + 1, c) != b;
+        if (right || edge_below) coloured.at<cv::Vec3b>(r, c) = cv::Vec3b(30, 30, 30);
       }
     }
   }

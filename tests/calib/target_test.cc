@@ -85,7 +85,7 @@ TEST(TargetDescription, RejectsBadFilesNamingFileAndKey) {
   EXPECT_EQ(ErrorOf(std::regex_replace(cb, std::regex("targetCols: 9"), "targetCols: 9.5")),
             "T.yaml: targetCols: must be an integer");
   EXPECT_EQ(ErrorOf(std::regex_replace(cb, std::regex("targetRows: 6"), "targetRows: 0")),
-            "T.yaml: targetRows: must be positive, got 0");
+            "T.yaml: targetRows: must be in [1, 1000], got 0");
   EXPECT_EQ(ErrorOf(std::regex_replace(cb, std::regex("0.025"), "-0.025")),
             "T.yaml: rowSpacingMeters: must be a positive number, got -0.025");
   EXPECT_EQ(ErrorOf(std::regex_replace(cb, std::regex("'checkerboard'"), "circlegrid")),
@@ -95,7 +95,7 @@ TEST(TargetDescription, RejectsBadFilesNamingFileAndKey) {
   EXPECT_EQ(ErrorOf(std::string(kKalibrAprilGrid) + "firstTagId: 580\n"),
             "T.yaml: firstTagId: ids 580..609 exceed tag36h11's 587 codes");
   EXPECT_EQ(ErrorOf(std::string(kKalibrAprilGrid) + "firstTagId: -1\n"),
-            "T.yaml: firstTagId: must not be negative, got -1");
+            "T.yaml: firstTagId: must be in [0, 1000000], got -1");
   EXPECT_EQ(ErrorOf("   \n"), "T.yaml: empty target description");
   EXPECT_NE(ErrorOf("target_type: [unclosed\n").find("T.yaml: "), std::string::npos);
   EXPECT_THROW(LoadTargetDescription("/nonexistent/T.yaml"), model::InputError);

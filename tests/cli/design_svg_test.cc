@@ -137,7 +137,9 @@ TEST_F(DesignSvg, UnwritableSvgPathIsBadInputWithoutPartialFile) {
   const auto r = RunTopocal("design --config " + paper_ + " --out " + Path("t.csv") + " --svg " + bad);
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find(bad), std::string::npos) << r.output;
-  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 2) << r.output;  // the CSV line + the error line
+  // Only the error line: the CSV is published with the SVG or not at all (issue 16).
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  EXPECT_FALSE(fs::exists(Path("t.csv")));
   EXPECT_FALSE(fs::exists(bad));
   EXPECT_FALSE(fs::exists(dir_ / "no-such-dir"));
 }

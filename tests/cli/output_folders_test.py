@@ -57,7 +57,7 @@ for _ in range(2):  # the rerun meets the same error, not "exists and is not a u
 os.makedirs(os.path.join(WORK, "inputs", "SN-0002"))
 with open(os.path.join(WORK, "inputs", "SN-0002", "unit-inputs.json"), "w") as f:
     f.write("{ not json")
-fails_without_folder(["unit", "calibrate-batch", "inputs/", "--out", "new/out/", "--quiet"], 1)
+fails_without_folder(["unit", "calibrate-batch", "inputs/", "--out", "new/out/", "--quiet"], 2)  # a unit with bad input only: exit 2
 
 if failures:
     print(f"{len(failures)} check(s) failed", file=sys.stderr)

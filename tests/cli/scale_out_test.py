@@ -97,7 +97,7 @@ for serial in ("A1", "B2", "C3", "D4", "E5"):
 seen = []
 for i in range(2):
     r = run(["topocal", "unit", "calibrate-batch", "inputs/", "--out", "units/", "--quiet", "--shard", f"{i}/2"],
-            expect=1)
+            expect=2)  # bad input only: exit 2 (docs/robustness.md)
     seen += [s for s in ("A1", "B2", "C3", "D4", "E5") if f"inputs/{s}/unit-inputs.json" in r.stdout]
 check(sorted(seen) == ["A1", "B2", "C3", "D4", "E5"], f"batch shards cover every unit once: {seen}")
 check(not os.path.exists(os.path.join(WORK, "units")), "failed batch shards leave no units/ folder")

@@ -272,6 +272,25 @@ TEST_F(UnitCli, AFailedRerunLeavesTheEarlierRecordWhole) {
   EXPECT_EQ(Entries(dir_), std::vector<std::string>{"SN-0004"});
 }
 
+// Issue 16: SIGTERM or SIGINT during `unit calibrate` left units/SN.tmp-PID/ (8 of 8 kills). Killed as soon as its
+// staging directory appears (the run is then calibrating), it leaves nothing and ends by the signal.
+TEST_F(UnitCli, ASignalDuringCalibrationLeavesNoStaging) {
+  for (const int sig : {SIGTERM, SIGINT}) {
+    const pid_t pid = SpawnTopocal(Calibrate("SN-KILL", (dir_ / "SN-KILL").string()));
+    ASSERT_GT(pid, 0);
+    const std::string staging = fmt::format("SN-KILL.tmp-{}", pid);
+    bool seen = false;
+    for (int i = 0; i < 20000 && !seen; ++i) {  // up to 20 s
+      seen = fs::exists(dir_ / staging);
+      if (!seen) ::usleep(1000);
+    }
+    EXPECT_TRUE(seen) << "the staging directory never appeared";
+    ::kill(pid, sig);
+    EXPECT_EQ(WaitTopocal(pid), 128 + sig);
+    EXPECT_EQ(Entries(dir_), std::vector<std::string>{}) << "signal " << sig;
+  }
+}
+
 TEST_F(UnitCli, BatchCalibratesEveryGoodUnitAndListsTheFailures) {
   const auto batch = dir_ / "line";
   const auto write_unit = [&](const std::string& name, const std::string& json_text) {
@@ -289,7 +308,7 @@ TEST_F(UnitCli, BatchCalibratesEveryGoodUnitAndListsTheFailures) {
   write_unit("d", R"({"serial": "SN-D", "target": "t.yaml", "images": "v.png", "colour": "red"})");
   const auto r = RunTopocal(fmt::format("unit calibrate-batch {} --out {} --jobs 2 --uncertainty {}", batch.string(),
                                         (dir_ / "records").string(), kDraws));
-  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_EQ(r.exit_code, 2) << r.output;  // every failure is bad input (issue 16); 1 when a computation failed
   EXPECT_NE(r.output.find("4 unit(s): 2 calibrated, 2 failed"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("no file matches"), std::string::npos) << r.output;   // unit b's reason
   EXPECT_NE(r.output.find("colour: unknown key"), std::string::npos) << r.output;  // unit d's reason

@@ -149,7 +149,7 @@ TEST(DeviceFile, RoundTripsAndRefusesBadInput) {
   bad = j;
   bad["distortion"]["model"] = "fisheye";
   EXPECT_NE(error_of(bad.dump()).find("distortion.model: must be \"seidel\" or \"brown\""), std::string::npos);
-  EXPECT_NE(error_of("{\"format\": \"topocal-device\", \"format_version\": 1e999}").find("not valid JSON"),
+  EXPECT_NE(error_of("{\"format\": \"topocal-device\", \"format_version\": 1e999}").find("beyond the range of a double"),
             std::string::npos);
   // Input that could crash or fool a parser: nesting beyond the limit (a stack overflow in nlohmann's recursion),
   // a key given twice (silently the last one before).

@@ -110,8 +110,9 @@ TEST(HarnessConfig, RefusesEveryInvalidRangeNamingTheKey) {
             std::string::npos);
   EXPECT_NE(Refusal(SmallConfig(R"(, "corneas": ["design", "design"])")).find("corneas[1]"), std::string::npos);
   EXPECT_NE(Refusal(SmallConfig(R"(, "corneas": [])")).find("corneas"), std::string::npos);
-  // JSON has no infinity: a number beyond double's range is refused as invalid JSON, one line naming the file.
-  EXPECT_NE(Refusal(Replace(ok, "[0, 0.1]", "[0, 1e999]")).find("H.json: (file): not valid JSON"), std::string::npos);
+  // JSON has no infinity: a number beyond double's range is refused, one line naming the file and the key.
+  EXPECT_NE(Refusal(Replace(ok, "[0, 0.1]", "[0, 1e999]")).find("H.json: noise_px[]: a number beyond the range"),
+            std::string::npos);
 }
 
 // An assembly-only sweep: no distortion, no calibration errors (assembly errors are measured uncorrected).

@@ -64,6 +64,23 @@ TEST(Limits, MalformedFilesAreRefusedNamingTheKey) {
   EXPECT_NE(LimitsError("{}").find("limits.json: decision_rule: missing"), std::string::npos);
 }
 
+// Issue 16: 1e999 was exit 1 with nlohmann's raw message; a format_version of 2^32 + 1 read as 1.
+TEST(Limits, HostileJsonIsBadInputNamingTheKey) {
+  std::string text = BundledLimits().dump();
+  const std::string max = "\"max\":";
+  const auto at = text.find(max, text.find("\"calibration_rms_px\""));
+  ASSERT_NE(at, std::string::npos);
+  const std::string huge = text.substr(0, at + max.size()) + "1e999" + text.substr(text.find_first_of(",}", at));
+  EXPECT_NE(LimitsError(huge).find("limits.json: limits.calibration_rms_px.max: a number beyond the range of a double"),
+            std::string::npos) << LimitsError(huge);
+  auto j = BundledLimits();
+  j["format_version"] = 4294967297ULL;
+  EXPECT_NE(LimitsError(j.dump()).find("limits.json: format_version: must be 1"), std::string::npos);
+  const std::string dup = "{\"format\": \"x\", \"format\": \"y\"}";
+  EXPECT_NE(LimitsError(dup).find("limits.json: format: given twice in one object"), std::string::npos);
+  EXPECT_NE(LimitsError(std::string(100000, '[')).find("limits.json: nested deeper than"), std::string::npos);
+}
+
 TEST(Acceptance, TheFixturePassesTheDefaults) {
   const auto f = MakeRecord(FreshDir("pass"));
   const Verdict v = Evaluate(ReadUnitRecord(f.dir), DefaultLimits());

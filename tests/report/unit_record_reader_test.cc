@@ -60,6 +60,29 @@ TEST(UnitRecordReader, OptionalBlocksMayBeAbsent) {
   EXPECT_FALSE(r.seidel_sigma_per_mm2.has_value());
 }
 
+// Issue 16: hostile numbers in unit.json are bad input naming the key (1e999 was exit 1 with nlohmann's message;
+// 4294967297 wrapped to 1).
+TEST(UnitRecordReader, RefusesHostileNumbersAndDuplicateKeys) {
+  auto f = MakeRecord(FreshDir("hostile"));
+  const std::string good = f.unit.dump(1);
+  const auto write_with = [&](const std::string& from, const std::string& to) {
+    std::string text = good;
+    const auto at = text.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    text.replace(at, from.size(), to);
+    model::WriteFileAtomic(f.Path("unit.json"), text);
+    return ReadError(f.dir);
+  };
+  EXPECT_NE(write_with("\"format_version\": 1", "\"format_version\": 4294967297").find("unit.json: format_version: out of range"),
+            std::string::npos);
+  EXPECT_NE(write_with("\"rms_px\": ", "\"rms_px\": 1e999, \"x\": ").find("unit.json: calibration.rms_px: a number beyond"),
+            std::string::npos);
+  EXPECT_NE(write_with("\"outliers\": ", "\"outliers\": 1, \"outliers\": ").find("calibration.outliers: given twice"),
+            std::string::npos);
+  const std::string deep = write_with("\"serial\": ", "\"deep\": " + std::string(100000, '[') + ", \"serial\": ");
+  EXPECT_NE(deep.find("unit.json: nested deeper than"), std::string::npos) << deep;
+}
+
 TEST(UnitRecordReader, RefusesAMissingDirectory) {
   const std::string dir = FreshDir("gone") + "/nothing";
   EXPECT_NE(ReadError(dir).find("nothing"), std::string::npos);

@@ -1,0 +1,167 @@
+#include "calib/file_storage.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cstdlib>
+#include <limits>
+
+#include <fmt/format.h>
+
+#include "model/io.h"
+
+namespace topocal::calib {
+
+// Written by hand: no library offers a non-recursive pre-scan of OpenCV's three formats. The count is deliberately
+// crude — an upper bound, not a parser.
+int FileStorageNestingBound(const std::string& text) {
+  int depth = 0, deepest = 0, openers = 0;
+  char quote = 0;          // the open quote character, 0 outside strings
+  bool line_start = true;  // only blanks and "- " seen on this line so far
+  int dashes = 0;          // "- " block-sequence entries opened on this line
+  char previous = '\n';
+  for (size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (quote) {
+      if (c == '\\' && quote == '"') {
+        ++i;  // skip the escaped character
+      } else if (c == quote) {
+        quote = 0;
+      }
+      previous = c;
+      continue;
+    }
+    if (c == '\n') {
+      line_start = true;
+      dashes = 0;
+      previous = c;
+      continue;
+    }
+    if (line_start && c == '-' && i + 1 < text.size() && (text[i + 1] == ' ' || text[i + 1] == '\t')) {
+      ++dashes;
+      deepest = std::max(deepest, depth + dashes);
+      previous = c;
+      continue;
+    }
+    if (c != ' ' && c != '\t') line_start = false;
+    // A quote opens a string only where a scalar can start: "it's" in a plain scalar is no string.
+    const bool token_start = previous == ' ' || previous == '\t' || previous == '\n' || previous == '[' ||
+                             previous == '{' || previous == ',' || previous == ':' || previous == '>';
+    if ((c == '"' || c == '\'') && token_start) {
+      quote = c;
+    } else if (c == '[' || c == '{') {
+      ++depth;
+      ++openers;
+    } else if (c == ']' || c == '}') {
+      depth = std::max(0, depth - 1);
+    } else if (c == '<') {  // XML: <tag> opens, </tag> and <tag/> do not nest; <?...?> and <!...> neither
+      const char next = i + 1 < text.size() ? text[i + 1] : '\0';
+      const size_t close = text.find('>', i);
+      const bool self_closing = close != std::string::npos && close > i && text[close - 1] == '/';
+      if (next == '/') {
+        depth = std::max(0, depth - 1);
+      } else if (next != '?' && next != '!' && !self_closing) {
+        ++depth;
+        ++openers;
+      }
+    }
+    deepest = std::max(deepest, depth);
+    previous = c;
+  }
+  // Closers inside strings the scan did not recognise as strings could hide nesting; the total count of openers
+  // bounds the depth whatever the quoting (OpenCV 4.6 survives 20000 levels; 1e5 overflowed its stack).
+  constexpr int kMaxOpeners = 10000;
+  return openers > kMaxOpeners ? std::max(deepest, kMaxFileStorageDepth + 1) : deepest;
+}
+
+std::string FileStorageIntegerOutOfRange(const std::string& text) {
+  const auto delimiter = [](char c) {
+    return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == ',' || c == '[' || c == ']' || c == '{' ||
+           c == '}' || c == ':' || c == '<' || c == '>' || c == '"' || c == '\'';
+  };
+  char quote = 0;
+  int line = 1;
+  size_t i = 0;
+  while (i < text.size()) {
+    const char c = text[i];
+    if (c == '\n') ++line;
+    if (quote) {
+      if (c == '\\' && quote == '"') ++i;
+      else if (c == quote) quote = 0;
+      ++i;
+      continue;
+    }
+    if ((c == '"' || c == '\'') && (i == 0 || delimiter(text[i - 1]))) {
+      quote = c;
+      ++i;
+      continue;
+    }
+    if (delimiter(c)) {
+      ++i;
+      continue;
+    }
+    size_t end = i;
+    while (end < text.size() && !delimiter(text[end])) ++end;
+    const std::string token = text.substr(i, end - i);
+    size_t p = token[0] == '+' || token[0] == '-' ? 1 : 0;
+    const bool hex = token.size() > p + 2 && token[p] == '0' && (token[p + 1] == 'x' || token[p + 1] == 'X');
+    bool integer = token.size() > p;
+    for (size_t k = hex ? p + 2 : p; k < token.size() && integer; ++k) {
+      integer = hex ? std::isxdigit(static_cast<unsigned char>(token[k])) != 0
+                    : std::isdigit(static_cast<unsigned char>(token[k])) != 0;
+    }
+    if (integer) {
+      errno = 0;
+      const long long v = std::strtoll(token.c_str(), nullptr, 0);
+      if (errno == ERANGE || v > std::numeric_limits<int>::max() || v < std::numeric_limits<int>::min()) {
+        return fmt::format("line {}: {}", line, token.size() > 40 ? token.substr(0, 37) + "..." : token);
+      }
+    }
+    i = end;
+  }
+  return "";
+}
+
+cv::FileStorage OpenFileStorage(const std::string& text, const std::string& origin) {
+  if (text.size() > kMaxFileStorageBytes) {
+    throw model::InputError(fmt::format("{}: {} bytes: larger than the {} MiB a calibration or target file may have",
+                                        origin, text.size(), kMaxFileStorageBytes >> 20));
+  }
+  if (text.find('\0') != std::string::npos) throw model::InputError(fmt::format("{}: a NUL byte: not a text file", origin));
+  if (FileStorageNestingBound(text) > kMaxFileStorageDepth) {
+    throw model::InputError(fmt::format("{}: nested deeper than {} levels", origin, kMaxFileStorageDepth));
+  }
+  if (const std::string bad = FileStorageIntegerOutOfRange(text); !bad.empty()) {
+    throw model::InputError(fmt::format("{}: {}: an integer beyond the range of int", origin, bad));
+  }
+  const auto first = text.find_first_not_of(" \t\r\n");
+  if (first == std::string::npos) throw model::InputError(fmt::format("{}: empty file", origin));
+  // cv::FileStorage reads YAML from memory only after a "%YAML" directive; Kalibr's files have none.
+  std::string body = text;
+  int format = cv::FileStorage::FORMAT_AUTO;
+  if (text[first] == '<') {
+    format = cv::FileStorage::FORMAT_XML;
+  } else if (text[first] == '{') {
+    format = cv::FileStorage::FORMAT_JSON;
+  } else {
+    format = cv::FileStorage::FORMAT_YAML;
+    if (text.compare(first, 5, "%YAML") != 0) body = "%YAML:1.0\n---\n" + text;
+  }
+  cv::FileStorage fs;
+  try {
+    fs.open(body, cv::FileStorage::READ | cv::FileStorage::MEMORY | format);
+  } catch (const cv::Exception& e) {
+    std::string why = e.err;
+    std::replace(why.begin(), why.end(), '\n', ' ');
+    if (why.size() > 100) why = why.substr(0, 97) + "...";
+    throw model::InputError(fmt::format("{}: not valid {} ({})", origin,
+                                        format == cv::FileStorage::FORMAT_XML    ? "XML"
+                                        : format == cv::FileStorage::FORMAT_JSON ? "JSON"
+                                                                                 : "YAML",
+                                        why));
+  }
+  if (!fs.isOpened()) throw model::InputError(fmt::format("{}: cannot be read as YAML, XML or JSON", origin));
+  return fs;
+}
+
+}  // namespace topocal::calib

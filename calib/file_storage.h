@@ -1,0 +1,29 @@
+#pragma once
+// The one way topocal hands text to cv::FileStorage (calibration files, Kalibr target YAML): OpenCV's YAML, XML and
+// JSON parsers recurse once per nesting level and overflowed the stack (SIGSEGV) on ~1e5 nested '[' (issue 16), so
+// the size and the nesting depth are checked on the text first; cv::Exception from the parser becomes an
+// InputError naming the file. Everything read from the storage afterwards is still checked by the caller.
+#include <cstddef>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+namespace topocal::calib {
+
+inline constexpr size_t kMaxFileStorageBytes = 16u << 20;  // calibration files are a few kB, targets < 1 kB
+inline constexpr int kMaxFileStorageDepth = 64;            // topocal's own files nest 2 levels deep
+
+// The nesting depth the text could reach in any of FileStorage's formats, counted without parsing: flow brackets
+// '[' '{' outside quoted strings, XML elements, and block sequences opened on one line ("- - - x"). An upper bound
+// of the parser's recursion (over-counting only refuses absurd files).
+int FileStorageNestingBound(const std::string& text);
+
+// The first integer literal outside quoted strings beyond int's range ("line N: TOKEN"), or "" if none: OpenCV
+// reads integers with (int)strtol, so targetCols: 4294967298 silently became 2.
+std::string FileStorageIntegerOutOfRange(const std::string& text);
+
+// Opens `text` (YAML, with or without the "%YAML:1.0" header Kalibr's files lack; XML; JSON) from memory.
+// Throws model::InputError "ORIGIN: problem" when it is too large, nested too deep or not parseable.
+cv::FileStorage OpenFileStorage(const std::string& text, const std::string& origin);
+
+}  // namespace topocal::calib
