@@ -66,6 +66,58 @@ CalibrationResult Failure(CalibrationStatus status, std::string message) {
   return r;
 }
 
+// The intrinsics (fx, fy, cx, cy) with fx / fy held at `ratio`: x + B delta for a constant basis B whose first
+// column moves fx and fy together (d fy = d fx / ratio) and whose other columns are the free ones of cx, cy. Written
+// here because Ceres' stock manifolds hold entries fixed or keep norms, none ties two entries linearly.
+class FixedAspectManifold final : public ceres::Manifold {
+ public:
+  FixedAspectManifold(double ratio, bool cx_free, bool cy_free) {
+    basis_.push_back({1.0, 1.0 / ratio, 0.0, 0.0});
+    if (cx_free) basis_.push_back({0.0, 0.0, 1.0, 0.0});
+    if (cy_free) basis_.push_back({0.0, 0.0, 0.0, 1.0});
+  }
+  int AmbientSize() const override { return kNumIntrinsics; }
+  int TangentSize() const override { return static_cast<int>(basis_.size()); }
+  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
+    for (int i = 0; i < kNumIntrinsics; ++i) x_plus_delta[i] = x[i];
+    for (size_t t = 0; t < basis_.size(); ++t) {
+      for (int i = 0; i < kNumIntrinsics; ++i) x_plus_delta[i] += basis_[t][static_cast<size_t>(i)] * delta[t];
+    }
+    return true;
+  }
+  bool PlusJacobian(const double* /*x*/, double* jacobian) const override {
+    const int m = TangentSize();
+    for (int i = 0; i < kNumIntrinsics; ++i) {
+      for (int t = 0; t < m; ++t) jacobian[i * m + t] = basis_[static_cast<size_t>(t)][static_cast<size_t>(i)];
+    }
+    return true;
+  }
+  // The columns have disjoint supports, so the least-squares tangent of y - x is each column's projection.
+  bool Minus(const double* y, const double* x, double* y_minus_x) const override {
+    for (size_t t = 0; t < basis_.size(); ++t) {
+      double dot = 0, norm2 = 0;
+      for (int i = 0; i < kNumIntrinsics; ++i) {
+        dot += basis_[t][static_cast<size_t>(i)] * (y[i] - x[i]);
+        norm2 += basis_[t][static_cast<size_t>(i)] * basis_[t][static_cast<size_t>(i)];
+      }
+      y_minus_x[t] = dot / norm2;
+    }
+    return true;
+  }
+  bool MinusJacobian(const double* /*x*/, double* jacobian) const override {
+    const int m = TangentSize();
+    for (int t = 0; t < m; ++t) {
+      double norm2 = 0;
+      for (double b : basis_[static_cast<size_t>(t)]) norm2 += b * b;
+      for (int i = 0; i < kNumIntrinsics; ++i) jacobian[t * kNumIntrinsics + i] = basis_[static_cast<size_t>(t)][static_cast<size_t>(i)] / norm2;
+    }
+    return true;
+  }
+
+ private:
+  std::vector<std::array<double, kNumIntrinsics>> basis_;
+};
+
 // Adds a block to the problem holding the entries whose mask is false fixed (whole block constant if all are).
 void AddBlock(ceres::Problem& problem, double* block, int size, const bool* free) {
   problem.AddParameterBlock(block, size);
@@ -91,7 +143,12 @@ ceres::LossFunction* MakeLoss(const CalibrationOptions& o) {
 
 void BuildProblem(ceres::Problem& problem, Parameters& p, const std::vector<UsedView>& views, const FreeMask& free,
                   const CalibrationOptions& o) {
-  AddBlock(problem, p.intrinsics.data(), kNumIntrinsics, &free[kFx]);
+  if (o.fixed_aspect_ratio > 0 && free[kFx] && free[kFy]) {
+    problem.AddParameterBlock(p.intrinsics.data(), kNumIntrinsics,
+                              new FixedAspectManifold(o.fixed_aspect_ratio, free[kCx], free[kCy]));
+  } else {
+    AddBlock(problem, p.intrinsics.data(), kNumIntrinsics, &free[kFx]);
+  }
   AddBlock(problem, p.dist.data(), kNumDistortion, &free[kK1]);
   AddBlock(problem, p.centre.data(), kNumCentre, &free[kEx]);
   problem.AddParameterBlock(p.warp.data(), kNumWarp);
@@ -127,14 +184,16 @@ bool AllFinite(const Parameters& p) {
          std::all_of(p.poses.begin(), p.poses.end(), finite);
 }
 
-int CountFree(const FreeMask& free, size_t views) {
-  return static_cast<int>(std::count(free.begin(), free.end(), true)) + kNumPose * static_cast<int>(views);
+// Degrees of freedom: a fixed aspect ratio makes fx and fy one.
+int CountFree(const FreeMask& free, size_t views, const CalibrationOptions& o) {
+  const int tied = o.fixed_aspect_ratio > 0 && free[kFx] && free[kFy] ? 1 : 0;
+  return static_cast<int>(std::count(free.begin(), free.end(), true)) - tied + kNumPose * static_cast<int>(views);
 }
 
 // Solves, optionally rejecting outliers, then fills the statistics and the covariance of `result`.
 CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, const FreeMask& free,
                                  const CalibrationOptions& o, CalibrationResult result) {
-  const int free_parameters = CountFree(free, views.size()) + (o.fit_board_warp ? kNumWarp : 0);
+  const int free_parameters = CountFree(free, views.size(), o) + (o.fit_board_warp ? kNumWarp : 0);
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::DENSE_SCHUR;
   solver_options.max_num_iterations = o.max_iterations;
@@ -251,16 +310,15 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
   const Reported reported[] = {
       {p.intrinsics.data(), kFx, kNumIntrinsics}, {p.dist.data(), kK1, kNumDistortion}, {p.centre.data(), kEx, kNumCentre}};
   std::vector<double*> blocks;
-  std::array<int, kNumCameraParameters> row{};  // tangent row of each camera parameter, -1 when held
-  row.fill(-1);
+  std::vector<const Reported*> reported_blocks;
   int next_row = 0;
   for (const auto& r : reported) {
     if (problem.IsParameterBlockConstant(r.block)) continue;
     blocks.push_back(r.block);
-    for (int i = 0; i < r.size; ++i) {
-      if (free[static_cast<size_t>(r.first + i)]) row[static_cast<size_t>(r.first + i)] = next_row++;
-    }
+    reported_blocks.push_back(&r);
+    next_row += problem.ParameterBlockTangentSize(r.block);
   }
+  const int camera_rows = next_row;
   int warp_row = -1;
   if (o.fit_board_warp) {
     blocks.push_back(p.warp.data());
@@ -275,14 +333,23 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
                    "the Jacobian is rank-deficient at the solution: some free parameter is not determined by these "
                    "views (fix it or add views)");
   }
-  result.covariance = Eigen::MatrixXd::Zero(kNumCameraParameters, kNumCameraParameters);
-  for (int i = 0; i < kNumCameraParameters; ++i) {
-    for (int j = 0; j < kNumCameraParameters; ++j) {
-      const int ri = row[static_cast<size_t>(i)], rj = row[static_cast<size_t>(j)];
-      // Parameters held fixed have zero rows.
-      if (ri >= 0 && rj >= 0) result.covariance(i, j) = covariance->matrix(ri, rj) * result.residual_variance_px2;
+  // From tangent to parameter coordinates: cov = P C P^T with P each block's plus-Jacobian (a selection of the free
+  // entries, or fx and fy moving together under a fixed aspect ratio). Parameters held fixed have zero rows.
+  Eigen::MatrixXd plus_jacobian = Eigen::MatrixXd::Zero(kNumCameraParameters, camera_rows);
+  for (size_t b = 0; b < reported_blocks.size(); ++b) {
+    const Reported& r = *reported_blocks[b];
+    const int tangent = covariance->tangent_size[b];
+    const ceres::Manifold* manifold = problem.GetManifold(r.block);
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> jacobian(r.size, tangent);
+    if (manifold == nullptr) {
+      jacobian.setIdentity();
+    } else if (!manifold->PlusJacobian(r.block, jacobian.data())) {
+      return Failure(CalibrationStatus::kCovarianceFailed, "internal: a parameter block's Jacobian failed");
     }
+    plus_jacobian.block(r.first, covariance->offset[b], r.size, tangent) = jacobian;
   }
+  result.covariance = plus_jacobian * covariance->matrix.topLeftCorner(camera_rows, camera_rows) *
+                      plus_jacobian.transpose() * result.residual_variance_px2;
   for (int i = 0; i < kNumCameraParameters; ++i) {
     const double var = result.covariance(i, i);
     stddev[static_cast<size_t>(i)] = free[static_cast<size_t>(i)] && var > 0 ? std::sqrt(var) : 0.0;
@@ -326,6 +393,7 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
     result.cam_from_target.push_back(pose);
   }
 
+  if (o.fixed_aspect_ratio > 0 && free[kFx] && free[kFy]) result.fixed_aspect_ratio = o.fixed_aspect_ratio;
   result.pixel_pitch_um = o.pixel_pitch_um;
   if (o.focal_mm > 0 && (!free[kFx] || o.pixel_pitch_um <= 0)) {
     result.focal_mm = o.focal_mm;
@@ -429,6 +497,14 @@ bool CalibrationOptions::IsValid(std::string* why) const {
     return fail("a free distortion centre and free p1, p2 are the same distortion to second order: fix p1,p2 or "
                 "the centre");
   }
+  if (!std::isfinite(fixed_aspect_ratio) || fixed_aspect_ratio < 0 ||
+      (fixed_aspect_ratio > 0 && (fixed_aspect_ratio < 0.5 || fixed_aspect_ratio > 2))) {
+    return fail(fmt::format("fixed aspect ratio fx / fy = {} is not a camera's (0 = free, else within [0.5, 2])",
+                            fixed_aspect_ratio));
+  }
+  if (fixed_aspect_ratio > 0 && (fixed.count("fx") || fixed.count("fy"))) {
+    return fail("a fixed aspect ratio ties fx and fy: fix neither, or fix both without the ratio");
+  }
   if (!(loss_scale_px > 0)) return fail("loss scale must be > 0 px");
   if (!(outlier_threshold > 1)) return fail("outlier threshold must be > 1 robust sigma");
   if (max_outlier_rounds < 0) return fail("max outlier rounds must be >= 0");
@@ -488,6 +564,12 @@ CalibrationResult CalibrateMultiView(const std::vector<ViewObservations>& views,
 
   Parameters p;
   p.intrinsics = {init->fx_px, init->fy_px, init->cx_px, init->cy_px};
+  if (options.fixed_aspect_ratio > 0) {
+    // Start on the constraint with Zhang's geometric-mean focal length.
+    const double f = std::sqrt(init->fx_px * init->fy_px);
+    p.intrinsics[0] = f * std::sqrt(options.fixed_aspect_ratio);
+    p.intrinsics[1] = f / std::sqrt(options.fixed_aspect_ratio);
+  }
   if (options.fit_board_warp) {
     // The warp's frame: the bounding box of every corner seen (the printed pattern as far as the views know it).
     Eigen::Vector2d lo = Eigen::Vector2d::Constant(INFINITY), hi = Eigen::Vector2d::Constant(-INFINITY);
@@ -502,7 +584,7 @@ CalibrationResult CalibrateMultiView(const std::vector<ViewObservations>& views,
   }
   for (const auto& pose : init->cam_from_target) p.poses.push_back(ToArray(pose));
   // Refine each pose for the initial K (Zhang's rotation projection is only least-squares in the algebraic sense).
-  const cv::Matx33d k(init->fx_px, 0, init->cx_px, 0, init->fy_px, init->cy_px, 0, 0, 1);
+  const cv::Matx33d k(p.intrinsics[0], 0, p.intrinsics[2], 0, p.intrinsics[1], p.intrinsics[3], 0, 0, 1);
   for (size_t v = 0; v < usable.size(); ++v) {
     std::vector<cv::Point3d> object;
     std::vector<cv::Point2d> image;
@@ -537,6 +619,11 @@ CalibrationResult CalibrateSingleView(const ViewObservations& view, const Calibr
   if (options.fit_board_warp) {
     return Failure(CalibrationStatus::kInvalidOptions,
                    "a board warp needs several views (one view cannot tell a warp from distortion)");
+  }
+  if (options.fixed_aspect_ratio > 0) {
+    return Failure(CalibrationStatus::kInvalidOptions,
+                   "a fixed aspect ratio applies to multi-view fits (a single view holds fx = fy from the focal "
+                   "distance and the pixel pitch)");
   }
   if (!(options.focal_mm > 0 && options.pixel_pitch_um > 0 && options.distance_mm > 0)) {
     return Failure(CalibrationStatus::kInvalidOptions,

@@ -59,6 +59,10 @@ struct CalibrationOptions {
   // ex, ey are fixed at 0 unless fit_distortion_centre.
   std::set<std::string> fixed;
   bool fit_distortion_centre = false;
+  // Multi-view: hold fx / fy at this ratio during the fit (0 = fx and fy free), for lenses known to have square
+  // pixels or to stabilise a fit from few views; OpenCV's CALIB_FIX_ASPECT_RATIO with the ratio given. fx and fy
+  // then move together and share one degree of freedom (and one standard deviation, scaled by the ratio).
+  double fixed_aspect_ratio = 0;
   // Multi-view: fit the board's parabolic sag with the camera (calib/cost_functions.h BoardWarp), for printed
   // targets that are not flat.
   bool fit_board_warp = false;
@@ -155,6 +159,7 @@ struct CalibrationResult {
   Eigen::MatrixXd covariance;
   std::optional<SeidelEstimate> seidel;        // Seidel model with a known focal length in mm
   std::optional<BoardWarpEstimate> board_warp;  // when fitted (options.fit_board_warp)
+  double fixed_aspect_ratio = 0;               // fx / fy held during the fit (options.fixed_aspect_ratio); 0 = free
   double pixel_pitch_um = 0;                   // from the options; 0 = unknown
   double focal_mm = 0;                         // given (single view), or fitted f_px x pitch; 0 = unknown
 

@@ -213,6 +213,7 @@ std::string CalibrationFileText(const CalibrationResult& result, const Calibrati
   }
   fs << "]";
   fs << "outliers" << static_cast<int>(result.outliers.size());
+  if (result.fixed_aspect_ratio > 0) fs << "fixed_aspect_ratio" << result.fixed_aspect_ratio;
   if (result.seidel) {
     fs << "seidel_sigma_per_mm2" << result.seidel->sigma_per_mm2;
     fs << "seidel_sigma_stddev_per_mm2" << result.seidel->sigma_stddev_per_mm2;
@@ -413,6 +414,7 @@ std::string CalibrationReportJson(const CalibrationResult& result, const Calibra
                    {"magnification", result.seidel->magnification},
                    {"focal_mm", result.seidel->focal_mm}};
   }
+  if (result.fixed_aspect_ratio > 0) j["fixed_aspect_ratio"] = result.fixed_aspect_ratio;
   if (result.board_warp) {
     const auto& w = *result.board_warp;
     j["board_warp"] = {{"sag_x_mm", w.sag_x_mm},

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <mutex>
 
 #include <fmt/format.h>
@@ -142,12 +143,27 @@ std::vector<FileDetection> DetectTargetInFiles(const TargetDescription& target, 
     }
   });
   if (options.require_same_size) {
-    const auto first = std::find_if(out.begin(), out.end(), [](const FileDetection& f) { return f.skipped.empty(); });
-    for (auto it = first; it != out.end(); ++it) {
-      if (!it->skipped.empty() || (it->width_px == first->width_px && it->height_px == first->height_px)) continue;
-      it->skipped = fmt::format("{} x {} px, not the {} x {} px of the first image ({})", it->width_px, it->height_px,
-                                first->width_px, first->height_px, first->path);
-      it->detection.view.reset();
+    // The camera's size is the one most views with a target share (ties: the earliest such view). Taking the first
+    // readable image instead let one stray picture (another camera, a screenshot, an image without the target)
+    // disqualify every real view: the 13 opencv-doc photos came with a 612 x 459 left.jpg sorted first.
+    std::map<std::pair<int, int>, std::pair<int, size_t>> sizes;  // (w, h) -> (views with a target, first index)
+    for (size_t i = 0; i < out.size(); ++i) {
+      if (!out[i].skipped.empty() || !out[i].detection.view) continue;
+      auto [it, inserted] = sizes.try_emplace({out[i].width_px, out[i].height_px}, 0, i);
+      ++it->second.first;
+    }
+    if (!sizes.empty()) {
+      const auto best = std::max_element(sizes.begin(), sizes.end(), [](const auto& a, const auto& b) {
+        return a.second.first != b.second.first ? a.second.first < b.second.first : a.second.second > b.second.second;
+      });
+      const auto [w, h] = best->first;
+      const int views = best->second.first;
+      for (auto& f : out) {
+        if (!f.skipped.empty() || f.width_px <= 0 || (f.width_px == w && f.height_px == h)) continue;
+        f.skipped = fmt::format("{} x {} px, not the {} x {} px of the {} view(s) with a target (one camera, one size)",
+                                f.width_px, f.height_px, w, h, views);
+        f.detection.view.reset();
+      }
     }
   }
   return out;

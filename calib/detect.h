@@ -78,8 +78,8 @@ struct FileDetection {
 struct FileSetOptions {
   DetectionOptions detection;
   int jobs = 0;  // images detected at once; 0 = every available core. The results do not depend on it.
-  // Views of one camera have one size: images whose size differs from the first readable one (in the order given)
-  // are skipped with a reason naming both sizes.
+  // Views of one camera have one size: the size most images with a target share (ties: the earliest) is the
+  // camera's, and images of another size are skipped with a reason naming both sizes.
   bool require_same_size = true;
   // Called once per image as its detection finishes (in completion order, one call at a time), for progress lines.
   std::function<void(size_t index, const FileDetection&)> on_done;

@@ -30,6 +30,7 @@ struct CalibrateArgs {
   std::string target, images, model = "brown5", out, json, cross_validate_svg;
   bool single_view = false, robust = false, fit_centre = false, board_warp = false;
   double focal_mm = 0, pixel_pitch_um = 0, distance_mm = 0, magnification = calib::kPaperMagnification;
+  double fix_aspect = 0;
   std::vector<std::string> fix;
   std::string loss = "huber";
   double loss_scale_px = 1.0, outlier_threshold = 4.0;
@@ -75,6 +76,7 @@ void Run(const CalibrateArgs& a) {
   options.model = *model;
   options.fixed = {a.fix.begin(), a.fix.end()};
   options.fit_distortion_centre = a.fit_centre;
+  options.fixed_aspect_ratio = a.fix_aspect;
   options.fit_board_warp = a.board_warp;
   options.focal_mm = a.focal_mm;
   options.pixel_pitch_um = a.pixel_pitch_um;
@@ -90,6 +92,9 @@ void Run(const CalibrateArgs& a) {
   }
   if (a.single_view && !(a.focal_mm > 0 && a.pixel_pitch_um > 0 && a.distance_mm > 0)) {
     throw model::InputError("--single-view needs --focal-mm, --pixel-pitch-um and --distance-mm (all > 0)");
+  }
+  if (a.single_view && a.fix_aspect > 0) {
+    throw model::InputError("--fix-aspect applies to multi-view fits; --single-view already holds fx = fy");
   }
   if (a.single_view && a.board_warp) {
     throw model::InputError("--board-warp needs several views; it does not apply to --single-view");
@@ -172,6 +177,7 @@ void Run(const CalibrateArgs& a) {
   for (const auto& p : result.parameters) {
     if (!p.fixed) fmt::print("  {:>2} = {:<14.8g} +- {:.3g}\n", p.name, p.value, p.stddev);
   }
+  if (result.fixed_aspect_ratio > 0) fmt::print("  fx / fy held at {} (one focal degree of freedom)\n", result.fixed_aspect_ratio);
   if (result.seidel) {
     fmt::print("  Seidel sigma = {:.6g} +- {:.2g} mm^-2 (M_T = {}, f = {:.4g} mm)\n", result.seidel->sigma_per_mm2,
                result.seidel->sigma_stddev_per_mm2, result.seidel->magnification, result.seidel->focal_mm);
@@ -208,6 +214,10 @@ void AddCalibrateCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--fix", a->fix, "Parameters to hold fixed (spaces or commas): fx fy cx cy k1 k2 p1 p2 k3 ex ey")
       ->delimiter(',');
+  cmd->add_option("--fix-aspect", a->fix_aspect,
+                  "Hold fx / fy at this ratio during a multi-view fit (e.g. 1 for square pixels; 0 = free); OpenCV's "
+                  "CALIB_FIX_ASPECT_RATIO")
+      ->capture_default_str();
   cmd->add_flag("--fit-centre", a->fit_centre, "Fit the radial distortion centre (Seidel; brown5 needs --fix p1,p2)");
   cmd->add_flag("--robust", a->robust, "Robust loss and iterative outlier rejection");
   cmd->add_flag("--board-warp", a->board_warp,

@@ -440,5 +440,53 @@ TEST(RealPhotographs, AgreesWithOpenCvCalibrateCamera) {
               rr.camera.dist[2], rr.camera.dist[3], rr.camera.dist[4], rr.rms_px, rr.outliers.size());
 }
 
+// --fix-aspect: fx / fy held, against cv::calibrateCamera with CALIB_FIX_ASPECT_RATIO (ratio from its input matrix)
+// on the same corners.
+TEST(RealPhotographs, FixedAspectRatioAgreesWithOpenCv) {
+  const auto set = DetectRealSet();
+  if (set.views.empty()) GTEST_SKIP() << "opencv-doc's left*.jpg are not installed (apt-get install opencv-doc)";
+  ASSERT_EQ(set.views.size(), 13u);
+  constexpr double kRatio = 1.0;
+  cv::Mat k = cv::Mat::eye(3, 3, CV_64F), dist;
+  std::vector<cv::Mat> rvecs, tvecs;
+  const double cv_rms =
+      cv::calibrateCamera(set.object, set.image, set.size, k, dist, rvecs, tvecs, cv::CALIB_FIX_ASPECT_RATIO);
+  CalibrationOptions o;
+  o.fixed_aspect_ratio = kRatio;
+  const auto r = CalibrateMultiView(set.views, o);
+  ASSERT_TRUE(r.ok()) << r.message;
+  const auto free_fit = CalibrateMultiView(set.views, {});
+  ASSERT_TRUE(free_fit.ok()) << free_fit.message;
+  std::printf("opencv fixed aspect : fx %.6f fy %.6f rms %.7f\ntopocal fixed aspect: fx %.6f fy %.6f rms %.7f\n"
+              "differences: fx %.2e px, rms %.2e px\n",
+              k.at<double>(0, 0), k.at<double>(1, 1), cv_rms, r.camera.fx_px, r.camera.fy_px, r.rms_px,
+              r.camera.fx_px - k.at<double>(0, 0), r.rms_px - cv_rms);
+  // The constraint holds exactly (to rounding), and it costs one degree of freedom.
+  EXPECT_NEAR(r.camera.fx_px / r.camera.fy_px, kRatio, 1e-12);
+  EXPECT_EQ(r.free_parameters, free_fit.free_parameters - 1);
+  EXPECT_EQ(r.fixed_aspect_ratio, kRatio);
+  // fx and fy share one standard deviation (scaled by the ratio) and are fully correlated.
+  EXPECT_NEAR(r.parameters[0].stddev, kRatio * r.parameters[1].stddev, 1e-12 * r.parameters[0].stddev);
+  EXPECT_GT(r.parameters[0].stddev, 0);
+  EXPECT_NEAR(r.covariance(0, 1) / (r.parameters[0].stddev * r.parameters[1].stddev), 1.0, 1e-9);
+  // A constrained fit cannot beat the free one, and it finds OpenCV's minimum: the same limits as the free fit's
+  // agreement (issue 5: focal within 0.05 px, RMS within 0.001 px).
+  EXPECT_GE(r.rms_px, free_fit.rms_px - 1e-12);
+  EXPECT_NEAR(r.camera.fx_px, k.at<double>(0, 0), 0.05);
+  EXPECT_NEAR(r.camera.fy_px, k.at<double>(1, 1), 0.05);
+  EXPECT_NEAR(r.rms_px, cv_rms, 0.001);
+  EXPECT_LE(r.rms_px, cv_rms + 1e-9);
+  // Regression bounds; measured |d fx| = 1.1e-7 px and |d rms| = 1.6e-15 px (2026-12-01).
+  EXPECT_NEAR(r.camera.fx_px, k.at<double>(0, 0), 1e-5);
+  EXPECT_NEAR(r.rms_px, cv_rms, 1e-9);
+
+  // Bad options are refused with the reason.
+  o.fixed.insert("fx");
+  EXPECT_EQ(CalibrateMultiView(set.views, o).status, CalibrationStatus::kInvalidOptions);
+  o.fixed.clear();
+  o.fixed_aspect_ratio = 7;
+  EXPECT_EQ(CalibrateMultiView(set.views, o).status, CalibrationStatus::kInvalidOptions);
+}
+
 }  // namespace
 }  // namespace topocal::calib

@@ -188,7 +188,6 @@ TEST(Checkerboard, ImageSetsAreDetectedInParallelWithTheSameResult) {
   };
   const auto serial = DetectTargetInFiles(target, paths, one);
   const auto parallel = DetectTargetInFiles(target, paths, two);
-  std::filesystem::remove_all(dir);
   EXPECT_EQ(callbacks, paths.size());
   ASSERT_EQ(serial.size(), paths.size());
   ASSERT_EQ(parallel.size(), paths.size());
@@ -206,9 +205,19 @@ TEST(Checkerboard, ImageSetsAreDetectedInParallelWithTheSameResult) {
     }
   }
   EXPECT_NE(parallel[4].skipped.find("cannot be read"), std::string::npos) << parallel[4].skipped;
-  EXPECT_NE(parallel[5].skipped.find("not the 640 x 480 px of the first image"), std::string::npos)
+  EXPECT_NE(parallel[5].skipped.find("320 x 240 px, not the 640 x 480 px of the 4 view(s) with a target"),
+            std::string::npos)
       << parallel[5].skipped;
   EXPECT_FALSE(parallel[5].detection.view.has_value());
+  // A stray image of another size given first does not disqualify the camera's views: the size most views with a
+  // target share wins (the opencv-doc set sorts a 612 x 459 left.jpg before left01..14.jpg).
+  const auto stray_first = DetectTargetInFiles(target, {paths[5], paths[0], paths[1]}, one);
+  EXPECT_FALSE(stray_first[0].detection.view.has_value());
+  EXPECT_NE(stray_first[0].skipped.find("not the 640 x 480 px of the 2 view(s)"), std::string::npos)
+      << stray_first[0].skipped;
+  EXPECT_TRUE(stray_first[1].detection.view.has_value());
+  EXPECT_TRUE(stray_first[2].detection.view.has_value());
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
