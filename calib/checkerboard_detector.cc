@@ -60,6 +60,230 @@ void Canonicalise(const cv::Mat& gray, const CheckerboardLayout& board, std::vec
   if (rotate) std::reverse(c.begin(), c.end());
 }
 
+// ---- A board cut by the frame --------------------------------------------------------------------------------
+// cv::findChessboardCornersSB with CALIB_CB_LARGER returns the largest grid of corners it can see, of any size from
+// kMinPartialGrid up. Which board corners those are is decided here by elimination: a placement of the grid on the
+// board (one of the 8 symmetries of the lattice, then an offset) survives when
+//  - it fits on the board;
+//  - it keeps the board's handedness (x then y turn clockwise in the image, as for whole boards);
+//  - the squares it calls black are darker than those it calls white (the board's black outer corner squares);
+//  - every board corner it leaves unseen extrapolates (the grid's homography) beyond the image, or to within one
+//    square of its border where no detector finds corners: an unseen corner well inside the image contradicts it.
+// Placements that differ by a symmetry of the board itself (a 180-degree turn when cols + rows is even, a quarter
+// turn of a square board with the colours kept) label the same physical board and count once. Exactly one
+// survivor: the identities are unambiguous and the grid is used; otherwise the view is refused with the count.
+// Written here because OpenCV's detectors return a grid without its place on the board (only ChArUco and AprilGrid
+// markers carry identities).
+constexpr int kMinPartialGrid = 3;
+
+struct Placement {
+  bool swap = false, flip_a = false, flip_b = false;  // grid (row i, col j) -> board (c, r)
+  int offset_c = 0, offset_r = 0;
+  int grid_rows = 0, grid_cols = 0;
+  Eigen::Vector2i BoardOf(int i, int j) const {
+    const int u = swap ? i : j, v = swap ? j : i;  // u runs along the board's columns, v along its rows
+    const int nu = swap ? grid_rows : grid_cols, nv = swap ? grid_cols : grid_rows;
+    return {offset_c + (flip_a ? nu - 1 - u : u), offset_r + (flip_b ? nv - 1 - v : v)};
+  }
+  // The grid coordinates (col j, row i) of a board corner, possibly outside the grid.
+  Eigen::Vector2d GridOf(int c, int r) const {
+    const int nu = swap ? grid_rows : grid_cols, nv = swap ? grid_cols : grid_rows;
+    int u = c - offset_c, v = r - offset_r;
+    if (flip_a) u = nu - 1 - u;
+    if (flip_b) v = nv - 1 - v;
+    return swap ? Eigen::Vector2d(v, u) : Eigen::Vector2d(u, v);
+  }
+};
+
+// A board symmetry as a map of corner ids, or nothing when it does not map the board (and its colours) onto itself.
+std::vector<std::vector<int>> BoardSymmetries(const CheckerboardLayout& board) {
+  const int cols = board.cols, rows = board.rows;
+  std::vector<std::vector<int>> out;
+  const auto add = [&](auto map, bool colours_kept) {
+    if (!colours_kept) return;
+    std::vector<int> ids(static_cast<size_t>(cols * rows));
+    for (int r = 0; r < rows; ++r) {
+      for (int c = 0; c < cols; ++c) {
+        const Eigen::Vector2i m = map(c, r);
+        ids[static_cast<size_t>(r * cols + c)] = m.y() * cols + m.x();
+      }
+    }
+    out.push_back(std::move(ids));
+  };
+  // Square S(a, b) spans corners a..a+1, b..b+1 and is black when a + b is even (S(-1, -1), before corner 0, is).
+  add([&](int c, int r) { return Eigen::Vector2i(cols - 1 - c, rows - 1 - r); }, (cols + rows) % 2 == 0);
+  if (cols == rows) {
+    add([&](int c, int r) { return Eigen::Vector2i(r, cols - 1 - c); }, cols % 2 == 0);
+    add([&](int c, int r) { return Eigen::Vector2i(cols - 1 - r, c); }, cols % 2 == 0);
+  }
+  return out;
+}
+
+// The ids of a partial grid on the board (-1: none), or nullopt with the reason.
+std::optional<std::vector<int>> PlacePartialGrid(const cv::Mat& gray, const CheckerboardLayout& board,
+                                                 const std::vector<Eigen::Vector2d>& grid, int grid_rows,
+                                                 int grid_cols, std::string* why) {
+  const auto at = [&](int i, int j) -> const Eigen::Vector2d& { return grid[static_cast<size_t>(i * grid_cols + j)]; };
+  // The grid's homography (grid col, row) -> image, to extrapolate the corners it does not show.
+  std::vector<cv::Point2d> from, to;
+  for (int i = 0; i < grid_rows; ++i) {
+    for (int j = 0; j < grid_cols; ++j) {
+      from.emplace_back(j, i);
+      to.emplace_back(at(i, j).x(), at(i, j).y());
+    }
+  }
+  const cv::Mat h = cv::findHomography(from, to, 0);
+  if (h.empty()) {
+    if (why) *why = "partial board: the corners found do not form a perspective grid";
+    return std::nullopt;
+  }
+  const auto project = [&](const Eigen::Vector2d& g) -> std::optional<Eigen::Vector2d> {
+    const double w = h.at<double>(2, 0) * g.x() + h.at<double>(2, 1) * g.y() + h.at<double>(2, 2);
+    if (!(w > 1e-9)) return std::nullopt;  // behind the camera: not in the image either
+    return Eigen::Vector2d((h.at<double>(0, 0) * g.x() + h.at<double>(0, 1) * g.y() + h.at<double>(0, 2)) / w,
+                           (h.at<double>(1, 0) * g.x() + h.at<double>(1, 1) * g.y() + h.at<double>(1, 2)) / w);
+  };
+  // Grey at the middle of each grid cell, and the cell's parity on the grid.
+  struct Cell {
+    int i, j;
+    double grey;
+  };
+  std::vector<Cell> cells;
+  for (int i = 0; i + 1 < grid_rows; ++i) {
+    for (int j = 0; j + 1 < grid_cols; ++j) {
+      const double g = MeanGrey(gray, 0.25 * (at(i, j) + at(i, j + 1) + at(i + 1, j) + at(i + 1, j + 1)));
+      if (std::isfinite(g)) cells.push_back({i, j, g});
+    }
+  }
+  const auto symmetries = BoardSymmetries(board);
+  std::vector<std::vector<int>> classes;  // canonical id maps of the survivors
+  std::vector<int> chosen;
+  for (int t = 0; t < 8; ++t) {
+    Placement p;
+    p.swap = t & 1;
+    p.flip_a = t & 2;
+    p.flip_b = t & 4;
+    p.grid_rows = grid_rows;
+    p.grid_cols = grid_cols;
+    const int nu = p.swap ? grid_rows : grid_cols, nv = p.swap ? grid_cols : grid_rows;
+    for (p.offset_r = 0; p.offset_r + nv <= board.rows; ++p.offset_r) {
+      for (p.offset_c = 0; p.offset_c + nu <= board.cols; ++p.offset_c) {
+        // Handedness: the board's +x and +y directions turn clockwise in the image (y down).
+        const Eigen::Vector2d g0 = p.GridOf(p.offset_c, p.offset_r);
+        const Eigen::Vector2d gx = p.GridOf(p.offset_c + 1, p.offset_r) - g0, gy = p.GridOf(p.offset_c, p.offset_r + 1) - g0;
+        const auto i0 = static_cast<int>(g0.y()), j0 = static_cast<int>(g0.x());
+        const Eigen::Vector2d origin = at(i0, j0);
+        const Eigen::Vector2d vx = at(i0 + static_cast<int>(gx.y()), j0 + static_cast<int>(gx.x())) - origin;
+        const Eigen::Vector2d vy = at(i0 + static_cast<int>(gy.y()), j0 + static_cast<int>(gy.x())) - origin;
+        if (vx.x() * vy.y() - vx.y() * vy.x() <= 0) continue;
+        // Colours: the square after board corner (c, r) is black when c + r is even.
+        double black = 0, white = 0;
+        int nb = 0, nw = 0;
+        for (const Cell& cell : cells) {
+          const Eigen::Vector2i a = p.BoardOf(cell.i, cell.j), b = p.BoardOf(cell.i + 1, cell.j + 1);
+          if ((std::min(a.x(), b.x()) + std::min(a.y(), b.y())) % 2 == 0) {
+            black += cell.grey;
+            ++nb;
+          } else {
+            white += cell.grey;
+            ++nw;
+          }
+        }
+        if (nb == 0 || nw == 0 || !(black / nb < white / nw)) continue;
+        // The frame: every unseen board corner lies beyond the image or within a square of its border.
+        bool consistent = true;
+        for (int r = 0; r < board.rows && consistent; ++r) {
+          for (int c = 0; c < board.cols && consistent; ++c) {
+            const Eigen::Vector2d g = p.GridOf(c, r);
+            if (g.x() >= 0 && g.x() < grid_cols && g.y() >= 0 && g.y() < grid_rows) continue;
+            const auto q = project(g);
+            if (!q) continue;
+            const auto q1 = project(g + Eigen::Vector2d(1, 0)), q2 = project(g + Eigen::Vector2d(0, 1));
+            double margin = 0;
+            if (q1) margin = std::max(margin, (*q1 - *q).norm());
+            if (q2) margin = std::max(margin, (*q2 - *q).norm());
+            const bool inside = q->x() > margin && q->y() > margin && q->x() < gray.cols - 1 - margin &&
+                                q->y() < gray.rows - 1 - margin;
+            if (inside) consistent = false;
+          }
+        }
+        if (!consistent) continue;
+        std::vector<int> ids(grid.size(), -1);
+        for (int i = 0; i < grid_rows; ++i) {
+          for (int j = 0; j < grid_cols; ++j) {
+            const Eigen::Vector2i b = p.BoardOf(i, j);
+            ids[static_cast<size_t>(i * grid_cols + j)] = b.y() * board.cols + b.x();
+          }
+        }
+        std::vector<int> canonical = ids;
+        for (const auto& s : symmetries) {
+          std::vector<int> mapped(ids.size());
+          for (size_t k = 0; k < ids.size(); ++k) mapped[k] = s[static_cast<size_t>(ids[k])];
+          canonical = std::min(canonical, mapped);
+        }
+        if (std::find(classes.begin(), classes.end(), canonical) == classes.end()) {
+          classes.push_back(canonical);
+          if (classes.size() == 1) chosen = ids;
+        }
+      }
+    }
+  }
+  if (classes.size() != 1) {
+    if (why) {
+      *why = classes.empty()
+                 ? fmt::format("partial board ({}x{} corners seen): no placement on the {}x{} board agrees with the "
+                               "frame, the square colours and the board's handedness",
+                               grid_cols, grid_rows, board.cols, board.rows)
+                 : fmt::format("partial board ({}x{} corners seen): {} placements on the {}x{} board fit, the "
+                               "identities are ambiguous (a ChArUco board or an AprilGrid identifies every corner)",
+                               grid_cols, grid_rows, classes.size(), board.cols, board.rows);
+    }
+    return std::nullopt;
+  }
+  return chosen;
+}
+
+// SB's grid stops about a square short of the frame; the board corners between it and the frame are found by
+// stepping out from the grid: each is predicted from its two neighbours inward (2 p1 - p2, one square of
+// extrapolation) and kept where a saddle fit converges within a quarter square of the prediction. Its identity
+// is the placement's, so only its visibility is in question.
+void ExtendToTheFrame(const cv::Mat& gray, const CheckerboardLayout& board, CheckerboardCorners& result) {
+  constexpr int kMaxSteps = 3;
+  const int cols = board.cols, rows = board.rows;
+  for (int step = 0; step < kMaxSteps; ++step) {
+    std::vector<std::pair<size_t, Eigen::Vector2d>> added;
+    for (int r = 0; r < rows; ++r) {
+      for (int c = 0; c < cols; ++c) {
+        const size_t id = static_cast<size_t>(r * cols + c);
+        if (result.found[id]) continue;
+        for (const auto& [dc, dr] : {std::pair{1, 0}, std::pair{-1, 0}, std::pair{0, 1}, std::pair{0, -1}}) {
+          const int c1 = c - dc, r1 = r - dr, c2 = c - 2 * dc, r2 = r - 2 * dr;
+          if (c2 < 0 || c2 >= cols || r2 < 0 || r2 >= rows) continue;
+          const size_t id1 = static_cast<size_t>(r1 * cols + c1), id2 = static_cast<size_t>(r2 * cols + c2);
+          if (!result.found[id1] || !result.found[id2]) continue;
+          const Eigen::Vector2d predicted = 2 * result.corners_px[id1] - result.corners_px[id2];
+          const double spacing = (result.corners_px[id1] - result.corners_px[id2]).norm();
+          const double room_px = std::min({predicted.x(), predicted.y(), gray.cols - 1.0 - predicted.x(),
+                                           gray.rows - 1.0 - predicted.y()}) - 1.0;
+          SaddleFitOptions fit;
+          fit.window_sigma_px = std::clamp(kWindowFractionOfSpacing * spacing, kMinWindowSigmaPx, kMaxWindowSigmaPx);
+          if (SaddleWindowHalfWidthPx(fit.window_sigma_px) > room_px) fit.window_sigma_px = SaddleSigmaForRoomPx(room_px);
+          if (!(fit.window_sigma_px >= kMinEdgeWindowSigmaPx)) break;
+          fit.max_shift_px = 0.25 * spacing;
+          if (const auto refined = RefineSaddle(gray, predicted, fit)) added.emplace_back(id, *refined);
+          break;
+        }
+      }
+    }
+    if (added.empty()) return;
+    for (const auto& [id, px] : added) {
+      result.corners_px[id] = px;
+      result.found[id] = true;
+      --result.beyond_frame;
+    }
+  }
+}
+
 }  // namespace
 
 std::optional<CheckerboardCorners> DetectCheckerboardCorners(const cv::Mat& gray, const CheckerboardLayout& board,
@@ -89,46 +313,102 @@ std::optional<CheckerboardCorners> DetectCheckerboardCorners(const cv::Mat& gray
       found.clear();
       ok = cv::findChessboardCorners(gray, pattern, found, kClassicFlags);
     }
-    if (!ok) {
-      found.clear();
-      ok = cv::findChessboardCornersSB(gray, pattern, found, cv::CALIB_CB_NORMALIZE_IMAGE);
-    }
   } catch (const cv::Exception& e) {
     if (why) *why = fmt::format("OpenCV board detector failed: {}", e.err);
     return std::nullopt;
   }
-  if (!ok || found.size() != static_cast<size_t>(board.cols * board.rows)) {
-    if (why) {
-      *why = fmt::format("no {}x{} checkerboard found", board.cols, board.rows);
-      // The common mistake: squares counted instead of inner corners. Only tried once the board was not found.
-      std::vector<cv::Point2f> smaller;
-      if (board.cols > 2 && board.rows > 2 &&
-          cv::findChessboardCorners(gray, cv::Size(board.cols - 1, board.rows - 1), smaller,
-                                    cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE)) {
-        *why += fmt::format(" (hint: the image shows a {}x{} board: targetCols/targetRows count INNER corners, one "
-                            "fewer than the squares)",
-                            board.cols - 1, board.rows - 1);
-      }
+  // Where the classic detector fails, SB searches once for the largest grid of corners of any size (CALIB_CB_LARGER):
+  // the whole board, or the part of it in the image. meta is (grid rows) x (grid cols), the corners row-major over it.
+  std::vector<cv::Point2f> grid;
+  cv::Mat meta;
+  bool grid_ok = false;
+  if (!ok) {
+    try {
+      grid_ok = cv::findChessboardCornersSB(gray, cv::Size(kMinPartialGrid, kMinPartialGrid), grid,
+                                            cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_LARGER, meta);
+    } catch (const cv::Exception&) {
+      grid_ok = false;
     }
-    return std::nullopt;
+    grid_ok = grid_ok && meta.rows * meta.cols == static_cast<int>(grid.size()) && meta.rows >= kMinPartialGrid &&
+              meta.cols >= kMinPartialGrid;
+    if (grid_ok && meta.rows == board.rows && meta.cols == board.cols) {
+      found = grid;  // already row-major over the board's columns
+      ok = true;
+    } else if (grid_ok && meta.rows == board.cols && meta.cols == board.rows) {
+      // Transposed: put it row-major over the board's columns (a mirror image, which Canonicalise undoes).
+      found.clear();
+      for (int r = 0; r < board.rows; ++r) {
+        for (int c = 0; c < board.cols; ++c) found.push_back(grid[static_cast<size_t>(c * meta.cols + r)]);
+      }
+      ok = true;
+    }
   }
   CheckerboardCorners result;
-  result.corners_px.reserve(found.size());
-  for (const auto& p : found) result.corners_px.emplace_back(p.x, p.y);
-  result.found.assign(found.size(), true);
   auto& corners = result.corners_px;
-  Canonicalise(gray, board, corners);
+  if (ok && found.size() == static_cast<size_t>(board.cols * board.rows)) {
+    result.corners_px.reserve(found.size());
+    for (const auto& p : found) result.corners_px.emplace_back(p.x, p.y);
+    result.found.assign(found.size(), true);
+    Canonicalise(gray, board, corners);
+  } else {
+    // Not the whole board: the part of it that is in the image, when its place on the board is unambiguous.
+    std::string partial_why;
+    if (grid_ok) {
+      const int fits = (meta.cols <= board.cols && meta.rows <= board.rows) || (meta.rows <= board.cols && meta.cols <= board.rows);
+      if (!fits) {
+        partial_why = fmt::format("the image shows a {}x{} grid of corners, larger than the {}x{} board: check "
+                                  "targetCols/targetRows (inner corners)",
+                                  std::max(meta.cols, meta.rows), std::min(meta.cols, meta.rows), board.cols, board.rows);
+      } else {
+        std::vector<Eigen::Vector2d> grid_px;
+        for (const auto& p : grid) grid_px.emplace_back(p.x, p.y);
+        if (const auto ids = PlacePartialGrid(gray, board, grid_px, meta.rows, meta.cols, &partial_why)) {
+          result.corners_px.assign(static_cast<size_t>(board.cols * board.rows), Eigen::Vector2d::Zero());
+          result.found.assign(result.corners_px.size(), false);
+          for (size_t k = 0; k < ids->size(); ++k) {
+            result.corners_px[static_cast<size_t>((*ids)[k])] = grid_px[k];
+            result.found[static_cast<size_t>((*ids)[k])] = true;
+          }
+          result.beyond_frame = board.cols * board.rows - static_cast<int>(ids->size());
+          ExtendToTheFrame(gray, board, result);
+        }
+      }
+    }
+    if (result.corners_px.empty()) {
+      if (why) {
+        *why = fmt::format("no {}x{} checkerboard found", board.cols, board.rows);
+        if (!partial_why.empty()) *why += " (" + partial_why + ")";
+        // The common mistake: squares counted instead of inner corners. Only tried once the board was not found.
+        std::vector<cv::Point2f> smaller;
+        if (board.cols > 2 && board.rows > 2 &&
+            cv::findChessboardCorners(gray, cv::Size(board.cols - 1, board.rows - 1), smaller,
+                                      cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE)) {
+          *why += fmt::format(" (hint: the image shows a {}x{} board: targetCols/targetRows count INNER corners, one "
+                              "fewer than the squares)",
+                              board.cols - 1, board.rows - 1);
+        }
+      }
+      return std::nullopt;
+    }
+  }
 
   if (options.refinement == CornerRefinement::kOpenCvSubPix) {
     std::vector<cv::Point2f> points;
-    for (const auto& p : corners) points.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
+    std::vector<size_t> index;
+    for (size_t i = 0; i < corners.size(); ++i) {
+      if (!result.found[i]) continue;
+      points.emplace_back(static_cast<float>(corners[i].x()), static_cast<float>(corners[i].y()));
+      index.push_back(i);
+    }
     cv::cornerSubPix(gray, points, cv::Size(5, 5), cv::Size(-1, -1),
                      cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 30, 0.001));
-    for (size_t i = 0; i < points.size(); ++i) corners[i] = Eigen::Vector2d(points[i].x, points[i].y);
+    for (size_t k = 0; k < points.size(); ++k) corners[index[k]] = Eigen::Vector2d(points[k].x, points[k].y);
   } else if (options.refinement == CornerRefinement::kSaddle) {
     // Only the board's neighbourhood is converted to float (a 4000 x 3000 image is 48 MB as float).
     double min_x = gray.cols, min_y = gray.rows, max_x = 0, max_y = 0;
-    for (const auto& p : corners) {
+    for (size_t i = 0; i < corners.size(); ++i) {
+      if (!result.found[i]) continue;
+      const Eigen::Vector2d& p = corners[i];
       min_x = std::min(min_x, p.x());
       min_y = std::min(min_y, p.y());
       max_x = std::max(max_x, p.x());
@@ -145,17 +425,19 @@ std::optional<CheckerboardCorners> DetectCheckerboardCorners(const cv::Mat& gray
     for (int r = 0; r < board.rows; ++r) {
       for (int col = 0; col < board.cols; ++col) {
         const size_t i = static_cast<size_t>(r * board.cols + col);
+        if (!result.found[i]) continue;  // beyond the frame (a partial board)
         SaddleFitOptions fit;
         if (options.saddle_window_sigma_px > 0) {
           fit.window_sigma_px = options.saddle_window_sigma_px;
         } else {
           double spacing = std::numeric_limits<double>::infinity();
-          if (col > 0) spacing = std::min(spacing, (corners[i] - corners[i - 1]).norm());
-          if (col + 1 < board.cols) spacing = std::min(spacing, (corners[i] - corners[i + 1]).norm());
-          if (r > 0) spacing = std::min(spacing, (corners[i] - corners[i - static_cast<size_t>(board.cols)]).norm());
-          if (r + 1 < board.rows) {
-            spacing = std::min(spacing, (corners[i] - corners[i + static_cast<size_t>(board.cols)]).norm());
-          }
+          const auto neighbour = [&](bool exists, size_t j) {
+            if (exists && result.found[j]) spacing = std::min(spacing, (corners[i] - corners[j]).norm());
+          };
+          neighbour(col > 0, i - 1);
+          neighbour(col + 1 < board.cols, i + 1);
+          neighbour(r > 0, i - static_cast<size_t>(board.cols));
+          neighbour(r + 1 < board.rows, i + static_cast<size_t>(board.cols));
           fit.window_sigma_px = std::clamp(kWindowFractionOfSpacing * spacing, kMinWindowSigmaPx, kMaxWindowSigmaPx);
         }
         // Near the image edge: the largest window that stays inside (one pixel spare for the corner's motion).

@@ -22,6 +22,7 @@ struct CheckerboardCorners {
   std::vector<Eigen::Vector2d> corners_px;  // index = corner id
   std::vector<bool> found;                  // false: this corner could not be refined and is left out
   std::vector<std::string> reasons;         // one line per left-out corner
+  int beyond_frame = 0;                     // a board cut by the frame: corners not in the image (found = false)
 };
 
 // Finding the board: cv::findChessboardCorners (the classic detector, fast) first, cv::findChessboardCornersSB only
@@ -29,6 +30,9 @@ struct CheckerboardCorners {
 // window that fits (down to kMinEdgeWindowSigmaPx), else left out with its reason; the board is never dropped for
 // it. nullopt (with `why`, including a hint when the image shows a board one corner smaller in both directions, i.e.
 // squares were counted instead of inner corners) when the board is not found. `gray` is CV_8UC1.
+// A board cut by the frame (issue 11): the corners in the image are used when their place on the board is the only
+// one consistent with the frame, the square colours and the handedness (up to the board's own symmetry); the
+// others are reported in `beyond_frame`. Ambiguous placements are refused with their count (see the .cc).
 std::optional<CheckerboardCorners> DetectCheckerboardCorners(const cv::Mat& gray, const CheckerboardLayout& board,
                                                              const DetectionOptions& options, std::string* why);
 

@@ -66,6 +66,9 @@ DetectionResult DetectTargetDetailed(const TargetDescription& target, const cv::
     result.reasons = corners->reasons;
     result.message = fmt::format("{} corners", view.corners.size());
     if (!corners->reasons.empty()) result.message += fmt::format(" ({} left out)", corners->reasons.size());
+    if (corners->beyond_frame > 0) {
+      result.message += fmt::format(" (board cut by the frame: {} corners beyond it)", corners->beyond_frame);
+    }
   } else if (const auto* charuco = std::get_if<CharucoLayout>(&target.layout)) {
     const CharucoDetections found = DetectCharuco(gray, *charuco, options);
     result.reasons = found.reasons;

@@ -240,9 +240,12 @@ std::optional<RenderedView> RenderTarget(const TargetDescription& target, const 
     if (!(in_cam.z() > 0)) continue;
     const Eigen::Vector2d px = camera.Project(in_cam);
     if (!(px.x() >= 0 && px.y() >= 0 && px.x() <= width - 1 && px.y() <= height - 1)) continue;
-    // Beyond the fold of strong distortion Project is not invertible: such a corner is not where it seems.
+    // Beyond the fold of strong distortion Project is not invertible: such a corner is not where it seems (the
+    // inverse lands on the other branch, pixels or more away). The bar is far above the inverse's own tolerance
+    // (1e-6 px): at 1e-6 px itself, converged corners were dropped from the truth at random.
+    constexpr double kFoldDetectionPx = 1e-3;
     const auto back = camera.PixelToNormalized(px);
-    if (!back || (*back - in_cam.head<2>() / in_cam.z()).norm() * camera.fx_px > 1e-6) continue;
+    if (!back || (*back - in_cam.head<2>() / in_cam.z()).norm() * camera.fx_px > kFoldDetectionPx) continue;
     view.corners.push_back({id, px});
   }
   return view;
