@@ -65,6 +65,16 @@ struct DistortionSweep {
   double centre_x_mm = 0.0;
   double centre_y_mm = 0.0;
   std::vector<double> sigmas_per_mm2;
+  // The sweep's Seidel distortion (paper Eq. 18) at one sigma: its magnification and centre, the sigma given. The one
+  // place a sweep turns into a distortion (the sweep, the harness, the closed loop and render-spots use it).
+  SeidelParams SeidelAt(double sigma_per_mm2) const noexcept {
+    SeidelParams s;
+    s.sigma_per_mm2 = sigma_per_mm2;
+    s.magnification = magnification;
+    s.centre_x_mm = centre_x_mm;
+    s.centre_y_mm = centre_y_mm;
+    return s;
+  }
 };
 
 // Settings of the null-screen reconstruction (optional section "reconstruction"; see README.md).

@@ -7,6 +7,8 @@
 #include <type_traits>
 #include <vector>
 
+#include "model/keratometry.h"
+
 namespace topocal::model {
 
 // Scalar part of a double or a Ceres jet (for branches and for Newton iterations in double).
@@ -54,7 +56,7 @@ struct Ablation {
   template <typename T>
   void Add(const T& x, const T& y, T* z, T* zx, T* zy) const noexcept {
     using std::sqrt;
-    const double dc = power_change_D / ((1.3375 - 1.0) * 1000.0);
+    const double dc = CurvatureFromPowerPerMm(power_change_D);  // Eq. 25 inverted
     const double R = 0.5 * zone_mm, w = blend_mm;
     const T dx = x - x_mm, dy = y - y_mm;
     const T r2 = dx * dx + dy * dy;

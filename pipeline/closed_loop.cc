@@ -91,9 +91,7 @@ ClosedLoopResult RunClosedLoop(const model::Config& config, double sigma, const 
   r.calibration = Calibrate(config, roi, CameraThrough(roi, config, sigma), o, sigma);
 
   // (ii) the raw spot image through the same (distorted) camera.
-  model::SeidelParams truth_distortion;
-  truth_distortion.sigma_per_mm2 = sigma;
-  truth_distortion.magnification = config.distortion.magnification;
+  const model::SeidelParams truth_distortion = config.distortion.SeidelAt(sigma);
   const auto truth = correct::SpotsOnSensor(model::Biconic{config.cornea}, config.ideal_image, config.topographer,
                                             truth_distortion, roi);
   correct::SpotRenderOptions spot_options;

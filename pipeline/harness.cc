@@ -56,12 +56,7 @@ class NormalPairs {
 
 model::Distortion DistortionOf(const model::Config& design, DistortionFamily family, double coefficient) {
   if (family == DistortionFamily::kSeidelSigma) {
-    model::SeidelParams s;
-    s.sigma_per_mm2 = coefficient;
-    s.magnification = design.distortion.magnification;
-    s.centre_x_mm = design.distortion.centre_x_mm;
-    s.centre_y_mm = design.distortion.centre_y_mm;
-    return s;
+    return design.distortion.SeidelAt(coefficient);
   }
   model::BrownParams b;
   b.focal_mm = design.topographer.a_mm;  // OpenCV's normalised coordinates are x / a (docs/camera-conventions.md)

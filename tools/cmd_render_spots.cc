@@ -56,12 +56,7 @@ void Run(const RenderSpotsArgs& a) {
       throw model::InputError(fmt::format("--sigma {}: folds the image of {} (|sigma| must be below {:.3g} mm^-2)",
                                           a.sigma, a.config, max));
     }
-    model::SeidelParams seidel;
-    seidel.sigma_per_mm2 = a.sigma;
-    seidel.magnification = cfg.distortion.magnification;
-    seidel.centre_x_mm = cfg.distortion.centre_x_mm;
-    seidel.centre_y_mm = cfg.distortion.centre_y_mm;
-    device.distortion = seidel;
+    device.distortion = cfg.distortion.SeidelAt(a.sigma);
   }
   const auto& camera = device.camera;
   correct::SpotRenderOptions o;

@@ -72,7 +72,7 @@ bool ComputePowerMaps(const MeridianSampler& meridian, const PowerMapOptions& o,
     qr.compute(A);
     if (qr.rank() < P) return Fail(why, "meridian polynomial fit is singular");
   }
-  const double power_per_curvature = (o.corneal_index - o.surrounding_index) * 1000.0;  // 1/mm -> diopters
+  const double power_per_curvature = model::PowerFromCurvatureD(1.0, o.corneal_index, o.surrounding_index);  // Eq. 25
 
   maps->meridians = M;
   maps->radial_samples = K;

@@ -17,12 +17,13 @@
 #include <string>
 #include <vector>
 
+#include "model/keratometry.h"
 #include "model/surface.h"
 #include "topo/taylor_polynomial.h"
 
 namespace topocal::topo {
 
-inline constexpr double kKeratometricIndex = 1.3375;  // paper Sec. 4.2
+inline constexpr double kKeratometricIndex = model::kKeratometricIndex;  // paper Sec. 4.2 (model/keratometry.h)
 
 enum class MeridianMethod { kExact, kPolynomialFit };
 

@@ -15,14 +15,7 @@ double MsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-model::SeidelParams SeidelFor(const model::Config& c, double sigma) {
-  model::SeidelParams s;
-  s.sigma_per_mm2 = sigma;
-  s.magnification = c.distortion.magnification;
-  s.centre_x_mm = c.distortion.centre_x_mm;
-  s.centre_y_mm = c.distortion.centre_y_mm;
-  return s;
-}
+model::SeidelParams SeidelFor(const model::Config& c, double sigma) { return c.distortion.SeidelAt(sigma); }
 
 void ApplyDistortion(const model::Distortion& d, model::SyntheticImage* image) {
   for (auto& s : image->spots) s.position_mm = model::Distort(d, s.position_mm);
