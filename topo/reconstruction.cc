@@ -231,7 +231,7 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   for (int it = 0; it < max_iterations; ++it) {
     for (int i = 0; i < n; ++i) {
       normals[i] = NormalFromRays(prep.rays[i].incident, p2[i], prep.rays[i].target);
-      slopes[i] = Eigen::Vector2d(-normals[i].x() / normals[i].z(), -normals[i].y() / normals[i].z());
+      slopes[i] = SlopesOf(normals[i]);
       xy[i] = p2[i].head<2>();
     }
     const GradientFit fit = fitter.Fit(xy, slopes, t_mm, &psi);
