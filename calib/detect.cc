@@ -13,6 +13,7 @@
 #include "calib/charuco_detector.h"
 #include "calib/checkerboard_detector.h"
 #include "calib/kalibr_grid_detector.h"
+#include "imageio/image_file.h"
 #include "model/io.h"
 #include "model/parallel.h"
 
@@ -105,13 +106,7 @@ std::optional<ViewObservations> DetectTarget(const TargetDescription& target, co
 
 std::optional<ViewObservations> DetectTargetInFile(const TargetDescription& target, const std::string& image_path,
                                                    const DetectionOptions& options) {
-  cv::Mat image;
-  try {
-    image = cv::imread(image_path, cv::IMREAD_GRAYSCALE);
-  } catch (const cv::Exception& e) {
-    throw model::InputError(fmt::format("{}: cannot read image ({})", image_path, e.err));
-  }
-  if (image.empty()) throw model::InputError(fmt::format("{}: cannot read image", image_path));
+  const cv::Mat image = imageio::ReadImage(image_path, imageio::Channels::kGrey);
   auto view = DetectTarget(target, image, options);
   if (view) view->image_path = image_path;
   return view;
@@ -127,14 +122,13 @@ std::vector<FileDetection> DetectTargetInFiles(const TargetDescription& target, 
     f.path = paths[i];
     cv::Mat image;
     try {
-      image = cv::imread(f.path, cv::IMREAD_GRAYSCALE);
-    } catch (const cv::Exception& e) {
-      image.release();
-      f.skipped = fmt::format("cannot be read as an image ({})", e.err);
+      image = imageio::ReadImage(f.path, imageio::Channels::kGrey);
+    } catch (const model::InputError& e) {
+      // The loader's line starts with the path, which the caller prints in front of the reason already.
+      const std::string what = e.what();
+      f.skipped = what.rfind(f.path + ": ", 0) == 0 ? what.substr(f.path.size() + 2) : what;
     }
-    if (image.empty()) {
-      if (f.skipped.empty()) f.skipped = "cannot be read as an image";
-    } else {
+    if (!image.empty()) {
       f.width_px = image.cols;
       f.height_px = image.rows;
       f.detection = DetectTargetDetailed(target, image, options.detection);

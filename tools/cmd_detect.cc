@@ -3,10 +3,10 @@
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "correct/detect_and_index.h"
 #include "correct/detected_spots_csv.h"
+#include "imageio/image_file.h"
 #include "model/config.h"
 #include "model/device.h"
 #include "model/io.h"
@@ -62,13 +62,8 @@ void Run(const DetectArgs& a) {
 }  // namespace
 
 cv::Mat ReadSpotImage(const std::string& path, const model::TopographerCamera& camera, const std::string& camera_file) {
-  model::ReadFile(path);  // a missing or unreadable file is named as such, not as "not an image"
-  const cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
-  if (image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", path));
-  if (image.cols != camera.width_px || image.rows != camera.height_px) {
-    throw model::InputError(fmt::format("{}: the image is {} x {} px but {} says {} x {} px", path, image.cols,
-                                        image.rows, camera_file, camera.width_px, camera.height_px));
-  }
+  cv::Mat image = imageio::ReadImage(path, imageio::Channels::kAsStored);
+  imageio::RequireSize(image, path, camera.width_px, camera.height_px, camera_file);
   return image;
 }
 

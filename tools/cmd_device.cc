@@ -2,8 +2,8 @@
 #include <memory>
 
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 
+#include "imageio/image_file.h"
 #include "model/config.h"
 #include "model/device.h"
 #include "model/io.h"
@@ -47,14 +47,9 @@ void Calibrate(DeviceArgs a) {
   const auto nominal = model::LoadDevice(a.device);
   std::vector<pipeline::BallImage> images;
   for (size_t i = 0; i < a.balls.size(); ++i) {
-    model::ReadFile(a.balls[i]);  // a missing or unreadable file is named as such, not as "not an image"
-    pipeline::BallImage b{a.balls[i], cv::imread(a.balls[i], cv::IMREAD_UNCHANGED), a.radii_mm[i]};
-    if (b.image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", a.balls[i]));
+    pipeline::BallImage b{a.balls[i], imageio::ReadImage(a.balls[i], imageio::Channels::kAsStored), a.radii_mm[i]};
     const auto& cam = nominal.device.camera;
-    if (b.image.cols != cam.width_px || b.image.rows != cam.height_px) {
-      throw model::InputError(fmt::format("{}: the image is {} x {} px but {} says {} x {} px", a.balls[i],
-                                          b.image.cols, b.image.rows, a.device, cam.width_px, cam.height_px));
-    }
+    imageio::RequireSize(b.image, a.balls[i], cam.width_px, cam.height_px, a.device);
     images.push_back(std::move(b));
   }
   pipeline::DeviceCalibration result;

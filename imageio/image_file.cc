@@ -1,0 +1,122 @@
+#include "imageio/image_file.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <vector>
+
+#include <fmt/format.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "model/io.h"
+
+namespace topocal::imageio {
+namespace {
+
+std::uint32_t BigEndian(std::string_view b, size_t at, int bytes) noexcept {
+  std::uint32_t v = 0;
+  for (int i = 0; i < bytes; ++i) v = (v << 8) | static_cast<unsigned char>(b[at + static_cast<size_t>(i)]);
+  return v;
+}
+
+std::optional<StoredSize> ProbePng(std::string_view b) noexcept {
+  // Signature (8 bytes), then the IHDR chunk: length (4), "IHDR", width (4), height (4), all big-endian.
+  static constexpr std::string_view kSignature("\x89PNG\r\n\x1a\n", 8);
+  if (b.size() < 24 || b.substr(0, 8) != kSignature || b.substr(12, 4) != "IHDR") return std::nullopt;
+  const std::uint32_t w = BigEndian(b, 16, 4), h = BigEndian(b, 20, 4);
+  // PNG limits both to 2^31 - 1; larger values are malformed, reported as "too large" by the caller.
+  return StoredSize{static_cast<int>(std::min<std::uint32_t>(w, 0x7fffffff)), static_cast<int>(std::min<std::uint32_t>(h, 0x7fffffff))};
+}
+
+std::optional<StoredSize> ProbeJpeg(std::string_view b) noexcept {
+  // SOI, then marker segments (0xFF, code, big-endian length including itself) up to a start-of-frame marker
+  // (0xC0-0xCF except DHT 0xC4, JPG 0xC8, DAC 0xCC): precision (1), height (2), width (2).
+  if (b.size() < 4 || static_cast<unsigned char>(b[0]) != 0xFF || static_cast<unsigned char>(b[1]) != 0xD8) return std::nullopt;
+  size_t at = 2;
+  while (at + 4 <= b.size()) {
+    if (static_cast<unsigned char>(b[at]) != 0xFF) return std::nullopt;
+    const unsigned char code = static_cast<unsigned char>(b[at + 1]);
+    if (code == 0xFF) {  // fill byte
+      ++at;
+      continue;
+    }
+    if (code == 0xD8 || code == 0x01 || (code >= 0xD0 && code <= 0xD7)) {  // markers without a length
+      at += 2;
+      continue;
+    }
+    const std::uint32_t length = BigEndian(b, at + 2, 2);
+    if (length < 2) return std::nullopt;
+    if (code >= 0xC0 && code <= 0xCF && code != 0xC4 && code != 0xC8 && code != 0xCC) {
+      if (at + 9 > b.size()) return std::nullopt;
+      return StoredSize{static_cast<int>(BigEndian(b, at + 7, 2)), static_cast<int>(BigEndian(b, at + 5, 2))};
+    }
+    if (code == 0xDA || code == 0xD9) return std::nullopt;  // scan data or end before a frame header
+    at += 2 + length;
+  }
+  return std::nullopt;
+}
+
+void CheckPixels(std::int64_t width, std::int64_t height, const std::string& name, const ImageLimits& limits) {
+  if (width <= 0 || height <= 0) throw model::InputError(fmt::format("{}: the image declares a size of {} x {} px", name, width, height));
+  if (width * height > limits.max_pixels) {
+    throw model::InputError(fmt::format("{}: {} x {} px is over the {} Mpx an image may have", name, width, height,
+                                        limits.max_pixels / 1'000'000));
+  }
+}
+
+}  // namespace
+
+std::optional<StoredSize> ProbeStoredSize(std::string_view bytes) noexcept {
+  if (auto png = ProbePng(bytes)) return png;
+  return ProbeJpeg(bytes);
+}
+
+cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string& name, const ImageLimits& limits) {
+  if (bytes.empty()) throw model::InputError(fmt::format("{}: empty file, not an image", name));
+  if (bytes.size() > limits.max_file_bytes) {
+    throw model::InputError(fmt::format("{}: over the {} MiB an image file may have", name, limits.max_file_bytes >> 20));
+  }
+  if (const auto stored = ProbeStoredSize(bytes)) CheckPixels(stored->width_px, stored->height_px, name, limits);
+  cv::Mat image;
+  try {
+    const cv::Mat buffer(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data()));
+    image = cv::imdecode(buffer, channels == Channels::kGrey ? cv::IMREAD_GRAYSCALE : cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception& e) {
+    throw model::InputError(fmt::format("{}: cannot be read as an image ({})", name, e.err));
+  } catch (const std::exception& e) {  // std::bad_alloc from a codec and the like
+    throw model::InputError(fmt::format("{}: cannot be read as an image ({})", name, e.what()));
+  }
+  if (image.empty()) {
+    throw model::InputError(fmt::format("{}: cannot be read as an image (not a format OpenCV decodes, or truncated)", name));
+  }
+  CheckPixels(image.cols, image.rows, name, limits);
+  return image;
+}
+
+cv::Mat ReadImage(const std::string& path, Channels channels, const ImageLimits& limits) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw model::InputError(fmt::format("{}: cannot be opened for reading: {}", path, std::strerror(errno)));
+  // Read at most one byte more than allowed: a file (or FIFO) over the limit is refused without reading it all.
+  std::string bytes;
+  std::vector<char> chunk(1 << 20);
+  while (in) {
+    in.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
+    bytes.append(chunk.data(), static_cast<size_t>(in.gcount()));
+    if (bytes.size() > limits.max_file_bytes) {
+      throw model::InputError(fmt::format("{}: over the {} MiB an image file may have", path, limits.max_file_bytes >> 20));
+    }
+  }
+  if (in.bad()) throw model::InputError(fmt::format("{}: read error", path));
+  return DecodeImage(bytes, channels, path, limits);
+}
+
+void RequireSize(const cv::Mat& image, const std::string& path, int width_px, int height_px, const std::string& source) {
+  if (image.cols != width_px || image.rows != height_px) {
+    throw model::InputError(fmt::format("{}: the image is {} x {} px but {} says {} x {} px", path, image.cols,
+                                        image.rows, source, width_px, height_px));
+  }
+}
+
+}  // namespace topocal::imageio

@@ -1,0 +1,48 @@
+#pragma once
+// The one image loader (issue 16). Every image file topocal reads — calibration views, spot images, reference
+// balls — goes through ReadImage, which
+//  - names the file in every error (model::InputError, one line): missing, unreadable, too large, not an image,
+//    truncated, or not the size the camera file says;
+//  - refuses a file over max_file_bytes before reading it, and an image over max_pixels from its header before
+//    decoding it (PNG and JPEG headers are read here; other formats are checked once decoded, under OpenCV's own
+//    1 Gpx guard), so a decompression bomb costs neither the memory nor the time;
+//  - catches every OpenCV and codec exception at the boundary.
+// Decoding is OpenCV's (cv::imdecode); only the header probe is written here, because OpenCV 4.6 has no call that
+// reads an image's size without decoding it.
+//
+//   const cv::Mat grey = imageio::ReadImage(path, imageio::Channels::kGrey);
+//   imageio::RequireSize(grey, path, camera.width_px, camera.height_px, "camera.json");
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include <opencv2/core/mat.hpp>
+
+namespace topocal::imageio {
+
+enum class Channels {
+  kGrey,      // one 8-bit channel (colour converted, 16-bit scaled) — what the detectors read
+  kAsStored,  // channels and depth as in the file (cv::IMREAD_UNCHANGED)
+};
+
+struct ImageLimits {
+  std::uint64_t max_file_bytes = std::uint64_t{1} << 30;  // 1 GiB
+  // 250 Mpx: 6x the largest phone sensors of 2026 (~50 Mpx in full-resolution modes), 20x the demo unit's.
+  std::int64_t max_pixels = 250'000'000;
+};
+
+struct StoredSize {
+  int width_px = 0, height_px = 0;
+};
+// The image size a PNG or JPEG declares in its header; nullopt for other formats or when no header is found.
+std::optional<StoredSize> ProbeStoredSize(std::string_view bytes) noexcept;
+
+// Decodes an image held in memory; `name` names it in errors. Throws model::InputError.
+cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string& name, const ImageLimits& limits = {});
+// Reads and decodes an image file. Throws model::InputError naming the path.
+cv::Mat ReadImage(const std::string& path, Channels channels, const ImageLimits& limits = {});
+// Throws model::InputError unless `image` is width_px x height_px, naming the path and where the size comes from.
+void RequireSize(const cv::Mat& image, const std::string& path, int width_px, int height_px, const std::string& source);
+
+}  // namespace topocal::imageio

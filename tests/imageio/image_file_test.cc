@@ -1,0 +1,128 @@
+// The one image loader: headers probed right, bombs refused before decoding, every failure one line naming the file.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "imageio/image_file.h"
+#include "model/io.h"
+
+namespace topocal::imageio {
+namespace {
+
+std::string Encode(const cv::Mat& image, const std::string& ext, std::vector<int> params = {}) {
+  std::vector<unsigned char> buffer;
+  EXPECT_TRUE(cv::imencode(ext, image, buffer, params));
+  return std::string(buffer.begin(), buffer.end());
+}
+
+cv::Mat Gradient(int width, int height, int type = CV_8UC1) {
+  cv::Mat m(height, width, type);
+  cv::randu(m, 0, 255);
+  return m;
+}
+
+// Message of the InputError `f` throws, or "" if it throws nothing.
+template <typename F>
+std::string ErrorOf(F f) {
+  try {
+    f();
+  } catch (const model::InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(ImageFile, ProbesPngAndJpegSizesFromTheirHeaders) {
+  for (const auto& [w, h] : {std::pair{640, 480}, std::pair{37, 1023}, std::pair{4000, 3}}) {
+    const cv::Mat image = Gradient(w, h);
+    for (const std::string ext : {".png", ".jpg"}) {
+      SCOPED_TRACE(fmt::format("{} {}x{}", ext, w, h));
+      const auto size = ProbeStoredSize(Encode(image, ext));
+      ASSERT_TRUE(size.has_value());
+      EXPECT_EQ(size->width_px, w);
+      EXPECT_EQ(size->height_px, h);
+    }
+  }
+  // Progressive JPEG (SOF2) and a colour PNG.
+  const auto progressive = ProbeStoredSize(Encode(Gradient(33, 17, CV_8UC3), ".jpg", {cv::IMWRITE_JPEG_PROGRESSIVE, 1}));
+  ASSERT_TRUE(progressive.has_value());
+  EXPECT_EQ(progressive->width_px, 33);
+  EXPECT_FALSE(ProbeStoredSize("").has_value());
+  EXPECT_FALSE(ProbeStoredSize("BM not a png or jpeg").has_value());
+  EXPECT_FALSE(ProbeStoredSize(std::string("\xFF\xD8\xFF", 3)).has_value());  // truncated JPEG
+}
+
+TEST(ImageFile, DecodesWhatOpenCvDecodes) {
+  const cv::Mat image = Gradient(64, 48);
+  const cv::Mat grey = DecodeImage(Encode(image, ".png"), Channels::kGrey, "mem.png");
+  EXPECT_EQ(cv::norm(grey, image, cv::NORM_INF), 0.0);
+  const cv::Mat colour = Gradient(64, 48, CV_8UC3);
+  EXPECT_EQ(DecodeImage(Encode(colour, ".png"), Channels::kAsStored, "mem.png").channels(), 3);
+  EXPECT_EQ(DecodeImage(Encode(colour, ".png"), Channels::kGrey, "mem.png").channels(), 1);
+  cv::Mat deep(8, 8, CV_16UC1, cv::Scalar(40000));
+  EXPECT_EQ(DecodeImage(Encode(deep, ".png"), Channels::kAsStored, "mem.png").depth(), CV_16U);
+}
+
+// A PNG that declares 100 000 x 100 000 px in 60 bytes: refused from its header, before any decoding.
+TEST(ImageFile, DecompressionBombsAreRefusedFromTheHeader) {
+  std::string png = Encode(Gradient(8, 8), ".png");
+  const auto put = [&](size_t at, std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) png[at + static_cast<size_t>(i)] = static_cast<char>((v >> (24 - 8 * i)) & 0xFF);
+  };
+  put(16, 100000);
+  put(20, 100000);
+  const std::string why = ErrorOf([&] { DecodeImage(png, Channels::kGrey, "bomb.png"); });
+  EXPECT_NE(why.find("bomb.png: 100000 x 100000 px is over the 250 Mpx"), std::string::npos) << why;
+  // The limit is the caller's: a small one refuses an ordinary image, by file size or by pixels.
+  ImageLimits small;
+  small.max_pixels = 1000;
+  EXPECT_NE(ErrorOf([&] { DecodeImage(Encode(Gradient(40, 40), ".jpg"), Channels::kGrey, "a.jpg", small); })
+                .find("over the 0 Mpx"),
+            std::string::npos);
+}
+
+TEST(ImageFile, EveryBadFileIsOneLineNamingIt) {
+  const auto dir = std::filesystem::temp_directory_path() / fmt::format("topocal_imageio_{}", ::getpid());
+  std::filesystem::create_directories(dir);
+  const auto path = [&](const char* name) { return (dir / name).string(); };
+  std::ofstream(path("text.png")) << "not an image";
+  std::ofstream(path("empty.jpg"));
+  const std::string jpeg = Encode(Gradient(200, 100), ".jpg");
+  std::ofstream(path("truncated.jpg"), std::ios::binary) << jpeg.substr(0, 100);
+  std::ofstream(path("good.jpg"), std::ios::binary) << jpeg;
+
+  const auto expect = [&](const char* name, const char* fragment, const ImageLimits& limits = {}) {
+    const std::string why = ErrorOf([&] { ReadImage(path(name), Channels::kGrey, limits); });
+    EXPECT_EQ(why.rfind(path(name) + ": ", 0), 0u) << why;  // starts with the path
+    EXPECT_NE(why.find(fragment), std::string::npos) << why;
+    EXPECT_EQ(why.find('\n'), std::string::npos) << why;
+  };
+  expect("missing.png", "cannot be opened for reading: No such file");
+  expect("text.png", "cannot be read as an image");
+  expect("empty.jpg", "empty file");
+  expect("truncated.jpg", "cannot be read as an image");
+  ImageLimits tiny;
+  tiny.max_file_bytes = 1000;
+  expect("good.jpg", "over the 0 MiB", tiny);
+  // A device reads as an empty file.
+  EXPECT_NE(ErrorOf([&] { ReadImage("/dev/null", Channels::kGrey); }).find("/dev/null: empty file"), std::string::npos);
+  const cv::Mat good = ReadImage(path("good.jpg"), Channels::kGrey);
+  EXPECT_EQ(good.cols, 200);
+  EXPECT_NE(ErrorOf([&] { RequireSize(good, path("good.jpg"), 640, 480, "camera.json"); })
+                .find("the image is 200 x 100 px but camera.json says 640 x 480 px"),
+            std::string::npos);
+  EXPECT_EQ(ErrorOf([&] { RequireSize(good, path("good.jpg"), 200, 100, "camera.json"); }), "");
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace topocal::imageio
