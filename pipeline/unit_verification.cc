@@ -84,6 +84,11 @@ model::Config WithSphere(const model::Config& config, double radius_mm) {
   c.cornea.rx_mm = c.cornea.ry_mm = radius_mm;
   c.cornea.kx = c.cornea.ky = 0.0;
   c.cornea.alpha_deg = 0.0;
+  // Fitted as the sphere it is (topo/sphere_fit.h): centre and radius. The free-apex biconic is degenerate on a
+  // sphere (its tilt and decentration are the same surface) and the paper's 6 parameters cannot follow a ball off
+  // the axis or seen through a tilted screen. The record's k_x, k_y and alpha of a sphere are therefore 0 by
+  // construction, not measured (docs/unit-record.md).
+  c.reconstruction.biconic_fit = "sphere";
   return c;
 }
 

@@ -61,7 +61,8 @@ struct SphereVerification {
   double PowerErrorD(const StageResult& s) const { return s.numbers.central_axial_power_D - power_true_D; }
 };
 
-// The design (`config`) with its cornea replaced by a sphere of this radius.
+// The design (`config`) with its cornea replaced by a sphere of this radius, fitted as a sphere
+// (reconstruction.biconic_fit = "sphere": centre and radius; k_x = k_y = alpha = 0 by construction).
 model::Config WithSphere(const model::Config& config, double radius_mm);
 
 // Throws std::invalid_argument for a non-physical radius or an image of the wrong size, std::runtime_error (one

@@ -38,9 +38,11 @@ void PrintAnalysis(const topo::Analysis& a) {
   fmt::print("  kx = {:.4f} +- {:.4f}      ky = {:.4f} +- {:.4f}\n", p.kx, sd.kx, p.ky, sd.ky);
   fmt::print("  alpha = {:.4f} +- {:.4f} deg   vertex = {:.4f} +- {:.4f} um\n", p.alpha_deg, sd.alpha_deg,
              p.z0_mm * 1e3, sd.z0_mm * 1e3);
-  if (f.mode == topo::BiconicFitMode::kFreeApex) {
+  if (f.mode != topo::BiconicFitMode::kPaper) {
     fmt::print("  apex at ({:.4f} +- {:.4f}, {:.4f} +- {:.4f}) mm: decentration {:.4f} mm\n", f.apex_mm.x(),
                sd.apex_x_mm, f.apex_mm.y(), sd.apex_y_mm, f.DecentrationMm());
+  }
+  if (f.mode == topo::BiconicFitMode::kFreeApex) {
     fmt::print("  tilt x = {:.3f} +- {:.3f} deg, y = {:.3f} +- {:.3f} deg: {:.3f} deg off the axis\n", p.tilt_x_deg,
                sd.tilt_x_deg, p.tilt_y_deg, sd.tilt_y_deg, f.TiltDeg());
   }

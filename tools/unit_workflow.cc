@@ -388,7 +388,9 @@ json VerificationJson(const pipeline::SphereVerification& s, const UnitRequest& 
             {"spots_indexed", s.spots_indexed},
             {"spots_unassigned", s.spots_unassigned},
             {"spots_missing", s.spots_missing},
-            {"undistort_failures", s.undistort_failures}};
+            {"undistort_failures", s.undistort_failures},
+            // "sphere": centre and radius fitted; kx, ky, alpha_deg are 0 by construction (docs/unit-record.md)
+            {"surface_fit", topo::BiconicFitModeName(s.corrected.analysis.surface_fit.mode)}};
   for (const auto& [name, stage] : {std::pair{"uncorrected", &s.uncorrected}, std::pair{"corrected", &s.corrected}}) {
     json n = Numbers(stage->numbers);
     n["spots_indexed"] = s.spots_indexed;  // both stages use the same detected and indexed spots
