@@ -224,16 +224,20 @@ void AddReconstructCommand(CLI::App& app) {
                                  : topo::AnalyzeSpots(measured, design.targets, cfg, *truth ? &cfg.cornea : nullptr);
     PrintAnalysis(analysis);
     if (uncertainty) {
-      fmt::print("calibration uncertainty carried through ({} draws of {}, {}; {} failed), mean +- U (k = 2):\n",
+      fmt::print("calibration uncertainty carried through ({} draws of {}, {}; {} failed; {} spot(s) not undistorted "
+                 "in {} draw(s)), mean +- U (k = 2):\n",
                  uncertainty->samples, fmt::join(uncertainty->drawn, ", "),
                  uncertainty->correlated ? "with their covariance" : "independent (the file has no covariance)",
-                 uncertainty->failed_samples);
+                 uncertainty->failed_samples, uncertainty->undistort_failures,
+                 uncertainty->draws_with_undistort_failures);
       for (const auto& [name, q] : uncertainty->quantities) {
         fmt::print("  {:<16} {:>12.6f} +- {:.3g}\n", name, q.mean, q.expanded_k2);
       }
       nlohmann::json u;
       u["samples"] = uncertainty->samples;
       u["failed_samples"] = uncertainty->failed_samples;
+      u["undistort_failures"] = uncertainty->undistort_failures;
+      u["draws_with_undistort_failures"] = uncertainty->draws_with_undistort_failures;
       u["drawn"] = uncertainty->drawn;
       u["correlated"] = uncertainty->correlated;
       u["coverage_factor"] = 2;

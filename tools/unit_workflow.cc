@@ -84,6 +84,8 @@ json Uncertainty(const std::optional<pipeline::ClinicalUncertainty>& u, const pi
   json q = json::object();
   for (const auto& [name, v] : u->quantities) q[name] = {{"mean", v.mean}, {"U", v.expanded_k2}};
   return {{"samples", u->samples},         {"seed", o.seed},          {"failed_samples", u->failed_samples},
+          {"undistort_failures", u->undistort_failures},
+          {"draws_with_undistort_failures", u->draws_with_undistort_failures},
           {"drawn", u->drawn},             {"correlated", u->correlated}, {"coverage_factor", 2},
           {"quantities", q}};
 }
