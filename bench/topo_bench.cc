@@ -1,5 +1,7 @@
 // The whole 7-sigma sweep of the paper: design, synthesis, distortion, reconstruction, biconic fit and power maps
 // (no PNG writing), and its pieces for one sigma.
+#include <random>
+
 #include <benchmark/benchmark.h>
 
 #include "model/config.h"
@@ -96,6 +98,36 @@ void BM_BiconicFit(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(topo::FitBiconic(cloud, o).params.rx_mm);
 }
 BENCHMARK(BM_BiconicFit)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// The fit of a reference sphere (R 7.8 mm, the unit check's), reconstructed from spots with the configured
+// spot-centre noise (seeded): arg 0 = the free-apex biconic it used to get (degenerate on a sphere: runs to its
+// iteration cap), the peer; 1 = the 4-parameter sphere fit it gets now (topo/sphere_fit.h).
+void BM_FitReferenceSphere(benchmark::State& state) {
+  OneSigma d;
+  d.config.cornea = model::BiconicParams{};
+  d.config.cornea.rx_mm = d.config.cornea.ry_mm = 7.8;
+  d.config.cornea.kx = d.config.cornea.ky = d.config.cornea.alpha_deg = 0.0;
+  std::mt19937 rng(1);
+  std::normal_distribution<double> noise_mm(0.0, d.config.reconstruction.spot_uncertainty_um * 1e-3);
+  std::vector<topo::MeasuredSpot> spots;
+  for (const auto& s : topo::SimulateSpots(d.config, 0.0).spots) {
+    spots.push_back({s.id, s.position_mm + Eigen::Vector2d(noise_mm(rng), noise_mm(rng))});
+  }
+  const auto r = topo::Reconstruct(spots, d.design.targets, d.config.topographer, d.config.reconstruction);
+  std::vector<Eigen::Vector3d> cloud;
+  for (const auto& p : r.points) cloud.push_back(p.point_mm);
+  topo::BiconicFitOptions o;
+  o.mode = state.range(0) ? topo::BiconicFitMode::kSphere : topo::BiconicFitMode::kFreeApex;
+  o.stddev = false;  // as a Monte Carlo draw fits
+  int iterations = 0;
+  for (auto _ : state) {
+    const auto fit = topo::FitBiconic(cloud, o);
+    iterations = fit.iterations;
+    benchmark::DoNotOptimize(fit.params.rx_mm);
+  }
+  state.counters["iterations"] = iterations;
+}
+BENCHMARK(BM_FitReferenceSphere)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 void BM_PowerMaps(benchmark::State& state) {
   const OneSigma d;

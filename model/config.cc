@@ -160,8 +160,9 @@ void ParseReconstruction(Section s, ReconstructionSettings& p) {
     s.Fail(s.Key("spline_spacing_mm"), fmt::format("must lie in [0.1, 2] mm (got {})", p.spline_spacing_mm));
   }
   p.biconic_fit = s.String("biconic_fit", p.biconic_fit);
-  if (p.biconic_fit != "free-apex" && p.biconic_fit != "paper") {
-    s.Fail(s.Key("biconic_fit"), fmt::format("must be \"free-apex\" or \"paper\" (got \"{}\")", p.biconic_fit));
+  if (p.biconic_fit != "free-apex" && p.biconic_fit != "paper" && p.biconic_fit != "sphere") {
+    s.Fail(s.Key("biconic_fit"),
+           fmt::format("must be \"free-apex\", \"paper\" or \"sphere\" (got \"{}\")", p.biconic_fit));
   }
   s.RejectUnknown();
 }

@@ -101,7 +101,7 @@ struct ReconstructionSettings {
                                              // a bicubic P-spline residual, GCV-smoothed: freeform corneas;
                                              // docs/reconstruction.md)
   double spline_spacing_mm = 0.33;           // knot spacing of the spline residual (spots lie ~0.35 mm apart)
-  std::string biconic_fit = "free-apex";     // "free-apex" (apex position and tilt free, default) or "paper"
+  std::string biconic_fit = "free-apex";     // "free-apex" (apex position and tilt free, default), "paper" or "sphere" (topo/sphere_fit.h)
                                              // (Eq. 12 with x0 = y0 = 0 and no tilt: the paper's 6 parameters)
 };
 

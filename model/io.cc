@@ -268,6 +268,24 @@ void WriteFileAtomic(const std::string& path, std::string_view content) {
 std::string ReadFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(fmt::format("{}: cannot be opened for reading: {}", path, ErrnoText(errno)));
+  // A regular file is read in one piece into a string of its size: streaming it through an ostringstream copied
+  // every byte two to three times as the buffer grew (issue 15: 10 % of `unit calibrate`, which reads ~21 MB of
+  // images to hash them). Anything whose size is unknown (a pipe) still streams.
+  std::error_code ec;
+  const auto size = std::filesystem::is_regular_file(path, ec) ? std::filesystem::file_size(path, ec) : 0;
+  if (!ec && size > 0) {
+    std::string bytes(static_cast<size_t>(size), '\0');
+    in.read(bytes.data(), static_cast<std::streamsize>(size));
+    if (in.bad() || in.gcount() != static_cast<std::streamsize>(size)) {
+      throw InputError(fmt::format("{}: read error", path));
+    }
+    // A file that grew while being read: take the rest too, as the streaming read would.
+    if (in.peek() == std::ifstream::traits_type::eof()) return bytes;
+    std::ostringstream rest;
+    rest << in.rdbuf();
+    if (in.bad()) throw InputError(fmt::format("{}: read error", path));
+    return bytes + rest.str();
+  }
   std::ostringstream ss;
   ss << in.rdbuf();
   if (in.bad()) throw InputError(fmt::format("{}: read error", path));

@@ -33,7 +33,33 @@ double* Parameter(calib::CameraModel& c, const std::string& name) {
 constexpr std::array<const char*, 9> kQuantities = {"rx_mm", "ry_mm", "kx", "ky", "alpha_deg", "pv_tangential_D",
                                                      "pv_axial_D", "radius_mm", "central_axial_power_D"};
 
+void RequireShape(const calib::ParameterCovariance& covariance) {
+  const auto n_names = static_cast<Eigen::Index>(covariance.names.size());
+  if (covariance.matrix.rows() != n_names || covariance.matrix.cols() != n_names) {
+    throw std::invalid_argument(fmt::format("uncertainty: the covariance matrix is {} x {} but has {} parameter names",
+                                            covariance.matrix.rows(), covariance.matrix.cols(), n_names));
+  }
+}
+
+// Indices into `covariance` of the distortion parameters with a spread.
+std::vector<Eigen::Index> DrawnIndices(const calib::ParameterCovariance& covariance) {
+  RequireShape(covariance);
+  calib::CameraModel probe;
+  std::vector<Eigen::Index> drawn;
+  for (Eigen::Index i = 0; i < covariance.matrix.rows(); ++i) {
+    const double var = covariance.matrix(i, i);
+    if (var > 0 && std::isfinite(var) && Parameter(probe, covariance.names[static_cast<size_t>(i)])) drawn.push_back(i);
+  }
+  return drawn;
+}
+
 }  // namespace
+
+std::vector<std::string> DistortionParametersToDraw(const calib::ParameterCovariance& covariance) {
+  std::vector<std::string> names;
+  for (const Eigen::Index i : DrawnIndices(covariance)) names.push_back(covariance.names[static_cast<size_t>(i)]);
+  return names;
+}
 
 ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredImageSpot>& spots,
                                                     const calib::CameraModel& calibrated,
@@ -42,22 +68,10 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
                                                     const model::Config& config, int samples, std::uint32_t seed,
                                                     int jobs) {
   if (samples < 2) throw std::invalid_argument("uncertainty: at least 2 samples are needed");
-  const auto n_names = static_cast<Eigen::Index>(covariance.names.size());
-  if (covariance.matrix.rows() != n_names || covariance.matrix.cols() != n_names) {
-    throw std::invalid_argument("uncertainty: the covariance matrix does not match its parameter names");
-  }
   ClinicalUncertainty u;
   u.correlated = covariance.full;
-  calib::CameraModel probe = calibrated;
-  std::vector<Eigen::Index> drawn_index;
-  for (Eigen::Index i = 0; i < n_names; ++i) {
-    const double var = covariance.matrix(i, i);
-    const auto& name = covariance.names[static_cast<size_t>(i)];
-    if (var > 0 && std::isfinite(var) && Parameter(probe, name)) {
-      u.drawn.push_back(name);
-      drawn_index.push_back(i);
-    }
-  }
+  const std::vector<Eigen::Index> drawn_index = DrawnIndices(covariance);
+  for (const Eigen::Index i : drawn_index) u.drawn.push_back(covariance.names[static_cast<size_t>(i)]);
   if (u.drawn.empty()) {
     throw std::invalid_argument("uncertainty: the calibration reports no standard deviation for a distortion parameter");
   }
@@ -99,6 +113,7 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
   // slot, so the draws are the same whatever the number of threads and the statistics (summed in draw order below)
   // are bit-identical.
   std::vector<std::optional<std::array<double, kQuantities.size()>>> per_draw(static_cast<size_t>(samples));
+  std::vector<int> per_draw_undistort_failures(static_cast<size_t>(samples), 0);
   model::ParallelFor(static_cast<size_t>(samples), std::max(0, jobs), [&](size_t i) {
     std::seed_seq seq{seed, static_cast<std::uint32_t>(i)};
     std::mt19937 rng(seq);
@@ -112,7 +127,8 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
     const auto distortion = DistortionOnDetectionPlane(c, camera, &why);
     if (!distortion) return;  // counted as failed below
     try {
-      const auto a = topo::AnalyzeSpots(UndistortSpots(spots, *distortion), design.targets, config, nullptr, draw_options);
+      const auto undistorted = UndistortSpots(spots, *distortion, &per_draw_undistort_failures[i]);
+      const auto a = topo::AnalyzeSpots(undistorted, design.targets, config, nullptr, draw_options);
       const auto& p = a.surface_fit.params;
       per_draw[i] = std::array<double, kQuantities.size()>{
           p.rx_mm, p.ry_mm, p.kx, p.ky, p.alpha_deg, a.power.pv_tangential_D, a.power.pv_axial_D,
@@ -121,6 +137,10 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
       // counted as failed below
     }
   });
+  for (const int f : per_draw_undistort_failures) {
+    u.undistort_failures += f;
+    u.draws_with_undistort_failures += f > 0;
+  }
   std::map<std::string, std::vector<double>> draws;
   for (const auto& v : per_draw) {
     if (!v) {

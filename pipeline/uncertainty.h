@@ -34,12 +34,22 @@ struct ClinicalUncertainty {
   };
   int samples = 0;
   int failed_samples = 0;             // draws whose reconstruction failed (reported, not hidden)
+  // Spots a draw could not undistort (the inverse distortion did not converge: a spot beyond the drawn distortion's
+  // fold) and so left out of that draw's reconstruction, summed over the draws; and how many draws lost any.
+  int undistort_failures = 0;
+  int draws_with_undistort_failures = 0;
   std::vector<std::string> drawn;     // parameter names drawn
   bool correlated = false;            // drawn with the full covariance (false: independent, diagonal only)
   // rx_mm, ry_mm, kx, ky, alpha_deg, pv_tangential_D, pv_axial_D, radius_mm (mean of rx, ry),
   // central_axial_power_D (topo::MeanAxialPowerD over kCentralPowerRadiusMm)
   std::map<std::string, Quantity> quantities;
 };
+
+// The distortion parameters of `covariance` that have a spread to draw (positive, finite variance), in the
+// covariance's order. Empty means nothing to propagate (every distortion parameter fixed or without a reported
+// standard deviation): the one legitimate "no uncertainty" case, which callers test for before propagating.
+// Throws std::invalid_argument when the matrix does not match its names.
+std::vector<std::string> DistortionParametersToDraw(const calib::ParameterCovariance& covariance);
 
 // The draws run on `jobs` threads (<= 0: every core; model/parallel.h); draw i takes its normals from
 // std::seed_seq{seed, i}, so the result is bit-identical whatever `jobs` is. Each draw starts its slope fits from the

@@ -35,17 +35,23 @@ StageResult Analyze(const std::vector<topo::MeasuredSpot>& spots, const std::vec
   return r;
 }
 
+// The uncertainty of one check, or none when there is nothing to propagate (no distortion parameter with a spread,
+// e.g. all fixed: the record says so by leaving the uncertainty out). Anything else that stops the propagation — a
+// covariance that does not match its names, too few samples, most draws failing — is a computation error of this
+// check: one line naming it (std::runtime_error), never a silently missing uncertainty.
 std::optional<ClinicalUncertainty> Uncertainty(const std::vector<MeasuredImageSpot>& detected,
                                                const UnitCalibration& unit, const model::TopographerCamera& camera,
-                                               const model::Config& config, const CheckOptions& options) {
+                                               const model::Config& config, const CheckOptions& options,
+                                               const char* what) {
   if (options.uncertainty_samples <= 0) return std::nullopt;
   try {
+    if (DistortionParametersToDraw(unit.covariance).empty()) return std::nullopt;
     return PropagateCalibrationUncertainty(detected, unit.camera, unit.covariance, camera, config,
                                            options.uncertainty_samples, options.seed, options.jobs);
-  } catch (const std::invalid_argument&) {
-    // No distortion parameter with a spread (e.g. all fixed): nothing to propagate, and the record says so by
-    // leaving the uncertainty out.
-    return std::nullopt;
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(fmt::format("{}: {}", what, e.what()));
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(fmt::format("{}: {}", what, e.what()));
   }
 }
 
@@ -84,6 +90,11 @@ model::Config WithSphere(const model::Config& config, double radius_mm) {
   c.cornea.rx_mm = c.cornea.ry_mm = radius_mm;
   c.cornea.kx = c.cornea.ky = 0.0;
   c.cornea.alpha_deg = 0.0;
+  // Fitted as the sphere it is (topo/sphere_fit.h): centre and radius. The free-apex biconic is degenerate on a
+  // sphere (its tilt and decentration are the same surface) and the paper's 6 parameters cannot follow a ball off
+  // the axis or seen through a tilted screen. The record's k_x, k_y and alpha of a sphere are therefore 0 by
+  // construction, not measured (docs/unit-record.md).
+  c.reconstruction.biconic_fit = "sphere";
   return c;
 }
 
@@ -113,7 +124,7 @@ SphereVerification VerifyOnReferenceSphere(const cv::Mat& image, double radius_m
   const auto corrected = UndistortSpots(raw.detected, distortion, &v.undistort_failures);
   v.uncorrected = Analyze(raw.spots, design.targets, sphere, sphere.cornea, "reference sphere, uncorrected");
   v.corrected = Analyze(corrected, design.targets, sphere, sphere.cornea, "reference sphere, corrected");
-  v.uncertainty = Uncertainty(raw.detected, unit, camera, sphere, options);
+  v.uncertainty = Uncertainty(raw.detected, unit, camera, sphere, options, "reference sphere");
   return v;
 }
 
@@ -139,7 +150,7 @@ SimulatedCornea SimulateThroughCalibratedCamera(const UnitCalibration& unit, con
   const auto corrected = UndistortSpots(detected, distortion);
   out.uncorrected = Analyze(distorted, design.targets, config, config.cornea, "paper cornea, uncorrected");
   out.corrected = Analyze(corrected, design.targets, config, config.cornea, "paper cornea, corrected");
-  out.uncertainty = Uncertainty(detected, unit, camera, config, options);
+  out.uncertainty = Uncertainty(detected, unit, camera, config, options, "paper cornea");
   return out;
 }
 

@@ -61,11 +61,13 @@ struct SphereVerification {
   double PowerErrorD(const StageResult& s) const { return s.numbers.central_axial_power_D - power_true_D; }
 };
 
-// The design (`config`) with its cornea replaced by a sphere of this radius.
+// The design (`config`) with its cornea replaced by a sphere of this radius, fitted as a sphere
+// (reconstruction.biconic_fit = "sphere": centre and radius; k_x = k_y = alpha = 0 by construction).
 model::Config WithSphere(const model::Config& config, double radius_mm);
 
 // Throws std::invalid_argument for a non-physical radius or an image of the wrong size, std::runtime_error (one
-// line) when the spots cannot be found or the reconstruction fails.
+// line) when the spots cannot be found, the reconstruction fails or the uncertainty cannot be propagated (the
+// uncertainty is left out only when no distortion parameter has a spread: DistortionParametersToDraw).
 SphereVerification VerifyOnReferenceSphere(const cv::Mat& image, double radius_mm, const UnitCalibration& unit,
                                            const model::TopographerCamera& camera, const model::Config& config,
                                            const CheckOptions& options);
@@ -77,8 +79,8 @@ struct SimulatedCornea {
   double max_displacement_um = 0;  // largest shift the calibrated distortion gives a spot of this cornea
 };
 
-// Throws std::runtime_error when the calibrated distortion cannot be put on the detection plane or a
-// reconstruction fails.
+// Throws std::runtime_error when the calibrated distortion cannot be put on the detection plane, a reconstruction
+// fails or the uncertainty cannot be propagated.
 SimulatedCornea SimulateThroughCalibratedCamera(const UnitCalibration& unit, const model::TopographerCamera& camera,
                                                 const model::Config& config, const CheckOptions& options);
 

@@ -38,9 +38,11 @@ void PrintAnalysis(const topo::Analysis& a) {
   fmt::print("  kx = {:.4f} +- {:.4f}      ky = {:.4f} +- {:.4f}\n", p.kx, sd.kx, p.ky, sd.ky);
   fmt::print("  alpha = {:.4f} +- {:.4f} deg   vertex = {:.4f} +- {:.4f} um\n", p.alpha_deg, sd.alpha_deg,
              p.z0_mm * 1e3, sd.z0_mm * 1e3);
-  if (f.mode == topo::BiconicFitMode::kFreeApex) {
+  if (f.mode != topo::BiconicFitMode::kPaper) {
     fmt::print("  apex at ({:.4f} +- {:.4f}, {:.4f} +- {:.4f}) mm: decentration {:.4f} mm\n", f.apex_mm.x(),
                sd.apex_x_mm, f.apex_mm.y(), sd.apex_y_mm, f.DecentrationMm());
+  }
+  if (f.mode == topo::BiconicFitMode::kFreeApex) {
     fmt::print("  tilt x = {:.3f} +- {:.3f} deg, y = {:.3f} +- {:.3f} deg: {:.3f} deg off the axis\n", p.tilt_x_deg,
                sd.tilt_x_deg, p.tilt_y_deg, sd.tilt_y_deg, f.TiltDeg());
   }
@@ -222,16 +224,20 @@ void AddReconstructCommand(CLI::App& app) {
                                  : topo::AnalyzeSpots(measured, design.targets, cfg, *truth ? &cfg.cornea : nullptr);
     PrintAnalysis(analysis);
     if (uncertainty) {
-      fmt::print("calibration uncertainty carried through ({} draws of {}, {}; {} failed), mean +- U (k = 2):\n",
+      fmt::print("calibration uncertainty carried through ({} draws of {}, {}; {} failed; {} spot(s) not undistorted "
+                 "in {} draw(s)), mean +- U (k = 2):\n",
                  uncertainty->samples, fmt::join(uncertainty->drawn, ", "),
                  uncertainty->correlated ? "with their covariance" : "independent (the file has no covariance)",
-                 uncertainty->failed_samples);
+                 uncertainty->failed_samples, uncertainty->undistort_failures,
+                 uncertainty->draws_with_undistort_failures);
       for (const auto& [name, q] : uncertainty->quantities) {
         fmt::print("  {:<16} {:>12.6f} +- {:.3g}\n", name, q.mean, q.expanded_k2);
       }
       nlohmann::json u;
       u["samples"] = uncertainty->samples;
       u["failed_samples"] = uncertainty->failed_samples;
+      u["undistort_failures"] = uncertainty->undistort_failures;
+      u["draws_with_undistort_failures"] = uncertainty->draws_with_undistort_failures;
       u["drawn"] = uncertainty->drawn;
       u["correlated"] = uncertainty->correlated;
       u["coverage_factor"] = 2;

@@ -36,8 +36,9 @@ model::Surface SurfaceToImage(const model::Config& config, double sphere_radius_
 void ReconstructionOverrides::AddTo(CLI::App* cmd) {
   cmd->add_option("--biconic-fit", biconic_fit,
                   "Biconic fit: free-apex (apex position and tilt of the eye free; default) or paper (the paper's "
-                  "6 parameters, apex on the axis); overrides reconstruction.biconic_fit")
-      ->check(CLI::IsMember({"free-apex", "paper"}));
+                  "6 parameters, apex on the axis) or sphere (centre and radius: a test ball); overrides "
+                  "reconstruction.biconic_fit")
+      ->check(CLI::IsMember({"free-apex", "paper", "sphere"}));
   cmd->add_option("--surface-model", surface_model,
                   "Surface: polynomial (the paper's Psi; default) or spline (Psi plus a GCV-smoothed spline "
                   "residual: keratoconus, ablations); overrides reconstruction.surface_model")

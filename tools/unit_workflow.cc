@@ -84,6 +84,8 @@ json Uncertainty(const std::optional<pipeline::ClinicalUncertainty>& u, const pi
   json q = json::object();
   for (const auto& [name, v] : u->quantities) q[name] = {{"mean", v.mean}, {"U", v.expanded_k2}};
   return {{"samples", u->samples},         {"seed", o.seed},          {"failed_samples", u->failed_samples},
+          {"undistort_failures", u->undistort_failures},
+          {"draws_with_undistort_failures", u->draws_with_undistort_failures},
           {"drawn", u->drawn},             {"correlated", u->correlated}, {"coverage_factor", 2},
           {"quantities", q}};
 }
@@ -388,7 +390,9 @@ json VerificationJson(const pipeline::SphereVerification& s, const UnitRequest& 
             {"spots_indexed", s.spots_indexed},
             {"spots_unassigned", s.spots_unassigned},
             {"spots_missing", s.spots_missing},
-            {"undistort_failures", s.undistort_failures}};
+            {"undistort_failures", s.undistort_failures},
+            // "sphere": centre and radius fitted; kx, ky, alpha_deg are 0 by construction (docs/unit-record.md)
+            {"surface_fit", topo::BiconicFitModeName(s.corrected.analysis.surface_fit.mode)}};
   for (const auto& [name, stage] : {std::pair{"uncorrected", &s.uncorrected}, std::pair{"corrected", &s.corrected}}) {
     json n = Numbers(stage->numbers);
     n["spots_indexed"] = s.spots_indexed;  // both stages use the same detected and indexed spots

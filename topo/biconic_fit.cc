@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include "model/surface.h"
+#include "topo/sphere_fit.h"
 
 namespace topocal::topo {
 namespace {
@@ -93,11 +94,18 @@ double WrapDegrees180(double a) {
 BiconicFitMode BiconicFitModeFromName(const std::string& name) {
   if (name == "free-apex") return BiconicFitMode::kFreeApex;
   if (name == "paper") return BiconicFitMode::kPaper;
-  throw std::invalid_argument(fmt::format("biconic fit must be \"free-apex\" or \"paper\" (got \"{}\")", name));
+  if (name == "sphere") return BiconicFitMode::kSphere;
+  throw std::invalid_argument(
+      fmt::format("biconic fit must be \"free-apex\", \"paper\" or \"sphere\" (got \"{}\")", name));
 }
 
 const char* BiconicFitModeName(BiconicFitMode mode) {
-  return mode == BiconicFitMode::kPaper ? "paper" : "free-apex";
+  switch (mode) {
+    case BiconicFitMode::kPaper: return "paper";
+    case BiconicFitMode::kSphere: return "sphere";
+    case BiconicFitMode::kFreeApex: break;
+  }
+  return "free-apex";
 }
 
 double BiconicFit::TiltDeg() const {
@@ -127,7 +135,45 @@ model::BiconicParams CanonicalBiconic(const model::BiconicParams& p) {
   return c;
 }
 
+namespace {
+
+// BiconicFitMode::kSphere: the sphere fit written as the biconic it is (biconic_fit.h says which numbers are fitted).
+BiconicFit SphereAsBiconic(const std::vector<Eigen::Vector3d>& points_mm, const BiconicFitOptions& options) {
+  SphereFitOptions so;
+  so.stddev = options.stddev;
+  const SphereFit s = FitSphere(points_mm, so);
+  BiconicFit fit;
+  fit.mode = BiconicFitMode::kSphere;
+  fit.points = s.points;
+  fit.message = s.message;
+  if (!s.ok) return fit;
+  auto& p = fit.params;
+  p.rx_mm = p.ry_mm = s.radius_mm;
+  p.kx = p.ky = 0.0;
+  p.alpha_deg = 0.0;
+  p.x0_mm = s.centre_mm.x();
+  p.y0_mm = s.centre_mm.y();
+  p.z0_mm = s.centre_mm.z() - s.radius_mm;
+  p.tilt_x_deg = p.tilt_y_deg = 0.0;
+  fit.apex_mm = Eigen::Vector3d(p.x0_mm, p.y0_mm, p.z0_mm);
+  if (s.stddev_ok) {
+    auto& sd = fit.stddev;
+    sd.rx_mm = sd.ry_mm = s.radius_stddev_mm;
+    sd.z0_mm = s.vertex_z_stddev_mm;
+    sd.x0_mm = sd.apex_x_mm = s.centre_stddev_mm.x();
+    sd.y0_mm = sd.apex_y_mm = s.centre_stddev_mm.y();
+    fit.stddev_ok = true;
+  }
+  fit.rms_residual_um = s.rms_residual_um;
+  fit.iterations = s.iterations;
+  fit.ok = true;
+  return fit;
+}
+
+}  // namespace
+
 BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const BiconicFitOptions& options) {
+  if (options.mode == BiconicFitMode::kSphere) return SphereAsBiconic(points_mm, options);
   BiconicFit fit;
   fit.mode = options.mode;
   fit.points = static_cast<int>(points_mm.size());

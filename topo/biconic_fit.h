@@ -23,6 +23,11 @@ namespace topocal::topo {
 enum class BiconicFitMode {
   kFreeApex,  // apex (x0, y0, z0) and tilt free: 10 parameters (default)
   kPaper,     // the paper's 6 parameters: apex on the axis (z0 free), no tilt
+  // A known sphere (reference sphere, reference ball): topo::FitSphere's 4 parameters, centre and radius
+  // (topo/sphere_fit.h). The result is written as a biconic with r_x = r_y = r and, by construction (not fitted),
+  // k_x = k_y = 0, alpha = 0 and no tilt (a sphere's tilt about its vertex is a decentration); the apex is the
+  // sphere's vertex (centre - r e_z); stddev of k, alpha and tilt are 0.
+  kSphere,
 };
 
 struct BiconicFitOptions {
@@ -31,7 +36,7 @@ struct BiconicFitOptions {
   bool stddev = true;  // the covariance of the fit (BiconicFit::stddev); a Monte Carlo draw does not need it
 };
 
-// "free-apex" / "paper" (the configuration key reconstruction.biconic_fit and the CLI's --biconic-fit).
+// "free-apex" / "paper" / "sphere" (the configuration key reconstruction.biconic_fit and the CLI's --biconic-fit).
 BiconicFitMode BiconicFitModeFromName(const std::string& name);  // throws std::invalid_argument
 const char* BiconicFitModeName(BiconicFitMode mode);
 
@@ -49,7 +54,7 @@ struct BiconicFit {
   Eigen::Vector3d apex_mm = Eigen::Vector3d::Zero();  // the apex in the instrument frame (decentration x, y; z0)
   BiconicStdDev stddev;
   bool stddev_ok = false;        // false when the covariance is rank-deficient (e.g. alpha of a near-sphere)
-  double rms_residual_um = 0;
+  double rms_residual_um = 0;     // of the sag residual (kSphere: of the orthogonal distance)
   int iterations = 0;
   int points = 0;
   double DecentrationMm() const { return apex_mm.head<2>().norm(); }

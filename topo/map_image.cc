@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <stdexcept>
 #include <string_view>
@@ -501,8 +502,10 @@ std::string GridMapCsv(const GridMap& map) {
     for (int i = 0; i < map.nx; ++i) {
       const double x = map.x_min_mm + i * (map.x_max_mm - map.x_min_mm) / (map.nx - 1);
       const double v = map.At(i, j);
-      if (std::isfinite(v)) csv += fmt::format("{},{},{}\n", x, y, v);
-      else csv += fmt::format("{},{},\n", x, y);
+      // Formatted straight into the string: a temporary string per value was a third of the time of writing a
+      // unit record's maps.
+      if (std::isfinite(v)) fmt::format_to(std::back_inserter(csv), "{},{},{}\n", x, y, v);
+      else fmt::format_to(std::back_inserter(csv), "{},{},\n", x, y);
     }
   }
   return csv;

@@ -99,6 +99,13 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
   EXPECT_GT(std::abs(raw_radius), kCorrectionGain * std::abs(corrected_radius));
   EXPECT_EQ(v["spots_indexed"], 624);
   EXPECT_GT(v["uncertainty"]["quantities"]["radius_mm"]["U"].get<double>(), 0.0);
+  // The sphere is fitted as a sphere (centre and radius): its conic constants and rotation are 0 by construction.
+  EXPECT_EQ(v["surface_fit"], "sphere");
+  // Spots a Monte Carlo draw could not undistort are counted in the record (none for this calibration's spread).
+  EXPECT_EQ(v["uncertainty"]["undistort_failures"], 0);
+  EXPECT_EQ(v["uncertainty"]["draws_with_undistort_failures"], 0);
+  EXPECT_EQ(v["corrected"]["kx"].get<double>(), 0.0);
+  EXPECT_EQ(v["corrected"]["rx_mm"].get<double>(), v["corrected"]["ry_mm"].get<double>());
   // The paper's cornea through this camera: k recovered after correction.
   const auto& p = j["paper_cornea"];
   EXPECT_NEAR(p["corrected"]["kx"].get<double>(), p["truth"]["kx"].get<double>(), 1e-3);
