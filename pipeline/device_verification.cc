@@ -4,6 +4,7 @@
 
 #include <fmt/format.h>
 
+#include "model/keratometry.h"
 #include "pipeline/measure_spots.h"
 #include "topo/power_map.h"
 
@@ -62,7 +63,7 @@ HeldOutBall VerifyHeldOutBall(const cv::Mat& image, double radius_mm, const mode
   for (const auto& s : raw.detected) pixels.emplace_back(s.id, nominal.camera.PixelFromDetectionPlane(s.distorted_mm));
   HeldOutBall v;
   v.radius_true_mm = radius_mm;
-  v.power_true_D = (topo::kKeratometricIndex - 1.0) / radius_mm * 1000.0;
+  v.power_true_D = model::PowerFromCurvatureD(1.0 / radius_mm);  // Eq. 25
   v.spots_indexed = raw.indexed;
   // No height truth: the ball sits anywhere laterally, so only its radius and power are compared.
   v.stages = MeasureThreeWays(pixels, nominal, lens_only, calibrated, ball, nullptr, "held-out ball");

@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include "correct/undistort_points.h"
+#include "model/keratometry.h"
 #include "model/null_screen.h"
 #include "pipeline/detection_plane.h"
 #include "pipeline/measure_spots.h"
@@ -115,7 +116,7 @@ SphereVerification VerifyOnReferenceSphere(const cv::Mat& image, double radius_m
 
   SphereVerification v;
   v.radius_true_mm = radius_mm;
-  v.power_true_D = (topo::kKeratometricIndex - 1.0) / radius_mm * 1000.0;
+  v.power_true_D = model::PowerFromCurvatureD(1.0 / radius_mm);  // Eq. 25
   // Detected and indexed once; the corrected stage undistorts the same spots.
   const auto raw = MeasureSpots(image, camera, sphere.ideal_image, std::nullopt);
   v.spots_indexed = raw.indexed;
