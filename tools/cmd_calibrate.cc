@@ -18,7 +18,7 @@
 #include "model/parallel.h"
 #include "pipeline/svg_plot.h"
 #include "tools/commands.h"
-#include "tools/file_glob.h"
+#include "model/file_glob.h"
 
 namespace topocal::tools {
 namespace {
@@ -101,7 +101,7 @@ void Run(const CalibrateArgs& a) {
   if (!options.IsValid(&why)) throw model::InputError(why);
 
   const auto target = calib::LoadTargetDescription(a.target);
-  const auto paths = Glob(a.images);
+  const auto paths = model::Glob(a.images);
   if (a.single_view && paths.size() != 1) {
     throw model::InputError(fmt::format("--single-view takes one image; '{}' matches {}", a.images, paths.size()));
   }

@@ -18,7 +18,7 @@
 #include "tools/progress.h"
 #include "tools/surface_option.h"
 #include "tools/csv.h"
-#include "tools/map_output.h"
+#include "pipeline/map_output.h"
 #include "tools/report_json.h"
 #include "topo/analysis.h"
 
@@ -251,7 +251,7 @@ void AddReconstructCommand(CLI::App& app) {
       j["adequacy"] = AdequacyJson(analysis);
       outputs.AddFile(*json_out, j.dump(2) + "\n");
     }
-    if (!maps->empty()) WriteAnalysisMaps(outputs.AddDirectory(*maps), "", "", analysis, *truth ? &cfg.cornea : nullptr);
+    if (!maps->empty()) pipeline::WriteAnalysisMaps(outputs.AddDirectory(*maps), "", "", analysis, *truth ? &cfg.cornea : nullptr);
     outputs.Commit();
   });
 }

@@ -8,7 +8,7 @@
 #include "tools/commands.h"
 #include "tools/output_dir.h"
 #include "tools/surface_option.h"
-#include "tools/map_output.h"
+#include "pipeline/map_output.h"
 #include "tools/report_json.h"
 #include "topo/sweep.h"
 
@@ -182,13 +182,13 @@ void AddSweepCommand(CLI::App& app) {
     if (!json_out->empty()) outputs.AddFile(*json_out, SweepJson(result, corrected));
     if (!maps->empty()) {
       // One set: every sigma's map of a kind on the same scale, so that the sweep compares by eye.
-      std::vector<AnalysisMapEntry> entries;
+      std::vector<pipeline::AnalysisMapEntry> entries;
       for (const auto& row : result.rows) {
         entries.push_back({fmt::format("sigma_{:+.3g}_", row.sigma_per_mm2),
                            fmt::format(", \u03c3 = {:.3g} mm\u207b\u00b2", row.sigma_per_mm2), &row.analysis,
                            &cfg.cornea, {}});
       }
-      WriteAnalysisMapSet(outputs.AddDirectory(*maps), entries);
+      pipeline::WriteAnalysisMapSet(outputs.AddDirectory(*maps), entries);
     }
     outputs.Commit();
   });
