@@ -12,9 +12,19 @@
 #include "model/io.h"
 #include "model/sha256.h"
 #include "model/version.h"
-#include "report/svg_plot.h"
+#include "plot/svg.h"
+#include "plot/svg_charts.h"
 
 namespace topocal::report {
+
+using plot::Arrow;
+using plot::Bar;
+using plot::CellField;
+using plot::EscapeXml;
+using plot::PixelRegion;
+using plot::QuiverOptions;
+using plot::SvgBarChart;
+using plot::SvgQuiver;
 namespace {
 
 // Grids of the distortion-field plot: coloured cells (magnitude) and arrows, over the whole image.

@@ -16,7 +16,7 @@
 #include "calib/target.h"
 #include "model/io.h"
 #include "model/parallel.h"
-#include "pipeline/svg_plot.h"
+#include "plot/scatter_plot.h"
 #include "tools/commands.h"
 #include "model/file_glob.h"
 
@@ -37,9 +37,9 @@ struct CalibrateArgs {
 };
 
 // The two halves' difference over the image as a map: one series per band of difference, so the existing scatter
-// plot (pipeline/svg_plot.h) shows where the models disagree.
+// plot (plot/scatter_plot.h) shows where the models disagree.
 std::string CrossValidationSvg(const calib::CrossValidationResult& cv, int height_px) {
-  pipeline::ScatterPlot plot;
+  plot::ScatterPlot plot;
   plot.title = fmt::format("Cross-validation: two halves of the views ({} and {}), homography removed",
                            cv.half_views[0].size(), cv.half_views[1].size());
   plot.x_label = "x (px)";
@@ -62,7 +62,7 @@ std::string CrossValidationSvg(const calib::CrossValidationResult& cv, int heigh
   }
   plot.note = fmt::format("difference of the two models: RMS {:.4f} px, max {:.4f} px over {} samples", cv.rms_px,
                           cv.max_px, cv.samples.size());
-  return pipeline::RenderScatterSvg(plot);
+  return plot::RenderScatterSvg(plot);
 }
 
 void Run(const CalibrateArgs& a) {

@@ -9,7 +9,7 @@
 #include "tools/output_dir.h"
 #include "tools/surface_option.h"
 #include "pipeline/map_output.h"
-#include "tools/report_json.h"
+#include "report/analysis_json.h"
 #include "topo/sweep.h"
 
 namespace topocal::tools {
@@ -29,17 +29,17 @@ std::string SweepJson(const topo::SweepResult& r, const std::vector<pipeline::Cl
                            {"area_mm2", row.image_ellipse.AreaMm2()},
                            {"area_change_pct", row.area_change_pct}};
     const auto& a = row.analysis;
-    jr["surface_fit"] = SurfaceFitJson(a.surface_fit);
-    jr["reconstruction"] = ReconstructionJson(a.reconstruction);
-    jr["errors"] = ErrorsJson(a);
-    jr["clinical"] = ClinicalJson(a);
-    jr["adequacy"] = AdequacyJson(a);
+    jr["surface_fit"] = report::SurfaceFitJson(a.surface_fit);
+    jr["reconstruction"] = report::ReconstructionJson(a.reconstruction);
+    jr["errors"] = report::ErrorsJson(a);
+    jr["clinical"] = report::ClinicalJson(a);
+    jr["adequacy"] = report::AdequacyJson(a);
     const size_t i = j["rows"].size();
     if (i < corrected.size()) {
       const auto& c = corrected[i];
-      jr["corrected"] = {{"surface_fit", SurfaceFitJson(c.corrected.surface_fit)},
-                         {"errors", ErrorsJson(c.corrected)},
-                         {"reconstruction", ReconstructionJson(c.corrected.reconstruction)},
+      jr["corrected"] = {{"surface_fit", report::SurfaceFitJson(c.corrected.surface_fit)},
+                         {"errors", report::ErrorsJson(c.corrected)},
+                         {"reconstruction", report::ReconstructionJson(c.corrected.reconstruction)},
                          {"spots_indexed", c.spots_indexed},
                          {"spots_unassigned", c.spots_unassigned},
                          {"spots_missing", c.spots_missing}};

@@ -9,7 +9,8 @@
 
 #include <gtest/gtest.h>
 
-#include "report/svg_plot.h"
+#include "plot/svg.h"
+#include "plot/svg_charts.h"
 #include "tests/report/record_fixture.h"
 
 namespace topocal::report {
@@ -17,6 +18,10 @@ namespace {
 
 using testing::FreshDir;
 using testing::MakeRecord;
+using plot::EscapeXml;
+using plot::NiceFloor;
+using plot::QuiverOptions;
+using plot::SvgQuiver;
 
 std::size_t Count(const std::string& haystack, const std::string& needle) {
   std::size_t n = 0;
