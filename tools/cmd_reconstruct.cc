@@ -17,7 +17,7 @@
 #include "tools/output_dir.h"
 #include "tools/progress.h"
 #include "tools/surface_option.h"
-#include "tools/csv.h"
+#include "model/spots_csv.h"
 #include "pipeline/map_output.h"
 #include "report/analysis_json.h"
 #include "topo/analysis.h"
@@ -113,7 +113,7 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
     if (!in.camera.empty() || !in.calibration.empty() || !in.device.empty()) {
       throw model::InputError("--camera, --device and --calibration go with --image (a spots CSV is already in mm)");
     }
-    for (const auto& r : ReadSpotsCsv(in.spots)) measured.push_back({r.id, Eigen::Vector2d(r.x_mm, r.y_mm)});
+    for (const auto& r : model::ReadSpotsCsv(in.spots)) measured.push_back({r.id, Eigen::Vector2d(r.x_mm, r.y_mm)});
     (*info)["spots_read"] = measured.size();
     return measured;
   }
