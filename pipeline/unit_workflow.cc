@@ -7,7 +7,6 @@
 #include <ctime>
 #include <filesystem>
 #include <limits>
-#include <map>
 #include <optional>
 #include <stdexcept>
 #include <tuple>
@@ -17,7 +16,6 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "calib/calibrate.h"
-#include "calib/calibration_file.h"
 #include "calib/detect.h"
 #include "calib/target.h"
 #include "model/config.h"
