@@ -6,7 +6,7 @@ include(CMakePackageConfigHelpers)
 
 set(TOPOCAL_INSTALL_DATADIR ${CMAKE_INSTALL_DATADIR}/topocal/data)
 set(TOPOCAL_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/topocal)
-set(TOPOCAL_MODULES model imageio calib correct topo pipeline report)
+set(TOPOCAL_MODULES model imageio plot calib correct topo pipeline report)
 
 foreach(module ${TOPOCAL_MODULES})
   set_target_properties(topocal_${module} PROPERTIES EXPORT_NAME ${module})

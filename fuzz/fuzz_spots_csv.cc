@@ -1,10 +1,10 @@
-// Fuzz target: the spots CSV (tools/csv.h, `ring,index,x_mm,y_mm`).
+// Fuzz target: the spots CSV (model/spots_csv.h, `ring,index,x_mm,y_mm`).
 #include "fuzz/fuzz_input.h"
-#include "tools/csv.h"
+#include "model/spots_csv.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
-    topocal::tools::ReadSpotsCsv(topocal::fuzz::InputFile("spots.csv", data, size));
+    topocal::model::ReadSpotsCsv(topocal::fuzz::InputFile("spots.csv", data, size));
   } catch (const topocal::model::InputError&) {
   }
   return 0;

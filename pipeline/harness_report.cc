@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "model/version.h"
-#include "pipeline/svg_plot.h"
+#include "plot/scatter_plot.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -322,7 +322,7 @@ std::string TableMd(const HarnessRun& run, const InverseAnswer& a) {
 }
 
 std::string Plot(const HarnessRun& run, const InverseAnswer& a, bool power) {
-  ScatterPlot p;
+  plot::ScatterPlot p;
   p.title = power ? "Power-map error against residual distortion" : "Conic-constant error against residual distortion";
   p.x_label = "residual distortion, max displacement over the spot field (um, detection plane)";
   p.y_label = power ? fmt::format("max |P - P_truth| over the disc, {} map{} (D)", MapsName(run),
@@ -331,7 +331,7 @@ std::string Plot(const HarnessRun& run, const InverseAnswer& a, bool power) {
   int failed = 0;
   for (const DistortionFamily f : kDistortionFamilies) {
     if (run.config.Coefficients(f).empty()) continue;
-    PlotSeries s;
+    plot::PlotSeries s;
     s.label = DistortionFamilyName(f);
     s.colour = kFamilyColours[static_cast<int>(f)];
     for (const auto& c : run.cases) {
@@ -355,20 +355,20 @@ std::string Plot(const HarnessRun& run, const InverseAnswer& a, bool power) {
   }
   p.note = fmt::format("{} cases; hollow markers: below the axis (no residual, or error below the axis){}",
                        run.total_cases, failed ? fmt::format("; {} failed reconstructions not drawn", failed) : "");
-  return RenderScatterSvg(p);
+  return plot::RenderScatterSvg(p);
 }
 
 // |dk| and |dP| of one assembly axis as fractions of their limits against |error|: which one limits, and where.
 std::string AssemblyPlot(const HarnessRun& run, const AssemblyAnswer& x) {
   const auto& l = run.config.limits;
   const std::string unit = AssemblyAxisUnit(x.axis);
-  ScatterPlot p;
+  plot::ScatterPlot p;
   p.title = fmt::format("{}: errors measured through the nominal device", AssemblyAxisName(x.axis));
   p.x_label = unit.empty() ? fmt::format("|{}| (relative)", AssemblyAxisName(x.axis))
                            : fmt::format("|{}| ({})", AssemblyAxisName(x.axis), unit);
   p.y_label = "error / its limit";
-  PlotSeries dk{fmt::format("|dk| / {:g}", l.dk), kFamilyColours[0], {}};
-  PlotSeries dP{fmt::format("|dP| / {:g} D ({})", l.dP_D, MapsName(run)), kFamilyColours[1], {}};
+  plot::PlotSeries dk{fmt::format("|dk| / {:g}", l.dk), kFamilyColours[0], {}};
+  plot::PlotSeries dP{fmt::format("|dP| / {:g} D ({})", l.dP_D, MapsName(run)), kFamilyColours[1], {}};
   int failed = 0, cases = 0;
   for (const auto& c : run.cases) {
     if (c.spec.kind != HarnessCaseKind::kAssembly || c.spec.axis != x.axis) continue;
@@ -388,7 +388,7 @@ std::string AssemblyPlot(const HarnessRun& run, const AssemblyAnswer& x) {
   }
   p.note = fmt::format("{} cases (every cornea, direction, noise draw); hollow markers: below the axis{}", cases,
                        failed ? fmt::format("; {} failed reconstructions not drawn", failed) : "");
-  return RenderScatterSvg(p);
+  return plot::RenderScatterSvg(p);
 }
 
 }  // namespace

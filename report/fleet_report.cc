@@ -8,9 +8,16 @@
 #include <fmt/format.h>
 
 #include "model/version.h"
-#include "report/svg_plot.h"
+#include "plot/svg.h"
+#include "plot/svg_charts.h"
 
 namespace topocal::report {
+
+using plot::ControlChartPlot;
+using plot::EscapeXml;
+using plot::HistogramPlot;
+using plot::SvgControlChart;
+using plot::SvgHistogram;
 namespace {
 
 using nlohmann::json;

@@ -2,19 +2,31 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <tuple>
 
 #include <Eigen/Core>
 #include <fmt/format.h>
+#include <openssl/evp.h>
 
 #include "calib/camera.h"
 #include "model/io.h"
 #include "model/sha256.h"
 #include "model/version.h"
-#include "report/svg_plot.h"
+#include "plot/svg.h"
+#include "plot/svg_charts.h"
 
 namespace topocal::report {
+
+using plot::Arrow;
+using plot::Bar;
+using plot::CellField;
+using plot::EscapeXml;
+using plot::PixelRegion;
+using plot::QuiverOptions;
+using plot::SvgBarChart;
+using plot::SvgQuiver;
 namespace {
 
 // Grids of the distortion-field plot: coloured cells (magnitude) and arrows, over the whole image.
@@ -450,26 +462,16 @@ window.addEventListener('load', function () {
 }  // namespace
 
 std::string Base64(std::string_view bytes) {
-  static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  out.reserve((bytes.size() + 2) / 3 * 4);
-  std::size_t i = 0;
-  for (; i + 2 < bytes.size(); i += 3) {
-    const unsigned v = (static_cast<unsigned char>(bytes[i]) << 16) | (static_cast<unsigned char>(bytes[i + 1]) << 8) |
-                       static_cast<unsigned char>(bytes[i + 2]);
-    out += kAlphabet[(v >> 18) & 63];
-    out += kAlphabet[(v >> 12) & 63];
-    out += kAlphabet[(v >> 6) & 63];
-    out += kAlphabet[v & 63];
+  if (bytes.empty()) return {};
+  // OpenSSL's encoder: EVP_EncodeBlock writes the RFC 4648 alphabet with padding and no line breaks (unlike
+  // EVP_EncodeUpdate, which breaks lines every 64 characters), plus a NUL. Its length argument is an int.
+  if (bytes.size() > static_cast<std::size_t>(std::numeric_limits<int>::max()) / 4 * 3) {
+    throw std::length_error(fmt::format("base64: {} bytes is more than one block can encode", bytes.size()));
   }
-  if (const std::size_t rest = bytes.size() - i; rest > 0) {
-    unsigned v = static_cast<unsigned char>(bytes[i]) << 16;
-    if (rest == 2) v |= static_cast<unsigned char>(bytes[i + 1]) << 8;
-    out += kAlphabet[(v >> 18) & 63];
-    out += kAlphabet[(v >> 12) & 63];
-    out += rest == 2 ? kAlphabet[(v >> 6) & 63] : '=';
-    out += '=';
-  }
+  std::string out(4 * ((bytes.size() + 2) / 3) + 1, '\0');
+  const int written = EVP_EncodeBlock(reinterpret_cast<unsigned char*>(out.data()),
+                                      reinterpret_cast<const unsigned char*>(bytes.data()), static_cast<int>(bytes.size()));
+  out.resize(static_cast<std::size_t>(written));
   return out;
 }
 

@@ -9,9 +9,17 @@
 
 #include <fmt/format.h>
 
+#include "calib/calibration_file.h"
+#include "model/config.h"
+#include "model/device.h"
 #include "model/io.h"
 #include "model/sha256.h"
+#include "model/topographer_camera.h"
 #include "model/version.h"
+#include "pipeline/map_output.h"
+#include "pipeline/uncertainty.h"
+#include "topo/biconic_fit.h"
+#include "topo/power_map.h"
 #include "report/unit_record_reader.h"
 
 namespace topocal::report {
@@ -109,6 +117,221 @@ void UnitRecordWriter::Commit(json body) {
   model::WriteFileAtomic((staging_ / "unit.json").string(), body.dump(2) + "\n");
   CommitDirectory(staging_, out_);
   committed_ = true;
+}
+
+namespace {
+
+// unit.json's body from the computed unit: the one place that spells the record's keys on the writing side
+// (their reader is report/unit_record_reader.cc; docs/unit-record.md is the schema).
+json Numbers(const pipeline::ClinicalNumbers& n) {
+  json j = {{"spots", n.spots},
+            {"rx_mm", n.rx_mm},
+            {"ry_mm", n.ry_mm},
+            {"kx", n.kx},
+            {"ky", n.ky},
+            {"alpha_deg", n.alpha_deg},
+            {"radius_mm", n.radius_mm},
+            {"central_axial_power_D", n.central_axial_power_D},
+            {"pv_tangential_D", n.pv_tangential_D},
+            {"pv_axial_D", n.pv_axial_D}};
+  if (n.height_pv_um) j["height_pv_um"] = *n.height_pv_um;
+  if (n.height_rms_um) j["height_rms_um"] = *n.height_rms_um;
+  return j;
+}
+
+json Uncertainty(const std::optional<pipeline::ClinicalUncertainty>& u, const pipeline::CheckOptions& o) {
+  if (!u) return nullptr;
+  json q = json::object();
+  for (const auto& [name, v] : u->quantities) q[name] = {{"mean", v.mean}, {"U", v.expanded_k2}};
+  return {{"samples", u->samples},         {"seed", o.seed},          {"failed_samples", u->failed_samples},
+          {"undistort_failures", u->undistort_failures},
+          {"draws_with_undistort_failures", u->draws_with_undistort_failures},
+          {"drawn", u->drawn},             {"correlated", u->correlated}, {"coverage_factor", 2},
+          {"quantities", q}};
+}
+
+json ThreeWayJson(const pipeline::ThreeWay& t) {
+  return {{"uncorrected", Numbers(t.uncorrected.numbers)},
+          {"lens_only", Numbers(t.lens_only.numbers)},
+          {"device", Numbers(t.device.numbers)}};
+}
+
+json DeviceJson(const pipeline::UnitDeviceStage& d) {
+  json j = pipeline::DeviceCalibrationJson(d.calibration);
+  j["file"] = "device.json";
+  if (d.held_out) {
+    const auto& h = *d.held_out;
+    j["held_out_ball"] = ThreeWayJson(h.stages);
+    j["held_out_ball"]["radius_true_mm"] = h.radius_true_mm;
+    j["held_out_ball"]["power_true_D"] = h.power_true_D;
+    j["held_out_ball"]["spots_indexed"] = h.spots_indexed;
+  }
+  j["paper_cornea"] = ThreeWayJson(d.paper);
+  return j;
+}
+
+json CalibrationJson(const pipeline::UnitCameraCalibration& c, const pipeline::DistortionField& field,
+                     const model::TopographerCamera& camera) {
+  const auto& result = c.result;
+  json cal;
+  cal["model"] = std::string(calib::ToString(result.model));
+  cal["single_view"] = result.single_view;
+  cal["image_width_px"] = result.camera.width_px;
+  cal["image_height_px"] = result.camera.height_px;
+  cal["rms_px"] = result.rms_px;
+  cal["corners_used"] = result.corners_used;
+  cal["outliers"] = result.outliers.size();
+  cal["parameters"] = json::array();
+  for (const auto& p : result.parameters) {
+    cal["parameters"].push_back({{"name", p.name}, {"value", p.value}, {"stddev", p.stddev}, {"fixed", p.fixed}});
+  }
+  // The covariance of the free parameters only (the calibration file holds the full 11 x 11).
+  std::vector<int> free_index;
+  for (int i = 0; i < calib::kNumCameraParameters; ++i) {
+    if (!result.parameters[static_cast<size_t>(i)].fixed) free_index.push_back(i);
+  }
+  json names = json::array(), rows = json::array();
+  for (const int i : free_index) {
+    names.push_back(result.parameters[static_cast<size_t>(i)].name);
+    json row = json::array();
+    for (const int j : free_index) row.push_back(result.covariance(i, j));
+    rows.push_back(row);
+  }
+  cal["covariance"] = {{"names", names}, {"matrix", rows}};
+  if (result.seidel) {
+    cal["seidel"] = {{"sigma_per_mm2", result.seidel->sigma_per_mm2},
+                     {"sigma_stddev_per_mm2", result.seidel->sigma_stddev_per_mm2},
+                     {"magnification", result.seidel->magnification},
+                     {"focal_mm", result.seidel->focal_mm}};
+  }
+  cal["views"] = json::array();
+  for (size_t v = 0; v < result.views_used.size(); ++v) {
+    const auto idx = result.views_used[v];
+    const auto corners = std::count_if(result.residuals.begin(), result.residuals.end(),
+                                       [&](const auto& r) { return r.view == idx && !r.outlier; });
+    cal["views"].push_back({{"image", c.view_paths[static_cast<size_t>(idx)]},
+                            {"rms_px", result.per_view_rms_px[v]},
+                            {"corners", corners}});
+  }
+  cal["distortion_field"] = {{"max_displacement_um", field.max_um},
+                             {"max_displacement_px", field.max_px},
+                             {"field_radius_mm", field.field_radius_mm},
+                             {"field_radius_px", field.field_radius_mm / camera.PitchMm()}};
+  return cal;
+}
+
+json VerificationJson(const pipeline::SphereVerification& s, const pipeline::UnitRequest& r,
+                      const pipeline::CheckOptions& check) {
+  json v = {{"image", r.reference_sphere},
+            {"radius_true_mm", s.radius_true_mm},
+            {"power_true_D", s.power_true_D},
+            {"keratometric_index", topo::kKeratometricIndex},
+            {"central_zone_diameter_mm", 2 * pipeline::kCentralPowerRadiusMm},
+            {"spots_indexed", s.spots_indexed},
+            {"spots_unassigned", s.spots_unassigned},
+            {"spots_missing", s.spots_missing},
+            {"undistort_failures", s.undistort_failures},
+            // "sphere": centre and radius fitted; kx, ky, alpha_deg are 0 by construction (docs/unit-record.md)
+            {"surface_fit", topo::BiconicFitModeName(s.corrected.analysis.surface_fit.mode)}};
+  for (const auto& [name, stage] : {std::pair{"uncorrected", &s.uncorrected}, std::pair{"corrected", &s.corrected}}) {
+    json n = Numbers(stage->numbers);
+    n["spots_indexed"] = s.spots_indexed;  // both stages use the same detected and indexed spots
+    n["radius_error_mm"] = s.RadiusErrorMm(*stage);
+    n["power_error_D"] = s.PowerErrorD(*stage);
+    v[name] = n;
+  }
+  v["uncertainty"] = Uncertainty(s.uncertainty, check);
+  return v;
+}
+
+json PaperCorneaJson(const pipeline::SimulatedCornea& paper, const pipeline::CheckOptions& check) {
+  const auto& t = paper.truth;
+  return {{"truth", {{"rx_mm", t.rx_mm}, {"ry_mm", t.ry_mm}, {"kx", t.kx}, {"ky", t.ky}, {"alpha_deg", t.alpha_deg}}},
+          {"max_displacement_um", paper.max_displacement_um},
+          {"uncorrected", Numbers(paper.uncorrected.numbers)},
+          {"corrected", Numbers(paper.corrected.numbers)},
+          {"uncertainty", Uncertainty(paper.uncertainty, check)}};
+}
+
+std::string ResidualsCsv(const pipeline::UnitCameraCalibration& c) {
+  std::string csv = "view,image,corner_id,x_px,y_px,dx_px,dy_px,outlier\n";
+  for (const auto& r : c.result.residuals) {
+    csv += fmt::format("{},{},{},{:.6f},{:.6f},{:.6f},{:.6f},{}\n", r.view, c.view_paths[static_cast<size_t>(r.view)],
+                       r.corner_id, r.observed_px.x(), r.observed_px.y(), r.residual_px.x(), r.residual_px.y(),
+                       r.outlier ? 1 : 0);
+  }
+  return csv;
+}
+
+void WriteRecordMaps(const std::string& dir, const std::optional<pipeline::SphereVerification>& sphere,
+                     const pipeline::SimulatedCornea& paper, const model::Config& config) {
+  // The PNGs go in the record, at half the default size (~0.15 MB each; the report embeds them all); the numbers
+  // are in unit.json (CSV grids would be ~0.6 MB each).
+  constexpr bool kMapCsv = true;  // the numbers behind every picture (~0.6 MB a map, 16 maps)
+  constexpr int kMapSizePx = 400;
+  // Each case's before/after pair is one set: both stages on the same scales, so that they compare by eye.
+  pipeline::MapSetOptions o;
+  o.csv = kMapCsv;
+  o.size_px = kMapSizePx;
+  if (sphere) {
+    const auto truth = pipeline::WithSphere(config, sphere->radius_true_mm).cornea;
+    pipeline::WriteAnalysisMapSet(dir,
+                        {{"sphere_uncorrected_", " - reference sphere, uncorrected", &sphere->uncorrected.analysis, &truth, {}},
+                         {"sphere_corrected_", " - reference sphere, corrected", &sphere->corrected.analysis, &truth, {}}},
+                        o);
+  }
+  pipeline::WriteAnalysisMapSet(dir,
+                      {{"paper_uncorrected_", " - paper cornea, uncorrected", &paper.uncorrected.analysis, &config.cornea, {}},
+                       {"paper_corrected_", " - paper cornea, corrected", &paper.corrected.analysis, &config.cornea, {}}},
+                      o);
+}
+
+}  // namespace
+
+void WriteUnitRecord(const pipeline::UnitResult& u) {
+  const auto& r = u.request;
+  const auto& c = u.calibration;
+  // The record, staged and committed whole.
+  UnitRecordWriter writer(r.out);
+  const fs::path& dir = writer.staging_dir();
+  model::WriteFileAtomic((dir / "calibration.yaml").string(),
+                         calib::CalibrationFileText(c.result, {r.target, c.view_paths, u.created_utc}));
+  model::WriteFileAtomic((dir / "residuals.csv").string(), ResidualsCsv(c));
+  WriteRecordMaps((dir / "maps").string(), u.sphere, u.paper, u.config);
+  if (u.device) {
+    model::WriteFileAtomic((dir / "device.json").string(),
+                           model::DeviceToJson(u.device->calibration.fit.device,
+                                               pipeline::DeviceCalibrationJson(u.device->calibration)));
+  }
+
+  json record;
+  record["serial"] = r.serial;
+  record["created_utc"] = u.created_utc;
+  record["settings"] = {{"model", r.model},
+                        {"single_view", c.single_view},
+                        {"fit_centre", r.fit_centre},
+                        {"fixed", r.fixed},
+                        {"sphere_radius_mm", r.sphere_radius_mm},
+                        {"ball_radii_mm", r.ball_radii_mm},
+                        {"uncertainty_samples", r.uncertainty_samples},
+                        {"seed", r.seed}};
+  record["inputs"] = json::array();
+  for (const auto& in : u.inputs) record["inputs"].push_back({{"role", in.role}, {"path", in.path}, {"sha256", in.sha256}});
+  // The design and camera as they were read (canonical form), so that the record says what it was computed with
+  // even after the files change; the digests above say whether they still match.
+  record["configuration"] = {{"design", json::parse(model::ConfigToJson(u.config))},
+                             {"camera", json::parse(model::TopographerCameraToJson(u.camera))}};
+  record["camera"] = model::CameraToJson(u.camera);
+  record["calibration"] = CalibrationJson(c, u.field, u.camera);
+  if (u.sphere) record["verification"] = VerificationJson(*u.sphere, r, u.check);
+  record["paper_cornea"] = PaperCorneaJson(u.paper, u.check);
+  if (u.device) record["device"] = DeviceJson(*u.device);
+  try {
+    RequireFiniteNumbers(record);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(fmt::format("{}: the result is not usable: {}", r.serial, e.what()));
+  }
+  writer.Commit(std::move(record));  // adds format, versions and the files' digests
 }
 
 }  // namespace topocal::report

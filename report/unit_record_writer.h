@@ -1,7 +1,8 @@
 #pragma once
 // Writing a unit record (docs/unit-record.md): the one writer of the format, beside its reader
-// (report/unit_record_reader.h). `topocal unit calibrate` fills it with a calibration; the report and fleet tests
-// and the fleet generator fill it with generated values, through the same code.
+// (report/unit_record_reader.h). `topocal unit calibrate` writes the unit the workflow computed
+// (pipeline/unit_workflow.h) with WriteUnitRecord; the report and fleet tests and the fleet generator fill
+// UnitRecordWriter with generated values, through the same staging and commit.
 //
 // The record is staged in a temporary sibling directory (`<out>.tmp-<pid>`) and renamed into place only when
 // complete: a failed write leaves no record, and an earlier record at `out` untouched until the new one is whole.
@@ -13,6 +14,8 @@
 #include <string_view>
 
 #include <nlohmann/json.hpp>
+
+#include "pipeline/unit_workflow.h"
 
 namespace topocal::report {
 
@@ -39,5 +42,13 @@ class UnitRecordWriter {
   std::filesystem::path out_, staging_;
   bool committed_ = false;
 };
+
+// Writes the record of a computed unit to unit.request.out: unit.json (docs/unit-record.md), calibration.yaml,
+// residuals.csv, maps/ (the before/after power, elevation and height-error maps of the reference sphere and the
+// paper cornea) and, with the device stage, device.json. Staged and committed whole (UnitRecordWriter): on any
+// failure nothing is written and an earlier record at `out` is left as it was. Throws std::runtime_error
+// "SERIAL: the result is not usable: KEY: not a finite number" for a NaN or infinity, model::InputError when the
+// record cannot be written.
+void WriteUnitRecord(const pipeline::UnitResult& unit);
 
 }  // namespace topocal::report

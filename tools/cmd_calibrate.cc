@@ -16,9 +16,9 @@
 #include "calib/target.h"
 #include "model/io.h"
 #include "model/parallel.h"
-#include "pipeline/svg_plot.h"
+#include "plot/scatter_plot.h"
 #include "tools/commands.h"
-#include "tools/file_glob.h"
+#include "model/file_glob.h"
 
 namespace topocal::tools {
 namespace {
@@ -38,9 +38,9 @@ struct CalibrateArgs {
 };
 
 // The two halves' difference over the image as a map: one series per band of difference, so the existing scatter
-// plot (pipeline/svg_plot.h) shows where the models disagree.
+// plot (plot/scatter_plot.h) shows where the models disagree.
 std::string CrossValidationSvg(const calib::CrossValidationResult& cv, int height_px) {
-  pipeline::ScatterPlot plot;
+  plot::ScatterPlot plot;
   plot.title = fmt::format("Cross-validation: two halves of the views ({} and {}), homography removed",
                            cv.half_views[0].size(), cv.half_views[1].size());
   plot.x_label = "x (px)";
@@ -63,7 +63,7 @@ std::string CrossValidationSvg(const calib::CrossValidationResult& cv, int heigh
   }
   plot.note = fmt::format("difference of the two models: RMS {:.4f} px, max {:.4f} px over {} samples", cv.rms_px,
                           cv.max_px, cv.samples.size());
-  return pipeline::RenderScatterSvg(plot);
+  return plot::RenderScatterSvg(plot);
 }
 
 void Run(const CalibrateArgs& a) {
@@ -106,7 +106,7 @@ void Run(const CalibrateArgs& a) {
   if (!options.IsValid(&why)) throw model::InputError(why);
 
   const auto target = calib::LoadTargetDescription(a.target);
-  const auto paths = Glob(a.images);
+  const auto paths = model::Glob(a.images);
   if (a.single_view && paths.size() != 1) {
     throw model::InputError(fmt::format("--single-view takes one image; '{}' matches {}", a.images, paths.size()));
   }

@@ -6,7 +6,7 @@
 #include "model/io.h"
 #include "model/null_screen.h"
 #include "model/null_screen_layout.h"
-#include "tools/null_screen_svg.h"
+#include "plot/null_screen_svg.h"
 #include "tools/commands.h"
 
 namespace topocal::tools {
@@ -41,7 +41,7 @@ void AddDesignCommand(CLI::App& app) {
         fmt::print(stderr, "topocal design: warning: {} pairs of spot circles overlap (ideal_image.spot_radius_um = {}); "
                    "their ellipses merge on the sheet\n", layout.overlapping_pairs, cfg.ideal_image.spot_radius_um);
       }
-      svg_text = NullScreenSvg(layout, {.title = std::filesystem::path(*config).stem().string()});
+      svg_text = plot::NullScreenSvg(layout, {.title = std::filesystem::path(*config).stem().string()});
     }
     model::StagedOutputs outputs;  // the CSV and the SVG are published together or not at all
     outputs.AddFile(*out, csv);

@@ -17,9 +17,9 @@
 #include "tools/output_dir.h"
 #include "tools/progress.h"
 #include "tools/surface_option.h"
-#include "tools/csv.h"
-#include "tools/map_output.h"
-#include "tools/report_json.h"
+#include "model/spots_csv.h"
+#include "pipeline/map_output.h"
+#include "report/analysis_json.h"
 #include "topo/analysis.h"
 
 namespace topocal::tools {
@@ -115,7 +115,7 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
     if (!in.camera.empty() || !in.calibration.empty() || !in.device.empty()) {
       throw model::InputError("--camera, --device and --calibration go with --image (a spots CSV is already in mm)");
     }
-    for (const auto& r : ReadSpotsCsv(in.spots)) measured.push_back({r.id, Eigen::Vector2d(r.x_mm, r.y_mm)});
+    for (const auto& r : model::ReadSpotsCsv(in.spots)) measured.push_back({r.id, Eigen::Vector2d(r.x_mm, r.y_mm)});
     (*info)["spots_read"] = measured.size();
     return measured;
   }
@@ -247,17 +247,17 @@ void AddReconstructCommand(CLI::App& app) {
     model::StagedOutputs outputs;  // the JSON and the maps are published together or not at all
     if (!json_out->empty()) {
       nlohmann::json j = info;
-      j["reconstruction"] = ReconstructionJson(analysis.reconstruction);
-      j["polynomial"] = PolynomialJson(analysis.reconstruction.surface);
-      j["surface_fit"] = SurfaceFitJson(analysis.surface_fit);
+      j["reconstruction"] = report::ReconstructionJson(analysis.reconstruction);
+      j["polynomial"] = report::PolynomialJson(analysis.reconstruction.surface);
+      j["surface_fit"] = report::SurfaceFitJson(analysis.surface_fit);
       j["power"] = {{"pv_tangential_D", analysis.power.pv_tangential_D}, {"pv_axial_D", analysis.power.pv_axial_D},
                     {"map_radius_mm", analysis.power.radius_mm}, {"covered_radius_mm", analysis.covered_radius_mm}};
-      if (*truth) j["errors"] = ErrorsJson(analysis);
-      j["clinical"] = ClinicalJson(analysis);
-      j["adequacy"] = AdequacyJson(analysis);
+      if (*truth) j["errors"] = report::ErrorsJson(analysis);
+      j["clinical"] = report::ClinicalJson(analysis);
+      j["adequacy"] = report::AdequacyJson(analysis);
       outputs.AddFile(*json_out, j.dump(2) + "\n");
     }
-    if (!maps->empty()) WriteAnalysisMaps(outputs.AddDirectory(*maps), "", "", analysis, *truth ? &cfg.cornea : nullptr);
+    if (!maps->empty()) pipeline::WriteAnalysisMaps(outputs.AddDirectory(*maps), "", "", analysis, *truth ? &cfg.cornea : nullptr);
     outputs.Commit();
   });
 }

@@ -6,7 +6,7 @@
 #include "model/device.h"
 #include "model/io.h"
 #include "tools/commands.h"
-#include "tools/csv.h"
+#include "model/spots_csv.h"
 #include "tools/surface_option.h"
 #include "topo/sweep.h"
 
@@ -49,7 +49,7 @@ void Run(const SimulateArgs& a) {
     fmt::print(stderr, "topocal simulate: spot ({}, {}): {}\n", f.id.ring, f.id.index, f.reason);
   }
   if (image.spots.empty()) throw std::runtime_error(fmt::format("{}: the surface images no spot", a.config));
-  model::WriteFileAtomic(a.out, SpotsCsv(image.spots));
+  model::WriteFileAtomic(a.out, model::SpotsCsv(image.spots));
   fmt::print("simulated {} spots ({} not imaged) {} -> {}\n", image.spots.size(), image.failures.size(),
              a.device.empty() ? fmt::format("at sigma = {} mm^-2", a.sigma) : "through the device " + a.device, a.out);
 }

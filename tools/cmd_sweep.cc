@@ -8,8 +8,8 @@
 #include "tools/commands.h"
 #include "tools/output_dir.h"
 #include "tools/surface_option.h"
-#include "tools/map_output.h"
-#include "tools/report_json.h"
+#include "pipeline/map_output.h"
+#include "report/analysis_json.h"
 #include "topo/sweep.h"
 
 namespace topocal::tools {
@@ -29,17 +29,17 @@ std::string SweepJson(const topo::SweepResult& r, const std::vector<pipeline::Cl
                            {"area_mm2", row.image_ellipse.AreaMm2()},
                            {"area_change_pct", row.area_change_pct}};
     const auto& a = row.analysis;
-    jr["surface_fit"] = SurfaceFitJson(a.surface_fit);
-    jr["reconstruction"] = ReconstructionJson(a.reconstruction);
-    jr["errors"] = ErrorsJson(a);
-    jr["clinical"] = ClinicalJson(a);
-    jr["adequacy"] = AdequacyJson(a);
+    jr["surface_fit"] = report::SurfaceFitJson(a.surface_fit);
+    jr["reconstruction"] = report::ReconstructionJson(a.reconstruction);
+    jr["errors"] = report::ErrorsJson(a);
+    jr["clinical"] = report::ClinicalJson(a);
+    jr["adequacy"] = report::AdequacyJson(a);
     const size_t i = j["rows"].size();
     if (i < corrected.size()) {
       const auto& c = corrected[i];
-      jr["corrected"] = {{"surface_fit", SurfaceFitJson(c.corrected.surface_fit)},
-                         {"errors", ErrorsJson(c.corrected)},
-                         {"reconstruction", ReconstructionJson(c.corrected.reconstruction)},
+      jr["corrected"] = {{"surface_fit", report::SurfaceFitJson(c.corrected.surface_fit)},
+                         {"errors", report::ErrorsJson(c.corrected)},
+                         {"reconstruction", report::ReconstructionJson(c.corrected.reconstruction)},
                          {"spots_indexed", c.spots_indexed},
                          {"spots_unassigned", c.spots_unassigned},
                          {"spots_missing", c.spots_missing}};
@@ -182,13 +182,13 @@ void AddSweepCommand(CLI::App& app) {
     if (!json_out->empty()) outputs.AddFile(*json_out, SweepJson(result, corrected));
     if (!maps->empty()) {
       // One set: every sigma's map of a kind on the same scale, so that the sweep compares by eye.
-      std::vector<AnalysisMapEntry> entries;
+      std::vector<pipeline::AnalysisMapEntry> entries;
       for (const auto& row : result.rows) {
         entries.push_back({fmt::format("sigma_{:+.3g}_", row.sigma_per_mm2),
                            fmt::format(", \u03c3 = {:.3g} mm\u207b\u00b2", row.sigma_per_mm2), &row.analysis,
                            &cfg.cornea, {}});
       }
-      WriteAnalysisMapSet(outputs.AddDirectory(*maps), entries);
+      pipeline::WriteAnalysisMapSet(outputs.AddDirectory(*maps), entries);
     }
     outputs.Commit();
   });

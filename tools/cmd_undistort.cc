@@ -15,7 +15,7 @@
 #include "model/topographer_camera.h"
 #include "pipeline/detection_plane.h"
 #include "tools/commands.h"
-#include "tools/csv.h"
+#include "model/spots_csv.h"
 
 namespace topocal::tools {
 namespace {
@@ -64,7 +64,7 @@ void Run(const UndistortArgs& a) {
       throw model::InputError(fmt::format("--spots: {} has no pixel_pitch_um; give --camera to map its pixels to mm",
                                           a.calibration));
     }
-    const auto rows = ReadSpotsCsv(a.spots);
+    const auto rows = model::ReadSpotsCsv(a.spots);
     std::vector<Eigen::Vector2d> mm;
     for (const auto& r : rows) mm.emplace_back(r.x_mm, r.y_mm);
     const auto result = correct::UndistortPoints(distortion, mm);
@@ -96,7 +96,7 @@ void Run(const UndistortArgs& a) {
       out.push_back(s);
     }
     if (out.empty() && !rows.empty()) throw std::runtime_error(fmt::format("{}: no spot could be undistorted", a.spots));
-    model::WriteFileAtomic(a.out, SpotsCsv(out));
+    model::WriteFileAtomic(a.out, model::SpotsCsv(out));
     fmt::print("undistorted {} of {} spots ({} failed, {} beyond the valid region) -> {}\n", out.size(), rows.size(),
                result.failures.size(), outside, a.out);
     return;

@@ -1,5 +1,5 @@
 // topocal unit calibrate | calibrate-batch: the per-unit calibration workflow on the production line
-// (tools/unit_workflow.h, docs/unit-record.md).
+// (pipeline/unit_workflow.h computes, report/unit_record_writer.h writes; docs/unit-record.md).
 #include <algorithm>
 #include <filesystem>
 #include <map>
@@ -14,20 +14,22 @@
 #include <opencv2/core/utility.hpp>
 
 #include "model/config.h"
+#include "model/file_glob.h"
 #include "model/io.h"
 #include "model/parallel.h"
 #include "pipeline/harness.h"
+#include "pipeline/unit_workflow.h"
+#include "report/unit_record_writer.h"
 #include "tools/commands.h"
 #include "tools/data_dir.h"
-#include "tools/file_glob.h"
 #include "tools/output_dir.h"
 #include "tools/progress.h"
-#include "tools/unit_workflow.h"
 
 namespace topocal::tools {
 namespace {
 
 namespace fs = std::filesystem;
+using pipeline::UnitRequest;
 
 // The bundled design and camera (tools/data_dir.h), the defaults of --config and --camera, filled in when the
 // command runs (so that other verbs never depend on finding the data).
@@ -51,7 +53,7 @@ void AddCommonOptions(CLI::App* cmd, UnitRequest* r) {
   cmd->add_option("--fix", r->fixed, "Hold these parameters at their initial value (e.g. --fix k3 p1 p2)");
   cmd->add_option("--uncertainty", r->uncertainty_samples,
                   "Monte Carlo draws of the calibration covariance carried to the clinical numbers (0 = none)")
-      ->check(CLI::Range(0, kMaxUncertaintySamples));
+      ->check(CLI::Range(0, pipeline::kMaxUncertaintySamples));
   cmd->add_option("--seed", r->seed, "Seed of the Monte Carlo draws");
 }
 
@@ -103,7 +105,7 @@ void RunBatch(const BatchArgs& a) {
   for (size_t i = 0; i < items.size(); ++i) {
     auto& item = items[i];
     try {
-      item.request = ReadUnitInputs(item.inputs_path, a.defaults);
+      item.request = pipeline::ReadUnitInputs(item.inputs_path, a.defaults);
       item.request->out = (fs::path(a.out) / item.request->serial).string();
       const auto [it, inserted] = first_with_serial.emplace(item.request->serial, i);
       if (!inserted) {
@@ -157,12 +159,13 @@ void RunBatch(const BatchArgs& a) {
     auto& item = items[i];
     if (!item.error.empty()) return;
     try {
-      const auto outcome = CalibrateUnit(*item.request, [&](const std::string& line) {
+      const auto computed = pipeline::CalibrateUnit(*item.request, [&](const std::string& line) {
         std::lock_guard lock(mutex);
         if (tty) fmt::print(stderr, "\n");
         fmt::print(stderr, "topocal unit: {}\n", line);
       });
-      item.summary = outcome.summary;
+      report::WriteUnitRecord(computed);
+      item.summary = pipeline::UnitSummary(computed);
     } catch (const model::InputError& e) {
       item.error = e.what();
       item.bad_input = true;
@@ -217,11 +220,12 @@ void AddUnitCommand(CLI::App& app) {
     QuietCeres();
     UnitRequest request = *r;
     FillDefaults(&request);
-    request.images = Glob(*images);
+    request.images = model::Glob(*images);
     Progress progress("topocal unit calibrate: " + request.serial);
-    const auto outcome =
-        CalibrateUnit(request, [&progress](const std::string& line) { progress.Line("topocal unit: " + line); });
-    for (const auto& line : outcome.summary) fmt::print("{}\n", line);
+    const auto computed = pipeline::CalibrateUnit(
+        request, [&progress](const std::string& line) { progress.Line("topocal unit: " + line); });
+    report::WriteUnitRecord(computed);
+    for (const auto& line : pipeline::UnitSummary(computed)) fmt::print("{}\n", line);
   });
 
   auto* batch = unit->add_subcommand(

@@ -13,7 +13,7 @@
 #include "pipeline/harness_answer.h"
 #include "pipeline/harness_config.h"
 #include "pipeline/harness_report.h"
-#include "pipeline/svg_plot.h"
+#include "plot/scatter_plot.h"
 #include "topo/sweep.h"
 
 namespace {
@@ -500,11 +500,11 @@ TEST(HarnessAnswer, AssemblyAxesAnswerTheirLargestErrorWithinTheLimits) {
 }
 
 TEST(SvgPlot, DrawsEveryPointAndClampsWhatALogAxisCannotShow) {
-  pipeline::ScatterPlot p;
+  plot::ScatterPlot p;
   p.title = "t < 1";
   p.series.push_back({"a", "#000", {{1e-2, 1e-3}, {10, 0.5}, {0, 1e-2}, {1, 0}}});
   p.horizontal.push_back({0.05, "limit", "#f00"});
-  const std::string svg = pipeline::RenderScatterSvg(p);
+  const std::string svg = plot::RenderScatterSvg(p);
   EXPECT_EQ(svg.rfind("<svg", 0), 0u);
   EXPECT_NE(svg.find("t &lt; 1"), std::string::npos);
   size_t circles = 0, hollow = 0;

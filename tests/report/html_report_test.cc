@@ -9,7 +9,8 @@
 
 #include <gtest/gtest.h>
 
-#include "report/svg_plot.h"
+#include "plot/svg.h"
+#include "plot/svg_charts.h"
 #include "tests/report/record_fixture.h"
 
 namespace topocal::report {
@@ -17,6 +18,10 @@ namespace {
 
 using testing::FreshDir;
 using testing::MakeRecord;
+using plot::EscapeXml;
+using plot::NiceFloor;
+using plot::QuiverOptions;
+using plot::SvgQuiver;
 
 std::size_t Count(const std::string& haystack, const std::string& needle) {
   std::size_t n = 0;
@@ -33,6 +38,44 @@ TEST(Base64, Rfc4648Vectors) {
   EXPECT_EQ(Base64("fooba"), "Zm9vYmE=");
   EXPECT_EQ(Base64("foobar"), "Zm9vYmFy");
   EXPECT_EQ(Base64(std::string("\xff\x00\x80", 3)), "/wCA");
+}
+
+// Every byte value at every position and every padding case, decoded back by a reference decoder written from
+// RFC 4648 section 4 (not by the encoder's library); and a large input in one line (EVP_EncodeUpdate, the streaming
+// API, would break it every 64 characters, which a data: URI does not allow).
+TEST(Base64, EveryByteAndLengthDecodesBackAndLongInputHasNoLineBreaks) {
+  static constexpr std::string_view kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  const auto decode = [&](const std::string& text) {
+    std::string bytes;
+    unsigned bits = 0;
+    int count = 0;
+    for (const char c : text) {
+      if (c == '=') break;
+      const auto v = kAlphabet.find(c);
+      if (v == std::string_view::npos) return std::string("<bad character>");
+      bits = (bits << 6) | static_cast<unsigned>(v);
+      count += 6;
+      if (count >= 8) {
+        count -= 8;
+        bytes += static_cast<char>((bits >> count) & 0xff);
+      }
+    }
+    return bytes;
+  };
+  std::string input;
+  for (int n = 0; n < 3 * 256 + 3; ++n) {
+    const std::string encoded = Base64(input);
+    ASSERT_EQ(encoded.size(), 4 * ((input.size() + 2) / 3)) << n;
+    ASSERT_EQ(decode(encoded), input) << n;
+    const std::size_t pad = (3 - input.size() % 3) % 3;
+    ASSERT_EQ(encoded.find('='), pad == 0 ? std::string::npos : encoded.size() - pad) << n;
+    input += static_cast<char>((n * 97 + 13) % 256);  // every byte value, in a scrambled order
+  }
+  const std::string large(1 << 20, '\x5a');
+  const std::string encoded = Base64(large);
+  EXPECT_EQ(encoded.find_first_of("\r\n"), std::string::npos);
+  EXPECT_EQ(encoded.size(), 4 * ((large.size() + 2) / 3));
+  EXPECT_EQ(encoded.substr(0, 8), "WlpaWlpa");
 }
 
 TEST(SvgPlot, NiceFloorAndEscaping) {

@@ -1,4 +1,4 @@
-#include "tools/unit_workflow.h"
+#include "pipeline/unit_workflow.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -7,35 +7,30 @@
 #include <ctime>
 #include <filesystem>
 #include <limits>
-#include <map>
 #include <optional>
 #include <stdexcept>
 #include <tuple>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "calib/calibrate.h"
-#include "calib/calibration_file.h"
 #include "calib/detect.h"
 #include "calib/target.h"
+#include "imageio/image_file.h"
 #include "model/config.h"
+#include "model/device.h"
+#include "model/file_glob.h"
 #include "model/io.h"
 #include "model/json_section.h"
 #include "model/sha256.h"
 #include "model/topographer_camera.h"
-#include "model/version.h"
-#include "model/device.h"
 #include "pipeline/detection_plane.h"
 #include "pipeline/device_calibration.h"
 #include "pipeline/device_verification.h"
 #include "pipeline/unit_verification.h"
-#include "report/unit_record_writer.h"
-#include "tools/file_glob.h"
-#include "tools/map_output.h"
 
-namespace topocal::tools {
+namespace topocal::pipeline {
 namespace {
 
 namespace fs = std::filesystem;
@@ -63,33 +58,6 @@ std::string RecordDateUtc() {
   return buf;
 }
 
-json Numbers(const pipeline::ClinicalNumbers& n) {
-  json j = {{"spots", n.spots},
-            {"rx_mm", n.rx_mm},
-            {"ry_mm", n.ry_mm},
-            {"kx", n.kx},
-            {"ky", n.ky},
-            {"alpha_deg", n.alpha_deg},
-            {"radius_mm", n.radius_mm},
-            {"central_axial_power_D", n.central_axial_power_D},
-            {"pv_tangential_D", n.pv_tangential_D},
-            {"pv_axial_D", n.pv_axial_D}};
-  if (n.height_pv_um) j["height_pv_um"] = *n.height_pv_um;
-  if (n.height_rms_um) j["height_rms_um"] = *n.height_rms_um;
-  return j;
-}
-
-json Uncertainty(const std::optional<pipeline::ClinicalUncertainty>& u, const pipeline::CheckOptions& o) {
-  if (!u) return nullptr;
-  json q = json::object();
-  for (const auto& [name, v] : u->quantities) q[name] = {{"mean", v.mean}, {"U", v.expanded_k2}};
-  return {{"samples", u->samples},         {"seed", o.seed},          {"failed_samples", u->failed_samples},
-          {"undistort_failures", u->undistort_failures},
-          {"draws_with_undistort_failures", u->draws_with_undistort_failures},
-          {"drawn", u->drawn},             {"correlated", u->correlated}, {"coverage_factor", 2},
-          {"quantities", q}};
-}
-
 // Largest displacement (um on the detection plane, and px) the calibrated distortion gives a point within
 // `radius_mm` of the axis, sampled on a polar grid.
 std::pair<double, double> MaxDisplacement(const model::Distortion& d, double radius_mm, double pitch_mm) {
@@ -115,14 +83,11 @@ struct LoadedInputs {
   cv::Mat sphere_image;  // empty without a reference sphere
   model::Device nominal_device;
   std::vector<pipeline::BallImage> balls;  // empty: no device stage
-  json provenance = json::array();
+  std::vector<UnitInputDigest> provenance;
 };
 
 void CheckImageSize(const cv::Mat& image, const std::string& path, const LoadedInputs& in, const UnitRequest& r) {
-  if (image.cols != in.camera.width_px || image.rows != in.camera.height_px) {
-    throw model::InputError(fmt::format("{}: the image is {} x {} px but {} says {} x {} px", path, image.cols,
-                                        image.rows, r.camera, in.camera.width_px, in.camera.height_px));
-  }
+  imageio::RequireSize(image, path, in.camera.width_px, in.camera.height_px, r.camera);
 }
 
 LoadedInputs LoadInputs(const UnitRequest& r) {
@@ -184,7 +149,7 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   if (!o.IsValid(&why)) throw model::InputError(why);
 
   const auto add = [&](const std::string& role, const std::string& path) {
-    in.provenance.push_back({{"role", role}, {"path", path}, {"sha256", model::Sha256HexOfFile(path)}});
+    in.provenance.push_back({role, path, model::Sha256HexOfFile(path)});
   };
   add("config", r.config);
   add("camera", r.camera);
@@ -192,10 +157,7 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   for (const auto& path : r.images) add("image", path);
   if (!r.reference_sphere.empty()) {
     add("reference_sphere", r.reference_sphere);
-    in.sphere_image = cv::imread(r.reference_sphere, cv::IMREAD_UNCHANGED);
-    if (in.sphere_image.empty()) {
-      throw model::InputError(fmt::format("{}: not an image OpenCV can read", r.reference_sphere));
-    }
+    in.sphere_image = imageio::ReadImage(r.reference_sphere, imageio::Channels::kAsStored);
     CheckImageSize(in.sphere_image, r.reference_sphere, in, r);
   }
   if (!r.device.empty()) add("device", r.device);
@@ -206,26 +168,17 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
                                           r.ball_radii_mm[i], r.balls[i]));
     }
     add("ball", r.balls[i]);
-    pipeline::BallImage b{r.balls[i], cv::imread(r.balls[i], cv::IMREAD_UNCHANGED), r.ball_radii_mm[i]};
-    if (b.image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", r.balls[i]));
+    pipeline::BallImage b{r.balls[i], imageio::ReadImage(r.balls[i], imageio::Channels::kAsStored), r.ball_radii_mm[i]};
     CheckImageSize(b.image, r.balls[i], in, r);
     in.balls.push_back(std::move(b));
   }
   return in;
 }
 
-// The device stage: the device fitted to the balls, and what it is worth beside the lens-only calibration.
-struct DeviceStage {
-  pipeline::DeviceCalibration calibration;
-  model::Device lens_only;
-  std::optional<pipeline::HeldOutBall> held_out;
-  pipeline::ThreeWay paper;
-};
-
-std::optional<DeviceStage> CalibrateDeviceStage(const UnitRequest& r, const LoadedInputs& in,
-                                                const model::Distortion& lens) {
+std::optional<UnitDeviceStage> CalibrateDeviceStage(const UnitRequest& r, const LoadedInputs& in,
+                                                    const model::Distortion& lens) {
   if (in.balls.empty()) return std::nullopt;
-  DeviceStage d;
+  UnitDeviceStage d;
   try {
     d.calibration = pipeline::CalibrateDevice(in.balls, in.nominal_device, in.config, {});
   } catch (const std::invalid_argument& e) {
@@ -253,39 +206,12 @@ std::optional<DeviceStage> CalibrateDeviceStage(const UnitRequest& r, const Load
   return d;
 }
 
-json ThreeWayJson(const pipeline::ThreeWay& t) {
-  return {{"uncorrected", Numbers(t.uncorrected.numbers)},
-          {"lens_only", Numbers(t.lens_only.numbers)},
-          {"device", Numbers(t.device.numbers)}};
-}
-
-json DeviceJson(const DeviceStage& d) {
-  json j = pipeline::DeviceCalibrationJson(d.calibration);
-  j["file"] = "device.json";
-  if (d.held_out) {
-    const auto& h = *d.held_out;
-    j["held_out_ball"] = ThreeWayJson(h.stages);
-    j["held_out_ball"]["radius_true_mm"] = h.radius_true_mm;
-    j["held_out_ball"]["power_true_D"] = h.power_true_D;
-    j["held_out_ball"]["spots_indexed"] = h.spots_indexed;
-  }
-  j["paper_cornea"] = ThreeWayJson(d.paper);
-  return j;
-}
-
-struct Calibration {
-  calib::CalibrationResult result;
-  std::vector<std::string> view_paths;  // parallel to the views the calibration was given
-  bool single_view = false;
-};
-
-Calibration CalibrateViews(const UnitRequest& r, const LoadedInputs& in,
+UnitCameraCalibration CalibrateViews(const UnitRequest& r, const LoadedInputs& in,
                            const std::function<void(const std::string&)>& log) {
-  Calibration c;
+  UnitCameraCalibration c;
   std::vector<calib::ViewObservations> views;
   for (const auto& path : r.images) {
-    const cv::Mat image = cv::imread(path, cv::IMREAD_GRAYSCALE);
-    if (image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", path));
+    const cv::Mat image = imageio::ReadImage(path, imageio::Channels::kGrey);
     CheckImageSize(image, path, in, r);
     const auto found = calib::DetectTargetDetailed(in.target, image);
     if (!found.view) {
@@ -311,12 +237,6 @@ Calibration CalibrateViews(const UnitRequest& r, const LoadedInputs& in,
   return c;
 }
 
-// The size of the calibrated distortion over the spot pattern's field on the detection plane.
-struct DistortionField {
-  double field_radius_mm = 0;  // the outermost spot of the configured cornea
-  double max_um = 0, max_px = 0;
-};
-
 DistortionField MeasureDistortionField(const calib::CameraModel& calibrated, const LoadedInputs& in,
                                        const std::string& serial) {
   std::string why;
@@ -332,123 +252,15 @@ DistortionField MeasureDistortionField(const calib::CameraModel& calibrated, con
   return f;
 }
 
-json CalibrationJson(const Calibration& c, const DistortionField& field, const model::TopographerCamera& camera) {
-  const auto& result = c.result;
-  json cal;
-  cal["model"] = std::string(calib::ToString(result.model));
-  cal["single_view"] = result.single_view;
-  cal["image_width_px"] = result.camera.width_px;
-  cal["image_height_px"] = result.camera.height_px;
-  cal["rms_px"] = result.rms_px;
-  cal["corners_used"] = result.corners_used;
-  cal["outliers"] = result.outliers.size();
-  cal["parameters"] = json::array();
-  for (const auto& p : result.parameters) {
-    cal["parameters"].push_back({{"name", p.name}, {"value", p.value}, {"stddev", p.stddev}, {"fixed", p.fixed}});
-  }
-  // The covariance of the free parameters only (the calibration file holds the full 11 x 11).
-  std::vector<int> free_index;
-  for (int i = 0; i < calib::kNumCameraParameters; ++i) {
-    if (!result.parameters[static_cast<size_t>(i)].fixed) free_index.push_back(i);
-  }
-  json names = json::array(), rows = json::array();
-  for (const int i : free_index) {
-    names.push_back(result.parameters[static_cast<size_t>(i)].name);
-    json row = json::array();
-    for (const int j : free_index) row.push_back(result.covariance(i, j));
-    rows.push_back(row);
-  }
-  cal["covariance"] = {{"names", names}, {"matrix", rows}};
-  if (result.seidel) {
-    cal["seidel"] = {{"sigma_per_mm2", result.seidel->sigma_per_mm2},
-                     {"sigma_stddev_per_mm2", result.seidel->sigma_stddev_per_mm2},
-                     {"magnification", result.seidel->magnification},
-                     {"focal_mm", result.seidel->focal_mm}};
-  }
-  cal["views"] = json::array();
-  for (size_t v = 0; v < result.views_used.size(); ++v) {
-    const auto idx = result.views_used[v];
-    const auto corners = std::count_if(result.residuals.begin(), result.residuals.end(),
-                                       [&](const auto& r) { return r.view == idx && !r.outlier; });
-    cal["views"].push_back({{"image", c.view_paths[static_cast<size_t>(idx)]},
-                            {"rms_px", result.per_view_rms_px[v]},
-                            {"corners", corners}});
-  }
-  cal["distortion_field"] = {{"max_displacement_um", field.max_um},
-                             {"max_displacement_px", field.max_px},
-                             {"field_radius_mm", field.field_radius_mm},
-                             {"field_radius_px", field.field_radius_mm / camera.PitchMm()}};
-  return cal;
-}
+}  // namespace
 
-json VerificationJson(const pipeline::SphereVerification& s, const UnitRequest& r, const pipeline::CheckOptions& check) {
-  json v = {{"image", r.reference_sphere},
-            {"radius_true_mm", s.radius_true_mm},
-            {"power_true_D", s.power_true_D},
-            {"keratometric_index", topo::kKeratometricIndex},
-            {"central_zone_diameter_mm", 2 * pipeline::kCentralPowerRadiusMm},
-            {"spots_indexed", s.spots_indexed},
-            {"spots_unassigned", s.spots_unassigned},
-            {"spots_missing", s.spots_missing},
-            {"undistort_failures", s.undistort_failures},
-            // "sphere": centre and radius fitted; kx, ky, alpha_deg are 0 by construction (docs/unit-record.md)
-            {"surface_fit", topo::BiconicFitModeName(s.corrected.analysis.surface_fit.mode)}};
-  for (const auto& [name, stage] : {std::pair{"uncorrected", &s.uncorrected}, std::pair{"corrected", &s.corrected}}) {
-    json n = Numbers(stage->numbers);
-    n["spots_indexed"] = s.spots_indexed;  // both stages use the same detected and indexed spots
-    n["radius_error_mm"] = s.RadiusErrorMm(*stage);
-    n["power_error_D"] = s.PowerErrorD(*stage);
-    v[name] = n;
-  }
-  v["uncertainty"] = Uncertainty(s.uncertainty, check);
-  return v;
-}
-
-json PaperCorneaJson(const pipeline::SimulatedCornea& paper, const pipeline::CheckOptions& check) {
-  const auto& t = paper.truth;
-  return {{"truth", {{"rx_mm", t.rx_mm}, {"ry_mm", t.ry_mm}, {"kx", t.kx}, {"ky", t.ky}, {"alpha_deg", t.alpha_deg}}},
-          {"max_displacement_um", paper.max_displacement_um},
-          {"uncorrected", Numbers(paper.uncorrected.numbers)},
-          {"corrected", Numbers(paper.corrected.numbers)},
-          {"uncertainty", Uncertainty(paper.uncertainty, check)}};
-}
-
-std::string ResidualsCsv(const Calibration& c) {
-  std::string csv = "view,image,corner_id,x_px,y_px,dx_px,dy_px,outlier\n";
-  for (const auto& r : c.result.residuals) {
-    csv += fmt::format("{},{},{},{:.6f},{:.6f},{:.6f},{:.6f},{}\n", r.view, c.view_paths[static_cast<size_t>(r.view)],
-                       r.corner_id, r.observed_px.x(), r.observed_px.y(), r.residual_px.x(), r.residual_px.y(),
-                       r.outlier ? 1 : 0);
-  }
-  return csv;
-}
-
-void WriteRecordMaps(const std::string& dir, const std::optional<pipeline::SphereVerification>& sphere,
-                     const pipeline::SimulatedCornea& paper, const model::Config& config) {
-  // The PNGs go in the record, at half the default size (~0.15 MB each; the report embeds them all); the numbers
-  // are in unit.json (CSV grids would be ~0.6 MB each).
-  constexpr bool kMapCsv = true;  // the numbers behind every picture (~0.6 MB a map, 16 maps)
-  constexpr int kMapSizePx = 400;
-  // Each case's before/after pair is one set: both stages on the same scales, so that they compare by eye.
-  MapSetOptions o;
-  o.csv = kMapCsv;
-  o.size_px = kMapSizePx;
-  if (sphere) {
-    const auto truth = pipeline::WithSphere(config, sphere->radius_true_mm).cornea;
-    WriteAnalysisMapSet(dir,
-                        {{"sphere_uncorrected_", " - reference sphere, uncorrected", &sphere->uncorrected.analysis, &truth, {}},
-                         {"sphere_corrected_", " - reference sphere, corrected", &sphere->corrected.analysis, &truth, {}}},
-                        o);
-  }
-  WriteAnalysisMapSet(dir,
-                      {{"paper_uncorrected_", " - paper cornea, uncorrected", &paper.uncorrected.analysis, &config.cornea, {}},
-                       {"paper_corrected_", " - paper cornea, corrected", &paper.corrected.analysis, &config.cornea, {}}},
-                      o);
-}
-
-std::vector<std::string> Summary(const UnitRequest& r, const Calibration& c, const DistortionField& field,
-                                 const std::optional<pipeline::SphereVerification>& sphere,
-                                 const pipeline::SimulatedCornea& paper, const std::optional<DeviceStage>& device) {
+std::vector<std::string> UnitSummary(const UnitResult& unit) {
+  const auto& r = unit.request;
+  const auto& c = unit.calibration;
+  const auto& field = unit.field;
+  const auto& sphere = unit.sphere;
+  const auto& paper = unit.paper;
+  const auto& device = unit.device;
   const auto& result = c.result;
   std::vector<std::string> lines;
   lines.push_back(fmt::format("{}: {} {} calibration, {} view(s), {} corners, rms {:.4f} px{}", r.serial,
@@ -499,8 +311,6 @@ std::vector<std::string> Summary(const UnitRequest& r, const Calibration& c, con
   return lines;
 }
 
-}  // namespace
-
 bool IsValidSerial(const std::string& serial) {
   if (serial.empty() || serial.size() > kMaxSerialLength || serial.front() == '.') return false;
   return std::all_of(serial.begin(), serial.end(), [](char c) {
@@ -509,79 +319,42 @@ bool IsValidSerial(const std::string& serial) {
   });
 }
 
-UnitOutcome CalibrateUnit(const UnitRequest& r, const std::function<void(const std::string&)>& log) {
-  const LoadedInputs in = LoadInputs(r);  // everything checked before any work or output
-  const Calibration c = CalibrateViews(r, in, log);
-  const std::string date = RecordDateUtc();
-  const std::string cal_text = calib::CalibrationFileText(c.result, {r.target, c.view_paths, date});
+UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const std::string&)>& log) {
+  LoadedInputs in = LoadInputs(r);  // everything checked before any work or output
+  UnitResult u;
+  u.request = r;
+  u.calibration = CalibrateViews(r, in, log);
+  u.created_utc = RecordDateUtc();
+  const auto& c = u.calibration;
 
   // The checks use the calibration as the record stores it: the exact model and its full covariance.
-  pipeline::UnitCalibration unit;
+  UnitCalibration unit;
   unit.camera = c.result.camera;
   unit.covariance.names.assign(std::begin(calib::kParameterNames), std::end(calib::kParameterNames));
   unit.covariance.matrix = c.result.covariance;
   unit.covariance.full = true;
-  const pipeline::CheckOptions check{r.uncertainty_samples, r.seed, r.jobs};
-  std::optional<pipeline::SphereVerification> sphere;
+  u.check = CheckOptions{r.uncertainty_samples, r.seed, r.jobs};
   if (!in.sphere_image.empty()) {
     try {
-      sphere = pipeline::VerifyOnReferenceSphere(in.sphere_image, r.sphere_radius_mm, unit, in.camera, in.config, check);
+      u.sphere = VerifyOnReferenceSphere(in.sphere_image, r.sphere_radius_mm, unit, in.camera, in.config, u.check);
     } catch (const std::invalid_argument& e) {
       throw model::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
     } catch (const std::runtime_error& e) {
       throw std::runtime_error(fmt::format("{}: {}: {}", r.serial, r.reference_sphere, e.what()));
     }
   }
-  const auto paper = pipeline::SimulateThroughCalibratedCamera(unit, in.camera, in.config, check);
-  const auto field = MeasureDistortionField(c.result.camera, in, r.serial);
-  std::optional<DeviceStage> device;
+  u.paper = SimulateThroughCalibratedCamera(unit, in.camera, in.config, u.check);
+  u.field = MeasureDistortionField(c.result.camera, in, r.serial);
   if (!in.balls.empty()) {
     std::string why;
-    const auto lens = pipeline::DistortionOnDetectionPlane(c.result.camera, in.camera, &why);
+    const auto lens = DistortionOnDetectionPlane(c.result.camera, in.camera, &why);
     if (!lens) throw std::runtime_error(fmt::format("{}: the calibration cannot be put on the detection plane: {}", r.serial, why));
-    device = CalibrateDeviceStage(r, in, *lens);
+    u.device = CalibrateDeviceStage(r, in, *lens);
   }
-
-  // The record, staged and committed whole.
-  report::UnitRecordWriter writer(r.out);
-  const fs::path& dir = writer.staging_dir();
-  model::WriteFileAtomic((dir / "calibration.yaml").string(), cal_text);
-  model::WriteFileAtomic((dir / "residuals.csv").string(), ResidualsCsv(c));
-  WriteRecordMaps((dir / "maps").string(), sphere, paper, in.config);
-  if (device) {
-    model::WriteFileAtomic((dir / "device.json").string(),
-                           model::DeviceToJson(device->calibration.fit.device, pipeline::DeviceCalibrationJson(device->calibration)));
-  }
-
-  json record;
-  record["serial"] = r.serial;
-  record["created_utc"] = date;
-  record["settings"] = {{"model", r.model},
-                        {"single_view", c.single_view},
-                        {"fit_centre", r.fit_centre},
-                        {"fixed", r.fixed},
-                        {"sphere_radius_mm", r.sphere_radius_mm},
-                        {"ball_radii_mm", r.ball_radii_mm},
-                        {"uncertainty_samples", r.uncertainty_samples},
-                        {"seed", r.seed}};
-  record["inputs"] = in.provenance;
-  // The design and camera as they were read (canonical form), so that the record says what it was computed with
-  // even after the files change; the digests above say whether they still match.
-  record["configuration"] = {{"design", json::parse(model::ConfigToJson(in.config))},
-                             {"camera", json::parse(model::TopographerCameraToJson(in.camera))}};
-  const auto& cam = in.camera;
-  record["camera"] = model::CameraToJson(cam);
-  record["calibration"] = CalibrationJson(c, field, cam);
-  if (sphere) record["verification"] = VerificationJson(*sphere, r, check);
-  record["paper_cornea"] = PaperCorneaJson(paper, check);
-  if (device) record["device"] = DeviceJson(*device);
-  try {
-    report::RequireFiniteNumbers(record);
-  } catch (const std::runtime_error& e) {
-    throw std::runtime_error(fmt::format("{}: the result is not usable: {}", r.serial, e.what()));
-  }
-  writer.Commit(std::move(record));  // adds format, versions and the files' digests
-  return {r.serial, r.out, Summary(r, c, field, sphere, paper, device)};
+  u.config = std::move(in.config);
+  u.camera = std::move(in.camera);
+  u.inputs = std::move(in.provenance);
+  return u;
 }
 
 UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults) {
@@ -607,7 +380,7 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
   UnitRequest r = defaults;
   r.serial = *str("serial", true);
   r.target = relative(*str("target", true));
-  r.images = Glob(relative(*str("images", true)), fmt::format("{}: images", path));
+  r.images = model::Glob(relative(*str("images", true)), fmt::format("{}: images", path));
   if (const auto v = str("reference_sphere", false)) r.reference_sphere = relative(*v);
   if (s.Has("sphere_radius_mm")) r.sphere_radius_mm = s.PositiveNumber("sphere_radius_mm", 0);
   if (const auto v = str("model", false)) r.model = *v;
@@ -641,4 +414,4 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
   return r;
 }
 
-}  // namespace topocal::tools
+}  // namespace topocal::pipeline

@@ -1,4 +1,4 @@
-#include "report/svg_plot.h"
+#include "plot/svg_charts.h"
 
 #include <algorithm>
 #include <array>
@@ -7,7 +7,9 @@
 
 #include <fmt/format.h>
 
-namespace topocal::report {
+#include "plot/svg.h"
+
+namespace topocal::plot {
 namespace {
 
 // Drawing sizes in SVG user units (the SVG scales to the page width; text keeps its proportion).
@@ -49,22 +51,6 @@ std::string Colour(double t) {
 }
 
 }  // namespace
-
-std::string EscapeXml(std::string_view text) {
-  std::string out;
-  out.reserve(text.size());
-  for (char c : text) {
-    switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      case '\'': out += "&#39;"; break;
-      default: out += c;
-    }
-  }
-  return out;
-}
 
 double NiceFloor(double x) {
   if (!std::isfinite(x) || x <= 0) return 1;
@@ -432,4 +418,4 @@ std::string SvgHistogram(const HistogramPlot& p) {
   return s;
 }
 
-}  // namespace topocal::report
+}  // namespace topocal::plot

@@ -1,10 +1,11 @@
 #pragma once
-// A small, self-contained SVG scatter plot with logarithmic (or linear) axes, for the harness's plots. Output is a
+// A small, self-contained SVG scatter plot with logarithmic (or linear) axes, for the harness's plots and the
+// calibration's cross-validation map (part of the plotting layer, plot/svg.h). Output is a
 // pure function of the input (fixed number formatting), so equal data give byte-identical files.
 #include <string>
 #include <vector>
 
-namespace topocal::pipeline {
+namespace topocal::plot {
 
 struct PlotPoint {
   double x = 0, y = 0;
@@ -38,4 +39,4 @@ struct ScatterPlot {
 // smallest line) are drawn on the axis itself, as hollow markers, so that no case disappears from the plot.
 std::string RenderScatterSvg(const ScatterPlot& plot);
 
-}  // namespace topocal::pipeline
+}  // namespace topocal::plot

@@ -1,6 +1,6 @@
-#include "tools/report_json.h"
+#include "report/analysis_json.h"
 
-namespace topocal::tools {
+namespace topocal::report {
 
 nlohmann::json SurfaceFitJson(const topo::BiconicFit& f) {
   const auto& p = f.params;
@@ -93,4 +93,4 @@ nlohmann::json PolynomialJson(const topo::TaylorPolynomial& p) {
           {"coefficients", terms}};
 }
 
-}  // namespace topocal::tools
+}  // namespace topocal::report

@@ -1,5 +1,5 @@
 #pragma once
-// The printable null screen as SVG: the unrolled cone of model/null_screen_layout.h at 1:1 scale (document units
+// The printable null screen as SVG (part of the plotting layer, plot/svg.h): the unrolled cone of model/null_screen_layout.h at 1:1 scale (document units
 // are millimetres: width/height in mm and a viewBox in mm, so printing at 100 % gives true size).
 //
 // Drawn: the sector (filled black: the camera must see bright spots, docs/null-screen-print.md), every spot
@@ -10,7 +10,7 @@
 
 #include "model/null_screen_layout.h"
 
-namespace topocal::tools {
+namespace topocal::plot {
 
 struct NullScreenSvgOptions {
   std::string title;            // e.g. the configuration's name; shown with the spot count
@@ -22,4 +22,4 @@ struct NullScreenSvgOptions {
 // The SVG document. Sheet y points up (model convention); SVG y points down, so y is flipped here.
 std::string NullScreenSvg(const model::NullScreenLayout& layout, const NullScreenSvgOptions& options);
 
-}  // namespace topocal::tools
+}  // namespace topocal::plot

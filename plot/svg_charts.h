@@ -1,5 +1,5 @@
 #pragma once
-// Inline SVG plots for the QA report: no scripts, no external fonts or images, deterministic text (every number
+// Inline SVG plots for the QA and fleet reports (part of the plotting layer, plot/svg.h): no scripts, no external fonts or images, deterministic text (every number
 // printed by fmt with a fixed precision), so the same record gives the same bytes.
 //
 // Image-space plots use OpenCV's pixel convention (x right, y down, the centre of the top-left pixel at (0, 0)),
@@ -10,10 +10,8 @@
 #include <string_view>
 #include <vector>
 
-namespace topocal::report {
+namespace topocal::plot {
 
-// &, <, >, " and ' escaped for XML text and attributes.
-std::string EscapeXml(std::string_view text);
 // The largest 1, 2 or 5 x 10^n not above x (x > 0); 1 for x <= 0 or not finite.
 double NiceFloor(double x);
 
@@ -88,4 +86,4 @@ struct HistogramPlot {
 };
 std::string SvgHistogram(const HistogramPlot& plot);
 
-}  // namespace topocal::report
+}  // namespace topocal::plot

@@ -1,4 +1,4 @@
-#include "tools/file_glob.h"
+#include "model/file_glob.h"
 
 #include <glob.h>
 
@@ -6,7 +6,7 @@
 
 #include "model/io.h"
 
-namespace topocal::tools {
+namespace topocal::model {
 
 std::vector<std::string> Glob(const std::string& pattern, const std::string& option) {
   glob_t g{};
@@ -21,4 +21,4 @@ std::vector<std::string> Glob(const std::string& pattern, const std::string& opt
   return paths;  // glob(3) sorts them
 }
 
-}  // namespace topocal::tools
+}  // namespace topocal::model

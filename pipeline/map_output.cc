@@ -1,4 +1,4 @@
-#include "tools/map_output.h"
+#include "pipeline/map_output.h"
 
 #include <cmath>
 #include <filesystem>
@@ -10,7 +10,7 @@
 #include "model/surface.h"
 #include "topo/map_image.h"
 
-namespace topocal::tools {
+namespace topocal::pipeline {
 namespace {
 
 constexpr int kGridSide = 241;  // samples per side of the Cartesian grids (0.05 mm steps over +-6 mm)
@@ -141,4 +141,4 @@ void WriteAnalysisMaps(const std::string& dir, const std::string& prefix, const 
   WriteAnalysisMapSet(dir, {{prefix, label, &a, truth, {}}}, o);
 }
 
-}  // namespace topocal::tools
+}  // namespace topocal::pipeline

@@ -1,4 +1,4 @@
-#include "tools/csv.h"
+#include "model/spots_csv.h"
 
 #include <cmath>
 #include <set>
@@ -8,7 +8,7 @@
 
 #include "model/io.h"
 
-namespace topocal::tools {
+namespace topocal::model {
 
 std::vector<SpotRow> ReadSpotsCsv(const std::string& path) {
   const std::string text = model::ReadFile(path);
@@ -61,4 +61,4 @@ std::string SpotsCsv(const std::vector<model::ImageSpot>& spots) {
   return out;
 }
 
-}  // namespace topocal::tools
+}  // namespace topocal::model

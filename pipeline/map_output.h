@@ -8,7 +8,7 @@
 #include "topo/analysis.h"
 #include "topo/map_image.h"
 
-namespace topocal::tools {
+namespace topocal::pipeline {
 
 // One analysis of a set (a sweep's sigma, a stage of a before/after pair).
 struct AnalysisMapEntry {
@@ -42,4 +42,4 @@ void WriteAnalysisMaps(const std::string& dir, const std::string& prefix, const 
                        const topo::Analysis& analysis, const model::BiconicParams* truth, bool csv = true,
                        int size_px = topo::MapImageOptions{}.size_px);
 
-}  // namespace topocal::tools
+}  // namespace topocal::pipeline

@@ -1,10 +1,11 @@
 #pragma once
-// JSON fragments shared by the verbs that report a reconstruction (sweep, reconstruct).
+// JSON fragments of a reconstruction's analysis, shared by the verbs that report one (sweep, reconstruct): the
+// fitted surface, the reconstruction, errors, clinical indices, model adequacy, the Taylor polynomial.
 #include <nlohmann/json.hpp>
 
 #include "topo/analysis.h"
 
-namespace topocal::tools {
+namespace topocal::report {
 
 nlohmann::json SurfaceFitJson(const topo::BiconicFit& fit);
 nlohmann::json ReconstructionJson(const topo::Reconstruction& r);
@@ -16,4 +17,4 @@ nlohmann::json ClinicalJson(const topo::Analysis& a);
 // Model adequacy (slope residual against the expected spot noise), map coverage and the warnings.
 nlohmann::json AdequacyJson(const topo::Analysis& a);
 
-}  // namespace topocal::tools
+}  // namespace topocal::report

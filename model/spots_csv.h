@@ -1,11 +1,13 @@
 #pragma once
-// Small CSV helpers for the command line's point files (header line, comma-separated, '#' comments allowed).
+// The spots file (`ring,index,x_mm,y_mm`: detection-plane mm) that `simulate` and `undistort` write and
+// `reconstruct --spots` and `undistort --spots` read: reader and writer side by side (header line, comma-separated,
+// '#' comments allowed). The detector's richer file is correct/detected_spots_csv.h.
 #include <string>
 #include <vector>
 
 #include "model/null_screen.h"
 
-namespace topocal::tools {
+namespace topocal::model {
 
 struct SpotRow {
   model::SpotId id;
@@ -16,4 +18,4 @@ struct SpotRow {
 std::vector<SpotRow> ReadSpotsCsv(const std::string& path);
 std::string SpotsCsv(const std::vector<model::ImageSpot>& spots);
 
-}  // namespace topocal::tools
+}  // namespace topocal::model

@@ -1,4 +1,4 @@
-#include "tools/null_screen_svg.h"
+#include "plot/null_screen_svg.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,23 +7,11 @@
 
 #include <fmt/format.h>
 
-namespace topocal::tools {
+#include "plot/svg.h"
+
+namespace topocal::plot {
 
 namespace {
-
-std::string XmlEscape(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
-    }
-  }
-  return out;
-}
 
 // Sheet (mm, y up, sector rotated so that its bisector points up) to SVG user units (mm, y down).
 class SheetToSvg {
@@ -104,7 +92,7 @@ std::string NullScreenSvg(const model::NullScreenLayout& layout, const NullScree
       "viewBox=\"0 0 {0:.3f} {1:.3f}\">\n",
       width_mm, height_mm);
   const std::string title = fmt::format("topocal null screen: {}, {} spots", options.title, layout.outlines.size());
-  svg += fmt::format("<title>{}</title>\n", XmlEscape(title));
+  svg += fmt::format("<title>{}</title>\n", EscapeXml(title));
   svg += "<rect x=\"0\" y=\"0\" width=\"100%\" height=\"100%\" fill=\"#ffffff\"/>\n";
 
   // The sector: cut edge psi = 0, outer rim, second edge psi = theta, inner rim.
@@ -165,7 +153,7 @@ std::string NullScreenSvg(const model::NullScreenLayout& layout, const NullScree
     return fmt::format(
         "<text x=\"{0:.3f}\" y=\"{1:.3f}\" font-family=\"sans-serif\" font-size=\"{2}\" text-anchor=\"middle\" "
         "dominant-baseline=\"middle\" transform=\"rotate({3:.3f} {0:.3f} {1:.3f})\">{4}</text>\n",
-        p.x(), p.y(), size_mm, t.TextAngleDeg(psi), XmlEscape(text));
+        p.x(), p.y(), size_mm, t.TextAngleDeg(psi), EscapeXml(text));
   };
   const double cut_deg = dev.cut_azimuth_rad * 180.0 / M_PI;
   svg += text_along(0.5 * (s_in + s_out), 0.0, -3.0,
@@ -205,7 +193,7 @@ std::string NullScreenSvg(const model::NullScreenLayout& layout, const NullScree
   // Title and instructions at the top.
   svg += fmt::format(
       "<text x=\"{:.3f}\" y=\"8\" font-family=\"sans-serif\" font-size=\"{}\" font-weight=\"bold\">{}</text>\n",
-      kSideMarginMm, kFontMm + 1.0, XmlEscape(title));
+      kSideMarginMm, kFontMm + 1.0, EscapeXml(title));
   svg += fmt::format(
       "<text x=\"{:.3f}\" y=\"13\" font-family=\"sans-serif\" font-size=\"{}\">Cone semi-angle {:.3f} deg, apex at "
       "z = {:.2f} mm; development: sector of {:.3f} deg, 1:1.</text>\n",
@@ -233,4 +221,4 @@ std::string NullScreenSvg(const model::NullScreenLayout& layout, const NullScree
   return svg;
 }
 
-}  // namespace topocal::tools
+}  // namespace topocal::plot

@@ -1,4 +1,4 @@
-#include "pipeline/svg_plot.h"
+#include "plot/scatter_plot.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,27 +6,15 @@
 
 #include <fmt/format.h>
 
-namespace topocal::pipeline {
+#include "plot/svg.h"
+
+namespace topocal::plot {
 namespace {
 
 constexpr double kWidth = 760, kHeight = 500;
 constexpr double kLeft = 86, kRight = 190, kTop = 44, kBottom = 78;
 // A log axis spans at most this many decades; anything smaller is drawn on the axis (hollow), not lost.
 constexpr double kMaxDecades = 8;
-
-std::string Escape(const std::string& s) {
-  std::string out;
-  for (const char c : s) {
-    switch (c) {
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '&': out += "&amp;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
-    }
-  }
-  return out;
-}
 
 struct Axis {
   bool log = true;
@@ -106,7 +94,7 @@ std::string RenderScatterSvg(const ScatterPlot& plot) {
       "font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"{0}\" height=\"{1}\" fill=\"white\"/>\n",
       kWidth, kHeight);
   svg += fmt::format("<text x=\"{:.1f}\" y=\"24\" text-anchor=\"middle\" font-size=\"15\">{}</text>\n",
-                     (kLeft + kWidth - kRight) / 2, Escape(plot.title));
+                     (kLeft + kWidth - kRight) / 2, EscapeXml(plot.title));
   // Grid, ticks and labels.
   for (const double t : Ticks(x)) {
     const double px = x.Pixel(t);
@@ -126,12 +114,12 @@ std::string RenderScatterSvg(const ScatterPlot& plot) {
                      "stroke=\"black\"/>\n",
                      kLeft, kTop, kWidth - kLeft - kRight, kHeight - kTop - kBottom);
   svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\">{}</text>\n", (kLeft + kWidth - kRight) / 2,
-                     kHeight - kBottom + 40, Escape(plot.x_label));
+                     kHeight - kBottom + 40, EscapeXml(plot.x_label));
   svg += fmt::format("<text transform=\"translate(22 {:.1f}) rotate(-90)\" text-anchor=\"middle\">{}</text>\n",
-                     (kTop + kHeight - kBottom) / 2, Escape(plot.y_label));
+                     (kTop + kHeight - kBottom) / 2, EscapeXml(plot.y_label));
   // Points, then the reference lines above them.
   for (const auto& s : plot.series) {
-    svg += fmt::format("<g fill=\"{0}\" stroke=\"{0}\" fill-opacity=\"0.55\">\n", Escape(s.colour));
+    svg += fmt::format("<g fill=\"{0}\" stroke=\"{0}\" fill-opacity=\"0.55\">\n", EscapeXml(s.colour));
     for (const auto& p : s.points) {
       const bool clamped = x.Clamped(p.x) || y.Clamped(p.y);
       svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"3\"{}/>\n", x.Pixel(p.x), y.Pixel(p.y),
@@ -143,33 +131,33 @@ std::string RenderScatterSvg(const ScatterPlot& plot) {
     const double py = y.Pixel(l.value);
     svg += fmt::format("<line x1=\"{0:.1f}\" y1=\"{1:.1f}\" x2=\"{2:.1f}\" y2=\"{1:.1f}\" stroke=\"{3}\" "
                        "stroke-dasharray=\"6 4\" stroke-width=\"1.5\"/>\n",
-                       kLeft, py, kWidth - kRight, Escape(l.colour));
-    svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" fill=\"{}\">{}</text>\n", kLeft + 4, py - 4, Escape(l.colour),
-                       Escape(l.label));
+                       kLeft, py, kWidth - kRight, EscapeXml(l.colour));
+    svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" fill=\"{}\">{}</text>\n", kLeft + 4, py - 4, EscapeXml(l.colour),
+                       EscapeXml(l.label));
   }
   for (const auto& l : plot.vertical) {
     const double px = x.Pixel(l.value);
     svg += fmt::format("<line x1=\"{0:.1f}\" y1=\"{1:.1f}\" x2=\"{0:.1f}\" y2=\"{2:.1f}\" stroke=\"{3}\" "
                        "stroke-dasharray=\"2 3\" stroke-width=\"1.5\"/>\n",
-                       px, kTop, kHeight - kBottom, Escape(l.colour));
-    svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" fill=\"{}\">{}</text>\n", px + 4, kTop + 14, Escape(l.colour),
-                       Escape(l.label));
+                       px, kTop, kHeight - kBottom, EscapeXml(l.colour));
+    svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" fill=\"{}\">{}</text>\n", px + 4, kTop + 14, EscapeXml(l.colour),
+                       EscapeXml(l.label));
   }
   // Legend.
   double ly = kTop + 10;
   for (const auto& s : plot.series) {
     svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4\" fill=\"{}\"/>\n", kWidth - kRight + 18, ly,
-                       Escape(s.colour));
+                       EscapeXml(s.colour));
     svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\">{} ({})</text>\n", kWidth - kRight + 28, ly + 4,
-                       Escape(s.label), s.points.size());
+                       EscapeXml(s.label), s.points.size());
     ly += 18;
   }
   if (!plot.note.empty()) {
     svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" font-size=\"11\" fill=\"#444\">{}</text>\n", kLeft,
-                       kHeight - 12, Escape(plot.note));
+                       kHeight - 12, EscapeXml(plot.note));
   }
   svg += "</svg>\n";
   return svg;
 }
 
-}  // namespace topocal::pipeline
+}  // namespace topocal::plot

@@ -1,0 +1,105 @@
+#pragma once
+// The per-unit calibration workflow of `topocal unit calibrate` and `unit calibrate-batch`: calibrate a unit's
+// camera from target images, verify it on a reference sphere, simulate the paper's cornea through it and, with
+// reference balls, calibrate the whole device. The result is written as a unit record (docs/unit-record.md) by
+// report::WriteUnitRecord (report/unit_record_writer.h), beside the record's reader: the computation is owned here,
+// the file format by report/ (report links pipeline, never the other way).
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "calib/calibrate.h"
+#include "model/config.h"
+#include "model/device.h"
+#include "model/topographer_camera.h"
+#include "pipeline/device_calibration.h"
+#include "pipeline/device_verification.h"
+#include "pipeline/unit_verification.h"
+
+namespace topocal::pipeline {
+
+// Monte Carlo draws of a unit's verification: the range of --uncertainty and of unit-inputs.json's
+// uncertainty_samples (200 draws take ~1 s; 1e5 bounds the work at a few minutes per unit).
+inline constexpr int kMaxUncertaintySamples = 100000;
+
+struct UnitRequest {
+  std::string serial;
+  std::string target;                 // target description (Kalibr YAML)
+  std::vector<std::string> images;    // target images, in order (one = single-view calibration)
+  std::string config;                 // topographer design (JSON)
+  std::string camera;                 // topographer camera (JSON)
+  std::string reference_sphere;       // raw spot image of the reference sphere; empty = no verification
+  double sphere_radius_mm = 0;
+  // The device stage (issue 19): reference-ball images and their certified radii; empty = lens-only calibration.
+  // The reference sphere, when given, is then a held-out ball measured through the calibrated device too.
+  std::vector<std::string> balls;
+  std::vector<double> ball_radii_mm;
+  std::string device;                 // nominal device (JSON); empty = the camera with no distortion, screen nominal
+  std::string model = "seidel";       // seidel | brown5
+  bool fit_centre = false;
+  std::vector<std::string> fixed;     // parameters held at their initial value (calib::kParameterNames)
+  int uncertainty_samples = 200;      // Monte Carlo draws; 0 = none, else 2 to kMaxUncertaintySamples
+  unsigned seed = 1;
+  int jobs = 0;                       // threads for the Monte Carlo draws (0 = every core; same record either way)
+  std::string out;                    // the record directory
+};
+
+// One input file of the unit and its SHA-256 (the record's provenance).
+struct UnitInputDigest {
+  std::string role;  // config, camera, target, image, reference_sphere, device, ball
+  std::string path, sha256;
+};
+
+// The camera calibration of the unit and the images it used.
+struct UnitCameraCalibration {
+  calib::CalibrationResult result;
+  std::vector<std::string> view_paths;  // parallel to the views the calibration was given
+  bool single_view = false;
+};
+
+// The size of the calibrated distortion over the spot pattern's field on the detection plane.
+struct DistortionField {
+  double field_radius_mm = 0;  // the outermost spot of the configured cornea
+  double max_um = 0, max_px = 0;
+};
+
+// The device stage: the device fitted to the balls, and what it is worth beside the lens-only calibration.
+struct UnitDeviceStage {
+  DeviceCalibration calibration;
+  model::Device lens_only;
+  std::optional<HeldOutBall> held_out;
+  ThreeWay paper;
+};
+
+// Everything the unit record holds, computed; nothing written yet.
+struct UnitResult {
+  UnitRequest request;
+  std::string created_utc;  // SOURCE_DATE_EPOCH when set (reproducible reruns), else now; ISO 8601 UTC
+  model::Config config;               // as read (the record keeps its canonical form)
+  model::TopographerCamera camera;    // as read
+  std::vector<UnitInputDigest> inputs;
+  UnitCameraCalibration calibration;
+  DistortionField field;
+  CheckOptions check;
+  std::optional<SphereVerification> sphere;  // with a reference sphere
+  SimulatedCornea paper;
+  std::optional<UnitDeviceStage> device;     // with reference balls
+};
+
+// Runs the whole workflow. Throws model::InputError / model::ConfigError for bad input (exit 2) and
+// std::runtime_error for a computation that failed (exit 1); every input is read and checked before any work.
+// `log` receives warnings (skipped images), one line each.
+UnitResult CalibrateUnit(const UnitRequest& request, const std::function<void(const std::string&)>& log);
+
+// The lines for the terminal: calibration, distortion, reference sphere, paper cornea, device stage, record path.
+std::vector<std::string> UnitSummary(const UnitResult& unit);
+
+// A unit directory of a batch: DIR/<name>/unit-inputs.json (docs/unit-record.md, "Batch"), paths relative to it.
+// Fields the file leaves out come from `defaults`. Throws model::InputError naming the file and key.
+UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults);
+
+// The serial as a directory and report-id component: 1-64 characters of [A-Za-z0-9._-], not starting with '.'.
+bool IsValidSerial(const std::string& serial);
+
+}  // namespace topocal::pipeline
