@@ -242,13 +242,8 @@ CalibrationFile LoadCalibrationFile(const std::string& path) {
 
 CalibrationFile ParseCalibrationFile(const std::string& text, const std::string& path) {
   const cv::FileStorage fs = OpenFileStorage(text, path);
-  try {
-    return ReadCalibration(fs, path);
-  } catch (const cv::Exception& e) {  // a node of an unexpected type deep in the file: bad input, not a crash
-    std::string why = e.err.substr(0, 100);
-    std::replace(why.begin(), why.end(), '\n', ' ');
-    Bad(path, "file", fmt::format("not readable as a calibration ({})", why));
-  }
+  // A node of an unexpected type deep in the file: bad input, not a crash.
+  return ReadFileStorage(path, "a calibration", [&] { return ReadCalibration(fs, path); });
 }
 
 namespace {

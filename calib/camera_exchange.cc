@@ -1,16 +1,17 @@
 #include "calib/camera_exchange.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <opencv2/core.hpp>
 #include <stdexcept>
 #include <vector>
 
-#include <fmt/format.h>
-#include <opencv2/core.hpp>
-
 #include "calib/distortion_valid_region.h"
+#include "calib/file_storage.h"
 #include "model/io.h"
 
 namespace topocal::calib {
@@ -242,45 +243,43 @@ CameraModel ReadKalibrCamchain(const std::string& path, const std::string& camer
   if (first == std::string::npos) Bad(path, "file", "empty");
   if (text.compare(first, 5, "%YAML") != 0) text = "%YAML:1.0\n---\n" + text;
   text = IndentCompactSequences(text);
-  cv::FileStorage fs;
-  try {
-    fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
-  } catch (const cv::Exception& e) {
-    Bad(path, "file", fmt::format("not valid YAML ({})", e.err));
-  }
-  if (!fs.isOpened() || !fs.root().isMap()) Bad(path, "file", "not a YAML mapping (a Kalibr camchain has cam0: ...)");
-  const cv::FileNode cam = fs[camera_key];
-  if (cam.empty()) Bad(path, camera_key, "missing: not a Kalibr camchain, or no such camera");
-  if (!cam.isMap()) Bad(path, camera_key, "not a mapping");
-  const std::string where = camera_key + ".";
-  const std::string model_name = ReadString(cam, path, "camera_model");
-  if (model_name != "pinhole") {
-    Bad(path, where + "camera_model", fmt::format("'{}': only pinhole is supported (OpenCV's model)", model_name));
-  }
-  const std::string distortion = ReadString(cam, path, "distortion_model");
-  if (distortion != "radtan") {
-    Bad(path, where + "distortion_model",
-        fmt::format("'{}': only radtan is supported (equidistant is a fisheye model topocal does not fit)", distortion));
-  }
-  const auto intrinsics = ReadNumbers(cam, path, "intrinsics", 4);
-  const auto coeffs = ReadNumbers(cam, path, "distortion_coeffs", 4);
-  const auto resolution = ReadNumbers(cam, path, "resolution", 2);
-  CameraModel c;
-  for (int i = 0; i < 2; ++i) {
-    const double v = resolution[static_cast<size_t>(i)];
-    if (!(v >= 1) || v != std::floor(v) || v > std::numeric_limits<int>::max()) {
-      Bad(path, where + "resolution", "must be two positive integers [width, height]");
+  const cv::FileStorage fs = OpenFileStorage(text, path);  // the one door: size and nesting checked first
+  return ReadFileStorage(path, "a Kalibr camchain", [&]() -> CameraModel {
+    if (!fs.isOpened() || !fs.root().isMap()) Bad(path, "file", "not a YAML mapping (a Kalibr camchain has cam0: ...)");
+    const cv::FileNode cam = fs[camera_key];
+    if (cam.empty()) Bad(path, camera_key, "missing: not a Kalibr camchain, or no such camera");
+    if (!cam.isMap()) Bad(path, camera_key, "not a mapping");
+    const std::string where = camera_key + ".";
+    const std::string model_name = ReadString(cam, path, "camera_model");
+    if (model_name != "pinhole") {
+      Bad(path, where + "camera_model", fmt::format("'{}': only pinhole is supported (OpenCV's model)", model_name));
     }
-  }
-  c.width_px = static_cast<int>(resolution[0]);
-  c.height_px = static_cast<int>(resolution[1]);
-  if (!(intrinsics[0] > 0 && intrinsics[1] > 0)) Bad(path, where + "intrinsics", "focal lengths fu, fv must be > 0");
-  c.fx_px = intrinsics[0];
-  c.fy_px = intrinsics[1];
-  c.cx_px = intrinsics[2];
-  c.cy_px = intrinsics[3];
-  c.dist = {coeffs[0], coeffs[1], coeffs[2], coeffs[3], 0.0};
-  return c;
+    const std::string distortion = ReadString(cam, path, "distortion_model");
+    if (distortion != "radtan") {
+      Bad(path, where + "distortion_model",
+          fmt::format("'{}': only radtan is supported (equidistant is a fisheye model topocal does not fit)",
+                      distortion));
+    }
+    const auto intrinsics = ReadNumbers(cam, path, "intrinsics", 4);
+    const auto coeffs = ReadNumbers(cam, path, "distortion_coeffs", 4);
+    const auto resolution = ReadNumbers(cam, path, "resolution", 2);
+    CameraModel c;
+    for (int i = 0; i < 2; ++i) {
+      const double v = resolution[static_cast<size_t>(i)];
+      if (!(v >= 1) || v != std::floor(v) || v > std::numeric_limits<int>::max()) {
+        Bad(path, where + "resolution", "must be two positive integers [width, height]");
+      }
+    }
+    c.width_px = static_cast<int>(resolution[0]);
+    c.height_px = static_cast<int>(resolution[1]);
+    if (!(intrinsics[0] > 0 && intrinsics[1] > 0)) Bad(path, where + "intrinsics", "focal lengths fu, fv must be > 0");
+    c.fx_px = intrinsics[0];
+    c.fy_px = intrinsics[1];
+    c.cx_px = intrinsics[2];
+    c.cy_px = intrinsics[3];
+    c.dist = {coeffs[0], coeffs[1], coeffs[2], coeffs[3], 0.0};
+    return c;
+  });
 }
 
 }  // namespace topocal::calib

@@ -41,8 +41,11 @@ DistortionValidRegion ValidRegionOf(const CameraModel& c) {
   const double limit_px = 2.0 * 0.5 * std::hypot(c.width_px, c.height_px);
   const Eigen::Vector2d principal(c.cx_px, c.cy_px);
   // A step of ~1 px at the undistorted scale; distortion near a fold compresses, so steps there are shorter still.
-  const double step = 1.0 / std::max(c.fx_px, c.fy_px);
+  // At most kMaxStepsPerRay steps: a 4000 x 3000 sensor takes 20000, and a file with fy = 3e10 px next to
+  // fx = 300 px (found by the fuzzer) asked for 1.6e11 and hung the reader.
+  constexpr double kMaxStepsPerRay = 100000;
   const double max_s = 4.0 * limit_px / std::min(c.fx_px, c.fy_px);  // generous: pincushion stretches the image
+  const double step = std::max(1.0 / std::max(c.fx_px, c.fy_px), max_s / kMaxStepsPerRay);
   DistortionValidRegion region;
   region.radius_px = limit_px;
   for (int k = 0; k < kRays; ++k) {
@@ -62,8 +65,10 @@ DistortionValidRegion ValidRegionOf(const CameraModel& c) {
     }
     if (!folded) continue;
     double lo = s_good, hi = s;  // det J > 0 at lo, <= 0 at hi
-    while ((Evaluate(c, c.distortion_centre + hi * dir).px - Evaluate(c, c.distortion_centre + lo * dir).px).norm() >
-           kBisectionPx) {
+    // Bisection to 1e-3 px; 200 halvings reach any double's resolution, so the cap only stops non-finite models.
+    for (int i = 0; i < 200 && (Evaluate(c, c.distortion_centre + hi * dir).px -
+                                Evaluate(c, c.distortion_centre + lo * dir).px).norm() > kBisectionPx;
+         ++i) {
       const double mid = 0.5 * (lo + hi);
       (Evaluate(c, c.distortion_centre + mid * dir).det_j > 0 ? lo : hi) = mid;
     }

@@ -4,9 +4,10 @@
 // the size and the nesting depth are checked on the text first; cv::Exception from the parser becomes an
 // InputError naming the file. Everything read from the storage afterwards is still checked by the caller.
 #include <cstddef>
+#include <opencv2/core.hpp>
 #include <string>
 
-#include <opencv2/core.hpp>
+#include "model/io.h"
 
 namespace topocal::calib {
 
@@ -25,5 +26,27 @@ std::string FileStorageIntegerOutOfRange(const std::string& text);
 // Opens `text` (YAML, with or without the "%YAML:1.0" header Kalibr's files lack; XML; JSON) from memory.
 // Throws model::InputError "ORIGIN: problem" when it is too large, nested too deep or not parseable.
 cv::FileStorage OpenFileStorage(const std::string& text, const std::string& origin);
+
+// Runs `read` (which reads nodes of a storage OpenFileStorage opened) and turns whatever OpenCV throws while it
+// reads into one InputError naming the origin: cv::Exception, and the std::length_error / bad_alloc its node
+// readers throw on malformed matrices (the fuzzer's `camera_matrix` without `dt` aborted the process). An
+// InputError from `read` passes unchanged.
+template <typename Read>
+auto ReadFileStorage(const std::string& origin, const char* what, Read&& read) -> decltype(read()) {
+  const auto fail = [&](std::string why) -> decltype(read()) {
+    for (char& c : why) c = c == '\n' ? ' ' : c;
+    if (why.size() > 100) why = why.substr(0, 97) + "...";
+    throw model::InputError(origin + ": not readable as " + what + " (" + why + ")");
+  };
+  try {
+    return read();
+  } catch (const model::InputError&) {
+    throw;
+  } catch (const cv::Exception& e) {
+    return fail(e.err);
+  } catch (const std::exception& e) {
+    return fail(e.what());
+  }
+}
 
 }  // namespace topocal::calib

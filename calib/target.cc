@@ -196,21 +196,23 @@ TargetDescription ParseTargetDescription(std::string_view yaml_text, const std::
   if (!fs.isOpened() || !fs.root().isMap()) {
     throw model::InputError(fmt::format("{}: not a YAML mapping of target keys", name));
   }
-  StrictMap map(fs.root(), name);
-  TargetDescription target;
-  target.source = name;
-  const std::string type = map.String("target_type");
-  if (type == "checkerboard") {
-    target.layout = ParseCheckerboard(map);
-  } else if (type == "aprilgrid") {
-    target.layout = ParseAprilGrid(map);
-  } else if (type == "charuco") {
-    target.layout = ParseCharuco(map);
-  } else {
-    map.Fail("target_type", fmt::format("must be checkerboard, aprilgrid or charuco, got '{}'", type));
-  }
-  map.RejectUnknownKeys();
-  return target;
+  return ReadFileStorage(name, "a target description", [&] {
+    StrictMap map(fs.root(), name);
+    TargetDescription target;
+    target.source = name;
+    const std::string type = map.String("target_type");
+    if (type == "checkerboard") {
+      target.layout = ParseCheckerboard(map);
+    } else if (type == "aprilgrid") {
+      target.layout = ParseAprilGrid(map);
+    } else if (type == "charuco") {
+      target.layout = ParseCharuco(map);
+    } else {
+      map.Fail("target_type", fmt::format("must be checkerboard, aprilgrid or charuco, got '{}'", type));
+    }
+    map.RejectUnknownKeys();
+    return target;
+  });
 }
 
 TargetDescription LoadTargetDescription(const std::string& path) {

@@ -1,6 +1,7 @@
 #include "model/config.h"
 
 #include <cmath>
+#include <cstdint>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -18,6 +19,10 @@ namespace {
 using nlohmann::json;
 
 using Section = JsonSection;
+
+// The largest null-screen design a configuration may ask for: 160 times the paper's 624 spots, far denser than a
+// sensor resolves (issue 18's denser screens stay well below it), small enough to design in well under a second.
+constexpr std::int64_t kMaxNullScreenSpots = 100'000;
 
 void ParseIdealImage(Section s, IdealImageParams& p) {
   p.rho0_mm = s.Number("rho0_mm");
@@ -39,6 +44,14 @@ void ParseIdealImage(Section s, IdealImageParams& p) {
   s.AtLeast("eta0", p.eta0, 1);
   s.AtLeast("eta", p.eta, 0);
   s.Positive("spot_radius_um", p.spot_radius_um);
+  // The spot count is the design's size: every spot is traced, imaged, indexed and fitted. Counted in 64 bits
+  // before any allocation (the fuzzer found rings_N = 7297 with eta = 8: 2e8 spots, 23 GB, then bad_alloc).
+  const std::int64_t n = p.rings_N, spots = (n + 1) * p.eta0 + std::int64_t{p.eta} * n * (n + 1) / 2;
+  if (spots > kMaxNullScreenSpots) {
+    s.Fail(s.Key("rings_N"), fmt::format("rings_N = {}, eta0 = {}, eta = {} give {} spots; a null screen has at most {} "
+                                         "(the paper's has 624)",
+                                         p.rings_N, p.eta0, p.eta, spots, kMaxNullScreenSpots));
+  }
   // The key's three spots sit on three different rings (model::OrientationKeySpots).
   if (p.orientation_key && p.rings_N < 4) s.Fail(s.Key("orientation_key"), "needs rings_N >= 4 (three distinct key rings)");
   s.RejectUnknown();
