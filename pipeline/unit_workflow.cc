@@ -134,6 +134,7 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   o.model = *model_kind;
   o.fit_distortion_centre = r.fit_centre;
   o.fixed = {r.fixed.begin(), r.fixed.end()};
+  o.fixed_aspect_ratio = r.fixed_aspect_ratio;
   // The topographer's geometry: the lens and sensor from the camera description, the target at the cornea position.
   o.focal_mm = in.camera.a_mm;
   o.pixel_pitch_um = in.camera.pixel_pitch_um;
@@ -147,6 +148,9 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   }
   std::string why;
   if (!o.IsValid(&why)) throw model::InputError(why);
+  if (r.fixed_aspect_ratio > 0 && r.images.size() == 1) {
+    throw model::InputError("--fix-aspect: applies to multi-view fits; a single view already holds fx = fy");
+  }
 
   const auto add = [&](const std::string& role, const std::string& path) {
     in.provenance.push_back({role, path, model::Sha256HexOfFile(path)});
@@ -401,6 +405,7 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
       r.fixed.push_back(f.get<std::string>());
     }
   }
+  if (s.Has("fix_aspect")) r.fixed_aspect_ratio = s.Number("fix_aspect");  // range checked with the options
   // The same range as --uncertainty: 0 (none) or 2 to kMaxUncertaintySamples draws.
   r.uncertainty_samples = s.IntegerInRange("uncertainty_samples", r.uncertainty_samples, 0, kMaxUncertaintySamples);
   if (s.Has("seed")) {

@@ -39,6 +39,7 @@ struct UnitRequest {
   std::string model = "seidel";       // seidel | brown5
   bool fit_centre = false;
   std::vector<std::string> fixed;     // parameters held at their initial value (calib::kParameterNames)
+  double fixed_aspect_ratio = 0;      // fx / fy held during a multi-view fit (calib::CalibrationOptions); 0 = free
   int uncertainty_samples = 200;      // Monte Carlo draws; 0 = none, else 2 to kMaxUncertaintySamples
   unsigned seed = 1;
   int jobs = 0;                       // threads for the Monte Carlo draws (0 = every core; same record either way)

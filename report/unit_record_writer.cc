@@ -311,6 +311,7 @@ void WriteUnitRecord(const pipeline::UnitResult& u) {
                         {"single_view", c.single_view},
                         {"fit_centre", r.fit_centre},
                         {"fixed", r.fixed},
+                        {"fixed_aspect_ratio", r.fixed_aspect_ratio},
                         {"sphere_radius_mm", r.sphere_radius_mm},
                         {"ball_radii_mm", r.ball_radii_mm},
                         {"uncertainty_samples", r.uncertainty_samples},

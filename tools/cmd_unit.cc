@@ -51,6 +51,9 @@ void AddCommonOptions(CLI::App* cmd, UnitRequest* r) {
   cmd->add_option("--model", r->model, "Distortion model: seidel or brown5")->check(CLI::IsMember({"seidel", "brown5"}));
   cmd->add_flag("--fit-centre", r->fit_centre, "Fit the distortion centre (seidel)");
   cmd->add_option("--fix", r->fixed, "Hold these parameters at their initial value (e.g. --fix k3 p1 p2)");
+  cmd->add_option("--fix-aspect", r->fixed_aspect_ratio,
+                  "Hold fx / fy at this ratio in a multi-view fit (e.g. 1 for square pixels; 0 = free)")
+      ->capture_default_str();
   cmd->add_option("--uncertainty", r->uncertainty_samples,
                   "Monte Carlo draws of the calibration covariance carried to the clinical numbers (0 = none)")
       ->check(CLI::Range(0, pipeline::kMaxUncertaintySamples));

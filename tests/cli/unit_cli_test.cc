@@ -250,6 +250,14 @@ TEST_F(UnitCli, BadInputIsOneLineAndLeavesNoRecord) {
                    "--camera {0}/camera.json --fix k9 --out {1}",
                    in_, out),
        2, "--fix: 'k9' is not a camera parameter"},
+      {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png "
+                   "--camera {0}/camera.json --fix-aspect 1 --out {1}",
+                   in_, out),
+       2, "--fix-aspect: applies to multi-view fits"},
+      {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png "
+                   "--camera {0}/camera.json --fix-aspect 7 --out {1}",
+                   in_, out),
+       2, "fixed aspect ratio fx / fy = 7 is not a camera's"},
   };
   for (const auto& c : cases) {
     SCOPED_TRACE(c.args);
