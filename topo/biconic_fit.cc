@@ -10,6 +10,7 @@
 
 #include "model/surface.h"
 #include "topo/sphere_fit.h"
+#include "topo/surface_fit_solver.h"
 
 namespace topocal::topo {
 namespace {
@@ -193,15 +194,7 @@ BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const Bicon
   if (!free_apex) {
     problem.SetManifold(q, new ceres::SubsetManifold(K::kNumParams, {K::kX0, K::kY0, K::kTiltX, K::kTiltY}));
   }
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = options.max_iterations;
-  // Tight tolerances: the cloud is exact to nanometres and the conic constants are weakly determined (and in
-  // free-apex mode the tilt and the decentration nearly trade against each other: a tilted sphere is a shifted one).
-  so.function_tolerance = 1e-16;
-  so.gradient_tolerance = 1e-16;
-  so.parameter_tolerance = 1e-14;
-  so.num_threads = 1;
+  const ceres::Solver::Options so = SurfaceFitSolverOptions(options.max_iterations);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   fit.iterations = static_cast<int>(summary.iterations.size());

@@ -7,6 +7,8 @@
 #include <Eigen/QR>
 #include <fmt/format.h>
 
+#include "topo/surface_fit_solver.h"
+
 namespace topocal::topo {
 namespace {
 
@@ -96,15 +98,9 @@ SphereFit FitSphere(const std::vector<Eigen::Vector3d>& points_mm, const SphereF
   }
   ceres::Problem problem;
   problem.AddResidualBlock(new SphereDistances(points_mm), nullptr, q);
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = options.max_iterations;
-  // The problem is well conditioned (4 parameters, thousands of points): these tolerances are met in a handful of
-  // iterations and put the parameters at the least-squares optimum to ~1e-12 mm.
-  so.function_tolerance = 1e-16;
-  so.gradient_tolerance = 1e-16;
-  so.parameter_tolerance = 1e-14;
-  so.num_threads = 1;
+  // The problem is well conditioned (4 parameters, thousands of points): the shared tight tolerances are met in a
+  // handful of iterations.
+  const ceres::Solver::Options so = SurfaceFitSolverOptions(options.max_iterations);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   fit.iterations = static_cast<int>(summary.iterations.size());
