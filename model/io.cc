@@ -322,7 +322,16 @@ void InstallSignalCleanup() {
       CleanupMutex().lock();  // never released: the process ends below
       std::error_code ec;
       auto& paths = CleanupPaths();
-      for (auto it = paths.rbegin(); it != paths.rend(); ++it) fs::remove_all(*it, ec);
+      // Other threads keep running until the signal is raised below: one may still be writing a file into a staging
+      // directory, and remove_all fails (ENOTEMPTY) when an entry appears while it empties the directory. Retried
+      // until the path is gone; once a directory is removed nothing can be created in it again. (New staging paths
+      // cannot appear: registering one takes the mutex held here.)
+      for (auto it = paths.rbegin(); it != paths.rend(); ++it) {
+        for (int attempt = 0; attempt < 1000; ++attempt) {
+          fs::remove_all(*it, ec);
+          if (!fs::exists(fs::symlink_status(*it, ec))) break;
+        }
+      }
       // End with the signal itself, so the parent sees what happened (128 + signal in a shell).
       ::signal(sig, SIG_DFL);
       sigset_t one;
