@@ -1,31 +1,22 @@
 #include "calib/calibration_file.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
-#include <ctime>
 #include <filesystem>
-#include <stdexcept>
-
-#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
+#include <stdexcept>
 
 #include "calib/file_storage.h"
 #include "calib/opencv_equivalent.h"
 #include "model/io.h"
+#include "model/utc_date.h"
 #include "model/version.h"
 
 namespace topocal::calib {
 namespace {
-
-std::string NowUtc() {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
 
 cv::Mat CameraMatrix(const CameraModel& c) {
   return (cv::Mat_<double>(3, 3) << c.fx_px, 0, c.cx_px, 0, c.fy_px, c.cy_px, 0, 0, 1);
@@ -169,7 +160,7 @@ std::string CalibrationFileText(const CalibrationResult& result, const Calibrati
   cv::FileStorage fs(".yml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
   fs << "calibration_tool" << "topocal";
   fs << "tool_version" << topocal::kVersion;
-  fs << "calibration_date" << (provenance.date_utc.empty() ? NowUtc() : provenance.date_utc);
+  fs << "calibration_date" << (provenance.date_utc.empty() ? model::FileDateUtc() : provenance.date_utc);
   fs << "model" << std::string(ToString(result.model));
   fs << "single_view" << (result.single_view ? 1 : 0);
   fs << "image_width" << result.camera.width_px;

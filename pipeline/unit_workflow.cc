@@ -1,18 +1,16 @@
 #include "pipeline/unit_workflow.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <ctime>
 #include <filesystem>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <stdexcept>
 #include <tuple>
-
-#include <fmt/format.h>
-#include <nlohmann/json.hpp>
 
 #include "calib/calibrate.h"
 #include "calib/detect.h"
@@ -25,6 +23,7 @@
 #include "model/json_section.h"
 #include "model/sha256.h"
 #include "model/topographer_camera.h"
+#include "model/utc_date.h"
 #include "pipeline/detection_plane.h"
 #include "pipeline/device_calibration.h"
 #include "pipeline/device_verification.h"
@@ -37,26 +36,6 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 constexpr size_t kMaxSerialLength = 64;
-
-// The record's date: SOURCE_DATE_EPOCH when set (the reproducible-builds convention, so that a rerun can be
-// compared byte for byte), otherwise now. ISO 8601 UTC.
-std::string RecordDateUtc() {
-  std::time_t t = std::time(nullptr);
-  if (const char* epoch = std::getenv("SOURCE_DATE_EPOCH"); epoch && *epoch) {
-    char* end = nullptr;
-    errno = 0;
-    const long long v = std::strtoll(epoch, &end, 10);
-    if (errno != 0 || *end != '\0' || v < 0) {
-      throw model::InputError(fmt::format("SOURCE_DATE_EPOCH '{}': not a non-negative integer", epoch));
-    }
-    t = static_cast<std::time_t>(v);
-  }
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
 
 // Largest displacement (um on the detection plane, and px) the calibrated distortion gives a point within
 // `radius_mm` of the axis, sampled on a polar grid.
@@ -328,7 +307,7 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
   UnitResult u;
   u.request = r;
   u.calibration = CalibrateViews(r, in, log);
-  u.created_utc = RecordDateUtc();
+  u.created_utc = model::FileDateUtc();
   const auto& c = u.calibration;
 
   // The checks use the calibration as the record stores it: the exact model and its full covariance.

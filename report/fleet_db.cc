@@ -1,15 +1,14 @@
 #include "report/fleet_db.h"
 
+#include <fmt/format.h>
 #include <sqlite3.h>
 
 #include <cmath>
-#include <ctime>
 #include <filesystem>
 #include <stdexcept>
 
-#include <fmt/format.h>
-
 #include "model/io.h"
+#include "model/utc_date.h"
 #include "report/acceptance.h"
 
 namespace topocal::report {
@@ -36,15 +35,6 @@ CREATE TABLE measurements (
   PRIMARY KEY (unit_id, parameter)
 );
 )sql";
-
-std::string NowUtc() {
-  const std::time_t t = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
 
 // A prepared statement, finalized on scope exit.
 class Statement {
@@ -214,7 +204,7 @@ FleetDb::~FleetDb() { sqlite3_close(db_); }
 
 IngestResult FleetDb::Ingest(const std::vector<UnitRecord>& records, const std::string& station) {
   IngestResult result;
-  const std::string now = NowUtc();
+  const std::string now = model::FileDateUtc();
   Transaction t(db_, path_);
   Statement find(db_, path_, "SELECT id FROM units WHERE unit_json_sha256 = ?1");
   Statement unit(db_, path_,

@@ -1,0 +1,13 @@
+#pragma once
+// The date every written file carries (unit record, calibration file, fleet database): now, or SOURCE_DATE_EPOCH
+// when it is set — the reproducible-builds convention (https://reproducible-builds.org/specs/source-date-epoch/),
+// so that a rerun with the same inputs can be compared byte for byte.
+#include <string>
+
+namespace topocal::model {
+
+// ISO 8601 UTC ("2026-12-01T23:59:59Z"). Throws model::InputError naming SOURCE_DATE_EPOCH when it is set but is
+// not a non-negative decimal integer of at most 12 digits (bad input, exit 2).
+std::string FileDateUtc();
+
+}  // namespace topocal::model
