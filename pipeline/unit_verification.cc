@@ -111,21 +111,37 @@ SphereVerification VerifyOnReferenceSphere(const cv::Mat& image, double radius_m
                                             image.rows, camera.width_px, camera.height_px));
   }
   const model::Config sphere = WithSphere(config, radius_mm);
-  const auto design = model::DesignNullScreen(sphere.ideal_image, sphere.topographer);
-  const auto distortion = OnDetectionPlane(unit, camera);
-
   SphereVerification v;
-  v.radius_true_mm = radius_mm;
-  v.power_true_D = model::PowerFromCurvatureD(1.0 / radius_mm);  // Eq. 25
   // Detected and indexed once; the corrected stage undistorts the same spots.
   const auto raw = MeasureSpots(image, camera, sphere.ideal_image, std::nullopt);
+  v.detected = raw.detected;
   v.spots_indexed = raw.indexed;
   v.spots_unassigned = raw.unassigned;
   v.spots_missing = raw.missing;
-  const auto corrected = UndistortSpots(raw.detected, distortion, &v.undistort_failures);
-  v.uncorrected = Analyze(raw.spots, design.targets, sphere, sphere.cornea, "reference sphere, uncorrected");
+  return VerifyOnReferenceSphere(std::move(v), radius_mm, unit, camera, config, options);
+}
+
+SphereVerification VerifyOnReferenceSphere(SphereVerification v, double radius_mm, const UnitCalibration& unit,
+                                           const model::TopographerCamera& camera, const model::Config& config,
+                                           const CheckOptions& options) {
+  if (!(radius_mm >= kMinSphereRadiusMm && radius_mm <= kMaxSphereRadiusMm)) {
+    throw std::invalid_argument(
+        fmt::format("sphere radius {} mm is outside [{}, {}] mm", radius_mm, kMinSphereRadiusMm, kMaxSphereRadiusMm));
+  }
+  if (v.detected.empty()) throw std::invalid_argument("no identified spots of the reference sphere");
+  const model::Config sphere = WithSphere(config, radius_mm);
+  const auto design = model::DesignNullScreen(sphere.ideal_image, sphere.topographer);
+  const auto distortion = OnDetectionPlane(unit, camera);
+  v.radius_true_mm = radius_mm;
+  v.power_true_D = model::PowerFromCurvatureD(1.0 / radius_mm);  // Eq. 25
+  std::vector<topo::MeasuredSpot> uncorrected;
+  uncorrected.reserve(v.detected.size());
+  for (const auto& s : v.detected) uncorrected.push_back({s.id, s.distorted_mm});
+  v.undistort_failures = 0;
+  const auto corrected = UndistortSpots(v.detected, distortion, &v.undistort_failures);
+  v.uncorrected = Analyze(uncorrected, design.targets, sphere, sphere.cornea, "reference sphere, uncorrected");
   v.corrected = Analyze(corrected, design.targets, sphere, sphere.cornea, "reference sphere, corrected");
-  v.uncertainty = Uncertainty(raw.detected, unit, camera, sphere, options, "reference sphere");
+  v.uncertainty = Uncertainty(v.detected, unit, camera, sphere, options, "reference sphere");
   return v;
 }
 

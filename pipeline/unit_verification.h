@@ -53,6 +53,7 @@ struct StageResult {
 
 struct SphereVerification {
   double radius_true_mm = 0;
+  std::vector<MeasuredImageSpot> detected;  // the identified spots as the camera saw them (the record keeps them)
   double power_true_D = 0;  // (n_k - 1) / R, n_k = topo::kKeratometricIndex
   int spots_indexed = 0, spots_unassigned = 0, spots_missing = 0, undistort_failures = 0;
   StageResult uncorrected, corrected;
@@ -69,6 +70,13 @@ model::Config WithSphere(const model::Config& config, double radius_mm);
 // line) when the spots cannot be found, the reconstruction fails or the uncertainty cannot be propagated (the
 // uncertainty is left out only when no distortion parameter has a spread: DistortionParametersToDraw).
 SphereVerification VerifyOnReferenceSphere(const cv::Mat& image, double radius_mm, const UnitCalibration& unit,
+                                           const model::TopographerCamera& camera, const model::Config& config,
+                                           const CheckOptions& options);
+
+// The same check from spots already detected and identified (`v.detected` and the detector's counts in `v`, the
+// rest of `v` ignored): what VerifyOnReferenceSphere does after detection, and what the QA report recomputes from
+// the record's sphere_spots.csv. Same exceptions, std::invalid_argument also for an empty spot list.
+SphereVerification VerifyOnReferenceSphere(SphereVerification v, double radius_mm, const UnitCalibration& unit,
                                            const model::TopographerCamera& camera, const model::Config& config,
                                            const CheckOptions& options);
 

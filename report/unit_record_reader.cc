@@ -1,19 +1,20 @@
 #include "report/unit_record_reader.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <span>
 #include <sstream>
 
-#include <fmt/format.h>
-#include <nlohmann/json.hpp>
-
-#include "model/json_section.h"
 #include "model/io.h"
+#include "model/json_section.h"
 #include "model/sha256.h"
+#include "model/spots_csv.h"
 #include "model/version.h"
 
 namespace topocal::report {
@@ -119,7 +120,8 @@ StageValues ReadStage(const JsonReader& r, const json& parent, const std::string
 }
 
 std::optional<UncertaintyBlock> ReadUncertainty(const JsonReader& r, const json& parent, const std::string& prefix) {
-  if (!r.Has(parent, "uncertainty")) return std::nullopt;
+  // null: not propagated (--uncertainty 0, or no distortion parameter with a spread).
+  if (!r.Has(parent, "uncertainty") || parent["uncertainty"].is_null()) return std::nullopt;
   const json& u = r.Object(parent, prefix, "uncertainty");
   const std::string p = JsonReader::Join(prefix, "uncertainty");
   UncertaintyBlock block;
@@ -392,6 +394,10 @@ UnitRecord ReadUnitRecord(const std::string& directory) {
     s.keratometric_index = r.Number(v, "verification", "keratometric_index");
     s.uncorrected = ReadStage(r, v, "verification", "uncorrected", kSphereStageKeys);
     s.corrected = ReadStage(r, v, "verification", "corrected", kSphereStageKeys);
+    for (auto [key, count] :
+         {std::pair{"spots_unassigned", &s.spots_unassigned}, std::pair{"spots_missing", &s.spots_missing}}) {
+      if (r.Has(v, key)) *count = r.NonNegativeInteger(v, "verification", key);
+    }
     s.uncertainty = ReadUncertainty(r, v, "verification");
     s.repeatability = ReadRepeatability(r, v);
     rec.verification = std::move(s);
@@ -422,6 +428,15 @@ UnitRecord ReadUnitRecord(const std::string& directory) {
     rec.device = std::move(dev);
   }
 
+  // The design and camera the record was computed with (canonical form), for the report's recomputation.
+  if (r.Has(root, "configuration")) {
+    const json& c = r.Object(root, "", "configuration");
+    const std::string origin = rec.unit_json_path + ": configuration";
+    rec.config = model::ParseConfig(r.Object(c, "configuration", "design").dump(), origin + ".design");
+    rec.topographer_camera =
+        model::ParseTopographerCamera(r.Object(c, "configuration", "camera").dump(), origin + ".camera");
+  }
+
   // The files, now known to be the ones the record was written with.
   rec.calibration_path = (fs::path(directory) / kCalibrationYaml).string();
   rec.calibration = calib::LoadCalibrationFile(rec.calibration_path);
@@ -437,6 +452,13 @@ UnitRecord ReadUnitRecord(const std::string& directory) {
     const auto listed = std::find_if(rec.files.begin(), rec.files.end(), [](const RecordFile& f) { return f.name == "device.json"; });
     if (listed == rec.files.end()) r.Fail("device", "the record has a device stage but no device.json in files");
     rec.device->file = model::LoadDevice((fs::path(directory) / "device.json").string());
+  }
+  if (rec.verification) {
+    const auto listed =
+        std::find_if(rec.files.begin(), rec.files.end(), [](const RecordFile& f) { return f.name == kSphereSpotsCsv; });
+    if (listed != rec.files.end()) {
+      rec.verification->detected = model::ReadSpotsCsv((fs::path(directory) / kSphereSpotsCsv).string());
+    }
   }
   for (const RecordFile& f : rec.files) {
     const fs::path name(f.name);

@@ -16,13 +16,17 @@
 #include <vector>
 
 #include "calib/calibration_file.h"
+#include "model/config.h"
 #include "model/device.h"
+#include "model/spots_csv.h"
+#include "model/topographer_camera.h"
 
 namespace topocal::report {
 
 // Versions of the record this reader understands.
 inline constexpr const char* kUnitRecordFormat = "topocal-unit-record";
-inline constexpr int kUnitRecordFormatVersion = 1;
+inline constexpr int kUnitRecordFormatVersion = 2;  // 2: sphere_spots.csv, uncertainty may be null
+inline constexpr const char* kSphereSpotsCsv = "sphere_spots.csv";
 
 struct InputFile {
   std::string role, path, sha256;
@@ -82,6 +86,10 @@ struct SphereRepeatability {
 
 struct SphereVerification {
   std::string image;
+  int spots_unassigned = 0, spots_missing = 0;
+  // sphere_spots.csv: the identified spots as the camera saw them (detection-plane mm, distorted), from which the
+  // report recomputes the check (report/record_check.h); empty when the record does not list the file.
+  std::vector<model::SpotRow> detected;
   double radius_true_mm = 0, power_true_D = 0, keratometric_index = 0;
   StageValues uncorrected, corrected;
   std::optional<UncertaintyBlock> uncertainty;
@@ -150,6 +158,10 @@ struct UnitRecord {
   std::optional<SphereVerification> verification;
   PaperCornea paper;
   std::optional<DeviceStageRecord> device;
+
+  // configuration.design and configuration.camera: what the record was computed with (absent in hand-made records).
+  std::optional<model::Config> config;
+  std::optional<model::TopographerCamera> topographer_camera;
 
   // The files themselves.
   calib::CalibrationFile calibration;

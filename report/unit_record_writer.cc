@@ -1,5 +1,6 @@
 #include "report/unit_record_writer.h"
 
+#include <fmt/format.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -7,20 +8,19 @@
 #include <stdexcept>
 #include <vector>
 
-#include <fmt/format.h>
-
 #include "calib/calibration_file.h"
 #include "model/config.h"
 #include "model/device.h"
 #include "model/io.h"
 #include "model/sha256.h"
+#include "model/spots_csv.h"
 #include "model/topographer_camera.h"
 #include "model/version.h"
 #include "pipeline/map_output.h"
 #include "pipeline/uncertainty.h"
+#include "report/unit_record_reader.h"
 #include "topo/biconic_fit.h"
 #include "topo/power_map.h"
-#include "report/unit_record_reader.h"
 
 namespace topocal::report {
 namespace {
@@ -220,39 +220,6 @@ json CalibrationJson(const pipeline::UnitCameraCalibration& c, const pipeline::D
   return cal;
 }
 
-json VerificationJson(const pipeline::SphereVerification& s, const pipeline::UnitRequest& r,
-                      const pipeline::CheckOptions& check) {
-  json v = {{"image", r.reference_sphere},
-            {"radius_true_mm", s.radius_true_mm},
-            {"power_true_D", s.power_true_D},
-            {"keratometric_index", topo::kKeratometricIndex},
-            {"central_zone_diameter_mm", 2 * pipeline::kCentralPowerRadiusMm},
-            {"spots_indexed", s.spots_indexed},
-            {"spots_unassigned", s.spots_unassigned},
-            {"spots_missing", s.spots_missing},
-            {"undistort_failures", s.undistort_failures},
-            // "sphere": centre and radius fitted; kx, ky, alpha_deg are 0 by construction (docs/unit-record.md)
-            {"surface_fit", topo::BiconicFitModeName(s.corrected.analysis.surface_fit.mode)}};
-  for (const auto& [name, stage] : {std::pair{"uncorrected", &s.uncorrected}, std::pair{"corrected", &s.corrected}}) {
-    json n = Numbers(stage->numbers);
-    n["spots_indexed"] = s.spots_indexed;  // both stages use the same detected and indexed spots
-    n["radius_error_mm"] = s.RadiusErrorMm(*stage);
-    n["power_error_D"] = s.PowerErrorD(*stage);
-    v[name] = n;
-  }
-  v["uncertainty"] = Uncertainty(s.uncertainty, check);
-  return v;
-}
-
-json PaperCorneaJson(const pipeline::SimulatedCornea& paper, const pipeline::CheckOptions& check) {
-  const auto& t = paper.truth;
-  return {{"truth", {{"rx_mm", t.rx_mm}, {"ry_mm", t.ry_mm}, {"kx", t.kx}, {"ky", t.ky}, {"alpha_deg", t.alpha_deg}}},
-          {"max_displacement_um", paper.max_displacement_um},
-          {"uncorrected", Numbers(paper.uncorrected.numbers)},
-          {"corrected", Numbers(paper.corrected.numbers)},
-          {"uncertainty", Uncertainty(paper.uncertainty, check)}};
-}
-
 std::string ResidualsCsv(const pipeline::UnitCameraCalibration& c) {
   std::string csv = "view,image,corner_id,x_px,y_px,dx_px,dy_px,outlier\n";
   for (const auto& r : c.result.residuals) {
@@ -288,6 +255,39 @@ void WriteRecordMaps(const std::string& dir, const std::optional<pipeline::Spher
 
 }  // namespace
 
+json VerificationJson(const pipeline::SphereVerification& s, const std::string& image,
+                      const pipeline::CheckOptions& check) {
+  json v = {{"image", image},
+            {"radius_true_mm", s.radius_true_mm},
+            {"power_true_D", s.power_true_D},
+            {"keratometric_index", topo::kKeratometricIndex},
+            {"central_zone_diameter_mm", 2 * pipeline::kCentralPowerRadiusMm},
+            {"spots_indexed", s.spots_indexed},
+            {"spots_unassigned", s.spots_unassigned},
+            {"spots_missing", s.spots_missing},
+            {"undistort_failures", s.undistort_failures},
+            // "sphere": centre and radius fitted; kx, ky, alpha_deg are 0 by construction (docs/unit-record.md)
+            {"surface_fit", topo::BiconicFitModeName(s.corrected.analysis.surface_fit.mode)}};
+  for (const auto& [name, stage] : {std::pair{"uncorrected", &s.uncorrected}, std::pair{"corrected", &s.corrected}}) {
+    json n = Numbers(stage->numbers);
+    n["spots_indexed"] = s.spots_indexed;  // both stages use the same detected and indexed spots
+    n["radius_error_mm"] = s.RadiusErrorMm(*stage);
+    n["power_error_D"] = s.PowerErrorD(*stage);
+    v[name] = n;
+  }
+  v["uncertainty"] = Uncertainty(s.uncertainty, check);
+  return v;
+}
+
+json PaperCorneaJson(const pipeline::SimulatedCornea& paper, const pipeline::CheckOptions& check) {
+  const auto& t = paper.truth;
+  return {{"truth", {{"rx_mm", t.rx_mm}, {"ry_mm", t.ry_mm}, {"kx", t.kx}, {"ky", t.ky}, {"alpha_deg", t.alpha_deg}}},
+          {"max_displacement_um", paper.max_displacement_um},
+          {"uncorrected", Numbers(paper.uncorrected.numbers)},
+          {"corrected", Numbers(paper.corrected.numbers)},
+          {"uncertainty", Uncertainty(paper.uncertainty, check)}};
+}
+
 void WriteUnitRecord(const pipeline::UnitResult& u) {
   const auto& r = u.request;
   const auto& c = u.calibration;
@@ -298,6 +298,14 @@ void WriteUnitRecord(const pipeline::UnitResult& u) {
                          calib::CalibrationFileText(c.result, {r.target, c.view_paths, u.created_utc}));
   model::WriteFileAtomic((dir / "residuals.csv").string(), ResidualsCsv(c));
   WriteRecordMaps((dir / "maps").string(), u.sphere, u.paper, u.config);
+  if (u.sphere) {
+    // The sphere's identified spots as the camera saw them: the report recomputes the check from them
+    // (report/record_check.h). Shortest round-trip decimals, so the recomputation starts from the same doubles.
+    std::vector<model::ImageSpot> spots;
+    spots.reserve(u.sphere->detected.size());
+    for (const auto& d : u.sphere->detected) spots.push_back({d.id, d.distorted_mm, Eigen::Vector3d::Zero()});
+    model::WriteFileAtomic((dir / kSphereSpotsCsv).string(), model::SpotsCsv(spots));
+  }
   if (u.device) {
     model::WriteFileAtomic((dir / "device.json").string(),
                            model::DeviceToJson(u.device->calibration.fit.device,
@@ -324,7 +332,7 @@ void WriteUnitRecord(const pipeline::UnitResult& u) {
                              {"camera", json::parse(model::TopographerCameraToJson(u.camera))}};
   record["camera"] = model::CameraToJson(u.camera);
   record["calibration"] = CalibrationJson(c, u.field, u.camera);
-  if (u.sphere) record["verification"] = VerificationJson(*u.sphere, r, u.check);
+  if (u.sphere) record["verification"] = VerificationJson(*u.sphere, r.reference_sphere, u.check);
   record["paper_cornea"] = PaperCorneaJson(u.paper, u.check);
   if (u.device) record["device"] = DeviceJson(*u.device);
   try {

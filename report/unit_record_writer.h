@@ -43,6 +43,13 @@ class UnitRecordWriter {
   bool committed_ = false;
 };
 
+// unit.json's blocks of the two checks, "verification" (the reference sphere, photographed as `image`) and
+// "paper_cornea" (docs/unit-record.md): written here, and built again from the recomputed checks by the report,
+// which compares them number by number (report/record_check.h).
+nlohmann::json VerificationJson(const pipeline::SphereVerification& sphere, const std::string& image,
+                                const pipeline::CheckOptions& check);
+nlohmann::json PaperCorneaJson(const pipeline::SimulatedCornea& paper, const pipeline::CheckOptions& check);
+
 // Writes the record of a computed unit to unit.request.out: unit.json (docs/unit-record.md), calibration.yaml,
 // residuals.csv, maps/ (the before/after power, elevation and height-error maps of the reference sphere and the
 // paper cornea) and, with the device stage, device.json. Staged and committed whole (UnitRecordWriter): on any

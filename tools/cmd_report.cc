@@ -1,13 +1,14 @@
 // topocal report: the QA report of one unit record (report/html_report.h), one self-contained HTML file, and the
 // same verdict as JSON.
+#include <fmt/format.h>
+
 #include <memory>
 #include <optional>
-
-#include <fmt/format.h>
 
 #include "model/io.h"
 #include "report/acceptance.h"
 #include "report/html_report.h"
+#include "report/record_check.h"
 #include "report/unit_record_reader.h"
 #include "tools/commands.h"
 
@@ -27,6 +28,7 @@ void Run(const ReportArgs& a) {
   in.budget.ball_radius_U_mm = a.ball_radius_U_mm;
   in.sign_off = a.sign_off;
   const report::UnitRecord record = report::ReadUnitRecord(a.unit);
+  report::RecomputeRecordNumbers(record);  // the verdict's numbers, recomputed from the record's own files
   std::optional<report::UnitRecord> previous;
   if (!a.previous.empty()) {
     previous = report::ReadUnitRecord(a.previous);

@@ -13,6 +13,14 @@ namespace {
 using testing::FreshDir;
 using testing::MakeRecord;
 
+// The record with hand-picked check numbers (tests/report/record_fixture.h): the rule, the budget and the page are
+// functions of the numbers, checked here against hand computations.
+testing::RecordFixture MakeHandRecord(const std::string& dir) {
+  testing::RecordFixture f = MakeRecord(dir);
+  testing::UseHandPickedChecks(f);
+  return f;
+}
+
 std::string LimitsError(const std::string& text) {
   const std::string path = FreshDir("limits") + "/limits.json";
   model::WriteFileAtomic(path, text);
@@ -82,7 +90,7 @@ TEST(Limits, HostileJsonIsBadInputNamingTheKey) {
 }
 
 TEST(Acceptance, TheFixturePassesTheDefaults) {
-  const auto f = MakeRecord(FreshDir("pass"));
+  const auto f = MakeHandRecord(FreshDir("pass"));
   const Verdict v = Evaluate(ReadUnitRecord(f.dir), DefaultLimits());
   EXPECT_TRUE(v.pass);
   EXPECT_EQ(v.checks.size(), 7u);  // rms, sphere radius, sphere power, paper r_x, r_y, k_x, k_y
@@ -91,7 +99,7 @@ TEST(Acceptance, TheFixturePassesTheDefaults) {
 
 TEST(Acceptance, GuardedAddsUAndSimpleDoesNot) {
   // Paper k_x: |error| = 0.0002, U = 0.003. A limit between the two separates the rules.
-  const auto f = MakeRecord(FreshDir("rules"));
+  const auto f = MakeHandRecord(FreshDir("rules"));
   const UnitRecord rec = ReadUnitRecord(f.dir);
   Limits l = DefaultLimits();
   l.paper_conic_error.max = 0.002;
@@ -111,7 +119,7 @@ TEST(Acceptance, GuardedAddsUAndSimpleDoesNot) {
 }
 
 TEST(Acceptance, SphereCalibrationTermComesFromRxRyAndPowerFromRadius) {
-  const auto f = MakeRecord(FreshDir("sphereu"));
+  const auto f = MakeHandRecord(FreshDir("sphereu"));
   const Verdict v = Evaluate(ReadUnitRecord(f.dir), DefaultLimits());
   ASSERT_EQ(v.checks[1].id, "sphere_radius_error_mm");
   ASSERT_EQ(v.checks[1].budget.size(), 3u);
@@ -120,7 +128,7 @@ TEST(Acceptance, SphereCalibrationTermComesFromRxRyAndPowerFromRadius) {
   const double r = 7.8005;
   EXPECT_NEAR(v.checks[2].budget[0].u, 0.5 * 1000 * 0.3375 * 0.002 / (r * r), 1e-12);
   // The record's own U of radius and central power (what `unit calibrate` writes) take precedence.
-  auto g = MakeRecord(FreshDir("sphereu2"));
+  auto g = MakeHandRecord(FreshDir("sphereu2"));
   g.unit["verification"]["uncertainty"]["quantities"]["radius_mm"] = {{"mean", 7.8005}, {"U", 0.0011}};
   g.unit["verification"]["uncertainty"]["quantities"]["central_axial_power_D"] = {{"mean", 43.27}, {"U", 0.007}};
   g.WriteUnitJson();
@@ -131,7 +139,7 @@ TEST(Acceptance, SphereCalibrationTermComesFromRxRyAndPowerFromRadius) {
 
 // The budget's combination against a hand computation (GUM Eq. 10, independent inputs, k = 2).
 TEST(Acceptance, UncertaintyBudgetCombinesCalibrationRepeatabilityAndCertificate) {
-  auto g = MakeRecord(FreshDir("budget"));
+  auto g = MakeHandRecord(FreshDir("budget"));
   auto& ver = g.unit["verification"];
   ver["uncertainty"]["quantities"]["radius_mm"] = {{"mean", 7.8005}, {"U", 0.0011}};
   ver["uncertainty"]["quantities"]["central_axial_power_D"] = {{"mean", 43.27}, {"U", 0.007}};
@@ -160,7 +168,7 @@ TEST(Acceptance, UncertaintyBudgetCombinesCalibrationRepeatabilityAndCertificate
   EXPECT_NE(radius.budget[2].source.find("certificate: U = 0.004 mm"), std::string::npos);
 
   // Without repeats and certificate: the documented defaults, u_rep = 5 um, u_cert = 1 um / 2.
-  const auto f = MakeRecord(FreshDir("budgetdefault"));
+  const auto f = MakeHandRecord(FreshDir("budgetdefault"));
   const Verdict d = Evaluate(ReadUnitRecord(f.dir), DefaultLimits());
   EXPECT_DOUBLE_EQ(d.checks[1].budget[1].u, kDefaultRepeatabilityRadiusMm);
   EXPECT_DOUBLE_EQ(d.checks[1].budget[2].u, 0.5 * kDefaultBallRadiusUMm);
@@ -177,7 +185,7 @@ TEST(Acceptance, UncertaintyBudgetCombinesCalibrationRepeatabilityAndCertificate
 TEST(Acceptance, AGuardBandThatTheBudgetWidensTurnsAPassIntoAFail) {
   // Radius error 0.0005 mm; with the default budget U = 0.0102 mm: a 0.01 mm limit passes by simple acceptance and
   // fails by guarded acceptance; the calibration's U alone (0.002 mm) would have passed it.
-  const auto f = MakeRecord(FreshDir("guard"));
+  const auto f = MakeHandRecord(FreshDir("guard"));
   const UnitRecord rec = ReadUnitRecord(f.dir);
   Limits l = DefaultLimits();
   l.sphere_radius_error_mm.max = 0.01;
@@ -187,7 +195,7 @@ TEST(Acceptance, AGuardBandThatTheBudgetWidensTurnsAPassIntoAFail) {
 }
 
 TEST(Acceptance, MalformedRepeatabilityIsRefused) {
-  auto f = MakeRecord(FreshDir("badrep"));
+  auto f = MakeHandRecord(FreshDir("badrep"));
   f.unit["verification"]["repeatability"] = {{"radius_mm", {7.8}}, {"central_axial_power_D", {43.2}}};
   f.WriteUnitJson();
   try {
@@ -200,7 +208,7 @@ TEST(Acceptance, MalformedRepeatabilityIsRefused) {
 }
 
 TEST(Acceptance, WithoutVerificationOrUncertaintyTheGuardedRuleFails) {
-  auto f = MakeRecord(FreshDir("nover"));
+  auto f = MakeHandRecord(FreshDir("nover"));
   f.unit.erase("verification");
   f.unit["paper_cornea"].erase("uncertainty");
   f.WriteUnitJson();
@@ -219,7 +227,7 @@ TEST(Acceptance, WithoutVerificationOrUncertaintyTheGuardedRuleFails) {
 }
 
 TEST(Acceptance, CalibrationRmsAboveTheLimitFails) {
-  const auto f = MakeRecord(FreshDir("rms"));
+  const auto f = MakeHandRecord(FreshDir("rms"));
   Limits l = DefaultLimits();
   l.calibration_rms_px.max = 1e-4;
   const Verdict v = Evaluate(ReadUnitRecord(f.dir), l);

@@ -18,6 +18,14 @@ namespace {
 
 using testing::FreshDir;
 using testing::MakeRecord;
+
+// The record with hand-picked check numbers (tests/report/record_fixture.h): the rule, the budget and the page are
+// functions of the numbers, checked here against hand computations.
+testing::RecordFixture MakeHandRecord(const std::string& dir) {
+  testing::RecordFixture f = MakeRecord(dir);
+  testing::UseHandPickedChecks(f);
+  return f;
+}
 using plot::EscapeXml;
 using plot::NiceFloor;
 using plot::QuiverOptions;
@@ -104,7 +112,7 @@ TEST(SvgPlot, QuiverHasOneArrowPerVectorAndAScaleBar) {
 class HtmlReportTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    fixture_ = new testing::RecordFixture(MakeRecord(FreshDir("html")));
+    fixture_ = new testing::RecordFixture(MakeHandRecord(FreshDir("html")));
     record_ = new UnitRecord(ReadUnitRecord(fixture_->dir));
     html_ = new std::string(RenderHtmlReport(*record_, ReportInputs{}));
   }
@@ -148,7 +156,7 @@ TEST_F(HtmlReportTest, ReportIdHashesTheRecordTheLimitsAndTheRule) {
 }
 
 TEST(HtmlReport, APassAndAFailReportOfOneRecordHaveDifferentIds) {
-  const auto f = MakeRecord(FreshDir("passfail"));
+  const auto f = MakeHandRecord(FreshDir("passfail"));
   const UnitRecord rec = ReadUnitRecord(f.dir);
   ReportInputs strict;
   strict.limits.paper_conic_error.max = 1e-4;  // |k_x error| = 2e-4: FAIL
@@ -266,8 +274,8 @@ TEST_F(HtmlReportTest, NoNanAndDeterministic) {
 }
 
 TEST(HtmlReport, SignOffAndPreviousCalibrationAreShown) {
-  const auto f = MakeRecord(FreshDir("now"));
-  auto g = MakeRecord(FreshDir("before"));
+  const auto f = MakeHandRecord(FreshDir("now"));
+  auto g = MakeHandRecord(FreshDir("before"));
   g.unit["created_utc"] = "2025-11-25T19:00:00Z";
   g.unit["verification"]["corrected"]["radius_error_mm"] = 0.03;  // drifted by 0.0295 mm, beyond U
   g.WriteUnitJson();
@@ -288,7 +296,7 @@ TEST(HtmlReport, SignOffAndPreviousCalibrationAreShown) {
   ASSERT_NE(row, std::string::npos);
   EXPECT_NE(h.substr(row, h.find("</tr>", row) - row).find("changed beyond U"), std::string::npos);
   // Another unit's record is not a previous calibration of this one.
-  auto other = MakeRecord(FreshDir("other"));
+  auto other = MakeHandRecord(FreshDir("other"));
   other.unit["serial"] = "SN-OTHER";
   other.WriteUnitJson();
   const UnitRecord o = ReadUnitRecord(other.dir);
@@ -297,7 +305,7 @@ TEST(HtmlReport, SignOffAndPreviousCalibrationAreShown) {
 }
 
 TEST(HtmlReport, FailingRecordSaysFailAndWhy) {
-  auto f = MakeRecord(FreshDir("fail"));
+  auto f = MakeHandRecord(FreshDir("fail"));
   f.unit["paper_cornea"]["corrected"]["kx"] = -0.61;  // the uncorrected value: correction did nothing
   f.unit.erase("verification");
   f.WriteUnitJson();

@@ -3,25 +3,33 @@
 // single-view calibration of seeded synthetic corners (calib::CalibrateSingleView, written with
 // calib::WriteCalibrationFile), its residuals.csv, small PNG maps drawn with OpenCV, and a unit.json listing every
 // file with its SHA-256. Tests mutate the JSON or the files to make each kind of bad record.
+#include <fmt/format.h>
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <filesystem>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <random>
 #include <string>
 #include <vector>
 
-#include <fmt/format.h>
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
-
 #include "calib/calibrate.h"
 #include "calib/calibration_file.h"
+#include "correct/undistort_points.h"
+#include "model/config.h"
 #include "model/io.h"
+#include "model/null_screen.h"
 #include "model/sha256.h"
+#include "model/spots_csv.h"
+#include "model/topographer_camera.h"
 #include "model/version.h"
+#include "pipeline/detection_plane.h"
+#include "pipeline/unit_verification.h"
+#include "report/unit_record_reader.h"
+#include "report/unit_record_writer.h"
 #include "tests/calib/synthetic_views.h"
 
 namespace topocal::report::testing {
@@ -44,30 +52,6 @@ inline std::string FreshDir(const std::string& name) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir.string();
-}
-
-inline json StageSphere(double radius_mm, double dr_mm, double dk) {
-  const double r = radius_mm + dr_mm;
-  const double power = 337.5 / r;
-  return {{"spots_indexed", 624}, {"rx_mm", r + 1e-4},  {"ry_mm", r - 1e-4},          {"kx", dk},
-          {"ky", -dk},            {"alpha_deg", 0.0},   {"radius_mm", r},             {"radius_error_mm", dr_mm},
-          {"central_axial_power_D", power}, {"power_error_D", power - 337.5 / radius_mm},
-          {"pv_tangential_D", 0.02 + 10 * std::abs(dk)}, {"pv_axial_D", 0.01 + 5 * std::abs(dk)}};
-}
-
-inline json Uncertainty(double u_r, double u_k) {
-  return {{"samples", 200},
-          {"seed", 1},
-          {"failed_samples", 0},
-          {"drawn", {"k1"}},
-          {"quantities",
-           {{"rx_mm", {{"mean", 7.8001}, {"U", u_r}}},
-            {"ry_mm", {{"mean", 7.7999}, {"U", u_r}}},
-            {"kx", {{"mean", 0.0002}, {"U", u_k}}},
-            {"ky", {{"mean", -0.0002}, {"U", u_k}}},
-            {"alpha_deg", {{"mean", 0.0}, {"U", 0.5}}},
-            {"pv_tangential_D", {{"mean", 0.03}, {"U", 0.01}}},
-            {"pv_axial_D", {{"mean", 0.02}, {"U", 0.01}}}}}};
 }
 
 struct RecordFixture {
@@ -137,10 +121,56 @@ inline std::string ResidualsCsv(const calib::CalibrationResult& r) {
   return csv;
 }
 
+// The record's two checks computed for real, as `topocal unit calibrate` does (pipeline/unit_verification.h), for
+// FixtureCalibration() with the bundled design and camera: the reference sphere's spots synthesised through the
+// calibrated distortion instead of detected in a rendered image. Computed once per process.
+inline constexpr int kFixtureDraws = 8;
+struct FixtureChecks {
+  json configuration, verification, paper_cornea;
+  std::vector<model::ImageSpot> sphere_spots;  // as the camera saw them (sphere_spots.csv)
+};
+inline const FixtureChecks& ComputeChecks() {
+  static const FixtureChecks checks = [] {
+    const calib::CalibrationResult r = FixtureCalibration();
+    const auto config = model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json");
+    const auto camera = model::LoadTopographerCamera(std::string(TOPOCAL_SOURCE_DIR) + "/data/camera.json");
+    pipeline::UnitCalibration unit;
+    unit.camera = r.camera;
+    unit.covariance.names.assign(std::begin(calib::kParameterNames), std::end(calib::kParameterNames));
+    unit.covariance.matrix = r.covariance;
+    unit.covariance.full = true;
+    const pipeline::CheckOptions check{kFixtureDraws, 1, 0};
+    FixtureChecks c;
+    c.configuration = {{"design", json::parse(model::ConfigToJson(config))},
+                       {"camera", json::parse(model::TopographerCameraToJson(camera))}};
+    const auto distortion = pipeline::DistortionOnDetectionPlane(r.camera, camera, nullptr);
+    EXPECT_TRUE(distortion.has_value());
+    const model::Config sphere = pipeline::WithSphere(config, 7.8);
+    const auto design = model::DesignNullScreen(sphere.ideal_image, sphere.topographer);
+    const auto ideal =
+        model::SynthesizeImage(model::Biconic{sphere.cornea}, model::Topographer{sphere.topographer}, design.targets);
+    std::vector<Eigen::Vector2d> ideal_mm;
+    for (const auto& spot : ideal.spots) ideal_mm.push_back(spot.position_mm);
+    const auto seen_mm = correct::DistortPoints(*distortion, ideal_mm);
+    pipeline::SphereVerification v;
+    for (std::size_t i = 0; i < ideal.spots.size(); ++i) {
+      v.detected.push_back({ideal.spots[i].id, seen_mm[i]});
+      c.sphere_spots.push_back({ideal.spots[i].id, seen_mm[i], Eigen::Vector3d::Zero()});
+    }
+    v.spots_indexed = static_cast<int>(v.detected.size());
+    v = pipeline::VerifyOnReferenceSphere(std::move(v), 7.8, unit, camera, config, check);
+    c.verification = VerificationJson(v, "sphere.png", check);
+    c.paper_cornea = PaperCorneaJson(pipeline::SimulateThroughCalibratedCamera(unit, camera, config, check), check);
+    return c;
+  }();
+  return checks;
+}
+
 // unit.json of a record calibrated with `r` whose checks all pass the default limits, without the keys the writer
 // adds (format, versions, files).
 inline json RecordBody(const calib::CalibrationResult& r, const std::string& serial = "SN-TEST-0001",
                        const std::string& created_utc = kCreatedUtc) {
+  const FixtureChecks& checks = ComputeChecks();  // of FixtureCalibration(), whatever `r` is
   json params = json::array();
   for (const auto& p : r.parameters) {
     params.push_back({{"name", p.name}, {"value", p.value}, {"stddev", p.stddev}, {"fixed", p.fixed}});
@@ -150,8 +180,12 @@ inline json RecordBody(const calib::CalibrationResult& r, const std::string& ser
       {"serial", serial},
       {"created_utc", created_utc},
       {"settings",
-       {{"model", "seidel"}, {"single_view", true}, {"fit_centre", false}, {"sphere_radius_mm", 7.8},
-        {"uncertainty_samples", 200}, {"seed", 1}}},
+       {{"model", "seidel"},
+        {"single_view", true},
+        {"fit_centre", false},
+        {"sphere_radius_mm", 7.8},
+        {"uncertainty_samples", kFixtureDraws},
+        {"seed", 1}}},
       {"inputs",
        {{{"role", "config"}, {"path", "data/paper.json"}, {"sha256", model::Sha256Hex("config")}},
         {{"role", "camera"}, {"path", "data/camera.json"}, {"sha256", model::Sha256Hex("camera")}},
@@ -159,7 +193,10 @@ inline json RecordBody(const calib::CalibrationResult& r, const std::string& ser
         {{"role", "image"}, {"path", "views/v1.png"}, {"sha256", model::Sha256Hex("v1")}},
         {{"role", "reference_sphere"}, {"path", "sphere.png"}, {"sha256", zero_hash}}}},
       {"camera",
-       {{"pixel_pitch_um", kPitchUm}, {"width_px", kWidthPx}, {"height_px", kHeightPx}, {"a_mm", kFocalMm},
+       {{"pixel_pitch_um", kPitchUm},
+        {"width_px", kWidthPx},
+        {"height_px", kHeightPx},
+        {"a_mm", kFocalMm},
         {"principal_point_px", {(kWidthPx - 1) / 2.0, (kHeightPx - 1) / 2.0}}}},
       {"calibration",
        {{"model", "seidel"},
@@ -176,25 +213,83 @@ inline json RecordBody(const calib::CalibrationResult& r, const std::string& ser
           {"magnification", r.seidel->magnification},
           {"focal_mm", r.seidel->focal_mm}}},
         {"views", {{{"image", "views/v1.png"}, {"rms_px", r.per_view_rms_px.at(0)}, {"corners", r.corners_used}}}},
-        {"distortion_field", {{"max_displacement_px", 12.3}, {"max_displacement_um", 13.8}, {"field_radius_px", 560}}}}},
-      {"verification",
-       {{"image", "sphere.png"},
-        {"radius_true_mm", 7.8},
-        {"power_true_D", 337.5 / 7.8},
-        {"keratometric_index", 1.3375},
-        {"uncorrected", StageSphere(7.8, 0.004, 0.08)},
-        {"corrected", StageSphere(7.8, 0.0005, 0.0002)},
-        {"uncertainty", Uncertainty(0.002, 0.004)}}},
-      {"paper_cornea",
-       {{"truth", {{"rx_mm", 7.8}, {"ry_mm", 7.63}, {"kx", -0.43}, {"ky", -0.25}, {"alpha_deg", 17.0}}},
-        {"uncorrected",
-         {{"rx_mm", 7.79}, {"ry_mm", 7.62}, {"kx", -0.61}, {"ky", -0.43}, {"alpha_deg", 17.0},
-          {"pv_tangential_D", 6.1}, {"pv_axial_D", 3.2}, {"height_pv_um", 3.5}, {"height_rms_um", 0.8}}},
-        {"corrected",
-         {{"rx_mm", 7.8001}, {"ry_mm", 7.6299}, {"kx", -0.4302}, {"ky", -0.2501}, {"alpha_deg", 17.0},
-          {"pv_tangential_D", 5.6}, {"pv_axial_D", 2.9}, {"height_pv_um", 0.05}, {"height_rms_um", 0.01}}},
-        {"uncertainty", Uncertainty(0.001, 0.003)}}},
+        {"distortion_field",
+         {{"max_displacement_px", 12.3}, {"max_displacement_um", 13.8}, {"field_radius_px", 560}}}}},
+      // The checks as the unit workflow computes them for this calibration (report/record_check.h recomputes them).
+      {"configuration", checks.configuration},
+      {"verification", checks.verification},
+      {"paper_cornea", checks.paper_cornea},
   };
+}
+
+// Hand-picked check numbers for the tests of the decision rule, the budget and the page (report/acceptance.h,
+// html_report.h), which are functions of the numbers alone: round values whose verdicts and budgets can be
+// computed by hand. Such a record no longer matches its own files, so `topocal report` (which recomputes them,
+// report/record_check.h) refuses it; the library functions under test do not recompute.
+inline json StageSphere(double radius_mm, double dr_mm, double dk) {
+  const double r = radius_mm + dr_mm;
+  const double power = 337.5 / r;
+  return {{"spots_indexed", 624},
+          {"rx_mm", r + 1e-4},
+          {"ry_mm", r - 1e-4},
+          {"kx", dk},
+          {"ky", -dk},
+          {"alpha_deg", 0.0},
+          {"radius_mm", r},
+          {"radius_error_mm", dr_mm},
+          {"central_axial_power_D", power},
+          {"power_error_D", power - 337.5 / radius_mm},
+          {"pv_tangential_D", 0.02 + 10 * std::abs(dk)},
+          {"pv_axial_D", 0.01 + 5 * std::abs(dk)}};
+}
+
+inline json Uncertainty(double u_r, double u_k) {
+  return {{"samples", 200},
+          {"seed", 1},
+          {"failed_samples", 0},
+          {"drawn", {"k1"}},
+          {"quantities",
+           {{"rx_mm", {{"mean", 7.8001}, {"U", u_r}}},
+            {"ry_mm", {{"mean", 7.7999}, {"U", u_r}}},
+            {"kx", {{"mean", 0.0002}, {"U", u_k}}},
+            {"ky", {{"mean", -0.0002}, {"U", u_k}}},
+            {"alpha_deg", {{"mean", 0.0}, {"U", 0.5}}},
+            {"pv_tangential_D", {{"mean", 0.03}, {"U", 0.01}}},
+            {"pv_axial_D", {{"mean", 0.02}, {"U", 0.01}}}}}};
+}
+
+inline void UseHandPickedChecks(RecordFixture& f) {
+  f.unit["verification"] = {{"image", "sphere.png"},
+                            {"radius_true_mm", 7.8},
+                            {"power_true_D", 337.5 / 7.8},
+                            {"keratometric_index", 1.3375},
+                            {"uncorrected", StageSphere(7.8, 0.004, 0.08)},
+                            {"corrected", StageSphere(7.8, 0.0005, 0.0002)},
+                            {"uncertainty", Uncertainty(0.002, 0.004)}};
+  f.unit["paper_cornea"] = {
+      {"truth", {{"rx_mm", 7.8}, {"ry_mm", 7.63}, {"kx", -0.43}, {"ky", -0.25}, {"alpha_deg", 17.0}}},
+      {"uncorrected",
+       {{"rx_mm", 7.79},
+        {"ry_mm", 7.62},
+        {"kx", -0.61},
+        {"ky", -0.43},
+        {"alpha_deg", 17.0},
+        {"pv_tangential_D", 6.1},
+        {"pv_axial_D", 3.2},
+        {"height_pv_um", 3.5},
+        {"height_rms_um", 0.8}}},
+      {"corrected",
+       {{"rx_mm", 7.8001},
+        {"ry_mm", 7.6299},
+        {"kx", -0.4302},
+        {"ky", -0.2501},
+        {"alpha_deg", 17.0},
+        {"pv_tangential_D", 5.6},
+        {"pv_axial_D", 2.9},
+        {"height_pv_um", 0.05},
+        {"height_rms_um", 0.01}}},
+      {"uncertainty", Uncertainty(0.001, 0.003)}};
+  f.WriteUnitJson();
 }
 
 // A complete, consistent record whose checks all pass the default limits.
@@ -207,6 +302,7 @@ inline RecordFixture MakeRecord(const std::string& dir) {
   calib::WriteCalibrationFile(f.Path("calibration.yaml"), r, {"data/target-topographer.yaml", {"views/v1.png"},
                                                               kCreatedUtc});
   model::WriteFileAtomic(f.Path("residuals.csv"), ResidualsCsv(r));
+  model::WriteFileAtomic(f.Path("sphere_spots.csv"), model::SpotsCsv(ComputeChecks().sphere_spots));
   fs::create_directories(f.Path("maps"));
   int seed = 0;
   for (const char* name : {"sphere_uncorrected_axial_power", "sphere_corrected_axial_power",
@@ -215,7 +311,7 @@ inline RecordFixture MakeRecord(const std::string& dir) {
   }
   f.unit = RecordBody(r);
   f.unit["format"] = "topocal-unit-record";
-  f.unit["format_version"] = 1;
+  f.unit["format_version"] = kUnitRecordFormatVersion;
   f.unit["tool_version"] = kVersion;
   f.Seal();
   return f;

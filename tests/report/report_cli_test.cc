@@ -152,6 +152,57 @@ TEST(ReportCli, RefusesMalformedLimits) {
   ExpectRefused(c, " --limits " + limits + ".absent", "limits.json.absent: cannot be opened");
 }
 
+// unit.json is not covered by the digests it lists: the report recomputes every number its verdict uses from the
+// record's files (report/record_check.h), so an edited number is refused, not reported.
+TEST(ReportCli, RefusesANumberChangedInUnitJson) {
+  for (const auto& [key_path, value, expected] :
+       {std::tuple{std::vector<std::string>{"calibration", "rms_px"}, 0.01,
+                   "calibration.rms_px: recorded 0.01 px, recomputed"},
+        std::tuple{std::vector<std::string>{"verification", "corrected", "radius_error_mm"}, 0.0,
+                   "verification.corrected.radius_error_mm: recorded 0, recomputed"},
+        std::tuple{std::vector<std::string>{"verification", "uncertainty", "quantities", "radius_mm", "U"}, 1e-6,
+                   "verification.uncertainty.quantities.radius_mm.U: recorded 1e-06, recomputed"},
+        std::tuple{std::vector<std::string>{"paper_cornea", "corrected", "kx"}, -0.5,
+                   "paper_cornea.corrected.kx: recorded -0.5, recomputed"}}) {
+    Case c = MakeCase("edited");
+    nlohmann::json* j = &c.record.unit;
+    for (const auto& k : key_path) j = &(*j)[k];
+    ASSERT_TRUE(j->is_number()) << key_path.back();
+    *j = value;
+    c.record.WriteUnitJson();
+    ExpectRefused(c, "", expected);
+  }
+}
+
+// A record written with `--uncertainty 0` ("uncertainty": null) reports: guarded acceptance cannot decide without U
+// (FAIL, exit 3, the reason on the page), simple acceptance judges the errors alone.
+TEST(ReportCli, ReportsARecordWithoutUncertainty) {
+  Case c = MakeCase("nou");
+  c.record.unit["settings"]["uncertainty_samples"] = 0;
+  c.record.unit["verification"]["uncertainty"] = nullptr;
+  c.record.unit["paper_cornea"]["uncertainty"] = nullptr;
+  c.record.WriteUnitJson();
+  const auto guarded = RunTopocal("report --unit " + c.record.dir + " --out " + c.out);
+  EXPECT_EQ(guarded.exit_code, 3) << guarded.output;
+  EXPECT_NE(guarded.output.find("for unit SN-TEST-0001: FAIL"), std::string::npos) << guarded.output;
+  EXPECT_NE(model::ReadFile(c.out).find("no U in the record: guarded acceptance cannot decide"), std::string::npos);
+  const std::string simple = fs::path(c.out).parent_path() / "simple.json";
+  std::string limits = model::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json");
+  const std::string rule = "\"decision_rule\": \"guarded\"";
+  ASSERT_NE(limits.find(rule), std::string::npos);
+  limits.replace(limits.find(rule), rule.size(), "\"decision_rule\": \"simple\"");
+  model::WriteFileAtomic(simple, limits);
+  const auto run = RunTopocal("report --unit " + c.record.dir + " --out " + c.out + " --limits " + simple);
+  EXPECT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("for unit SN-TEST-0001: PASS"), std::string::npos) << run.output;
+  // The recomputation still holds the record to its numbers: without draws there is nothing to compare U with,
+  // but the errors are recomputed.
+  c.record.unit["paper_cornea"]["corrected"]["ky"] = -0.2;
+  c.record.WriteUnitJson();
+  fs::remove(c.out);
+  ExpectRefused(c, "", "paper_cornea.corrected.ky: recorded -0.2, recomputed");
+}
+
 TEST(ReportCli, RefusesAMissingOption) {
   const auto run = RunTopocal("report --out x.html");
   EXPECT_EQ(run.exit_code, 2) << run.output;

@@ -35,16 +35,21 @@ TEST(UnitRecordReader, ReadsACompleteRecord) {
   EXPECT_EQ(r.serial, "SN-TEST-0001");
   EXPECT_EQ(r.created_utc, testing::kCreatedUtc);
   EXPECT_EQ(r.inputs.size(), 5u);
-  EXPECT_EQ(r.files.size(), 6u);  // calibration.yaml, 4 maps, residuals.csv
+  EXPECT_EQ(r.files.size(), 7u);  // calibration.yaml, 4 maps, residuals.csv, sphere_spots.csv
   EXPECT_EQ(r.residuals.size(), f.calibration.residuals.size());
   EXPECT_EQ(r.map_png.size(), 4u);
   EXPECT_TRUE(r.map_png.count("sphere_corrected_axial_power.png"));
   EXPECT_EQ(r.calibration.camera.width_px, testing::kWidthPx);
   EXPECT_EQ(r.calibration.model, "seidel");
   ASSERT_TRUE(r.verification.has_value());
-  EXPECT_DOUBLE_EQ(r.verification->corrected.at("radius_error_mm"), 0.0005);
+  EXPECT_EQ(r.verification->corrected.at("radius_error_mm"),
+            f.unit["verification"]["corrected"]["radius_error_mm"].get<double>());
+  EXPECT_EQ(r.verification->detected.size(), static_cast<std::size_t>(testing::ComputeChecks().sphere_spots.size()));
   ASSERT_TRUE(r.paper.uncertainty.has_value());
-  EXPECT_DOUBLE_EQ(r.paper.uncertainty->quantities.at("kx").U, 0.003);
+  EXPECT_EQ(r.paper.uncertainty->quantities.at("kx").U,
+            f.unit["paper_cornea"]["uncertainty"]["quantities"]["kx"]["U"].get<double>());
+  ASSERT_TRUE(r.config && r.topographer_camera);
+  EXPECT_EQ(r.topographer_camera->width_px, testing::kWidthPx);
   EXPECT_EQ(r.unit_json_sha256, model::Sha256HexOfFile(f.Path("unit.json")));
 }
 
@@ -73,8 +78,10 @@ TEST(UnitRecordReader, RefusesHostileNumbersAndDuplicateKeys) {
     model::WriteFileAtomic(f.Path("unit.json"), text);
     return ReadError(f.dir);
   };
-  EXPECT_NE(write_with("\"format_version\": 1", "\"format_version\": 4294967297").find("unit.json: format_version: out of range"),
-            std::string::npos);
+  EXPECT_NE(
+      write_with(fmt::format("\"format_version\": {}", kUnitRecordFormatVersion), "\"format_version\": 4294967297")
+          .find("unit.json: format_version: out of range"),
+      std::string::npos);
   EXPECT_NE(write_with("\"rms_px\": ", "\"rms_px\": 1e999, \"x\": ").find("unit.json: calibration.rms_px: a number beyond"),
             std::string::npos);
   EXPECT_NE(write_with("\"outliers\": ", "\"outliers\": 1, \"outliers\": ").find("calibration.outliers: given twice"),
@@ -138,9 +145,11 @@ TEST(UnitRecordReader, RefusesAnotherToolVersion) {
 
 TEST(UnitRecordReader, RefusesAnotherFormatOrFormatVersion) {
   auto f = MakeRecord(FreshDir("format"));
-  f.unit["format_version"] = 2;
+  f.unit["format_version"] = kUnitRecordFormatVersion + 1;
   f.WriteUnitJson();
-  EXPECT_NE(ReadError(f.dir).find("unit.json: format_version: 2 is not supported"), std::string::npos);
+  EXPECT_NE(ReadError(f.dir).find(
+                fmt::format("unit.json: format_version: {} is not supported", kUnitRecordFormatVersion + 1)),
+            std::string::npos);
   f.unit["format"] = "something-else";
   f.WriteUnitJson();
   EXPECT_NE(ReadError(f.dir).find("unit.json: format: 'something-else'"), std::string::npos);

@@ -3,17 +3,17 @@
 // report::ReadUnitRecord reads it back, and every field the reader returns equals the value the workflow computed.
 // Writer and reader spell the record's keys separately (report/unit_record_writer.cc, unit_record_reader.cc): a key
 // renamed, dropped or rescaled on one side fails here, where the report tests' hand-built records cannot see it.
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
 #include <algorithm>
-#include <map>
 #include <filesystem>
+#include <map>
+#include <opencv2/imgcodecs.hpp>
 #include <set>
 #include <string>
 #include <tuple>
 #include <vector>
-
-#include <fmt/format.h>
-#include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include "calib/calibration_file.h"
 #include "model/device.h"
@@ -21,6 +21,7 @@
 #include "model/version.h"
 #include "pipeline/device_calibration.h"
 #include "pipeline/unit_workflow.h"
+#include "report/record_check.h"
 #include "report/unit_record_reader.h"
 #include "report/unit_record_writer.h"
 #include "tests/cli_harness.h"
@@ -210,6 +211,16 @@ TEST(UnitRecordRoundTrip, EveryFieldTheWorkflowComputedIsReadBackUnchanged) {
   }
   ExpectUncertainty(v.uncertainty, s.uncertainty, u.check);
   EXPECT_FALSE(v.repeatability);  // one sphere image: the workflow writes none
+  // sphere_spots.csv: the spots the check used, to the last bit (the report recomputes the check from them).
+  ASSERT_EQ(v.detected.size(), s.detected.size());
+  ASSERT_FALSE(s.detected.empty());
+  for (std::size_t i = 0; i < s.detected.size(); ++i) {
+    EXPECT_EQ(v.detected[i].id, s.detected[i].id) << i;
+    EXPECT_EQ(v.detected[i].x_mm, s.detected[i].distorted_mm.x()) << i;
+    EXPECT_EQ(v.detected[i].y_mm, s.detected[i].distorted_mm.y()) << i;
+  }
+  EXPECT_EQ(v.spots_unassigned, s.spots_unassigned);
+  EXPECT_EQ(v.spots_missing, s.spots_missing);
 
   // Paper cornea.
   const auto& t = u.paper.truth;
@@ -231,6 +242,11 @@ TEST(UnitRecordRoundTrip, EveryFieldTheWorkflowComputedIsReadBackUnchanged) {
   ExpectThreeWay(rec.device->held_out, d.held_out->stages, "device.held_out_ball");
   EXPECT_EQ(rec.device->held_out_radius_true_mm, d.held_out->radius_true_mm);
   EXPECT_EQ(rec.device->held_out_power_true_D, d.held_out->power_true_D);
+
+  // The report's recomputation of the checks from the record's files agrees with what the workflow wrote, on one
+  // thread and on two (the draws are seeded per draw).
+  EXPECT_NO_THROW(RecomputeRecordNumbers(rec, {1}));
+  EXPECT_NO_THROW(RecomputeRecordNumbers(rec, {2}));
 
   // calibration.yaml: the calibrated camera (OpenCV writes 17 significant digits).
   const auto& cam = rec.calibration.camera;
