@@ -54,6 +54,30 @@ void BM_DetectCheckerboard(benchmark::State& state) {
 // 0 = saddle fit, 1 = cv::cornerSubPix, 2 = none (OpenCV's board detector alone).
 BENCHMARK(BM_DetectCheckerboard)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
+// A frame without a board (sensor noise, 640 x 480): topocal's whole search (OpenCV's classic detector behind its
+// quick test, then SB) against OpenCV's classic detector without the quick test, as topocal called it before issue 16.
+cv::Mat NoiseFrame() {
+  cv::Mat noise(480, 640, CV_8UC1);
+  cv::setRNGSeed(16);
+  cv::randu(noise, 0, 255);
+  return noise;
+}
+void BM_DetectOnNoise(benchmark::State& state) {
+  const auto target = Board();
+  const cv::Mat noise = NoiseFrame();
+  for (auto _ : state) benchmark::DoNotOptimize(DetectTarget(target, noise));
+}
+BENCHMARK(BM_DetectOnNoise)->Unit(benchmark::kMillisecond);
+void BM_DetectOnNoiseOpenCvClassic(benchmark::State& state) {
+  const cv::Mat noise = NoiseFrame();
+  std::vector<cv::Point2f> corners;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(cv::findChessboardCorners(noise, cv::Size(9, 6), corners,
+                                                       cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE));
+  }
+}
+BENCHMARK(BM_DetectOnNoiseOpenCvClassic)->Unit(benchmark::kMillisecond)->Iterations(1);
+
 void BM_DetectAprilGrid(benchmark::State& state) {
   const auto target = Grid();
   const auto view = RenderTarget(target, Camera(), PoseFacingTarget(target, 550.0, 30.0, 0.0, -3.0), RenderOptions{});
