@@ -122,6 +122,35 @@ std::string FileStorageIntegerOutOfRange(const std::string& text) {
   return "";
 }
 
+std::string FileStorageUnquotedNonAscii(const std::string& text) {
+  char quote = 0;
+  bool comment = false;
+  int line = 1;
+  for (size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '\n') {
+      ++line;
+      comment = false;
+      quote = 0;  // OpenCV's YAML strings do not span lines
+      continue;
+    }
+    if (comment) continue;
+    if (quote) {
+      if (c == '\\' && quote == '"') ++i;
+      else if (c == quote) quote = 0;
+      continue;
+    }
+    if (c == '"' || c == '\'') {
+      quote = c;
+    } else if (c == '#' && (i == 0 || text[i - 1] == ' ' || text[i - 1] == '\t' || text[i - 1] == '\n')) {
+      comment = true;
+    } else if (static_cast<unsigned char>(c) >= 0x80) {
+      return fmt::format("line {}", line);
+    }
+  }
+  return "";
+}
+
 cv::FileStorage OpenFileStorage(const std::string& text, const std::string& origin) {
   if (text.size() > kMaxFileStorageBytes) {
     throw model::InputError(fmt::format("{}: {} bytes: larger than the {} MiB a calibration or target file may have",
@@ -145,6 +174,11 @@ cv::FileStorage OpenFileStorage(const std::string& text, const std::string& orig
     format = cv::FileStorage::FORMAT_JSON;
   } else {
     format = cv::FileStorage::FORMAT_YAML;
+    if (const std::string at = FileStorageUnquotedNonAscii(text); !at.empty()) {
+      throw model::InputError(fmt::format("{}: {}: a non-ASCII byte outside a quoted string or comment (keys and "
+                                          "plain values are ASCII; quote the value)",
+                                          origin, at));
+    }
     if (text.compare(first, 5, "%YAML") != 0) body = "%YAML:1.0\n---\n" + text;
   }
   cv::FileStorage fs;

@@ -23,6 +23,12 @@ int FileStorageNestingBound(const std::string& text);
 // reads integers with (int)strtol, so targetCols: 4294967298 silently became 2.
 std::string FileStorageIntegerOutOfRange(const std::string& text);
 
+// The first byte >= 0x80 outside a quoted string or a '#' comment ("line N"), or "" if none. OpenCV 4.6's YAML
+// parser loops forever on some such bytes where a key should start (the libFuzzer reproducer in
+// fuzz/crashes/calibration_yaml/hang-non-ascii-key.yaml); OpenCV itself quotes every string that is not ASCII, and
+// keys are ASCII, so a YAML text with one is refused before the parser sees it.
+std::string FileStorageUnquotedNonAscii(const std::string& text);
+
 // Opens `text` (YAML, with or without the "%YAML:1.0" header Kalibr's files lack; XML; JSON) from memory.
 // Throws model::InputError "ORIGIN: problem" when it is too large, nested too deep or not parseable.
 cv::FileStorage OpenFileStorage(const std::string& text, const std::string& origin);

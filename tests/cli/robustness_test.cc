@@ -146,6 +146,19 @@ TEST_F(Robustness, DeeplyNestedYamlDoesNotCrashOpenCv) {
                  "deep.xml: nested deeper than 64 levels");
 }
 
+// libFuzzer (issue 16): OpenCV 4.6's YAML parser loops forever on a non-ASCII byte where a key should start. Such a
+// byte outside a quoted string or comment is refused before the parser sees it; quoted and in comments it is fine.
+TEST_F(Robustness, ANonAsciiKeyNeverReachesOpenCvsYamlParser) {
+  Write("hang.yaml", "%YAML:1.0\n s: 5\n\xd2 -\nx");
+  ExpectBadInput(RunTopocal("undistort --calibration " + Path("hang.yaml") + " --spots " + Path("none.csv") +
+                            " --out " + Path("o.csv")),
+                 "hang.yaml: line 3: a non-ASCII byte outside a quoted string or comment");
+  Write("quoted.yaml", "# r\xc3\xa9glage\ntarget_type: \"checkerboard\"\ntargetCols: 4\ntargetRows: 3\n"
+                       "rowSpacingMeters: 0.01\ncolSpacingMeters: 0.01\nnote: \"caf\xc3\xa9\"\n");
+  const auto quoted = RunTopocal("target --target " + Path("quoted.yaml") + " --out " + Path("t.svg"));
+  EXPECT_EQ(quoted.output.find("non-ASCII"), std::string::npos) << quoted.output;
+}
+
 TEST_F(Robustness, ATwoRowCameraMatrixIsBadInput) {
   // Data for 3 x 3 under rows: 2 — an OpenCV assertion, exit 1 with OpenCV's text before issue 16.
   const std::string cal =
