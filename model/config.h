@@ -5,7 +5,7 @@
 //
 // Frame: cornea vertex at the origin, sag towards +z, pinhole at z = -b, detection plane at z = -a-b, cone vertex
 // at z = cone_vertex_z_mm (negative: behind the pinhole), the cornea rotated by +alpha about z
-// (x_r = x cos a + y sin a, y_r = -x sin a + y cos a; see docs/conventions.md).
+// (x_r = x cos a + y sin a, y_r = -x sin a + y cos a; see docs/paper-decisions.md, item 5).
 #include <optional>
 #include <stdexcept>
 #include <string>

@@ -7,7 +7,7 @@
 //  * kExact (default): from the surface's own gradient and Hessian, F' = grad S . e, F'' = e^T H e with
 //    e = (cos theta, sin theta). For Psi (degree 9) the two agree to ~1e-3 D, since Psi along a meridian is itself a
 //    polynomial of degree 9; for a sphere or biconic the order-8 fit leaves +-0.1 D of model error over 5.3 mm
-//    (docs/power-maps.md), which is why exact derivatives are the default;
+//    (docs/equations.md, Eq. 23; tests/topo/power_map_test.cc), which is why exact derivatives are the default;
 //
 //   K_a = F' / (rho (1 + F'^2)^(1/2)),   K_m = F'' / (1 + F'^2)^(3/2)          (Eq. 24, 1/mm)
 //   P = (n_c - n') K * 1000                                                     (Eq. 25, diopters)

@@ -70,7 +70,7 @@ TEST(PowerMaps, Equation23PolynomialAgreesWithExactDerivativesOnPsi) {
 }
 
 TEST(PowerMaps, PolynomialFitOfASphereShowsItsModelError) {
-  // Documented in docs/power-maps.md: the order-8 meridian polynomial cannot hold a sphere over 5.3 mm; the error
+  // Documented in docs/equations.md (Eq. 23): the order-8 meridian polynomial cannot hold a sphere over 5.3 mm; the error
   // is real and visible, which is why exact derivatives are the default.
   const model::Sphere sphere{7.8, 0.0};
   PowerMapOptions o;
