@@ -8,7 +8,11 @@
 
 #include <array>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <string>
+
+#include <gtest/gtest.h>
 
 namespace topocal::testing_cli {
 
@@ -44,5 +48,29 @@ inline int WaitTopocal(pid_t pid) {
   if (waitpid(pid, &status, 0) != pid) return -1;
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
+
+// A test with an empty directory of its own (under the system temp dir, named by the process and the test), removed
+// afterwards: the fixture every command-line test starts from. Derived fixtures that override SetUp call
+// TempDirTest::SetUp() first.
+class TempDirTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = std::filesystem::temp_directory_path() /
+           ("topocal_" + std::string(info->test_suite_name()) + "_" + std::to_string(::getpid()) + "_" + info->name());
+    std::filesystem::remove_all(dir_);
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override {
+    if (!dir_.empty()) std::filesystem::remove_all(dir_);
+  }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  void Write(const std::string& name, const std::string& text) const { std::ofstream(Path(name)) << text; }
+
+  std::filesystem::path dir_;
+#ifdef TOPOCAL_SOURCE_DIR
+  const std::string paper_ = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
+#endif
+};
 
 }  // namespace topocal::testing_cli

@@ -27,32 +27,24 @@ using topocal::testing_cli::RunTopocal;
 
 int CountLines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
 
-class CalibrateCli : public ::testing::Test {
+class CalibrateCli : public topocal::testing_cli::TempDirTest {
  protected:
   void SetUp() override {
+    TempDirTest::SetUp();
     // The real photographs are part of the test set (scripts/setup.sh test installs opencv-doc): missing, they fail.
     if (!fs::exists(kDataDir + "left01.jpg"))
       FAIL() << "opencv-doc's left*.jpg are not installed (apt-get install opencv-doc)";
-    dir_ = fs::temp_directory_path() / ("topocal_calcli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
     // OpenCV's board: 9 x 6 inner corners; the square size is not known, 25 mm is as good as any.
     Write("board.yaml",
           "target_type: checkerboard\ntargetCols: 9\ntargetRows: 6\nrowSpacingMeters: 0.025\ncolSpacingMeters: "
           "0.025\n");
   }
-  void TearDown() override {
-    if (!dir_.empty()) fs::remove_all(dir_);
-  }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-  void Write(const std::string& name, const std::string& text) const { std::ofstream(Path(name)) << text; }
   void CopyImages(const std::vector<int>& numbers) const {
     for (int i : numbers) {
       const std::string name = (i < 10 ? "left0" : "left") + std::to_string(i) + ".jpg";
       fs::copy_file(kDataDir + name, Path(name));
     }
   }
-  fs::path dir_;
 };
 
 TEST_F(CalibrateCli, RealPhotographsWriteAnOpenCvFileAndAJsonReport) {

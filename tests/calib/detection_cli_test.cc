@@ -21,20 +21,14 @@ namespace fs = std::filesystem;
 using topocal::testing_cli::Run;
 using topocal::testing_cli::RunTopocal;
 
-class DetectionCli : public ::testing::Test {
+class DetectionCli : public topocal::testing_cli::TempDirTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("topocal_detcli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
+    TempDirTest::SetUp();
     Write("board.yaml",
           "target_type: checkerboard\ntargetCols: 9\ntargetRows: 6\nrowSpacingMeters: 0.02\ncolSpacingMeters: 0.02\n");
     Write("grid.yaml", "target_type: aprilgrid\ntagCols: 4\ntagRows: 3\ntagSize: 0.03\ntagSpacing: 0.3\n");
   }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-  void Write(const std::string& name, const std::string& text) const { std::ofstream(Path(name)) << text; }
-  fs::path dir_;
 };
 
 TEST_F(DetectionCli, TargetWritesSvgAndPng) {

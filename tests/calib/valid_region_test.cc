@@ -65,17 +65,7 @@ TEST(ValidRegion, DistortionCentreMovesTheNearestFold) {
   EXPECT_NEAR(ValidRegionOf(c).radius_px, ClosedFormFoldPx(-0.5, 1000) - 50.0, kRadiusTolerancePx);
 }
 
-class ValidRegionFile : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("topocal_valid_region_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-  fs::path dir_;
-};
+class ValidRegionFile : public topocal::testing_cli::TempDirTest {};
 
 TEST_F(ValidRegionFile, StoredOnWriteAndComputedForOlderFiles) {
   const auto camera = Radial(1600, 1200, -0.5);

@@ -15,19 +15,7 @@ namespace fs = std::filesystem;
 using topocal::testing_cli::Run;
 using topocal::testing_cli::RunTopocal;
 
-class Cli : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("topocal_cli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-  void Write(const std::string& name, const std::string& text) const { std::ofstream(Path(name)) << text; }
-  fs::path dir_;
-  const std::string paper_ = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
-};
+class Cli : public topocal::testing_cli::TempDirTest {};
 
 TEST_F(Cli, DesignWritesTargetPoints) {
   const auto r = RunTopocal("design --config " + paper_ + " --out " + Path("t.csv"));

@@ -79,18 +79,7 @@ int Count(const std::string& text, const std::string& what) {
   return n;
 }
 
-class DesignSvg : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("topocal_svg_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-  fs::path dir_;
-  const std::string paper_ = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
-};
+class DesignSvg : public topocal::testing_cli::TempDirTest {};
 
 TEST_F(DesignSvg, WritesAWellFormedOneToOneSheetWithEverySpot) {
   const auto r = RunTopocal("design --config " + paper_ + " --out " + Path("t.csv") + " --svg " + Path("ns.svg"));

@@ -28,20 +28,16 @@ nlohmann::json UnitDevice(double radial_scale = 1.0) {
   return d;
 }
 
-class DeviceCli : public ::testing::Test {
+class DeviceCli : public topocal::testing_cli::TempDirTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("topocal_device_cli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
+    TempDirTest::SetUp();
     nominal_ = Path("nominal.json");
     std::ofstream(nominal_) << nlohmann::json::parse(R"({
       "format": "topocal-device", "format_version": 1,
       "camera": {"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120, "principal_point_px": [559.5, 559.5],
                  "a_mm": 5.2}})").dump(2);
   }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
 
   // Writes the device and renders three balls (6.5, 7.8, 9.0 mm) placed by hand through it. The first, the datum,
   // sits at the working position (vertex z = 0: where the eye will be), laterally off like the others.
@@ -69,9 +65,7 @@ class DeviceCli : public ::testing::Test {
     return out;
   }
 
-  fs::path dir_;
   std::string nominal_;
-  const std::string paper_ = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
 };
 
 // What the three balls recover of the demo unit (truth: rx 0.6, ry -0.4 deg, principal point (567.9, 552.3) px,

@@ -20,16 +20,8 @@ using topocal::testing_cli::RunTopocal;
 
 const char* kOutputs[] = {"cases.csv", "summary.json", "table.md", "dk_vs_residual.svg", "dP_vs_residual.svg"};
 
-class HarnessCli : public ::testing::Test {
+class HarnessCli : public topocal::testing_cli::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("topocal_harness_cli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
   static std::string Read(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     std::ostringstream ss;
@@ -50,7 +42,6 @@ class HarnessCli : public ::testing::Test {
     std::ofstream(Path(name)) << text;
     return Path(name);
   }
-  fs::path dir_;
 };
 
 TEST_F(HarnessCli, SingleRunWritesEveryOutputAndPrintsTheAnswer) {

@@ -23,16 +23,8 @@ using topocal::testing_cli::RunTopocal;
 using topocal::testing_cli::SpawnTopocal;
 using topocal::testing_cli::WaitTopocal;
 
-class Outputs : public ::testing::Test {
+class Outputs : public topocal::testing_cli::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("topocal_outputs_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
   std::string Design(const std::string& out) const { return "design --config " + paper_ + " --out " + out; }
   // Every entry of the test directory whose name says it is staging (".NAME.tmp-", ".staging-", ".tmp-").
   std::vector<std::string> Leftovers() const {
@@ -43,8 +35,6 @@ class Outputs : public ::testing::Test {
     }
     return found;
   }
-  fs::path dir_;
-  const std::string paper_ = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
 };
 
 TEST_F(Outputs, ASymlinkIsWrittenThroughAndStaysALink) {

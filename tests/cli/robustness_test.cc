@@ -17,17 +17,8 @@ namespace fs = std::filesystem;
 using topocal::testing_cli::Run;
 using topocal::testing_cli::RunTopocal;
 
-class Robustness : public ::testing::Test {
+class Robustness : public topocal::testing_cli::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("topocal_robust_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-  void Write(const std::string& name, const std::string& text) const { std::ofstream(Path(name)) << text; }
   // The paper's configuration with `from` replaced by `to`, written to `name`.
   std::string PaperWith(const std::string& name, const std::string& from, const std::string& to) const {
     std::ifstream in(paper_);
@@ -37,8 +28,6 @@ class Robustness : public ::testing::Test {
     Write(name, text.replace(at, from.size(), to));
     return Path(name);
   }
-  fs::path dir_;
-  const std::string paper_ = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
 };
 
 // One line on stderr (plus nothing else), short, exit 2.

@@ -36,16 +36,12 @@ constexpr double kCorrectionGain = 5.0;
 // Few draws keep the test fast; the uncertainty's size is tested in tests/pipeline/uncertainty_test.cc.
 constexpr int kDraws = 8;
 
-class UnitCli : public ::testing::Test {
+class UnitCli : public topocal::testing_cli::TempDirTest {
  protected:
   void SetUp() override {
+    TempDirTest::SetUp();
     in_ = UnitInputsDir();
-    dir_ = fs::temp_directory_path() / fmt::format("topocal_unit_{}_{}", ::getpid(),
-                                                   ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
   }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string Calibrate(const std::string& serial, const std::string& out, const std::string& extra = "") const {
     return fmt::format(
         "unit calibrate --serial {0} --target {1}/target.yaml --images {1}/view.png --reference-sphere {1}/sphere.png "
@@ -60,7 +56,6 @@ class UnitCli : public ::testing::Test {
     return names;
   }
   std::string in_;
-  fs::path dir_;
 };
 
 TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {

@@ -32,12 +32,10 @@ constexpr double kMatchPx = 1.0;
 using topocal::testing_cli::Run;
 using topocal::testing_cli::RunTopocal;
 
-class CorrectCli : public ::testing::Test {
+class CorrectCli : public topocal::testing_cli::TempDirTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("topocal_correct_cli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
+    TempDirTest::SetUp();
     // A 1000 x 1000 crop of the default camera: the whole pattern, a fraction of the rendering time.
     auto cam = testing::DefaultCamera();
     cam.width_px = 1000;
@@ -46,9 +44,6 @@ class CorrectCli : public ::testing::Test {
     camera_ = cam;
     Write("cam.json", model::TopographerCameraToJson(cam));
   }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-  void Write(const std::string& name, const std::string& text) const { std::ofstream(Path(name)) << text; }
   // A plain OpenCV calibration file for the crop camera.
   void WriteCalibration(const std::string& name, const OpenCvCamera& k, int width, int height) const {
     cv::FileStorage fs(Path(name), cv::FileStorage::WRITE);
@@ -61,9 +56,7 @@ class CorrectCli : public ::testing::Test {
     return {f, f, camera_.principal_point_px.x() + 4.0, camera_.principal_point_px.y() - 3.0,
             {-0.15, 0.3, 6e-4, -4e-4, 0.0}};
   }
-  fs::path dir_;
   model::TopographerCamera camera_;
-  const std::string paper_ = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
 };
 
 TEST_F(CorrectCli, RenderSpotsWritesAnImageThatDetectsBackToItsTruth) {

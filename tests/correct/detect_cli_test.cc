@@ -20,12 +20,10 @@ using topocal::testing_cli::RunTopocal;
 
 constexpr double kMatchPx = 1.0;  // far above the centre error, far below the spot spacing
 
-class DetectCli : public ::testing::Test {
+class DetectCli : public topocal::testing_cli::TempDirTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("topocal_detect_cli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
+    TempDirTest::SetUp();
     auto cam = testing::DefaultCamera();
     cam.width_px = 1000;
     cam.height_px = 1000;
@@ -37,10 +35,6 @@ class DetectCli : public ::testing::Test {
     cfg.ideal_image.orientation_key = true;
     Write("keyed.json", model::ConfigToJson(cfg));
   }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-  void Write(const std::string& name, const std::string& text) const { std::ofstream(Path(name)) << text; }
-  fs::path dir_;
 };
 
 struct Row {
