@@ -107,20 +107,21 @@ int main(int argc, char** argv) {
     const double noise_mm = noise_px * pitch_um * 1e-3;
     fmt::print("config {}, {} surface, Taylor degree {}, {} spots designed, noise {} px ({:.3g} um)\n", config_path,
                config.reconstruction.surface_model, config.reconstruction.taylor_degree, config.ideal_image.SpotCount(), noise_px, noise_mm * 1e3);
-    fmt::print("{:<28} {:>5} {:>6} {:>7} {:>7} {:>7} {:>7} {:>8} {:>7} {:>6} {:>15} {:>7} {:>7} {:>7}\n", "cornea",
+    fmt::print("{:<28} {:>5} {:>6} {:>7} {:>7} {:>7} {:>7} {:>8} {:>7} {:>6} {:>15} {:>7} {:>7} {:>7} {:>6} {:>6}\n", "cornea",
                "spots", "R/mm", "axRMS", "axMax", "tgRMS", "tgMax", "hRMS/um", "dKmax", "dLoc", "cone um t>r",
-               "dSteep", "dFlat", "adeq");
+               "dSteep", "dFlat", "adeq", "corr", "struct");
     for (const auto& c : model::FreeformTestSet()) {
       if (!only.empty() && c.name != only) continue;
       try {
         const auto m = topo::MeasureSimulatedCornea(c.surface, config, noise_mm, seed);
         const auto& e = m.comparison;
         fmt::print("{:<28} {:>5} {:>6.2f} {:>7.3f} {:>7.3f} {:>7.3f} {:>7.3f} {:>8.4f} {:>7.3f} {:>6.3f} {:>7.2f}>{:<7.2f} "
-                   "{:>7.3f} {:>7.3f} {:>7.2f}\n",
+                   "{:>7.3f} {:>7.3f} {:>7.2f} {:>6.2f} {:>6.2f}\n",
                    c.name, m.spots, e.radius_mm, e.axial_rms_D, e.axial_max_D, e.tangential_rms_D, e.tangential_max_D,
                    e.height_rms_um, e.kmax_error_D, e.kmax_location_error_mm, e.cone_height_true_um,
                    e.cone_height_recovered_um, e.steep_k_error_D, e.flat_k_error_D,
-                   m.analysis.reconstruction.adequacy_ratio);
+                   m.analysis.reconstruction.adequacy_ratio, m.analysis.reconstruction.residual_neighbour_correlation,
+                   m.analysis.reconstruction.structured_residual_ratio);
       } catch (const std::runtime_error& ex) {
         fmt::print("{:<28} failed: {}\n", c.name, ex.what());
       }

@@ -3,12 +3,14 @@
 #include <cmath>
 #include <filesystem>
 #include <optional>
+#include <utility>
 
 #include <fmt/format.h>
 
 #include "model/io.h"
 #include "model/surface.h"
 #include "topo/map_image.h"
+#include "topo/sphere_fit.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -43,19 +45,32 @@ topo::GridMap CartesianGrid(double radius_mm, const std::string& title, const st
 }
 
 // The best-fit sphere under the elevation map's title: its radius, and its centre when it is off the axis.
-std::string BestFitSphereLine(const topo::SphereFitResult& fit) {
+std::string BestFitSphereLine(double radius_mm, const Eigen::Vector3d& centre_mm) {
   constexpr double kOnAxisMm = 0.0005;  // below the printed precision
-  if (std::hypot(fit.centre_x_mm, fit.centre_y_mm) < kOnAxisMm) {
-    return fmt::format("best-fit sphere R = {:.3f} mm", fit.radius_mm);
+  if (std::hypot(centre_mm.x(), centre_mm.y()) < kOnAxisMm) {
+    return fmt::format("best-fit sphere R = {:.3f} mm", radius_mm);
   }
-  return fmt::format("best-fit sphere R = {:.3f} mm, centre ({:+.3f}, {:+.3f}) mm", fit.radius_mm, fit.centre_x_mm,
-                     fit.centre_y_mm);
+  return fmt::format("best-fit sphere R = {:.3f} mm, centre ({:+.3f}, {:+.3f}) mm", radius_mm, centre_mm.x(),
+                     centre_mm.y());
+}
+
+// What the overlays of a map are, in words, for its legend (topo/map_image.h draws them).
+std::string SupportLegend(double supported_radius_mm) {
+  return fmt::format("dashed circle: data in every direction to {:.2f} mm; hatched beyond: extrapolated",
+                     supported_radius_mm);
 }
 
 struct PendingMap {
+  PendingMap(std::string file_in, topo::GridMap grid_in, std::vector<std::string> annotations_in = {})
+      : file(std::move(file_in)), grid(std::move(grid_in)), annotations(std::move(annotations_in)) {}
   std::string file;  // without extension
   topo::GridMap grid;
   std::vector<std::string> annotations;
+  // Clinical overlays (topo::MapImageOptions): markers, sim-K axes, supported circle, legend.
+  std::vector<topo::MapMarker> markers;
+  std::vector<topo::MapAxis> axes;
+  double supported_radius_mm = 0;
+  std::vector<std::string> legend;
 };
 
 void WriteKind(const std::vector<PendingMap>& maps, const topo::MapScaleRequest& request, const MapSetOptions& o,
@@ -70,6 +85,10 @@ void WriteKind(const std::vector<PendingMap>& maps, const topo::MapScaleRequest&
     mo.size_px = o.size_px;
     topo::ApplyMapScale(scale, &mo);
     mo.annotations = m.annotations;
+    mo.markers = m.markers;
+    mo.axes = m.axes;
+    mo.supported_radius_mm = m.supported_radius_mm;
+    mo.legend = m.legend;
     mo.eye = o.eye;
     if (rings) mo.ring_radii_mm = o.power_ring_radii_mm;
     topo::WriteMapPng(m.file + ".png", m.grid, mo);
@@ -96,29 +115,88 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
                                   c.steep_axis_deg, c.flat_k_D, c.flat_axis_deg, c.CylinderD()));
       notes.push_back(fmt::format("Kmax {:.2f} D at ({:+.2f}, {:+.2f}) mm", c.kmax_D, c.kmax_at_mm.x(), c.kmax_at_mm.y()));
     }
-    axial.push_back({base + "axial_power", PowerGrid(pm, pm.axial_D, fmt::format("Axial power{}", e.label)), notes});
-    tangential.push_back({base + "tangential_power",
-                          PowerGrid(pm, pm.tangential_D, fmt::format("Tangential power{}", e.label)), notes});
+    // Overlays from the clinical indices (issue 18, item 6): the sim-K axes across the supported disc on both
+    // power maps, Kmax (an axial quantity) on the axial map, the elevation peak on the elevation map, and on every
+    // map the supported circle with the extrapolated area hatched.
+    const double supported = a.supported_radius_mm;
+    std::vector<topo::MapAxis> sim_k_axes;
+    std::string axes_legend;
+    if (a.clinical_ok) {
+      const auto& c = a.clinical;
+      sim_k_axes = {{c.steep_axis_deg, supported, false}, {c.flat_axis_deg, supported, true}};
+      axes_legend = fmt::format("solid line: steep sim-K axis {:.0f}\u00b0 ({:.2f} D); dashed: flat {:.0f}\u00b0 ({:.2f} D)",
+                                c.steep_axis_deg, c.steep_k_D, c.flat_axis_deg, c.flat_k_D);
+    }
+    PendingMap axial_map{base + "axial_power", PowerGrid(pm, pm.axial_D, fmt::format("Axial power{}", e.label)), notes};
+    PendingMap tangential_map{base + "tangential_power",
+                              PowerGrid(pm, pm.tangential_D, fmt::format("Tangential power{}", e.label)), notes};
+    for (PendingMap* m : {&axial_map, &tangential_map}) {
+      m->axes = sim_k_axes;
+      m->supported_radius_mm = supported;
+      if (!axes_legend.empty()) m->legend.push_back(axes_legend);
+      m->legend.push_back(SupportLegend(supported));
+    }
+    if (a.clinical_ok) {
+      const auto& c = a.clinical;
+      axial_map.markers.push_back({c.kmax_at_mm.x(), c.kmax_at_mm.y()});
+      axial_map.legend.insert(axial_map.legend.begin(),
+                              fmt::format("magenta dot: Kmax {:.2f} D at ({:+.2f}, {:+.2f}) mm", c.kmax_D,
+                                          c.kmax_at_mm.x(), c.kmax_at_mm.y()));
+    }
+    axial.push_back(std::move(axial_map));
+    tangential.push_back(std::move(tangential_map));
     const double r = a.covered_radius_mm;
     // The recovered surface: Psi plus the spline residual in spline mode (topo/reconstruction.h).
     const auto& rec = a.reconstruction;
     const topo::GridMap sag = CartesianGrid(r, "", "\u00b5m", [&](double x, double y) { return rec.Height(x, y) * 1e3; });
-    topo::SphereFitResult fit;
-    if (auto elev = topo::ElevationAboveBestFitSphere(sag, &fit)) {
-      elev->title = fmt::format("Elevation above the best-fit sphere{}", e.label);
-      elevation.push_back({base + "elevation", std::move(*elev),
-                           {BestFitSphereLine(fit)}});
+    // Elevation above the clinical indices' best-fit sphere (one fit, topo/clinical_indices.h); without the indices
+    // (data short of the sim-K ring) the same sag fit (topo/sphere_fit.h) over the whole map.
+    std::optional<topo::SphereFit> bfs;
+    if (a.clinical_ok) {
+      bfs.emplace();
+      bfs->ok = true;
+      bfs->centre_mm = a.clinical.bfs_centre_mm;
+      bfs->radius_mm = a.clinical.bfs_radius_mm;
+    } else {
+      std::vector<Eigen::Vector3d> points;
+      for (int j = 0; j < sag.ny; ++j) {
+        for (int i = 0; i < sag.nx; ++i) {
+          const double x = sag.x_min_mm + i * (sag.x_max_mm - sag.x_min_mm) / (sag.nx - 1);
+          const double y = sag.y_min_mm + j * (sag.y_max_mm - sag.y_min_mm) / (sag.ny - 1);
+          if (std::isfinite(sag.At(i, j))) points.emplace_back(x, y, sag.At(i, j) * 1e-3);
+        }
+      }
+      topo::SphereFitOptions so;
+      so.residual = topo::SphereResidual::kSag;
+      so.stddev = false;
+      bfs = topo::FitSphere(points, so);
+    }
+    if (bfs->ok) {
+      PendingMap elev{base + "elevation", topo::ElevationAboveSphere(sag, bfs->AsSurface()),
+                      {BestFitSphereLine(bfs->radius_mm, bfs->centre_mm)}};
+      elev.grid.title = fmt::format("Elevation above the best-fit sphere{}", e.label);
+      elev.supported_radius_mm = supported;
+      if (a.clinical_ok) {
+        const auto& c = a.clinical;
+        elev.markers.push_back({c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y()});
+        elev.legend.push_back(fmt::format(
+            "magenta dot: elevation peak {:.2f} \u00b5m at ({:+.2f}, {:+.2f}) mm (sphere fitted within {:.2f} mm)",
+            c.elevation_peak_um, c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y(), c.bfs_zone_radius_mm));
+      }
+      elev.legend.push_back(SupportLegend(supported));
+      elevation.push_back(std::move(elev));
     }
     if (e.truth) {
       const model::Biconic b{*e.truth};
-      difference.push_back(
-          {base + "height_difference",
-           CartesianGrid(r, fmt::format("Ideal \u2212 recovered height{}", e.label), "\u00b5m",
-                         [&](double x, double y) {
-                           model::SurfaceDerivatives d;
-                           return b.Evaluate(x, y, &d) ? (d.z - rec.Height(x, y)) * 1e3 : NAN;
-                         }),
-           {}});
+      PendingMap diff(base + "height_difference",
+                      CartesianGrid(r, fmt::format("Ideal \u2212 recovered height{}", e.label), "\u00b5m",
+                                    [&](double x, double y) {
+                                      model::SurfaceDerivatives d;
+                                      return b.Evaluate(x, y, &d) ? (d.z - rec.Height(x, y)) * 1e3 : NAN;
+                                    }));
+      diff.supported_radius_mm = supported;
+      diff.legend.push_back(SupportLegend(supported));
+      difference.push_back(std::move(diff));
     }
   }
   // The sim-K zone drawn on the power maps unless the caller chose other rings.

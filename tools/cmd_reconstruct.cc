@@ -50,8 +50,10 @@ void PrintAnalysis(const topo::Analysis& a) {
              "pv axial {:.3f} D\n", a.power.radius_mm, a.covered_radius_mm, a.supported_radius_mm,
              a.power.pv_tangential_D, a.power.pv_axial_D);
   if (a.errors) fmt::print("against the configured cornea: pv {:.4f} um, rms {:.4f} um\n", a.errors->pv_um, a.errors->rms_um);
-  fmt::print("model adequacy: slope residual {:.3g} = {:.2f} x the {:.3g} expected from spot-centre noise\n",
-             r.rms_slope_residual, r.adequacy_ratio, r.expected_slope_noise);
+  fmt::print("model adequacy: slope residual {:.3g} = {:.2f} x the {:.3g} expected from spot-centre noise; "
+             "neighbour correlation {:.2f}, shared part {:.2f} x\n",
+             r.rms_slope_residual, r.adequacy_ratio, r.expected_slope_noise, r.residual_neighbour_correlation,
+             r.structured_residual_ratio);
   if (a.clinical_ok) {
     const auto& c = a.clinical;
     fmt::print("clinical (data to {:.2f} mm): sim-K {:.2f} D @ {:.0f} deg / {:.2f} D @ {:.0f} deg; Kmax {:.2f} D at "

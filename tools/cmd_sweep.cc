@@ -82,7 +82,7 @@ void PrintClinical(const topo::SweepResult& r) {
     fmt::print("{:>12.3g}  {:>9.3g}  {:>8.2f}  {:>9.3f}  {:>9.3f}  {:>8.1f}  {:>8.3f}  {:>9.3f}  {:>7.3f}{}\n",
                row.sigma_per_mm2, a.reconstruction.adequacy_ratio, a.supported_radius_mm, c.steep_k_D, c.flat_k_D,
                c.steep_axis_deg, c.kmax_D, c.elevation_peak_um, c.inferior_superior_D,
-               a.reconstruction.adequacy_ratio > topo::kAdequacyWarningRatio ? "  model does not fit" : "");
+               topo::ModelFitsData(a.reconstruction) ? "" : "  model does not fit");
   }
 }
 

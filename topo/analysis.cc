@@ -9,6 +9,10 @@
 
 namespace topocal::topo {
 
+bool ModelFitsData(const Reconstruction& r) {
+  return r.adequacy_ratio <= kAdequacyWarningRatio && r.structured_residual_ratio <= kStructuredResidualWarningRatio;
+}
+
 PowerMapOptions PowerMapOptionsFrom(const model::ReconstructionSettings& s) {
   PowerMapOptions o;
   o.radius_mm = s.power_map_radius_mm;
@@ -127,6 +131,13 @@ Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<
                                      "the {:.3g} expected from {:.3g} um spot-centre noise",
                                      r.rms_slope_residual, r.adequacy_ratio, r.expected_slope_noise,
                                      config.reconstruction.spot_uncertainty_um));
+  }
+  if (options.adequacy && r.structured_residual_ratio > kStructuredResidualWarningRatio) {
+    a.warnings.push_back(fmt::format("the surface model misses a local shape: neighbouring spots share their slope "
+                                     "residual (correlation {:.2f}; shared part {:.2f} x the expected noise, "
+                                     "warning above {:.1f}); try --surface-model spline",
+                                     r.residual_neighbour_correlation, r.structured_residual_ratio,
+                                     kStructuredResidualWarningRatio));
   }
   if (options.clinical) {
     a.clinical_ok = ComputeClinicalIndices(a.power, shape_eval, a.supported_radius_mm, ClinicalOptions{}, &a.clinical,

@@ -4,9 +4,9 @@
 #include <cmath>
 #include <vector>
 
-#include <ceres/ceres.h>
-#include <Eigen/QR>
 #include <fmt/format.h>
+
+#include "topo/sphere_fit.h"
 
 namespace topocal::topo {
 namespace {
@@ -15,20 +15,6 @@ bool Fail(std::string* why, std::string message) {
   if (why) *why = std::move(message);
   return false;
 }
-
-// Sag of the sphere with centre (a, b, c) and radius R, the cap facing the camera (-z): z = c - sqrt(R^2 - d^2).
-struct SphereSagResidual {
-  double x, y, z;
-  template <typename T>
-  bool operator()(const T* s, T* r) const {
-    using std::sqrt;
-    const T dx = x - s[0], dy = y - s[1];
-    const T arg = s[3] * s[3] - dx * dx - dy * dy;
-    if (!(arg > T(0))) return false;
-    r[0] = z - (s[2] - sqrt(arg));
-    return true;
-  }
-};
 
 // Axial power at (rho, theta) by linear interpolation along the nearest meridian; NaN outside the samples.
 double AxialAt(const PowerMaps& m, double rho_mm, double theta_deg) {
@@ -108,30 +94,13 @@ bool ComputeClinicalIndices(const PowerMaps& axial, const SurfaceEvaluator& surf
     }
   }
   if (pts.size() < 10) return Fail(why, "clinical indices: too few points for the best-fit sphere");
-  Eigen::MatrixXd A(pts.size(), 4);
-  Eigen::VectorXd b(pts.size());
-  for (size_t i = 0; i < pts.size(); ++i) {
-    A.row(i) << 2 * pts[i].x(), 2 * pts[i].y(), 2 * pts[i].z(), 1.0;
-    b(i) = pts[i].squaredNorm();
-  }
-  const Eigen::Vector4d alg = A.colPivHouseholderQr().solve(b);
-  double s[4] = {alg(0), alg(1), alg(2), std::sqrt(std::max(0.0, alg(3) + alg.head<3>().squaredNorm()))};
-  ceres::Problem problem;
-  for (const auto& p : pts) {
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SphereSagResidual, 1, 4>(
-                                 new SphereSagResidual{p.x(), p.y(), p.z()}),
-                             nullptr, s);
-  }
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.num_threads = 1;
-  so.function_tolerance = 1e-14;
-  so.parameter_tolerance = 1e-12;
-  ceres::Solver::Summary summary;
-  ceres::Solve(so, &problem, &summary);
-  if (!summary.IsSolutionUsable() || !(s[3] > 0)) {
-    return Fail(why, fmt::format("clinical indices: best-fit sphere failed: {}", summary.message));
-  }
+  // The sphere's one owner (topo/sphere_fit.h), with the sag residual: elevation is read along the axis.
+  SphereFitOptions sphere_options;
+  sphere_options.residual = SphereResidual::kSag;
+  sphere_options.stddev = false;
+  const SphereFit bfs = FitSphere(pts, sphere_options);
+  if (!bfs.ok) return Fail(why, fmt::format("clinical indices: best-fit sphere failed: {}", bfs.message));
+  const double s[4] = {bfs.centre_mm.x(), bfs.centre_mm.y(), bfs.centre_mm.z(), bfs.radius_mm};
   ci.bfs_centre_mm = Eigen::Vector3d(s[0], s[1], s[2]);
   ci.bfs_radius_mm = s[3];
   ci.elevation_peak_um = -INFINITY;

@@ -10,7 +10,6 @@
 #include <fmt/format.h>
 #include <unistd.h>
 
-#include <Eigen/Dense>
 #include <opencv2/core.hpp>
 #include <opencv2/freetype.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -299,6 +298,25 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   if (contour_step > 0) footer.push_back(fmt::format("contours every {:.{}f} {}", contour_step, Decimals(contour_step), map.unit));
   footer.push_back((options.eye.empty() ? std::string("test surface (no eye)") : "eye " + options.eye) + "; " +
                    options.orientation);
+  // Legend lines wrap at word boundaries to the image's width (a long number list must not run off the page).
+  for (const std::string& line : options.legend) {
+    std::string current;
+    std::size_t start = 0;
+    while (start <= line.size()) {
+      std::size_t end = line.find(' ', start);
+      if (end == std::string::npos) end = line.size();
+      const std::string word = line.substr(start, end - start);
+      const std::string candidate = current.empty() ? word : current + " " + word;
+      if (!current.empty() && TextSize(candidate, small_font).width > image_w - 2 * s) {
+        footer.push_back(current);
+        current = "  " + word;
+      } else {
+        current = candidate;
+      }
+      start = end + 1;
+    }
+    if (!current.empty()) footer.push_back(current);
+  }
   // How much of the map lies beyond the colour range (drawn in the end colours), from its samples with data.
   int with_data = 0, below = 0, above = 0;
   for (double v : map.values) {
@@ -424,6 +442,68 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
     }
   }
 
+  // Clinical overlays (issue 18, item 6), clipped to the plot. Map point (x, y) mm -> plot pixel, as the sampling
+  // above: column (x - x_min) px_per_mm - 0.5, row (y_max - y) px_per_mm - 0.5.
+  cv::Mat plot_roi = img(plot);
+  const auto to_px = [&](double x_mm, double y_mm) {
+    return cv::Point2d((x_mm - map.x_min_mm) * px_per_mm - 0.5, (map.y_max_mm - y_mm) * px_per_mm - 0.5);
+  };
+  // Sub-pixel drawing: OpenCV's shift of 4 fractional bits.
+  constexpr int kShift = 4;
+  const auto fixed = [](const cv::Point2d& p) {
+    return cv::Point(static_cast<int>(std::lround(p.x * 16)), static_cast<int>(std::lround(p.y * 16)));
+  };
+  const int line_px = std::max(2, options.size_px / 400);
+  if (options.supported_radius_mm > 0 && std::isfinite(options.supported_radius_mm)) {
+    // Beyond the supported radius: white diagonal stripes over the colours (half of every 8-pixel period, blended
+    // half way), so that the extrapolated part is seen at a glance and its values can still be read.
+    const cv::Point2d origin = to_px(0, 0);
+    const double r_px = options.supported_radius_mm * px_per_mm;
+    for (int r = 0; r < plot_h; ++r) {
+      for (int c = 0; c < plot_w; ++c) {
+        if (!valid.at<std::uint8_t>(r, c) || (r + c) % 8 >= 3) continue;
+        if (std::hypot(c - origin.x, r - origin.y) <= r_px + 0.5 * line_px + 1) continue;
+        cv::Vec3b& px = plot_roi.at<cv::Vec3b>(r, c);
+        for (int ch = 0; ch < 3; ++ch) px[ch] = static_cast<std::uint8_t>((px[ch] + 255 + 1) / 2);
+      }
+    }
+    // The circle itself: long black dashes on a white underlay.
+    const int radius = static_cast<int>(std::lround(r_px * 16));
+    cv::circle(plot_roi, fixed(origin), radius, kWhite, line_px + 2, cv::LINE_AA, kShift);
+    for (int deg = 0; deg < 360; deg += 8) {
+      cv::ellipse(plot_roi, fixed(origin), {radius, radius}, 0, deg, deg + 5, kBlack, line_px, cv::LINE_AA, kShift);
+    }
+  }
+  for (const MapAxis& axis : options.axes) {
+    if (!(axis.half_length_mm > 0) || !std::isfinite(axis.half_length_mm + axis.angle_deg)) continue;
+    const double a = axis.angle_deg * M_PI / 180.0;
+    const cv::Point2d dir(std::cos(a), std::sin(a));
+    const cv::Point2d p0 = to_px(-axis.half_length_mm * dir.x, -axis.half_length_mm * dir.y);
+    const cv::Point2d p1 = to_px(axis.half_length_mm * dir.x, axis.half_length_mm * dir.y);
+    cv::line(plot_roi, fixed(p0), fixed(p1), kWhite, line_px + 2, cv::LINE_AA, kShift);
+    if (!axis.dashed) {
+      cv::line(plot_roi, fixed(p0), fixed(p1), kBlack, line_px, cv::LINE_AA, kShift);
+      continue;
+    }
+    const double length = std::hypot(p1.x - p0.x, p1.y - p0.y);
+    const double dash = 4.0 * line_px + 4;
+    for (double t = 0; t < length; t += 2 * dash) {
+      const cv::Point2d a0 = p0 + (p1 - p0) * (t / length);
+      const cv::Point2d a1 = p0 + (p1 - p0) * (std::min(length, t + dash) / length);
+      cv::line(plot_roi, fixed(a0), fixed(a1), kBlack, line_px, cv::LINE_AA, kShift);
+    }
+  }
+  const int marker_px = std::max(5, options.size_px / 100);
+  const cv::Scalar marker_colour(kMarkerBgr[0], kMarkerBgr[1], kMarkerBgr[2]);
+  for (const MapMarker& m : options.markers) {
+    if (!std::isfinite(m.x_mm + m.y_mm)) continue;
+    const cv::Point at = fixed(to_px(m.x_mm, m.y_mm));
+    cv::circle(plot_roi, at, (marker_px + 3) * 16, kBlack, cv::FILLED, cv::LINE_AA, kShift);
+    cv::circle(plot_roi, at, (marker_px + 2) * 16, kWhite, cv::FILLED, cv::LINE_AA, kShift);
+    // The core without anti-aliasing: its pixels are exactly the marker colour.
+    cv::circle(plot_roi, at, marker_px * 16, marker_colour, cv::FILLED, cv::LINE_8, kShift);
+  }
+
   // Title and the caller's annotation lines (sim-K etc.) above the plot.
   for (std::size_t k = 0; k < title_lines.size(); ++k) {
     PutCentred(img, title_lines[k],
@@ -473,6 +553,9 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   out.value_min = vmin;
   out.value_max = vmax;
   out.contour_step = contour_step;
+  out.px_per_mm = px_per_mm;
+  out.x_min_mm = map.x_min_mm;
+  out.y_max_mm = map.y_max_mm;
   return out;
 }
 
@@ -667,58 +750,21 @@ void ApplyMapScale(const MapScale& scale, MapImageOptions* options) {
   options->scale_label = scale.label;
 }
 
-std::optional<GridMap> ElevationAboveBestFitSphere(const GridMap& sag_um, SphereFitResult* fit) {
+GridMap ElevationAboveSphere(const GridMap& sag_um, const model::Sphere& sphere) {
   std::string why;
   if (!sag_um.IsValid(&why)) throw std::invalid_argument("GridMap: " + why);
-  // x^2 + y^2 + z^2 = 2 a x + 2 b y + 2 c z + d (Kasa's algebraic fit), mm.
-  std::vector<Eigen::Vector4d> rows;
-  std::vector<double> rhs;
-  const auto x_of = [&](int i) { return sag_um.x_min_mm + i * (sag_um.x_max_mm - sag_um.x_min_mm) / (sag_um.nx - 1); };
-  const auto y_of = [&](int j) { return sag_um.y_min_mm + j * (sag_um.y_max_mm - sag_um.y_min_mm) / (sag_um.ny - 1); };
-  for (int j = 0; j < sag_um.ny; ++j) {
-    for (int i = 0; i < sag_um.nx; ++i) {
-      const double v = sag_um.At(i, j);
-      if (!std::isfinite(v)) continue;
-      const double x = x_of(i), y = y_of(j), z = v * 1e-3;
-      rows.emplace_back(2 * x, 2 * y, 2 * z, 1.0);
-      rhs.push_back(x * x + y * y + z * z);
-    }
-  }
-  if (rows.size() < 4) return std::nullopt;
-  Eigen::MatrixX4d A(rows.size(), 4);
-  Eigen::VectorXd b(rows.size());
-  for (std::size_t k = 0; k < rows.size(); ++k) {
-    A.row(static_cast<Eigen::Index>(k)) = rows[k].transpose();
-    b(static_cast<Eigen::Index>(k)) = rhs[k];
-  }
-  const Eigen::ColPivHouseholderQR<Eigen::MatrixX4d> qr(A);
-  if (qr.rank() < 4) return std::nullopt;
-  const Eigen::Vector4d p = qr.solve(b);
-  const double r2 = p(3) + p(0) * p(0) + p(1) * p(1) + p(2) * p(2);
-  if (!(r2 > 0) || !std::isfinite(r2)) return std::nullopt;
-  SphereFitResult f{std::sqrt(r2), p(0), p(1), p(2)};
-  // The cap facing the camera: the branch of the sphere on the data's side of the centre (z < c for a convex cornea
-  // whose sag grows into the eye).
-  double side = 0;
-  for (std::size_t k = 0; k < rows.size(); ++k) side += rows[k](2) / 2 - f.centre_z_mm;
-  const double sign = side < 0 ? -1.0 : 1.0;
   GridMap out = sag_um;
   for (int j = 0; j < sag_um.ny; ++j) {
+    const double y = sag_um.y_min_mm + j * (sag_um.y_max_mm - sag_um.y_min_mm) / (sag_um.ny - 1);
     for (int i = 0; i < sag_um.nx; ++i) {
       double& v = out.values[static_cast<size_t>(j) * sag_um.nx + i];
       if (!std::isfinite(v)) continue;
-      const double dx = x_of(i) - f.centre_x_mm, dy = y_of(j) - f.centre_y_mm;
-      const double h2 = r2 - dx * dx - dy * dy;
-      if (h2 < 0) {
-        v = kNaN;
-        continue;
-      }
-      const double sphere_z_mm = f.centre_z_mm + sign * std::sqrt(h2);
-      v = (sphere_z_mm - v * 1e-3) * 1e3;
+      const double x = sag_um.x_min_mm + i * (sag_um.x_max_mm - sag_um.x_min_mm) / (sag_um.nx - 1);
+      double sphere_z_mm, unused_zx, unused_zy;
+      v = sphere.SagAndGradient(x, y, &sphere_z_mm, &unused_zx, &unused_zy) ? (sphere_z_mm - v * 1e-3) * 1e3 : kNaN;
     }
   }
   out.unit = "\u00b5m";
-  if (fit) *fit = f;
   return out;
 }
 

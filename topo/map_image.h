@@ -7,10 +7,13 @@
 // Frame: the topographer's (x, y) in mm, the cornea seen from the camera, x to the right and y UP on the image
 // (row 0 of the grid is y_min and is drawn at the bottom of the plot). Equal scale on both axes.
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
+
+#include "model/surface.h"
 
 namespace topocal::topo {
 
@@ -33,6 +36,20 @@ enum class ColourScale { kTurbo, kJet };
 // Printed at the bottom left of every map: how the picture is oriented (docs/maps.md).
 inline constexpr const char* kDefaultMapOrientation = "camera view: x right, y up";
 
+// A marked point: a filled disc in kMarkerBgr with a white ring and a black rim, about kMarkerRadiusPx (at the
+// default size) so that it is seen on every colour of the scale (magenta is in neither Turbo nor Jet).
+struct MapMarker {
+  double x_mm = 0, y_mm = 0;
+};
+inline constexpr std::array<std::uint8_t, 3> kMarkerBgr = {255, 0, 255};
+// A meridian drawn through the origin over [-half_length, half_length] along angle_deg (counter-clockwise from +x):
+// black on a white underlay, solid or dashed.
+struct MapAxis {
+  double angle_deg = 0;
+  double half_length_mm = 0;
+  bool dashed = false;
+};
+
 struct MapImageOptions {
   int size_px = 800;                        // side of the (square) plot area; the image adds axes and colour bar
   std::optional<double> value_min, value_max;  // colour range; default: the data's range (rounded out to ticks)
@@ -43,6 +60,13 @@ struct MapImageOptions {
   std::vector<std::string> annotations;
   // Circles about the origin, mm (a hook for the sim-K meridian ring), drawn dashed in black and white.
   std::vector<double> ring_radii_mm;
+  // Clinical overlays (issue 18, item 6), in the map's mm; the caller computes, the map draws (docs/maps.md):
+  std::vector<MapMarker> markers;           // peaks: Kmax, the elevation peak
+  std::vector<MapAxis> axes;                // meridians through the origin: the sim-K steep (solid) and flat (dashed)
+  // The radius the data support in every direction: a dashed circle, and the map beyond it hatched (white stripes
+  // over the colours) as extrapolated. 0: not drawn.
+  double supported_radius_mm = 0;
+  std::vector<std::string> legend;          // lines under the plot saying what the overlays are, with their numbers
   std::string eye;                          // "OD", "OS"; empty: not an eye (a test surface) or not given
   std::string orientation = kDefaultMapOrientation;
   bool IsValid(std::string* why) const;
@@ -88,16 +112,12 @@ MapScale SelectMapScale(const std::vector<const GridMap*>& maps, const MapScaleR
 // The scale's range, contour step and label into the drawing options.
 void ApplyMapScale(const MapScale& scale, MapImageOptions* options);
 
-// The sphere best fitting a height map: sag in um (z into the eye, as topo/ heights), fitted algebraically
-// (x^2 + y^2 + z^2 = 2 a x + 2 b y + 2 c z + d, linear least squares over every sample with data; for a corneal cap
-// it agrees with the geometric fit to far below a micrometre of sag).
-struct SphereFitResult {
-  double radius_mm = 0, centre_x_mm = 0, centre_y_mm = 0, centre_z_mm = 0;
-};
-// Elevation above the best-fit sphere, um: sphere sag - surface sag, positive where the surface stands in front of
-// the sphere (towards the camera), the clinical sign. std::nullopt when fewer than 4 samples have data or the fit is
-// degenerate. Keeps the grid, no-data samples and unit ("µm"); the title is the caller's.
-std::optional<GridMap> ElevationAboveBestFitSphere(const GridMap& sag_um, SphereFitResult* fit);
+// Elevation above a sphere (the best-fit sphere of the clinical indices, topo/clinical_indices.h, fitted by
+// topo/sphere_fit.h — this only evaluates it), um: sphere sag - surface sag, positive where the surface stands in
+// front of the sphere (towards the camera), the clinical sign. `sag_um` is the surface's sag in um (z into the eye,
+// as topo/ heights); the sphere's cap facing the camera is used. Samples beyond the sphere's equator and no-data
+// samples have no data. Keeps the grid and sets the unit to "µm"; the title is the caller's.
+GridMap ElevationAboveSphere(const GridMap& sag_um, const model::Sphere& sphere);
 
 struct PixelRect {
   int x = 0, y = 0, width = 0, height = 0;  // top-left corner and size, pixels
@@ -111,6 +131,13 @@ struct MapImage {
   PixelRect colour_bar;           // value_min at the bottom row, value_max at the top row
   double value_min = 0, value_max = 0;  // the colour range drawn
   double contour_step = 0;              // the contour step drawn (0: none)
+  double px_per_mm = 0;                 // the plot's scale (equal on both axes)
+  double x_min_mm = 0, y_max_mm = 0;    // the map point at the plot's top-left corner
+  // The pixel (column, row) whose centre is nearest the map point (x, y) mm: where an overlay there was drawn.
+  std::array<int, 2> PixelOf(double x_mm, double y_mm) const {
+    return {plot.x + static_cast<int>(std::floor((x_mm - x_min_mm) * px_per_mm)),
+            plot.y + static_cast<int>(std::floor((y_max_mm - y_mm) * px_per_mm))};
+  }
   std::array<std::uint8_t, 3> Bgr(int x, int y) const {
     const size_t k = 3 * (static_cast<size_t>(y) * width_px + x);
     return {bgr[k], bgr[k + 1], bgr[k + 2]};

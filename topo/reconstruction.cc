@@ -123,6 +123,47 @@ double ExpectedSlopeNoise(const std::vector<Ray>& rays, const std::vector<Eigen:
   return std::sqrt(sum / n * dof);
 }
 
+struct NeighbourCovariance {
+  double covariance = 0, variance = 0;  // per slope component
+};
+
+// Reconstruction::residual_neighbour_correlation: pairs of the spot lattice — each spot with the next spot on its
+// ring (the rays are grouped by ring, in index order; the last closes the ring) and with the nearest spot of the
+// ring inside it.
+NeighbourCovariance ResidualNeighbourCovariance(const std::vector<Ray>& rays, const std::vector<Eigen::Vector2d>& xy,
+                                                const std::vector<Eigen::Vector2d>& residuals) {
+  const int n = static_cast<int>(rays.size());
+  NeighbourCovariance out;
+  if (n < 2) return out;
+  double sum = 0;
+  int pairs = 0;
+  int prev_begin = -1, prev_end = -1, begin = 0;
+  while (begin < n) {
+    int end = begin;
+    while (end < n && rays[end].id.ring == rays[begin].id.ring) ++end;
+    for (int i = begin; i < end; ++i) {
+      const int next = i + 1 < end ? i + 1 : begin;
+      if (next != i && end - begin > 2) sum += residuals[i].dot(residuals[next]), ++pairs;
+      if (prev_begin >= 0) {
+        int best = prev_begin;
+        for (int j = prev_begin; j < prev_end; ++j) {
+          if ((xy[j] - xy[i]).squaredNorm() < (xy[best] - xy[i]).squaredNorm()) best = j;
+        }
+        sum += residuals[i].dot(residuals[best]);
+        ++pairs;
+      }
+    }
+    prev_begin = begin;
+    prev_end = end;
+    begin = end;
+  }
+  double sum2 = 0;
+  for (const auto& e : residuals) sum2 += e.squaredNorm();
+  out.variance = sum2 / (2.0 * n);
+  out.covariance = pairs ? sum / (2.0 * pairs) : 0.0;
+  return out;
+}
+
 // Std of |U - n| (paper Sec. 4.1, Eq. 22 against Eq. 19), U = (Psi_x, Psi_y, -1)/norm.
 double Consistency(const RecoveredSurface& psi, const std::vector<Eigen::Vector3d>& p2,
                    const std::vector<Eigen::Vector3d>& normals) {
@@ -290,6 +331,17 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
     r.expected_slope_noise = ExpectedSlopeNoise(prep.rays, p2, slopes, recovered, topo,
                                                 settings.spot_uncertainty_um * 1e-3, parameters);
     r.adequacy_ratio = r.expected_slope_noise > 0 ? r.rms_slope_residual / r.expected_slope_noise : 0.0;
+    std::vector<Eigen::Vector2d> residuals(n);
+    for (int i = 0; i < n; ++i) {
+      double z, zx, zy;
+      recovered.ValueAndGradient(xy[i].x(), xy[i].y(), &z, &zx, &zy);
+      residuals[i] = slopes[i] - Eigen::Vector2d(zx, zy);
+    }
+    const NeighbourCovariance nc = ResidualNeighbourCovariance(prep.rays, xy, residuals);
+    if (nc.variance > 0) r.residual_neighbour_correlation = nc.covariance / nc.variance;
+    if (r.expected_slope_noise > 0) {
+      r.structured_residual_ratio = std::sqrt(std::max(0.0, nc.covariance)) / r.expected_slope_noise;
+    }
   }
   const std::vector<double> zonal = ZonalHeights(prep.rays, p2, slopes, t_mm);
   r.points.resize(n);

@@ -63,6 +63,13 @@ struct Reconstruction {
   // when the surface model cannot represent the data.
   double expected_slope_noise = 0;
   double adequacy_ratio = 0;
+  // The part of the slope residual that neighbouring spots share (issue 18): the mean product of the residuals of
+  // neighbouring spots on the spot lattice (each spot with the next on its ring and with the nearest of the ring
+  // inside it), per slope component — the lag-1 autocovariance, ~0 for spot-centre noise (independent per spot),
+  // the residual's variance for a model error smooth over the spot spacing. residual_neighbour_correlation = that
+  // over the residual's variance; structured_residual_ratio = its square root over expected_slope_noise.
+  double residual_neighbour_correlation = 0;
+  double structured_residual_ratio = 0;
   int iterations = 0;               // normal-refinement iterations at the chosen t (iterative method)
   int vertex_evaluations = 0;       // t values tried
   int spots_used = 0;

@@ -1,5 +1,6 @@
 #include "topo/sphere_fit.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <ceres/ceres.h>
@@ -42,6 +43,42 @@ class SphereDistances final : public ceres::CostFunction {
         row[3] = -1.0;
       }
     }
+    return true;
+  }
+
+ private:
+  const std::vector<Eigen::Vector3d>& points_;
+};
+
+// The sag residuals r_i = z_i - (c_z - sqrt(A_i)), A_i = r^2 - (x_i - c_x)^2 - (y_i - c_y)^2, of the cap facing the
+// camera, with the analytic Jacobian dr/dc_x = (x_i - c_x) / sqrt(A_i), dr/dc_y = (y_i - c_y) / sqrt(A_i),
+// dr/dc_z = -1, dr/dr = r / sqrt(A_i). One block, as above.
+class SphereSags final : public ceres::CostFunction {
+ public:
+  explicit SphereSags(const std::vector<Eigen::Vector3d>& points_mm) : points_(points_mm) {
+    set_num_residuals(static_cast<int>(points_.size()));
+    mutable_parameter_block_sizes()->push_back(kNumParams);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    const double* q = parameters[0];
+    for (size_t i = 0; i < points_.size(); ++i) {
+      double row[kNumParams];
+      if (!SagResidual(points_[i], q, &residuals[i], row)) return false;
+      if (jacobians && jacobians[0]) std::copy(row, row + kNumParams, jacobians[0] + kNumParams * i);
+    }
+    return true;
+  }
+  // One point's residual and Jacobian row; false beyond the sphere's equator (the sag is undefined there).
+  static bool SagResidual(const Eigen::Vector3d& p, const double* q, double* residual, double* row) {
+    const double dx = p.x() - q[0], dy = p.y() - q[1];
+    const double arg = q[3] * q[3] - dx * dx - dy * dy;
+    if (!(arg > 0)) return false;
+    const double root = std::sqrt(arg);
+    *residual = p.z() - (q[2] - root);
+    row[0] = dx / root;
+    row[1] = dy / root;
+    row[2] = -1.0;
+    row[3] = q[3] / root;
     return true;
   }
 
@@ -97,7 +134,12 @@ SphereFit FitSphere(const std::vector<Eigen::Vector3d>& points_mm, const SphereF
     return fit;
   }
   ceres::Problem problem;
-  problem.AddResidualBlock(new SphereDistances(points_mm), nullptr, q);
+  const bool sag = options.residual == SphereResidual::kSag;
+  if (sag) {
+    problem.AddResidualBlock(new SphereSags(points_mm), nullptr, q);
+  } else {
+    problem.AddResidualBlock(new SphereDistances(points_mm), nullptr, q);
+  }
   // The problem is well conditioned (4 parameters, thousands of points): the shared tight tolerances are met in a
   // handful of iterations.
   const ceres::Solver::Options so = SurfaceFitSolverOptions(options.max_iterations);
@@ -117,9 +159,14 @@ SphereFit FitSphere(const std::vector<Eigen::Vector3d>& points_mm, const SphereF
     // Covariance (J'J)^-1 SSR / (n - 4), from the Jacobian at the solution.
     Eigen::Matrix4d jtj = Eigen::Matrix4d::Zero();
     for (const auto& p : points_mm) {
-      const Eigen::Vector3d d = p - fit.centre_mm;
       Eigen::Vector4d row;
-      row << -d / d.norm(), -1.0;
+      if (sag) {
+        double unused;
+        if (!SphereSags::SagResidual(p, q, &unused, row.data())) continue;
+      } else {
+        const Eigen::Vector3d d = p - fit.centre_mm;
+        row << -d / d.norm(), -1.0;
+      }
       jtj.selfadjointView<Eigen::Lower>().rankUpdate(row);
     }
     jtj.triangularView<Eigen::StrictlyUpper>() = jtj.transpose();
@@ -133,9 +180,9 @@ SphereFit FitSphere(const std::vector<Eigen::Vector3d>& points_mm, const SphereF
     }
   }
   fit.ok = true;
-  fit.message = fmt::format("sphere fit: {} points, rms {:.3g} um, {} iterations, radius {:.4f} mm, centre "
+  fit.message = fmt::format("sphere fit ({}): {} points, rms {:.3g} um, {} iterations, radius {:.4f} mm, centre "
                             "({:.4f}, {:.4f}, {:.4f}) mm",
-                            fit.points, fit.rms_residual_um, fit.iterations, fit.radius_mm, fit.centre_mm.x(),
+                            sag ? "sag" : "orthogonal", fit.points, fit.rms_residual_um, fit.iterations, fit.radius_mm, fit.centre_mm.x(),
                             fit.centre_mm.y(), fit.centre_mm.z());
   return fit;
 }

@@ -22,7 +22,16 @@
 
 namespace topocal::topo {
 
+// What the fit minimises.
+enum class SphereResidual {
+  kOrthogonal,  // |p_i - c| - r: a reference sphere or ball measured as a point cloud (above)
+  kSag,         // z_i - sag of the cap facing the camera (z = c_z - sqrt(r^2 - (x - c_x)^2 - (y - c_y)^2)): the
+                // clinical best-fit sphere (elevation maps, topo/clinical_indices.h), whose elevation is read
+                // along the instrument axis; a point beyond the sphere's equator rejects the step
+};
+
 struct SphereFitOptions {
+  SphereResidual residual = SphereResidual::kOrthogonal;
   int max_iterations = 50;
   bool stddev = true;  // SphereFit::stddev_*; a Monte Carlo draw does not need it
 };
@@ -36,7 +45,7 @@ struct SphereFit {
   double radius_stddev_mm = 0;
   double vertex_z_stddev_mm = 0;  // of the vertex's axial position centre_z - radius (correlated terms included)
   bool stddev_ok = false;
-  double rms_residual_um = 0;  // rms orthogonal distance
+  double rms_residual_um = 0;  // rms residual (orthogonal distance or sag, as chosen)
   int iterations = 0;
   int points = 0;
   // The same sphere as model::Sphere: its vertex (the point nearest the camera, sag towards +z) at

@@ -110,6 +110,44 @@ TEST(Freeform, ThePolynomialFlattensTheConeAndTheAdequacyFigureSaysSo) {
   EXPECT_LT(spline.reconstruction.adequacy_ratio, kAdequacyWarningRatio);
 }
 
+// The mildest cones: the polynomial leaves a slope residual only 0.8-2.5 x the expected noise (below
+// kAdequacyWarningRatio), but neighbouring spots share it — a shape, not noise — and the structured-residual figure
+// flags it; on good fits with spot noise it stays at 0 (the noise is independent per spot). 0.04 px noise, seed 1.
+TEST(Freeform, NeighbourCorrelatedResidualsFlagTheMildestConesButNotNoisyGoodFits) {
+  auto config = SplineConfig();
+  config.reconstruction.surface_model = "polynomial";
+  const double noise_mm = 0.04 * 1.12e-3;  // 0.04 px of the 1.12 um pixel
+  const auto structured = [&](const char* name, const model::Config& c) {
+    const auto m = MeasureSimulatedCornea(model::FreeformTestSubset({name}).front().surface, c, noise_mm, 1);
+    SCOPED_TRACE(name);
+    EXPECT_EQ(ModelFitsData(m.analysis.reconstruction),
+              m.analysis.reconstruction.structured_residual_ratio <= kStructuredResidualWarningRatio &&
+                  m.analysis.reconstruction.adequacy_ratio <= kAdequacyWarningRatio);
+    return m.analysis.reconstruction;
+  };
+  // Measured 2026-12-01 (structured / adequacy): 5 um 1.95 / 2.51, 12 um 0.54 / 1.23, wide 40 um 0.81 / 1.45.
+  for (const auto& [name, measured] : {std::pair{"kc-5um-0.8mm", 1.95}, std::pair{"kc-12um-1.3mm", 0.54},
+                                       std::pair{"kc-40um-1.5mm", 0.81}}) {
+    const auto r = structured(name, config);
+    EXPECT_LT(r.adequacy_ratio, kAdequacyWarningRatio) << name;  // what the first figure misses
+    EXPECT_GT(r.structured_residual_ratio, kStructuredResidualWarningRatio) << name;  // acceptance: flagged
+    EXPECT_GT(r.structured_residual_ratio, 0.85 * measured) << name;                   // regression
+    EXPECT_FALSE(ModelFitsData(r)) << name;
+  }
+  // Good fits with noise: measured 0.00 (neighbour correlation -0.05 to -0.08) on 2026-12-01.
+  for (const char* name : {"biconic-toric-1.5mm-oblique", "irregular-4th-6th"}) {
+    const auto r = structured(name, config);
+    EXPECT_LE(r.structured_residual_ratio, kStructuredResidualWarningRatio) << name;  // acceptance: not flagged
+    EXPECT_LT(r.structured_residual_ratio, 0.1) << name;                             // regression
+    EXPECT_LT(r.residual_neighbour_correlation, 0.05) << name;
+    EXPECT_TRUE(ModelFitsData(r)) << name;
+  }
+  // The spline represents the 12 um cone: its residual is noise again (measured 0.00, correlation -0.05).
+  const auto spline = structured("kc-12um-1.3mm", SplineConfig());
+  EXPECT_LE(spline.structured_residual_ratio, kStructuredResidualWarningRatio);
+  EXPECT_LT(spline.structured_residual_ratio, 0.1);
+}
+
 TEST(Freeform, TheModelFitsThePaperCorneaAndMapsBeyondTheDataAreFlagged) {
   const auto c = model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json");
   const auto m = MeasureSimulatedCornea(model::Biconic{c.cornea}, c);

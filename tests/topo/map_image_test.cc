@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "model/io.h"
+#include "model/surface.h"
 
 namespace topocal::topo {
 namespace {
@@ -400,35 +401,107 @@ TEST(MapScale, MinimumSpanMakesASphereLookFlat) {
   EXPECT_LT(hi, 192);
 }
 
-TEST(MapElevation, ASphereHasZeroElevationAndItsRadius) {
+TEST(MapElevation, ASphereHasZeroElevationAboveItselfAndAProlateCapStandsInFrontAtTheCentre) {
   constexpr double kR = 7.8;
+  model::Sphere sphere;
+  sphere.radius_mm = kR;
   const GridMap sag = Disc(61, 4.0, "\u00b5m", [&](double x, double y) {
     return (kR - std::sqrt(kR * kR - x * x - y * y)) * 1e3;
   });
-  SphereFitResult fit;
-  const auto elev = ElevationAboveBestFitSphere(sag, &fit);
-  ASSERT_TRUE(elev.has_value());
-  // Noise-free sag: the algebraic fit is exact to rounding (sag up to 1.1 mm in um, 1e-9 relative).
-  EXPECT_NEAR(fit.radius_mm, kR, 1e-9);
-  EXPECT_NEAR(fit.centre_z_mm, kR, 1e-9);
-  for (double v : elev->values) {
+  const GridMap elev = ElevationAboveSphere(sag, sphere);
+  EXPECT_EQ(elev.unit, "\u00b5m");
+  for (double v : elev.values) {
     if (std::isfinite(v)) {
-      ASSERT_NEAR(v, 0.0, 1e-6);
+      ASSERT_NEAR(v, 0.0, 1e-9);  // the same sag twice: rounding only
     }
   }
-  // A prolate surface (k < 0) flattens towards the edge: it stands below its sphere at the edge and above it at the
-  // centre, the clinical picture of a normal cornea.
+  // A prolate surface (k < 0) flattens towards the edge: it touches the sphere of its apical radius at the centre
+  // and stands in front of it (positive elevation; 31 um at 3.87 mm for k = -0.43) towards the edge.
   const GridMap prolate = Disc(61, 4.0, "\u00b5m", [&](double x, double y) {
     const double r2 = x * x + y * y, k = -0.43;
     return r2 / (kR * (1 + std::sqrt(1 - (1 + k) * r2 / (kR * kR)))) * 1e3;
   });
-  const auto pe = ElevationAboveBestFitSphere(prolate, &fit);
-  ASSERT_TRUE(pe.has_value());
-  EXPECT_GT(pe->At(30, 30), 0.0);   // centre: in front of the sphere
-  EXPECT_LT(pe->At(59, 30), pe->At(30, 30));
-  // No data: no fit.
-  const GridMap empty = Disc(5, 1.0, "\u00b5m", [](double, double) { return std::numeric_limits<double>::quiet_NaN(); });
-  EXPECT_FALSE(ElevationAboveBestFitSphere(empty, &fit).has_value());
+  const GridMap pe = ElevationAboveSphere(prolate, sphere);
+  EXPECT_NEAR(pe.At(30, 30), 0.0, 1e-9);
+  EXPECT_NEAR(pe.At(59, 30), 31.0, 1.0);
+  // Beyond the sphere's equator: no data.
+  model::Sphere small;
+  small.radius_mm = 2.0;
+  const GridMap beyond = ElevationAboveSphere(sag, small);
+  EXPECT_TRUE(std::isnan(beyond.At(0, 30)));
+  EXPECT_TRUE(std::isfinite(beyond.At(30, 30)));
+}
+
+// The clinical overlays (issue 18, item 6) are where the options put them: the Kmax marker's pixel has the marker
+// colour, the dashed circle lies at the supported radius, the map is hatched beyond it and untouched inside, the
+// sim-K axis runs along its angle, and the legend adds its lines.
+TEST(MapImage, ClinicalOverlaysAreDrawnWhereTheyClaim) {
+  constexpr double kFlatD = 43.0;
+  GridMap flat = Disc(241, 6.0, "D", [](double, double) { return kFlatD; });
+  MapImageOptions o;
+  o.value_min = 35.5;
+  o.value_max = 50.5;
+  o.contour_step = -1;  // no contour lines: every pixel with data has the one colour
+  const MapImage plain = RenderMap(flat, o);
+  const Bgr map_colour = ScaleColour(ColourScale::kTurbo, (kFlatD - 35.5) / 15.0);
+  o.markers = {{1.3, -2.1}};
+  o.axes = {{30.0, 3.0, false}, {120.0, 3.0, true}};
+  constexpr double kSupportedMm = 3.7;
+  o.supported_radius_mm = kSupportedMm;
+  o.legend = {"magenta dot: Kmax", "dashed circle: supported radius"};
+  const MapImage img = RenderMap(flat, o);
+  // Two more footer lines, the same plot.
+  EXPECT_GT(img.height_px, plain.height_px);
+  EXPECT_EQ(img.plot.x, plain.plot.x);
+  EXPECT_EQ(img.plot.width, plain.plot.width);
+  EXPECT_NEAR(img.px_per_mm, plain.plot.width / 12.0, 0.01);
+
+  const auto [kx, ky] = img.PixelOf(1.3, -2.1);
+  EXPECT_EQ(img.Bgr(kx, ky), kMarkerBgr);
+  // The marker is a few pixels wide, and magenta is nowhere else on the map.
+  int magenta = 0;
+  for (int r = img.plot.y; r < img.plot.y + img.plot.height; ++r) {
+    for (int c = img.plot.x; c < img.plot.x + img.plot.width; ++c) {
+      if (img.Bgr(c, r) != kMarkerBgr) continue;
+      ++magenta;
+      EXPECT_LE(std::hypot(c - kx, r - ky), 0.02 * img.px_per_mm * 12.0) << c << ", " << r;
+    }
+  }
+  EXPECT_GE(magenta, 20);
+
+  // Along rays from the centre through the middle of a dash (dashes 5 of every 8 deg from 0, clockwise on the image
+  // as OpenCV counts) that miss the axes and the marker: the map colour up to the circle's white underlay, the dash's
+  // black centred on the supported radius, then, beyond, hatched pixels (lighter than the map colour).
+  const auto [ox, oy] = img.PixelOf(0.0, 0.0);
+  const double r_px = kSupportedMm * img.px_per_mm;
+  for (int m : {2, 10, 20, 25}) {
+    const double a = -(2.5 + 8.0 * m) * M_PI / 180.0;
+    int first_changed = -1, hatched_beyond = 0, black = 0;
+    double black_sum = 0;
+    const auto sum = [](const Bgr& b) { return b[0] + b[1] + b[2]; };
+    // From 0.5 mm: the axes cross at the centre.
+    for (int k = static_cast<int>(0.5 * img.px_per_mm); k < static_cast<int>(5.8 * img.px_per_mm); ++k) {
+      const int c = ox + static_cast<int>(std::lround(k * std::cos(a)));
+      const int r = oy - static_cast<int>(std::lround(k * std::sin(a)));
+      const Bgr px = img.Bgr(c, r);
+      if (px != map_colour && first_changed < 0) first_changed = k;
+      if (sum(px) < 100) ++black, black_sum += k;
+      if (k > r_px + 6 && sum(px) > sum(map_colour) + 60) ++hatched_beyond;
+    }
+    ASSERT_GT(black, 0) << m;
+    // The dash is 2 px wide, anti-aliased: its centre within a pixel of the radius.
+    EXPECT_NEAR(black_sum / black, r_px, 1.0) << m;
+    // Untouched inside: the white underlay (2 px beyond the dash's half width) and anti-aliasing start <= 5 px early.
+    EXPECT_GE(first_changed, r_px - 5) << m;
+    EXPECT_GT(hatched_beyond, 5) << m;
+  }
+  // The solid axis at 30 deg: black pixels along it inside the circle.
+  int on_axis = 0;
+  for (double t = 0.5; t < 2.9; t += 0.1) {
+    const auto [c, r] = img.PixelOf(t * std::cos(M_PI / 6), t * std::sin(M_PI / 6));
+    on_axis += img.Bgr(c, r)[0] < 40 && img.Bgr(c, r)[1] < 40 && img.Bgr(c, r)[2] < 40;
+  }
+  EXPECT_GE(on_axis, 20);
 }
 
 TEST(MapImage, LabelsAreLegibleAtA4AndAnnotationsAreDrawn) {

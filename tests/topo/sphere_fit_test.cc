@@ -97,6 +97,41 @@ TEST(SphereFit, NoisyCapStaysWithinItsCovarianceAndTheLimits) {
   EXPECT_LT(worst_centre_mm, 0.003);
 }
 
+// The sag residual (the clinical best-fit sphere's): an exact cap comes back as exactly as with the orthogonal
+// residual, and on a non-spherical cap (a prolate cornea) the two fits differ, each minimising its own residual.
+TEST(SphereFit, SagResidualFitsExactCapsAndMinimisesTheSag) {
+  SphereFitOptions sag;
+  sag.residual = SphereResidual::kSag;
+  for (const auto& truth : {Ball(7.8, 0.0, 0.0, 0.0), Ball(7.8, 0.42, -0.31, 0.05)}) {
+    const auto fit = FitSphere(Cap(truth, 0.0, 1), sag);
+    ASSERT_TRUE(fit.ok) << fit.message;
+    EXPECT_NEAR(fit.radius_mm, truth.radius_mm, 1e-12);
+    EXPECT_NEAR(fit.AsSurface().x0_mm, truth.x0_mm, 1e-12);
+    EXPECT_NEAR(fit.AsSurface().z0_mm, truth.z0_mm, 1e-12);
+  }
+  model::Biconic prolate{model::BiconicParams{}};
+  std::vector<Eigen::Vector3d> pts;
+  for (const auto& p : Cap(Ball(7.8, 0, 0, 0), 0.0, 1)) {
+    model::SurfaceDerivatives d;
+    ASSERT_TRUE(prolate.Evaluate(p.x(), p.y(), &d));
+    pts.emplace_back(p.x(), p.y(), d.z);
+  }
+  const auto by_sag = FitSphere(pts, sag), orthogonal = FitSphere(pts);
+  ASSERT_TRUE(by_sag.ok && orthogonal.ok);
+  const auto rms_sag = [&](const SphereFit& f) {
+    double sum = 0;
+    for (const auto& p : pts) {
+      model::SurfaceDerivatives d;
+      EXPECT_TRUE(f.AsSurface().Evaluate(p.x(), p.y(), &d));
+      sum += (p.z() - d.z) * (p.z() - d.z);
+    }
+    return std::sqrt(sum / pts.size());
+  };
+  EXPECT_GT(std::abs(by_sag.radius_mm - orthogonal.radius_mm), 1e-4);
+  EXPECT_LT(rms_sag(by_sag), rms_sag(orthogonal));
+  EXPECT_NEAR(by_sag.rms_residual_um, rms_sag(by_sag) * 1e3, 1e-9);
+}
+
 TEST(SphereFit, CloudsThatDoNotDetermineASphereFailWithTheReason) {
   const auto few = FitSphere({{0, 0, 0}, {1, 0, 0.1}, {0, 1, 0.1}, {-1, 0, 0.1}});
   EXPECT_FALSE(few.ok);
