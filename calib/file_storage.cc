@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cstdlib>
 #include <limits>
+#include <string_view>
 
 #include <fmt/format.h>
 
@@ -151,6 +152,72 @@ std::string FileStorageUnquotedNonAscii(const std::string& text) {
   return "";
 }
 
+std::string FileStorageYamlLineProblem(const std::string& text) {
+  int flow = 0;     // open '[' / '{' outside quotes, across lines
+  char quote = 0;   // within a quoted scalar (OpenCV's do not span lines, but a flow value may)
+  int line_no = 0;
+  size_t root_indent = std::string::npos;  // indentation of the document's first line of content
+  size_t start = 0;
+  while (start < text.size()) {
+    size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    std::string_view line(text.data() + start, end - start);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    ++line_no;
+    start = end + 1;
+    size_t i = 0;
+    if (flow == 0 && quote == 0) {
+      while (i < line.size() && (line[i] == ' ' || line[i] == '\t')) ++i;
+      const std::string_view content = line.substr(i);
+      if (content.substr(0, 3) == "---" || content.substr(0, 3) == "...") {
+        root_indent = std::string::npos;  // a new document
+        continue;
+      }
+      if (content.empty() || content[0] == '#' || content[0] == '%') continue;
+      // Nothing may stand left of the document's root: " s: 5" then "x: 1" is not YAML (and OpenCV's parser loops
+      // on some such dedents).
+      if (root_indent == std::string::npos) root_indent = i;
+      if (i < root_indent) return fmt::format("line {}", line_no);
+      bool item = false;  // "- " list items, possibly nested on one line ("- - x")
+      while (i < line.size() && line[i] == '-' && (i + 1 == line.size() || line[i + 1] == ' ')) {
+        item = true;
+        ++i;
+        while (i < line.size() && line[i] == ' ') ++i;
+      }
+      const std::string_view rest = line.substr(i);
+      const bool value_start = rest.empty() || rest[0] == '[' || rest[0] == '{' || rest[0] == '"' || rest[0] == '\'';
+      if (!item && !value_start) {
+        // A block mapping's line: KEY ":" then a space, a comment or the end of the line.
+        size_t colon = rest.find(':');
+        while (colon != std::string_view::npos && colon + 1 < rest.size() && rest[colon + 1] != ' ' &&
+               rest[colon + 1] != '\t') {
+          colon = rest.find(':', colon + 1);
+        }
+        if (colon == std::string_view::npos || colon == 0 || rest.substr(0, colon).find(" -") != std::string_view::npos) {
+          return fmt::format("line {}", line_no);
+        }
+      }
+    }
+    for (; i < line.size(); ++i) {
+      const char c = line[i];
+      if (quote) {
+        if (c == '\\' && quote == '"') ++i;
+        else if (c == quote) quote = 0;
+      } else if (c == '"' || c == '\'') {
+        quote = c;
+      } else if (c == '#' && (i == 0 || line[i - 1] == ' ')) {
+        break;
+      } else if (c == '[' || c == '{') {
+        ++flow;
+      } else if ((c == ']' || c == '}') && flow > 0) {
+        --flow;
+      }
+    }
+    if (flow == 0) quote = 0;
+  }
+  return "";
+}
+
 cv::FileStorage OpenFileStorage(const std::string& text, const std::string& origin) {
   if (text.size() > kMaxFileStorageBytes) {
     throw model::InputError(fmt::format("{}: {} bytes: larger than the {} MiB a calibration or target file may have",
@@ -177,6 +244,11 @@ cv::FileStorage OpenFileStorage(const std::string& text, const std::string& orig
     if (const std::string at = FileStorageUnquotedNonAscii(text); !at.empty()) {
       throw model::InputError(fmt::format("{}: {}: a non-ASCII byte outside a quoted string or comment (keys and "
                                           "plain values are ASCII; quote the value)",
+                                          origin, at));
+    }
+    if (const std::string at = FileStorageYamlLineProblem(text); !at.empty()) {
+      throw model::InputError(fmt::format("{}: {}: not a line of a YAML mapping (\"name: value\", \"- value\", "
+                                          "indented no less than the first key)",
                                           origin, at));
     }
     if (text.compare(first, 5, "%YAML") != 0) body = "%YAML:1.0\n---\n" + text;

@@ -29,6 +29,13 @@ std::string FileStorageIntegerOutOfRange(const std::string& text);
 // keys are ASCII, so a YAML text with one is refused before the parser sees it.
 std::string FileStorageUnquotedNonAscii(const std::string& text);
 
+// The first line of a YAML text ("line N") that is neither blank, a comment, a directive or document marker, a list
+// item ("- ...") nor a block-mapping key ("KEY: ..."), outside flow brackets and quotes, or that is indented less
+// than the document's first line of content; "" if none. OpenCV 4.6's
+// YAML parser loops forever on some such lines (libFuzzer: " s:5" then "-- -", reproducers in
+// fuzz/crashes/calibration_yaml/), and no calibration, target or camchain file has one.
+std::string FileStorageYamlLineProblem(const std::string& text);
+
 // Opens `text` (YAML, with or without the "%YAML:1.0" header Kalibr's files lack; XML; JSON) from memory.
 // Throws model::InputError "ORIGIN: problem" when it is too large, nested too deep or not parseable.
 cv::FileStorage OpenFileStorage(const std::string& text, const std::string& origin);

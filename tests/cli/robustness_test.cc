@@ -137,11 +137,16 @@ TEST_F(Robustness, DeeplyNestedYamlDoesNotCrashOpenCv) {
 
 // libFuzzer (issue 16): OpenCV 4.6's YAML parser loops forever on a non-ASCII byte where a key should start. Such a
 // byte outside a quoted string or comment is refused before the parser sees it; quoted and in comments it is fine.
-TEST_F(Robustness, ANonAsciiKeyNeverReachesOpenCvsYamlParser) {
+TEST_F(Robustness, YamlThatHangsOpenCvsParserNeverReachesIt) {
   Write("hang.yaml", "%YAML:1.0\n s: 5\n\xd2 -\nx");
   ExpectBadInput(RunTopocal("undistort --calibration " + Path("hang.yaml") + " --spots " + Path("none.csv") +
                             " --out " + Path("o.csv")),
                  "hang.yaml: line 3: a non-ASCII byte outside a quoted string or comment");
+  // ... and on a line that is no key nor list item, or left of the first key (" s:5" then "-- -").
+  Write("dashes.yaml", "%YAML:1.0\n s:5\n-- -\n ");
+  ExpectBadInput(RunTopocal("undistort --calibration " + Path("dashes.yaml") + " --spots " + Path("none.csv") +
+                            " --out " + Path("o.csv")),
+                 "dashes.yaml: line 2: not a line of a YAML mapping");
   Write("quoted.yaml", "# r\xc3\xa9glage\ntarget_type: \"checkerboard\"\ntargetCols: 4\ntargetRows: 3\n"
                        "rowSpacingMeters: 0.01\ncolSpacingMeters: 0.01\nnote: \"caf\xc3\xa9\"\n");
   const auto quoted = RunTopocal("target --target " + Path("quoted.yaml") + " --out " + Path("t.svg"));
