@@ -40,7 +40,11 @@ std::optional<StoredSize> ProbeStoredSize(std::string_view bytes) noexcept;
 
 // Decodes an image held in memory; `name` names it in errors. Throws model::InputError.
 cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string& name, const ImageLimits& limits = {});
-// Reads and decodes an image file. Throws model::InputError naming the path.
+// An image file's bytes, undecoded, refused (model::InputError naming the path) when it cannot be read or is over
+// limits.max_file_bytes (checked before reading a regular file, while streaming anything else). For callers that
+// also hash the file (the unit record's provenance): read once, then Sha256Hex and DecodeImage on the same bytes.
+std::string ReadImageBytes(const std::string& path, const ImageLimits& limits = {});
+// Reads and decodes an image file: DecodeImage(ReadImageBytes(path)). Throws model::InputError naming the path.
 cv::Mat ReadImage(const std::string& path, Channels channels, const ImageLimits& limits = {});
 // Throws model::InputError unless `image` is width_px x height_px, naming the path and where the size comes from.
 void RequireSize(const cv::Mat& image, const std::string& path, int width_px, int height_px, const std::string& source);

@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "model/io.h"
+#include "model/parallel.h"
 #include "model/surface.h"
 #include "topo/map_image.h"
 #include "topo/sphere_fit.h"
@@ -73,14 +74,21 @@ struct PendingMap {
   std::vector<std::string> legend;
 };
 
-void WriteKind(const std::vector<PendingMap>& maps, const topo::MapScaleRequest& request, const MapSetOptions& o,
-               bool rings) {
+// One map to write, on the scale selected for its kind.
+struct MapJob {
+  const PendingMap* map;
+  topo::MapImageOptions image;
+  bool csv;
+};
+
+// The jobs for one kind of map: its scale selected over the whole set, then each map's image options.
+void AddKind(const std::vector<PendingMap>& maps, const topo::MapScaleRequest& request, const MapSetOptions& o,
+             bool rings, std::vector<MapJob>* jobs) {
   if (maps.empty()) return;
   std::vector<const topo::GridMap*> grids;
   for (const PendingMap& m : maps) grids.push_back(&m.grid);
   const topo::MapScale scale = topo::SelectMapScale(grids, request);
   for (const PendingMap& m : maps) {
-    if (o.csv) topo::WriteMapCsv(m.file + ".csv", m.grid);
     topo::MapImageOptions mo;
     mo.size_px = o.size_px;
     topo::ApplyMapScale(scale, &mo);
@@ -91,8 +99,113 @@ void WriteKind(const std::vector<PendingMap>& maps, const topo::MapScaleRequest&
     mo.legend = m.legend;
     mo.eye = o.eye;
     if (rings) mo.ring_radii_mm = o.power_ring_radii_mm;
-    topo::WriteMapPng(m.file + ".png", m.grid, mo);
+    jobs->push_back({&m, std::move(mo), o.csv});
   }
+}
+
+// An entry's maps, one of each kind (elevation and difference may be missing).
+struct EntryMaps {
+  PendingMap axial, tangential;
+  std::optional<PendingMap> elevation, difference;
+};
+
+EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
+  EntryMaps out;
+  const std::string base = (std::filesystem::path(dir) / e.prefix).string();
+  const topo::Analysis& a = *e.analysis;
+  const auto& pm = a.power;
+  // The clinical summary under the power maps' titles (topo/clinical_indices.h), unless the caller gave its own.
+  std::vector<std::string> notes = e.power_annotations;
+  if (notes.empty() && a.clinical_ok) {
+    const auto& c = a.clinical;
+    notes.push_back(fmt::format("sim-K {:.2f} D @ {:.0f}\u00b0 / {:.2f} D @ {:.0f}\u00b0 (cyl {:.2f} D)", c.steep_k_D,
+                                c.steep_axis_deg, c.flat_k_D, c.flat_axis_deg, c.CylinderD()));
+    notes.push_back(fmt::format("Kmax {:.2f} D at ({:+.2f}, {:+.2f}) mm", c.kmax_D, c.kmax_at_mm.x(), c.kmax_at_mm.y()));
+  }
+  // Overlays from the clinical indices (issue 18, item 6): the sim-K axes across the supported disc on both
+  // power maps, Kmax (an axial quantity) on the axial map, the elevation peak on the elevation map, and on every
+  // map the supported circle with the extrapolated area hatched.
+  const double supported = a.supported_radius_mm;
+  std::vector<topo::MapAxis> sim_k_axes;
+  std::string axes_legend;
+  if (a.clinical_ok) {
+    const auto& c = a.clinical;
+    sim_k_axes = {{c.steep_axis_deg, supported, false}, {c.flat_axis_deg, supported, true}};
+    axes_legend = fmt::format("solid line: steep sim-K axis {:.0f}\u00b0 ({:.2f} D); dashed: flat {:.0f}\u00b0 ({:.2f} D)",
+                              c.steep_axis_deg, c.steep_k_D, c.flat_axis_deg, c.flat_k_D);
+  }
+  PendingMap axial_map{base + "axial_power", PowerGrid(pm, pm.axial_D, fmt::format("Axial power{}", e.label)), notes};
+  PendingMap tangential_map{base + "tangential_power",
+                            PowerGrid(pm, pm.tangential_D, fmt::format("Tangential power{}", e.label)), notes};
+  for (PendingMap* m : {&axial_map, &tangential_map}) {
+    m->axes = sim_k_axes;
+    m->supported_radius_mm = supported;
+    if (!axes_legend.empty()) m->legend.push_back(axes_legend);
+    m->legend.push_back(SupportLegend(supported));
+  }
+  if (a.clinical_ok) {
+    const auto& c = a.clinical;
+    axial_map.markers.push_back({c.kmax_at_mm.x(), c.kmax_at_mm.y()});
+    axial_map.legend.insert(axial_map.legend.begin(),
+                            fmt::format("magenta dot: Kmax {:.2f} D at ({:+.2f}, {:+.2f}) mm", c.kmax_D,
+                                        c.kmax_at_mm.x(), c.kmax_at_mm.y()));
+  }
+  out.axial = std::move(axial_map);
+  out.tangential = std::move(tangential_map);
+  const double r = a.covered_radius_mm;
+  // The recovered surface: Psi plus the spline residual in spline mode (topo/reconstruction.h).
+  const auto& rec = a.reconstruction;
+  const topo::GridMap sag = CartesianGrid(r, "", "\u00b5m", [&](double x, double y) { return rec.Height(x, y) * 1e3; });
+  // Elevation above the clinical indices' best-fit sphere (one fit, topo/clinical_indices.h); without the indices
+  // (data short of the sim-K ring) the same sag fit (topo/sphere_fit.h) over the whole map.
+  std::optional<topo::SphereFit> bfs;
+  if (a.clinical_ok) {
+    bfs.emplace();
+    bfs->ok = true;
+    bfs->centre_mm = a.clinical.bfs_centre_mm;
+    bfs->radius_mm = a.clinical.bfs_radius_mm;
+  } else {
+    std::vector<Eigen::Vector3d> points;
+    for (int j = 0; j < sag.ny; ++j) {
+      for (int i = 0; i < sag.nx; ++i) {
+        const double x = sag.x_min_mm + i * (sag.x_max_mm - sag.x_min_mm) / (sag.nx - 1);
+        const double y = sag.y_min_mm + j * (sag.y_max_mm - sag.y_min_mm) / (sag.ny - 1);
+        if (std::isfinite(sag.At(i, j))) points.emplace_back(x, y, sag.At(i, j) * 1e-3);
+      }
+    }
+    topo::SphereFitOptions so;
+    so.residual = topo::SphereResidual::kSag;
+    so.stddev = false;
+    bfs = topo::FitSphere(points, so);
+  }
+  if (bfs->ok) {
+    PendingMap elev{base + "elevation", topo::ElevationAboveSphere(sag, bfs->AsSurface()),
+                    {BestFitSphereLine(bfs->radius_mm, bfs->centre_mm)}};
+    elev.grid.title = fmt::format("Elevation above the best-fit sphere{}", e.label);
+    elev.supported_radius_mm = supported;
+    if (a.clinical_ok) {
+      const auto& c = a.clinical;
+      elev.markers.push_back({c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y()});
+      elev.legend.push_back(fmt::format(
+          "magenta dot: elevation peak {:.2f} \u00b5m at ({:+.2f}, {:+.2f}) mm (sphere fitted within {:.2f} mm)",
+          c.elevation_peak_um, c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y(), c.bfs_zone_radius_mm));
+    }
+    elev.legend.push_back(SupportLegend(supported));
+    out.elevation = std::move(elev);
+  }
+  if (e.truth) {
+    const model::Biconic b{*e.truth};
+    PendingMap diff(base + "height_difference",
+                    CartesianGrid(r, fmt::format("Ideal \u2212 recovered height{}", e.label), "\u00b5m",
+                                  [&](double x, double y) {
+                                    model::SurfaceDerivatives d;
+                                    return b.Evaluate(x, y, &d) ? (d.z - rec.Height(x, y)) * 1e3 : NAN;
+                                  }));
+    diff.supported_radius_mm = supported;
+    diff.legend.push_back(SupportLegend(supported));
+    out.difference = std::move(diff);
+  }
+  return out;
 }
 
 }  // namespace
@@ -102,102 +215,16 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw model::InputError(fmt::format("{}: cannot create directory: {}", dir, ec.message()));
+  // The grids of each entry, then every file, on o.jobs threads: each item writes only its own slot or its own
+  // files, and the scales are selected in between over the whole set, so the files do not depend on the threads.
+  std::vector<EntryMaps> computed(entries.size());
+  model::ParallelFor(entries.size(), o.jobs, [&](size_t k) { computed[k] = ComputeEntryMaps(dir, entries[k]); });
   std::vector<PendingMap> axial, tangential, elevation, difference;
-  for (const AnalysisMapEntry& e : entries) {
-    const std::string base = (std::filesystem::path(dir) / e.prefix).string();
-    const topo::Analysis& a = *e.analysis;
-    const auto& pm = a.power;
-    // The clinical summary under the power maps' titles (topo/clinical_indices.h), unless the caller gave its own.
-    std::vector<std::string> notes = e.power_annotations;
-    if (notes.empty() && a.clinical_ok) {
-      const auto& c = a.clinical;
-      notes.push_back(fmt::format("sim-K {:.2f} D @ {:.0f}\u00b0 / {:.2f} D @ {:.0f}\u00b0 (cyl {:.2f} D)", c.steep_k_D,
-                                  c.steep_axis_deg, c.flat_k_D, c.flat_axis_deg, c.CylinderD()));
-      notes.push_back(fmt::format("Kmax {:.2f} D at ({:+.2f}, {:+.2f}) mm", c.kmax_D, c.kmax_at_mm.x(), c.kmax_at_mm.y()));
-    }
-    // Overlays from the clinical indices (issue 18, item 6): the sim-K axes across the supported disc on both
-    // power maps, Kmax (an axial quantity) on the axial map, the elevation peak on the elevation map, and on every
-    // map the supported circle with the extrapolated area hatched.
-    const double supported = a.supported_radius_mm;
-    std::vector<topo::MapAxis> sim_k_axes;
-    std::string axes_legend;
-    if (a.clinical_ok) {
-      const auto& c = a.clinical;
-      sim_k_axes = {{c.steep_axis_deg, supported, false}, {c.flat_axis_deg, supported, true}};
-      axes_legend = fmt::format("solid line: steep sim-K axis {:.0f}\u00b0 ({:.2f} D); dashed: flat {:.0f}\u00b0 ({:.2f} D)",
-                                c.steep_axis_deg, c.steep_k_D, c.flat_axis_deg, c.flat_k_D);
-    }
-    PendingMap axial_map{base + "axial_power", PowerGrid(pm, pm.axial_D, fmt::format("Axial power{}", e.label)), notes};
-    PendingMap tangential_map{base + "tangential_power",
-                              PowerGrid(pm, pm.tangential_D, fmt::format("Tangential power{}", e.label)), notes};
-    for (PendingMap* m : {&axial_map, &tangential_map}) {
-      m->axes = sim_k_axes;
-      m->supported_radius_mm = supported;
-      if (!axes_legend.empty()) m->legend.push_back(axes_legend);
-      m->legend.push_back(SupportLegend(supported));
-    }
-    if (a.clinical_ok) {
-      const auto& c = a.clinical;
-      axial_map.markers.push_back({c.kmax_at_mm.x(), c.kmax_at_mm.y()});
-      axial_map.legend.insert(axial_map.legend.begin(),
-                              fmt::format("magenta dot: Kmax {:.2f} D at ({:+.2f}, {:+.2f}) mm", c.kmax_D,
-                                          c.kmax_at_mm.x(), c.kmax_at_mm.y()));
-    }
-    axial.push_back(std::move(axial_map));
-    tangential.push_back(std::move(tangential_map));
-    const double r = a.covered_radius_mm;
-    // The recovered surface: Psi plus the spline residual in spline mode (topo/reconstruction.h).
-    const auto& rec = a.reconstruction;
-    const topo::GridMap sag = CartesianGrid(r, "", "\u00b5m", [&](double x, double y) { return rec.Height(x, y) * 1e3; });
-    // Elevation above the clinical indices' best-fit sphere (one fit, topo/clinical_indices.h); without the indices
-    // (data short of the sim-K ring) the same sag fit (topo/sphere_fit.h) over the whole map.
-    std::optional<topo::SphereFit> bfs;
-    if (a.clinical_ok) {
-      bfs.emplace();
-      bfs->ok = true;
-      bfs->centre_mm = a.clinical.bfs_centre_mm;
-      bfs->radius_mm = a.clinical.bfs_radius_mm;
-    } else {
-      std::vector<Eigen::Vector3d> points;
-      for (int j = 0; j < sag.ny; ++j) {
-        for (int i = 0; i < sag.nx; ++i) {
-          const double x = sag.x_min_mm + i * (sag.x_max_mm - sag.x_min_mm) / (sag.nx - 1);
-          const double y = sag.y_min_mm + j * (sag.y_max_mm - sag.y_min_mm) / (sag.ny - 1);
-          if (std::isfinite(sag.At(i, j))) points.emplace_back(x, y, sag.At(i, j) * 1e-3);
-        }
-      }
-      topo::SphereFitOptions so;
-      so.residual = topo::SphereResidual::kSag;
-      so.stddev = false;
-      bfs = topo::FitSphere(points, so);
-    }
-    if (bfs->ok) {
-      PendingMap elev{base + "elevation", topo::ElevationAboveSphere(sag, bfs->AsSurface()),
-                      {BestFitSphereLine(bfs->radius_mm, bfs->centre_mm)}};
-      elev.grid.title = fmt::format("Elevation above the best-fit sphere{}", e.label);
-      elev.supported_radius_mm = supported;
-      if (a.clinical_ok) {
-        const auto& c = a.clinical;
-        elev.markers.push_back({c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y()});
-        elev.legend.push_back(fmt::format(
-            "magenta dot: elevation peak {:.2f} \u00b5m at ({:+.2f}, {:+.2f}) mm (sphere fitted within {:.2f} mm)",
-            c.elevation_peak_um, c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y(), c.bfs_zone_radius_mm));
-      }
-      elev.legend.push_back(SupportLegend(supported));
-      elevation.push_back(std::move(elev));
-    }
-    if (e.truth) {
-      const model::Biconic b{*e.truth};
-      PendingMap diff(base + "height_difference",
-                      CartesianGrid(r, fmt::format("Ideal \u2212 recovered height{}", e.label), "\u00b5m",
-                                    [&](double x, double y) {
-                                      model::SurfaceDerivatives d;
-                                      return b.Evaluate(x, y, &d) ? (d.z - rec.Height(x, y)) * 1e3 : NAN;
-                                    }));
-      diff.supported_radius_mm = supported;
-      diff.legend.push_back(SupportLegend(supported));
-      difference.push_back(std::move(diff));
-    }
+  for (EntryMaps& m : computed) {
+    axial.push_back(std::move(m.axial));
+    tangential.push_back(std::move(m.tangential));
+    if (m.elevation) elevation.push_back(std::move(*m.elevation));
+    if (m.difference) difference.push_back(std::move(*m.difference));
   }
   // The sim-K zone drawn on the power maps unless the caller chose other rings.
   MapSetOptions power_options = o;
@@ -205,10 +232,16 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
     const topo::ClinicalOptions clinical;
     power_options.power_ring_radii_mm = {clinical.sim_k_inner_mm, clinical.sim_k_outer_mm};
   }
-  WriteKind(axial, o.power, power_options, true);
-  WriteKind(tangential, o.power, power_options, true);
-  WriteKind(elevation, o.elevation, o, false);
-  WriteKind(difference, o.elevation, o, false);
+  std::vector<MapJob> jobs;
+  AddKind(axial, o.power, power_options, true, &jobs);
+  AddKind(tangential, o.power, power_options, true, &jobs);
+  AddKind(elevation, o.elevation, o, false, &jobs);
+  AddKind(difference, o.elevation, o, false, &jobs);
+  model::ParallelFor(jobs.size(), o.jobs, [&](size_t k) {
+    const MapJob& job = jobs[k];
+    if (job.csv) topo::WriteMapCsv(job.map->file + ".csv", job.map->grid);
+    topo::WriteMapPng(job.map->file + ".png", job.map->grid, job.image);
+  });
 }
 
 void WriteAnalysisMaps(const std::string& dir, const std::string& prefix, const std::string& label,

@@ -27,6 +27,8 @@ struct MapSetOptions {
   topo::MapScaleRequest elevation = topo::NormalisedScale(topo::kMinNormalisedSpanUm);  // elevation, height error
   std::string eye;                                  // "OD", "OS" or empty (test surface)
   std::vector<double> power_ring_radii_mm;          // rings on the power maps; empty: the sim-K zone (0.5, 1.5 mm)
+  // Threads computing and writing the maps (0: every core); the files are the same whatever the number.
+  int jobs = 1;
 };
 
 // Files per entry: <prefix>axial_power.{csv,png}, <prefix>tangential_power.{csv,png}, <prefix>elevation.{csv,png}

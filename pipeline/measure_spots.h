@@ -48,6 +48,7 @@ SpotMeasurement MeasureSpots(const cv::Mat& image, const model::Device& device, 
 // where the device's screen puts them, rays traced with the device's a, the vertex reference of the configuration
 // (the datum of the device's calibration). Throws std::runtime_error like topo::AnalyzeSpots.
 topo::Analysis AnalyzeThroughDevice(const std::vector<topo::MeasuredSpot>& spots, const model::Device& device,
-                                    const model::Config& config, const model::BiconicParams* truth);
+                                    const model::Config& config, const model::BiconicParams* truth,
+                                    const topo::AnalysisOptions& options = {});
 
 }  // namespace topocal::pipeline

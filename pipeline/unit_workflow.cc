@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <future>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -59,6 +60,7 @@ struct LoadedInputs {
   model::TopographerCamera camera;
   calib::TargetDescription target;
   calib::CalibrationOptions options;
+  std::vector<std::string> view_bytes;  // the calibration images as read for their digests, decoded by CalibrateViews
   cv::Mat sphere_image;  // empty without a reference sphere
   model::Device nominal_device;
   std::vector<pipeline::BallImage> balls;  // empty: no device stage
@@ -134,13 +136,24 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   const auto add = [&](const std::string& role, const std::string& path) {
     in.provenance.push_back({role, path, model::Sha256HexOfFile(path)});
   };
+  // An image is read once: its digest and its decoding come from the same bytes, on two threads (each is ~0.1-0.2
+  // s for the 17 MB reference sphere; issue 15).
+  const auto add_image = [&](const std::string& role, const std::string& path) -> cv::Mat {
+    const std::string bytes = imageio::ReadImageBytes(path);
+    auto digest = std::async(std::launch::async, [&bytes] { return model::Sha256Hex(bytes); });
+    cv::Mat image = imageio::DecodeImage(bytes, imageio::Channels::kAsStored, path);
+    in.provenance.push_back({role, path, digest.get()});
+    return image;
+  };
   add("config", r.config);
   add("camera", r.camera);
   add("target", r.target);
-  for (const auto& path : r.images) add("image", path);
+  for (const auto& path : r.images) {
+    in.view_bytes.push_back(imageio::ReadImageBytes(path));
+    in.provenance.push_back({"image", path, model::Sha256Hex(in.view_bytes.back())});
+  }
   if (!r.reference_sphere.empty()) {
-    add("reference_sphere", r.reference_sphere);
-    in.sphere_image = imageio::ReadImage(r.reference_sphere, imageio::Channels::kAsStored);
+    in.sphere_image = add_image("reference_sphere", r.reference_sphere);
     CheckImageSize(in.sphere_image, r.reference_sphere, in, r);
   }
   if (!r.device.empty()) add("device", r.device);
@@ -150,8 +163,7 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
       throw model::InputError(fmt::format("--radii-mm: {} for {} is not a reference-ball radius (3-20 mm)",
                                           r.ball_radii_mm[i], r.balls[i]));
     }
-    add("ball", r.balls[i]);
-    pipeline::BallImage b{r.balls[i], imageio::ReadImage(r.balls[i], imageio::Channels::kAsStored), r.ball_radii_mm[i]};
+    pipeline::BallImage b{r.balls[i], add_image("ball", r.balls[i]), r.ball_radii_mm[i]};
     CheckImageSize(b.image, r.balls[i], in, r);
     in.balls.push_back(std::move(b));
   }
@@ -189,12 +201,14 @@ std::optional<UnitDeviceStage> CalibrateDeviceStage(const UnitRequest& r, const 
   return d;
 }
 
-UnitCameraCalibration CalibrateViews(const UnitRequest& r, const LoadedInputs& in,
+UnitCameraCalibration CalibrateViews(const UnitRequest& r, LoadedInputs& in,
                            const std::function<void(const std::string&)>& log) {
   UnitCameraCalibration c;
   std::vector<calib::ViewObservations> views;
-  for (const auto& path : r.images) {
-    const cv::Mat image = imageio::ReadImage(path, imageio::Channels::kGrey);
+  for (size_t v = 0; v < r.images.size(); ++v) {
+    const std::string& path = r.images[v];
+    const cv::Mat image = imageio::DecodeImage(in.view_bytes[v], imageio::Channels::kGrey, path);
+    std::string().swap(in.view_bytes[v]);  // decoded: the bytes are no longer needed
     CheckImageSize(image, path, in, r);
     const auto found = calib::DetectTargetDetailed(in.target, image);
     if (!found.view) {

@@ -231,7 +231,7 @@ std::string ResidualsCsv(const pipeline::UnitCameraCalibration& c) {
 }
 
 void WriteRecordMaps(const std::string& dir, const std::optional<pipeline::SphereVerification>& sphere,
-                     const pipeline::SimulatedCornea& paper, const model::Config& config) {
+                     const pipeline::SimulatedCornea& paper, const model::Config& config, int jobs) {
   // The PNGs go in the record, at half the default size (~0.15 MB each; the report embeds them all); the numbers
   // are in unit.json (CSV grids would be ~0.6 MB each).
   constexpr bool kMapCsv = true;  // the numbers behind every picture (~0.6 MB a map, 16 maps)
@@ -240,6 +240,7 @@ void WriteRecordMaps(const std::string& dir, const std::optional<pipeline::Spher
   pipeline::MapSetOptions o;
   o.csv = kMapCsv;
   o.size_px = kMapSizePx;
+  o.jobs = jobs;  // the unit's threads (its draws are done by now); the same files on any number
   if (sphere) {
     const auto truth = pipeline::WithSphere(config, sphere->radius_true_mm).cornea;
     pipeline::WriteAnalysisMapSet(dir,
@@ -297,7 +298,7 @@ void WriteUnitRecord(const pipeline::UnitResult& u) {
   model::WriteFileAtomic((dir / "calibration.yaml").string(),
                          calib::CalibrationFileText(c.result, {r.target, c.view_paths, u.created_utc}));
   model::WriteFileAtomic((dir / "residuals.csv").string(), ResidualsCsv(c));
-  WriteRecordMaps((dir / "maps").string(), u.sphere, u.paper, u.config);
+  WriteRecordMaps((dir / "maps").string(), u.sphere, u.paper, u.config, r.jobs);
   if (u.sphere) {
     // The sphere's identified spots as the camera saw them: the report recomputes the check from them
     // (report/record_check.h). Shortest round-trip decimals, so the recomputation starts from the same doubles.

@@ -1,5 +1,6 @@
 #include "topo/biconic_fit.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -9,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "model/surface.h"
+#include "topo/biconic_jacobian.h"
 #include "topo/sphere_fit.h"
 #include "topo/surface_fit_solver.h"
 
@@ -17,24 +19,50 @@ namespace {
 
 using K = model::BiconicKernel;
 
-struct BiconicSagResidual {
-  BiconicSagResidual(const Eigen::Vector3d& p, bool tilted) : x_mm(p.x()), y_mm(p.y()), z_mm(p.z()), tilted(tilted) {}
-
-  template <typename T>
-  bool operator()(const T* const q, T* residual) const {
-    T z;
-    // Outside the biconic's domain the kernel returns false: Ceres rejects the step instead of seeing NaN.
-    if (!K::Sag(q, T(x_mm), T(y_mm), &z, tilted)) return false;
-    residual[0] = T(z_mm) - z;
+// All the points' sag residuals z_i - S(x_i, y_i) in one residual block with the closed-form Jacobian of
+// topo/biconic_jacobian.h. One block rather than one per point, so that the trigonometry and the rotation are
+// computed once per evaluation instead of once per point, and Ceres' per-block overhead is paid once.
+// Ceres' trust region evaluates the cost at a candidate and, when it accepts it, the Jacobian at the same
+// parameters: the sags of the last cost-only evaluation are kept and reused then, so that the tilted surface's
+// Newton root is found once per point and step, not twice. Reuse needs the parameters bit for bit equal, so the
+// values are the ones a fresh evaluation would give. (The solver runs on one thread: SurfaceFitSolverOptions.)
+class BiconicSagResiduals final : public ceres::CostFunction {
+ public:
+  BiconicSagResiduals(const std::vector<Eigen::Vector3d>& points_mm, bool tilted)
+      : points_(points_mm), tilted_(tilted), sag_mm_(points_mm.size()) {
+    set_num_residuals(static_cast<int>(points_.size()));
+    mutable_parameter_block_sizes()->push_back(K::kNumParams);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    const double* q = parameters[0];
+    const BiconicSagJacobian surface(q, tilted_);
+    double* jacobian = jacobians ? jacobians[0] : nullptr;
+    const bool reuse = sags_valid_ && std::equal(q, q + K::kNumParams, sag_q_);
+    sags_valid_ = false;
+    for (size_t i = 0; i < points_.size(); ++i) {
+      const Eigen::Vector3d& p = points_[i];
+      // Outside the biconic's domain: Ceres rejects the step instead of seeing NaN.
+      if (!reuse && !surface.Sag(p.x(), p.y(), &sag_mm_[i])) return false;
+      residuals[i] = p.z() - sag_mm_[i];
+      if (jacobian) {
+        double dz_dq[K::kNumParams];
+        if (!surface.Derivatives(p.x(), p.y(), sag_mm_[i], dz_dq)) return false;
+        double* row = jacobian + K::kNumParams * i;
+        for (int j = 0; j < K::kNumParams; ++j) row[j] = -dz_dq[j];
+      }
+    }
+    std::copy(q, q + K::kNumParams, sag_q_);
+    sags_valid_ = true;
     return true;
   }
 
-  static ceres::CostFunction* Create(const Eigen::Vector3d& p, bool tilted) {
-    return new ceres::AutoDiffCostFunction<BiconicSagResidual, 1, K::kNumParams>(new BiconicSagResidual(p, tilted));
-  }
-
-  double x_mm, y_mm, z_mm;
-  bool tilted;
+ private:
+  const std::vector<Eigen::Vector3d>& points_;
+  bool tilted_;
+  // The sags of the last successful evaluation and its parameters.
+  mutable std::vector<double> sag_mm_;
+  mutable double sag_q_[K::kNumParams] = {};
+  mutable bool sags_valid_ = false;
 };
 
 // Initial guess from a quadratic fit z ~ z0 + a x + b y + c x^2 + d xy + e y^2 to the central points: the
@@ -190,7 +218,7 @@ BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const Bicon
     return fit;
   }
   ceres::Problem problem;
-  for (const auto& p : points_mm) problem.AddResidualBlock(BiconicSagResidual::Create(p, free_apex), nullptr, q);
+  problem.AddResidualBlock(new BiconicSagResiduals(points_mm, free_apex), nullptr, q);
   if (!free_apex) {
     problem.SetManifold(q, new ceres::SubsetManifold(K::kNumParams, {K::kX0, K::kY0, K::kTiltX, K::kTiltY}));
   }

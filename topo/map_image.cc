@@ -580,15 +580,28 @@ std::string GridMapCsv(const GridMap& map) {
   }
   std::string csv = "x_mm,y_mm," + column + "\n";
   csv.reserve(csv.size() + map.values.size() * 32);
+  // Each column's x is the same double in every row: formatted once (with its comma) rather than once per value,
+  // which was two thirds of the formatting (issue 15). The text is the same.
+  std::vector<std::string> x_text(static_cast<size_t>(map.nx));
+  for (int i = 0; i < map.nx; ++i) {
+    const double x = map.x_min_mm + i * (map.x_max_mm - map.x_min_mm) / (map.nx - 1);
+    x_text[static_cast<size_t>(i)] = fmt::format("{},", x);
+  }
+  std::string y_text;
   for (int j = 0; j < map.ny; ++j) {
     const double y = map.y_min_mm + j * (map.y_max_mm - map.y_min_mm) / (map.ny - 1);
+    y_text = fmt::format("{},", y);
     for (int i = 0; i < map.nx; ++i) {
-      const double x = map.x_min_mm + i * (map.x_max_mm - map.x_min_mm) / (map.nx - 1);
       const double v = map.At(i, j);
-      // Formatted straight into the string: a temporary string per value was a third of the time of writing a
-      // unit record's maps.
-      if (std::isfinite(v)) fmt::format_to(std::back_inserter(csv), "{},{},{}\n", x, y, v);
-      else fmt::format_to(std::back_inserter(csv), "{},{},\n", x, y);
+      csv += x_text[static_cast<size_t>(i)];
+      csv += y_text;
+      // Formatted into a stack buffer: a temporary string per value was a third of the time of writing a unit
+      // record's maps. 32 characters hold any double's shortest round-trip form.
+      if (std::isfinite(v)) {
+        char text[32];
+        csv.append(text, fmt::format_to_n(text, sizeof text, "{}", v).out);
+      }
+      csv += '\n';
     }
   }
   return csv;

@@ -117,19 +117,38 @@ void TaylorPolynomial::GradientRows(double x_mm, double y_mm, double* row_x, dou
 
 namespace {
 
+// The design matrix of the gradient fit: rows 2i and 2i + 1 are GradientRows at point i. Filled column by column
+// (A is column-major; writing it row by row touched a cache line per element) from tables of the points' powers,
+// one table per power so that each column is one sequential pass: the same products in the same order as
+// GradientRows, so the same matrix bit for bit (tests/topo/taylor_polynomial_test.cc).
 void BuildDesign(const TaylorPolynomial& poly, const std::vector<Eigen::Vector2d>& points_mm,
                  const std::vector<Eigen::Vector2d>& slopes, Eigen::MatrixXd* A, Eigen::VectorXd* rhs) {
   const int n = static_cast<int>(points_mm.size());
   const int unknowns = poly.terms() - 1;
+  const int degree = poly.degree();
+  const double norm = poly.norm_radius_mm();
   A->resize(2 * n, unknowns);
   rhs->resize(2 * n);
-  std::vector<double> rx(unknowns), ry(unknowns);
+  const auto at = [n](int power, int i) { return static_cast<size_t>(power) * n + i; };
+  std::vector<double> pu(static_cast<size_t>(degree + 1) * n), pv(pu.size());
   for (int i = 0; i < n; ++i) {
-    poly.GradientRows(points_mm[i].x(), points_mm[i].y(), rx.data(), ry.data());
-    A->row(2 * i) = Eigen::Map<const Eigen::RowVectorXd>(rx.data(), unknowns);
-    A->row(2 * i + 1) = Eigen::Map<const Eigen::RowVectorXd>(ry.data(), unknowns);
+    double u[kMaxDegree + 1], v[kMaxDegree + 1];
+    Powers(points_mm[i].x() / norm, points_mm[i].y() / norm, degree, u, v);
+    for (int p = 0; p <= degree; ++p) {
+      pu[at(p, i)] = u[p];
+      pv[at(p, i)] = v[p];
+    }
     (*rhs)(2 * i) = slopes[i].x();
     (*rhs)(2 * i + 1) = slopes[i].y();
+  }
+  const double inv = 1.0 / norm;
+  for (int k = 1; k < poly.terms(); ++k) {
+    const auto [a, b] = poly.Exponents(k);
+    double* col = A->col(k - 1).data();
+    for (int i = 0; i < n; ++i) {
+      col[2 * i] = a >= 1 ? a * pu[at(a - 1, i)] * pv[at(b, i)] * inv : 0.0;
+      col[2 * i + 1] = b >= 1 ? b * pu[at(a, i)] * pv[at(b - 1, i)] * inv : 0.0;
+    }
   }
 }
 

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <random>
 
+#include <Eigen/QR>
 #include <gtest/gtest.h>
 
 #include "topo/taylor_polynomial.h"
@@ -72,6 +73,38 @@ TEST(TaylorPolynomial, HornerMatchesTheSumOfMonomials) {
     }
   }
   EXPECT_LE(worst, kRegressionRelTol);
+}
+
+// The gradient fit's design matrix is built column by column from tables of powers (issue 15); before, row by row
+// from GradientRows. Same products, same order: the fit must be the one a QR of the GradientRows matrix gives, bit
+// for bit.
+TEST(TaylorPolynomial, GradientFitIsTheQrSolutionOfTheGradientRowsBitForBit) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> position(-4.5, 4.5), slope(-0.6, 0.6);
+  std::vector<Eigen::Vector2d> points, slopes;
+  for (int i = 0; i < 300; ++i) {
+    points.emplace_back(position(rng), position(rng));
+    slopes.emplace_back(slope(rng), slope(rng));
+  }
+  TaylorPolynomial fitted(10, 5.0);
+  ASSERT_TRUE(FitGradient(points, slopes, 0.25, &fitted).ok);
+  const TaylorPolynomial reference_poly(10, 5.0);
+  const int unknowns = reference_poly.terms() - 1;
+  Eigen::MatrixXd A(2 * points.size(), unknowns);
+  Eigen::VectorXd rhs(2 * points.size());
+  std::vector<double> rx(unknowns), ry(unknowns);
+  for (size_t i = 0; i < points.size(); ++i) {
+    reference_poly.GradientRows(points[i].x(), points[i].y(), rx.data(), ry.data());
+    for (int k = 0; k < unknowns; ++k) {
+      A(2 * i, k) = rx[k];
+      A(2 * i + 1, k) = ry[k];
+    }
+    rhs(2 * i) = slopes[i].x();
+    rhs(2 * i + 1) = slopes[i].y();
+  }
+  const Eigen::VectorXd want = Eigen::HouseholderQR<Eigen::MatrixXd>(A).solve(rhs);
+  for (int k = 0; k < unknowns; ++k) EXPECT_EQ(fitted.coefficients()[k + 1], want[k]) << "term " << k + 1;
+  EXPECT_EQ(fitted.coefficients()[0], 0.25);
 }
 
 }  // namespace
