@@ -62,6 +62,7 @@ std::string SupportLegend(double supported_radius_mm) {
 }
 
 struct PendingMap {
+  PendingMap() = default;
   PendingMap(std::string file_in, topo::GridMap grid_in, std::vector<std::string> annotations_in = {})
       : file(std::move(file_in)), grid(std::move(grid_in)), annotations(std::move(annotations_in)) {}
   std::string file;  // without extension
