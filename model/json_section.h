@@ -103,6 +103,37 @@ class JsonSection {
   }
   std::string String(const std::string& k, const std::string& fallback) { return Has(k) ? String(k) : fallback; }
 
+  std::string NonEmptyString(const std::string& k) {
+    std::string s = String(k);
+    if (s.empty()) Fail(Key(k), "must not be empty");
+    return s;
+  }
+  bool Bool(const std::string& k) {
+    const json& v = Get(k);
+    if (!v.is_boolean()) Fail(Key(k), fmt::format("must be true or false (got {})", QuoteJsonValue(v)));
+    return v.get<bool>();
+  }
+  int NonNegativeInteger(const std::string& k) { return IntegerInRange(k, 0, std::numeric_limits<int>::max()); }
+  // A finite number >= 0 (an RMS, a standard deviation, an expanded uncertainty).
+  double NonNegativeNumber(const std::string& k) {
+    const double v = Number(k);
+    if (!(v >= 0)) Fail(Key(k), fmt::format("must not be negative (got {})", v));
+    return v;
+  }
+  // A JSON array, whose elements are read with Element() or directly.
+  const json& Array(const std::string& k) {
+    const json& v = Get(k);
+    if (!v.is_array()) Fail(Key(k), fmt::format("must be an array (got {})", QuoteJsonValue(v)));
+    return v;
+  }
+  // Element i of array k as an object section "k[i]".
+  JsonSection Element(const std::string& k, size_t i) {
+    return JsonSection(Array(k).at(i), origin_, fmt::format("{}[{}]", Key(k), i));
+  }
+  // Whether k is absent or null (an optional block written as null).
+  bool AbsentOrNull(const std::string& k) const { return !j_.contains(k) || j_.at(k).is_null(); }
+  const json& raw() const { return j_; }
+
   // A number within [lo, hi] (fallback when absent).
   double InRange(const std::string& k, double fallback, double lo, double hi) {
     const double v = Number(k, fallback);

@@ -1,7 +1,7 @@
 #include "model/topographer_camera.h"
 
 #include <cmath>
-#include <set>
+#include <vector>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -14,40 +14,14 @@ namespace {
 
 using nlohmann::json;
 
-constexpr const char* kKeys[] = {"pixel_pitch_um", "width_px", "height_px", "principal_point_px", "a_mm",
-                                 "orientation", "rotated_180"};
+// Sensor sides beyond this are a corrupt file, not a camera.
+constexpr int kMaxSidePx = 100000;
 
 constexpr std::pair<ImageOrientation, const char*> kOrientationNames[] = {
     {ImageOrientation::kIdentity, "identity"},   {ImageOrientation::kRotate90, "rotate_90"},
     {ImageOrientation::kRotate180, "rotate_180"}, {ImageOrientation::kRotate270, "rotate_270"},
     {ImageOrientation::kFlipU, "flip_u"},         {ImageOrientation::kFlipV, "flip_v"},
     {ImageOrientation::kTranspose, "transpose"},  {ImageOrientation::kTransverse, "transverse"}};
-
-std::string Key(const std::string& prefix, const std::string& key) { return prefix.empty() ? key : prefix + "." + key; }
-
-[[noreturn]] void Fail(const std::string& origin, const std::string& key, const std::string& problem) {
-  throw InputError(fmt::format("{}: {}: {}", origin, key, problem));
-}
-
-double Number(const json& j, const std::string& origin, const std::string& key) {
-  if (!j.contains(key)) Fail(origin, key, "missing");
-  const json& v = j.at(key);
-  if (!v.is_number()) Fail(origin, key, fmt::format("must be a number (got {})", QuoteJsonValue(v)));
-  const double d = v.get<double>();
-  if (!std::isfinite(d)) Fail(origin, key, "must be finite");
-  return d;
-}
-
-int Integer(const json& j, const std::string& origin, const std::string& key) {
-  if (!j.contains(key)) Fail(origin, key, "missing");
-  const json& v = j.at(key);
-  if (!v.is_number_integer()) Fail(origin, key, fmt::format("must be an integer (got {})", QuoteJsonValue(v)));
-  if (v.is_number_unsigned() ? v.get<unsigned long long>() > 100000ULL
-                             : (v.get<long long>() < 1 || v.get<long long>() > 100000)) {
-    Fail(origin, key, fmt::format("must be in [1, 100000] (got {})", QuoteJsonValue(v)));
-  }
-  return v.get<int>();
-}
 
 }  // namespace
 
@@ -95,42 +69,34 @@ std::optional<std::string> TopographerCamera::Invalid() const {
 }
 
 TopographerCamera CameraFromJson(const json& j, const std::string& origin, const std::string& prefix) {
-  if (!j.is_object()) Fail(origin, prefix.empty() ? "(top level)" : prefix, "must be a JSON object");
-  const std::set<std::string> known(std::begin(kKeys), std::end(kKeys));
-  for (auto it = j.begin(); it != j.end(); ++it) {
-    if (!known.count(it.key())) Fail(origin, Key(prefix, it.key()), "unknown key");
-  }
-  const std::string where = prefix.empty() ? origin : origin + ": " + prefix;
+  // The project's strict JSON reader: every failure "ORIGIN: KEY: problem", an unknown key refused.
+  JsonSection section(j, origin, prefix);
   TopographerCamera c;
-  c.pixel_pitch_um = Number(j, where, "pixel_pitch_um");
-  c.width_px = Integer(j, where, "width_px");
-  c.height_px = Integer(j, where, "height_px");
-  c.a_mm = Number(j, where, "a_mm");
-  if (!j.contains("principal_point_px")) Fail(where, "principal_point_px", "missing");
-  const json& pp = j.at("principal_point_px");
-  if (!pp.is_array() || pp.size() != 2 || !pp[0].is_number() || !pp[1].is_number()) {
-    Fail(where, "principal_point_px", fmt::format("must be an array of two numbers [u, v] (got {})", QuoteJsonValue(pp)));
+  c.pixel_pitch_um = section.Number("pixel_pitch_um");
+  c.width_px = section.IntegerInRange("width_px", 1, kMaxSidePx);
+  c.height_px = section.IntegerInRange("height_px", 1, kMaxSidePx);
+  c.a_mm = section.Number("a_mm");
+  const std::vector<double> pp = section.Numbers("principal_point_px", 2);
+  c.principal_point_px = {pp[0], pp[1]};
+  if (section.Has("orientation") && section.Has("rotated_180")) {
+    section.Fail(section.Key("rotated_180"), "give either orientation or the older rotated_180, not both");
   }
-  c.principal_point_px = {pp[0].get<double>(), pp[1].get<double>()};
-  if (j.contains("orientation") && j.contains("rotated_180")) {
-    Fail(where, "rotated_180", "give either orientation or the older rotated_180, not both");
+  if (section.Has("rotated_180")) {
+    c.orientation = section.Bool("rotated_180") ? ImageOrientation::kRotate180 : ImageOrientation::kIdentity;
   }
-  if (j.contains("rotated_180")) {
-    if (!j.at("rotated_180").is_boolean()) {
-      Fail(where, "rotated_180", fmt::format("must be true or false (got {})", QuoteJsonValue(j.at("rotated_180"))));
-    }
-    c.orientation = j.at("rotated_180").get<bool>() ? ImageOrientation::kRotate180 : ImageOrientation::kIdentity;
-  }
-  if (j.contains("orientation")) {
-    const json& o = j.at("orientation");
+  if (section.Has("orientation")) {
+    const json& o = section.Get("orientation");
     const auto value = o.is_string() ? OrientationFromName(o.get<std::string>()) : std::nullopt;
     if (!value) {
-      Fail(where, "orientation",
-           fmt::format("must be one of identity, rotate_90, rotate_180, rotate_270, flip_u, flip_v, transpose, "
-                       "transverse (got {})", QuoteJsonValue(o)));
+      section.Fail(section.Key("orientation"),
+                   fmt::format("must be one of identity, rotate_90, rotate_180, rotate_270, flip_u, flip_v, transpose, "
+                               "transverse (got {})",
+                               QuoteJsonValue(o)));
     }
     c.orientation = *value;
   }
+  section.RejectUnknown();
+  const std::string where = prefix.empty() ? origin : origin + ": " + prefix;
   if (const auto why = c.Invalid()) throw InputError(fmt::format("{}: {}", where, *why));
   return c;
 }

@@ -83,31 +83,6 @@ double MaxAbsDifference(const std::vector<double>& a, const std::vector<double>&
   throw model::InputError(fmt::format("{}: {}: {}", origin, key, problem));
 }
 
-const json& Field(const json& j, const std::string& key, const std::string& origin, const std::string& path) {
-  if (!j.is_object() || !j.contains(key)) ShardFail(origin, path + key, "missing");
-  return j.at(key);
-}
-double NumberField(const json& j, const std::string& key, const std::string& origin, const std::string& path) {
-  const json& v = Field(j, key, origin, path);
-  if (!v.is_number() || !std::isfinite(v.get<double>())) ShardFail(origin, path + key, "must be a finite number");
-  return v.get<double>();
-}
-long long IntegerField(const json& j, const std::string& key, const std::string& origin, const std::string& path) {
-  const json& v = Field(j, key, origin, path);
-  if (!v.is_number_integer()) ShardFail(origin, path + key, "must be an integer");
-  // Every integer of a shard is a count or an index well inside int; beyond it is a corrupt shard, not a wrap.
-  if (!model::JsonIntegerWithin(v, 0, std::numeric_limits<int>::max())) {
-    ShardFail(origin, path + key, fmt::format("must be in [0, {}] (got {})", std::numeric_limits<int>::max(),
-                                              model::QuoteJsonValue(v)));
-  }
-  return v.get<long long>();
-}
-std::string StringField(const json& j, const std::string& key, const std::string& origin, const std::string& path) {
-  const json& v = Field(j, key, origin, path);
-  if (!v.is_string()) ShardFail(origin, path + key, "must be a string");
-  return v.get<std::string>();
-}
-
 json BiconicJson(const model::BiconicParams& p) {
   return {{"rx_mm", p.rx_mm}, {"ry_mm", p.ry_mm}, {"kx", p.kx}, {"ky", p.ky}, {"alpha_deg", p.alpha_deg},
           {"z0_mm", p.z0_mm}};
@@ -466,88 +441,88 @@ HarnessRun ParseHarnessShard(const std::string& text, const std::string& origin)
   if (!j.is_object() || !j.contains("format") || j["format"] != kShardFormat) {
     ShardFail(origin, "format", fmt::format("not a harness shard (expected \"{}\")", kShardFormat));
   }
-  if (IntegerField(j, "format_version", origin, "") != kShardFormatVersion) {
+  // The project's strict JSON reader (model/json_section.h): every failure names the shard and the dotted key.
+  model::JsonSection root(j, origin, "");
+  // Every integer of a shard is a count or an index well inside int; beyond it is a corrupt shard, not a wrap.
+  const auto count = [](model::JsonSection& s, const char* key) {
+    return s.IntegerInRange(key, 0, std::numeric_limits<int>::max());
+  };
+  if (count(root, "format_version") != kShardFormatVersion) {
     ShardFail(origin, "format_version", fmt::format("must be {} (written by another topocal version)", kShardFormatVersion));
   }
   HarnessRun run;
   try {
-    run.config = ParseHarnessConfig(Field(j, "config", origin, "").dump(), origin + ": config", "");
+    run.config = ParseHarnessConfig(root.Child("config").raw().dump(), origin + ": config", "");
   } catch (const model::ConfigError& e) {
     throw model::InputError(e.what());
   }
-  run.config_sha256 = StringField(j, "config_sha256", origin, "");
+  run.config_sha256 = root.String("config_sha256");
   if (run.config_sha256 != HarnessConfigSha256(run.config)) {
     ShardFail(origin, "config_sha256", "does not match the configuration stored in the shard (file edited?)");
   }
-  const json& shard = Field(j, "shard", origin, "");
-  run.shard.index = static_cast<int>(IntegerField(shard, "index", origin, "shard."));
-  run.shard.count = static_cast<int>(IntegerField(shard, "count", origin, "shard."));
+  model::JsonSection shard = root.Child("shard");
+  run.shard.index = count(shard, "index");
+  run.shard.count = count(shard, "count");
   if (run.shard.count < 1 || run.shard.index < 0 || run.shard.index >= run.shard.count) {
     ShardFail(origin, "shard", fmt::format("{}/{} is not a shard i/N with 0 <= i < N", run.shard.index, run.shard.count));
   }
   const auto all = EnumerateHarnessCases(run.config);
-  run.total_cases = static_cast<int>(IntegerField(j, "total_cases", origin, ""));
+  run.total_cases = count(root, "total_cases");
   if (run.total_cases != static_cast<int>(all.size())) {
     ShardFail(origin, "total_cases", fmt::format("{} but the configuration has {} cases", run.total_cases, all.size()));
   }
-  const json& truth = Field(j, "truth", origin, "");
-  if (!truth.is_array() || truth.size() != run.config.corneas.size()) {
+  if (root.Array("truth").size() != run.config.corneas.size()) {
     ShardFail(origin, "truth", "must hold one entry per cornea");
   }
-  for (size_t i = 0; i < truth.size(); ++i) {
-    const std::string p = fmt::format("truth[{}].", i);
+  for (size_t i = 0; i < run.config.corneas.size(); ++i) {
+    model::JsonSection t_json = root.Element("truth", i);
     HarnessTruth t;
-    t.cornea = StringField(truth[i], "cornea", origin, p);
-    const json& fit = Field(truth[i], "fit", origin, p);
-    t.fit.rx_mm = NumberField(fit, "rx_mm", origin, p + "fit.");
-    t.fit.ry_mm = NumberField(fit, "ry_mm", origin, p + "fit.");
-    t.fit.kx = NumberField(fit, "kx", origin, p + "fit.");
-    t.fit.ky = NumberField(fit, "ky", origin, p + "fit.");
-    t.fit.alpha_deg = NumberField(fit, "alpha_deg", origin, p + "fit.");
-    t.fit.z0_mm = NumberField(fit, "z0_mm", origin, p + "fit.");
-    t.covered_radius_mm = NumberField(truth[i], "covered_radius_mm", origin, p);
-    t.spot_field_radius_mm = NumberField(truth[i], "spot_field_radius_mm", origin, p);
-    t.spots = static_cast<int>(IntegerField(truth[i], "spots", origin, p));
-    t.pv_axial_D = NumberField(truth[i], "pv_axial_D", origin, p);
-    t.pv_tangential_D = NumberField(truth[i], "pv_tangential_D", origin, p);
+    t.cornea = t_json.String("cornea");
+    model::JsonSection fit = t_json.Child("fit");
+    t.fit.rx_mm = fit.Number("rx_mm");
+    t.fit.ry_mm = fit.Number("ry_mm");
+    t.fit.kx = fit.Number("kx");
+    t.fit.ky = fit.Number("ky");
+    t.fit.alpha_deg = fit.Number("alpha_deg");
+    t.fit.z0_mm = fit.Number("z0_mm");
+    t.covered_radius_mm = t_json.Number("covered_radius_mm");
+    t.spot_field_radius_mm = t_json.Number("spot_field_radius_mm");
+    t.spots = count(t_json, "spots");
+    t.pv_axial_D = t_json.Number("pv_axial_D");
+    t.pv_tangential_D = t_json.Number("pv_tangential_D");
     run.truth.push_back(t);
   }
-  const json& cases = Field(j, "cases", origin, "");
-  if (!cases.is_array()) ShardFail(origin, "cases", "must be a list");
+  const size_t n_cases = root.Array("cases").size();
   int previous = -1;
-  for (size_t i = 0; i < cases.size(); ++i) {
-    const json& c = cases[i];
-    const std::string p = fmt::format("cases[{}].", i);
+  for (size_t i = 0; i < n_cases; ++i) {
+    model::JsonSection c = root.Element("cases", i);
     HarnessCaseResult r;
-    const long long index = IntegerField(c, "index", origin, p);
-    if (index < 0 || index >= run.total_cases || index % run.shard.count != run.shard.index || index <= previous) {
-      ShardFail(origin, p + "index",
-                fmt::format("{} does not belong to shard {}/{} in increasing order", index, run.shard.index,
-                            run.shard.count));
+    const int index = count(c, "index");
+    if (index >= run.total_cases || index % run.shard.count != run.shard.index || index <= previous) {
+      c.Fail(c.Key("index"), fmt::format("{} does not belong to shard {}/{} in increasing order", index,
+                                         run.shard.index, run.shard.count));
     }
-    previous = static_cast<int>(index);
+    previous = index;
     r.spec = all[static_cast<size_t>(index)];
-    const json& seed = Field(c, "seed", origin, p);
+    const json& seed = c.Get("seed");
     if (!seed.is_number_unsigned() || seed.get<std::uint64_t>() != r.spec.seed) {
-      ShardFail(origin, p + "seed", "does not match the seed of the case (another seeding scheme?)");
+      c.Fail(c.Key("seed"), "does not match the seed of the case (another seeding scheme?)");
     }
-    const json& ok = Field(c, "ok", origin, p);
-    if (!ok.is_boolean()) ShardFail(origin, p + "ok", "must be true or false");
-    r.ok = ok.get<bool>();
-    r.failure = StringField(c, "failure", origin, p);
-    r.residual_max_um = NumberField(c, "residual_max_um", origin, p);
-    r.residual_rms_um = NumberField(c, "residual_rms_um", origin, p);
-    r.spots_used = static_cast<int>(IntegerField(c, "spots_used", origin, p));
-    r.undistort_failures = static_cast<int>(IntegerField(c, "undistort_failures", origin, p));
-    r.dk_x = NumberField(c, "dk_x", origin, p);
-    r.dk_y = NumberField(c, "dk_y", origin, p);
-    r.dr_x_mm = NumberField(c, "dr_x_mm", origin, p);
-    r.dr_y_mm = NumberField(c, "dr_y_mm", origin, p);
-    r.dP_axial_max_D = NumberField(c, "dP_axial_max_D", origin, p);
-    r.dP_tangential_max_D = NumberField(c, "dP_tangential_max_D", origin, p);
-    r.dpv_axial_D = NumberField(c, "dpv_axial_D", origin, p);
-    r.dpv_tangential_D = NumberField(c, "dpv_tangential_D", origin, p);
-    r.compared_radius_mm = NumberField(c, "compared_radius_mm", origin, p);
+    r.ok = c.Bool("ok");
+    r.failure = c.String("failure");
+    r.residual_max_um = c.Number("residual_max_um");
+    r.residual_rms_um = c.Number("residual_rms_um");
+    r.spots_used = count(c, "spots_used");
+    r.undistort_failures = count(c, "undistort_failures");
+    r.dk_x = c.Number("dk_x");
+    r.dk_y = c.Number("dk_y");
+    r.dr_x_mm = c.Number("dr_x_mm");
+    r.dr_y_mm = c.Number("dr_y_mm");
+    r.dP_axial_max_D = c.Number("dP_axial_max_D");
+    r.dP_tangential_max_D = c.Number("dP_tangential_max_D");
+    r.dpv_axial_D = c.Number("dpv_axial_D");
+    r.dpv_tangential_D = c.Number("dpv_tangential_D");
+    r.compared_radius_mm = c.Number("compared_radius_mm");
     run.cases.push_back(r);
   }
   int expected = 0;

@@ -31,32 +31,15 @@ constexpr const char* kSourceRms =
     "0.5 px: sub-pixel corners of a sharp printed target reach 0.01-0.1 px RMS; above 0.5 px the corners are "
     "blurred or misdetected or the distortion model does not fit the lens.";
 
-[[noreturn]] void Fail(const std::string& path, const std::string& key, const std::string& problem) {
-  throw model::InputError(fmt::format("{}: {}: {}", path, key, problem));
-}
-
-void RequireExactKeys(const std::string& path, const std::string& prefix, const json& obj,
-                      const std::set<std::string>& keys) {
-  if (!obj.is_object()) Fail(path, prefix.empty() ? "(top level)" : prefix, "must be an object");
-  for (const auto& [key, value] : obj.items()) {
-    if (!keys.count(key)) Fail(path, prefix.empty() ? key : prefix + "." + key, "unknown key");
-  }
-  for (const std::string& key : keys) {
-    if (!obj.contains(key)) Fail(path, prefix.empty() ? key : prefix + "." + key, "missing");
-  }
-}
-
-Limit ReadLimit(const std::string& path, const json& limits, const char* name) {
-  const std::string prefix = std::string("limits.") + name;
-  const json& l = limits.at(name);
-  RequireExactKeys(path, prefix, l, {"max", "source"});
-  if (!l["max"].is_number()) Fail(path, prefix + ".max", "must be a number");
-  const double max = l["max"].get<double>();
-  if (!std::isfinite(max) || max <= 0) Fail(path, prefix + ".max", "must be a finite number > 0");
-  if (!l["source"].is_string() || l["source"].get<std::string>().empty()) {
-    Fail(path, prefix + ".source", "must be a non-empty string saying where the limit comes from");
-  }
-  return {max, l["source"].get<std::string>()};
+// One limit: {"max": > 0, "source": "where it comes from"}, nothing else.
+Limit ReadLimit(model::JsonSection& limits, const char* name) {
+  model::JsonSection one = limits.Child(name);
+  const double max = one.Number("max");
+  if (!(max > 0)) one.Fail(one.Key("max"), "must be a finite number > 0");
+  const std::string source = one.String("source");
+  if (source.empty()) one.Fail(one.Key("source"), "must be a non-empty string saying where the limit comes from");
+  one.RejectUnknown();
+  return {max, source};
 }
 
 // Guarded acceptance needs U; simple acceptance ignores it.
@@ -110,33 +93,32 @@ Limits DefaultLimits() {
 }
 
 Limits LoadLimits(const std::string& path) {
-  const std::string text = model::ReadFile(path);
-  const json root = model::ParseJsonStrict(text, path);
-  RequireExactKeys(path, "", root, {"format", "format_version", "decision_rule", "limits"});
-  if (!root["format"].is_string() || root["format"].get<std::string>() != kLimitsFormat) {
-    Fail(path, "format", fmt::format("must be \"{}\"", kLimitsFormat));
-  }
-  if (!model::JsonIntegerWithin(root["format_version"], kLimitsFormatVersion, kLimitsFormatVersion)) {
-    Fail(path, "format_version", fmt::format("must be {}", kLimitsFormatVersion));
-  }
+  const json root = model::ParseJsonStrict(model::ReadFile(path), path);
+  model::JsonSection r(root, path, "");
   Limits l;
-  const json& rule = root["decision_rule"];
+  const json& rule = r.Get("decision_rule");
   if (rule == "guarded") {
     l.rule = DecisionRule::kGuarded;
   } else if (rule == "simple") {
     l.rule = DecisionRule::kSimple;
   } else {
-    Fail(path, "decision_rule", "must be \"guarded\" or \"simple\"");
+    r.Fail("decision_rule", "must be \"guarded\" or \"simple\"");
   }
-  const json& limits = root["limits"];
-  RequireExactKeys(path, "limits", limits,
-                   {"calibration_rms_px", "sphere_radius_error_mm", "sphere_power_error_D", "paper_radius_error_mm",
-                    "paper_conic_error"});
-  l.calibration_rms_px = ReadLimit(path, limits, "calibration_rms_px");
-  l.sphere_radius_error_mm = ReadLimit(path, limits, "sphere_radius_error_mm");
-  l.sphere_power_error_D = ReadLimit(path, limits, "sphere_power_error_D");
-  l.paper_radius_error_mm = ReadLimit(path, limits, "paper_radius_error_mm");
-  l.paper_conic_error = ReadLimit(path, limits, "paper_conic_error");
+  const json& format = r.Get("format");
+  if (!format.is_string() || format.get<std::string>() != kLimitsFormat) {
+    r.Fail("format", fmt::format("must be \"{}\"", kLimitsFormat));
+  }
+  if (!model::JsonIntegerWithin(r.Get("format_version"), kLimitsFormatVersion, kLimitsFormatVersion)) {
+    r.Fail("format_version", fmt::format("must be {}", kLimitsFormatVersion));
+  }
+  model::JsonSection limits = r.Child("limits");
+  l.calibration_rms_px = ReadLimit(limits, "calibration_rms_px");
+  l.sphere_radius_error_mm = ReadLimit(limits, "sphere_radius_error_mm");
+  l.sphere_power_error_D = ReadLimit(limits, "sphere_power_error_D");
+  l.paper_radius_error_mm = ReadLimit(limits, "paper_radius_error_mm");
+  l.paper_conic_error = ReadLimit(limits, "paper_conic_error");
+  limits.RejectUnknown();
+  r.RejectUnknown();
   l.origin = path;
   return l;
 }

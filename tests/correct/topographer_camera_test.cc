@@ -68,7 +68,7 @@ TEST(TopographerCamera, StrictLoadingNamesFileKeyAndProblem) {
                        "a_mm": 5.2})").find("principal_point_px: (100, 1) lies outside"),
             std::string::npos);
   EXPECT_NE(ErrorOf(R"({"pixel_pitch_um": 1, "width_px": 40, "height_px": 30, "principal_point_px": [1],
-                       "a_mm": 5.2})").find("principal_point_px: must be an array of two numbers"),
+                       "a_mm": 5.2})").find("principal_point_px: must be an array of 2 finite numbers"),
             std::string::npos);
   EXPECT_NE(ErrorOf(R"({"pixel_pitch_um": 1, "width_px": 40, "height_px": 30, "principal_point_px": [1, 1],
                        "a_mm": 5.2, "rotated_180": "yes"})").find("rotated_180: must be true or false"),
