@@ -43,8 +43,7 @@ const Scene& GetScene() {
     const double f = s.camera.FocalPx();
     s.lens = {f, f, s.camera.principal_point_px.x() + 4, s.camera.principal_point_px.y() - 3,
               {-0.12, 0.25, 8e-4, -5e-4, -0.1}};
-    std::string why;
-    s.brown = correct::BrownFromOpenCv(s.lens, s.camera, &why)->brown;
+    s.brown = correct::BrownFromOpenCv(s.lens, s.camera).brown;
     return s;
   }();
   return scene;

@@ -326,19 +326,20 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
     next_row += kNumWarp;
   }
   for (auto& pose : p.poses) blocks.push_back(pose.data());
-  std::string covariance_why;
-  const auto covariance = TangentCovariance(problem, blocks, &covariance_why);
-  if (!covariance) {
+  const TangentCovarianceResult covariance = TangentCovariance(problem, blocks);
+  if (!covariance.ok) {
+    // The reason is kept (it was dropped: a Jacobian that could not be evaluated read as rank deficiency).
     return Failure(CalibrationStatus::kCovarianceFailed,
-                   "the Jacobian is rank-deficient at the solution: some free parameter is not determined by these "
-                   "views (fix it or add views)");
+                   fmt::format("the covariance at the solution failed ({}): fix the undetermined parameter or add "
+                               "views",
+                               covariance.message));
   }
   // From tangent to parameter coordinates: cov = P C P^T with P each block's plus-Jacobian (a selection of the free
   // entries, or fx and fy moving together under a fixed aspect ratio). Parameters held fixed have zero rows.
   Eigen::MatrixXd plus_jacobian = Eigen::MatrixXd::Zero(kNumCameraParameters, camera_rows);
   for (size_t b = 0; b < reported_blocks.size(); ++b) {
     const Reported& r = *reported_blocks[b];
-    const int tangent = covariance->tangent_size[b];
+    const int tangent = covariance.tangent_size[b];
     const ceres::Manifold* manifold = problem.GetManifold(r.block);
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> jacobian(r.size, tangent);
     if (manifold == nullptr) {
@@ -346,9 +347,9 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
     } else if (!manifold->PlusJacobian(r.block, jacobian.data())) {
       return Failure(CalibrationStatus::kCovarianceFailed, "internal: a parameter block's Jacobian failed");
     }
-    plus_jacobian.block(r.first, covariance->offset[b], r.size, tangent) = jacobian;
+    plus_jacobian.block(r.first, covariance.offset[b], r.size, tangent) = jacobian;
   }
-  result.covariance = plus_jacobian * covariance->matrix.topLeftCorner(camera_rows, camera_rows) *
+  result.covariance = plus_jacobian * covariance.matrix.topLeftCorner(camera_rows, camera_rows) *
                       plus_jacobian.transpose() * result.residual_variance_px2;
   for (int i = 0; i < kNumCameraParameters; ++i) {
     const double var = result.covariance(i, i);
@@ -369,7 +370,7 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
                                  stddev[static_cast<size_t>(i)], !free[static_cast<size_t>(i)]});
   }
   if (o.fit_board_warp) {
-    const auto& warp_cov = covariance->matrix;
+    const auto& warp_cov = covariance.matrix;
     BoardWarpEstimate w;
     w.sag_x_mm = p.warp[0];
     w.sag_y_mm = p.warp[1];
@@ -559,14 +560,14 @@ CalibrationResult CalibrateMultiView(const std::vector<ViewObservations>& views,
     f.skipped_views = result.skipped_views;
     return f;
   }
-  const auto init = InitialiseZhang(usable, &why);
-  if (!init) return Failure(CalibrationStatus::kDegenerate, why);
+  const ZhangInitialisation init = InitialiseZhang(usable);
+  if (!init.ok) return Failure(CalibrationStatus::kDegenerate, init.message);
 
   Parameters p;
-  p.intrinsics = {init->fx_px, init->fy_px, init->cx_px, init->cy_px};
+  p.intrinsics = {init.fx_px, init.fy_px, init.cx_px, init.cy_px};
   if (options.fixed_aspect_ratio > 0) {
     // Start on the constraint with Zhang's geometric-mean focal length.
-    const double f = std::sqrt(init->fx_px * init->fy_px);
+    const double f = std::sqrt(init.fx_px * init.fy_px);
     p.intrinsics[0] = f * std::sqrt(options.fixed_aspect_ratio);
     p.intrinsics[1] = f / std::sqrt(options.fixed_aspect_ratio);
   }
@@ -582,7 +583,7 @@ CalibrationResult CalibrateMultiView(const std::vector<ViewObservations>& views,
     p.warp_geometry.centre_mm = 0.5 * (lo + hi);
     p.warp_geometry.half_size_mm = 0.5 * (hi - lo);
   }
-  for (const auto& pose : init->cam_from_target) p.poses.push_back(ToArray(pose));
+  for (const auto& pose : init.cam_from_target) p.poses.push_back(ToArray(pose));
   // Refine each pose for the initial K (Zhang's rotation projection is only least-squares in the algebraic sense).
   const cv::Matx33d k(p.intrinsics[0], 0, p.intrinsics[2], 0, p.intrinsics[1], p.intrinsics[3], 0, 0, 1);
   for (size_t v = 0; v < usable.size(); ++v) {

@@ -326,13 +326,12 @@ DeviceFit FitDevice(const model::Device& nominal, const model::TopographerParams
   if (options.fit_radial_scale) blocks.push_back(&blk.radial_scale);
   if (options.fit_distortion) blocks.push_back(blk.distortion.data());
   for (auto& b : blk.balls) blocks.push_back(b.data());
-  std::string covariance_why;
-  const auto covariance = TangentCovariance(problem, blocks, &covariance_why);
-  if (!covariance) {
-    return fail("the device fit's covariance failed: " + covariance_why +
+  const TangentCovarianceResult covariance = TangentCovariance(problem, blocks);
+  if (!covariance.ok) {
+    return fail("the device fit's covariance failed: " + covariance.message +
                 " (a parameter is not determined by these images)");
   }
-  const Eigen::MatrixXd& tangent_cov = covariance->matrix;
+  const Eigen::MatrixXd& tangent_cov = covariance.matrix;
   // Which ambient components are free, per block, in tangent order.
   std::map<const double*, std::vector<int>> free_components;
   {

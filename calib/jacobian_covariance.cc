@@ -5,11 +5,11 @@
 
 namespace topocal::calib {
 
-std::optional<TangentCovarianceResult> TangentCovariance(ceres::Problem& problem, const std::vector<double*>& blocks,
-                                                         std::string* why) {
-  const auto fail = [&](const char* reason) -> std::optional<TangentCovarianceResult> {
-    if (why) *why = reason;
-    return std::nullopt;
+TangentCovarianceResult TangentCovariance(ceres::Problem& problem, const std::vector<double*>& blocks) {
+  const auto fail = [](const char* reason) {
+    TangentCovarianceResult failed;
+    failed.message = reason;
+    return failed;
   };
   TangentCovarianceResult result;
   int columns = 0;
@@ -43,6 +43,7 @@ std::optional<TangentCovarianceResult> TangentCovariance(ceres::Problem& problem
   }
   result.matrix = inv_norm.asDiagonal() * ldlt.solve(Eigen::MatrixXd::Identity(columns, columns)) * inv_norm.asDiagonal();
   if (!result.matrix.allFinite()) return fail("non-finite covariance");
+  result.ok = true;
   return result;
 }
 

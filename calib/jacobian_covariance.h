@@ -2,10 +2,9 @@
 // Covariance of a solved least-squares problem's free parameters, (J^T J)^-1, from the Jacobian of every residual
 // in the tangent space of the given parameter blocks.
 //
-//   std::string why;
-//   auto cov = calib::TangentCovariance(problem, {intrinsics, distortion, pose0, pose1}, &why);
-//   if (!cov) return Fail(why);                       // a free direction the data do not determine
-//   double var_fx = cov->matrix(cov->offset[0] + 0, cov->offset[0] + 0) * residual_variance;
+//   auto cov = calib::TangentCovariance(problem, {intrinsics, distortion, pose0, pose1});
+//   if (!cov.ok) return Fail(cov.message);            // a free direction the data do not determine
+//   double var_fx = cov.matrix(cov.offset[0] + 0, cov.offset[0] + 0) * residual_variance;
 //
 // One owner for the camera fit (calib/calibrate.h) and the device fit (calib/device_fit.h). Computed here rather
 // than with ceres::Covariance for two measured reasons:
@@ -25,6 +24,8 @@
 namespace topocal::calib {
 
 struct TangentCovarianceResult {
+  bool ok = false;
+  std::string message;  // why not, when !ok
   // Square, over the tangent coordinates of the blocks in the order given (a block with a SubsetManifold
   // contributes only its free components, in their order).
   Eigen::MatrixXd matrix;
@@ -33,9 +34,8 @@ struct TangentCovarianceResult {
 };
 
 // `blocks` must be parameter blocks of `problem` that are not constant. Unscaled: multiply by the residual variance
-// (or 1 when the residuals are already whitened). Empty with a reason in `why` when the Jacobian cannot be evaluated
-// or J^T J is singular.
-std::optional<TangentCovarianceResult> TangentCovariance(ceres::Problem& problem, const std::vector<double*>& blocks,
-                                                         std::string* why);
+// (or 1 when the residuals are already whitened). !ok with the reason in `message` when the Jacobian cannot be
+// evaluated or J^T J is singular (a computation that failed; the fits report it in their own result).
+TangentCovarianceResult TangentCovariance(ceres::Problem& problem, const std::vector<double*>& blocks);
 
 }  // namespace topocal::calib

@@ -64,10 +64,11 @@ ViewPose PoseFromHomography(const Eigen::Matrix3d& camera_matrix, const Eigen::M
   return pose;
 }
 
-std::optional<ZhangInitialisation> InitialiseZhang(const std::vector<ViewObservations>& views, std::string* why) {
-  const auto fail = [why](std::string reason) -> std::optional<ZhangInitialisation> {
-    if (why) *why = std::move(reason);
-    return std::nullopt;
+ZhangInitialisation InitialiseZhang(const std::vector<ViewObservations>& views) {
+  const auto fail = [](std::string reason) {
+    ZhangInitialisation failed;
+    failed.message = std::move(reason);
+    return failed;
   };
   if (views.size() < 2) return fail("Zhang's initialisation needs at least 2 views");
   const int width = views.front().image_width, height = views.front().image_height;
@@ -134,6 +135,7 @@ std::optional<ZhangInitialisation> InitialiseZhang(const std::vector<ViewObserva
                             init.fx_px, init.fy_px, init.cx_px, init.cy_px, conditioning));
   }
   for (const auto& h : homographies) init.cam_from_target.push_back(PoseFromHomography(k, h));
+  init.ok = true;
   return init;
 }
 

@@ -33,6 +33,8 @@ struct ViewPose {
 };
 
 struct ZhangInitialisation {
+  bool ok = false;
+  std::string message;  // why not, when !ok
   double fx_px = 0, fy_px = 0, cx_px = 0, cy_px = 0;
   std::vector<ViewPose> cam_from_target;  // one per input view
   // Singular values of the normalised constraint matrix, largest first: the 5th over the 1st is the conditioning of
@@ -55,8 +57,9 @@ std::optional<Eigen::Matrix3d> TargetToImageHomography(const ViewObservations& v
 // The pose of the target given K and its homography (Zhang Sec. 3.1), target in front of the camera.
 ViewPose PoseFromHomography(const Eigen::Matrix3d& camera_matrix, const Eigen::Matrix3d& homography);
 
-// Zhang's closed form over all views (each with >= 4 non-collinear corners and the same image size). nullopt with
-// the reason in *why when a homography fails, the views are degenerate or B is not positive definite.
-std::optional<ZhangInitialisation> InitialiseZhang(const std::vector<ViewObservations>& views, std::string* why);
+// Zhang's closed form over all views (each with >= 4 non-collinear corners and the same image size). !ok with the
+// reason in `message` when a homography fails, the views are degenerate or B is not positive definite (a computation
+// that failed: the caller's calibration reports it as CalibrationStatus::kDegenerate).
+ZhangInitialisation InitialiseZhang(const std::vector<ViewObservations>& views);
 
 }  // namespace topocal::calib

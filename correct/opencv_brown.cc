@@ -6,11 +6,11 @@
 
 namespace topocal::correct {
 
-std::optional<BrownOnDetectionPlane> BrownFromOpenCv(const OpenCvCamera& k, const model::TopographerCamera& camera,
-                                                     std::string* why) {
-  const auto fail = [why](std::string m) -> std::optional<BrownOnDetectionPlane> {
-    if (why) *why = std::move(m);
-    return std::nullopt;
+BrownOnDetectionPlane BrownFromOpenCv(const OpenCvCamera& k, const model::TopographerCamera& camera) {
+  const auto fail = [](std::string m) {
+    BrownOnDetectionPlane failed;
+    failed.message = std::move(m);
+    return failed;
   };
   if (!(k.fx_px > 0) || !(k.fy_px > 0) || !std::isfinite(k.fx_px) || !std::isfinite(k.fy_px)) {
     return fail(fmt::format("focal lengths must be > 0 (fx = {}, fy = {})", k.fx_px, k.fy_px));
@@ -37,6 +37,7 @@ std::optional<BrownOnDetectionPlane> BrownFromOpenCv(const OpenCvCamera& k, cons
   const Eigen::Vector2d q_mm = mt * Eigen::Vector2d(k.dist[3], k.dist[2]);
   out.brown.k = {k.dist[0], k.dist[1], q_mm.y(), q_mm.x(), k.dist.size() == 5 ? k.dist[4] : 0.0};
   out.aspect_error = std::abs(k.fx_px / k.fy_px - 1.0);
+  out.ok = true;
   return out;
 }
 

@@ -27,12 +27,14 @@ struct OpenCvCamera {
 };
 
 struct BrownOnDetectionPlane {
+  bool ok = false;
+  std::string message;  // why not, when !ok
   model::BrownParams brown;
   double aspect_error = 0;  // |f_x / f_y - 1|
 };
 
-// nullopt with *why set for an unsupported coefficient count or a non-positive focal length.
-std::optional<BrownOnDetectionPlane> BrownFromOpenCv(const OpenCvCamera& cv_camera,
-                                                     const model::TopographerCamera& camera, std::string* why);
+// !ok with the reason in `message` for an unsupported coefficient count, a non-positive focal length or a value that
+// is not finite (the camera file's content: the caller names the file and turns it into bad input).
+BrownOnDetectionPlane BrownFromOpenCv(const OpenCvCamera& cv_camera, const model::TopographerCamera& camera);
 
 }  // namespace topocal::correct

@@ -67,10 +67,12 @@ CalibrationOutcome Calibrate(const model::Config& config, const model::Topograph
   if (!result.ok() || !result.seidel) {
     throw std::runtime_error(fmt::format("sigma {}: calibration failed: {}", sigma, result.message));
   }
-  const auto distortion = DistortionOnDetectionPlane(result.camera, roi, &why);
-  if (!distortion) {
-    throw std::runtime_error(fmt::format("sigma {}: calibration not usable on the detection plane: {}", sigma, why));
+  const auto on_plane = DetectionPlaneModelOf(result.camera, roi);
+  if (!on_plane.ok) {
+    throw std::runtime_error(
+        fmt::format("sigma {}: calibration not usable on the detection plane: {}", sigma, on_plane.message));
   }
+  const model::Distortion* distortion = &on_plane.distortion;
 
   CalibrationOutcome out;
   out.sigma_estimated_per_mm2 = result.seidel->sigma_per_mm2;

@@ -15,8 +15,7 @@ constexpr int kErrorGridSteps = 16;
 
 }  // namespace
 
-std::optional<DetectionPlaneModel> DetectionPlaneModelOf(const calib::CameraModel& c,
-                                                         const model::TopographerCamera& camera, std::string* why) {
+DetectionPlaneModel DetectionPlaneModelOf(const calib::CameraModel& c, const model::TopographerCamera& camera) {
   correct::OpenCvCamera k;
   k.fx_px = c.fx_px;
   k.fy_px = c.fy_px;
@@ -25,10 +24,14 @@ std::optional<DetectionPlaneModel> DetectionPlaneModelOf(const calib::CameraMode
   k.dist.assign(c.dist.begin(), c.dist.end());
   k.centre_x = c.distortion_centre.x();
   k.centre_y = c.distortion_centre.y();
-  const auto brown = correct::BrownFromOpenCv(k, camera, why);
-  if (!brown) return std::nullopt;
-  DetectionPlaneModel result{model::Distortion{brown->brown}, 0.0};
-  if (brown->aspect_error > 0) {
+  const auto brown = correct::BrownFromOpenCv(k, camera);
+  DetectionPlaneModel result;
+  if (!brown.ok) {
+    result.message = brown.message;
+    return result;
+  }
+  result.distortion = model::Distortion{brown.brown};
+  if (brown.aspect_error > 0) {
     for (int j = 0; j <= kErrorGridSteps; ++j) {
       for (int i = 0; i <= kErrorGridSteps; ++i) {
         const Eigen::Vector2d px((camera.width_px - 1.0) * i / kErrorGridSteps,
@@ -44,21 +47,14 @@ std::optional<DetectionPlaneModel> DetectionPlaneModelOf(const calib::CameraMode
     }
   }
   if (result.model_error_px > kMaxModelErrorPx) {
-    if (why) {
-      *why = fmt::format("fx / fy = {:.6f}: the detection-plane model (one focal length) would misplace undistorted "
-                         "points by up to {:.3f} px (> {} px)",
-                         c.fx_px / c.fy_px, result.model_error_px, kMaxModelErrorPx);
-    }
-    return std::nullopt;
+    result.message = fmt::format(
+        "fx / fy = {:.6f}: the detection-plane model (one focal length) would misplace "
+        "undistorted points by up to {:.3f} px (> {} px)",
+        c.fx_px / c.fy_px, result.model_error_px, kMaxModelErrorPx);
+    return result;
   }
+  result.ok = true;
   return result;
-}
-
-std::optional<model::Distortion> DistortionOnDetectionPlane(const calib::CameraModel& c,
-                                                            const model::TopographerCamera& camera, std::string* why) {
-  auto result = DetectionPlaneModelOf(c, camera, why);
-  if (!result) return std::nullopt;
-  return result->distortion;
 }
 
 }  // namespace topocal::pipeline

@@ -24,15 +24,16 @@ namespace topocal::pipeline {
 inline constexpr double kMaxModelErrorPx = 0.01;
 
 struct DetectionPlaneModel {
+  bool ok = false;
+  std::string message;  // why the calibration cannot be expressed on the detection plane, when !ok
   model::Distortion distortion;
   double model_error_px = 0;  // worst |undistorted pixel, detection-plane model - calibration| over the sensor
 };
 
-// nullopt with *why when the calibration cannot be expressed on the detection plane (model error, model).
-std::optional<DetectionPlaneModel> DetectionPlaneModelOf(const calib::CameraModel& calibrated,
-                                                         const model::TopographerCamera& camera, std::string* why);
-// The same, the distortion alone.
-std::optional<model::Distortion> DistortionOnDetectionPlane(const calib::CameraModel& calibrated,
-                                                            const model::TopographerCamera& camera, std::string* why);
+// !ok with the reason (model error, coefficient count, focal length) when the calibration cannot be expressed on the
+// detection plane. Whether that is bad input (a calibration file the user gave: the command line names the file,
+// exit 2) or a computation that failed (a calibration the workflow computed: std::runtime_error, exit 1) is the
+// caller's to say; an uncertainty draw counts it as a failed draw.
+DetectionPlaneModel DetectionPlaneModelOf(const calib::CameraModel& calibrated, const model::TopographerCamera& camera);
 
 }  // namespace topocal::pipeline

@@ -94,12 +94,11 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
   // Draws read only the biconic parameters and the power maps: no standard deviations, adequacy or clinical indices.
   std::optional<topo::Analysis> nominal;
   {
-    std::string why;
-    if (const auto distortion = DistortionOnDetectionPlane(calibrated, camera, &why)) {
+    if (const auto on_plane = DetectionPlaneModelOf(calibrated, camera); on_plane.ok) {
       topo::AnalysisOptions o;
       o.stddev = o.adequacy = o.clinical = false;
       try {
-        nominal = topo::AnalyzeSpots(UndistortSpots(spots, *distortion), design.targets, config, nullptr, o);
+        nominal = topo::AnalyzeSpots(UndistortSpots(spots, on_plane.distortion), design.targets, config, nullptr, o);
       } catch (const std::runtime_error&) {
         // No start then: every draw starts cold (and fails or not on its own).
       }
@@ -123,9 +122,9 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
     for (Eigen::Index k = 0; k < m; ++k) z(k) = normal(rng);
     const Eigen::VectorXd delta = factor * z;
     for (Eigen::Index k = 0; k < m; ++k) *Parameter(c, u.drawn[static_cast<size_t>(k)]) += delta(k);
-    std::string why;
-    const auto distortion = DistortionOnDetectionPlane(c, camera, &why);
-    if (!distortion) return;  // counted as failed below
+    const auto on_plane = DetectionPlaneModelOf(c, camera);
+    if (!on_plane.ok) return;  // counted as failed below
+    const model::Distortion* distortion = &on_plane.distortion;
     try {
       const auto undistorted = UndistortSpots(spots, *distortion, &per_draw_undistort_failures[i]);
       const auto a = topo::AnalyzeSpots(undistorted, design.targets, config, nullptr, draw_options);

@@ -57,10 +57,9 @@ std::optional<ClinicalUncertainty> Uncertainty(const std::vector<MeasuredImageSp
 }
 
 model::Distortion OnDetectionPlane(const UnitCalibration& unit, const model::TopographerCamera& camera) {
-  std::string why;
-  const auto d = DistortionOnDetectionPlane(unit.camera, camera, &why);
-  if (!d) throw std::runtime_error("the calibration cannot be put on the detection plane: " + why);
-  return *d;
+  const auto d = DetectionPlaneModelOf(unit.camera, camera);
+  if (!d.ok) throw std::runtime_error("the calibration cannot be put on the detection plane: " + d.message);
+  return d.distortion;
 }
 
 }  // namespace

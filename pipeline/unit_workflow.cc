@@ -236,9 +236,9 @@ UnitCameraCalibration CalibrateViews(const UnitRequest& r, LoadedInputs& in,
 
 DistortionField MeasureDistortionField(const calib::CameraModel& calibrated, const LoadedInputs& in,
                                        const std::string& serial) {
-  std::string why;
-  const auto distortion = pipeline::DistortionOnDetectionPlane(calibrated, in.camera, &why);
-  if (!distortion) throw std::runtime_error(fmt::format("{}: {}", serial, why));
+  const auto on_plane = pipeline::DetectionPlaneModelOf(calibrated, in.camera);
+  if (!on_plane.ok) throw std::runtime_error(fmt::format("{}: {}", serial, on_plane.message));
+  const model::Distortion* distortion = &on_plane.distortion;
   const auto& cfg = in.config;
   const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
   const auto ideal =
@@ -343,10 +343,12 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
   u.paper = SimulateThroughCalibratedCamera(unit, in.camera, in.config, u.check);
   u.field = MeasureDistortionField(c.result.camera, in, r.serial);
   if (!in.balls.empty()) {
-    std::string why;
-    const auto lens = DistortionOnDetectionPlane(c.result.camera, in.camera, &why);
-    if (!lens) throw std::runtime_error(fmt::format("{}: the calibration cannot be put on the detection plane: {}", r.serial, why));
-    u.device = CalibrateDeviceStage(r, in, *lens);
+    const auto lens = DetectionPlaneModelOf(c.result.camera, in.camera);
+    if (!lens.ok) {
+      throw std::runtime_error(
+          fmt::format("{}: the calibration cannot be put on the detection plane: {}", r.serial, lens.message));
+    }
+    u.device = CalibrateDeviceStage(r, in, lens.distortion);
   }
   u.config = std::move(in.config);
   u.camera = std::move(in.camera);

@@ -154,7 +154,17 @@ FleetDb::FleetDb(const std::string& path, bool create) : path_(path) {
     throw model::InputError(fmt::format("{}: cannot open the fleet database: {}", path, message));
   }
   sqlite3_busy_timeout(db_, kFleetBusyTimeoutMs);
-  try {
+  // Until the database is known to be a fleet database, any exception closes it (and passes on unchanged).
+  struct CloseUnlessKept {
+    sqlite3** db;
+    bool keep = false;
+    ~CloseUnlessKept() {
+      if (keep) return;
+      sqlite3_close(*db);
+      *db = nullptr;
+    }
+  } guard{&db_};
+  {
     if (create && sqlite3_db_readonly(db_, "main") == 1) {
       throw model::InputError(fmt::format("{}: the fleet database is read-only", path));
     }
@@ -193,11 +203,8 @@ FleetDb::FleetDb(const std::string& path, bool create) : path_(path) {
                                           "version {})",
                                           path, version, kFleetSchemaVersion));
     }
-  } catch (...) {
-    sqlite3_close(db_);
-    db_ = nullptr;
-    throw;
   }
+  guard.keep = true;
 }
 
 FleetDb::~FleetDb() { sqlite3_close(db_); }

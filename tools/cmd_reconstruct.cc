@@ -148,9 +148,9 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
                                           in.calibration, cal->camera.width_px, cal->camera.height_px, in.camera,
                                           camera.width_px, camera.height_px));
     }
-    std::string why;
-    distortion = pipeline::DistortionOnDetectionPlane(cal->camera, camera, &why);
-    if (!distortion) throw model::InputError(fmt::format("{}: {}", in.calibration, why));
+    const auto on_plane = pipeline::DetectionPlaneModelOf(cal->camera, camera);
+    if (!on_plane.ok) throw model::InputError(fmt::format("{}: {}", in.calibration, on_plane.message));
+    distortion = on_plane.distortion;
   }
   const auto m = MeasureImage(image, camera, cfg.ideal_image, distortion, in);
   fmt::print("image: {} spots indexed, {} unassigned detections, {} designed spots missing{}\n", m.indexed,

@@ -48,10 +48,9 @@ model::TopographerCamera CameraFor(const UndistortArgs& a, const calib::Calibrat
 
 model::Distortion DistortionFor(const calib::CalibrationFile& cal, const model::TopographerCamera& camera,
                                 const std::string& path) {
-  std::string why;
-  const auto distortion = pipeline::DistortionOnDetectionPlane(cal.camera, camera, &why);
-  if (!distortion) throw model::InputError(fmt::format("{}: {}", path, why));
-  return *distortion;
+  const auto on_plane = pipeline::DetectionPlaneModelOf(cal.camera, camera);
+  if (!on_plane.ok) throw model::InputError(fmt::format("{}: {}", path, on_plane.message));
+  return on_plane.distortion;
 }
 
 void Run(const UndistortArgs& a) {

@@ -62,19 +62,18 @@ TEST(Zhang, RecoversPinholeIntrinsicsFromNoiseFreeViews) {
   cam.dist = {};
   std::mt19937 rng(1);
   const auto views = ReferenceViews(cam, 0.0, rng);
-  std::string why;
-  const auto init = InitialiseZhang(views, &why);
-  ASSERT_TRUE(init) << why;
+  const auto init = InitialiseZhang(views);
+  ASSERT_TRUE(init.ok) << init.message;
   // findHomography's LM stops at ~1e-10 px; the closed form passes it on to ~1e-8 relative.
   constexpr double kZhangRelative = 1e-6;
-  EXPECT_NEAR(init->fx_px, cam.fx_px, kZhangRelative * cam.fx_px);
-  EXPECT_NEAR(init->fy_px, cam.fy_px, kZhangRelative * cam.fy_px);
-  EXPECT_NEAR(init->cx_px, cam.cx_px, kZhangRelative * cam.fx_px);
-  EXPECT_NEAR(init->cy_px, cam.cy_px, kZhangRelative * cam.fx_px);
-  ASSERT_EQ(init->cam_from_target.size(), views.size());
-  EXPECT_GT(init->constraint_conditioning, 10 * kMinConstraintConditioning);  // far from the degeneracy test
-  RecordProperty("constraint_conditioning", std::to_string(init->constraint_conditioning));
-  EXPECT_GT(init->cam_from_target[0].translation_mm.z(), 0);
+  EXPECT_NEAR(init.fx_px, cam.fx_px, kZhangRelative * cam.fx_px);
+  EXPECT_NEAR(init.fy_px, cam.fy_px, kZhangRelative * cam.fy_px);
+  EXPECT_NEAR(init.cx_px, cam.cx_px, kZhangRelative * cam.fx_px);
+  EXPECT_NEAR(init.cy_px, cam.cy_px, kZhangRelative * cam.fx_px);
+  ASSERT_EQ(init.cam_from_target.size(), views.size());
+  EXPECT_GT(init.constraint_conditioning, 10 * kMinConstraintConditioning);  // far from the degeneracy test
+  RecordProperty("constraint_conditioning", std::to_string(init.constraint_conditioning));
+  EXPECT_GT(init.cam_from_target[0].translation_mm.z(), 0);
 }
 
 TEST(Zhang, RejectsParallelViews) {
@@ -86,10 +85,10 @@ TEST(Zhang, RejectsParallelViews) {
     views.push_back(ProjectGrid(cam, MakePose(10, 10, 0, {-20.0 + 10 * i, 5.0 * i, 420.0 + 25 * i}, grid), grid,
                                 kNoisePx, rng));
   }
-  std::string why;
-  EXPECT_FALSE(InitialiseZhang(views, &why));
-  EXPECT_NE(why.find("degenerate"), std::string::npos) << why;
-  RecordProperty("why", why);
+  const auto init = InitialiseZhang(views);
+  EXPECT_FALSE(init.ok);
+  EXPECT_NE(init.message.find("degenerate"), std::string::npos) << init.message;
+  RecordProperty("why", init.message);
   const auto r = CalibrateMultiView(views, {});
   EXPECT_EQ(r.status, CalibrationStatus::kDegenerate) << r.message;
 }
@@ -386,10 +385,9 @@ TEST(RealPhotographs, AgreesWithOpenCvCalibrateCamera) {
   const auto set = DetectRealSet();
   if (set.views.empty()) FAIL() << "opencv-doc's left*.jpg are not installed (apt-get install opencv-doc)";
   ASSERT_EQ(set.views.size(), 13u);
-  std::string why;
-  const auto init = InitialiseZhang(set.views, &why);
-  ASSERT_TRUE(init) << why;
-  RecordProperty("constraint_conditioning", std::to_string(init->constraint_conditioning));
+  const auto init = InitialiseZhang(set.views);
+  ASSERT_TRUE(init.ok) << init.message;
+  RecordProperty("constraint_conditioning", std::to_string(init.constraint_conditioning));
   cv::Mat k, dist;
   std::vector<cv::Mat> rvecs, tvecs;
   const double cv_rms = cv::calibrateCamera(set.object, set.image, set.size, k, dist, rvecs, tvecs);

@@ -26,27 +26,27 @@ calib::CameraModel UnitCamera(const model::TopographerCamera& sensor, double fx_
 TEST(DetectionPlane, RealAspectRatioIsCarriedWithItsModelError) {
   const model::TopographerCamera sensor;
   const double k1 = -0.05;  // ~36 px of displacement at the sensor corners
-  std::string why;
-  const auto m = DetectionPlaneModelOf(UnitCamera(sensor, 0.999788, k1), sensor, &why);
-  ASSERT_TRUE(m.has_value()) << why;
+  const auto m = DetectionPlaneModelOf(UnitCamera(sensor, 0.999788, k1), sensor);
+  ASSERT_TRUE(m.ok) << m.message;
   // |fx / fy - 1| / 2 times the largest displacement (correct/opencv_brown.h): 1.06e-4 x ~36 px ~ 0.004 px.
-  std::printf("fx/fy = 0.999788, k1 = %.2f: model error %.4f px\n", k1, m->model_error_px);
-  EXPECT_GT(m->model_error_px, 0.001);  // the error is computed, not assumed zero
-  EXPECT_LT(m->model_error_px, kMaxModelErrorPx);
+  std::printf("fx/fy = 0.999788, k1 = %.2f: model error %.4f px\n", k1, m.model_error_px);
+  EXPECT_GT(m.model_error_px, 0.001);  // the error is computed, not assumed zero
+  EXPECT_LT(m.model_error_px, kMaxModelErrorPx);
   // Square pixels: no model error at all.
-  const auto square = DetectionPlaneModelOf(UnitCamera(sensor, 1.0, k1), sensor, &why);
-  ASSERT_TRUE(square.has_value()) << why;
-  EXPECT_EQ(square->model_error_px, 0.0);
+  const auto square = DetectionPlaneModelOf(UnitCamera(sensor, 1.0, k1), sensor);
+  ASSERT_TRUE(square.ok) << square.message;
+  EXPECT_EQ(square.model_error_px, 0.0);
 }
 
 TEST(DetectionPlane, LargeAspectErrorIsRefusedWithTheNumber) {
   const model::TopographerCamera sensor;
-  std::string why;
-  EXPECT_FALSE(DetectionPlaneModelOf(UnitCamera(sensor, 0.995, -0.05), sensor, &why).has_value());
-  EXPECT_NE(why.find("fx / fy = 0.995000"), std::string::npos) << why;
-  EXPECT_NE(why.find("px (> 0.01 px)"), std::string::npos) << why;
+  const auto refused = DetectionPlaneModelOf(UnitCamera(sensor, 0.995, -0.05), sensor);
+  EXPECT_FALSE(refused.ok);
+  EXPECT_NE(refused.message.find("fx / fy = 0.995000"), std::string::npos) << refused.message;
+  EXPECT_NE(refused.message.find("px (> 0.01 px)"), std::string::npos) << refused.message;
   // The same aspect ratio without distortion moves no point: accepted.
-  EXPECT_TRUE(DetectionPlaneModelOf(UnitCamera(sensor, 0.995, 0.0), sensor, &why).has_value()) << why;
+  const auto accepted = DetectionPlaneModelOf(UnitCamera(sensor, 0.995, 0.0), sensor);
+  EXPECT_TRUE(accepted.ok) << accepted.message;
 }
 
 }  // namespace

@@ -128,16 +128,15 @@ TEST_F(CorrectCli, RenderSpotsBadInputIsOneLineExitTwoNoOutput) {
 TEST_F(CorrectCli, UndistortSpotsInvertsTheCalibratedLens) {
   const auto k = Lens();
   WriteCalibration("cal.yaml", k, camera_.width_px, camera_.height_px);
-  std::string why;
-  const auto brown = BrownFromOpenCv(k, camera_, &why);
-  ASSERT_TRUE(brown) << why;
+  const auto brown = BrownFromOpenCv(k, camera_);
+  ASSERT_TRUE(brown.ok) << brown.message;
   std::vector<Eigen::Vector2d> truth;
   std::string csv = "ring,index,x_mm,y_mm\n";
   int id = 0;
   for (double x = -0.45; x <= 0.45; x += 0.09) {
     for (double y = -0.45; y <= 0.45; y += 0.09) {
       truth.emplace_back(x, y);
-      const Eigen::Vector2d d = model::Distort(brown->brown, truth.back());
+      const Eigen::Vector2d d = model::Distort(brown.brown, truth.back());
       csv += fmt::format("1,{},{},{}\n", id++, d.x(), d.y());
     }
   }
@@ -173,8 +172,7 @@ TEST_F(CorrectCli, UndistortImageMatchesTheLibrary) {
                             Path("out.png") + " --camera " + Path("cam.json"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const cv::Mat out = cv::imread(Path("out.png"), cv::IMREAD_UNCHANGED);
-  std::string why;
-  const auto expected = UndistortImage(img, BuildUndistortMap(BrownFromOpenCv(k, camera_, &why)->brown, camera_));
+  const auto expected = UndistortImage(img, BuildUndistortMap(BrownFromOpenCv(k, camera_).brown, camera_));
   ASSERT_EQ(out.size(), expected.size());
   EXPECT_EQ(cv::norm(out, expected, cv::NORM_INF), 0.0);
   // Without --camera the calibration's own geometry is used: the same image in pixels.

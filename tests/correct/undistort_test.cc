@@ -127,10 +127,9 @@ TEST(UndistortMap, BrownAgreesWithOpenCv) {
   const double f = camera.FocalPx();
   OpenCvCamera k{f, f, camera.principal_point_px.x() + 13.0, camera.principal_point_px.y() - 7.0,
                  {-0.12, 0.25, 8e-4, -5e-4, -0.1}};
-  std::string why;
-  const auto brown = BrownFromOpenCv(k, camera, &why);
-  ASSERT_TRUE(brown) << why;
-  const auto ours = BuildUndistortMap(brown->brown, camera);
+  const auto brown = BrownFromOpenCv(k, camera);
+  ASSERT_TRUE(brown.ok) << brown.message;
+  const auto ours = BuildUndistortMap(brown.brown, camera);
   const cv::Matx33d kk(f, 0, k.cx_px, 0, f, k.cy_px, 0, 0, 1);
   // What cv::undistort(src, dst, K, dist) applies: the same K for the output.
   cv::Mat mx, my;
@@ -239,9 +238,8 @@ TEST(BrownFromOpenCv, SameDistortionInPixelsForEveryOrientationAndCentre) {
       const double f = camera.FocalPx();
       OpenCvCamera k{f, f, camera.principal_point_px.x() + 21.0, camera.principal_point_px.y() - 9.0,
                      {-0.12, 0.25, 8e-4, -5e-4, -0.1}, e, -0.5 * e};
-      std::string why;
-      const auto b = BrownFromOpenCv(k, camera, &why);
-      ASSERT_TRUE(b) << why;
+      const auto b = BrownFromOpenCv(k, camera);
+      ASSERT_TRUE(b.ok) << b.message;
       for (int v = 0; v < camera.height_px; v += 250) {
         for (int u = 0; u < camera.width_px; u += 250) {
           // The same undistorted pixel through both: OpenCV's normalised coordinates from the calibration's K,
@@ -249,7 +247,7 @@ TEST(BrownFromOpenCv, SameDistortionInPixelsForEveryOrientationAndCentre) {
           const Eigen::Vector2d px(u, v);
           const Eigen::Vector2d cv_px = ProjectOpenCv(k, {(u - k.cx_px) / k.fx_px, (v - k.cy_px) / k.fy_px});
           const Eigen::Vector2d ours =
-              camera.PixelFromDetectionPlane(model::Distort(b->brown, camera.DetectionPlaneFromPixel(px)));
+              camera.PixelFromDetectionPlane(model::Distort(b.brown, camera.DetectionPlaneFromPixel(px)));
           EXPECT_LT((cv_px - ours).norm(), kSameModelPx) << u << ", " << v;
         }
       }
@@ -259,14 +257,15 @@ TEST(BrownFromOpenCv, SameDistortionInPixelsForEveryOrientationAndCentre) {
 
 TEST(BrownFromOpenCv, RejectsWhatItCannotRepresent) {
   const auto camera = testing::DefaultCamera();
-  std::string why;
-  EXPECT_FALSE(BrownFromOpenCv({1000, 1000, 10, 10, {0.1, 0, 0, 0, 0, 0, 0, 0}}, camera, &why));
-  EXPECT_NE(why.find("8 distortion coefficients"), std::string::npos);
-  EXPECT_FALSE(BrownFromOpenCv({0, 1000, 10, 10, {0.1, 0, 0, 0}}, camera, &why));
-  EXPECT_NE(why.find("focal lengths must be > 0"), std::string::npos);
-  const auto b = BrownFromOpenCv({1000, 1001, 10, 10, {0.1, 0, 0, 0}}, camera, &why);
-  ASSERT_TRUE(b);
-  EXPECT_NEAR(b->aspect_error, 1e-3, 1e-6);
+  const auto eight = BrownFromOpenCv({1000, 1000, 10, 10, {0.1, 0, 0, 0, 0, 0, 0, 0}}, camera);
+  EXPECT_FALSE(eight.ok);
+  EXPECT_NE(eight.message.find("8 distortion coefficients"), std::string::npos);
+  const auto no_focal = BrownFromOpenCv({0, 1000, 10, 10, {0.1, 0, 0, 0}}, camera);
+  EXPECT_FALSE(no_focal.ok);
+  EXPECT_NE(no_focal.message.find("focal lengths must be > 0"), std::string::npos);
+  const auto b = BrownFromOpenCv({1000, 1001, 10, 10, {0.1, 0, 0, 0}}, camera);
+  ASSERT_TRUE(b.ok) << b.message;
+  EXPECT_NEAR(b.aspect_error, 1e-3, 1e-6);
 }
 
 }  // namespace

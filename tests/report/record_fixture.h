@@ -143,8 +143,10 @@ inline const FixtureChecks& ComputeChecks() {
     FixtureChecks c;
     c.configuration = {{"design", json::parse(model::ConfigToJson(config))},
                        {"camera", json::parse(model::TopographerCameraToJson(camera))}};
-    const auto distortion = pipeline::DistortionOnDetectionPlane(r.camera, camera, nullptr);
-    EXPECT_TRUE(distortion.has_value());
+    const auto on_plane = pipeline::DetectionPlaneModelOf(r.camera, camera);
+    EXPECT_TRUE(on_plane.ok) << on_plane.message;
+    const std::optional<model::Distortion> distortion =
+        on_plane.ok ? std::optional<model::Distortion>(on_plane.distortion) : std::nullopt;
     const model::Config sphere = pipeline::WithSphere(config, 7.8);
     const auto design = model::DesignNullScreen(sphere.ideal_image, sphere.topographer);
     const auto ideal =
