@@ -1,10 +1,12 @@
 #include "calib/cross_validation.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <cstdint>
-
-#include <fmt/format.h>
 #include <opencv2/calib3d.hpp>
+
+#include "plot/difference_map.h"
 
 namespace topocal::calib {
 
@@ -94,6 +96,17 @@ CrossValidationResult CrossValidate(const std::vector<ViewObservations>& views, 
   result.rms_px = std::sqrt(sum2 / static_cast<double>(result.samples.size()));
   result.ok = true;
   return result;
+}
+
+std::string CrossValidationSvg(const CrossValidationResult& cv, int image_height_px) {
+  plot::DifferenceMap map;
+  map.title = fmt::format("Cross-validation: two halves of the views ({} and {}), homography removed",
+                          cv.half_views[0].size(), cv.half_views[1].size());
+  map.note = fmt::format("difference of the two models: RMS {:.4f} px, max {:.4f} px over {} samples", cv.rms_px,
+                         cv.max_px, cv.samples.size());
+  map.image_height_px = image_height_px;
+  for (const auto& s : cv.samples) map.samples.push_back({s.pixel.x(), s.pixel.y(), s.difference_px});
+  return plot::RenderDifferenceMapSvg(map);
 }
 
 }  // namespace topocal::calib

@@ -52,4 +52,7 @@ std::vector<ModelDifferenceSample> ModelDifference(const CameraModel& a, const C
 CrossValidationResult CrossValidate(const std::vector<ViewObservations>& views, const CalibrationOptions& options,
                                     const CrossValidationOptions& cv_options = {});
 
+// The two halves' difference over the image as an SVG map (plot/difference_map.h): where the models disagree.
+std::string CrossValidationSvg(const CrossValidationResult& cv, int image_height_px);
+
 }  // namespace topocal::calib

@@ -1,16 +1,17 @@
 #include "calib/target_drawing.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
-#include <stdexcept>
-
-#include <fmt/format.h>
 #include <opencv2/aruco.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <stdexcept>
 
 #include "calib/apriltag_raii.h"
 #include "model/io.h"
+#include "plot/paper_svg.h"
 
 namespace topocal::calib {
 namespace {
@@ -113,28 +114,37 @@ bool TargetPattern::IsBlack(double x_mm, double y_mm) const noexcept {
 std::string TargetSvg(const TargetDescription& target) {
   const TargetPattern pattern(target);
   const TargetExtent paper = target.PaperExtent();
-  std::string svg = fmt::format(
-      "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-      "<!-- topocal target: {} -->\n"
-      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{:.4f}mm\" height=\"{:.4f}mm\" viewBox=\"0 0 {:.4f} {:.4f}\" "
-      "shape-rendering=\"crispEdges\">\n"
-      "<rect x=\"0\" y=\"0\" width=\"{:.4f}\" height=\"{:.4f}\" fill=\"#ffffff\"/>\n<g fill=\"#000000\">\n",
-      target.Describe(), paper.WidthMm(), paper.HeightMm(), paper.WidthMm(), paper.HeightMm(), paper.WidthMm(),
-      paper.HeightMm());
+  plot::PaperSvg svg("topocal target: " + target.Describe(), paper.WidthMm(), paper.HeightMm());
+  // Target-plane mm to the sheet's top-left origin.
   auto rect = [&](double x_mm, double y_mm, double w_mm, double h_mm) {
-    svg += fmt::format("<rect x=\"{:.4f}\" y=\"{:.4f}\" width=\"{:.4f}\" height=\"{:.4f}\"/>\n", x_mm - paper.min_x_mm,
-                       y_mm - paper.min_y_mm, w_mm, h_mm);
+    svg.BlackRect(x_mm - paper.min_x_mm, y_mm - paper.min_y_mm, w_mm, h_mm);
+  };
+  // A tag's or marker's cells of n x n, top-left at (x0, y0): runs of black cells become one rectangle (fewer
+  // elements, no hairline seams between cells).
+  auto bitmap = [&](const std::vector<uint8_t>& bits, int n, double x0, double y0, double cell_mm) {
+    for (int y = 0; y < n; ++y) {
+      for (int x = 0; x < n;) {
+        if (!bits[static_cast<size_t>(y * n + x)]) {
+          ++x;
+          continue;
+        }
+        int end = x;
+        while (end < n && bits[static_cast<size_t>(y * n + end)]) ++end;
+        rect(x0 + x * cell_mm, y0 + y * cell_mm, (end - x) * cell_mm, cell_mm);
+        x = end;
+      }
+    }
   };
   if (const auto* b = std::get_if<CheckerboardLayout>(&target.layout)) {
     for (int j = 0; j <= b->rows; ++j) {
       for (int i = 0; i <= b->cols; ++i) {
-        if ((i + j) % 2 == 0) rect((i - 1) * b->col_spacing_mm, (j - 1) * b->row_spacing_mm, b->col_spacing_mm,
-                                   b->row_spacing_mm);
+        if ((i + j) % 2 == 0) {
+          rect((i - 1) * b->col_spacing_mm, (j - 1) * b->row_spacing_mm, b->col_spacing_mm, b->row_spacing_mm);
+        }
       }
     }
   } else if (const auto* c = std::get_if<CharucoLayout>(&target.layout)) {
     const int n = pattern.tag_cells();
-    const double cell_mm = c->marker_size_mm / n;
     int marker = 0;
     for (int j = 0; j < c->squares_y; ++j) {
       for (int i = 0; i < c->squares_x; ++i) {
@@ -142,26 +152,16 @@ std::string TargetSvg(const TargetDescription& target) {
           rect(i * c->square_size_mm, j * c->square_size_mm, c->square_size_mm, c->square_size_mm);
           continue;
         }
-        const double x0 = i * c->square_size_mm + c->MarginMm(), y0 = j * c->square_size_mm + c->MarginMm();
-        const auto& bits = pattern.tag_bits()[static_cast<size_t>(marker)];
-        svg += fmt::format("<!-- marker {} -->\n", marker++);
-        for (int y = 0; y < n; ++y) {
-          for (int x = 0; x < n;) {
-            if (!bits[static_cast<size_t>(y * n + x)]) { ++x; continue; }
-            int end = x;
-            while (end < n && bits[static_cast<size_t>(y * n + end)]) ++end;
-            rect(x0 + x * cell_mm, y0 + y * cell_mm, (end - x) * cell_mm, cell_mm);
-            x = end;
-          }
-        }
+        svg.Comment(fmt::format("marker {}", marker));
+        bitmap(pattern.tag_bits()[static_cast<size_t>(marker++)], n, i * c->square_size_mm + c->MarginMm(),
+               j * c->square_size_mm + c->MarginMm(), c->marker_size_mm / n);
       }
     }
   } else {
     const auto& g = std::get<AprilGridLayout>(target.layout);
     const int n = pattern.tag_cells();
-    const double cell_mm = g.tag_size_mm / n;
     if (g.KalibrLayout()) {
-      svg += "<!-- corner squares (Kalibr) -->\n";
+      svg.Comment("corner squares (Kalibr)");
       for (int ky = 0; ky <= g.tag_rows; ++ky) {
         for (int kx = 0; kx <= g.tag_cols; ++kx) {
           rect(kx * g.PitchMm() - g.GapMm(), ky * g.PitchMm() - g.GapMm(), g.GapMm(), g.GapMm());
@@ -170,23 +170,11 @@ std::string TargetSvg(const TargetDescription& target) {
     }
     for (int t = 0; t < g.NumTags(); ++t) {
       const Eigen::Vector2d origin = g.TagOriginMm(t);
-      const double x0 = origin.x(), y0 = origin.y();
-      const auto& bits = pattern.tag_bits()[static_cast<size_t>(t)];
-      svg += fmt::format("<!-- tag {} -->\n", g.first_tag_id + t);
-      for (int y = 0; y < n; ++y) {
-        // Runs of black cells become one rectangle: fewer elements, no hairline seams between cells.
-        for (int x = 0; x < n;) {
-          if (!bits[static_cast<size_t>(y * n + x)]) { ++x; continue; }
-          int end = x;
-          while (end < n && bits[static_cast<size_t>(y * n + end)]) ++end;
-          rect(x0 + x * cell_mm, y0 + y * cell_mm, (end - x) * cell_mm, cell_mm);
-          x = end;
-        }
-      }
+      svg.Comment(fmt::format("tag {}", g.first_tag_id + t));
+      bitmap(pattern.tag_bits()[static_cast<size_t>(t)], n, origin.x(), origin.y(), g.tag_size_mm / n);
     }
   }
-  svg += "</g>\n</svg>\n";
-  return svg;
+  return std::move(svg).Finish();
 }
 
 cv::Mat RasterizeTarget(const TargetDescription& target, double dpi, int max_side_px) {

@@ -1,16 +1,17 @@
 #include "pipeline/map_output.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <filesystem>
 #include <optional>
 #include <utility>
 
-#include <fmt/format.h>
-
 #include "model/io.h"
 #include "model/parallel.h"
 #include "model/surface.h"
-#include "topo/map_image.h"
+#include "plot/map_image.h"
+#include "topo/map_grid.h"
 #include "topo/sphere_fit.h"
 
 namespace topocal::pipeline {
@@ -18,7 +19,7 @@ namespace {
 
 constexpr int kGridSide = 241;  // samples per side of the Cartesian grids (0.05 mm steps over +-6 mm)
 
-topo::GridMap PowerGrid(const topo::PowerMaps& pm, const std::vector<double>& values, const std::string& title) {
+plot::GridMap PowerGrid(const topo::PowerMaps& pm, const std::vector<double>& values, const std::string& title) {
   topo::PolarField field;
   field.meridians = pm.meridians;
   for (int k = 0; k < pm.radial_samples; ++k) field.radii_mm.push_back(pm.RhoMm(k));
@@ -27,8 +28,8 @@ topo::GridMap PowerGrid(const topo::PowerMaps& pm, const std::vector<double>& va
 }
 
 template <typename F>
-topo::GridMap CartesianGrid(double radius_mm, const std::string& title, const std::string& unit, F value) {
-  topo::GridMap g;
+plot::GridMap CartesianGrid(double radius_mm, const std::string& title, const std::string& unit, F value) {
+  plot::GridMap g;
   g.x_min_mm = g.y_min_mm = -radius_mm;
   g.x_max_mm = g.y_max_mm = radius_mm;
   g.nx = g.ny = kGridSide;
@@ -55,7 +56,7 @@ std::string BestFitSphereLine(double radius_mm, const Eigen::Vector3d& centre_mm
                      centre_mm.y());
 }
 
-// What the overlays of a map are, in words, for its legend (topo/map_image.h draws them).
+// What the overlays of a map are, in words, for its legend (plot/map_image.h draws them).
 std::string SupportLegend(double supported_radius_mm) {
   return fmt::format("dashed circle: data in every direction to {:.2f} mm; hatched beyond: extrapolated",
                      supported_radius_mm);
@@ -63,14 +64,14 @@ std::string SupportLegend(double supported_radius_mm) {
 
 struct PendingMap {
   PendingMap() = default;
-  PendingMap(std::string file_in, topo::GridMap grid_in, std::vector<std::string> annotations_in = {})
+  PendingMap(std::string file_in, plot::GridMap grid_in, std::vector<std::string> annotations_in = {})
       : file(std::move(file_in)), grid(std::move(grid_in)), annotations(std::move(annotations_in)) {}
   std::string file;  // without extension
-  topo::GridMap grid;
+  plot::GridMap grid;
   std::vector<std::string> annotations;
-  // Clinical overlays (topo::MapImageOptions): markers, sim-K axes, supported circle, legend.
-  std::vector<topo::MapMarker> markers;
-  std::vector<topo::MapAxis> axes;
+  // Clinical overlays (plot::MapImageOptions): markers, sim-K axes, supported circle, legend.
+  std::vector<plot::MapMarker> markers;
+  std::vector<plot::MapAxis> axes;
   double supported_radius_mm = 0;
   std::vector<std::string> legend;
 };
@@ -78,21 +79,21 @@ struct PendingMap {
 // One map to write, on the scale selected for its kind.
 struct MapJob {
   const PendingMap* map;
-  topo::MapImageOptions image;
+  plot::MapImageOptions image;
   bool csv;
 };
 
 // The jobs for one kind of map: its scale selected over the whole set, then each map's image options.
-void AddKind(const std::vector<PendingMap>& maps, const topo::MapScaleRequest& request, const MapSetOptions& o,
+void AddKind(const std::vector<PendingMap>& maps, const plot::MapScaleRequest& request, const MapSetOptions& o,
              bool rings, std::vector<MapJob>* jobs) {
   if (maps.empty()) return;
-  std::vector<const topo::GridMap*> grids;
+  std::vector<const plot::GridMap*> grids;
   for (const PendingMap& m : maps) grids.push_back(&m.grid);
-  const topo::MapScale scale = topo::SelectMapScale(grids, request);
+  const plot::MapScale scale = plot::SelectMapScale(grids, request);
   for (const PendingMap& m : maps) {
-    topo::MapImageOptions mo;
+    plot::MapImageOptions mo;
     mo.size_px = o.size_px;
-    topo::ApplyMapScale(scale, &mo);
+    plot::ApplyMapScale(scale, &mo);
     mo.annotations = m.annotations;
     mo.markers = m.markers;
     mo.axes = m.axes;
@@ -127,7 +128,7 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
   // power maps, Kmax (an axial quantity) on the axial map, the elevation peak on the elevation map, and on every
   // map the supported circle with the extrapolated area hatched.
   const double supported = a.supported_radius_mm;
-  std::vector<topo::MapAxis> sim_k_axes;
+  std::vector<plot::MapAxis> sim_k_axes;
   std::string axes_legend;
   if (a.clinical_ok) {
     const auto& c = a.clinical;
@@ -156,7 +157,7 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
   const double r = a.covered_radius_mm;
   // The recovered surface: Psi plus the spline residual in spline mode (topo/reconstruction.h).
   const auto& rec = a.reconstruction;
-  const topo::GridMap sag = CartesianGrid(r, "", "\u00b5m", [&](double x, double y) { return rec.Height(x, y) * 1e3; });
+  const plot::GridMap sag = CartesianGrid(r, "", "\u00b5m", [&](double x, double y) { return rec.Height(x, y) * 1e3; });
   // Elevation above the clinical indices' best-fit sphere (one fit, topo/clinical_indices.h); without the indices
   // (data short of the sim-K ring) the same sag fit (topo/sphere_fit.h) over the whole map.
   std::optional<topo::SphereFit> bfs;
@@ -240,8 +241,8 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
   AddKind(difference, o.elevation, o, false, &jobs);
   model::ParallelFor(jobs.size(), o.jobs, [&](size_t k) {
     const MapJob& job = jobs[k];
-    if (job.csv) topo::WriteMapCsv(job.map->file + ".csv", job.map->grid);
-    topo::WriteMapPng(job.map->file + ".png", job.map->grid, job.image);
+    if (job.csv) plot::WriteMapCsv(job.map->file + ".csv", job.map->grid);
+    plot::WriteMapPng(job.map->file + ".png", job.map->grid, job.image);
   });
 }
 

@@ -1,12 +1,12 @@
 #pragma once
-// Writes the maps of analyses into a directory: CSV grids and PNG images (topo/map_image.h), every map of one kind
+// Writes the maps of analyses into a directory: CSV grids and PNG images (plot/map_image.h), every map of one kind
 // in a set on one shared colour scale.
 #include <string>
 #include <vector>
 
 #include "model/config.h"
+#include "plot/map_image.h"
 #include "topo/analysis.h"
-#include "topo/map_image.h"
 
 namespace topocal::pipeline {
 
@@ -22,9 +22,9 @@ struct AnalysisMapEntry {
 
 struct MapSetOptions {
   bool csv = true;                                  // the CSV grid beside each PNG (~0.6 MB each)
-  int size_px = topo::MapImageOptions{}.size_px;    // side of the PNGs' plot area
-  topo::MapScaleRequest power = topo::StandardPowerScale();                           // axial and tangential
-  topo::MapScaleRequest elevation = topo::NormalisedScale(topo::kMinNormalisedSpanUm);  // elevation, height error
+  int size_px = plot::MapImageOptions{}.size_px;    // side of the PNGs' plot area
+  plot::MapScaleRequest power = plot::StandardPowerScale();                             // axial and tangential
+  plot::MapScaleRequest elevation = plot::NormalisedScale(plot::kMinNormalisedSpanUm);  // elevation, height error
   std::string eye;                                  // "OD", "OS" or empty (test surface)
   std::vector<double> power_ring_radii_mm;          // rings on the power maps; empty: the sim-K zone (0.5, 1.5 mm)
   // Threads computing and writing the maps (0: every core); the files are the same whatever the number.
@@ -34,7 +34,7 @@ struct MapSetOptions {
 // Files per entry: <prefix>axial_power.{csv,png}, <prefix>tangential_power.{csv,png}, <prefix>elevation.{csv,png}
 // (elevation above the best-fit sphere, um, its radius in the title) and, with `truth`,
 // <prefix>height_difference.{csv,png} (Eq. 26, ideal - recovered, um). Each kind of map is drawn on one scale
-// selected over the whole set (topo::SelectMapScale). Creates `dir` if needed. Throws model::InputError naming the
+// selected over the whole set (plot::SelectMapScale). Creates `dir` if needed. Throws model::InputError naming the
 // path when a file cannot be written.
 void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEntry>& entries,
                          const MapSetOptions& options = {});
@@ -42,6 +42,6 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
 // One analysis (a set of one): the power maps on the standard absolute scale, the others normalised.
 void WriteAnalysisMaps(const std::string& dir, const std::string& prefix, const std::string& label,
                        const topo::Analysis& analysis, const model::BiconicParams* truth, bool csv = true,
-                       int size_px = topo::MapImageOptions{}.size_px);
+                       int size_px = plot::MapImageOptions{}.size_px);
 
 }  // namespace topocal::pipeline

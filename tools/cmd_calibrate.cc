@@ -1,24 +1,22 @@
 // topocal calibrate: detect a planar target in a set of images and fit the camera (calib/calibrate.h).
-#include <limits>
+#include <fmt/format.h>
+#include <glog/logging.h>
+
 #include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
-#include <fmt/format.h>
-#include <glog/logging.h>
-
 #include "calib/calibrate.h"
 #include "calib/calibration_file.h"
 #include "calib/cross_validation.h"
 #include "calib/detect.h"
 #include "calib/target.h"
+#include "model/file_glob.h"
 #include "model/io.h"
 #include "model/parallel.h"
-#include "plot/scatter_plot.h"
 #include "tools/commands.h"
-#include "model/file_glob.h"
 
 namespace topocal::tools {
 namespace {
@@ -36,35 +34,6 @@ struct CalibrateArgs {
   double loss_scale_px = 1.0, outlier_threshold = 4.0;
   int jobs = model::AvailableCores();
 };
-
-// The two halves' difference over the image as a map: one series per band of difference, so the existing scatter
-// plot (plot/scatter_plot.h) shows where the models disagree.
-std::string CrossValidationSvg(const calib::CrossValidationResult& cv, int height_px) {
-  plot::ScatterPlot plot;
-  plot.title = fmt::format("Cross-validation: two halves of the views ({} and {}), homography removed",
-                           cv.half_views[0].size(), cv.half_views[1].size());
-  plot.x_label = "x (px)";
-  plot.y_label = "image height - y (px)";
-  plot.log_x = plot.log_y = false;
-  struct Band {
-    double upper_px;
-    const char* label;
-    const char* colour;
-  };
-  const Band bands[] = {{0.05, "< 0.05 px", "#2ca02c"},
-                        {0.1, "0.05 - 0.1 px", "#bcbd22"},
-                        {0.2, "0.1 - 0.2 px", "#ff7f0e"},
-                        {std::numeric_limits<double>::infinity(), ">= 0.2 px", "#d62728"}};
-  for (const Band& band : bands) plot.series.push_back({band.label, band.colour, {}});
-  for (const auto& s : cv.samples) {
-    size_t b = 0;
-    while (s.difference_px >= bands[b].upper_px) ++b;
-    plot.series[b].points.push_back({s.pixel.x(), height_px - s.pixel.y()});
-  }
-  plot.note = fmt::format("difference of the two models: RMS {:.4f} px, max {:.4f} px over {} samples", cv.rms_px,
-                          cv.max_px, cv.samples.size());
-  return plot::RenderScatterSvg(plot);
-}
 
 void Run(const CalibrateArgs& a) {
   // Ceres logs through glog (e.g. a rank-deficient covariance); the calibration's status already says it in one
@@ -160,7 +129,7 @@ void Run(const CalibrateArgs& a) {
     for (const int v : result.views_used) used.push_back(views[static_cast<size_t>(v)]);
     cross = calib::CrossValidate(used, options);
     if (!cross->ok) throw std::runtime_error(cross->message);
-    cross_svg = CrossValidationSvg(*cross, result.camera.height_px);
+    cross_svg = calib::CrossValidationSvg(*cross, result.camera.height_px);
   }
   const calib::CalibrationProvenance provenance{a.target, view_paths, {}};
   // All texts are complete before any file is written, so a failure leaves none behind.

@@ -2,17 +2,17 @@
 // maps; the power maps of the whole sweep are on one scale (the standard absolute one), and SelectMapScale, run on
 // the sweep's own grids (read back from the CSVs beside the PNGs), gives shared, absolute and minimum-span scales that
 // hold every map.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <filesystem>
+#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
-#include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
-
 #include "model/io.h"
+#include "plot/map_image.h"
 #include "tests/cli_harness.h"
 #include "tests/report/record_fixture.h"
-#include "topo/map_image.h"
 
 namespace topocal::report {
 namespace {
@@ -20,8 +20,8 @@ namespace {
 namespace fs = std::filesystem;
 using topocal::testing_cli::RunTopocal;
 
-// A CSV written by topo::WriteMapCsv (square grid, y then x ascending, empty = no data) back as a GridMap.
-topo::GridMap ReadGridCsv(const std::string& path, const std::string& unit) {
+// A CSV written by plot::WriteMapCsv (square grid, y then x ascending, empty = no data) back as a GridMap.
+plot::GridMap ReadGridCsv(const std::string& path, const std::string& unit) {
   std::istringstream in(model::ReadFile(path));
   std::string line;
   std::getline(in, line);
@@ -33,7 +33,7 @@ topo::GridMap ReadGridCsv(const std::string& path, const std::string& unit) {
     const std::string v = line.substr(b + 1);
     values.push_back(v.empty() ? std::nan("") : std::stod(v));
   }
-  topo::GridMap g;
+  plot::GridMap g;
   g.nx = g.ny = static_cast<int>(std::lround(std::sqrt(static_cast<double>(values.size()))));
   g.x_min_mm = xs.front();
   g.x_max_mm = xs.back();
@@ -55,41 +55,41 @@ TEST(SweepMaps, EveryPowerMapOfASweepSharesOneScale) {
   }
   std::sort(sigmas.begin(), sigmas.end());
   ASSERT_GE(sigmas.size(), 5u);  // the paper's sigmas
-  std::vector<topo::GridMap> axial, elevation;
+  std::vector<plot::GridMap> axial, elevation;
   for (const std::string& s : sigmas) {
     axial.push_back(ReadGridCsv(dir + "/" + s + "_axial_power.csv", "D"));
     elevation.push_back(ReadGridCsv(dir + "/" + s + "_elevation.csv", "\u00b5m"));
   }
-  std::vector<const topo::GridMap*> axial_set, elevation_set;
+  std::vector<const plot::GridMap*> axial_set, elevation_set;
   for (const auto& g : axial) axial_set.push_back(&g);
   for (const auto& g : elevation) elevation_set.push_back(&g);
 
   // Standard absolute scale: the same for the whole sweep and for each map alone (data-independent); widened to the
   // data it holds every map of the set.
-  const topo::MapScale all = topo::SelectMapScale(axial_set, topo::StandardPowerScale());
+  const plot::MapScale all = plot::SelectMapScale(axial_set, plot::StandardPowerScale());
   double lo = 1e9, hi = -1e9;
   for (const auto* g : axial_set) {
-    const topo::MapScale one = topo::SelectMapScale({g}, topo::StandardPowerScale());
+    const plot::MapScale one = plot::SelectMapScale({g}, plot::StandardPowerScale());
     EXPECT_EQ(one.value_min, all.value_min);
     EXPECT_EQ(one.value_max, all.value_max);
     for (double v : g->values) {
       if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
     }
   }
-  EXPECT_DOUBLE_EQ(all.contour_step, topo::kStandardPowerStepD);
-  topo::MapScaleRequest widen = topo::StandardPowerScale();
+  EXPECT_DOUBLE_EQ(all.contour_step, plot::kStandardPowerStepD);
+  plot::MapScaleRequest widen = plot::StandardPowerScale();
   widen.widen_to_data = true;
-  const topo::MapScale held = topo::SelectMapScale(axial_set, widen);
+  const plot::MapScale held = plot::SelectMapScale(axial_set, widen);
   EXPECT_LE(held.value_min, lo);
   EXPECT_GE(held.value_max, hi);
-  EXPECT_NEAR(std::remainder(held.value_min - topo::kStandardPowerLowD, topo::kStandardPowerStepD), 0.0, 1e-9);
+  EXPECT_NEAR(std::remainder(held.value_min - plot::kStandardPowerLowD, plot::kStandardPowerStepD), 0.0, 1e-9);
   // Shared normalised scale of the sweep's elevations: holds every map, wider than any one alone needs.
-  const topo::MapScale shared = topo::SelectMapScale(elevation_set, topo::NormalisedScale(topo::kMinNormalisedSpanUm));
+  const plot::MapScale shared = plot::SelectMapScale(elevation_set, plot::NormalisedScale(plot::kMinNormalisedSpanUm));
   for (const auto* g : elevation_set) {
-    const topo::MapScale one = topo::SelectMapScale({g}, topo::NormalisedScale(topo::kMinNormalisedSpanUm));
+    const plot::MapScale one = plot::SelectMapScale({g}, plot::NormalisedScale(plot::kMinNormalisedSpanUm));
     EXPECT_LE(shared.value_min, one.value_min);
     EXPECT_GE(shared.value_max, one.value_max);
-    EXPECT_GE(one.value_max - one.value_min, topo::kMinNormalisedSpanUm);
+    EXPECT_GE(one.value_max - one.value_min, plot::kMinNormalisedSpanUm);
   }
 
   // The PNGs as written: every axial map has the same width and the same colour bar and tick labels (the right

@@ -1,4 +1,7 @@
-#include "topo/map_image.h"
+// The map drawing (plot/map_image.h) and the grids topo computes for it (topo/map_grid.h), tested together.
+#include "plot/map_image.h"
+
+#include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
@@ -7,15 +10,15 @@
 #include <limits>
 #include <sstream>
 
-#include <gtest/gtest.h>
-
 #include "model/io.h"
 #include "model/surface.h"
+#include "topo/map_grid.h"
 
 namespace topocal::topo {
 namespace {
 
 namespace fs = std::filesystem;
+using namespace topocal::plot;  // NOLINT: the drawing under test
 using Bgr = std::array<std::uint8_t, 3>;
 
 // A pixel's scale position may differ from round(255 t) by one entry: the field goes through float32 and cv::remap,

@@ -1,23 +1,22 @@
-#include "topo/map_image.h"
+#include "plot/map_image.h"
+
+#include <fmt/format.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <iterator>
 #include <limits>
-#include <stdexcept>
-#include <string_view>
-
-#include <fmt/format.h>
-#include <unistd.h>
-
 #include <opencv2/core.hpp>
 #include <opencv2/freetype.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <stdexcept>
+#include <string_view>
 
 #include "model/io.h"
 
-namespace topocal::topo {
+namespace topocal::plot {
 
 namespace {
 
@@ -85,11 +84,16 @@ std::string Transliterate(std::string_view s) {
     }
     const std::string_view rest = s.substr(i);
     const auto starts = [&](std::string_view p) { return rest.substr(0, p.size()) == p; };
-    if (starts("\u00b5") || starts("\u03bc")) out += '\x01', i += 1;
-    else if (starts("\u03c3")) out += "sigma", i += 1;
-    else if (starts("\u00b2")) out += "^2", i += 1;
-    else if (starts("\u00b0")) out += " deg", i += 1;
-    else if (starts("\u2212")) out += '-', i += 2;
+    if (starts("\u00b5") || starts("\u03bc"))
+      out += '\x01', i += 1;
+    else if (starts("\u03c3"))
+      out += "sigma", i += 1;
+    else if (starts("\u00b2"))
+      out += "^2", i += 1;
+    else if (starts("\u00b0"))
+      out += " deg", i += 1;
+    else if (starts("\u2212"))
+      out += '-', i += 2;
     else {
       out += '?';
       while (i + 1 < s.size() && (static_cast<unsigned char>(s[i + 1]) & 0xC0) == 0x80) ++i;
@@ -253,8 +257,9 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   const double tick_step = stepped ? options.contour_step : NiceStep(vmax - vmin, 8.0);
   if (!options.value_min) vmin = tick_step * std::floor(vmin / tick_step + 1e-9);
   if (!options.value_max) vmax = tick_step * std::ceil(vmax / tick_step - 1e-9);
-  const double contour_step =
-      options.contour_step > 0 ? options.contour_step : options.contour_step < 0 ? 0.0 : NiceStep(vmax - vmin, 10.0);
+  const double contour_step = options.contour_step > 0   ? options.contour_step
+                              : options.contour_step < 0 ? 0.0
+                                                         : NiceStep(vmax - vmin, 10.0);
   // Contour levels at origin + k step: the band boundaries of a stepped (absolute) scale start at its low end
   // (35.5, 37, ... D), round levels elsewhere start at 0.
   const double level_origin = stepped ? vmin : 0.0;
@@ -295,7 +300,8 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   // Footer lines under the x axis: the scale, the contour step, the eye and orientation.
   std::vector<std::string> footer;
   if (!options.scale_label.empty()) footer.push_back(options.scale_label);
-  if (contour_step > 0) footer.push_back(fmt::format("contours every {:.{}f} {}", contour_step, Decimals(contour_step), map.unit));
+  if (contour_step > 0)
+    footer.push_back(fmt::format("contours every {:.{}f} {}", contour_step, Decimals(contour_step), map.unit));
   footer.push_back((options.eye.empty() ? std::string("test surface (no eye)") : "eye " + options.eye) + "; " +
                    options.orientation);
   // Legend lines wrap at word boundaries to the image's width (a long number list must not run off the page).
@@ -329,7 +335,9 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
     const auto pct = [&](int n) { return fmt::format("{:.0f} %", std::max(1.0, std::round(100.0 * n / with_data))); };
     std::string beyond = "beyond the scale (end colours):";
     if (below) beyond += fmt::format(" {} below {:.{}f} {}", pct(below), vmin, Decimals(tick_step), map.unit);
-    if (above) beyond += fmt::format("{} {} above {:.{}f} {}", below ? ";" : "", pct(above), vmax, Decimals(tick_step), map.unit);
+    if (above)
+      beyond +=
+          fmt::format("{} {} above {:.{}f} {}", below ? ";" : "", pct(above), vmax, Decimals(tick_step), map.unit);
     footer.push_back(beyond);
   }
   const int footer_lines = static_cast<int>(footer.size());
@@ -510,8 +518,7 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
                {width / 2, s + title_font.height_px + static_cast<int>(k) * (title_font.height_px + s)}, title_font);
   }
   for (std::size_t k = 0; k < options.annotations.size(); ++k) {
-    PutCentred(img, options.annotations[k],
-               {width / 2, title_h + static_cast<int>(k + 1) * line_h - s}, label_font);
+    PutCentred(img, options.annotations[k], {width / 2, title_h + static_cast<int>(k + 1) * line_h - s}, label_font);
   }
 
   // Colour bar: value_max at the top row, value_min at the bottom row; labelled ticks on the right, the contour
@@ -574,9 +581,12 @@ std::string GridMapCsv(const GridMap& map) {
   const std::string unit = Transliterate(map.unit);
   if (!unit.empty()) column += '_';
   for (char c : unit) {
-    if (c == '\x01') column += 'u';
-    else if (std::isalnum(static_cast<unsigned char>(c))) column += c;
-    else column += '_';
+    if (c == '\x01')
+      column += 'u';
+    else if (std::isalnum(static_cast<unsigned char>(c)))
+      column += c;
+    else
+      column += '_';
   }
   std::string csv = "x_mm,y_mm," + column + "\n";
   csv.reserve(csv.size() + map.values.size() * 32);
@@ -608,51 +618,6 @@ std::string GridMapCsv(const GridMap& map) {
 }
 
 void WriteMapCsv(const std::string& path, const GridMap& map) { model::WriteFileAtomic(path, GridMapCsv(map)); }
-
-GridMap ResamplePolar(const PolarField& field, int n, std::string title, std::string unit) {
-  const size_t nr = field.radii_mm.size();
-  if (n < 2) throw std::invalid_argument("ResamplePolar: n must be at least 2");
-  if (nr < 2 || field.meridians < 1 || field.values.size() != nr * field.meridians) {
-    throw std::invalid_argument("ResamplePolar: need >= 2 radii, >= 1 meridian and meridians * radii values");
-  }
-  for (size_t k = 0; k < nr; ++k) {
-    if (!(field.radii_mm[k] >= 0) || (k > 0 && !(field.radii_mm[k] > field.radii_mm[k - 1]))) {
-      throw std::invalid_argument("ResamplePolar: radii must be >= 0 and strictly ascending");
-    }
-  }
-  const double R = field.radii_mm.back();
-  GridMap g;
-  g.x_min_mm = g.y_min_mm = -R;
-  g.x_max_mm = g.y_max_mm = R;
-  g.nx = g.ny = n;
-  g.title = std::move(title);
-  g.unit = std::move(unit);
-  g.values.assign(static_cast<size_t>(n) * n, kNaN);
-  const auto value = [&](int m, size_t k) { return field.values[static_cast<size_t>(m) * nr + k]; };
-  for (int j = 0; j < n; ++j) {
-    const double y = -R + 2.0 * R * j / (n - 1);
-    for (int i = 0; i < n; ++i) {
-      const double x = -R + 2.0 * R * i / (n - 1);
-      const double r = std::hypot(x, y);
-      if (r > R * (1 + 1e-12)) continue;
-      // Meridians: periodic linear interpolation in angle.
-      double u = std::atan2(y, x) / (2.0 * M_PI) * field.meridians;
-      if (u < 0) u += field.meridians;
-      const double uf = std::floor(u);
-      const double wu = u - uf;
-      const int m0 = static_cast<int>(uf) % field.meridians, m1 = (m0 + 1) % field.meridians;
-      // Radii: linear between the bracketing samples, the innermost sample inside the smallest radius.
-      size_t k1 = std::upper_bound(field.radii_mm.begin(), field.radii_mm.end(), r) - field.radii_mm.begin();
-      size_t k0 = k1 == 0 ? 0 : k1 - 1;
-      k1 = std::min(k1, nr - 1);
-      const double wr = k1 == k0 ? 0.0 : (r - field.radii_mm[k0]) / (field.radii_mm[k1] - field.radii_mm[k0]);
-      const double v = (1 - wu) * ((1 - wr) * value(m0, k0) + wr * value(m0, k1)) +
-                       wu * ((1 - wr) * value(m1, k0) + wr * value(m1, k1));
-      g.values[static_cast<size_t>(j) * n + i] = v;  // NaN if a contributing sample has no data
-    }
-  }
-  return g;
-}
 
 bool MapScaleRequest::IsValid(std::string* why) const {
   const auto fail = [&](const std::string& m) {
@@ -763,22 +728,4 @@ void ApplyMapScale(const MapScale& scale, MapImageOptions* options) {
   options->scale_label = scale.label;
 }
 
-GridMap ElevationAboveSphere(const GridMap& sag_um, const model::Sphere& sphere) {
-  std::string why;
-  if (!sag_um.IsValid(&why)) throw std::invalid_argument("GridMap: " + why);
-  GridMap out = sag_um;
-  for (int j = 0; j < sag_um.ny; ++j) {
-    const double y = sag_um.y_min_mm + j * (sag_um.y_max_mm - sag_um.y_min_mm) / (sag_um.ny - 1);
-    for (int i = 0; i < sag_um.nx; ++i) {
-      double& v = out.values[static_cast<size_t>(j) * sag_um.nx + i];
-      if (!std::isfinite(v)) continue;
-      const double x = sag_um.x_min_mm + i * (sag_um.x_max_mm - sag_um.x_min_mm) / (sag_um.nx - 1);
-      double sphere_z_mm, unused_zx, unused_zy;
-      v = sphere.SagAndGradient(x, y, &sphere_z_mm, &unused_zx, &unused_zy) ? (sphere_z_mm - v * 1e-3) * 1e3 : kNaN;
-    }
-  }
-  out.unit = "\u00b5m";
-  return out;
-}
-
-}  // namespace topocal::topo
+}  // namespace topocal::plot

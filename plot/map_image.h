@@ -1,8 +1,10 @@
 #pragma once
-// Maps as files (issue 4, item 4): a scalar field over the cornea (power in D, height in µm) as a CSV grid and as a
-// PNG a clinician or QA engineer can read: colour scale with a labelled colour bar, contour lines at round levels,
-// axes in mm, title. Drawn with OpenCV (kept out of this header: topocal_topo links OpenCV privately, so callers
-// get raw 8-bit BGR pixels, not a cv::Mat). See docs/maps.md for the conventions.
+// Maps as files (issue 4, item 4), part of the plotting layer (plot/svg.h): a scalar field over the cornea (power in
+// D, height in µm) as a CSV grid and as a PNG a clinician or QA engineer can read: colour scale with a labelled colour
+// bar, contour lines at round levels, axes in mm, title. Every PNG map topocal writes is drawn here; the grids are
+// computed by topo/ (topo/map_grid.h, topo/power_map.h) and written by pipeline/map_output.h. Drawn with OpenCV
+// (kept out of this header: topocal_plot links OpenCV privately, so callers get raw 8-bit BGR pixels, not a cv::Mat).
+// See docs/maps.md for the conventions.
 //
 // Frame: the topographer's (x, y) in mm, the cornea seen from the camera, x to the right and y UP on the image
 // (row 0 of the grid is y_min and is drawn at the bottom of the plot). Equal scale on both axes.
@@ -13,9 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "model/surface.h"
-
-namespace topocal::topo {
+namespace topocal::plot {
 
 // A scalar field sampled on a regular grid over [x_min, x_max] x [y_min, y_max] (sample points include the edges:
 // x_i = x_min + i (x_max - x_min) / (nx - 1)). NaN = no data (outside the measured zone).
@@ -51,23 +51,23 @@ struct MapAxis {
 };
 
 struct MapImageOptions {
-  int size_px = 800;                        // side of the (square) plot area; the image adds axes and colour bar
+  int size_px = 800;                           // side of the (square) plot area; the image adds axes and colour bar
   std::optional<double> value_min, value_max;  // colour range; default: the data's range (rounded out to ticks)
-  double contour_step = 0;                  // 0: a round step giving about 10 levels; < 0: no contour lines
+  double contour_step = 0;                     // 0: a round step giving about 10 levels; < 0: no contour lines
   ColourScale scale = ColourScale::kTurbo;
-  std::string scale_label;                  // printed under the plot, e.g. "absolute scale, 1.5 D steps"
+  std::string scale_label;  // printed under the plot, e.g. "absolute scale, 1.5 D steps"
   // Lines printed under the title (a hook for clinical indices such as sim-K: the caller computes, the map prints).
   std::vector<std::string> annotations;
   // Circles about the origin, mm (a hook for the sim-K meridian ring), drawn dashed in black and white.
   std::vector<double> ring_radii_mm;
   // Clinical overlays (issue 18, item 6), in the map's mm; the caller computes, the map draws (docs/maps.md):
-  std::vector<MapMarker> markers;           // peaks: Kmax, the elevation peak
-  std::vector<MapAxis> axes;                // meridians through the origin: the sim-K steep (solid) and flat (dashed)
+  std::vector<MapMarker> markers;  // peaks: Kmax, the elevation peak
+  std::vector<MapAxis> axes;       // meridians through the origin: the sim-K steep (solid) and flat (dashed)
   // The radius the data support in every direction: a dashed circle, and the map beyond it hatched (white stripes
   // over the colours) as extrapolated. 0: not drawn.
   double supported_radius_mm = 0;
-  std::vector<std::string> legend;          // lines under the plot saying what the overlays are, with their numbers
-  std::string eye;                          // "OD", "OS"; empty: not an eye (a test surface) or not given
+  std::vector<std::string> legend;  // lines under the plot saying what the overlays are, with their numbers
+  std::string eye;                  // "OD", "OS"; empty: not an eye (a test surface) or not given
   std::string orientation = kDefaultMapOrientation;
   bool IsValid(std::string* why) const;
 };
@@ -82,10 +82,10 @@ enum class MapScaleKind {
 };
 struct MapScaleRequest {
   MapScaleKind kind = MapScaleKind::kNormalised;
-  double step = 0;                    // absolute: the colour step (> 0)
-  std::optional<double> low, high;    // absolute: the standard range, multiples of step apart
-  bool widen_to_data = false;         // absolute with a range: widen it by whole steps to hold the set's data
-  double min_span = 0;                // normalised: the smallest range drawn (so that a sphere looks flat)
+  double step = 0;                  // absolute: the colour step (> 0)
+  std::optional<double> low, high;  // absolute: the standard range, multiples of step apart
+  bool widen_to_data = false;       // absolute with a range: widen it by whole steps to hold the set's data
+  double min_span = 0;              // normalised: the smallest range drawn (so that a sphere looks flat)
   bool IsValid(std::string* why) const;
 };
 // The standard absolute power scale: 1.5 D steps over 35.5-50.5 D, the range of normal corneas, after the
@@ -112,13 +112,6 @@ MapScale SelectMapScale(const std::vector<const GridMap*>& maps, const MapScaleR
 // The scale's range, contour step and label into the drawing options.
 void ApplyMapScale(const MapScale& scale, MapImageOptions* options);
 
-// Elevation above a sphere (the best-fit sphere of the clinical indices, topo/clinical_indices.h, fitted by
-// topo/sphere_fit.h — this only evaluates it), um: sphere sag - surface sag, positive where the surface stands in
-// front of the sphere (towards the camera), the clinical sign. `sag_um` is the surface's sag in um (z into the eye,
-// as topo/ heights); the sphere's cap facing the camera is used. Samples beyond the sphere's equator and no-data
-// samples have no data. Keeps the grid and sets the unit to "µm"; the title is the caller's.
-GridMap ElevationAboveSphere(const GridMap& sag_um, const model::Sphere& sphere);
-
 struct PixelRect {
   int x = 0, y = 0, width = 0, height = 0;  // top-left corner and size, pixels
 };
@@ -126,9 +119,9 @@ struct PixelRect {
 // A rendered map: 8-bit BGR pixels and where things were drawn (for tests and for callers that compose figures).
 struct MapImage {
   int width_px = 0, height_px = 0;
-  std::vector<std::uint8_t> bgr;  // row-major, 3 bytes per pixel, row 0 at the top
-  PixelRect plot;                 // the data area: x_min..x_max left to right, y_max..y_min top to bottom
-  PixelRect colour_bar;           // value_min at the bottom row, value_max at the top row
+  std::vector<std::uint8_t> bgr;        // row-major, 3 bytes per pixel, row 0 at the top
+  PixelRect plot;                       // the data area: x_min..x_max left to right, y_max..y_min top to bottom
+  PixelRect colour_bar;                 // value_min at the bottom row, value_max at the top row
   double value_min = 0, value_max = 0;  // the colour range drawn
   double contour_step = 0;              // the contour step drawn (0: none)
   double px_per_mm = 0;                 // the plot's scale (equal on both axes)
@@ -161,17 +154,4 @@ std::string GridMapCsv(const GridMap& map);
 // Writes GridMapCsv atomically. Throws model::InputError naming the path if it cannot be written.
 void WriteMapCsv(const std::string& path, const GridMap& map);
 
-// A field on a polar grid: `meridians` equally spaced meridians (meridian m at angle 2 pi m / meridians from +x
-// towards +y) times samples at the ascending radii `radii_mm` (r = 0 allowed).
-struct PolarField {
-  std::vector<double> radii_mm;
-  int meridians = 0;
-  std::vector<double> values;  // values[m * radii_mm.size() + k]; NaN = no data
-};
-
-// Resamples a polar field onto an n x n grid over [-R, R]^2, R = the largest radius: bilinear in (r, angle),
-// periodic in angle; NaN beyond R; inside the smallest radius the innermost ring's value on that meridian.
-// Throws std::invalid_argument on an inconsistent field or n < 2.
-GridMap ResamplePolar(const PolarField& field, int n, std::string title, std::string unit);
-
-}  // namespace topocal::topo
+}  // namespace topocal::plot
