@@ -251,4 +251,10 @@ std::optional<RenderedView> RenderTarget(const TargetDescription& target, const 
   return view;
 }
 
+std::string CornerTruthCsv(const RenderedView& view) {
+  std::string csv = "id,x_px,y_px\n";
+  for (const auto& c : view.corners) csv += fmt::format("{},{:.9f},{:.9f}\n", c.id, c.image_px.x(), c.image_px.y());
+  return csv;
+}
+
 }  // namespace topocal::calib

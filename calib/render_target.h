@@ -67,6 +67,10 @@ struct RenderedView {
   std::vector<CornerTruth> corners;  // corners inside the image (and in front of the camera), ascending id
 };
 
+// The rendered view's ground truth as `render-target --truth` writes it: "id,x_px,y_px", one row per corner in
+// view, ascending id, 9 decimals (OpenCV pixel convention). Read back by the detection tests.
+std::string CornerTruthCsv(const RenderedView& view);
+
 // Seeded Gaussian noise (grey levels) on a float image, rounded and clamped to 8 bits: the last step of
 // RenderTarget, exposed so that one rendering can be seen at several noise levels.
 cv::Mat AddSensorNoise(const cv::Mat& irradiance, double noise_grey, uint32_t seed);

@@ -1,5 +1,7 @@
 #include "correct/spot_truth.h"
 
+#include <fmt/format.h>
+
 #include <optional>
 
 #include "model/null_screen_layout.h"
@@ -64,6 +66,16 @@ SpotTruth SpotsOnSensor(const model::Surface& cornea, const model::IdealImagePar
     out.position_mm.push_back(d_mm);
   }
   return out;
+}
+
+std::string SpotTruthCsv(const std::vector<SpotToRender>& spots, const model::TopographerCamera& camera) {
+  std::string csv = "ring,index,x_px,y_px,x_mm,y_mm\n";
+  for (const auto& s : spots) {
+    const Eigen::Vector2d mm = camera.DetectionPlaneFromPixel(s.centre_px);
+    csv += fmt::format("{},{},{:.6f},{:.6f},{:.9f},{:.9f}\n", s.id.ring, s.id.index, s.centre_px.x(), s.centre_px.y(),
+                       mm.x(), mm.y());
+  }
+  return csv;
 }
 
 }  // namespace topocal::correct

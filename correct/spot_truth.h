@@ -10,6 +10,7 @@
 // differences over the circle's own radius (four traced points). shape_px = J * radius: the spot is
 // shape_px * unit disk about the centre. Spots whose neighbourhood cannot be traced keep a circle of the nominal
 // radius in pixels (radius / pitch; does not happen on the paper's corneas).
+#include <string>
 #include <vector>
 
 #include "correct/spot_render.h"
@@ -36,5 +37,9 @@ SpotTruth SpotsOnSensor(const model::Surface& cornea, const model::IdealImagePar
 SpotTruth SpotsOnSensor(const model::Surface& cornea, const model::IdealImageParams& ideal,
                         const model::TopographerParams& topographer, const model::Distortion& distortion,
                         const model::TopographerCamera& camera);
+
+// The rendered spots' ground truth as `render-spots --truth` writes it: "ring,index,x_px,y_px,x_mm,y_mm", one row
+// per spot (ring 0 = glint) in the given order, pixels to 6 and detection-plane mm (distorted) to 9 decimals.
+std::string SpotTruthCsv(const std::vector<SpotToRender>& spots, const model::TopographerCamera& camera);
 
 }  // namespace topocal::correct

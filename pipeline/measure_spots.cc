@@ -6,6 +6,7 @@
 
 #include "correct/detect_and_index.h"
 #include "correct/undistort_points.h"
+#include "model/io.h"
 
 namespace topocal::pipeline {
 
@@ -25,10 +26,16 @@ std::vector<topo::MeasuredSpot> UndistortSpots(const std::vector<MeasuredImageSp
 }
 
 SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,
-                             const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion) {
-  const auto located = correct::DetectAndIndexSpots(image, camera, ideal);
+                             const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion,
+                             const correct::DetectAndIndexOptions& options) {
+  const auto located = correct::DetectAndIndexSpots(image, camera, ideal, options);
+  if (located.orientation.status == correct::OrientationCheck::Status::kMismatch) {
+    throw model::InputError(located.orientation.message);
+  }
   if (!located.ok) throw std::runtime_error(fmt::format("spot detection/indexing: {}", located.message));
   SpotMeasurement m;
+  m.excluded = static_cast<int>(located.excluded.size());
+  m.orientation_message = located.orientation.message;
   m.indexed = static_cast<int>(located.spots.size());
   m.unassigned = static_cast<int>(located.unassigned.size());
   m.missing = static_cast<int>(located.missing.size());

@@ -7,6 +7,7 @@
 
 #include <opencv2/core/mat.hpp>
 
+#include "correct/detect_and_index.h"
 #include "model/config.h"
 #include "model/device.h"
 #include "model/distortion.h"
@@ -29,6 +30,8 @@ struct SpotMeasurement {
   int unassigned = 0;                      // detections without identity (glints)
   int missing = 0;                         // designed spots not found
   int undistort_failures = 0;              // identified spots outside the calibration's invertible domain
+  int excluded = 0;                        // identified but flagged (near another blob, at the border): left out
+  std::string orientation_message;         // the image-orientation check, one line for the measurement's output
 };
 
 // The detected (distorted) spots undistorted with `distortion`. Spots outside its invertible domain are left out;
@@ -36,10 +39,12 @@ struct SpotMeasurement {
 std::vector<topo::MeasuredSpot> UndistortSpots(const std::vector<MeasuredImageSpot>& detected,
                                                const model::Distortion& distortion, int* failures = nullptr);
 
-// Throws std::runtime_error (one line) when detection or indexing fails; std::invalid_argument for an image type
-// the detector cannot use.
+// Throws model::InputError when the image's orientation contradicts the camera's (the orientation key says so: a
+// camera file that does not describe this camera), std::runtime_error (one line) when detection or indexing fails,
+// std::invalid_argument for an image type the detector cannot use.
 SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,
-                             const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion);
+                             const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion,
+                             const correct::DetectAndIndexOptions& options = {});
 
 // Through an as-built device: its camera maps pixels to the detection plane and its distortion is undone.
 SpotMeasurement MeasureSpots(const cv::Mat& image, const model::Device& device, const model::IdealImageParams& ideal);

@@ -178,6 +178,8 @@ std::optional<UnitDeviceStage> CalibrateDeviceStage(const UnitRequest& r, const 
     d.calibration = pipeline::CalibrateDevice(in.balls, in.nominal_device, in.config, {});
   } catch (const std::invalid_argument& e) {
     throw model::InputError(e.what());
+  } catch (const model::InputError& e) {  // bad input stays bad input (it is a runtime_error too)
+    throw model::InputError(fmt::format("{}: {}", r.serial, e.what()));
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(fmt::format("{}: {}", r.serial, e.what()));
   }
@@ -194,6 +196,8 @@ std::optional<UnitDeviceStage> CalibrateDeviceStage(const UnitRequest& r, const 
     }
     d.paper = pipeline::PaperCorneaThroughDevice(in.nominal_device, d.lens_only, device, in.config);
   } catch (const std::invalid_argument& e) {
+    throw model::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
+  } catch (const model::InputError& e) {
     throw model::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(fmt::format("{}: {}", r.serial, e.what()));
@@ -335,6 +339,8 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
     try {
       u.sphere = VerifyOnReferenceSphere(in.sphere_image, r.sphere_radius_mm, unit, in.camera, in.config, u.check);
     } catch (const std::invalid_argument& e) {
+      throw model::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
+    } catch (const model::InputError& e) {
       throw model::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
     } catch (const std::runtime_error& e) {
       throw std::runtime_error(fmt::format("{}: {}: {}", r.serial, r.reference_sphere, e.what()));

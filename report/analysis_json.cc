@@ -96,4 +96,47 @@ nlohmann::json PolynomialJson(const topo::TaylorPolynomial& p) {
           {"coefficients", terms}};
 }
 
+std::string SweepJson(const topo::SweepResult& r, const std::vector<pipeline::ClosedLoopResult>& corrected) {
+  nlohmann::json j;
+  j["spots"] = r.spots;
+  j["rows"] = nlohmann::json::array();
+  for (const auto& row : r.rows) {
+    nlohmann::json jr;
+    jr["sigma_per_mm2"] = row.sigma_per_mm2;
+    jr["spots_imaged"] = row.spots_imaged;
+    jr["image_ellipse"] = {{"a_mm", row.image_ellipse.a_mm},
+                           {"b_mm", row.image_ellipse.b_mm},
+                           {"beta_deg", row.image_ellipse.beta_deg},
+                           {"area_mm2", row.image_ellipse.AreaMm2()},
+                           {"area_change_pct", row.area_change_pct}};
+    const auto& a = row.analysis;
+    jr["surface_fit"] = report::SurfaceFitJson(a.surface_fit);
+    jr["reconstruction"] = report::ReconstructionJson(a.reconstruction);
+    jr["errors"] = report::ErrorsJson(a);
+    jr["clinical"] = report::ClinicalJson(a);
+    jr["adequacy"] = report::AdequacyJson(a);
+    const size_t i = j["rows"].size();
+    if (i < corrected.size()) {
+      const auto& c = corrected[i];
+      jr["corrected"] = {{"surface_fit", report::SurfaceFitJson(c.corrected.surface_fit)},
+                         {"errors", report::ErrorsJson(c.corrected)},
+                         {"reconstruction", report::ReconstructionJson(c.corrected.reconstruction)},
+                         {"spots_indexed", c.spots_indexed},
+                         {"spots_unassigned", c.spots_unassigned},
+                         {"spots_missing", c.spots_missing}};
+      jr["calibration"] = {{"sigma_estimated_per_mm2", c.calibration.sigma_estimated_per_mm2},
+                           {"sigma_stddev_per_mm2", c.calibration.sigma_stddev_per_mm2},
+                           {"residual_rms_px", c.calibration.residual_rms_px},
+                           {"corners", c.calibration.corners}};
+    }
+    j["rows"].push_back(jr);
+  }
+  j["ideal"] = {{"pv_tangential_D", r.ideal_power.pv_tangential_D}, {"pv_axial_D", r.ideal_power.pv_axial_D}};
+  j["timing_ms"] = {{"design", r.timing.design_ms},
+                    {"synthesis", r.timing.synthesis_ms},
+                    {"analysis", r.timing.analysis_ms},
+                    {"total", r.timing.total_ms}};
+  return j.dump(2) + "\n";
+}
+
 }  // namespace topocal::report

@@ -1,9 +1,14 @@
 #pragma once
 // JSON fragments of a reconstruction's analysis, shared by the verbs that report one (sweep, reconstruct): the
-// fitted surface, the reconstruction, errors, clinical indices, model adequacy, the Taylor polynomial.
+// fitted surface, the reconstruction, errors, clinical indices, model adequacy, the Taylor polynomial; and the
+// document `topocal sweep --json` writes, built from them.
 #include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
 
+#include "pipeline/closed_loop.h"
 #include "topo/analysis.h"
+#include "topo/sweep.h"
 
 namespace topocal::report {
 
@@ -16,5 +21,10 @@ nlohmann::json PolynomialJson(const topo::TaylorPolynomial& p);
 nlohmann::json ClinicalJson(const topo::Analysis& a);
 // Model adequacy (slope residual against the expected spot noise), map coverage and the warnings.
 nlohmann::json AdequacyJson(const topo::Analysis& a);
+
+// `topocal sweep --json`: every sigma's row (image ellipse, fit, reconstruction, errors, clinical, adequacy) and,
+// with --correct, `corrected[i]` beside row i (corrected may be shorter than the rows, or empty); ideal power and
+// timings. Pretty-printed, two-space indent, with a final newline.
+std::string SweepJson(const topo::SweepResult& r, const std::vector<pipeline::ClosedLoopResult>& corrected);
 
 }  // namespace topocal::report

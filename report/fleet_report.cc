@@ -156,6 +156,22 @@ svg.plot { width: 100%; height: auto; display: block; margin: 1mm 0; }
 
 std::string UnitLabel(const FleetParameter& p) { return p.unit.empty() ? p.label : p.label + " (" + p.unit + ")"; }
 
+// One series' control chart: its values, flagged points, centre and sigma (when there are enough units for a chart).
+ControlChartPlot ChartPlotOf(const ChartSeries& series, std::string title, std::string value_label,
+                             std::optional<double> limit) {
+  ControlChartPlot c;
+  c.title = std::move(title);
+  c.value_label = std::move(value_label);
+  c.values = series.values;
+  if (series.chart) {
+    c.flagged = series.chart->flagged;
+    c.centre = series.chart->centre;
+    c.sigma = series.chart->sigma;
+  }
+  c.limit = limit;
+  return c;
+}
+
 std::string RulesText(const std::vector<int>& rules) {
   std::string s;
   for (int r : rules) s += (s.empty() ? "" : "; ") + fmt::format("rule {}: {}", r, WesternElectricRuleText(r));
@@ -274,16 +290,7 @@ std::string RenderFleetHtml(const FleetAnalysis& a) {
                                 : std::string(", too few units for a chart"),
                      p.limit ? fmt::format("; acceptance limit \u00b1{}", Sig(*p.limit)) : std::string());
     HistogramPlot hist{"Distribution", UnitLabel(p), line.values, p.limit};
-    ControlChartPlot chart;
-    chart.title = "Control chart, whole line";
-    chart.value_label = p.unit.empty() ? p.key : p.unit;
-    chart.values = line.values;
-    if (line.chart) {
-      chart.flagged = line.chart->flagged;
-      chart.centre = line.chart->centre;
-      chart.sigma = line.chart->sigma;
-    }
-    chart.limit = p.limit;
+    ControlChartPlot chart = ChartPlotOf(line, "Control chart, whole line", p.unit.empty() ? p.key : p.unit, p.limit);
     chart.x_labels = {a.units[line.units.front()].created_utc.substr(0, 10),
                       a.units[line.units.back()].created_utc.substr(0, 10)};
     s += "<div class=\"pair\"><div style=\"flex: 1 1 0\">" + SvgHistogram(hist) + "</div><div style=\"flex: 2 1 0\">" +
@@ -292,16 +299,7 @@ std::string RenderFleetHtml(const FleetAnalysis& a) {
       s += "<div class=\"stations\">\n";
       for (std::size_t k = 1; k < series.size(); ++k) {
         const ChartSeries& st = *series[k];
-        ControlChartPlot c;
-        c.title = "Station " + st.station;
-        c.value_label = chart.value_label;
-        c.values = st.values;
-        if (st.chart) {
-          c.flagged = st.chart->flagged;
-          c.centre = st.chart->centre;
-          c.sigma = st.chart->sigma;
-        }
-        c.limit = p.limit;
+        ControlChartPlot c = ChartPlotOf(st, "Station " + st.station, chart.value_label, p.limit);
         c.width = 420;
         c.height = 180;
         s += "<div>" + SvgControlChart(c) + "</div>\n";

@@ -74,37 +74,25 @@ struct Inputs {
   unsigned seed = 1;
 };
 
-// pipeline::MeasureSpots with the user's estimator (MeasureSpots takes no detection options yet; this is the same
-// sequence: detect and index, refuse a mismatched orientation, undistort when a distortion is given).
+// pipeline::MeasureSpots with the user's estimator; its failures name the image.
 pipeline::SpotMeasurement MeasureImage(const cv::Mat& image, const model::TopographerCamera& camera,
                                        const model::IdealImageParams& ideal,
                                        const std::optional<model::Distortion>& distortion, const Inputs& in) {
   correct::DetectAndIndexOptions options;
   options.detection.method = correct::CentroidMethodFromName(in.estimator);
-  correct::DetectAndIndexResult located;
+  pipeline::SpotMeasurement m;
   try {
-    located = correct::DetectAndIndexSpots(image, camera, ideal, options);
+    m = pipeline::MeasureSpots(image, camera, ideal, distortion, options);
+  } catch (const model::InputError& e) {
+    throw model::InputError(fmt::format("{}: {}", in.image, e.what()));
   } catch (const std::invalid_argument& e) {
     throw model::InputError(fmt::format("{}: {}", in.image, e.what()));
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(fmt::format("{}: {}", in.image, e.what()));
   }
-  if (located.orientation.status == correct::OrientationCheck::Status::kMismatch) {
-    throw model::InputError(fmt::format("{}: {}", in.image, located.orientation.message));
-  }
-  if (!located.ok) throw std::runtime_error(fmt::format("{}: spot detection/indexing: {}", in.image, located.message));
-  fmt::print("{}\n", located.orientation.message);
-  pipeline::SpotMeasurement m;
-  m.indexed = static_cast<int>(located.spots.size());
-  m.unassigned = static_cast<int>(located.unassigned.size());
-  m.missing = static_cast<int>(located.missing.size());
-  for (const auto& s : located.spots) m.detected.push_back({s.id, s.position_mm});
-  if (!located.excluded.empty()) {
-    fmt::print("{} identified spots flagged near another blob or at the border: left out\n", located.excluded.size());
-  }
-  if (!distortion) {
-    for (const auto& s : located.spots) m.spots.push_back({s.id, s.position_mm});
-    return m;
-  }
-  m.spots = pipeline::UndistortSpots(m.detected, *distortion, &m.undistort_failures);
+  fmt::print("{}\n", m.orientation_message);
+  if (m.excluded > 0)
+    fmt::print("{} identified spots flagged near another blob or at the border: left out\n", m.excluded);
   return m;
 }
 

@@ -51,11 +51,7 @@ void Run(const RenderSpotsArgs& a) {
       throw model::InputError(fmt::format("{}: a_mm: {} differs from the configuration's topographer.a_mm = {} ({})",
                                           a.camera, device.camera.a_mm, cfg.topographer.a_mm, a.config));
     }
-    if (const double max = model::MaxFoldFreeSigmaPerMm2(cfg.ideal_image, cfg.distortion);
-        a.sigma != 0 && !(std::abs(a.sigma) < max)) {  // issue 16: 1e308 wrote rows of -inf
-      throw model::InputError(fmt::format("--sigma {}: folds the image of {} (|sigma| must be below {:.3g} mm^-2)",
-                                          a.sigma, a.config, max));
-    }
+    RequireFoldFreeSigma(a.sigma, cfg, a.config);
     device.distortion = cfg.distortion.SeidelAt(a.sigma);
   }
   const auto& camera = device.camera;
@@ -93,15 +89,7 @@ void Run(const RenderSpotsArgs& a) {
   const cv::Mat image = correct::RenderSpotImage(spots, camera.width_px, camera.height_px, o);
   std::vector<uchar> png;
   if (!cv::imencode(".png", image, png)) throw std::runtime_error(fmt::format("{}: PNG encoding failed", a.out));
-  std::string csv;
-  if (!a.truth.empty()) {
-    csv = "ring,index,x_px,y_px,x_mm,y_mm\n";
-    for (const auto& s : spots) {
-      const Eigen::Vector2d mm = camera.DetectionPlaneFromPixel(s.centre_px);
-      csv += fmt::format("{},{},{:.6f},{:.6f},{:.9f},{:.9f}\n", s.id.ring, s.id.index, s.centre_px.x(), s.centre_px.y(),
-                         mm.x(), mm.y());
-    }
-  }
+  const std::string csv = a.truth.empty() ? std::string() : correct::SpotTruthCsv(spots, camera);
   model::WriteFileAtomic(a.out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   if (!a.truth.empty()) model::WriteFileAtomic(a.truth, csv);
   const int glints = static_cast<int>(std::count_if(spots.begin(), spots.end(), [](const auto& s) { return s.id.ring == 0; }));

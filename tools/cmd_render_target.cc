@@ -185,8 +185,7 @@ void AddRenderTargetCommand(CLI::App& app) {
     std::vector<uchar> png;
     if (!cv::imencode(".png", view->image, png)) throw std::runtime_error("cannot encode the PNG");
     // Both files are written only once everything has been computed; each atomically.
-    std::string truth = "id,x_px,y_px\n";
-    for (const auto& c : view->corners) truth += fmt::format("{},{:.9f},{:.9f}\n", c.id, c.image_px.x(), c.image_px.y());
+    const std::string truth = calib::CornerTruthCsv(*view);
     model::WriteFileAtomic(a->out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
     if (!a->truth.empty()) model::WriteFileAtomic(a->truth, truth);
     fmt::print("{} seen at {}x{} px: {}/{} corners in view -> {}{}\n", target.Describe(), camera.width_px,

@@ -27,13 +27,7 @@ void Run(const SimulateArgs& a) {
   }
   if (!std::isnan(a.sigma) && !std::isfinite(a.sigma)) throw model::InputError("--sigma: must be a finite number");
   const auto cfg = model::LoadConfig(a.config);
-  if (!std::isnan(a.sigma)) {
-    if (const double max = model::MaxFoldFreeSigmaPerMm2(cfg.ideal_image, cfg.distortion);
-        a.sigma != 0 && !(std::abs(a.sigma) < max)) {  // issue 16: 1e308 wrote rows of -inf
-      throw model::InputError(fmt::format("--sigma {}: folds the image of {} (|sigma| must be below {:.3g} mm^-2)",
-                                          a.sigma, a.config, max));
-    }
-  }
+  if (!std::isnan(a.sigma)) RequireFoldFreeSigma(a.sigma, cfg, a.config);
   const model::Surface surface = SurfaceToImage(cfg, a.sphere_radius_mm, a.ball_at_mm);
   model::SyntheticImage image;
   if (a.device.empty()) {

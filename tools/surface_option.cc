@@ -50,4 +50,12 @@ void ReconstructionOverrides::ApplyTo(model::Config* config) const {
   if (!surface_model.empty()) config->reconstruction.surface_model = surface_model;
 }
 
+void RequireFoldFreeSigma(double sigma_per_mm2, const model::Config& config, const std::string& config_path) {
+  if (const double max = model::MaxFoldFreeSigmaPerMm2(config.ideal_image, config.distortion);
+      sigma_per_mm2 != 0 && !(std::abs(sigma_per_mm2) < max)) {
+    throw model::InputError(fmt::format("--sigma {}: folds the image of {} (|sigma| must be below {:.3g} mm^-2)",
+                                        sigma_per_mm2, config_path, max));
+  }
+}
+
 }  // namespace topocal::tools
