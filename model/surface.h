@@ -1,7 +1,8 @@
 #pragma once
 // Corneal surfaces as sag functions z = S(x, y) in the topographer frame (mm; vertex near the origin, sag towards
 // +z, i.e. away from the camera). Each surface evaluates its sag and gradient in a template usable with Ceres jets
-// (so Newton solvers get exact Jacobians), and its analytic Hessian in double.
+// (so Newton solvers get exact Jacobians), and its Hessian in double (the sphere's analytic; the others' from jets of
+// the gradient).
 //
 //  * Sphere:  rho^2 - 2 r z + z^2 = 0, the root through the vertex: z = r - sqrt(r^2 - rho^2)   (paper Eq. 4),
 //    with its vertex at (x0, y0, z0): a reference ball placed anywhere in front of the camera
@@ -36,12 +37,20 @@ struct Sphere {
 
   template <typename T>
   bool SagAndGradient(const T& x, const T& y, T* z, T* zx, T* zy) const noexcept {
+    const double vertex_mm[3] = {x0_mm, y0_mm, z0_mm};
+    return CapSagAndGradient(radius_mm, vertex_mm, x, y, z, zx, zy);
+  }
+  // Eq. 4 once: the cap facing the camera, z = z0 + r - sqrt(r^2 - (x - x0)^2 - (y - y0)^2), with the vertex of any
+  // type V (the device calibration moves a reference ball's vertex in jets: model::ProjectBallSpot).
+  template <typename V, typename T>
+  static bool CapSagAndGradient(double radius_mm, const V* vertex_mm, const T& x, const T& y, T* z, T* zx,
+                                T* zy) noexcept {
     using std::sqrt;
-    const T X = x - x0_mm, Y = y - y0_mm;
+    const T X = x - vertex_mm[0], Y = y - vertex_mm[1];
     const T arg = T(radius_mm * radius_mm) - X * X - Y * Y;
     if (!(arg > T(0))) return false;
     const T root = sqrt(arg);
-    *z = T(z0_mm) + T(radius_mm) - root;
+    *z = T(vertex_mm[2]) + T(radius_mm) - root;
     *zx = X / root;
     *zy = Y / root;
     return true;
