@@ -125,6 +125,22 @@ std::string TargetSvg(const TargetDescription& target) {
     svg += fmt::format("<rect x=\"{:.4f}\" y=\"{:.4f}\" width=\"{:.4f}\" height=\"{:.4f}\"/>\n", x_mm - paper.min_x_mm,
                        y_mm - paper.min_y_mm, w_mm, h_mm);
   };
+  // A marker's or tag's black cells, n x n of cell_mm from (x0, y0): runs of black cells in a row become one rectangle
+  // (fewer elements, no hairline seams between cells).
+  auto cells = [&](const std::vector<uint8_t>& bits, int n, double cell_mm, double x0, double y0) {
+    for (int y = 0; y < n; ++y) {
+      for (int x = 0; x < n;) {
+        if (!bits[static_cast<size_t>(y * n + x)]) {
+          ++x;
+          continue;
+        }
+        int end = x;
+        while (end < n && bits[static_cast<size_t>(y * n + end)]) ++end;
+        rect(x0 + x * cell_mm, y0 + y * cell_mm, (end - x) * cell_mm, cell_mm);
+        x = end;
+      }
+    }
+  };
   if (const auto* b = std::get_if<CheckerboardLayout>(&target.layout)) {
     for (int j = 0; j <= b->rows; ++j) {
       for (int i = 0; i <= b->cols; ++i) {
@@ -145,15 +161,7 @@ std::string TargetSvg(const TargetDescription& target) {
         const double x0 = i * c->square_size_mm + c->MarginMm(), y0 = j * c->square_size_mm + c->MarginMm();
         const auto& bits = pattern.tag_bits()[static_cast<size_t>(marker)];
         svg += fmt::format("<!-- marker {} -->\n", marker++);
-        for (int y = 0; y < n; ++y) {
-          for (int x = 0; x < n;) {
-            if (!bits[static_cast<size_t>(y * n + x)]) { ++x; continue; }
-            int end = x;
-            while (end < n && bits[static_cast<size_t>(y * n + end)]) ++end;
-            rect(x0 + x * cell_mm, y0 + y * cell_mm, (end - x) * cell_mm, cell_mm);
-            x = end;
-          }
-        }
+        cells(bits, n, cell_mm, x0, y0);
       }
     }
   } else {
@@ -173,16 +181,7 @@ std::string TargetSvg(const TargetDescription& target) {
       const double x0 = origin.x(), y0 = origin.y();
       const auto& bits = pattern.tag_bits()[static_cast<size_t>(t)];
       svg += fmt::format("<!-- tag {} -->\n", g.first_tag_id + t);
-      for (int y = 0; y < n; ++y) {
-        // Runs of black cells become one rectangle: fewer elements, no hairline seams between cells.
-        for (int x = 0; x < n;) {
-          if (!bits[static_cast<size_t>(y * n + x)]) { ++x; continue; }
-          int end = x;
-          while (end < n && bits[static_cast<size_t>(y * n + end)]) ++end;
-          rect(x0 + x * cell_mm, y0 + y * cell_mm, (end - x) * cell_mm, cell_mm);
-          x = end;
-        }
-      }
+      cells(bits, n, cell_mm, x0, y0);
     }
   }
   svg += "</g>\n</svg>\n";
