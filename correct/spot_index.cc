@@ -104,11 +104,11 @@ Template MakeTemplate(const model::IdealImageParams& ideal) {
   t.spots = model::IdealImage(ideal);
   const int n_rings = ideal.rings_N + 1;
   t.rings.resize(n_rings);
-  const double ring_step = ideal.rings_N > 0 ? (ideal.rhoN_mm - ideal.rho0_mm) / ideal.rings_N : ideal.rho0_mm;
+  const double ring_step = model::RingStepMm(ideal);
   for (int i = 0; i < static_cast<int>(t.spots.size()); ++i) {
     const auto& s = t.spots[i];
     t.rings[s.id.ring - 1].push_back(i);
-    const int per_ring = ideal.eta0 + (s.id.ring - 1) * ideal.eta;
+    const int per_ring = model::SpotsOnRing(ideal, s.id.ring);
     const double arc = 2.0 * M_PI * s.position_mm.norm() / per_ring;
     t.spacing.push_back(std::min(arc, ring_step));
   }
@@ -247,7 +247,7 @@ SpotIndexing IndexSpots(const std::vector<Eigen::Vector2d>& det, const model::Id
   {
     // Ring spacing and ring 1's arc spacing as the start maps them (detection units).
     const double scale = std::sqrt(a0.determinant());
-    const double ring_step = (ideal.rings_N > 0 ? (ideal.rhoN_mm - ideal.rho0_mm) / ideal.rings_N : ideal.rho0_mm) * scale;
+    const double ring_step = model::RingStepMm(ideal) * scale;
     const double inner_spacing = tpl.spacing[tpl.rings[0].front()] * scale;
     mu = InnerRingsCentre(det, tpl, mu, a0, 2.0 * ring_step, inner_spacing / 8.0, options.gate_fraction * inner_spacing);
   }

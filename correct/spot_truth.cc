@@ -35,7 +35,7 @@ SpotTruth SpotsOnSensor(const model::Surface& cornea, const model::IdealImagePar
     const Eigen::Vector3d placed = device.screen.Apply(t->on_cone_mm, -topographer.b_mm);
     const auto p2 = model::SolveReflectionPoint(cornea, topo, placed, surface_guess);
     if (!p2) return std::nullopt;
-    return device.PixelOf(topo.ImagePoint((*p2 - topo.Pinhole()).normalized()));
+    return device.PixelOf(topo.ImageOf(*p2));
   };
   std::vector<Eigen::Vector2d> ideal_of(image.spots.size());
   for (const auto& t : design.targets) {

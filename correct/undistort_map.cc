@@ -10,32 +10,10 @@
 namespace topocal::correct {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
 // Output pixels where d r_d / d r has fallen below this are treated as beyond the fold: there one source pixel is
 // smeared over more than 100 output pixels, nothing is left to recover, and the inverse is too ill-conditioned to
 // check (a 1e-12 mm residual allows a 1e-10 mm error).
 constexpr double kMinRadialDerivative = 0.01;
-
-// First zero of the radial derivative g(s), s = r^2 in [0, s_max], by a scan fine enough not to step over a root
-// of a cubic in s (1000 steps) and bisection to machine precision. +inf if g stays positive.
-template <typename G>
-double FirstRootOfDerivative(const G& g, double s_max) {
-  constexpr int kSteps = 1000;
-  double s_prev = 0.0;
-  for (int i = 1; i <= kSteps; ++i) {
-    const double s = s_max * i / kSteps;
-    if (g(s) <= kMinRadialDerivative) {
-      double lo = s_prev, hi = s;
-      for (int it = 0; it < 100 && hi - lo > 1e-15 * s_max; ++it) {
-        const double mid = 0.5 * (lo + hi);
-        (g(mid) > kMinRadialDerivative ? lo : hi) = mid;
-      }
-      return lo;
-    }
-    s_prev = s;
-  }
-  return kInf;
-}
 
 Eigen::Vector2d CentreMm(const model::Distortion& d) {
   if (const auto* s = std::get_if<model::SeidelParams>(&d)) return {s->centre_x_mm, s->centre_y_mm};
@@ -77,21 +55,7 @@ void FillRows(const Distort& distort, const model::TopographerCamera& camera, co
 }  // namespace
 
 double FoldRadiusMm(const model::Distortion& distortion, double max_radius_mm) {
-  if (const auto* s = std::get_if<model::SeidelParams>(&distortion)) {
-    // r_d = r (1 + c r^2): d r_d / d r = 1 + 3 c r^2 falls to kMinRadialDerivative at
-    // r^2 = (1 - kMinRadialDerivative) / (-3 c) for barrel (c < 0).
-    const double c = s->sigma_per_mm2 / std::pow(s->magnification, 3);
-    if (c >= 0) return kInf;
-    const double r = std::sqrt((1.0 - kMinRadialDerivative) / (-3.0 * c));
-    return r < max_radius_mm ? r : kInf;
-  }
-  const auto& b = std::get<model::BrownParams>(distortion);
-  // r_d = r (1 + k1 s + k2 s^2 + k3 s^3), s = r^2 (normalised): d r_d / d r = 1 + 3 k1 s + 5 k2 s^2 + 7 k3 s^3.
-  const double k1 = b.k[0], k2 = b.k[1], k3 = b.k[4];
-  const auto g = [&](double s) { return 1.0 + s * (3.0 * k1 + s * (5.0 * k2 + s * 7.0 * k3)); };
-  const double s_max = std::pow(max_radius_mm / b.focal_mm, 2);
-  const double s_fold = FirstRootOfDerivative(g, s_max);
-  return std::isfinite(s_fold) ? b.focal_mm * std::sqrt(s_fold) : kInf;
+  return model::FoldRadiusMm(distortion, max_radius_mm, kMinRadialDerivative);
 }
 
 UndistortMap BuildUndistortMap(const model::Distortion& distortion, const model::TopographerCamera& camera) {
@@ -119,13 +83,15 @@ double SensorFoldRadiusMm(const model::Distortion& distortion, const model::Topo
 template <typename Fill>
 void WithKernel(const model::Distortion& distortion, const Fill& fill) {
   if (const auto* s = std::get_if<model::SeidelParams>(&distortion)) {
-    const double c = s->sigma_per_mm2 / std::pow(s->magnification, 3);
-    const Eigen::Vector2d centre(s->centre_x_mm, s->centre_y_mm);
-    fill([c, centre](double x, double y, double* ox, double* oy) {
-      const double dx = x - centre.x(), dy = y - centre.y();
-      const double f = 1.0 + c * (dx * dx + dy * dy);
-      *ox = centre.x() + f * dx;
-      *oy = centre.y() + f * dy;
+    const auto params = s->AsArray();
+    const double c = model::SeidelRadial::Coefficient(params.data());  // once, not per pixel
+    const double cx = s->centre_x_mm, cy = s->centre_y_mm;
+    fill([c, cx, cy](double x, double y, double* ox, double* oy) {
+      const double in[2] = {x, y};
+      double out[2];
+      model::SeidelRadial::DistortWithCoefficient(c, cx, cy, in, out);
+      *ox = out[0];
+      *oy = out[1];
     });
   } else {
     const auto b = std::get<model::BrownParams>(distortion);

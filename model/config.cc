@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "model/distortion.h"
 #include "model/json_section.h"
 #include "model/null_screen.h"
 #include "model/surface.h"
@@ -210,8 +211,7 @@ void CheckGeometry(const Config& c) {
 double MaxFoldFreeSigmaPerMm2(const IdealImageParams& image, const DistortionSweep& distortion) {
   constexpr double kCorneaMargin = 1.1;
   const double r_max_mm = kCorneaMargin * (std::abs(image.rhoN_mm) + std::hypot(distortion.centre_x_mm, distortion.centre_y_mm));
-  const double m = std::abs(distortion.magnification);
-  return m * m * m / (3 * r_max_mm * r_max_mm);
+  return SeidelRadial::MaxFoldFreeSigmaPerMm2(distortion.magnification, r_max_mm);
 }
 
 Config ParseConfig(const std::string& json_text, const std::string& origin) {

@@ -149,15 +149,7 @@ bool ProjectBallSpot(const DeviceProjectionSetup& setup, const T* pose, const T*
   // Front cap of the ball: z = z0 + r - sqrt(r^2 - (x - x0)^2 - (y - y0)^2) (model::Sphere with the vertex anywhere).
   const auto ball_sag = [r](const auto* vertex) {
     return [r, vertex](const auto& x, const auto& y, auto* z, auto* zx, auto* zy) {
-      using std::sqrt;
-      const auto X = x - vertex[0], Y = y - vertex[1];
-      const auto arg = r * r - X * X - Y * Y;
-      if (!(arg > 0.0)) return false;
-      const auto root = sqrt(arg);
-      *z = vertex[2] + r - root;
-      *zx = X / root;
-      *zy = Y / root;
-      return true;
+      return Sphere::CapSagAndGradient(r, vertex, x, y, z, zx, zy);
     };
   };
   const double vertex_d[3] = {value(ball_vertex_mm[0]), value(ball_vertex_mm[1]), value(ball_vertex_mm[2])};
@@ -179,9 +171,10 @@ bool ProjectBallSpot(const DeviceProjectionSetup& setup, const T* pose, const T*
   const T y = p2->y() - (-fj[1].v[0] * f[0] + fj[0].v[0] * f[1]) / det;
   T z, zx, zy;
   if (!ball_sag(ball_vertex_mm)(x, y, &z, &zx, &zy)) return false;
-  // Eq. 16: the spot on the detection plane, undistorted.
-  const T depth = z + setup.b_mm;
-  const T undistorted[2] = {-a_mm[0] * x / depth, -a_mm[0] * y / depth};
+  // Eq. 14a + 16: the spot on the detection plane, undistorted.
+  const T on_ball[3] = {x, y, z};
+  T undistorted[2];
+  ImageOfPoint(a_mm[0], setup.b_mm, on_ball, undistorted);
   T distorted[2];
   if (setup.brown) {
     const auto& c = setup.distortion_centre_mm;

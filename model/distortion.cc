@@ -1,6 +1,7 @@
 #include "model/distortion.h"
 
 #include <cmath>
+#include <limits>
 
 #include <ceres/jet.h>
 #include <fmt/format.h>
@@ -48,9 +49,18 @@ bool SeidelRadial::Undistort(const double* params, const double* distorted_mm, d
   if (!InvertByNewton(forward, distorted_mm, undistorted_mm, kInverseToleranceMm)) return false;
   // Newton may land on the far branch beyond the fold of barrel distortion (r^2 > 1/(3|c|)): reject it, since the
   // physical image never reaches there.
-  const double c = params[kSigma] / std::pow(params[kMagnification], 3);
   const double dx = undistorted_mm[0] - params[kCentreX], dy = undistorted_mm[1] - params[kCentreY];
-  return !(c < 0 && 3.0 * c * (dx * dx + dy * dy) <= -1.0);
+  return RadialDerivative(Coefficient(params), dx * dx + dy * dy) > 0.0;
+}
+
+double SeidelRadial::FoldRadiusSquaredMm2(double c, double radial_derivative) noexcept {
+  if (c >= 0) return std::numeric_limits<double>::infinity();
+  return (1.0 - radial_derivative) / (-3.0 * c);  // RadialDerivative(c, r^2) = radial_derivative
+}
+
+double SeidelRadial::MaxFoldFreeSigmaPerMm2(double magnification, double radius_mm) noexcept {
+  const double m = std::abs(magnification);
+  return m * m * m / (3 * radius_mm * radius_mm);
 }
 
 bool BrownConrady::UndistortNormalized(const double* k, const double* xd, double* xn, double tolerance) noexcept {
@@ -118,6 +128,47 @@ BrownParams SeidelToBrown(const SeidelParams& seidel, double focal_mm) noexcept 
   b.centre_y_mm = seidel.centre_y_mm;
   b.k = {SeidelSigmaToBrownK1(seidel.sigma_per_mm2, seidel.magnification, focal_mm), 0.0, 0.0, 0.0, 0.0};
   return b;
+}
+
+namespace {
+
+// First s in [0, s_max] where g(s) <= level, by a scan fine enough not to step over a root of a cubic in s (1000
+// steps) and bisection to machine precision; +inf if g stays above.
+template <typename G>
+double FirstRootOf(const G& g, double level, double s_max) {
+  constexpr int kSteps = 1000;
+  double s_prev = 0.0;
+  for (int i = 1; i <= kSteps; ++i) {
+    const double s = s_max * i / kSteps;
+    if (g(s) <= level) {
+      double lo = s_prev, hi = s;
+      for (int it = 0; it < 100 && hi - lo > 1e-15 * s_max; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (g(mid) > level ? lo : hi) = mid;
+      }
+      return lo;
+    }
+    s_prev = s;
+  }
+  return std::numeric_limits<double>::infinity();
+}
+
+}  // namespace
+
+double FoldRadiusMm(const Distortion& distortion, double max_radius_mm, double radial_derivative) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  if (const auto* s = std::get_if<SeidelParams>(&distortion)) {
+    const auto params = s->AsArray();
+    const double r =
+        std::sqrt(SeidelRadial::FoldRadiusSquaredMm2(SeidelRadial::Coefficient(params.data()), radial_derivative));
+    return r < max_radius_mm ? r : kInf;
+  }
+  const auto& b = std::get<BrownParams>(distortion);
+  const double k1 = b.k[BrownConrady::kK1], k2 = b.k[BrownConrady::kK2], k3 = b.k[BrownConrady::kK3];
+  const auto g = [&](double s) { return 1.0 + s * (3.0 * k1 + s * (5.0 * k2 + s * 7.0 * k3)); };
+  const double s_max = std::pow(max_radius_mm / b.focal_mm, 2);
+  const double s_fold = FirstRootOf(g, radial_derivative, s_max);
+  return std::isfinite(s_fold) ? b.focal_mm * std::sqrt(s_fold) : kInf;
 }
 
 std::string DescribeDistortion(const Distortion& distortion) {

@@ -39,13 +39,32 @@ struct SeidelRadial {
 
   template <typename T>
   static void Distort(const T* params, const T* undistorted_mm, T* distorted_mm) noexcept {
-    const T c = params[kSigma] / (params[kMagnification] * params[kMagnification] * params[kMagnification]);
-    const T x = undistorted_mm[0] - params[kCentreX];
-    const T y = undistorted_mm[1] - params[kCentreY];
-    const T f = T(1) + c * (x * x + y * y);
-    distorted_mm[0] = params[kCentreX] + f * x;
-    distorted_mm[1] = params[kCentreY] + f * y;
+    DistortWithCoefficient(Coefficient(params), params[kCentreX], params[kCentreY], undistorted_mm, distorted_mm);
   }
+  // The one coefficient of Eq. 18, c = sigma / M_T^3 (mm^-2 on the detection plane).
+  template <typename T>
+  static T Coefficient(const T* params) noexcept {
+    return params[kSigma] / (params[kMagnification] * params[kMagnification] * params[kMagnification]);
+  }
+  // Eq. 18 with c computed once (a remap table evaluates it per pixel: correct/undistort_map.cc).
+  template <typename T>
+  static void DistortWithCoefficient(const T& c, const T& centre_x_mm, const T& centre_y_mm, const T* undistorted_mm,
+                                     T* distorted_mm) noexcept {
+    const T x = undistorted_mm[0] - centre_x_mm;
+    const T y = undistorted_mm[1] - centre_y_mm;
+    const T f = T(1) + c * (x * x + y * y);
+    distorted_mm[0] = centre_x_mm + f * x;
+    distorted_mm[1] = centre_y_mm + f * y;
+  }
+  // The fold of Eq. 18: r_d = r (1 + c r^2) about the centre, so d r_d / d r = 1 + 3 c r^2 (r2 = r^2, mm^2). Barrel
+  // distortion (c < 0) folds where it vanishes, r^2 = 1 / (3 |c|): beyond, two points share one image.
+  static double RadialDerivative(double c, double r2_mm2) noexcept { return 1.0 + 3.0 * c * r2_mm2; }
+  // r^2 (mm^2) where the radial derivative falls to `radial_derivative` (0: the fold itself); +inf when it never does
+  // (c >= 0).
+  static double FoldRadiusSquaredMm2(double c, double radial_derivative = 0.0) noexcept;
+  // The largest |sigma| (mm^-2) that leaves every point within radius_mm of the centre short of the fold:
+  // 1 + 3 (-|sigma| / |M_T|^3) r^2 = 0  =>  |sigma| = |M_T|^3 / (3 r^2).
+  static double MaxFoldFreeSigmaPerMm2(double magnification, double radius_mm) noexcept;
   // Inverts Distort; false when the point has no preimage (beyond the barrel fold) or Newton does not converge.
   static bool Undistort(const double* params, const double* distorted_mm, double* undistorted_mm) noexcept;
 };
@@ -98,6 +117,13 @@ double SeidelSigmaToBrownK1(double sigma_per_mm2, double magnification, double f
 double BrownK1ToSeidelSigma(double k1, double magnification, double focal_mm) noexcept;
 // The Brown parameters equivalent to a Seidel distortion (k2 = p1 = p2 = k3 = 0).
 BrownParams SeidelToBrown(const SeidelParams& seidel, double focal_mm) noexcept;
+
+// Radius about the distortion centre (detection plane, mm) where the radial derivative d r_d / d r of the model
+// first falls to `radial_derivative` (0: the fold, beyond which the map is not one-to-one), searched within
+// max_radius_mm; +infinity if it does not fall there. Seidel: SeidelRadial::FoldRadiusSquaredMm2 (closed form).
+// Brown: d r_d / d r = 1 + 3 k1 s + 5 k2 s^2 + 7 k3 s^3, s = (r / f)^2 (the tangential terms are not radial),
+// whose first root is found by a scan and bisection.
+double FoldRadiusMm(const Distortion& distortion, double max_radius_mm, double radial_derivative);
 
 std::string DescribeDistortion(const Distortion& distortion);
 

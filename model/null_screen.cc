@@ -11,14 +11,20 @@ std::vector<IdealSpot> IdealImage(const IdealImageParams& p) {
   std::vector<IdealSpot> spots;
   spots.reserve(p.SpotCount());
   for (int i = 1; i <= p.rings_N + 1; ++i) {
-    const double rho = p.rho0_mm + (i - 1) * (p.rhoN_mm - p.rho0_mm) / p.rings_N;
-    const int n = p.eta0 + (i - 1) * p.eta;
+    const double rho = RingRadiusMm(p, i);
+    const int n = SpotsOnRing(p, i);
     for (int j = 0; j < n; ++j) {
       const double theta = 2.0 * M_PI * j / n;
       spots.push_back({SpotId{i, j}, Eigen::Vector2d(rho * std::cos(theta), rho * std::sin(theta))});
     }
   }
   return spots;
+}
+
+Eigen::Vector2d Topographer::ImageOf(const Eigen::Vector3d& point_mm) const {
+  Eigen::Vector2d image_mm;
+  ImageOfPoint(p.a_mm, p.b_mm, point_mm.data(), image_mm.data());
+  return image_mm;
 }
 
 std::optional<Eigen::Vector3d> Topographer::HitReferenceSphere(const Eigen::Vector3d& d, double offset_mm) const {
@@ -120,8 +126,7 @@ SyntheticImage SynthesizeImage(const Surface& surface, const Topographer& topogr
       image.failures.push_back({t.id, "no reflection point on the surface (solve failed or ray misses it)"});
       continue;
     }
-    const Eigen::Vector3d inc = (*p2 - topographer.Pinhole()).normalized();  // Eq. 14a
-    image.spots.push_back({t.id, topographer.ImagePoint(inc), *p2});
+    image.spots.push_back({t.id, topographer.ImageOf(*p2), *p2});
   }
   return image;
 }

@@ -38,6 +38,30 @@ struct IdealSpot {
 
 std::vector<IdealSpot> IdealImage(const IdealImageParams& p);
 
+// Eq. 2a: radius rho_i of ring i = 1..N+1 of the ideal image, mm.
+inline double RingRadiusMm(const IdealImageParams& p, int ring) noexcept {
+  return p.rho0_mm + (ring - 1) * (p.rhoN_mm - p.rho0_mm) / p.rings_N;
+}
+// Eq. 2a's step between neighbouring rings, (rhoN - rho0) / N, mm; with a single ring (N = 0, which the configuration
+// reader refuses but the spot indexer tolerates) its radius rho0.
+inline double RingStepMm(const IdealImageParams& p) noexcept {
+  return p.rings_N > 0 ? (p.rhoN_mm - p.rho0_mm) / p.rings_N : p.rho0_mm;
+}
+// Eq. 2b: the number of spots on ring i, eta0 + (i - 1) eta.
+inline int SpotsOnRing(const IdealImageParams& p, int ring) noexcept { return p.eta0 + (ring - 1) * p.eta; }
+
+// Eq. 14a + 16: the point of the detection plane z = -a - b (undistorted, mm) at which the pinhole h = (0, 0, -b)
+// images the point p: the incident direction I = (p - h) / |p - h| (Eq. 14a) continued through h meets the plane at
+// -a (I_x, I_y) / I_z (Eq. 16). |p - h| cancels, so I is not normalised. Templated for the device fit's jets
+// (model::ProjectBallSpot); the synthetic image (SynthesizeImage) and the spot truth (correct/spot_truth.cc) call it
+// through Topographer::ImageOf.
+template <typename T>
+void ImageOfPoint(const T& a_mm, double b_mm, const T* point_mm, T* image_mm) noexcept {
+  const T depth = point_mm[2] + b_mm;  // I_z |p - h|
+  image_mm[0] = -a_mm * point_mm[0] / depth;
+  image_mm[1] = -a_mm * point_mm[1] / depth;
+}
+
 // The pinhole and the planes of the topographer.
 struct Topographer {
   TopographerParams p;
@@ -46,10 +70,8 @@ struct Topographer {
   Eigen::Vector3d IncidentDirection(const Eigen::Vector2d& image_mm) const {
     return Eigen::Vector3d(-image_mm.x(), -image_mm.y(), p.a_mm).normalized();
   }
-  // Detection-plane point of a ray leaving the pinhole in direction d (Eq. 16).
-  Eigen::Vector2d ImagePoint(const Eigen::Vector3d& d) const {
-    return {-p.a_mm * d.x() / d.z(), -p.a_mm * d.y() / d.z()};
-  }
+  // Detection-plane point at which the pinhole images the point p (Eq. 14a + 16: ImageOfPoint).
+  Eigen::Vector2d ImageOf(const Eigen::Vector3d& point_mm) const;
   // Intersection of the ray from the pinhole in direction d with the reference sphere (nearest root).
   std::optional<Eigen::Vector3d> HitReferenceSphere(const Eigen::Vector3d& d, double offset_mm = 0.0) const;
   // First intersection of the ray origin + s dir (s > 0) with the cone, on its nappe z > z_c.

@@ -111,7 +111,7 @@ std::vector<SpotId> OrientationKeySpots(const IdealImageParams& ideal) {
   constexpr double kAngleDeg[3] = {0.0, 90.0, 225.0};
   for (int k = 0; k < 3; ++k) {
     const int ring = 1 + static_cast<int>(std::lround(kRadiusFraction[k] * ideal.rings_N));
-    const int count = ideal.eta0 + (ring - 1) * ideal.eta;
+    const int count = SpotsOnRing(ideal, ring);
     const int index = static_cast<int>(std::lround(kAngleDeg[k] / 360.0 * count)) % count;
     out.push_back({ring, index});
   }

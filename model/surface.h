@@ -1,7 +1,8 @@
 #pragma once
 // Corneal surfaces as sag functions z = S(x, y) in the topographer frame (mm; vertex near the origin, sag towards
 // +z, i.e. away from the camera). Each surface evaluates its sag and gradient in a template usable with Ceres jets
-// (so Newton solvers get exact Jacobians), and its analytic Hessian in double.
+// (so Newton solvers get exact Jacobians), and its Hessian in double (the sphere's analytic; the others' from jets of
+// the gradient).
 //
 //  * Sphere:  rho^2 - 2 r z + z^2 = 0, the root through the vertex: z = r - sqrt(r^2 - rho^2)   (paper Eq. 4),
 //    with its vertex at (x0, y0, z0): a reference ball placed anywhere in front of the camera
@@ -36,12 +37,20 @@ struct Sphere {
 
   template <typename T>
   bool SagAndGradient(const T& x, const T& y, T* z, T* zx, T* zy) const noexcept {
+    const double vertex_mm[3] = {x0_mm, y0_mm, z0_mm};
+    return CapSagAndGradient(radius_mm, vertex_mm, x, y, z, zx, zy);
+  }
+  // Eq. 4 once: the cap facing the camera, z = z0 + r - sqrt(r^2 - (x - x0)^2 - (y - y0)^2), with the vertex of any
+  // type V (the device calibration moves a reference ball's vertex in jets: model::ProjectBallSpot).
+  template <typename V, typename T>
+  static bool CapSagAndGradient(double radius_mm, const V* vertex_mm, const T& x, const T& y, T* z, T* zx,
+                                T* zy) noexcept {
     using std::sqrt;
-    const T X = x - x0_mm, Y = y - y0_mm;
+    const T X = x - vertex_mm[0], Y = y - vertex_mm[1];
     const T arg = T(radius_mm * radius_mm) - X * X - Y * Y;
     if (!(arg > T(0))) return false;
     const T root = sqrt(arg);
-    *z = T(z0_mm) + T(radius_mm) - root;
+    *z = T(vertex_mm[2]) + T(radius_mm) - root;
     *zx = X / root;
     *zy = Y / root;
     return true;
@@ -152,57 +161,62 @@ struct BiconicKernel {
     return Evaluate(q, x, y, z, static_cast<T*>(nullptr), static_cast<T*>(nullptr), tilted);
   }
 
- private:
-  template <typename T, typename P>
-  static bool Evaluate(const P* q, const T& x, const T& y, T* z, T* zx, T* zy, bool tilted) noexcept {
-    const Frame<P> fr = FrameOf(q);
-    if (!tilted) return UntiltedSag(fr, q, x, y, z, zx, zy);
+  // The tilt of the eye about its apex A = (Rot(-alpha) (x0, y0), z0): a point p of the instrument frame is
+  // u = A + M (p - A) in G's own frame, M = R^T with R = Ry(tilt_y) Rx(tilt_x).
+  template <typename P>
+  struct Tilt {
+    P m[3][3];
+    P apex[3];
+  };
+  template <typename P>
+  static Tilt<P> TiltOf(const Frame<P>& fr, const P* q) noexcept {
     using std::cos;
     using std::sin;
-    using R = decltype(T(0) * P(0));
-    // M = R^T (rows: u = A + M (p - A)); R = Ry(ty) Rx(tx).
     const P cx = cos(q[kTiltX]), sx = sin(q[kTiltX]), cy = cos(q[kTiltY]), sy = sin(q[kTiltY]);
-    const P m[3][3] = {{cy, P(0.0), -sy}, {sx * sy, cx, sx * cy}, {cx * sy, -sx, cx * cy}};
-    const P& ca = fr.ca;
-    const P& sa = fr.sa;
-    const P ax = ca * q[kX0] - sa * q[kY0], ay = sa * q[kX0] + ca * q[kY0], az = q[kZ0];
-    // F and its partials at (x, y, zz); Fp = (F_x, F_y, F_z).
-    const auto eval = [&](const auto& xx, const auto& yy, const auto& zz, auto* f, auto* fp) -> bool {
-      using V = std::decay_t<decltype(*f)>;
-      const V dx = xx - ax, dy = yy - ay, dz = zz - az;
-      const V ux = ax + m[0][0] * dx + m[0][1] * dy + m[0][2] * dz;
-      const V uy = ay + m[1][0] * dx + m[1][1] * dy + m[1][2] * dz;
-      const V uz = az + m[2][0] * dx + m[2][1] * dy + m[2][2] * dz;
-      V g, gx, gy;
-      if (!UntiltedSag(fr, q, ux, uy, &g, &gx, &gy)) return false;
-      *f = uz - g;
-      for (int j = 0; j < 3; ++j) fp[j] = m[2][j] - gx * m[0][j] - gy * m[1][j];
-      return true;
-    };
-    // Newton in double on the scalar parts.
-    double qd[kNumParams];
-    for (int i = 0; i < kNumParams; ++i) qd[i] = ScalarPart(q[i]);
-    const Frame<double> frd = FrameOf(qd);
+    return {{{cy, P(0.0), -sy}, {sx * sy, cx, sx * cy}, {cx * sy, -sx, cx * cy}},
+            {fr.ca * q[kX0] - fr.sa * q[kY0], fr.sa * q[kX0] + fr.ca * q[kY0], q[kZ0]}};
+  }
+  // u = A + M (p - A).
+  template <typename V, typename P>
+  static void ToUntilted(const Tilt<P>& t, const V& x, const V& y, const V& z, V* u) noexcept {
+    const V dx = x - t.apex[0], dy = y - t.apex[1], dz = z - t.apex[2];
+    for (int i = 0; i < 3; ++i) u[i] = t.apex[i] + t.m[i][0] * dx + t.m[i][1] * dy + t.m[i][2] * dz;
+  }
+  // F(p) = u_z - G(u_x, u_y), whose root in z is the tilted sag, and its partials fp = (F_x, F_y, F_z); fp == nullptr:
+  // only whether G is defined at u (F is not computed either). False where G is undefined.
+  template <typename V, typename P>
+  static bool TiltedResidual(const Frame<P>& fr, const P* q, const Tilt<P>& t, const V& x, const V& y, const V& z, V* f,
+                             V* fp) noexcept {
+    V u[3];
+    ToUntilted(t, x, y, z, u);
+    V g, gx, gy;
+    if (!fp) return UntiltedSag(fr, q, u[0], u[1], &g, static_cast<V*>(nullptr), static_cast<V*>(nullptr));
+    if (!UntiltedSag(fr, q, u[0], u[1], &g, &gx, &gy)) return false;
+    *f = u[2] - g;
+    for (int j = 0; j < 3; ++j) fp[j] = t.m[2][j] - gx * t.m[0][j] - gy * t.m[1][j];
+    return true;
+  }
+
+  // The tilted sag z(x, y): the root of F near G's own sag (see above), the one implementation of the kernel and of
+  // the fit's closed-form Jacobian (topo/biconic_jacobian.cc). Newton in double on the scalar parts (fr_d, q_d,
+  // tilt_d: the scalar parts of fr, q, tilt), then one Newton step in T; the gradient when zx != nullptr.
+  template <typename T, typename P>
+  static bool TiltedSag(const Frame<P>& fr, const P* q, const Tilt<P>& tilt, const Frame<double>& fr_d,
+                        const double* q_d, const Tilt<double>& tilt_d, const T& x, const T& y, T* z, T* zx,
+                        T* zy) noexcept {
+    using R = decltype(T(0) * P(0));
     const double xd = ScalarPart(x), yd = ScalarPart(y);
-    double zd, gxd, gyd;
-    if (!UntiltedSag(frd, qd, xd, yd, &zd, &gxd, &gyd)) return false;
-    double md[3][3];
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) md[i][j] = ScalarPart(m[i][j]);
+    double zd;
+    if (!UntiltedSag(fr_d, q_d, xd, yd, &zd, static_cast<double*>(nullptr), static_cast<double*>(nullptr))) {
+      return false;
+    }
     // 1e-14 mm: the double floor of a sag of ~1 mm; 20 steps: Newton converges in 3-4 for tilts below 30 deg.
     constexpr double kSagToleranceMm = 1e-14;
     constexpr int kMaxNewton = 20;
     bool converged = false;
     for (int it = 0; it < kMaxNewton; ++it) {
       double f, fp[3];
-      const double dxd = xd - ScalarPart(ax), dyd = yd - ScalarPart(ay), dzd = zd - ScalarPart(az);
-      const double ux = ScalarPart(ax) + md[0][0] * dxd + md[0][1] * dyd + md[0][2] * dzd;
-      const double uy = ScalarPart(ay) + md[1][0] * dxd + md[1][1] * dyd + md[1][2] * dzd;
-      const double uz = ScalarPart(az) + md[2][0] * dxd + md[2][1] * dyd + md[2][2] * dzd;
-      double g, gx, gy;
-      if (!UntiltedSag(frd, qd, ux, uy, &g, &gx, &gy)) return false;
-      f = uz - g;
-      for (int j = 0; j < 3; ++j) fp[j] = md[2][j] - gx * md[0][j] - gy * md[1][j];
+      if (!TiltedResidual(fr_d, q_d, tilt_d, xd, yd, zd, &f, fp)) return false;
       if (!(std::abs(fp[2]) > 1e-6)) return false;  // the ray along z grazes the tilted surface
       const double step = f / fp[2];
       zd -= step;
@@ -215,27 +229,42 @@ struct BiconicKernel {
     if (!converged) return false;
     // One Newton step in the full type: exact first derivatives in every jet variable.
     R zr = R(zd), f, fp[3];
-    if (!eval(R(x), R(y), zr, &f, fp)) return false;
+    if (!TiltedResidual(fr, q, tilt, R(x), R(y), zr, &f, fp)) return false;
     zr = zr - f / fp[2];
     if (!zx) {
       // The sag alone: the second evaluation below only serves the gradient, apart from its check that G is defined
       // at the corrected point. That check reads scalar parts only, which a jet computes with the same double
       // operations: done in double, it accepts and rejects exactly as before.
-      const double dxd = xd - ScalarPart(ax), dyd = yd - ScalarPart(ay), dzd = ScalarPart(zr) - ScalarPart(az);
-      double g;
-      if (!UntiltedSag(frd, qd, ScalarPart(ax) + md[0][0] * dxd + md[0][1] * dyd + md[0][2] * dzd,
-                       ScalarPart(ay) + md[1][0] * dxd + md[1][1] * dyd + md[1][2] * dzd, &g,
-                       static_cast<double*>(nullptr), static_cast<double*>(nullptr))) {
+      if (!TiltedResidual(fr_d, q_d, tilt_d, xd, yd, ScalarPart(zr), static_cast<double*>(nullptr),
+                          static_cast<double*>(nullptr))) {
         return false;
       }
       *z = zr;
       return true;
     }
-    if (!eval(R(x), R(y), zr, &f, fp)) return false;
+    if (!TiltedResidual(fr, q, tilt, R(x), R(y), zr, &f, fp)) return false;
     *z = zr;
     *zx = -fp[0] / fp[2];
     *zy = -fp[1] / fp[2];
     return true;
+  }
+
+ private:
+  template <typename T, typename P>
+  static bool Evaluate(const P* q, const T& x, const T& y, T* z, T* zx, T* zy, bool tilted) noexcept {
+    const Frame<P> fr = FrameOf(q);
+    if (!tilted) return UntiltedSag(fr, q, x, y, z, zx, zy);
+    const Tilt<P> tilt = TiltOf(fr, q);
+    if constexpr (std::is_same_v<P, double>) return TiltedSag(fr, q, tilt, fr, q, tilt, x, y, z, zx, zy);
+    double q_d[kNumParams];
+    for (int i = 0; i < kNumParams; ++i) q_d[i] = ScalarPart(q[i]);
+    const Frame<double> fr_d = FrameOf(q_d);
+    Tilt<double> tilt_d;
+    for (int i = 0; i < 3; ++i) {
+      tilt_d.apex[i] = ScalarPart(tilt.apex[i]);
+      for (int j = 0; j < 3; ++j) tilt_d.m[i][j] = ScalarPart(tilt.m[i][j]);
+    }
+    return TiltedSag(fr, q, tilt, fr_d, q_d, tilt_d, x, y, z, zx, zy);
   }
 };
 

@@ -196,13 +196,13 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
     out.elevation = std::move(elev);
   }
   if (e.truth) {
-    const model::Biconic b{*e.truth};
-    PendingMap diff(base + "height_difference",
-                    CartesianGrid(r, fmt::format("Ideal \u2212 recovered height{}", e.label), "\u00b5m",
-                                  [&](double x, double y) {
-                                    model::SurfaceDerivatives d;
-                                    return b.Evaluate(x, y, &d) ? (d.z - rec.Height(x, y)) * 1e3 : NAN;
-                                  }));
+    const model::Surface truth = model::Biconic{*e.truth};
+    PendingMap diff(
+        base + "height_difference",
+        CartesianGrid(r, fmt::format("Ideal \u2212 recovered height{}", e.label), "\u00b5m", [&](double x, double y) {
+          const auto delta = topo::HeightDifferenceMm(truth, x, y, rec.Height(x, y));
+          return delta ? *delta * 1e3 : NAN;  // Eq. 26
+        }));
     diff.supported_radius_mm = supported;
     diff.legend.push_back(SupportLegend(supported));
     out.difference = std::move(diff);

@@ -22,15 +22,22 @@ PowerMapOptions PowerMapOptionsFrom(const model::ReconstructionSettings& s) {
   return o;
 }
 
+std::optional<double> HeightDifferenceMm(const model::Surface& truth, double x_mm, double y_mm,
+                                         double recovered_z_mm) noexcept {
+  model::SurfaceDerivatives d;
+  if (!model::EvaluateSurface(truth, x_mm, y_mm, &d)) return std::nullopt;
+  return d.z - recovered_z_mm;
+}
+
 SurfaceErrors HeightErrors(const std::vector<ReconstructedPoint>& points, const model::Surface& truth) {
   SurfaceErrors e;
   if (points.empty()) return e;
   double lo = INFINITY, hi = -INFINITY, sum = 0, sum2 = 0;
   int n = 0;
   for (const auto& p : points) {
-    model::SurfaceDerivatives d;
-    if (!model::EvaluateSurface(truth, p.point_mm.x(), p.point_mm.y(), &d)) continue;
-    const double ds = d.z - p.point_mm.z();  // Eq. 26: ideal - recovered
+    const auto delta = HeightDifferenceMm(truth, p.point_mm.x(), p.point_mm.y(), p.point_mm.z());
+    if (!delta) continue;
+    const double ds = *delta;
     lo = std::min(lo, ds);
     hi = std::max(hi, ds);
     sum += ds;

@@ -76,6 +76,12 @@ PowerMaps IdealPowerMaps(const model::BiconicParams& cornea, const model::Recons
 // The supported radius of a point cloud (Analysis::supported_radius_mm).
 double SupportedRadiusMm(const std::vector<ReconstructedPoint>& points);
 
+// Eq. 26: Delta S = ideal - recovered at (x, y), mm: the true surface's sag there minus the recovered height
+// recovered_z_mm; nullopt where the true surface is undefined. HeightErrors and the difference maps
+// (pipeline/map_output.cc) both call it.
+std::optional<double> HeightDifferenceMm(const model::Surface& truth, double x_mm, double y_mm,
+                                         double recovered_z_mm) noexcept;
+
 // Eq. 26-27 for a recovered point cloud against a known surface.
 SurfaceErrors HeightErrors(const std::vector<ReconstructedPoint>& points, const model::Surface& truth);
 

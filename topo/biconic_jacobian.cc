@@ -7,23 +7,18 @@ namespace topocal::topo {
 BiconicSagJacobian::BiconicSagJacobian(const double* q, bool tilted) noexcept : tilted_(tilted) {
   for (int i = 0; i < K::kNumParams; ++i) q_[i] = q[i];
   frame_ = K::FrameOf(q_);
-  // M = R^T with R = Ry(tilt_y) Rx(tilt_x), as in model::BiconicKernel.
+  tilt_ = K::TiltOf(frame_, q_);
+  // dM/dtilt of the kernel's M = R^T, R = Ry(tilt_y) Rx(tilt_x).
   const double cx = std::cos(q_[K::kTiltX]), sx = std::sin(q_[K::kTiltX]);
   const double cy = std::cos(q_[K::kTiltY]), sy = std::sin(q_[K::kTiltY]);
-  const double m[3][3] = {{cy, 0.0, -sy}, {sx * sy, cx, sx * cy}, {cx * sy, -sx, cx * cy}};
   const double dtx[3][3] = {{0.0, 0.0, 0.0}, {cx * sy, -sx, cx * cy}, {-sx * sy, -cx, -sx * cy}};
   const double dty[3][3] = {{-sy, 0.0, -cy}, {sx * cy, 0.0, -sx * sy}, {cx * cy, 0.0, -cx * sy}};
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) {
-      m_[i][j] = m[i][j];
       dm_tx_[i][j] = dtx[i][j];
       dm_ty_[i][j] = dty[i][j];
     }
   }
-  const double ca = frame_.ca, sa = frame_.sa;
-  apex_[0] = ca * q_[K::kX0] - sa * q_[K::kY0];
-  apex_[1] = sa * q_[K::kX0] + ca * q_[K::kY0];
-  apex_[2] = q_[K::kZ0];
 }
 
 bool BiconicSagJacobian::Untilted(double u, double v, double* g, double* gu, double* gv, double* dg) const noexcept {
@@ -51,52 +46,12 @@ bool BiconicSagJacobian::Untilted(double u, double v, double* g, double* gu, dou
 }
 
 bool BiconicSagJacobian::Sag(double x_mm, double y_mm, double* z_mm) const noexcept {
-  if (!tilted_) return K::UntiltedSag(frame_, q_, x_mm, y_mm, z_mm, static_cast<double*>(nullptr), static_cast<double*>(nullptr));
-  // model::BiconicKernel's tilted sag for T = P = double, operation for operation (its tolerance, step limit and
-  // grazing check), so that the result is the same double: Newton on F(x, y, z) = u_z - G(u_x, u_y) from G's own
-  // sag, one more step, and the check that G is defined at the final point.
-  constexpr double kSagToleranceMm = 1e-14;
-  constexpr int kMaxNewton = 20;
-  const double ax = apex_[0], ay = apex_[1], az = apex_[2];
-  const auto f_and_fz = [&](double zd, double* f, double* fz) {
-    const double dx = x_mm - ax, dy = y_mm - ay, dz = zd - az;
-    const double ux = ax + m_[0][0] * dx + m_[0][1] * dy + m_[0][2] * dz;
-    const double uy = ay + m_[1][0] * dx + m_[1][1] * dy + m_[1][2] * dz;
-    const double uz = az + m_[2][0] * dx + m_[2][1] * dy + m_[2][2] * dz;
-    double g, gx, gy;
-    if (!K::UntiltedSag(frame_, q_, ux, uy, &g, &gx, &gy)) return false;
-    *f = uz - g;
-    *fz = m_[2][2] - gx * m_[0][2] - gy * m_[1][2];
-    return true;
-  };
-  double zd, gxd, gyd;
-  if (!K::UntiltedSag(frame_, q_, x_mm, y_mm, &zd, &gxd, &gyd)) return false;
-  bool converged = false;
-  for (int it = 0; it < kMaxNewton; ++it) {
-    double f, fz;
-    if (!f_and_fz(zd, &f, &fz)) return false;
-    if (!(std::abs(fz) > 1e-6)) return false;
-    const double step = f / fz;
-    zd -= step;
-    if (!std::isfinite(zd)) return false;
-    if (std::abs(step) < kSagToleranceMm) {
-      converged = true;
-      break;
-    }
+  if (!tilted_) {
+    return K::UntiltedSag(frame_, q_, x_mm, y_mm, z_mm, static_cast<double*>(nullptr), static_cast<double*>(nullptr));
   }
-  if (!converged) return false;
-  double f, fz;
-  if (!f_and_fz(zd, &f, &fz)) return false;
-  const double zr = zd - f / fz;
-  const double dx = x_mm - ax, dy = y_mm - ay, dz = zr - az;
-  double g;
-  if (!K::UntiltedSag(frame_, q_, ax + m_[0][0] * dx + m_[0][1] * dy + m_[0][2] * dz,
-                      ay + m_[1][0] * dx + m_[1][1] * dy + m_[1][2] * dz, &g, static_cast<double*>(nullptr),
-                      static_cast<double*>(nullptr))) {
-    return false;
-  }
-  *z_mm = zr;
-  return true;
+  // The kernel's own tilted root (for T = P = double), on the trigonometry computed once.
+  return K::TiltedSag(frame_, q_, tilt_, frame_, q_, tilt_, x_mm, y_mm, z_mm, static_cast<double*>(nullptr),
+                      static_cast<double*>(nullptr));
 }
 
 bool BiconicSagJacobian::Derivatives(double x_mm, double y_mm, double z_mm, double* dz_dq) const noexcept {
@@ -106,19 +61,21 @@ bool BiconicSagJacobian::Derivatives(double x_mm, double y_mm, double z_mm, doub
     dz_dq[K::kTiltX] = dz_dq[K::kTiltY] = 0.0;
     return true;
   }
-  const double d[3] = {x_mm - apex_[0], y_mm - apex_[1], z_mm - apex_[2]};
+  const double* apex = tilt_.apex;
+  const auto& m = tilt_.m;
+  const double d[3] = {x_mm - apex[0], y_mm - apex[1], z_mm - apex[2]};
   double u[3];
-  for (int i = 0; i < 3; ++i) u[i] = apex_[i] + m_[i][0] * d[0] + m_[i][1] * d[1] + m_[i][2] * d[2];
+  K::ToUntilted(tilt_, x_mm, y_mm, z_mm, u);
   double g, gu, gv, dg[K::kNumParams];
   if (!Untilted(u[0], u[1], &g, &gu, &gv, dg)) return false;
-  const double fz = m_[2][2] - gu * m_[0][2] - gv * m_[1][2];
+  const double fz = m[2][2] - gu * m[0][2] - gv * m[1][2];
   if (!(std::abs(fz) > 1e-6)) return false;  // the kernel's own grazing limit
   // F_q for a change du of u and an explicit change dg_q of G.
   const auto f_q = [&](const double* du, double dg_q) { return du[2] - dg_q - gu * du[0] - gv * du[1]; };
   // du = (I - M) dA for a change dA of the apex.
   const auto from_apex = [&](double ax, double ay, double az, double* du) {
     const double da[3] = {ax, ay, az};
-    for (int i = 0; i < 3; ++i) du[i] = da[i] - (m_[i][0] * da[0] + m_[i][1] * da[1] + m_[i][2] * da[2]);
+    for (int i = 0; i < 3; ++i) du[i] = da[i] - (m[i][0] * da[0] + m[i][1] * da[1] + m[i][2] * da[2]);
   };
   const auto from_tilt = [&](const double (*dm)[3], double* du) {
     for (int i = 0; i < 3; ++i) du[i] = dm[i][0] * d[0] + dm[i][1] * d[1] + dm[i][2] * d[2];
@@ -126,7 +83,7 @@ bool BiconicSagJacobian::Derivatives(double x_mm, double y_mm, double z_mm, doub
   const double ca = frame_.ca, sa = frame_.sa;
   double du[3];
   for (int j : {K::kCx, K::kCy, K::kKx, K::kKy}) dz_dq[j] = dg[j] / fz;  // -F_q / F_z with F_q = -G_q
-  from_apex(-apex_[1], apex_[0], 0.0, du);  // dA/dalpha
+  from_apex(-apex[1], apex[0], 0.0, du);                                 // dA/dalpha
   dz_dq[K::kAlpha] = -f_q(du, dg[K::kAlpha]) / fz;
   from_apex(ca, sa, 0.0, du);  // dA/dx0
   dz_dq[K::kX0] = -f_q(du, dg[K::kX0]) / fz;

@@ -31,8 +31,8 @@ class BiconicSagJacobian {
   // The work that depends on the parameters alone: the trigonometry, the rotation and the apex.
   BiconicSagJacobian(const double* q, bool tilted) noexcept;
 
-  // The sag z(x, y): bit for bit model::BiconicKernel::Sag (tested), the tilted root by the kernel's own Newton
-  // iteration repeated here on the trigonometry computed once. Returns false where the kernel does (outside the
+  // The sag z(x, y): bit for bit model::BiconicKernel::Sag (tested), the tilted root by the kernel's own
+  // BiconicKernel::TiltedSag on the trigonometry computed once. Returns false where the kernel does (outside the
   // domain, or no convergence).
   bool Sag(double x_mm, double y_mm, double* z_mm) const noexcept;
   // dz/dq at the surface point (x, y, z) (z from Sag), in the kernel's parameter order. Without tilt the tilt
@@ -51,9 +51,8 @@ class BiconicSagJacobian {
   double q_[K::kNumParams];
   bool tilted_;
   K::Frame<double> frame_;
-  double m_[3][3];                      // u = A + M (p - A): the kernel's M = R^T
-  double dm_tx_[3][3], dm_ty_[3][3];    // dM/dtilt_x, dM/dtilt_y
-  double apex_[3];                      // A
+  K::Tilt<double> tilt_;              // u = A + M (p - A): the kernel's M = R^T and apex A
+  double dm_tx_[3][3], dm_ty_[3][3];  // dM/dtilt_x, dM/dtilt_y
 };
 
 }  // namespace topocal::topo

@@ -17,16 +17,16 @@ namespace {
 double ElevationPeakUm(const model::BiconicParams& reference, const std::function<double(double, double)>& height,
                        double radius_mm, Eigen::Vector2d* at) {
   constexpr double kStepMm = 0.05;
-  const model::Biconic b{reference};
+  const model::Surface b = model::Biconic{reference};
   double peak = -INFINITY;
   const int half = static_cast<int>(std::floor(radius_mm / kStepMm));
   for (int iy = -half; iy <= half; ++iy) {
     for (int ix = -half; ix <= half; ++ix) {
       const double x = ix * kStepMm, y = iy * kStepMm;
       if (std::hypot(x, y) > radius_mm) continue;
-      model::SurfaceDerivatives d;
-      if (!b.Evaluate(x, y, &d)) continue;
-      const double e = (d.z - height(x, y)) * 1e3;
+      const auto delta = HeightDifferenceMm(b, x, y, height(x, y));  // Eq. 26
+      if (!delta) continue;
+      const double e = *delta * 1e3;
       if (e > peak) {
         peak = e;
         *at = Eigen::Vector2d(x, y);

@@ -1,5 +1,7 @@
 #include "model/distortion.h"
 
+#include <cmath>
+
 #include <gtest/gtest.h>
 
 namespace topocal::model {
@@ -61,6 +63,25 @@ TEST(Seidel, BeyondTheBarrelFoldThereIsNoInverse) {
   const double r_max = r_fold * (1 + c * r_fold * r_fold);  // largest distorted radius
   EXPECT_FALSE(Undistort(s, Eigen::Vector2d(1.01 * r_max, 0.0)).has_value());
   EXPECT_TRUE(Undistort(s, Eigen::Vector2d(0.95 * r_max, 0.0)).has_value());
+}
+
+// The fold of Eq. 18 has one owner (SeidelRadial::RadialDerivative and its closed-form root); the three ways it is
+// used must agree: the closed-form radius, the Brown scan-and-bisect of the same lens (k1 = sigma f^2 / M_T^3), and
+// the configuration's largest fold-free sigma at that radius.
+TEST(Seidel, TheFoldIsWhereTheRadialDerivativeVanishesInEveryForm) {
+  const double sigma = 2.0e-4, m = -0.065, focal_mm = 5.2;
+  const SeidelParams s{sigma, m, 0.0, 0.0};
+  const double c = SeidelRadial::Coefficient(s.AsArray().data());
+  const double r2 = SeidelRadial::FoldRadiusSquaredMm2(c);
+  EXPECT_NEAR(SeidelRadial::RadialDerivative(c, r2), 0.0, 1e-15);
+  const double r_fold = FoldRadiusMm(s, 10.0, 0.0);
+  EXPECT_EQ(r_fold, std::sqrt(r2));
+  EXPECT_TRUE(std::isinf(FoldRadiusMm(s, 0.9 * r_fold, 0.0)));                      // beyond the searched disc
+  EXPECT_TRUE(std::isinf(FoldRadiusMm(SeidelParams{-sigma, m, 0, 0}, 10.0, 0.0)));  // pincushion never folds
+  // Brown's fold is found by a 1000-step scan and bisection to 1e-15 of the searched s range: agreement to 1e-12 mm
+  // is far above that floor and far below anything a pixel (1.12e-3 mm) could notice.
+  EXPECT_NEAR(FoldRadiusMm(SeidelToBrown(s, focal_mm), 10.0, 0.0), r_fold, 1e-12);
+  EXPECT_NEAR(SeidelRadial::MaxFoldFreeSigmaPerMm2(m, r_fold), sigma, 1e-15 * sigma);
 }
 
 TEST(Conversion, SeidelAndBrownAgree) {

@@ -210,7 +210,7 @@ TEST(NullScreenLayout, OutlinesReimageOntoTheSpotCircles) {
     for (const auto& p : o.on_cone_mm) {
       const auto p2 = SolveReflectionPoint(sphere, topo, p, centre_p2->head<2>());
       ASSERT_TRUE(p2.has_value());
-      const Eigen::Vector2d img = topo.ImagePoint((*p2 - topo.Pinhole()).normalized());
+      const Eigen::Vector2d img = topo.ImageOf(*p2);
       EXPECT_NEAR((img - ideal[k].position_mm).norm(), r_mm, kReimageToleranceMm);
     }
   }
