@@ -96,6 +96,9 @@ TEST(Checkerboard, SaddleRefinementBeatsTheBarOnAllViewsAndNoiseLevels) {
     std::printf("noise %.0f all views: saddle RMS %.4f px, cornerSubPix RMS %.4f px\n", noise, saddle_rms, opencv_rms);
     EXPECT_LT(saddle_rms, kSaddleRmsPx);
     EXPECT_LT(saddle_rms, opencv_rms);
+    // Regression bound: measured 2026-12-02 0.0093, 0.0107 and 0.0142 px at noise 0, 1 and 2 grey levels (seeded
+    // renders); the acceptance is near, so the margin is 30 %: 0.0121 + 0.0034 per grey level of noise.
+    EXPECT_LT(saddle_rms, 0.0121 + 0.0034 * noise);
   }
 }
 

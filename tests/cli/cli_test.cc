@@ -1,10 +1,15 @@
 // The command line end to end: outputs, exit codes and one-line messages for bad input, no partial files.
+#include <gtest/gtest.h>
+
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-
-#include <gtest/gtest.h>
+#include <iterator>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <utility>
 
 #include "tests/cli_harness.h"
 
@@ -36,13 +41,27 @@ TEST_F(Cli, SimulateWritesSpots) {
   std::string header;
   std::getline(in, header);
   EXPECT_EQ(header, "ring,index,x_mm,y_mm");
+  // One line per designed spot; sigma 2e-4 draws the pattern in (measured 2026-12-02: outer ring at 0.351 mm, 0.396 mm
+  // at sigma 0).
+  int lines = 0;
+  for (std::string l; std::getline(in, l); ++lines) {
+    double x_mm = 0, y_mm = 0;
+    int ring = 0, index = 0;
+    ASSERT_EQ(std::sscanf(l.c_str(), "%d,%d,%lf,%lf", &ring, &index, &x_mm, &y_mm), 4) << l;
+    EXPECT_LT(std::hypot(x_mm, y_mm), 0.36) << l;
+  }
+  EXPECT_EQ(lines, 624);
 }
 
 TEST_F(Cli, SweepPrintsTableVAndWritesJson) {
   const auto r = RunTopocal("sweep --config " + paper_ + " --json " + Path("sweep.json"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   for (const char* table : {"Table V ", "Table VI ", "Table VII "}) EXPECT_NE(r.output.find(table), std::string::npos);
-  EXPECT_TRUE(fs::exists(Path("sweep.json")));
+  const auto sweep = nlohmann::json::parse(std::ifstream(Path("sweep.json")));
+  ASSERT_EQ(sweep["rows"].size(), 7u);  // Table IV's seven sigmas
+  // The sigma = 0 row gives the paper cornea back (Table VI: r 8.35 / 7.63 mm).
+  EXPECT_NEAR(sweep["rows"][3]["surface_fit"]["rx_mm"].get<double>(), 8.35, 0.002);
+  EXPECT_NEAR(sweep["rows"][3]["surface_fit"]["ry_mm"].get<double>(), 7.63, 0.002);
   EXPECT_EQ(r.output.find("nan"), std::string::npos);
 }
 
@@ -81,6 +100,12 @@ TEST_F(Cli, ReconstructFromSimulatedSpotsWritesJsonAndMaps) {
   for (const char* key : {"\"surface_fit\"", "\"stddev\"", "\"errors\"", "\"coefficients\"", "\"pv_um\""}) {
     EXPECT_NE(json.find(key), std::string::npos) << key;
   }
+  // The values, not only the keys: the paper cornea back from exact spots (issue 4's truth limits).
+  const auto j = nlohmann::json::parse(json);
+  EXPECT_NEAR(j["surface_fit"]["rx_mm"].get<double>(), 8.35, 0.002);
+  EXPECT_NEAR(j["surface_fit"]["kx"].get<double>(), -0.43, 0.002);
+  EXPECT_LT(j["errors"]["pv_um"].get<double>(), 0.05);
+  EXPECT_GT(j["surface_fit"]["stddev"]["rx_mm"].get<double>(), 0.0);
   for (const char* f : {"axial_power.png", "tangential_power.csv", "elevation.png", "elevation.csv", "height_difference.png"}) {
     EXPECT_TRUE(fs::exists(Path("maps/") + f)) << f;
   }
@@ -150,6 +175,116 @@ TEST_F(Cli, UsageErrorsExitTwoAndHelpExitsZero) {
     EXPECT_EQ(r.exit_code, 0) << verb;
     EXPECT_NE(r.output.find("--config"), std::string::npos) << verb;
   }
+}
+
+// --- Options that override the configuration (issue 14: a test for every option). ---
+
+nlohmann::json ReadJson(const std::string& path) { return nlohmann::json::parse(std::ifstream(path)); }
+
+TEST_F(Cli, ReconstructBiconicFitAndSurfaceModelOverrideTheConfig) {
+  ASSERT_EQ(RunTopocal("simulate --config " + paper_ + " --sigma 0 --out " + Path("s.csv")).exit_code, 0);
+  const auto reconstruct = [&](const std::string& name, const std::string& extra) {
+    const auto r = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("s.csv") + " --json " + Path(name) +
+                              " " + extra);
+    EXPECT_EQ(r.exit_code, 0) << extra << ": " << r.output;
+    return ReadJson(Path(name));
+  };
+  const auto plain = reconstruct("plain.json", "");
+  const auto paper_fit = reconstruct("paper.json", "--biconic-fit paper");
+  const auto sphere = reconstruct("sphere.json", "--biconic-fit sphere");
+  const auto spline = reconstruct("spline.json", "--surface-model spline");
+  EXPECT_EQ(plain["surface_fit"]["mode"], "free-apex");
+  // The paper's fit: apex on the axis, no tilt, the paper cornea's parameters back.
+  EXPECT_EQ(paper_fit["surface_fit"]["mode"], "paper");
+  EXPECT_EQ(paper_fit["surface_fit"]["tilt_deg"].get<double>(), 0.0);
+  EXPECT_EQ(paper_fit["surface_fit"]["apex_x_mm"].get<double>(), 0.0);
+  EXPECT_NEAR(paper_fit["surface_fit"]["kx"].get<double>(), -0.43, 1e-4);
+  // A sphere: one radius, no asphericity, between the cornea's two radii (7.63 and 8.35 mm).
+  EXPECT_EQ(sphere["surface_fit"]["mode"], "sphere");
+  EXPECT_EQ(sphere["surface_fit"]["rx_mm"].get<double>(), sphere["surface_fit"]["ry_mm"].get<double>());
+  EXPECT_EQ(sphere["surface_fit"]["kx"].get<double>(), 0.0);
+  EXPECT_GT(sphere["surface_fit"]["rx_mm"].get<double>(), 7.63);
+  EXPECT_LT(sphere["surface_fit"]["rx_mm"].get<double>(), 8.5);
+  // The spline takes up what the polynomial leaves of the slopes (measured 2026-12-02: adequacy ratio 2.7e-3 with
+  // the polynomial, 2.0e-5 with the spline).
+  EXPECT_LT(spline["adequacy"]["ratio"].get<double>(), 0.05 * plain["adequacy"]["ratio"].get<double>());
+}
+
+TEST_F(Cli, SweepBiconicFitAndSurfaceModelOverrideTheConfig) {
+  const auto sweep = [&](const std::string& name, const std::string& extra) {
+    const auto r = RunTopocal("sweep --config " + paper_ + " --json " + Path(name) + " " + extra);
+    EXPECT_EQ(r.exit_code, 0) << extra << ": " << r.output;
+    return std::make_pair(ReadJson(Path(name)), r.output);
+  };
+  const auto [plain, plain_text] = sweep("plain.json", "");
+  const auto [sphere, sphere_text] = sweep("sphere.json", "--biconic-fit sphere");
+  const auto [spline, spline_text] = sweep("spline.json", "--surface-model spline");
+  EXPECT_NE(sphere_text.find("sphere fit"), std::string::npos) << sphere_text;
+  ASSERT_EQ(sphere["rows"].size(), 7u);
+  for (const auto& row : sphere["rows"]) {
+    EXPECT_EQ(row["surface_fit"]["mode"], "sphere");
+    EXPECT_EQ(row["surface_fit"]["rx_mm"].get<double>(), row["surface_fit"]["ry_mm"].get<double>());
+    EXPECT_EQ(row["surface_fit"]["ky"].get<double>(), 0.0);
+  }
+  // At sigma = 0 (row 3) the spline leaves ~1 % of the polynomial's slope residual (measured 2026-12-02: adequacy
+  // ratio 2.7e-3 -> 2.0e-5).
+  ASSERT_EQ(spline["rows"].size(), 7u);
+  EXPECT_LT(spline["rows"][3]["adequacy"]["ratio"].get<double>(),
+            0.05 * plain["rows"][3]["adequacy"]["ratio"].get<double>());
+  EXPECT_EQ(plain["rows"][3]["surface_fit"]["mode"], "free-apex");
+}
+
+TEST_F(Cli, DetectTakesTheCameraOfADeviceFile) {
+  // data/device.json with a 1120 x 1120 px sensor (the spots span about +-400 px): the same camera as a camera file.
+  auto device_json = ReadJson(std::string(TOPOCAL_SOURCE_DIR) + "/data/device.json");
+  device_json["camera"]["width_px"] = 1120;
+  device_json["camera"]["height_px"] = 1120;
+  device_json["camera"]["principal_point_px"] = {559.5, 559.5};
+  const std::string device = Path("device.json"), camera = Path("camera.json");
+  std::ofstream(device) << device_json.dump(2);
+  Write("camera.json",
+        R"({"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120, "principal_point_px": [559.5, 559.5],)"
+        R"( "a_mm": 5.2, "rotated_180": false})");
+  ASSERT_EQ(
+      RunTopocal("render-spots --config " + paper_ + " --camera " + camera + " --sigma 0 --out " + Path("spots.png"))
+          .exit_code,
+      0);
+  const auto detect = [&](const std::string& name, const std::string& extra) {
+    const auto r = RunTopocal("detect --image " + Path("spots.png") + " --config " + paper_ + " --out " + Path(name) +
+                              " " + extra);
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("624 spots indexed"), std::string::npos) << r.output;
+    std::ifstream in(Path(name));
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  // The device holds the camera file's camera and no distortion: the same spots to the byte.
+  const std::string by_camera = detect("camera.csv", "--camera " + camera);
+  EXPECT_EQ(detect("device.csv", "--device " + device), by_camera);
+  // A device whose principal point sits 3 px right and 2 px down moves every spot on the detection plane by
+  // -3 and -2 pixels of 1.12 um (x_mm = (u - cx) pitch); the pixel positions stay.
+  auto moved = device_json;
+  moved["camera"]["principal_point_px"] = {562.5, 561.5};
+  std::ofstream(Path("moved.json")) << moved.dump(2);
+  std::istringstream a(by_camera), b(detect("moved.csv", "--device " + Path("moved.json")));
+  std::string la, lb;
+  std::getline(a, la);
+  std::getline(b, lb);
+  int rows = 0;
+  while (std::getline(a, la) && std::getline(b, lb)) {
+    double va[6], vb[6];
+    ASSERT_EQ(std::sscanf(la.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf", &va[0], &va[1], &va[2], &va[3], &va[4], &va[5]), 6);
+    ASSERT_EQ(std::sscanf(lb.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf", &vb[0], &vb[1], &vb[2], &vb[3], &vb[4], &vb[5]), 6);
+    EXPECT_EQ(va[4], vb[4]);
+    EXPECT_EQ(va[5], vb[5]);
+    EXPECT_NEAR(vb[2] - va[2], -3 * 1.12e-3, 1e-9);  // the CSV's 10 decimals
+    EXPECT_NEAR(vb[3] - va[3], -2 * 1.12e-3, 1e-9);
+    ++rows;
+  }
+  EXPECT_EQ(rows, 624);
+  EXPECT_EQ(RunTopocal("detect --image " + Path("spots.png") + " --config " + paper_ + " --camera " + camera +
+                       " --device " + device + " --out " + Path("x.csv"))
+                .exit_code,
+            2);
 }
 
 }  // namespace

@@ -1,12 +1,13 @@
 // The device workflow on the command line (issue 19): render reference balls through an as-built device, calibrate
 // the device from them, measure a cornea through it; the refusals of bad input and the flag of a model that does not
 // describe the images.
+#include <gtest/gtest.h>
+
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
-
-#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include "tests/cli_harness.h"
@@ -178,6 +179,50 @@ TEST_F(DeviceCli, RefusesBadInputWithOneLineAndNoOutput) {
   EXPECT_FALSE(fs::exists(out));
   // Every failure above was one line.
   EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+}
+
+// The priors' tolerances, the spot noise and the chi2 limit (issue 14: a test for every option). Measured 2026-12-02
+// on these renders: with every tolerance at 1e-6 each parameter stays within 5e-5 of the nominal (rx 4.4e-5 deg,
+// principal point 0.42 px, a 7.7e-4 mm: the nominal's 559.5 px and 5.2 mm) at chi2/dof 12857; by default they come
+// to the truth (0.6 deg, 567.9 px, 5.23 mm) at chi2/dof 0.0017; a 10x larger spot noise gives 10x the standard
+// deviations and ~1/100 of chi2/dof.
+TEST_F(DeviceCli, PriorTolerancesSpotNoiseAndTheChi2LimitDoWhatTheySay) {
+  RenderBalls(UnitDevice());
+  const auto calibrate = [&](const std::string& name, const std::string& extra, int exit_code) {
+    const auto r = RunTopocal("device calibrate --config " + paper_ + " --device " + nominal_ + " " + Balls() +
+                              " --quiet --out " + Path(name) + " " + extra);
+    EXPECT_EQ(r.exit_code, exit_code) << extra << ": " << r.output;
+    return nlohmann::json::parse(std::ifstream(Path(name)))["calibration"];
+  };
+  const std::string tight =
+      "--tol-tilt-deg 1e-6 --tol-roll-deg 1e-6 --tol-lateral-mm 1e-6 --tol-axial-mm 1e-6 "
+      "--tol-principal-point-mm 1e-6 --tol-a-relative 1e-6";
+  const auto free_fit = calibrate("free.json", "", 0);
+  const auto held = calibrate("held.json", tight + " --max-chi2-per-dof 1e12", 0);
+  const auto value = [](const nlohmann::json& c, const char* p) { return c["parameters"][p]["value"].get<double>(); };
+  const auto stddev = [](const nlohmann::json& c, const char* p) { return c["parameters"][p]["stddev"].get<double>(); };
+  // Each prior holds its parameters at the nominal device, where the free fit moves them to the truth.
+  for (const char* p : {"rx_deg", "ry_deg"}) EXPECT_LT(std::abs(value(held, p)), 1e-3) << p;  // --tol-tilt-deg
+  EXPECT_LT(std::abs(value(held, "rz_deg")), 1e-3);                                           // --tol-roll-deg
+  for (const char* p : {"tx_mm", "ty_mm"}) EXPECT_LT(std::abs(value(held, p)), 1e-3) << p;    // --tol-lateral-mm
+  EXPECT_LT(std::abs(value(held, "tz_mm")), 1e-3);                                            // --tol-axial-mm
+  EXPECT_NEAR(value(held, "principal_point_u_px"), 559.5, 1.0);  // --tol-principal-point-mm
+  EXPECT_NEAR(value(held, "a_mm"), 5.2, 0.002);                  // --tol-a-relative
+  EXPECT_NEAR(value(free_fit, "rx_deg"), 0.6, 0.002);
+  EXPECT_NEAR(value(free_fit, "rz_deg"), 0.3, 0.002);
+  EXPECT_NEAR(value(free_fit, "tz_mm"), 0.3, 0.01);
+  EXPECT_NEAR(value(free_fit, "principal_point_u_px"), 567.9, 0.01);
+  EXPECT_NEAR(value(free_fit, "a_mm"), 5.23, 0.002);
+  // --max-chi2-per-dof: the held model does not describe the images; 1e12 lets it pass, the default 4 flags it.
+  EXPECT_GT(held["chi2_per_dof"].get<double>(), 1000.0);
+  EXPECT_TRUE(held["model_adequate"].get<bool>());
+  const auto flagged = calibrate("flagged.json", tight, 3);
+  EXPECT_FALSE(flagged["model_adequate"].get<bool>());
+  // --spot-sigma-px: the standard deviations scale with it, chi2/dof with its inverse square.
+  const auto noisy = calibrate("noisy.json", "--spot-sigma-px 0.4", 0);
+  EXPECT_NEAR(stddev(noisy, "rx_deg") / stddev(free_fit, "rx_deg"), 10.0, 0.5);
+  EXPECT_NEAR(stddev(noisy, "a_mm") / stddev(free_fit, "a_mm"), 10.0, 0.5);
+  EXPECT_NEAR(free_fit["chi2_per_dof"].get<double>() / noisy["chi2_per_dof"].get<double>(), 100.0, 10.0);
 }
 
 }  // namespace

@@ -327,5 +327,35 @@ TEST_F(UnitCli, BatchCalibratesEveryGoodUnitAndListsTheFailures) {
   EXPECT_TRUE(fs::exists(dir_ / "records" / "SN-C" / "unit.json"));
 }
 
+// calibrate-batch --seed reaches every unit's Monte Carlo draws (issue 14: a test for every option): a unit of the
+// batch gets the uncertainty `unit calibrate --seed` gives it alone; another seed draws other numbers.
+TEST_F(UnitCli, BatchSeedIsTheSeedOfEveryUnitsDraws) {
+  const auto batch = dir_ / "line";
+  fs::create_directories(batch / "a");
+  model::WriteFileAtomic((batch / "a" / "unit-inputs.json").string(),
+                         fmt::format(R"({{"serial": "SN-S", "target": "{0}/target.yaml", "images": "{0}/view.png",)"
+                                     R"( "reference_sphere": "{0}/sphere.png", "sphere_radius_mm": {1},)"
+                                     R"( "camera": "{0}/camera.json"}})",
+                                     in_, kUnitSphereRadiusMm));
+  const auto radius_u = [](const std::string& record) {
+    return json::parse(
+               model::ReadFile(record + "/unit.json"))["verification"]["uncertainty"]["quantities"]["radius_mm"]["U"]
+        .get<double>();
+  };
+  const auto run_batch = [&](const std::string& out, int seed) {
+    const auto r = RunTopocal(fmt::format("unit calibrate-batch {} --out {} --jobs 1 --uncertainty {} --seed {}",
+                                          batch.string(), (dir_ / out).string(), kDraws, seed));
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return radius_u((dir_ / out / "SN-S").string());
+  };
+  const double batch5 = run_batch("seed5", 5), batch6 = run_batch("seed6", 6);
+  const auto alone = (dir_ / "alone").string();
+  const auto r = RunTopocal(Calibrate("SN-S", alone, "--seed 5"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(batch5, radius_u(alone));
+  EXPECT_NE(batch5, batch6);
+  EXPECT_GT(batch6, 0.0);
+}
+
 }  // namespace
 }  // namespace topocal::testing_cli

@@ -15,6 +15,19 @@ namespace {
 
 // Issue 6, item 6: spot centroids within 0.02 px RMS of the truth at realistic noise.
 constexpr double kCentroidRmsPx = 0.02;
+// Regression bounds per method, about 2x the worst rms over the four scenes measured 2026-12-02 (seeded renders):
+// intensity-weighted 0.0046 px, weighted PSF fit 0.0024 px. The Gaussian fit measures up to 0.019 px on the
+// elliptical spots, near the acceptance, which therefore bounds it alone.
+double RegressionRmsPx(CentroidMethod method) {
+  switch (method) {
+    case CentroidMethod::kIntensityWeighted:
+      return 0.01;
+    case CentroidMethod::kWeightedPsfFit:
+      return 0.005;
+    default:
+      return kCentroidRmsPx;
+  }
+}
 // A detection is matched to the truth spot within this distance; far above any centroid error, far below the
 // ~16 px spot spacing.
 constexpr double kMatchPx = 3.0;
@@ -102,6 +115,7 @@ TEST_P(SpotDetect, CentroidsWithinTwoHundredthsOfAPixel) {
     EXPECT_EQ(e.matched, static_cast<int>(truth.spots.size())) << name;
     EXPECT_EQ(det.spots.size(), truth.spots.size()) << name;
     EXPECT_LT(e.rms, kCentroidRmsPx) << name;
+    EXPECT_LT(e.rms, RegressionRmsPx(method)) << name;
   }
 }
 

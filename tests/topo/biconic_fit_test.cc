@@ -1,8 +1,11 @@
 #include "topo/biconic_fit.h"
 
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
 
 #include "model/surface.h"
 
@@ -26,9 +29,32 @@ std::vector<Eigen::Vector3d> Cloud(const model::BiconicParams& p, double noise_u
   return pts;
 }
 
+// Regression bound of the noise-free fits: they end at rounding (measured 1.4e-14 to 5.7e-14 on 2026-12-02, a few
+// ulps of an 8 mm radius); 5e-13 is ~10x that and leaves room for another compiler's or CPU's rounding, while a fit
+// that stops at its tolerances instead (~1e-9) fails it.
+constexpr double kRoundingRegression = 5e-13;
+
+// The largest parameter error of a fit against the canonical truth (mm, dimensionless and deg mixed: each is
+// compared with the same absolute bound).
+double WorstParameterError(const BiconicFit& fit, const model::BiconicParams& t, bool with_apex) {
+  double worst = std::max({std::abs(fit.params.rx_mm - t.rx_mm), std::abs(fit.params.ry_mm - t.ry_mm),
+                           std::abs(fit.params.kx - t.kx), std::abs(fit.params.ky - t.ky),
+                           std::abs(fit.params.alpha_deg - t.alpha_deg)});
+  // With a free apex the apex point is compared instead of z0 (the caller does).
+  if (!with_apex) worst = std::max(worst, std::abs(fit.params.z0_mm - t.z0_mm));
+  if (with_apex) {
+    worst = std::max(
+        {worst, std::abs(fit.params.tilt_x_deg - t.tilt_x_deg), std::abs(fit.params.tilt_y_deg - t.tilt_y_deg)});
+  }
+  return worst;
+}
+
 TEST(BiconicFit, NoiseFreeCloudGivesTheParametersBack) {
-  // Exact data: the solver stops at its tolerances, ~1e-9 relative.
+  // Exact data: the solver stops at its tolerances, ~1e-9 relative (acceptance 1e-7).
   constexpr double kExactTol = 1e-7;
+  // Regression bound: measured 2026-12-02: 1.4e-14 (largest error over the parameters of both surfaces, a few ulps of
+  // the radii): kRoundingRegression.
+  double worst = 0;
   for (const model::BiconicParams& truth : {model::BiconicParams{8.35, 7.63, -0.43, -0.25, 17.0, 0, 0, 0.001},
                                             model::BiconicParams{7.9, 7.2, -0.6, 0.3, 123.0, 0, 0, -0.002}}) {
     const auto fit = FitBiconic(Cloud(truth, 0.0, 1));
@@ -40,7 +66,10 @@ TEST(BiconicFit, NoiseFreeCloudGivesTheParametersBack) {
     EXPECT_NEAR(fit.params.ky, t.ky, kExactTol);
     EXPECT_NEAR(fit.params.alpha_deg, t.alpha_deg, kExactTol);
     EXPECT_NEAR(fit.params.z0_mm, t.z0_mm, kExactTol);
+    worst = std::max(worst, WorstParameterError(fit, t, false));
   }
+  std::printf("noise-free fit: largest parameter error %.2e\n", worst);
+  EXPECT_LT(worst, kRoundingRegression);
 }
 
 TEST(BiconicFit, NoisyCloudStaysWithinThreeSigmaOfItsCovariance) {
@@ -68,7 +97,11 @@ TEST(BiconicFit, PaperModeKeepsTheApexOnTheAxis) {
   o.mode = BiconicFitMode::kPaper;
   const auto fit = FitBiconic(Cloud(truth, 0.0, 1), o);
   ASSERT_TRUE(fit.ok) << fit.message;
-  EXPECT_NEAR(fit.params.kx, truth.kx, 1e-7);
+  EXPECT_NEAR(fit.params.kx, truth.kx, 1e-7);  // acceptance: the noise-free test's
+  // Regression bound: measured 2026-12-02: 2.8e-14.
+  const double worst = WorstParameterError(fit, CanonicalBiconic(truth), false);
+  std::printf("paper-mode fit: largest parameter error %.2e\n", worst);
+  EXPECT_LT(worst, kRoundingRegression);
   EXPECT_EQ(fit.params.x0_mm, 0.0);
   EXPECT_EQ(fit.params.tilt_x_deg, 0.0);
   EXPECT_EQ(fit.stddev.tilt_y_deg, 0.0);  // fixed parameters have no spread
@@ -78,6 +111,8 @@ TEST(BiconicFit, FreeApexRecoversDecentrationAndTilt) {
   // Exact cloud of an eye 0.5 mm off the axis and tilted by 3 deg: everything comes back to the solver's
   // tolerance (measured ~1e-9 on 2026-12-01; 1e-6 leaves room for the weak tilt/decentration trade-off).
   constexpr double kExactTol = 1e-6;
+  // Regression bound: measured 2026-12-02: 5.7e-14 (largest error over parameters and apex, both surfaces).
+  double worst = 0;
   for (const model::BiconicParams& truth : {model::BiconicParams{8.35, 7.63, -0.43, -0.25, 17.0, 0.3, -0.4, 0.002, 2.0, -2.2},
                                             model::BiconicParams{7.9, 7.2, -0.6, 0.3, 123.0, -0.45, 0.2, -0.001, -3.0, 0.5}}) {
     const auto fit = FitBiconic(Cloud(truth, 0.0, 1));
@@ -93,7 +128,10 @@ TEST(BiconicFit, FreeApexRecoversDecentrationAndTilt) {
     const Eigen::Vector3d apex = model::Biconic{truth}.ApexMm();
     EXPECT_NEAR((fit.apex_mm - apex).norm(), 0.0, kExactTol);
     EXPECT_TRUE(fit.stddev_ok);
+    worst = std::max({worst, WorstParameterError(fit, t, true), (fit.apex_mm - apex).norm()});
   }
+  std::printf("free-apex fit: largest parameter error %.2e\n", worst);
+  EXPECT_LT(worst, kRoundingRegression);
 }
 
 TEST(BiconicFit, FreeApexStaysWithinThreeSigmaOfItsCovariance) {

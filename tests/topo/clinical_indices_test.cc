@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
+
 #include "model/surface.h"
 
 namespace topocal::topo {
@@ -39,6 +41,14 @@ TEST(ClinicalIndices, ToricSimKFindsTheMeridians) {
   EXPECT_NEAR(ci.flat_k_D, 337.5 / 8.0, 0.05);
   EXPECT_NEAR(ci.steep_axis_deg, 120.0, 1.0);
   EXPECT_NEAR(ci.flat_axis_deg, 30.0, 1.0);
+  // Regression bounds: measured 2026-12-02: steep -1.4e-14 D, flat -7.1e-15 D, both axes exact (rounding: the
+  // vertex powers are found on the principal meridians).
+  std::printf("sim-K: steep %+.2e D, flat %+.2e D, axes %+.2e / %+.2e deg\n", ci.steep_k_D - 337.5 / 7.5,
+              ci.flat_k_D - 337.5 / 8.0, ci.steep_axis_deg - 120.0, ci.flat_axis_deg - 30.0);
+  EXPECT_NEAR(ci.steep_k_D, 337.5 / 7.5, 1e-9);
+  EXPECT_NEAR(ci.flat_k_D, 337.5 / 8.0, 1e-9);
+  EXPECT_NEAR(ci.steep_axis_deg, 120.0, 1e-6);
+  EXPECT_NEAR(ci.flat_axis_deg, 30.0, 1e-6);
 }
 
 TEST(ClinicalIndices, InferiorConeShowsInIsAndKmax) {

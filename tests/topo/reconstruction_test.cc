@@ -1,8 +1,10 @@
 // Accuracy of the null-screen reconstruction against ground truth and against the paper's Tables VI and VII.
-#include <algorithm>
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
 
 #include "model/config.h"
 #include "model/null_screen.h"
@@ -19,12 +21,28 @@ constexpr double kTruthRadiusTolMm = 0.002;
 constexpr double kTruthConicTol = 0.002;
 constexpr double kTruthAlphaTolDeg = 0.01;
 constexpr double kTruthPvTolUm = 0.05;
+// Regression bounds near what the iterative reconstruction achieves on exact spots (3-5x the value measured
+// 2026-12-02), one set for the paper cornea and one for the two other biconics (whose alpha and asymmetry the
+// polynomial represents less closely): the issue's limits above stay as the acceptance.
+struct TruthRegression {
+  double radius_mm, conic, alpha_deg, pv_um;
+};
+// Paper cornea, all 624 spots / 90 % of them: measured |dr| 4.3e-6 / 4.6e-6 mm, |dk| 5.9e-6 / 6.3e-6, |dalpha|
+// 0 / 5.3e-6 deg, pv 1.04e-3 / 1.11e-3 um.
+constexpr TruthRegression kPaperCorneaRegression{2e-5, 2.5e-5, 2e-5, 4e-3};
+// The two other biconics: measured |dr| 2.7e-5 mm, |dk| 4.2e-5, |dalpha| 2.1e-12 deg, pv 9.1e-3 um (worst of both).
+constexpr TruthRegression kOtherBiconicRegression{1e-4, 1.5e-4, 2e-5, 0.03};
 // Issue 4, paper Table VI for every sigma: r 0.01 mm, k 0.02, alpha 0.01 deg.
 constexpr double kTableVIRadiusTolMm = 0.01;
 constexpr double kTableVIConicTol = 0.02;
 constexpr double kTableVIAlphaTolDeg = 0.01;
 // Issue 4, paper Table VII: pv_m and pv_a within 0.1 D for |sigma| <= 1.41e-6.
 constexpr double kTableVIIPowerTolD = 0.1;
+// Regression bounds on the departure from the paper's printed (rounded) values, worst over the seven rows; measured
+// 2026-12-02: |dr| 8.6e-3 mm, |dk| 8.6e-3, |dalpha| 1.0e-3 deg (the paper prints 16.999), Table VII |dpv| 0.082 D.
+// Radius and power already sit near their acceptance limits, which therefore serve as both bounds.
+constexpr double kTableVIConicRegression = 0.01;
+constexpr double kTableVIAlphaRegressionDeg = 2e-3;
 
 model::Config PaperConfig() { return model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json"); }
 
@@ -44,7 +62,7 @@ Analysis AnalyzeCornea(const model::Config& base, const model::BiconicParams& co
   return AnalyzeSpots(spots, design.targets, c, &c.cornea);
 }
 
-void ExpectMatchesTruth(const model::BiconicParams& truth, const Analysis& a) {
+void ExpectMatchesTruth(const model::BiconicParams& truth, const Analysis& a, const TruthRegression& regression) {
   const auto t = CanonicalBiconic(truth);
   const auto& f = a.surface_fit.params;
   EXPECT_NEAR(f.rx_mm, t.rx_mm, kTruthRadiusTolMm);
@@ -54,21 +72,32 @@ void ExpectMatchesTruth(const model::BiconicParams& truth, const Analysis& a) {
   EXPECT_NEAR(f.alpha_deg, t.alpha_deg, kTruthAlphaTolDeg);
   ASSERT_TRUE(a.errors.has_value());
   EXPECT_LT(a.errors->pv_um, kTruthPvTolUm);
+  const double dr_mm = std::max(std::abs(f.rx_mm - t.rx_mm), std::abs(f.ry_mm - t.ry_mm));
+  const double dk = std::max(std::abs(f.kx - t.kx), std::abs(f.ky - t.ky));
+  const double dalpha_deg = std::abs(f.alpha_deg - t.alpha_deg);
+  std::printf("truth recovery: |dr| %.2e mm, |dk| %.2e, |dalpha| %.2e deg, pv %.2e um\n", dr_mm, dk, dalpha_deg,
+              a.errors->pv_um);
+  EXPECT_LT(dr_mm, regression.radius_mm);
+  EXPECT_LT(dk, regression.conic);
+  EXPECT_LT(dalpha_deg, regression.alpha_deg);
+  EXPECT_LT(a.errors->pv_um, regression.pv_um);
 }
 
 TEST(Reconstruction, PaperCorneaAtSigmaZeroMatchesTruth) {
   const auto c = PaperConfig();
   const auto a = AnalyzeCornea(c, c.cornea, 0.0);
   EXPECT_EQ(a.reconstruction.spots_used, 624);
-  ExpectMatchesTruth(c.cornea, a);
+  ExpectMatchesTruth(c.cornea, a, kPaperCorneaRegression);
 }
 
 TEST(Reconstruction, OtherBiconicsAtSigmaZeroMatchTruth) {
   const auto c = PaperConfig();
   // Steeper along x with a positive conic and alpha > 90 deg (canonicalised to 33 deg, r_x and r_y swapped).
-  ExpectMatchesTruth({7.2, 7.9, 0.3, -0.6, 123.0, 0, 0, 0}, AnalyzeCornea(c, {7.2, 7.9, 0.3, -0.6, 123.0, 0, 0, 0}, 0));
+  ExpectMatchesTruth({7.2, 7.9, 0.3, -0.6, 123.0, 0, 0, 0}, AnalyzeCornea(c, {7.2, 7.9, 0.3, -0.6, 123.0, 0, 0, 0}, 0),
+                     kOtherBiconicRegression);
   // Canonical already, alpha = 95 deg reported as such.
-  ExpectMatchesTruth({8.0, 7.4, -0.1, 0.2, 95.0, 0, 0, 0}, AnalyzeCornea(c, {8.0, 7.4, -0.1, 0.2, 95.0, 0, 0, 0}, 0));
+  ExpectMatchesTruth({8.0, 7.4, -0.1, 0.2, 95.0, 0, 0, 0}, AnalyzeCornea(c, {8.0, 7.4, -0.1, 0.2, 95.0, 0, 0, 0}, 0),
+                     kOtherBiconicRegression);
 }
 
 TEST(Reconstruction, PartialUnorderedSpotSetUsesWhatIsThere) {
@@ -83,7 +112,7 @@ TEST(Reconstruction, PartialUnorderedSpotSetUsesWhatIsThere) {
   EXPECT_EQ(a.reconstruction.spots_used, 561);
   ASSERT_EQ(a.reconstruction.unmatched.size(), 1u);
   EXPECT_EQ(a.reconstruction.unmatched[0], (model::SpotId{40, 1}));
-  ExpectMatchesTruth(c.cornea, a);
+  ExpectMatchesTruth(c.cornea, a, kPaperCorneaRegression);
 }
 
 TEST(Reconstruction, TooFewSpotsFailCleanly) {
@@ -128,6 +157,7 @@ TEST(Reconstruction, SweepReproducesTablesVIAndVII) {
                                                             {12.49, 6.93},  {12.40, 6.89}, {7.917, 6.03},
                                                             {14.23, 11.29}};
   ASSERT_EQ(sweep.rows.size(), table_vi.size());
+  double worst_r = 0, worst_k = 0, worst_alpha = 0, worst_pv = 0;
   for (size_t i = 0; i < table_vi.size(); ++i) {
     const auto& f = sweep.rows[i].analysis.surface_fit.params;
     const auto& p = table_vi[i];
@@ -138,11 +168,20 @@ TEST(Reconstruction, SweepReproducesTablesVIAndVII) {
     EXPECT_NEAR(f.ky, p.ky, kTableVIConicTol);
     EXPECT_NEAR(f.alpha_deg, p.alpha, kTableVIAlphaTolDeg);
     const auto& power = sweep.rows[i].analysis.power;
+    worst_r = std::max({worst_r, std::abs(f.rx_mm - p.rx), std::abs(f.ry_mm - p.ry)});
+    worst_k = std::max({worst_k, std::abs(f.kx - p.kx), std::abs(f.ky - p.ky)});
+    worst_alpha = std::max(worst_alpha, std::abs(f.alpha_deg - p.alpha));
     if (std::abs(p.sigma) <= 1.41e-6) {
       EXPECT_NEAR(power.pv_tangential_D, table_vii[i].first, kTableVIIPowerTolD);
       EXPECT_NEAR(power.pv_axial_D, table_vii[i].second, kTableVIIPowerTolD);
+      worst_pv = std::max({worst_pv, std::abs(power.pv_tangential_D - table_vii[i].first),
+                           std::abs(power.pv_axial_D - table_vii[i].second)});
     }
   }
+  std::printf("against the paper: |dr| %.2e mm, |dk| %.2e, |dalpha| %.2e deg, Table VII |dpv| %.2e D\n", worst_r,
+              worst_k, worst_alpha, worst_pv);
+  EXPECT_LT(worst_k, kTableVIConicRegression);
+  EXPECT_LT(worst_alpha, kTableVIAlphaRegressionDeg);
   // The sign change of both conic constants at sigma = 2e-4 (the last row).
   EXPECT_GT(sweep.rows.back().analysis.surface_fit.params.kx, 0);
   EXPECT_GT(sweep.rows.back().analysis.surface_fit.params.ky, 0);
