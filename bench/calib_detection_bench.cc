@@ -11,8 +11,8 @@
 namespace topocal::calib {
 namespace {
 
-CameraModel Camera() {
-  CameraModel camera;
+model::CameraModel Camera() {
+  model::CameraModel camera;
   camera.width_px = 640;
   camera.height_px = 480;
   camera.fx_px = camera.fy_px = 600.0;
@@ -103,7 +103,7 @@ BENCHMARK(BM_DetectAprilGridOneCell)->Arg(0)->Arg(2)->Unit(benchmark::kMilliseco
 const RenderedView& UnitView() {
   static const RenderedView view = [] {
     const auto target = LoadTargetDescription(TOPOCAL_SOURCE_DIR "/data/target-topographer.yaml");
-    CameraModel camera;
+    model::CameraModel camera;
     camera.width_px = 4000;
     camera.height_px = 3000;
     camera.fx_px = camera.fy_px = 5.2 / 1.12e-3;

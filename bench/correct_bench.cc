@@ -22,7 +22,7 @@ struct Scene {
   model::TopographerCamera camera;
   cv::Mat spots16;  // raw spot image, 16-bit
   cv::Mat grey8;    // a textured 8-bit frame for the remap comparison
-  correct::OpenCvCamera lens;
+  model::CameraModel lens;
   model::BrownParams brown;
 };
 
@@ -41,8 +41,11 @@ const Scene& GetScene() {
     s.grey8.create(s.camera.height_px, s.camera.width_px, CV_8UC1);
     cv::randu(s.grey8, 0, 255);
     const double f = s.camera.FocalPx();
-    s.lens = {f, f, s.camera.principal_point_px.x() + 4, s.camera.principal_point_px.y() - 3,
-              {-0.12, 0.25, 8e-4, -5e-4, -0.1}};
+    s.lens = {.fx_px = f,
+              .fy_px = f,
+              .cx_px = s.camera.principal_point_px.x() + 4,
+              .cy_px = s.camera.principal_point_px.y() - 3,
+              .dist = {-0.12, 0.25, 8e-4, -5e-4, -0.1}};
     s.brown = correct::BrownFromOpenCv(s.lens, s.camera).brown;
     return s;
   }();

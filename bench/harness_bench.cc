@@ -6,23 +6,23 @@
 #include <cmath>
 #include <string>
 
-#include "pipeline/harness.h"
-#include "pipeline/harness_answer.h"
-#include "pipeline/harness_config.h"
-#include "pipeline/harness_report.h"
+#include "harness/harness.h"
+#include "harness/harness_answer.h"
+#include "harness/harness_config.h"
+#include "harness/harness_report.h"
 
 namespace {
 
 using namespace topocal;
 
-pipeline::HarnessConfig BundledConfig() {
-  return pipeline::LoadHarnessConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/harness.json");
+harness::HarnessConfig BundledConfig() {
+  return harness::LoadHarnessConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/harness.json");
 }
 
 void BM_HarnessSetup(benchmark::State& state) {
   const auto config = BundledConfig();
   for (auto _ : state) {
-    const pipeline::HarnessCaseRunner runner(config);
+    const harness::HarnessCaseRunner runner(config);
     benchmark::DoNotOptimize(runner.truth().data());
   }
 }
@@ -31,9 +31,9 @@ BENCHMARK(BM_HarnessSetup)->Unit(benchmark::kMillisecond);
 // A case with residual distortion and noise on the paper's cornea (the typical case of data/harness.json).
 void BM_HarnessCase(benchmark::State& state) {
   const auto config = BundledConfig();
-  const pipeline::HarnessCaseRunner runner(config);
-  const auto cases = pipeline::EnumerateHarnessCases(config);
-  pipeline::HarnessCaseSpec spec = cases.front();
+  const harness::HarnessCaseRunner runner(config);
+  const auto cases = harness::EnumerateHarnessCases(config);
+  harness::HarnessCaseSpec spec = cases.front();
   for (const auto& s : cases) {
     if (s.cornea == 0 && s.calibration_error == 0.1 && s.coefficient == 2e-4) {
       spec = s;
@@ -47,12 +47,12 @@ BENCHMARK(BM_HarnessCase)->Unit(benchmark::kMillisecond);
 // An assembly case: the paper's cornea through a screen tilted by 1 deg, measured through the nominal device (the
 // typical case of data/harness-assembly.json; its peer is BM_HarnessCase).
 void BM_HarnessAssemblyCase(benchmark::State& state) {
-  const auto config = pipeline::LoadHarnessConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/harness-assembly.json");
-  const pipeline::HarnessCaseRunner runner(config);
-  const auto cases = pipeline::EnumerateHarnessCases(config);
-  pipeline::HarnessCaseSpec spec = cases.front();
+  const auto config = harness::LoadHarnessConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/harness-assembly.json");
+  const harness::HarnessCaseRunner runner(config);
+  const auto cases = harness::EnumerateHarnessCases(config);
+  harness::HarnessCaseSpec spec = cases.front();
   for (const auto& s : cases) {
-    if (s.cornea == 0 && s.axis == pipeline::AssemblyAxis::kScreenTilt && s.error > 0.9 && s.error < 1.5) {
+    if (s.cornea == 0 && s.axis == harness::AssemblyAxis::kScreenTilt && s.error > 0.9 && s.error < 1.5) {
       spec = s;
       break;
     }
@@ -63,13 +63,13 @@ BENCHMARK(BM_HarnessAssemblyCase)->Unit(benchmark::kMillisecond);
 
 // Inverse answer and every output file for the 1620 cases of data/harness.json (synthetic case values).
 void BM_HarnessOutputs(benchmark::State& state) {
-  pipeline::HarnessRun run;
+  harness::HarnessRun run;
   run.config = BundledConfig();
-  run.config_sha256 = pipeline::HarnessConfigSha256(run.config);
+  run.config_sha256 = harness::HarnessConfigSha256(run.config);
   run.truth.resize(run.config.corneas.size());
   for (auto& t : run.truth) t.spot_field_radius_mm = 0.4;
-  for (const auto& spec : pipeline::EnumerateHarnessCases(run.config)) {
-    pipeline::HarnessCaseResult c;
+  for (const auto& spec : harness::EnumerateHarnessCases(run.config)) {
+    harness::HarnessCaseResult c;
     c.spec = spec;
     c.ok = true;
     c.residual_max_um = 1e5 * std::abs(spec.coefficient * spec.calibration_error) + 1e-3 * spec.draw;
@@ -79,8 +79,8 @@ void BM_HarnessOutputs(benchmark::State& state) {
   }
   run.total_cases = static_cast<int>(run.cases.size());
   for (auto _ : state) {
-    const auto answer = pipeline::ComputeInverseAnswer(run);
-    benchmark::DoNotOptimize(pipeline::RenderHarnessOutputs(run, answer).size());
+    const auto answer = harness::ComputeInverseAnswer(run);
+    benchmark::DoNotOptimize(harness::RenderHarnessOutputs(run, answer).size());
   }
 }
 BENCHMARK(BM_HarnessOutputs)->Unit(benchmark::kMillisecond);

@@ -24,17 +24,16 @@
 // Residuals are predicted - observed, px. RMS is OpenCV's: sqrt(sum over corners |r|^2 / corners).
 // Parameter standard deviations: sqrt(diag(sigma^2 (J'J)^-1)) (calib/jacobian_covariance.h) with the residual variance
 // sigma^2 = SSR / (2 corners - free parameters).
+#include <Eigen/Core>
 #include <optional>
 #include <set>
 #include <string>
 #include <string_view>
 #include <vector>
 
-#include <Eigen/Core>
-
-#include "calib/camera.h"
 #include "calib/observations.h"
 #include "calib/zhang.h"
+#include "model/camera_model.h"
 
 namespace topocal::calib {
 
@@ -152,7 +151,7 @@ struct CalibrationResult {
 
   DistortionModelKind model = DistortionModelKind::kBrown5;
   bool single_view = false;
-  CameraModel camera;
+  model::CameraModel camera;
   std::vector<ParameterEstimate> parameters;   // kParameterNames order
   // Covariance of the camera parameters, kNumCameraParameters square in kParameterNames order (px, normalised
   // units), sigma^2 (J'J)^-1 with the poses marginalised; rows and columns of fixed parameters are zero.

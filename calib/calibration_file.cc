@@ -11,17 +11,17 @@
 
 #include "calib/file_storage.h"
 #include "calib/opencv_equivalent.h"
-#include "model/io.h"
-#include "model/utc_date.h"
-#include "model/version.h"
+#include "util/io.h"
+#include "util/utc_date.h"
+#include "util/version.h"
 
 namespace topocal::calib {
 namespace {
 
-cv::Mat CameraMatrix(const CameraModel& c) {
+cv::Mat CameraMatrix(const model::CameraModel& c) {
   return (cv::Mat_<double>(3, 3) << c.fx_px, 0, c.cx_px, 0, c.fy_px, c.cy_px, 0, 0, 1);
 }
-cv::Mat DistortionRow(const CameraModel& c) {
+cv::Mat DistortionRow(const model::CameraModel& c) {
   return (cv::Mat_<double>(1, 5) << c.dist[0], c.dist[1], c.dist[2], c.dist[3], c.dist[4]);
 }
 
@@ -33,7 +33,7 @@ std::optional<double> SingleViewDistance(const CalibrationResult& r) {
 // ---- strict reading ----------------------------------------------------------------------------------------------
 
 [[noreturn]] void Bad(const std::string& path, const std::string& key, const std::string& problem) {
-  throw model::InputError(fmt::format("{}: {}: {}", path, key, problem));
+  throw util::InputError(fmt::format("{}: {}: {}", path, key, problem));
 }
 
 cv::Mat ReadMatrix(const cv::FileStorage& fs, const std::string& path, const std::string& key, int rows, int cols,
@@ -99,7 +99,7 @@ std::string ReadOptionalString(const cv::FileStorage& fs, const std::string& pat
   return static_cast<std::string>(node);
 }
 
-void SetIntrinsics(const cv::Mat& k, const std::string& path, const std::string& key, CameraModel& cam) {
+void SetIntrinsics(const cv::Mat& k, const std::string& path, const std::string& key, model::CameraModel& cam) {
   if (k.at<double>(0, 1) != 0 || k.at<double>(1, 0) != 0 || k.at<double>(2, 0) != 0 || k.at<double>(2, 1) != 0 ||
       k.at<double>(2, 2) != 1) {
     Bad(path, key, "not a pinhole camera matrix [fx 0 cx; 0 fy cy; 0 0 1]");
@@ -113,7 +113,7 @@ void SetIntrinsics(const cv::Mat& k, const std::string& path, const std::string&
 
 CalibrationFile ReadCalibration(const cv::FileStorage& fs, const std::string& path);
 
-void SetDistortion(const cv::Mat& d, CameraModel& cam) {
+void SetDistortion(const cv::Mat& d, model::CameraModel& cam) {
   for (int i = 0; i < 5; ++i) cam.dist[static_cast<size_t>(i)] = d.at<double>(i);
 }
 
@@ -160,7 +160,7 @@ std::string CalibrationFileText(const CalibrationResult& result, const Calibrati
   cv::FileStorage fs(".yml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
   fs << "calibration_tool" << "topocal";
   fs << "tool_version" << topocal::kVersion;
-  fs << "calibration_date" << (provenance.date_utc.empty() ? model::FileDateUtc() : provenance.date_utc);
+  fs << "calibration_date" << (provenance.date_utc.empty() ? util::FileDateUtc() : provenance.date_utc);
   fs << "model" << std::string(ToString(result.model));
   fs << "single_view" << (result.single_view ? 1 : 0);
   fs << "image_width" << result.camera.width_px;
@@ -223,12 +223,12 @@ std::string CalibrationFileText(const CalibrationResult& result, const Calibrati
 
 void WriteCalibrationFile(const std::string& path, const CalibrationResult& result,
                           const CalibrationProvenance& provenance) {
-  model::WriteFileAtomic(path, CalibrationFileText(result, provenance));
+  util::WriteFileAtomic(path, CalibrationFileText(result, provenance));
 }
 
 CalibrationFile LoadCalibrationFile(const std::string& path) {
-  if (!std::filesystem::is_regular_file(path)) throw model::InputError(fmt::format("{}: cannot be opened", path));
-  return ParseCalibrationFile(model::ReadFile(path), path);
+  if (!std::filesystem::is_regular_file(path)) throw util::InputError(fmt::format("{}: cannot be opened", path));
+  return ParseCalibrationFile(util::ReadFile(path), path);
 }
 
 CalibrationFile ParseCalibrationFile(const std::string& text, const std::string& path) {
@@ -248,7 +248,7 @@ CalibrationFile ReadCalibration(const cv::FileStorage& fs, const std::string& pa
   out.written_by_topocal = tool == "topocal";
   if (!tool.empty() && !out.written_by_topocal) Bad(path, "calibration_tool", "'" + tool + "' is not topocal");
 
-  CameraModel cv_cam;
+  model::CameraModel cv_cam;
   cv_cam.width_px = ReadPositiveInt(fs, path, "image_width");
   cv_cam.height_px = ReadPositiveInt(fs, path, "image_height");
   SetIntrinsics(ReadMatrix(fs, path, "camera_matrix", 3, 3, true), path, "camera_matrix", cv_cam);
@@ -262,7 +262,7 @@ CalibrationFile ReadCalibration(const cv::FileStorage& fs, const std::string& pa
     if (!ParseDistortionModel(out.model)) Bad(path, "model", "'" + out.model + "' is not seidel or brown5");
     const cv::Mat centre = ReadMatrix(fs, path, "distortion_centre", 1, 2, true);
     if (centre.at<double>(0) != 0 || centre.at<double>(1) != 0) {
-      CameraModel exact = cv_cam;
+      model::CameraModel exact = cv_cam;
       SetIntrinsics(ReadMatrix(fs, path, "topocal_camera_matrix", 3, 3, true), path, "topocal_camera_matrix", exact);
       SetDistortion(ReadMatrix(fs, path, "topocal_distortion_coefficients", 1, 5, true), exact);
       exact.distortion_centre = {centre.at<double>(0), centre.at<double>(1)};

@@ -27,16 +27,15 @@
 //   target                                 # the target description file
 //   valid_radius_px, valid_region_covers_sensor   # where the distortion model is monotonic and invertible
 //                                          # (calib/distortion_valid_region.h); optional on read: computed if absent
+#include <Eigen/Core>
 #include <map>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include <Eigen/Core>
-
 #include "calib/calibrate.h"
-#include "calib/camera.h"
 #include "calib/distortion_valid_region.h"
+#include "model/camera_model.h"
 
 namespace topocal::calib {
 
@@ -47,8 +46,8 @@ struct CalibrationProvenance {
 };
 
 struct CalibrationFile {
-  CameraModel camera;          // the exact model (with its distortion centre)
-  CameraModel opencv_camera;   // camera_matrix + distortion_coefficients as OpenCV reads them
+  model::CameraModel camera;         // the exact model (with its distortion centre)
+  model::CameraModel opencv_camera;  // camera_matrix + distortion_coefficients as OpenCV reads them
   bool written_by_topocal = false;
   std::string model = "brown5";
   bool single_view = false;
@@ -66,12 +65,12 @@ struct CalibrationFile {
 // The YAML text for a successful result. Throws std::invalid_argument for a failed result and std::runtime_error
 // when the OpenCV-equivalent model cannot be computed.
 std::string CalibrationFileText(const CalibrationResult& result, const CalibrationProvenance& provenance);
-// Writes it atomically (model::WriteFileAtomic). Throws model::InputError if the path cannot be written.
+// Writes it atomically (util::WriteFileAtomic). Throws util::InputError if the path cannot be written.
 void WriteCalibrationFile(const std::string& path, const CalibrationResult& result,
                           const CalibrationProvenance& provenance);
 
 // Reads a topocal or plain OpenCV calibration file. Strict: a missing key, a wrongly sized or non-finite matrix,
-// or a file that is not a calibration throws model::InputError "PATH: KEY: problem".
+// or a file that is not a calibration throws util::InputError "PATH: KEY: problem".
 CalibrationFile LoadCalibrationFile(const std::string& path);
 // The same from the file's text; `path` names it in errors (calib/file_storage.h guards the parser).
 CalibrationFile ParseCalibrationFile(const std::string& text, const std::string& path);

@@ -12,8 +12,8 @@
 #include <string>
 
 #include "calib/calibration_file.h"
-#include "calib/camera.h"
 #include "calib/distortion_valid_region.h"
+#include "model/camera_model.h"
 
 namespace topocal::calib {
 
@@ -29,27 +29,27 @@ struct ExportOptions {
   std::string ros_topic = "/cam0/image_raw";  // Kalibr's rostopic
 };
 
-// The file's text in the chosen format. Throws model::InputError (naming `source`) when the format cannot hold the
+// The file's text in the chosen format. Throws util::InputError (naming `source`) when the format cannot hold the
 // camera (Kalibr with a significant k3).
 std::string ExportCalibration(const CalibrationFile& calibration, ExportFormat format, const std::string& source,
                               const ExportOptions& options = {});
 
 // Individual writers (the camera must have a zero distortion centre; std::invalid_argument otherwise).
-std::string RosCameraInfoYaml(const CameraModel& camera, const std::string& camera_name);
-std::string KalibrCamchainYaml(const CameraModel& camera, const std::string& ros_topic);
+std::string RosCameraInfoYaml(const model::CameraModel& camera, const std::string& camera_name);
+std::string KalibrCamchainYaml(const model::CameraModel& camera, const std::string& ros_topic);
 // With `valid_region` (when it does not cover the sensor): mrcal's valid_intrinsics_region, the circle of
 // valid_radius_px about (cx, cy) as a closed 64-gon, which mrcal's tools draw and use to mask.
-std::string MrcalCameraModelText(const CameraModel& camera, const DistortionValidRegion* valid_region = nullptr);
+std::string MrcalCameraModelText(const model::CameraModel& camera, const DistortionValidRegion* valid_region = nullptr);
 // A plain OpenCV calibration file (image_width, image_height, camera_matrix, distortion_coefficients) that
 // cv::FileStorage, cv::undistort and LoadCalibrationFile read; `imported_from` is recorded beside them.
-std::string OpenCvCalibrationText(const CameraModel& camera, const std::string& imported_from);
+std::string OpenCvCalibrationText(const model::CameraModel& camera, const std::string& imported_from);
 
 // The largest pixel shift over the image border from setting k3 to zero (what a radtan export loses).
-double DropK3ShiftPx(const CameraModel& camera);
+double DropK3ShiftPx(const model::CameraModel& camera);
 
 // Reads camera `camera_key` (cam0, cam1, ...) of a Kalibr camchain YAML: camera_model pinhole, distortion_model
 // radtan, intrinsics [fu fv pu pv], distortion_coeffs [k1 k2 r1 r2], resolution [w h]. Other models, missing or
-// wrongly sized keys throw model::InputError "PATH: KEY: problem".
-CameraModel ReadKalibrCamchain(const std::string& path, const std::string& camera_key = "cam0");
+// wrongly sized keys throw util::InputError "PATH: KEY: problem".
+model::CameraModel ReadKalibrCamchain(const std::string& path, const std::string& camera_key = "cam0");
 
 }  // namespace topocal::calib

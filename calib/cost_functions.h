@@ -13,9 +13,10 @@
 // fail, which Ceres treats as an infeasible step rather than a NaN.
 #include <ceres/autodiff_cost_function.h>
 #include <ceres/rotation.h>
+
 #include <Eigen/Core>
 
-#include "calib/camera.h"
+#include "model/camera_model.h"
 
 namespace topocal::calib {
 
@@ -57,7 +58,7 @@ struct ReprojectionCost {
     if (!(corner_in_cam[2] > T(0))) return false;
     const T u[2] = {corner_in_cam[0] / corner_in_cam[2], corner_in_cam[1] / corner_in_cam[2]};
     T px[2];
-    CameraModel::NormalizedToPixel(intrinsics, dist, centre, u, px);
+    model::CameraModel::NormalizedToPixel(intrinsics, dist, centre, u, px);
     residual_px[0] = px[0] - T(observed_px_.x());
     residual_px[1] = px[1] - T(observed_px_.y());
     return true;

@@ -10,7 +10,7 @@
 
 namespace topocal::calib {
 
-std::vector<ModelDifferenceSample> ModelDifference(const CameraModel& a, const CameraModel& b,
+std::vector<ModelDifferenceSample> ModelDifference(const model::CameraModel& a, const model::CameraModel& b,
                                                    const CrossValidationOptions& options,
                                                    const std::vector<Eigen::Vector2d>& covered) {
   const double cell_w = static_cast<double>(a.width_px) / options.grid_cols;

@@ -44,7 +44,7 @@ struct CrossValidationResult {
 
 // Differences of two calibrated cameras over a grid of their (common) image, homography removed; with `covered`
 // non-empty, only at grid cells within one cell of one of these pixels.
-std::vector<ModelDifferenceSample> ModelDifference(const CameraModel& a, const CameraModel& b,
+std::vector<ModelDifferenceSample> ModelDifference(const model::CameraModel& a, const model::CameraModel& b,
                                                    const CrossValidationOptions& options = {},
                                                    const std::vector<Eigen::Vector2d>& covered = {});
 

@@ -1,11 +1,11 @@
 #include "calib/detect.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <mutex>
-
-#include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -14,8 +14,8 @@
 #include "calib/checkerboard_detector.h"
 #include "calib/kalibr_grid_detector.h"
 #include "imageio/image_file.h"
-#include "model/io.h"
-#include "model/parallel.h"
+#include "util/io.h"
+#include "util/parallel.h"
 
 namespace topocal::calib {
 
@@ -117,13 +117,13 @@ std::vector<FileDetection> DetectTargetInFiles(const TargetDescription& target, 
   std::vector<FileDetection> out(paths.size());
   std::mutex callback_mutex;
   // Each image is read, detected and released inside its own task: at most `jobs` images are in memory at once.
-  model::ParallelFor(paths.size(), options.jobs, [&](size_t i) {
+  util::ParallelFor(paths.size(), options.jobs, [&](size_t i) {
     FileDetection& f = out[i];
     f.path = paths[i];
     cv::Mat image;
     try {
       image = imageio::ReadImage(f.path, imageio::Channels::kGrey);
-    } catch (const model::InputError& e) {
+    } catch (const util::InputError& e) {
       // The loader's line starts with the path, which the caller prints in front of the reason already.
       const std::string what = e.what();
       f.skipped = what.rfind(f.path + ": ", 0) == 0 ? what.substr(f.path.size() + 2) : what;

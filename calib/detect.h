@@ -62,7 +62,7 @@ DetectionResult DetectTargetDetailed(const TargetDescription& target, const cv::
                                      const DetectionOptions& options = {});
 std::optional<ViewObservations> DetectTarget(const TargetDescription& target, const cv::Mat& image,
                                              const DetectionOptions& options = {});
-// Reads the image (any format cv::imread knows) and detects; sets image_path. Throws model::InputError naming the
+// Reads the image (any format cv::imread knows) and detects; sets image_path. Throws util::InputError naming the
 // file if it cannot be read as an image.
 std::optional<ViewObservations> DetectTargetInFile(const TargetDescription& target, const std::string& image_path,
                                                    const DetectionOptions& options = {});

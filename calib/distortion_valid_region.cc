@@ -16,26 +16,26 @@ struct RayPoint {
   double det_j;  // det d(pixel)/d(normalised): > 0 while the model is one-to-one and orientation-preserving
 };
 
-RayPoint Evaluate(const CameraModel& c, const Eigen::Vector2d& u) {
+RayPoint Evaluate(const model::CameraModel& c, const Eigen::Vector2d& u) {
   const Jet2 in[4] = {Jet2(c.fx_px), Jet2(c.fy_px), Jet2(c.cx_px), Jet2(c.cy_px)};
   Jet2 dist[5];
   for (int i = 0; i < 5; ++i) dist[i] = Jet2(c.dist[static_cast<size_t>(i)]);
   const Jet2 centre[2] = {Jet2(c.distortion_centre.x()), Jet2(c.distortion_centre.y())};
   const Jet2 uj[2] = {Jet2(u.x(), 0), Jet2(u.y(), 1)};
   Jet2 px[2];
-  CameraModel::NormalizedToPixel(in, dist, centre, uj, px);
+  model::CameraModel::NormalizedToPixel(in, dist, centre, uj, px);
   return {{px[0].a, px[1].a}, px[0].v[0] * px[1].v[1] - px[0].v[1] * px[1].v[0]};
 }
 
 }  // namespace
 
-double FarthestSensorPixelPx(const CameraModel& c) {
+double FarthestSensorPixelPx(const model::CameraModel& c) {
   const double dx = std::max(c.cx_px, c.width_px - 1.0 - c.cx_px);
   const double dy = std::max(c.cy_px, c.height_px - 1.0 - c.cy_px);
   return std::hypot(dx, dy);
 }
 
-DistortionValidRegion ValidRegionOf(const CameraModel& c) {
+DistortionValidRegion ValidRegionOf(const model::CameraModel& c) {
   constexpr int kRays = 360;
   constexpr double kBisectionPx = 1e-3;
   const double limit_px = 2.0 * 0.5 * std::hypot(c.width_px, c.height_px);
@@ -79,7 +79,8 @@ DistortionValidRegion ValidRegionOf(const CameraModel& c) {
   return region;
 }
 
-bool InsideValidRegion(const DistortionValidRegion& region, const CameraModel& camera, const Eigen::Vector2d& px) {
+bool InsideValidRegion(const DistortionValidRegion& region, const model::CameraModel& camera,
+                       const Eigen::Vector2d& px) {
   return (px - Eigen::Vector2d(camera.cx_px, camera.cy_px)).norm() <= region.radius_px;
 }
 

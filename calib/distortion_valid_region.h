@@ -10,7 +10,7 @@
 // to a fold, i.e. the largest circle about (cx, cy) inside the valid region. Where no ray folds out to twice the
 // sensor's half-diagonal the model is valid over all of it and radius_px is that search limit (a lower bound).
 // Decision and evidence: docs/exchange.md ("Valid region").
-#include "calib/camera.h"
+#include "model/camera_model.h"
 
 namespace topocal::calib {
 
@@ -19,12 +19,13 @@ struct DistortionValidRegion {
   bool covers_sensor = false;  // every pixel of the width x height sensor lies inside radius_px
 };
 
-DistortionValidRegion ValidRegionOf(const CameraModel& camera);
+DistortionValidRegion ValidRegionOf(const model::CameraModel& camera);
 
 // Whether pixel `px` (OpenCV convention) lies inside the region of `camera`.
-bool InsideValidRegion(const DistortionValidRegion& region, const CameraModel& camera, const Eigen::Vector2d& px);
+bool InsideValidRegion(const DistortionValidRegion& region, const model::CameraModel& camera,
+                       const Eigen::Vector2d& px);
 
 // Distance (px) from the principal point to the sensor's farthest pixel centre.
-double FarthestSensorPixelPx(const CameraModel& camera);
+double FarthestSensorPixelPx(const model::CameraModel& camera);
 
 }  // namespace topocal::calib

@@ -1,5 +1,7 @@
 #include "calib/file_storage.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -7,9 +9,7 @@
 #include <limits>
 #include <string_view>
 
-#include <fmt/format.h>
-
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::calib {
 
@@ -220,18 +220,19 @@ std::string FileStorageYamlLineProblem(const std::string& text) {
 
 cv::FileStorage OpenFileStorage(const std::string& text, const std::string& origin) {
   if (text.size() > kMaxFileStorageBytes) {
-    throw model::InputError(fmt::format("{}: {} bytes: larger than the {} MiB a calibration or target file may have",
-                                        origin, text.size(), kMaxFileStorageBytes >> 20));
+    throw util::InputError(fmt::format("{}: {} bytes: larger than the {} MiB a calibration or target file may have",
+                                       origin, text.size(), kMaxFileStorageBytes >> 20));
   }
-  if (text.find('\0') != std::string::npos) throw model::InputError(fmt::format("{}: a NUL byte: not a text file", origin));
+  if (text.find('\0') != std::string::npos)
+    throw util::InputError(fmt::format("{}: a NUL byte: not a text file", origin));
   if (FileStorageNestingBound(text) > kMaxFileStorageDepth) {
-    throw model::InputError(fmt::format("{}: nested deeper than {} levels", origin, kMaxFileStorageDepth));
+    throw util::InputError(fmt::format("{}: nested deeper than {} levels", origin, kMaxFileStorageDepth));
   }
   if (const std::string bad = FileStorageIntegerOutOfRange(text); !bad.empty()) {
-    throw model::InputError(fmt::format("{}: {}: an integer beyond the range of int", origin, bad));
+    throw util::InputError(fmt::format("{}: {}: an integer beyond the range of int", origin, bad));
   }
   const auto first = text.find_first_not_of(" \t\r\n");
-  if (first == std::string::npos) throw model::InputError(fmt::format("{}: empty file", origin));
+  if (first == std::string::npos) throw util::InputError(fmt::format("{}: empty file", origin));
   // cv::FileStorage reads YAML from memory only after a "%YAML" directive; Kalibr's files have none.
   std::string body = text;
   int format = cv::FileStorage::FORMAT_AUTO;
@@ -242,14 +243,16 @@ cv::FileStorage OpenFileStorage(const std::string& text, const std::string& orig
   } else {
     format = cv::FileStorage::FORMAT_YAML;
     if (const std::string at = FileStorageUnquotedNonAscii(text); !at.empty()) {
-      throw model::InputError(fmt::format("{}: {}: a non-ASCII byte outside a quoted string or comment (keys and "
-                                          "plain values are ASCII; quote the value)",
-                                          origin, at));
+      throw util::InputError(
+          fmt::format("{}: {}: a non-ASCII byte outside a quoted string or comment (keys and "
+                      "plain values are ASCII; quote the value)",
+                      origin, at));
     }
     if (const std::string at = FileStorageYamlLineProblem(text); !at.empty()) {
-      throw model::InputError(fmt::format("{}: {}: not a line of a YAML mapping (\"name: value\", \"- value\", "
-                                          "indented no less than the first key)",
-                                          origin, at));
+      throw util::InputError(
+          fmt::format("{}: {}: not a line of a YAML mapping (\"name: value\", \"- value\", "
+                      "indented no less than the first key)",
+                      origin, at));
     }
     if (text.compare(first, 5, "%YAML") != 0) body = "%YAML:1.0\n---\n" + text;
   }
@@ -262,7 +265,7 @@ cv::FileStorage OpenFileStorage(const std::string& text, const std::string& orig
   ReadFileStorage(origin, fmt::format("valid {}", format_name).c_str(), [&] {
     fs.open(body, cv::FileStorage::READ | cv::FileStorage::MEMORY | format);
   });
-  if (!fs.isOpened()) throw model::InputError(fmt::format("{}: cannot be read as YAML, XML or JSON", origin));
+  if (!fs.isOpened()) throw util::InputError(fmt::format("{}: cannot be read as YAML, XML or JSON", origin));
   return fs;
 }
 

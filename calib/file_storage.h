@@ -7,7 +7,7 @@
 #include <opencv2/core.hpp>
 #include <string>
 
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::calib {
 
@@ -37,7 +37,7 @@ std::string FileStorageUnquotedNonAscii(const std::string& text);
 std::string FileStorageYamlLineProblem(const std::string& text);
 
 // Opens `text` (YAML, with or without the "%YAML:1.0" header Kalibr's files lack; XML; JSON) from memory.
-// Throws model::InputError "ORIGIN: problem" when it is too large, nested too deep or not parseable.
+// Throws util::InputError "ORIGIN: problem" when it is too large, nested too deep or not parseable.
 cv::FileStorage OpenFileStorage(const std::string& text, const std::string& origin);
 
 // Runs `read` (which reads nodes of a storage OpenFileStorage opened) and turns whatever OpenCV throws while it
@@ -49,11 +49,11 @@ auto ReadFileStorage(const std::string& origin, const char* what, Read&& read) -
   const auto fail = [&](std::string why) -> decltype(read()) {
     for (char& c : why) c = c == '\n' ? ' ' : c;
     if (why.size() > 100) why = why.substr(0, 97) + "...";
-    throw model::InputError(origin + ": not readable as " + what + " (" + why + ")");
+    throw util::InputError(origin + ": not readable as " + what + " (" + why + ")");
   };
   try {
     return read();
-  } catch (const model::InputError&) {
+  } catch (const util::InputError&) {
     throw;
   } catch (const cv::Exception& e) {
     return fail(e.err);

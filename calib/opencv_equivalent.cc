@@ -19,7 +19,7 @@ struct OpenCvFitCost {
     const T zero[2] = {T(0), T(0)};
     const T u[2] = {T(u_.x()), T(u_.y())};
     T px[2];
-    CameraModel::NormalizedToPixel(intrinsics, dist, zero, u, px);
+    model::CameraModel::NormalizedToPixel(intrinsics, dist, zero, u, px);
     residual[0] = px[0] - T(px_.x());
     residual[1] = px[1] - T(px_.y());
     return true;
@@ -32,7 +32,7 @@ struct OpenCvFitCost {
 
 }  // namespace
 
-std::optional<OpenCvEquivalent> ToOpenCvModel(const CameraModel& camera) {
+std::optional<OpenCvEquivalent> ToOpenCvModel(const model::CameraModel& camera) {
   OpenCvEquivalent out;
   out.camera = camera;
   if (camera.distortion_centre.isZero(0)) return out;

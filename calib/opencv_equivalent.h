@@ -10,17 +10,17 @@
 // remaining pixel difference is reported so nobody has to trust the approximation blindly.
 #include <optional>
 
-#include "calib/camera.h"
+#include "model/camera_model.h"
 
 namespace topocal::calib {
 
 struct OpenCvEquivalent {
-  CameraModel camera;           // distortion_centre == 0
+  model::CameraModel camera;    // distortion_centre == 0
   double max_error_px = 0;      // over the grid of pixels, |projection(topocal) - projection(OpenCV)|
 };
 
 // Exact copy when the centre is zero. Pixels whose ray does not exist (beyond the fold of strong barrel distortion)
 // are left out of the fit; nullopt if that is more than half of the image or the fit fails.
-std::optional<OpenCvEquivalent> ToOpenCvModel(const CameraModel& camera);
+std::optional<OpenCvEquivalent> ToOpenCvModel(const model::CameraModel& camera);
 
 }  // namespace topocal::calib

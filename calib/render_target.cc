@@ -112,7 +112,7 @@ bool RenderOptions::IsValid(std::string* why) const {
   return true;
 }
 
-std::optional<RenderedView> RenderTarget(const TargetDescription& target, const CameraModel& camera,
+std::optional<RenderedView> RenderTarget(const TargetDescription& target, const model::CameraModel& camera,
                                          const CamFromTarget& pose, const RenderOptions& options, std::string* why) {
   if (!options.IsValid(why)) return std::nullopt;
   const int width = camera.width_px, height = camera.height_px;
@@ -221,8 +221,8 @@ std::optional<RenderedView> RenderTarget(const TargetDescription& target, const 
         du_dpx.col(1) = (1 - s) * (u01 - u00) + s * (u11 - u10);
         for (int step = 0; step < kSubSampleNewtonSteps; ++step) {
           Eigen::Vector2d px;
-          CameraModel::NormalizedToPixel(intrinsics, camera.dist.data(), camera.distortion_centre.data(), u.data(),
-                                         px.data());
+          model::CameraModel::NormalizedToPixel(intrinsics, camera.dist.data(), camera.distortion_centre.data(),
+                                                u.data(), px.data());
           u += du_dpx * (target_px - px);
         }
         sum += grey_of_ray(u);

@@ -15,17 +15,16 @@
 // Seeded Gaussian noise (grey levels) is added and the result is rounded to 8 bits.
 //
 // Truth: the corner positions are CameraModel::Project(cam_from_target * corner) — exact, OpenCV pixel convention.
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
+#include <opencv2/core/mat.hpp>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include <Eigen/Core>
-#include <Eigen/Geometry>
-#include <opencv2/core/mat.hpp>
-
-#include "calib/camera.h"
 #include "calib/target.h"
+#include "model/camera_model.h"
 
 namespace topocal::calib {
 
@@ -76,7 +75,7 @@ std::string CornerTruthCsv(const RenderedView& view);
 cv::Mat AddSensorNoise(const cv::Mat& irradiance, double noise_grey, uint32_t seed);
 
 // nullopt when the options or the camera are invalid (why says which).
-std::optional<RenderedView> RenderTarget(const TargetDescription& target, const CameraModel& camera,
+std::optional<RenderedView> RenderTarget(const TargetDescription& target, const model::CameraModel& camera,
                                          const CamFromTarget& pose, const RenderOptions& options,
                                          std::string* why = nullptr);
 

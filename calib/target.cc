@@ -1,15 +1,15 @@
 #include "calib/target.h"
 
+#include <fmt/format.h>
+
 #include <cctype>
 #include <cmath>
-#include <set>
-
-#include <fmt/format.h>
 #include <opencv2/aruco/dictionary.hpp>
 #include <opencv2/core.hpp>
+#include <set>
 
 #include "calib/file_storage.h"
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::calib {
 namespace {
@@ -79,7 +79,7 @@ class StrictMap {
     }
   }
   [[noreturn]] void Fail(const std::string& key, const std::string& problem) const {
-    throw model::InputError(fmt::format("{}: {}: {}", name_, key, problem));
+    throw util::InputError(fmt::format("{}: {}: {}", name_, key, problem));
   }
 
  private:
@@ -190,11 +190,11 @@ int ArucoDictionarySize(int dictionary_id) {
 TargetDescription ParseTargetDescription(std::string_view yaml_text, const std::string& name) {
   const std::string text(yaml_text);
   if (text.find_first_not_of(" \t\r\n") == std::string::npos) {
-    throw model::InputError(fmt::format("{}: empty target description", name));
+    throw util::InputError(fmt::format("{}: empty target description", name));
   }
   const cv::FileStorage fs = OpenFileStorage(text, name);
   if (!fs.isOpened() || !fs.root().isMap()) {
-    throw model::InputError(fmt::format("{}: not a YAML mapping of target keys", name));
+    throw util::InputError(fmt::format("{}: not a YAML mapping of target keys", name));
   }
   return ReadFileStorage(name, "a target description", [&] {
     StrictMap map(fs.root(), name);
@@ -216,7 +216,7 @@ TargetDescription ParseTargetDescription(std::string_view yaml_text, const std::
 }
 
 TargetDescription LoadTargetDescription(const std::string& path) {
-  return ParseTargetDescription(model::ReadFile(path), path);
+  return ParseTargetDescription(util::ReadFile(path), path);
 }
 
 std::vector<int> TargetDescription::CornerIds() const {

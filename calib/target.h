@@ -14,7 +14,7 @@
 //                                             firstTagId: 0          # topocal: optional, default 0
 //                                             tagBorderBits: 2       # topocal: optional, 2 (Kalibr) or 1
 //
-// Parsing is strict: a missing, unknown, wrongly typed or non-positive key is a model::InputError
+// Parsing is strict: a missing, unknown, wrongly typed or non-positive key is a util::InputError
 // "FILE: KEY: problem". A leading "%YAML:1.0" line is optional (plain Kalibr files are accepted).
 //
 // Target frame (mm): z = 0 is the printed plane, x to the right and y DOWN as the target is printed and seen from
@@ -148,9 +148,9 @@ struct TargetDescription {
   std::string Describe() const;
 };
 
-// Parses a target description (YAML text); `name` is used in error messages. Throws model::InputError.
+// Parses a target description (YAML text); `name` is used in error messages. Throws util::InputError.
 TargetDescription ParseTargetDescription(std::string_view yaml_text, const std::string& name);
-// Reads and parses a target description file. Throws model::InputError "PATH: KEY: problem".
+// Reads and parses a target description file. Throws util::InputError "PATH: KEY: problem".
 TargetDescription LoadTargetDescription(const std::string& path);
 
 }  // namespace topocal::calib

@@ -10,8 +10,8 @@
 #include <stdexcept>
 
 #include "calib/apriltag_raii.h"
-#include "model/io.h"
 #include "plot/paper_svg.h"
+#include "util/io.h"
 
 namespace topocal::calib {
 namespace {
@@ -198,20 +198,20 @@ void WriteTargetDrawing(const TargetDescription& target, const std::string& path
   std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
   if (ext == ".svg") {
-    model::WriteFileAtomic(path, TargetSvg(target));
+    util::WriteFileAtomic(path, TargetSvg(target));
     return;
   }
-  if (ext != ".png") throw model::InputError(fmt::format("{}: output must end in .svg or .png", path));
-  if (!std::isfinite(dpi) || dpi <= 0) throw model::InputError(fmt::format("--dpi: must be positive, got {}", dpi));
+  if (ext != ".png") throw util::InputError(fmt::format("{}: output must end in .svg or .png", path));
+  if (!std::isfinite(dpi) || dpi <= 0) throw util::InputError(fmt::format("--dpi: must be positive, got {}", dpi));
   const cv::Mat image = RasterizeTarget(target, dpi);
   if (image.empty()) {
-    throw model::InputError(fmt::format("{}: {} at {} dpi is too large a raster (use SVG or a lower --dpi)", path,
-                                        target.Describe(), dpi));
+    throw util::InputError(
+        fmt::format("{}: {} at {} dpi is too large a raster (use SVG or a lower --dpi)", path, target.Describe(), dpi));
   }
   std::vector<uchar> png;
   // PNG's pHYs chunk is not written by OpenCV; the physical size comes from the dpi the user prints at.
-  if (!cv::imencode(".png", image, png)) throw model::InputError(fmt::format("{}: cannot encode PNG", path));
-  model::WriteFileAtomic(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  if (!cv::imencode(".png", image, png)) throw util::InputError(fmt::format("{}: cannot encode PNG", path));
+  util::WriteFileAtomic(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
 }
 
 }  // namespace topocal::calib

@@ -45,7 +45,7 @@ std::string TargetSvg(const TargetDescription& target);
 // 8-bit raster of the paper at `dpi` (0 black, 255 white). Each pixel takes the ink at its centre.
 // Returns an empty Mat when the raster would exceed max_side_px on a side.
 cv::Mat RasterizeTarget(const TargetDescription& target, double dpi, int max_side_px = 30000);
-// Writes .svg or .png (by extension, case-insensitive) atomically. Throws model::InputError on a bad path,
+// Writes .svg or .png (by extension, case-insensitive) atomically. Throws util::InputError on a bad path,
 // extension or dpi.
 void WriteTargetDrawing(const TargetDescription& target, const std::string& path, double dpi);
 

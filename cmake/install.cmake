@@ -6,7 +6,7 @@ include(CMakePackageConfigHelpers)
 
 set(TOPOCAL_INSTALL_DATADIR ${CMAKE_INSTALL_DATADIR}/topocal/data)
 set(TOPOCAL_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/topocal)
-set(TOPOCAL_MODULES model imageio plot calib correct topo pipeline report)
+set(TOPOCAL_MODULES util model imageio plot calib correct topo pipeline harness report)
 
 foreach(module ${TOPOCAL_MODULES})
   set_target_properties(topocal_${module} PROPERTIES EXPORT_NAME ${module})
@@ -20,7 +20,7 @@ endforeach()
 list(TRANSFORM TOPOCAL_MODULES PREPEND topocal_ OUTPUT_VARIABLE TOPOCAL_LIBRARY_TARGETS)
 install(TARGETS ${TOPOCAL_LIBRARY_TARGETS} EXPORT topocalTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev)
-install(FILES ${PROJECT_BINARY_DIR}/generated/model/version.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/topocal/model
+install(FILES ${PROJECT_BINARY_DIR}/generated/util/version.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/topocal/util
         COMPONENT dev)
 install(TARGETS topocal RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT cli)
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/data/ DESTINATION ${TOPOCAL_INSTALL_DATADIR} COMPONENT cli)

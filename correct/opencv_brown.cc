@@ -6,7 +6,7 @@
 
 namespace topocal::correct {
 
-BrownOnDetectionPlane BrownFromOpenCv(const OpenCvCamera& k, const model::TopographerCamera& camera) {
+BrownOnDetectionPlane BrownFromOpenCv(const model::CameraModel& k, const model::TopographerCamera& camera) {
   const auto fail = [](std::string m) {
     BrownOnDetectionPlane failed;
     failed.message = std::move(m);
@@ -16,10 +16,6 @@ BrownOnDetectionPlane BrownFromOpenCv(const OpenCvCamera& k, const model::Topogr
     return fail(fmt::format("focal lengths must be > 0 (fx = {}, fy = {})", k.fx_px, k.fy_px));
   }
   if (!std::isfinite(k.cx_px) || !std::isfinite(k.cy_px)) return fail("principal point must be finite");
-  if (k.dist.size() != 4 && k.dist.size() != 5) {
-    return fail(fmt::format("{} distortion coefficients: topocal's Brown model takes 4 or 5 (k1, k2, p1, p2[, k3])",
-                            k.dist.size()));
-  }
   for (const double d : k.dist) {
     if (!std::isfinite(d)) return fail("distortion coefficients must be finite");
   }
@@ -27,15 +23,15 @@ BrownOnDetectionPlane BrownFromOpenCv(const OpenCvCamera& k, const model::Topogr
   const Eigen::Matrix2d mt = camera.Orientation().transpose();
   const double p = camera.PitchMm();
   out.brown.focal_mm = std::sqrt(k.fx_px * k.fy_px) * p;
-  if (!std::isfinite(k.centre_x) || !std::isfinite(k.centre_y)) return fail("distortion centre must be finite");
+  if (!k.distortion_centre.allFinite()) return fail("distortion centre must be finite");
   const Eigen::Vector2d centre_mm =
-      p * (mt * Eigen::Vector2d(k.cx_px - camera.principal_point_px.x() + k.fx_px * k.centre_x,
-                                k.cy_px - camera.principal_point_px.y() + k.fy_px * k.centre_y));
+      p * (mt * Eigen::Vector2d(k.cx_px - camera.principal_point_px.x() + k.fx_px * k.distortion_centre.x(),
+                                k.cy_px - camera.principal_point_px.y() + k.fy_px * k.distortion_centre.y()));
   out.brown.centre_x_mm = centre_mm.x();
   out.brown.centre_y_mm = centre_mm.y();
   // The tangential terms are r^2 q + 2 (n.q) n with q = (p2, p1): q turns with the frame, q_mm = M^T q_cv.
   const Eigen::Vector2d q_mm = mt * Eigen::Vector2d(k.dist[3], k.dist[2]);
-  out.brown.k = {k.dist[0], k.dist[1], q_mm.y(), q_mm.x(), k.dist.size() == 5 ? k.dist[4] : 0.0};
+  out.brown.k = {k.dist[0], k.dist[1], q_mm.y(), q_mm.x(), k.dist[4]};
   out.aspect_error = std::abs(k.fx_px / k.fy_px - 1.0);
   out.ok = true;
   return out;

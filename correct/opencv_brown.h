@@ -11,20 +11,12 @@
 // |f_x / f_y - 1| / 2 times the distortion displacement — reported as `aspect_error` so callers can refuse it.
 #include <optional>
 #include <string>
-#include <vector>
 
+#include "model/camera_model.h"
 #include "model/distortion.h"
 #include "model/topographer_camera.h"
 
 namespace topocal::correct {
-
-struct OpenCvCamera {
-  double fx_px = 0, fy_px = 0, cx_px = 0, cy_px = 0;
-  std::vector<double> dist;  // k1, k2, p1, p2[, k3] (4 or 5 values; more is a model topocal does not have)
-  // Centre of the radial distortion, OpenCV-normalised units relative to (cx, cy); 0 = OpenCV's own model
-  // (topocal's calibration may fit it: calib/camera.h).
-  double centre_x = 0, centre_y = 0;
-};
 
 struct BrownOnDetectionPlane {
   bool ok = false;
@@ -33,8 +25,8 @@ struct BrownOnDetectionPlane {
   double aspect_error = 0;  // |f_x / f_y - 1|
 };
 
-// !ok with the reason in `message` for an unsupported coefficient count, a non-positive focal length or a value that
+// !ok with the reason in `message` for a non-positive focal length or a value that
 // is not finite (the camera file's content: the caller names the file and turns it into bad input).
-BrownOnDetectionPlane BrownFromOpenCv(const OpenCvCamera& cv_camera, const model::TopographerCamera& camera);
+BrownOnDetectionPlane BrownFromOpenCv(const model::CameraModel& cv_camera, const model::TopographerCamera& camera);
 
 }  // namespace topocal::correct

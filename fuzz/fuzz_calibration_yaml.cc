@@ -5,7 +5,7 @@
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     topocal::calib::ParseCalibrationFile(topocal::fuzz::Text(data, size), "calibration.yaml");
-  } catch (const topocal::model::InputError&) {
+  } catch (const topocal::util::InputError&) {
   }
   return 0;
 }

@@ -8,11 +8,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string text = topocal::fuzz::Text(data, size);
   try {
     topocal::model::ParseTopographerCamera(text, "camera.json");
-  } catch (const topocal::model::InputError&) {
+  } catch (const topocal::util::InputError&) {
   }
   try {
     topocal::model::ParseDevice(text, "device.json");
-  } catch (const topocal::model::InputError&) {
+  } catch (const topocal::util::InputError&) {
   }
   return 0;
 }

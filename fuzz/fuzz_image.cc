@@ -1,11 +1,11 @@
 // libFuzzer target: the one image loader (imageio::DecodeImage, what ReadImage runs on a file's bytes). Any input
-// must give an image or a model::InputError, never a crash, a hang or an allocation beyond the pixel limit.
+// must give an image or a util::InputError, never a crash, a hang or an allocation beyond the pixel limit.
 #include <cstddef>
 #include <cstdint>
 #include <string_view>
 
 #include "imageio/image_file.h"
-#include "model/io.h"
+#include "util/io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace topocal;
@@ -17,7 +17,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     try {
       const auto image = imageio::DecodeImage(bytes, channels, "fuzz-input", limits);
       if (image.empty() || static_cast<std::int64_t>(image.total()) > limits.max_pixels) __builtin_trap();
-    } catch (const model::InputError&) {
+    } catch (const util::InputError&) {
     }
   }
   return 0;

@@ -7,7 +7,7 @@
 #include <filesystem>
 #include <string>
 
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::fuzz {
 
@@ -26,7 +26,7 @@ inline const std::filesystem::path& ScratchDir() {
 // Writes the input to ScratchDir()/name and returns the path.
 inline std::string InputFile(const std::string& name, const uint8_t* data, size_t size) {
   const std::string path = (ScratchDir() / name).string();
-  model::WriteFileAtomic(path, Text(data, size));
+  util::WriteFileAtomic(path, Text(data, size));
   return path;
 }
 

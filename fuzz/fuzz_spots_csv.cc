@@ -5,7 +5,7 @@
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     topocal::model::ReadSpotsCsv(topocal::fuzz::InputFile("spots.csv", data, size));
-  } catch (const topocal::model::InputError&) {
+  } catch (const topocal::util::InputError&) {
   }
   return 0;
 }

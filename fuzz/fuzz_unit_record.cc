@@ -8,10 +8,10 @@
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const auto dir = topocal::fuzz::ScratchDir() / "record";
   std::filesystem::create_directories(dir);
-  topocal::model::WriteFileAtomic((dir / "unit.json").string(), topocal::fuzz::Text(data, size));
+  topocal::util::WriteFileAtomic((dir / "unit.json").string(), topocal::fuzz::Text(data, size));
   try {
     topocal::report::ReadUnitRecord(dir.string());
-  } catch (const topocal::model::InputError&) {
+  } catch (const topocal::util::InputError&) {
   }
   return 0;
 }

@@ -1,17 +1,17 @@
 #include "imageio/image_file.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <vector>
-
-#include <fmt/format.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <vector>
 
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::imageio {
 namespace {
@@ -60,10 +60,11 @@ std::optional<StoredSize> ProbeJpeg(std::string_view b) noexcept {
 }
 
 void CheckPixels(std::int64_t width, std::int64_t height, const std::string& name, const ImageLimits& limits) {
-  if (width <= 0 || height <= 0) throw model::InputError(fmt::format("{}: the image declares a size of {} x {} px", name, width, height));
+  if (width <= 0 || height <= 0)
+    throw util::InputError(fmt::format("{}: the image declares a size of {} x {} px", name, width, height));
   if (width * height > limits.max_pixels) {
-    throw model::InputError(fmt::format("{}: {} x {} px is over the {} Mpx an image may have", name, width, height,
-                                        limits.max_pixels / 1'000'000));
+    throw util::InputError(fmt::format("{}: {} x {} px is over the {} Mpx an image may have", name, width, height,
+                                       limits.max_pixels / 1'000'000));
   }
 }
 
@@ -75,9 +76,10 @@ std::optional<StoredSize> ProbeStoredSize(std::string_view bytes) noexcept {
 }
 
 cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string& name, const ImageLimits& limits) {
-  if (bytes.empty()) throw model::InputError(fmt::format("{}: empty file, not an image", name));
+  if (bytes.empty()) throw util::InputError(fmt::format("{}: empty file, not an image", name));
   if (bytes.size() > limits.max_file_bytes) {
-    throw model::InputError(fmt::format("{}: over the {} MiB an image file may have", name, limits.max_file_bytes >> 20));
+    throw util::InputError(
+        fmt::format("{}: over the {} MiB an image file may have", name, limits.max_file_bytes >> 20));
   }
   if (const auto stored = ProbeStoredSize(bytes)) CheckPixels(stored->width_px, stored->height_px, name, limits);
   cv::Mat image;
@@ -85,12 +87,13 @@ cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string
     const cv::Mat buffer(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data()));
     image = cv::imdecode(buffer, channels == Channels::kGrey ? cv::IMREAD_GRAYSCALE : cv::IMREAD_UNCHANGED);
   } catch (const cv::Exception& e) {
-    throw model::InputError(fmt::format("{}: cannot be read as an image ({})", name, e.err));
+    throw util::InputError(fmt::format("{}: cannot be read as an image ({})", name, e.err));
   } catch (const std::exception& e) {  // std::bad_alloc from a codec and the like
-    throw model::InputError(fmt::format("{}: cannot be read as an image ({})", name, e.what()));
+    throw util::InputError(fmt::format("{}: cannot be read as an image ({})", name, e.what()));
   }
   if (image.empty()) {
-    throw model::InputError(fmt::format("{}: cannot be read as an image (not a format OpenCV decodes, or truncated)", name));
+    throw util::InputError(
+        fmt::format("{}: cannot be read as an image (not a format OpenCV decodes, or truncated)", name));
   }
   CheckPixels(image.cols, image.rows, name, limits);
   return image;
@@ -98,9 +101,10 @@ cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string
 
 std::string ReadImageBytes(const std::string& path, const ImageLimits& limits) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw model::InputError(fmt::format("{}: cannot be opened for reading: {}", path, std::strerror(errno)));
+  if (!in) throw util::InputError(fmt::format("{}: cannot be opened for reading: {}", path, std::strerror(errno)));
   const auto too_large = [&] {
-    return model::InputError(fmt::format("{}: over the {} MiB an image file may have", path, limits.max_file_bytes >> 20));
+    return util::InputError(
+        fmt::format("{}: over the {} MiB an image file may have", path, limits.max_file_bytes >> 20));
   };
   // A regular file of known size is refused before reading and otherwise read in one piece (appending 1 MiB chunks
   // to a growing string copied a 17 MB image about three times: issue 15).
@@ -112,7 +116,7 @@ std::string ReadImageBytes(const std::string& path, const ImageLimits& limits) {
     bytes.resize(static_cast<size_t>(size));
     in.read(bytes.data(), static_cast<std::streamsize>(size));
     if (in.bad() || in.gcount() != static_cast<std::streamsize>(size)) {
-      throw model::InputError(fmt::format("{}: read error", path));
+      throw util::InputError(fmt::format("{}: read error", path));
     }
   }
   // Anything else (a pipe), and whatever a file grew by while being read: read at most one byte more than allowed,
@@ -123,7 +127,7 @@ std::string ReadImageBytes(const std::string& path, const ImageLimits& limits) {
     bytes.append(chunk.data(), static_cast<size_t>(in.gcount()));
     if (bytes.size() > limits.max_file_bytes) throw too_large();
   }
-  if (in.bad()) throw model::InputError(fmt::format("{}: read error", path));
+  if (in.bad()) throw util::InputError(fmt::format("{}: read error", path));
   return bytes;
 }
 
@@ -133,8 +137,8 @@ cv::Mat ReadImage(const std::string& path, Channels channels, const ImageLimits&
 
 void RequireSize(const cv::Mat& image, const std::string& path, int width_px, int height_px, const std::string& source) {
   if (image.cols != width_px || image.rows != height_px) {
-    throw model::InputError(fmt::format("{}: the image is {} x {} px but {} says {} x {} px", path, image.cols,
-                                        image.rows, source, width_px, height_px));
+    throw util::InputError(fmt::format("{}: the image is {} x {} px but {} says {} x {} px", path, image.cols,
+                                       image.rows, source, width_px, height_px));
   }
 }
 

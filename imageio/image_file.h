@@ -1,7 +1,7 @@
 #pragma once
 // The one image loader (issue 16). Every image file topocal reads — calibration views, spot images, reference
 // balls — goes through ReadImage, which
-//  - names the file in every error (model::InputError, one line): missing, unreadable, too large, not an image,
+//  - names the file in every error (util::InputError, one line): missing, unreadable, too large, not an image,
 //    truncated, or not the size the camera file says;
 //  - refuses a file over max_file_bytes before reading it, and an image over max_pixels from its header before
 //    decoding it (PNG and JPEG headers are read here; other formats are checked once decoded, under OpenCV's own
@@ -38,15 +38,15 @@ struct StoredSize {
 // The image size a PNG or JPEG declares in its header; nullopt for other formats or when no header is found.
 std::optional<StoredSize> ProbeStoredSize(std::string_view bytes) noexcept;
 
-// Decodes an image held in memory; `name` names it in errors. Throws model::InputError.
+// Decodes an image held in memory; `name` names it in errors. Throws util::InputError.
 cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string& name, const ImageLimits& limits = {});
-// An image file's bytes, undecoded, refused (model::InputError naming the path) when it cannot be read or is over
+// An image file's bytes, undecoded, refused (util::InputError naming the path) when it cannot be read or is over
 // limits.max_file_bytes (checked before reading a regular file, while streaming anything else). For callers that
 // also hash the file (the unit record's provenance): read once, then Sha256Hex and DecodeImage on the same bytes.
 std::string ReadImageBytes(const std::string& path, const ImageLimits& limits = {});
-// Reads and decodes an image file: DecodeImage(ReadImageBytes(path)). Throws model::InputError naming the path.
+// Reads and decodes an image file: DecodeImage(ReadImageBytes(path)). Throws util::InputError naming the path.
 cv::Mat ReadImage(const std::string& path, Channels channels, const ImageLimits& limits = {});
-// Throws model::InputError unless `image` is width_px x height_px, naming the path and where the size comes from.
+// Throws util::InputError unless `image` is width_px x height_px, naming the path and where the size comes from.
 void RequireSize(const cv::Mat& image, const std::string& path, int width_px, int height_px, const std::string& source);
 
 }  // namespace topocal::imageio

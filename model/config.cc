@@ -1,25 +1,25 @@
 #include "model/config.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <cstdint>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
 
-#include <fmt/format.h>
-#include <nlohmann/json.hpp>
-
 #include "model/distortion.h"
-#include "model/json_section.h"
 #include "model/null_screen.h"
 #include "model/surface.h"
+#include "util/json_section.h"
 
 namespace topocal::model {
 namespace {
 
 using nlohmann::json;
 
-using Section = JsonSection;
+using Section = util::JsonSection;
 
 // The largest null-screen design a configuration may ask for: 160 times the paper's 624 spots, far denser than a
 // sensor resolves (issue 18's denser screens stay well below it), small enough to design in well under a second.
@@ -111,7 +111,8 @@ void ParseDistortion(Section s, DistortionSweep& p) {
   p.sigmas_per_mm2.clear();
   for (size_t i = 0; i < sig.size(); ++i) {
     if (!sig[i].is_number() || !std::isfinite(sig[i].get<double>())) {
-      s.Fail(fmt::format("{}[{}]", s.Key("sigmas_per_mm2"), i), fmt::format("must be a finite number (got {})", QuoteJsonValue(sig[i])));
+      s.Fail(fmt::format("{}[{}]", s.Key("sigmas_per_mm2"), i),
+             fmt::format("must be a finite number (got {})", util::QuoteJsonValue(sig[i])));
     }
     p.sigmas_per_mm2.push_back(sig[i].get<double>());
   }
@@ -124,9 +125,10 @@ void CheckSigmas(const Config& c) {
   for (size_t i = 0; i < c.distortion.sigmas_per_mm2.size(); ++i) {
     const double sigma = c.distortion.sigmas_per_mm2[i];
     if (!(std::abs(sigma) < max) && sigma != 0) {
-      throw ConfigError(fmt::format("{}: distortion.sigmas_per_mm2[{}]: |{}| mm^-2 folds the image (must be below "
-                                    "{:.3g} for rhoN_mm and MT; docs/robustness.md)",
-                                    c.path, i, sigma, max));
+      throw util::ConfigError(
+          fmt::format("{}: distortion.sigmas_per_mm2[{}]: |{}| mm^-2 folds the image (must be below "
+                      "{:.3g} for rhoN_mm and MT; docs/robustness.md)",
+                      c.path, i, sigma, max));
     }
   }
 }
@@ -187,9 +189,9 @@ void CheckGeometry(const Config& c) {
   const auto design = DesignNullScreen(c.ideal_image, c.topographer);
   if (!design.failures.empty()) {
     const auto& f = design.failures.front();
-    throw ConfigError(fmt::format("{}: topographer: {} of {} spots cannot be designed (first: ring {} index {}: {})",
-                                  c.path, design.failures.size(), c.ideal_image.SpotCount(), f.id.ring, f.id.index,
-                                  f.reason));
+    throw util::ConfigError(
+        fmt::format("{}: topographer: {} of {} spots cannot be designed (first: ring {} index {}: {})", c.path,
+                    design.failures.size(), c.ideal_image.SpotCount(), f.id.ring, f.id.index, f.reason));
   }
   double landing_mm = 0;
   for (const auto& t : design.targets) landing_mm = std::max(landing_mm, t.on_sphere_mm.head<2>().norm());
@@ -200,9 +202,10 @@ void CheckGeometry(const Config& c) {
   if (b.DefinedRadiusMm() < needed_mm) {
     const double qx = (1 + c.cornea.kx) / (c.cornea.rx_mm * c.cornea.rx_mm);
     const double qy = (1 + c.cornea.ky) / (c.cornea.ry_mm * c.cornea.ry_mm);
-    throw ConfigError(fmt::format("{}: cornea.{}: the biconic is undefined beyond rho = {:.3f} mm but rays land out "
-                                  "to {:.3f} mm (conic constant too large for its radius)",
-                                  c.path, qx >= qy ? "kx" : "ky", b.DefinedRadiusMm(), needed_mm));
+    throw util::ConfigError(
+        fmt::format("{}: cornea.{}: the biconic is undefined beyond rho = {:.3f} mm but rays land out "
+                    "to {:.3f} mm (conic constant too large for its radius)",
+                    c.path, qx >= qy ? "kx" : "ky", b.DefinedRadiusMm(), needed_mm));
   }
 }
 
@@ -215,7 +218,7 @@ double MaxFoldFreeSigmaPerMm2(const IdealImageParams& image, const DistortionSwe
 }
 
 Config ParseConfig(const std::string& json_text, const std::string& origin) {
-  const json j = ParseJsonStrict(json_text, origin);
+  const json j = util::ParseJsonStrict(json_text, origin);
   Config c;
   c.path = origin;
   Section top(j, origin, "");
@@ -232,10 +235,10 @@ Config ParseConfig(const std::string& json_text, const std::string& origin) {
 
 Config LoadConfig(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw ConfigError(fmt::format("{}: (file): cannot be opened for reading", path));
+  if (!in) throw util::ConfigError(fmt::format("{}: (file): cannot be opened for reading", path));
   std::ostringstream ss;
   ss << in.rdbuf();
-  if (in.bad()) throw ConfigError(fmt::format("{}: (file): read error", path));
+  if (in.bad()) throw util::ConfigError(fmt::format("{}: (file): read error", path));
   return ParseConfig(ss.str(), path);
 }
 

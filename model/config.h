@@ -12,16 +12,9 @@
 #include <vector>
 
 #include "model/distortion.h"
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::model {
-
-// Bad input in a configuration-like file (JSON or YAML the user wrote): a kind of model::InputError, so that every
-// reader's bad input is caught, and reported with exit 2, the same way.
-class ConfigError : public InputError {
- public:
-  using InputError::InputError;
-};
 
 struct IdealImageParams {
   double rho0_mm = 0.031;  // radius of the first ring (Table I)

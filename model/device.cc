@@ -1,12 +1,12 @@
 #include "model/device.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <set>
 
-#include <fmt/format.h>
-
-#include "model/io.h"
-#include "model/json_section.h"
+#include "util/io.h"
+#include "util/json_section.h"
 
 namespace topocal::model {
 
@@ -91,13 +91,13 @@ constexpr int kFormatVersion = 1;
 constexpr const char* kFormat = "topocal-device";
 
 // The distortion centre, optional in both models.
-Eigen::Vector2d CentreMm(JsonSection& s) {
+Eigen::Vector2d CentreMm(util::JsonSection& s) {
   if (!s.Has("centre_mm")) return Eigen::Vector2d::Zero();
   const auto c = s.Numbers("centre_mm", 2);
   return {c[0], c[1]};
 }
 
-Distortion ParseDistortion(JsonSection s, double a_mm) {
+Distortion ParseDistortion(util::JsonSection s, double a_mm) {
   const std::string model = s.String("model");
   if (model == "seidel") {
     SeidelParams p;
@@ -130,7 +130,7 @@ Distortion ParseDistortion(JsonSection s, double a_mm) {
   s.Fail(s.Key("model"), fmt::format("must be \"seidel\" or \"brown\" (got \"{}\")", model.substr(0, 60)));
 }
 
-ScreenPose ParseScreenPose(JsonSection s) {
+ScreenPose ParseScreenPose(util::JsonSection s) {
   ScreenPose p;
   p.rx_deg = s.InRange("rx_deg", 0.0, -kMaxRotationDeg, kMaxRotationDeg);
   p.ry_deg = s.InRange("ry_deg", 0.0, -kMaxRotationDeg, kMaxRotationDeg);
@@ -162,12 +162,13 @@ std::optional<std::string> Device::Invalid() const {
 }
 
 DeviceFile ParseDevice(const std::string& json_text, const std::string& origin) {
-  const json j = ParseJsonStrict(json_text, origin);
-  JsonSection top(j, origin, "");
+  const json j = util::ParseJsonStrict(json_text, origin);
+  util::JsonSection top(j, origin, "");
   if (top.String("format") != kFormat) top.Fail("format", fmt::format("must be \"{}\"", kFormat));
   const json& version = top.Get("format_version");
   if (!version.is_number_integer() || version.get<long long>() != kFormatVersion) {
-    top.Fail("format_version", fmt::format("this topocal reads version {} (got {})", kFormatVersion, QuoteJsonValue(version)));
+    top.Fail("format_version",
+             fmt::format("this topocal reads version {} (got {})", kFormatVersion, util::QuoteJsonValue(version)));
   }
   DeviceFile out;
   out.device.camera = CameraFromJson(top.Get("camera"), origin, "camera");
@@ -179,11 +180,11 @@ DeviceFile ParseDevice(const std::string& json_text, const std::string& origin) 
     if (!out.calibration.is_object()) top.Fail("calibration", "must be a JSON object");
   }
   top.RejectUnknown();
-  if (const auto why = out.device.Invalid()) throw InputError(fmt::format("{}: {}", origin, *why));
+  if (const auto why = out.device.Invalid()) throw util::InputError(fmt::format("{}: {}", origin, *why));
   return out;
 }
 
-DeviceFile LoadDevice(const std::string& path) { return ParseDevice(ReadFile(path), path); }
+DeviceFile LoadDevice(const std::string& path) { return ParseDevice(util::ReadFile(path), path); }
 
 std::string DeviceToJson(const Device& device, const json& calibration) {
   json j;

@@ -1,17 +1,17 @@
 #include "model/spots_csv.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <set>
 #include <sstream>
 
-#include <fmt/format.h>
-
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::model {
 
 std::vector<SpotRow> ReadSpotsCsv(const std::string& path) {
-  const std::string text = model::ReadFile(path);
+  const std::string text = util::ReadFile(path);
   std::istringstream in(text);
   std::string line;
   int line_no = 0;
@@ -24,7 +24,7 @@ std::vector<SpotRow> ReadSpotsCsv(const std::string& path) {
     if (line.empty() || line[0] == '#') continue;
     if (!header) {
       if (line != "ring,index,x_mm,y_mm") {
-        throw model::InputError(fmt::format("{}:{}: expected header 'ring,index,x_mm,y_mm'", path, line_no));
+        throw util::InputError(fmt::format("{}:{}: expected header 'ring,index,x_mm,y_mm'", path, line_no));
       }
       header = true;
       continue;
@@ -36,20 +36,20 @@ std::vector<SpotRow> ReadSpotsCsv(const std::string& path) {
     std::string rest;
     ls >> rest;
     if (ls.fail() && !ls.eof()) {
-      throw model::InputError(fmt::format("{}:{}: expected 'ring,index,x_mm,y_mm' numbers", path, line_no));
+      throw util::InputError(fmt::format("{}:{}: expected 'ring,index,x_mm,y_mm' numbers", path, line_no));
     }
     if (c1 != ',' || c2 != ',' || c3 != ',' || !rest.empty() || !std::isfinite(r.x_mm) || !std::isfinite(r.y_mm)) {
-      throw model::InputError(fmt::format("{}:{}: expected 'ring,index,x_mm,y_mm' numbers", path, line_no));
+      throw util::InputError(fmt::format("{}:{}: expected 'ring,index,x_mm,y_mm' numbers", path, line_no));
     }
     if (r.id.ring < 1 || r.id.index < 0) {
-      throw model::InputError(fmt::format("{}:{}: ring must be >= 1 and index >= 0", path, line_no));
+      throw util::InputError(fmt::format("{}:{}: ring must be >= 1 and index >= 0", path, line_no));
     }
     if (!seen.insert(r.id).second) {
-      throw model::InputError(fmt::format("{}:{}: spot ({}, {}) appears twice", path, line_no, r.id.ring, r.id.index));
+      throw util::InputError(fmt::format("{}:{}: spot ({}, {}) appears twice", path, line_no, r.id.ring, r.id.index));
     }
     rows.push_back(r);
   }
-  if (!header) throw model::InputError(fmt::format("{}: empty file (no header)", path));
+  if (!header) throw util::InputError(fmt::format("{}: empty file (no header)", path));
   return rows;
 }
 

@@ -1,13 +1,13 @@
 #include "model/topographer_camera.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <vector>
 
-#include <fmt/format.h>
-#include <nlohmann/json.hpp>
-
-#include "model/io.h"
-#include "model/json_section.h"
+#include "util/io.h"
+#include "util/json_section.h"
 
 namespace topocal::model {
 namespace {
@@ -70,7 +70,7 @@ std::optional<std::string> TopographerCamera::Invalid() const {
 
 TopographerCamera CameraFromJson(const json& j, const std::string& origin, const std::string& prefix) {
   // The project's strict JSON reader: every failure "ORIGIN: KEY: problem", an unknown key refused.
-  JsonSection section(j, origin, prefix);
+  util::JsonSection section(j, origin, prefix);
   TopographerCamera c;
   c.pixel_pitch_um = section.Number("pixel_pitch_um");
   c.width_px = section.IntegerInRange("width_px", 1, kMaxSidePx);
@@ -91,13 +91,13 @@ TopographerCamera CameraFromJson(const json& j, const std::string& origin, const
       section.Fail(section.Key("orientation"),
                    fmt::format("must be one of identity, rotate_90, rotate_180, rotate_270, flip_u, flip_v, transpose, "
                                "transverse (got {})",
-                               QuoteJsonValue(o)));
+                               util::QuoteJsonValue(o)));
     }
     c.orientation = *value;
   }
   section.RejectUnknown();
   const std::string where = prefix.empty() ? origin : origin + ": " + prefix;
-  if (const auto why = c.Invalid()) throw InputError(fmt::format("{}: {}", where, *why));
+  if (const auto why = c.Invalid()) throw util::InputError(fmt::format("{}: {}", where, *why));
   return c;
 }
 
@@ -111,14 +111,14 @@ json CameraToJson(const TopographerCamera& c) {
 }
 
 TopographerCamera ParseTopographerCamera(const std::string& json_text, const std::string& origin) {
-  const json j = ParseJsonStrict(json_text, origin);
+  const json j = util::ParseJsonStrict(json_text, origin);
   // A device file (model/device.h) carries the camera in its "camera" section.
   if (j.is_object() && j.contains("format") && j.contains("camera")) return CameraFromJson(j.at("camera"), origin, "camera");
   return CameraFromJson(j, origin, "");
 }
 
 TopographerCamera LoadTopographerCamera(const std::string& path) {
-  return ParseTopographerCamera(ReadFile(path), path);
+  return ParseTopographerCamera(util::ReadFile(path), path);
 }
 
 std::string TopographerCameraToJson(const TopographerCamera& c) { return CameraToJson(c).dump(2) + "\n"; }

@@ -1,16 +1,16 @@
 #include "pipeline/closed_loop.h"
 
-#include <stdexcept>
-
 #include <fmt/format.h>
 
+#include <stdexcept>
+
 #include "calib/calibrate.h"
-#include "calib/camera.h"
 #include "calib/detect.h"
 #include "calib/render_target.h"
 #include "calib/target.h"
 #include "correct/spot_render.h"
 #include "correct/spot_truth.h"
+#include "model/camera_model.h"
 #include "model/null_screen.h"
 #include "pipeline/detection_plane.h"
 #include "pipeline/measure_spots.h"
@@ -25,8 +25,8 @@ model::TopographerCamera RegionOfInterest(const ClosedLoopOptions& o) {
   return roi;
 }
 
-calib::CameraModel CameraThrough(const model::TopographerCamera& roi, const model::Config& config, double sigma) {
-  calib::CameraModel cam;
+model::CameraModel CameraThrough(const model::TopographerCamera& roi, const model::Config& config, double sigma) {
+  model::CameraModel cam;
   cam.width_px = roi.width_px;
   cam.height_px = roi.height_px;
   cam.fx_px = cam.fy_px = roi.FocalPx();
@@ -39,7 +39,7 @@ calib::CameraModel CameraThrough(const model::TopographerCamera& roi, const mode
 }
 
 CalibrationOutcome Calibrate(const model::Config& config, const model::TopographerCamera& roi,
-                             const calib::CameraModel& truth_camera, const ClosedLoopOptions& o, double sigma) {
+                             const model::CameraModel& truth_camera, const ClosedLoopOptions& o, double sigma) {
   const auto target = calib::ParseTargetDescription(
       fmt::format("target_type: checkerboard\ntargetCols: {}\ntargetRows: {}\nrowSpacingMeters: {}\n"
                   "colSpacingMeters: {}\n",

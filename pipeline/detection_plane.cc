@@ -15,16 +15,8 @@ constexpr int kErrorGridSteps = 16;
 
 }  // namespace
 
-DetectionPlaneModel DetectionPlaneModelOf(const calib::CameraModel& c, const model::TopographerCamera& camera) {
-  correct::OpenCvCamera k;
-  k.fx_px = c.fx_px;
-  k.fy_px = c.fy_px;
-  k.cx_px = c.cx_px;
-  k.cy_px = c.cy_px;
-  k.dist.assign(c.dist.begin(), c.dist.end());
-  k.centre_x = c.distortion_centre.x();
-  k.centre_y = c.distortion_centre.y();
-  const auto brown = correct::BrownFromOpenCv(k, camera);
+DetectionPlaneModel DetectionPlaneModelOf(const model::CameraModel& c, const model::TopographerCamera& camera) {
+  const auto brown = correct::BrownFromOpenCv(c, camera);
   DetectionPlaneModel result;
   if (!brown.ok) {
     result.message = brown.message;

@@ -1,5 +1,5 @@
 #pragma once
-// From a pixel-space calibration (calib::CameraModel: OpenCV intrinsics + Brown distortion, optional distortion
+// From a pixel-space calibration (model::CameraModel: OpenCV intrinsics + Brown distortion, optional distortion
 // centre) to the distortion on the detection plane in mm that correction and reconstruction work with, through the
 // topographer's camera (docs/camera-conventions.md). One place for the conversion, used by the closed loop and by
 // the command line.
@@ -13,7 +13,7 @@
 #include <optional>
 #include <string>
 
-#include "calib/camera.h"
+#include "model/camera_model.h"
 #include "model/distortion.h"
 #include "model/topographer_camera.h"
 
@@ -34,6 +34,6 @@ struct DetectionPlaneModel {
 // detection plane. Whether that is bad input (a calibration file the user gave: the command line names the file,
 // exit 2) or a computation that failed (a calibration the workflow computed: std::runtime_error, exit 1) is the
 // caller's to say; an uncertainty draw counts it as a failed draw.
-DetectionPlaneModel DetectionPlaneModelOf(const calib::CameraModel& calibrated, const model::TopographerCamera& camera);
+DetectionPlaneModel DetectionPlaneModelOf(const model::CameraModel& calibrated, const model::TopographerCamera& camera);
 
 }  // namespace topocal::pipeline

@@ -7,12 +7,12 @@
 #include <optional>
 #include <utility>
 
-#include "model/io.h"
-#include "model/parallel.h"
 #include "model/surface.h"
 #include "plot/map_image.h"
 #include "topo/map_grid.h"
 #include "topo/sphere_fit.h"
+#include "util/io.h"
+#include "util/parallel.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -216,11 +216,11 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
                          const MapSetOptions& o) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
-  if (ec) throw model::InputError(fmt::format("{}: cannot create directory: {}", dir, ec.message()));
+  if (ec) throw util::InputError(fmt::format("{}: cannot create directory: {}", dir, ec.message()));
   // The grids of each entry, then every file, on o.jobs threads: each item writes only its own slot or its own
   // files, and the scales are selected in between over the whole set, so the files do not depend on the threads.
   std::vector<EntryMaps> computed(entries.size());
-  model::ParallelFor(entries.size(), o.jobs, [&](size_t k) { computed[k] = ComputeEntryMaps(dir, entries[k]); });
+  util::ParallelFor(entries.size(), o.jobs, [&](size_t k) { computed[k] = ComputeEntryMaps(dir, entries[k]); });
   std::vector<PendingMap> axial, tangential, elevation, difference;
   for (EntryMaps& m : computed) {
     axial.push_back(std::move(m.axial));
@@ -239,7 +239,7 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
   AddKind(tangential, o.power, power_options, true, &jobs);
   AddKind(elevation, o.elevation, o, false, &jobs);
   AddKind(difference, o.elevation, o, false, &jobs);
-  model::ParallelFor(jobs.size(), o.jobs, [&](size_t k) {
+  util::ParallelFor(jobs.size(), o.jobs, [&](size_t k) {
     const MapJob& job = jobs[k];
     if (job.csv) plot::WriteMapCsv(job.map->file + ".csv", job.map->grid);
     plot::WriteMapPng(job.map->file + ".png", job.map->grid, job.image);

@@ -34,7 +34,7 @@ struct MapSetOptions {
 // Files per entry: <prefix>axial_power.{csv,png}, <prefix>tangential_power.{csv,png}, <prefix>elevation.{csv,png}
 // (elevation above the best-fit sphere, um, its radius in the title) and, with `truth`,
 // <prefix>height_difference.{csv,png} (Eq. 26, ideal - recovered, um). Each kind of map is drawn on one scale
-// selected over the whole set (plot::SelectMapScale). Creates `dir` if needed. Throws model::InputError naming the
+// selected over the whole set (plot::SelectMapScale). Creates `dir` if needed. Throws util::InputError naming the
 // path when a file cannot be written.
 void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEntry>& entries,
                          const MapSetOptions& options = {});

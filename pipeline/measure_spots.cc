@@ -1,12 +1,12 @@
 #include "pipeline/measure_spots.h"
 
-#include <stdexcept>
-
 #include <fmt/format.h>
+
+#include <stdexcept>
 
 #include "correct/detect_and_index.h"
 #include "correct/undistort_points.h"
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 
@@ -30,7 +30,7 @@ SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamer
                              const correct::DetectAndIndexOptions& options) {
   const auto located = correct::DetectAndIndexSpots(image, camera, ideal, options);
   if (located.orientation.status == correct::OrientationCheck::Status::kMismatch) {
-    throw model::InputError(located.orientation.message);
+    throw util::InputError(located.orientation.message);
   }
   if (!located.ok) throw std::runtime_error(fmt::format("spot detection/indexing: {}", located.message));
   SpotMeasurement m;

@@ -39,7 +39,7 @@ struct SpotMeasurement {
 std::vector<topo::MeasuredSpot> UndistortSpots(const std::vector<MeasuredImageSpot>& detected,
                                                const model::Distortion& distortion, int* failures = nullptr);
 
-// Throws model::InputError when the image's orientation contradicts the camera's (the orientation key says so: a
+// Throws util::InputError when the image's orientation contradicts the camera's (the orientation key says so: a
 // camera file that does not describe this camera), std::runtime_error (one line) when detection or indexing fails,
 // std::invalid_argument for an image type the detector cannot use.
 SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,

@@ -1,5 +1,8 @@
 #include "pipeline/uncertainty.h"
 
+#include <fmt/format.h>
+
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -7,19 +10,15 @@
 #include <random>
 #include <stdexcept>
 
-#include <Eigen/Eigenvalues>
-
-#include <fmt/format.h>
-
-#include "model/parallel.h"
 #include "pipeline/detection_plane.h"
 #include "topo/analysis.h"
+#include "util/parallel.h"
 
 namespace topocal::pipeline {
 namespace {
 
-// The distortion parameters of calib::CameraModel by the names the calibration file uses.
-double* Parameter(calib::CameraModel& c, const std::string& name) {
+// The distortion parameters of model::CameraModel by the names the calibration file uses.
+double* Parameter(model::CameraModel& c, const std::string& name) {
   static const char* kDist[] = {"k1", "k2", "p1", "p2", "k3"};
   for (int i = 0; i < 5; ++i) {
     if (name == kDist[i]) return &c.dist[i];
@@ -44,7 +43,7 @@ void RequireShape(const calib::ParameterCovariance& covariance) {
 // Indices into `covariance` of the distortion parameters with a spread.
 std::vector<Eigen::Index> DrawnIndices(const calib::ParameterCovariance& covariance) {
   RequireShape(covariance);
-  calib::CameraModel probe;
+  model::CameraModel probe;
   std::vector<Eigen::Index> drawn;
   for (Eigen::Index i = 0; i < covariance.matrix.rows(); ++i) {
     const double var = covariance.matrix(i, i);
@@ -62,11 +61,10 @@ std::vector<std::string> DistortionParametersToDraw(const calib::ParameterCovari
 }
 
 ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredImageSpot>& spots,
-                                                    const calib::CameraModel& calibrated,
+                                                    const model::CameraModel& calibrated,
                                                     const calib::ParameterCovariance& covariance,
-                                                    const model::TopographerCamera& camera,
-                                                    const model::Config& config, int samples, std::uint32_t seed,
-                                                    int jobs) {
+                                                    const model::TopographerCamera& camera, const model::Config& config,
+                                                    int samples, std::uint32_t seed, int jobs) {
   if (samples < 2) throw std::invalid_argument("uncertainty: at least 2 samples are needed");
   ClinicalUncertainty u;
   u.correlated = covariance.full;
@@ -113,11 +111,11 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
   // are bit-identical.
   std::vector<std::optional<std::array<double, kQuantities.size()>>> per_draw(static_cast<size_t>(samples));
   std::vector<int> per_draw_undistort_failures(static_cast<size_t>(samples), 0);
-  model::ParallelFor(static_cast<size_t>(samples), std::max(0, jobs), [&](size_t i) {
+  util::ParallelFor(static_cast<size_t>(samples), std::max(0, jobs), [&](size_t i) {
     std::seed_seq seq{seed, static_cast<std::uint32_t>(i)};
     std::mt19937 rng(seq);
     std::normal_distribution<double> normal(0.0, 1.0);
-    calib::CameraModel c = calibrated;
+    model::CameraModel c = calibrated;
     Eigen::VectorXd z(m);
     for (Eigen::Index k = 0; k < m; ++k) z(k) = normal(rng);
     const Eigen::VectorXd delta = factor * z;

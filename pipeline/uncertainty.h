@@ -7,15 +7,14 @@
 // store it; for an older file calib::ParameterCovarianceOf gives the diagonal and `correlated` is false). Only the
 // distortion parameters (k1..k3, p1, p2, ex, ey) are drawn; the intrinsics enter the detection-plane distortion
 // only through its scale, which the topographer's camera description fixes. The result says what was drawn.
+#include <Eigen/Core>
 #include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
 
-#include <Eigen/Core>
-
 #include "calib/calibration_file.h"
-#include "calib/camera.h"
+#include "model/camera_model.h"
 #include "model/config.h"
 #include "model/null_screen.h"
 #include "model/topographer_camera.h"
@@ -58,10 +57,9 @@ std::vector<std::string> DistortionParametersToDraw(const calib::ParameterCovari
 // parameter with a positive variance;
 // std::runtime_error when more than half of the draws fail.
 ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredImageSpot>& spots,
-                                                    const calib::CameraModel& calibrated,
+                                                    const model::CameraModel& calibrated,
                                                     const calib::ParameterCovariance& covariance,
-                                                    const model::TopographerCamera& camera,
-                                                    const model::Config& config, int samples, std::uint32_t seed,
-                                                    int jobs = 0);
+                                                    const model::TopographerCamera& camera, const model::Config& config,
+                                                    int samples, std::uint32_t seed, int jobs = 0);
 
 }  // namespace topocal::pipeline

@@ -1,17 +1,17 @@
 #include "pipeline/unit_batch.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <filesystem>
 #include <map>
 #include <mutex>
+#include <opencv2/core/utility.hpp>
 #include <stdexcept>
 
-#include <fmt/format.h>
-#include <opencv2/core/utility.hpp>
-
-#include "model/io.h"
-#include "model/parallel.h"
-#include "pipeline/harness.h"
+#include "util/io.h"
+#include "util/parallel.h"
+#include "util/shard.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -19,7 +19,7 @@ namespace {
 namespace fs = std::filesystem;
 
 std::vector<UnitBatchItem> ListUnits(const UnitBatchOptions& o) {
-  if (!fs::is_directory(o.dir)) throw model::InputError(fmt::format("{}: not a directory", o.dir));
+  if (!fs::is_directory(o.dir)) throw util::InputError(fmt::format("{}: not a directory", o.dir));
   std::vector<UnitBatchItem> items;
   for (const auto& e : fs::directory_iterator(o.dir)) {
     if (e.is_directory() && fs::exists(e.path() / kUnitInputsFile)) {
@@ -27,13 +27,13 @@ std::vector<UnitBatchItem> ListUnits(const UnitBatchOptions& o) {
     }
   }
   if (items.empty()) {
-    throw model::InputError(fmt::format("{}: no unit directory (none has a {})", o.dir, kUnitInputsFile));
+    throw util::InputError(fmt::format("{}: no unit directory (none has a {})", o.dir, kUnitInputsFile));
   }
   std::sort(items.begin(), items.end(), [](const auto& x, const auto& y) { return x.inputs_path < y.inputs_path; });
   // Shard i of N: the units whose place in the sorted list is i modulo N. Each unit's record depends only on its
   // own inputs, so the shards' OUT/<serial>/ folders together are the unsharded run's (docs/scale-out.md).
   if (!o.shard.empty()) {
-    const ShardSpec spec = ParseShardSpec(o.shard);
+    const util::ShardSpec spec = util::ParseShardSpec(o.shard);
     std::vector<UnitBatchItem> mine;
     for (size_t i = 0; i < items.size(); ++i) {
       if (static_cast<int>(i % static_cast<size_t>(spec.count)) == spec.index) mine.push_back(std::move(items[i]));
@@ -68,7 +68,7 @@ UnitBatchResult RunUnitBatch(const UnitBatchOptions& o, const UnitBatchCallbacks
         item.error = fmt::format("serial {} is also used by {}", item.request->serial, items[it->second].inputs_path);
         item.bad_input = true;
       }
-    } catch (const model::InputError& e) {
+    } catch (const util::InputError& e) {
       RecordFailure(&item, e, true);
     } catch (const std::exception& e) {
       RecordFailure(&item, e, false);
@@ -98,7 +98,7 @@ UnitBatchResult RunUnitBatch(const UnitBatchOptions& o, const UnitBatchCallbacks
     }
     if (cb.on_start) cb.on_start(finished, items.size());
   }
-  model::ParallelFor(items.size(), static_cast<int>(jobs), [&](size_t i) {
+  util::ParallelFor(items.size(), static_cast<int>(jobs), [&](size_t i) {
     auto& item = items[i];
     if (!item.error.empty()) return;
     try {
@@ -108,7 +108,7 @@ UnitBatchResult RunUnitBatch(const UnitBatchOptions& o, const UnitBatchCallbacks
       });
       cb.write_record(computed);
       item.summary = UnitSummary(computed);
-    } catch (const model::InputError& e) {
+    } catch (const util::InputError& e) {
       RecordFailure(&item, e, true);
     } catch (const std::exception& e) {
       RecordFailure(&item, e, false);
@@ -125,7 +125,7 @@ void ThrowIfUnitsFailed(const UnitBatchResult& result) {
   const std::string what = fmt::format("calibrate-batch: {} of {} unit(s) failed", result.failed, items.size());
   // Exit 2 when every failure was bad input (the operator fixes the inputs), 1 when a computation failed.
   if (std::all_of(items.begin(), items.end(), [](const UnitBatchItem& i) { return i.error.empty() || i.bad_input; })) {
-    throw model::InputError(what + " (bad input)");
+    throw util::InputError(what + " (bad input)");
   }
   throw std::runtime_error(what);
 }

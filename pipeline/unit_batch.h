@@ -46,11 +46,11 @@ struct UnitBatchResult {
   size_t failed = 0;
 };
 
-// Runs the batch. Throws model::InputError when DIR is not a directory of units or the shard is malformed; a unit's
+// Runs the batch. Throws util::InputError when DIR is not a directory of units or the shard is malformed; a unit's
 // failure is recorded in its item, not thrown.
 UnitBatchResult RunUnitBatch(const UnitBatchOptions& options, const UnitBatchCallbacks& callbacks);
 
-// Throws when units failed: model::InputError "(bad input)" when every failure was bad input (exit 2), else
+// Throws when units failed: util::InputError "(bad input)" when every failure was bad input (exit 2), else
 // std::runtime_error (exit 1); `what` is "calibrate-batch: F of N unit(s) failed".
 void ThrowIfUnitsFailed(const UnitBatchResult& result);
 

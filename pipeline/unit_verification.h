@@ -10,12 +10,11 @@
 //    covariance carried through by Monte Carlo. It says what this unit's distortion would do to an aspheric,
 //    astigmatic cornea, where the conic constants are fragile.
 #include <cstdint>
+#include <opencv2/core/mat.hpp>
 #include <optional>
 
-#include <opencv2/core/mat.hpp>
-
 #include "calib/calibration_file.h"
-#include "calib/camera.h"
+#include "model/camera_model.h"
 #include "model/config.h"
 #include "model/topographer_camera.h"
 #include "pipeline/uncertainty.h"
@@ -36,7 +35,7 @@ ClinicalNumbers Summarize(const topo::Analysis& analysis, int spots);
 
 // The calibration of a unit as the checks need it.
 struct UnitCalibration {
-  calib::CameraModel camera;             // the calibrated (exact) model, in pixels of the unit's sensor
+  model::CameraModel camera;  // the calibrated (exact) model, in pixels of the unit's sensor
   calib::ParameterCovariance covariance;
 };
 

@@ -19,16 +19,16 @@
 #include "imageio/image_file.h"
 #include "model/config.h"
 #include "model/device.h"
-#include "model/file_glob.h"
-#include "model/io.h"
-#include "model/json_section.h"
-#include "model/sha256.h"
 #include "model/topographer_camera.h"
-#include "model/utc_date.h"
 #include "pipeline/detection_plane.h"
 #include "pipeline/device_calibration.h"
 #include "pipeline/device_verification.h"
 #include "pipeline/unit_verification.h"
+#include "util/file_glob.h"
+#include "util/io.h"
+#include "util/json_section.h"
+#include "util/sha256.h"
+#include "util/utc_date.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -73,25 +73,25 @@ void CheckImageSize(const cv::Mat& image, const std::string& path, const LoadedI
 
 LoadedInputs LoadInputs(const UnitRequest& r) {
   if (!IsValidSerial(r.serial)) {
-    throw model::InputError(fmt::format("--serial '{}': use 1-{} characters of A-Z a-z 0-9 . _ - (not starting with .)",
-                                        r.serial, kMaxSerialLength));
+    throw util::InputError(fmt::format("--serial '{}': use 1-{} characters of A-Z a-z 0-9 . _ - (not starting with .)",
+                                       r.serial, kMaxSerialLength));
   }
-  if (r.out.empty()) throw model::InputError("--out: the record directory is required");
+  if (r.out.empty()) throw util::InputError("--out: the record directory is required");
   if (r.reference_sphere.empty() != (r.sphere_radius_mm == 0)) {
-    throw model::InputError("--reference-sphere and --sphere-radius-mm go together");
+    throw util::InputError("--reference-sphere and --sphere-radius-mm go together");
   }
   if (r.uncertainty_samples != 0 && (r.uncertainty_samples < 2 || r.uncertainty_samples > kMaxUncertaintySamples)) {
-    throw model::InputError(fmt::format("--uncertainty {}: 0 (none) or 2 to {} draws", r.uncertainty_samples,
-                                        kMaxUncertaintySamples));
+    throw util::InputError(
+        fmt::format("--uncertainty {}: 0 (none) or 2 to {} draws", r.uncertainty_samples, kMaxUncertaintySamples));
   }
-  if (r.images.empty()) throw model::InputError("--images: no image given");
+  if (r.images.empty()) throw util::InputError("--images: no image given");
   if (r.balls.size() != r.ball_radii_mm.size()) {
-    throw model::InputError(fmt::format("--radii-mm: {} radii for {} ball images (one certified radius per image)",
-                                        r.ball_radii_mm.size(), r.balls.size()));
+    throw util::InputError(fmt::format("--radii-mm: {} radii for {} ball images (one certified radius per image)",
+                                       r.ball_radii_mm.size(), r.balls.size()));
   }
-  if (!r.device.empty() && r.balls.empty()) throw model::InputError("--device: goes with --balls (the device stage)");
+  if (!r.device.empty() && r.balls.empty()) throw util::InputError("--device: goes with --balls (the device stage)");
   if (fs::exists(r.out) && !fs::exists(fs::path(r.out) / "unit.json")) {
-    throw model::InputError(fmt::format("--out {}: exists and is not a unit record; not overwriting it", r.out));
+    throw util::InputError(fmt::format("--out {}: exists and is not a unit record; not overwriting it", r.out));
   }
   LoadedInputs in;
   in.config = model::LoadConfig(r.config);
@@ -100,9 +100,9 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
     in.nominal_device = model::LoadDevice(r.device).device;
     if (in.nominal_device.camera.width_px != in.camera.width_px ||
         in.nominal_device.camera.height_px != in.camera.height_px) {
-      throw model::InputError(fmt::format("{}: the device's sensor is {} x {} px but {} says {} x {} px", r.device,
-                                          in.nominal_device.camera.width_px, in.nominal_device.camera.height_px,
-                                          r.camera, in.camera.width_px, in.camera.height_px));
+      throw util::InputError(fmt::format("{}: the device's sensor is {} x {} px but {} says {} x {} px", r.device,
+                                         in.nominal_device.camera.width_px, in.nominal_device.camera.height_px,
+                                         r.camera, in.camera.width_px, in.camera.height_px));
     }
   } else {
     in.nominal_device = model::NominalDevice(in.camera);
@@ -110,7 +110,7 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   in.target = calib::LoadTargetDescription(r.target);
 
   const auto model_kind = calib::ParseDistortionModel(r.model);
-  if (!model_kind) throw model::InputError(fmt::format("--model: '{}' is not seidel or brown5", r.model));
+  if (!model_kind) throw util::InputError(fmt::format("--model: '{}' is not seidel or brown5", r.model));
   auto& o = in.options;
   o.model = *model_kind;
   o.fit_distortion_centre = r.fit_centre;
@@ -124,23 +124,24 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   for (const auto& f : r.fixed) {
     if (std::find(std::begin(calib::kParameterNames), std::end(calib::kParameterNames), f) ==
         std::end(calib::kParameterNames)) {
-      throw model::InputError(fmt::format("--fix: '{}' is not a camera parameter (fx fy cx cy k1 k2 p1 p2 k3 ex ey)", f));
+      throw util::InputError(
+          fmt::format("--fix: '{}' is not a camera parameter (fx fy cx cy k1 k2 p1 p2 k3 ex ey)", f));
     }
   }
   std::string why;
-  if (!o.IsValid(&why)) throw model::InputError(why);
+  if (!o.IsValid(&why)) throw util::InputError(why);
   if (r.fixed_aspect_ratio > 0 && r.images.size() == 1) {
-    throw model::InputError("--fix-aspect: applies to multi-view fits; a single view already holds fx = fy");
+    throw util::InputError("--fix-aspect: applies to multi-view fits; a single view already holds fx = fy");
   }
 
   const auto add = [&](const std::string& role, const std::string& path) {
-    in.provenance.push_back({role, path, model::Sha256HexOfFile(path)});
+    in.provenance.push_back({role, path, util::Sha256HexOfFile(path)});
   };
   // An image is read once: its digest and its decoding come from the same bytes, on two threads (each is ~0.1-0.2
   // s for the 17 MB reference sphere; issue 15).
   const auto add_image = [&](const std::string& role, const std::string& path) -> cv::Mat {
     const std::string bytes = imageio::ReadImageBytes(path);
-    auto digest = std::async(std::launch::async, [&bytes] { return model::Sha256Hex(bytes); });
+    auto digest = std::async(std::launch::async, [&bytes] { return util::Sha256Hex(bytes); });
     cv::Mat image = imageio::DecodeImage(bytes, imageio::Channels::kAsStored, path);
     in.provenance.push_back({role, path, digest.get()});
     return image;
@@ -150,7 +151,7 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   add("target", r.target);
   for (const auto& path : r.images) {
     in.view_bytes.push_back(imageio::ReadImageBytes(path));
-    in.provenance.push_back({"image", path, model::Sha256Hex(in.view_bytes.back())});
+    in.provenance.push_back({"image", path, util::Sha256Hex(in.view_bytes.back())});
   }
   if (!r.reference_sphere.empty()) {
     in.sphere_image = add_image("reference_sphere", r.reference_sphere);
@@ -160,8 +161,8 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   for (size_t i = 0; i < r.balls.size(); ++i) {
     // Reference balls for a topographer: radii of human corneas and a little beyond.
     if (!(r.ball_radii_mm[i] >= 3.0 && r.ball_radii_mm[i] <= 20.0)) {
-      throw model::InputError(fmt::format("--radii-mm: {} for {} is not a reference-ball radius (3-20 mm)",
-                                          r.ball_radii_mm[i], r.balls[i]));
+      throw util::InputError(fmt::format("--radii-mm: {} for {} is not a reference-ball radius (3-20 mm)",
+                                         r.ball_radii_mm[i], r.balls[i]));
     }
     pipeline::BallImage b{r.balls[i], add_image("ball", r.balls[i]), r.ball_radii_mm[i]};
     CheckImageSize(b.image, r.balls[i], in, r);
@@ -177,9 +178,9 @@ std::optional<UnitDeviceStage> CalibrateDeviceStage(const UnitRequest& r, const 
   try {
     d.calibration = pipeline::CalibrateDevice(in.balls, in.nominal_device, in.config, {});
   } catch (const std::invalid_argument& e) {
-    throw model::InputError(e.what());
-  } catch (const model::InputError& e) {  // bad input stays bad input (it is a runtime_error too)
-    throw model::InputError(fmt::format("{}: {}", r.serial, e.what()));
+    throw util::InputError(e.what());
+  } catch (const util::InputError& e) {  // bad input stays bad input (it is a runtime_error too)
+    throw util::InputError(fmt::format("{}: {}", r.serial, e.what()));
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(fmt::format("{}: {}", r.serial, e.what()));
   }
@@ -196,9 +197,9 @@ std::optional<UnitDeviceStage> CalibrateDeviceStage(const UnitRequest& r, const 
     }
     d.paper = pipeline::PaperCorneaThroughDevice(in.nominal_device, d.lens_only, device, in.config);
   } catch (const std::invalid_argument& e) {
-    throw model::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
-  } catch (const model::InputError& e) {
-    throw model::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
+    throw util::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
+  } catch (const util::InputError& e) {
+    throw util::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(fmt::format("{}: {}", r.serial, e.what()));
   }
@@ -238,7 +239,7 @@ UnitCameraCalibration CalibrateViews(const UnitRequest& r, LoadedInputs& in,
   return c;
 }
 
-DistortionField MeasureDistortionField(const calib::CameraModel& calibrated, const LoadedInputs& in,
+DistortionField MeasureDistortionField(const model::CameraModel& calibrated, const LoadedInputs& in,
                                        const std::string& serial) {
   const auto on_plane = pipeline::DetectionPlaneModelOf(calibrated, in.camera);
   if (!on_plane.ok) throw std::runtime_error(fmt::format("{}: {}", serial, on_plane.message));
@@ -325,7 +326,7 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
   UnitResult u;
   u.request = r;
   u.calibration = CalibrateViews(r, in, log);
-  u.created_utc = model::FileDateUtc();
+  u.created_utc = util::FileDateUtc();
   const auto& c = u.calibration;
 
   // The checks use the calibration as the record stores it: the exact model and its full covariance.
@@ -339,9 +340,9 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
     try {
       u.sphere = VerifyOnReferenceSphere(in.sphere_image, r.sphere_radius_mm, unit, in.camera, in.config, u.check);
     } catch (const std::invalid_argument& e) {
-      throw model::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
-    } catch (const model::InputError& e) {
-      throw model::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
+      throw util::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
+    } catch (const util::InputError& e) {
+      throw util::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
     } catch (const std::runtime_error& e) {
       throw std::runtime_error(fmt::format("{}: {}: {}", r.serial, r.reference_sphere, e.what()));
     }
@@ -363,8 +364,8 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
 }
 
 UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults) {
-  const json j = model::ParseJsonStrict(model::ReadFile(path), path);
-  model::JsonSection s(j, path, "");
+  const json j = util::ParseJsonStrict(util::ReadFile(path), path);
+  util::JsonSection s(j, path, "");
   // Unknown keys first: a misspelt key is the likelier cause of whatever would fail next.
   for (const char* key : {"serial", "target", "images", "reference_sphere", "sphere_radius_mm", "model", "fit_centre",
                           "fix", "config", "camera", "uncertainty_samples", "seed"}) {
@@ -385,7 +386,7 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
   UnitRequest r = defaults;
   r.serial = *str("serial", true);
   r.target = relative(*str("target", true));
-  r.images = model::Glob(relative(*str("images", true)), fmt::format("{}: images", path));
+  r.images = util::Glob(relative(*str("images", true)), fmt::format("{}: images", path));
   if (const auto v = str("reference_sphere", false)) r.reference_sphere = relative(*v);
   if (s.Has("sphere_radius_mm")) r.sphere_radius_mm = s.PositiveNumber("sphere_radius_mm", 0);
   if (const auto v = str("model", false)) r.model = *v;
@@ -393,12 +394,14 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
   if (const auto v = str("camera", false)) r.camera = relative(*v);
   if (s.Has("fit_centre")) {
     const json& v = s.Get("fit_centre");
-    if (!v.is_boolean()) s.Fail("fit_centre", fmt::format("expected true or false (got {})", model::QuoteJsonValue(v)));
+    if (!v.is_boolean()) s.Fail("fit_centre", fmt::format("expected true or false (got {})", util::QuoteJsonValue(v)));
     r.fit_centre = v.get<bool>();
   }
   if (s.Has("fix")) {
     const json& v = s.Get("fix");
-    const auto bad = [&] { s.Fail("fix", fmt::format("expected a list of parameter names (got {})", model::QuoteJsonValue(v))); };
+    const auto bad = [&] {
+      s.Fail("fix", fmt::format("expected a list of parameter names (got {})", util::QuoteJsonValue(v)));
+    };
     if (!v.is_array()) bad();
     r.fixed.clear();
     for (const auto& f : v) {
@@ -411,9 +414,9 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
   r.uncertainty_samples = s.IntegerInRange("uncertainty_samples", r.uncertainty_samples, 0, kMaxUncertaintySamples);
   if (s.Has("seed")) {
     const json& v = s.Get("seed");
-    if (!model::JsonIntegerWithin(v, 0, std::numeric_limits<std::uint32_t>::max())) {
+    if (!util::JsonIntegerWithin(v, 0, std::numeric_limits<std::uint32_t>::max())) {
       s.Fail("seed", fmt::format("expected an integer in [0, {}] (got {})", std::numeric_limits<std::uint32_t>::max(),
-                                 model::QuoteJsonValue(v)));
+                                 util::QuoteJsonValue(v)));
     }
     r.seed = static_cast<unsigned>(v.get<unsigned long long>());
   }

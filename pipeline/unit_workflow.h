@@ -88,7 +88,7 @@ struct UnitResult {
   std::optional<UnitDeviceStage> device;     // with reference balls
 };
 
-// Runs the whole workflow. Throws model::InputError / model::ConfigError for bad input (exit 2) and
+// Runs the whole workflow. Throws util::InputError / util::ConfigError for bad input (exit 2) and
 // std::runtime_error for a computation that failed (exit 1); every input is read and checked before any work.
 // `log` receives warnings (skipped images), one line each.
 UnitResult CalibrateUnit(const UnitRequest& request, const std::function<void(const std::string&)>& log);
@@ -97,7 +97,7 @@ UnitResult CalibrateUnit(const UnitRequest& request, const std::function<void(co
 std::vector<std::string> UnitSummary(const UnitResult& unit);
 
 // A unit directory of a batch: DIR/<name>/unit-inputs.json (docs/unit-record.md, "Batch"), paths relative to it.
-// Fields the file leaves out come from `defaults`. Throws model::InputError naming the file and key.
+// Fields the file leaves out come from `defaults`. Throws util::InputError naming the file and key.
 UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults);
 
 // The serial as a directory and report-id component: 1-64 characters of [A-Za-z0-9._-], not starting with '.'.

@@ -14,7 +14,7 @@
 #include <stdexcept>
 #include <string_view>
 
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::plot {
 
@@ -571,7 +571,7 @@ void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOpti
   const cv::Mat img(image.height_px, image.width_px, CV_8UC3, image.bgr.data());
   std::vector<std::uint8_t> png;
   if (!cv::imencode(".png", img, png)) throw std::runtime_error(path + ": PNG encoding failed");
-  model::WriteFileAtomic(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  util::WriteFileAtomic(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
 }
 
 std::string GridMapCsv(const GridMap& map) {
@@ -617,7 +617,7 @@ std::string GridMapCsv(const GridMap& map) {
   return csv;
 }
 
-void WriteMapCsv(const std::string& path, const GridMap& map) { model::WriteFileAtomic(path, GridMapCsv(map)); }
+void WriteMapCsv(const std::string& path, const GridMap& map) { util::WriteFileAtomic(path, GridMapCsv(map)); }
 
 bool MapScaleRequest::IsValid(std::string* why) const {
   const auto fail = [&](const std::string& m) {

@@ -144,14 +144,14 @@ std::array<std::uint8_t, 3> NoDataColour();
 
 // Renders the map. Throws std::invalid_argument if the map or the options are invalid (see IsValid).
 MapImage RenderMap(const GridMap& map, const MapImageOptions& options = {});
-// Renders and writes a PNG atomically. Throws model::InputError naming the path if it cannot be written.
+// Renders and writes a PNG atomically. Throws util::InputError naming the path if it cannot be written.
 void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOptions& options = {});
 
 // The map as CSV, long format: a header "x_mm,y_mm,<quantity>_<unit>" (e.g. value_D, value_um) then one row per
 // grid point, row 0 (y_min) first, x ascending within a row; no data is an empty field. Numbers in the shortest
 // form that reads back exactly.
 std::string GridMapCsv(const GridMap& map);
-// Writes GridMapCsv atomically. Throws model::InputError naming the path if it cannot be written.
+// Writes GridMapCsv atomically. Throws util::InputError naming the path if it cannot be written.
 void WriteMapCsv(const std::string& path, const GridMap& map);
 
 }  // namespace topocal::plot

@@ -1,15 +1,15 @@
 #include "report/acceptance.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <stdexcept>
 #include <tuple>
 
-#include <fmt/format.h>
-#include <nlohmann/json.hpp>
-
-#include "model/json_section.h"
-#include "model/io.h"
+#include "util/io.h"
+#include "util/json_section.h"
 
 namespace topocal::report {
 namespace {
@@ -32,8 +32,8 @@ constexpr const char* kSourceRms =
     "blurred or misdetected or the distortion model does not fit the lens.";
 
 // One limit: {"max": > 0, "source": "where it comes from"}, nothing else.
-Limit ReadLimit(model::JsonSection& limits, const char* name) {
-  model::JsonSection one = limits.Child(name);
+Limit ReadLimit(util::JsonSection& limits, const char* name) {
+  util::JsonSection one = limits.Child(name);
   const double max = one.Number("max");
   if (!(max > 0)) one.Fail(one.Key("max"), "must be a finite number > 0");
   const std::string source = one.String("source");
@@ -93,8 +93,8 @@ Limits DefaultLimits() {
 }
 
 Limits LoadLimits(const std::string& path) {
-  const json root = model::ParseJsonStrict(model::ReadFile(path), path);
-  model::JsonSection r(root, path, "");
+  const json root = util::ParseJsonStrict(util::ReadFile(path), path);
+  util::JsonSection r(root, path, "");
   Limits l;
   const json& rule = r.Get("decision_rule");
   if (rule == "guarded") {
@@ -108,10 +108,10 @@ Limits LoadLimits(const std::string& path) {
   if (!format.is_string() || format.get<std::string>() != kLimitsFormat) {
     r.Fail("format", fmt::format("must be \"{}\"", kLimitsFormat));
   }
-  if (!model::JsonIntegerWithin(r.Get("format_version"), kLimitsFormatVersion, kLimitsFormatVersion)) {
+  if (!util::JsonIntegerWithin(r.Get("format_version"), kLimitsFormatVersion, kLimitsFormatVersion)) {
     r.Fail("format_version", fmt::format("must be {}", kLimitsFormatVersion));
   }
-  model::JsonSection limits = r.Child("limits");
+  util::JsonSection limits = r.Child("limits");
   l.calibration_rms_px = ReadLimit(limits, "calibration_rms_px");
   l.sphere_radius_error_mm = ReadLimit(limits, "sphere_radius_error_mm");
   l.sphere_power_error_D = ReadLimit(limits, "sphere_power_error_D");

@@ -57,7 +57,7 @@ inline constexpr double kDefaultPaperConicError = 0.05;
 inline constexpr double kDefaultCalibrationRmsPx = 0.5;
 
 Limits DefaultLimits();
-// Reads a limits file. Throws model::InputError "PATH: KEY: problem".
+// Reads a limits file. Throws util::InputError "PATH: KEY: problem".
 Limits LoadLimits(const std::string& path);
 std::string ToString(DecisionRule rule);
 // One sentence stating the rule, printed on the report.

@@ -7,9 +7,9 @@
 #include <filesystem>
 #include <stdexcept>
 
-#include "model/io.h"
-#include "model/utc_date.h"
 #include "report/acceptance.h"
+#include "util/io.h"
+#include "util/utc_date.h"
 
 namespace topocal::report {
 namespace {
@@ -144,14 +144,14 @@ FleetDb::FleetDb(const std::string& path, bool create) : path_(path) {
   namespace fs = std::filesystem;
   std::error_code ec;
   const bool exists = fs::exists(path, ec);
-  if (!exists && !create) throw model::InputError(fmt::format("{}: no such fleet database", path));
-  if (exists && !fs::is_regular_file(path, ec)) throw model::InputError(fmt::format("{}: not a file", path));
+  if (!exists && !create) throw util::InputError(fmt::format("{}: no such fleet database", path));
+  if (exists && !fs::is_regular_file(path, ec)) throw util::InputError(fmt::format("{}: not a file", path));
   const int flags = create ? (SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE) : SQLITE_OPEN_READONLY;
   if (sqlite3_open_v2(path.c_str(), &db_, flags, nullptr) != SQLITE_OK) {
     const std::string message = db_ ? sqlite3_errmsg(db_) : "out of memory";
     sqlite3_close(db_);
     db_ = nullptr;
-    throw model::InputError(fmt::format("{}: cannot open the fleet database: {}", path, message));
+    throw util::InputError(fmt::format("{}: cannot open the fleet database: {}", path, message));
   }
   sqlite3_busy_timeout(db_, kFleetBusyTimeoutMs);
   // Until the database is known to be a fleet database, any exception closes it (and passes on unchanged).
@@ -166,7 +166,7 @@ FleetDb::FleetDb(const std::string& path, bool create) : path_(path) {
   } guard{&db_};
   {
     if (create && sqlite3_db_readonly(db_, "main") == 1) {
-      throw model::InputError(fmt::format("{}: the fleet database is read-only", path));
+      throw util::InputError(fmt::format("{}: the fleet database is read-only", path));
     }
     // Identify before anything else: a file that is not SQLite, or another application's database, or another
     // schema version is refused without being changed.
@@ -176,10 +176,10 @@ FleetDb::FleetDb(const std::string& path, bool create) : path_(path) {
       version = PragmaInt(db_, path, "PRAGMA user_version");
       tables = PragmaInt(db_, path, "SELECT count(*) FROM sqlite_master");
     } catch (const std::runtime_error& e) {
-      throw model::InputError(fmt::format("{}: not a topocal fleet database ({})", path, sqlite3_errmsg(db_)));
+      throw util::InputError(fmt::format("{}: not a topocal fleet database ({})", path, sqlite3_errmsg(db_)));
     }
     if (app == 0 && version == 0 && tables == 0) {
-      if (!create) throw model::InputError(fmt::format("{}: empty, not a topocal fleet database", path));
+      if (!create) throw util::InputError(fmt::format("{}: empty, not a topocal fleet database", path));
       Transaction t(db_, path);
       // Another process may have created the schema while this one waited for the lock.
       if (PragmaInt(db_, path, "SELECT count(*) FROM sqlite_master") == 0) {
@@ -188,7 +188,7 @@ FleetDb::FleetDb(const std::string& path, bool create) : path_(path) {
           Exec(db_, path, fmt::format("PRAGMA application_id = {}; PRAGMA user_version = {}", kFleetApplicationId,
                                       kFleetSchemaVersion).c_str());
         } catch (const std::runtime_error& e) {
-          throw model::InputError(fmt::format("{}: cannot create the fleet database: {}", path, sqlite3_errmsg(db_)));
+          throw util::InputError(fmt::format("{}: cannot create the fleet database: {}", path, sqlite3_errmsg(db_)));
         }
       }
       t.Commit();
@@ -196,12 +196,13 @@ FleetDb::FleetDb(const std::string& path, bool create) : path_(path) {
       version = PragmaInt(db_, path, "PRAGMA user_version");
     }
     if (app != kFleetApplicationId) {
-      throw model::InputError(fmt::format("{}: not a topocal fleet database (application_id {})", path, app));
+      throw util::InputError(fmt::format("{}: not a topocal fleet database (application_id {})", path, app));
     }
     if (version != kFleetSchemaVersion) {
-      throw model::InputError(fmt::format("{}: fleet database schema version {} is not supported (this topocal reads "
-                                          "version {})",
-                                          path, version, kFleetSchemaVersion));
+      throw util::InputError(
+          fmt::format("{}: fleet database schema version {} is not supported (this topocal reads "
+                      "version {})",
+                      path, version, kFleetSchemaVersion));
     }
   }
   guard.keep = true;
@@ -211,7 +212,7 @@ FleetDb::~FleetDb() { sqlite3_close(db_); }
 
 IngestResult FleetDb::Ingest(const std::vector<UnitRecord>& records, const std::string& station) {
   IngestResult result;
-  const std::string now = model::FileDateUtc();
+  const std::string now = util::FileDateUtc();
   Transaction t(db_, path_);
   Statement find(db_, path_, "SELECT id FROM units WHERE unit_json_sha256 = ?1");
   Statement unit(db_, path_,

@@ -53,7 +53,7 @@ struct IngestResult {
 class FleetDb {
  public:
   // Opens the database at `path`, creating it (and the schema) when `create` and it does not exist. Throws
-  // model::InputError "PATH: problem" when it cannot be opened or created, is read-only while `create` (a writer)
+  // util::InputError "PATH: problem" when it cannot be opened or created, is read-only while `create` (a writer)
   // asks for writing, is not a topocal fleet database, or has another schema version.
   FleetDb(const std::string& path, bool create);
   ~FleetDb();

@@ -1,15 +1,15 @@
 #include "report/fleet_report.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <set>
 
-#include <fmt/format.h>
-
-#include "model/version.h"
 #include "plot/svg.h"
 #include "plot/svg_charts.h"
+#include "util/version.h"
 
 namespace topocal::report {
 

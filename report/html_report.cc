@@ -1,21 +1,21 @@
 #include "report/html_report.h"
 
+#include <fmt/format.h>
+#include <openssl/evp.h>
+
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <tuple>
 
-#include <Eigen/Core>
-#include <fmt/format.h>
-#include <openssl/evp.h>
-
-#include "calib/camera.h"
-#include "model/io.h"
-#include "model/sha256.h"
-#include "model/version.h"
+#include "model/camera_model.h"
 #include "plot/svg.h"
 #include "plot/svg_charts.h"
+#include "util/io.h"
+#include "util/sha256.h"
+#include "util/version.h"
 
 namespace topocal::report {
 
@@ -219,14 +219,14 @@ struct DistortionPlot {
   double max_displacement_px = 0;
 };
 
-DistortionPlot DistortionField(const calib::CameraModel& cam, const PixelRegion& region, bool whole_image,
+DistortionPlot DistortionField(const model::CameraModel& cam, const PixelRegion& region, bool whole_image,
                                std::optional<double> field_radius_px) {
   const double in[4] = {cam.fx_px, cam.fy_px, cam.cx_px, cam.cy_px};
   // Where an ideal (pinhole) image point p lands through the calibrated lens, minus p.
   auto displacement = [&](double x, double y) {
     const double u[2] = {(x - cam.cx_px) / cam.fx_px, (y - cam.cy_px) / cam.fy_px};
     double px[2];
-    calib::CameraModel::NormalizedToPixel(in, cam.dist.data(), cam.distortion_centre.data(), u, px);
+    model::CameraModel::NormalizedToPixel(in, cam.dist.data(), cam.distortion_centre.data(), u, px);
     const Eigen::Vector2d d(px[0] - x, px[1] - y);
     if (!d.allFinite()) throw std::runtime_error("the calibration's distortion is not finite over the image");
     return d;
@@ -477,14 +477,14 @@ std::string Base64(std::string_view bytes) {
 
 void ReportInputs::Validate(const UnitRecord& record) const {
   std::string why;
-  if (!budget.IsValid(&why)) throw model::InputError("--ball-radius-U-mm: " + why);
+  if (!budget.IsValid(&why)) throw util::InputError("--ball-radius-U-mm: " + why);
   if (previous && previous->serial != record.serial) {
-    throw model::InputError(fmt::format("{}: the previous record is of unit {}, not {}", previous->directory,
-                                        previous->serial, record.serial));
+    throw util::InputError(fmt::format("{}: the previous record is of unit {}, not {}", previous->directory,
+                                       previous->serial, record.serial));
   }
   if (previous && previous->unit_json_sha256 == record.unit_json_sha256) {
-    throw model::InputError(fmt::format("{}: the previous record is the same record as {}", previous->directory,
-                                        record.directory));
+    throw util::InputError(
+        fmt::format("{}: the previous record is the same record as {}", previous->directory, record.directory));
   }
 }
 
@@ -500,7 +500,7 @@ std::string ReportIdText(const UnitRecord& record, const ReportInputs& in) {
 }
 
 std::string ReportId(const UnitRecord& record, const ReportInputs& inputs) {
-  return record.serial + "-" + model::Sha256Hex(ReportIdText(record, inputs)).substr(0, kReportIdHexDigits);
+  return record.serial + "-" + util::Sha256Hex(ReportIdText(record, inputs)).substr(0, kReportIdHexDigits);
 }
 
 std::string RenderHtmlReport(const UnitRecord& rec, const ReportInputs& inputs) {

@@ -37,7 +37,7 @@ struct ReportInputs {
   BudgetOptions budget;
   SignOff sign_off;
   const UnitRecord* previous = nullptr;  // the unit's previous calibration (same serial), compared when given
-  // Throws model::InputError when `previous` is another unit's record or the budget options are invalid.
+  // Throws util::InputError when `previous` is another unit's record or the budget options are invalid.
   void Validate(const UnitRecord& record) const;
 };
 

@@ -1,18 +1,18 @@
 #include "report/record_check.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
 
-#include <fmt/format.h>
-#include <nlohmann/json.hpp>
-
 #include "calib/calibration_file.h"
-#include "model/io.h"
-#include "model/json_section.h"
-#include "model/sha256.h"
 #include "pipeline/unit_verification.h"
 #include "report/unit_record_writer.h"
+#include "util/io.h"
+#include "util/json_section.h"
+#include "util/sha256.h"
 
 namespace topocal::report {
 namespace {
@@ -38,8 +38,8 @@ std::string Shown(const json& v) {
 void CompareBlocks(const UnitRecord& rec, const std::string& key, const json& recorded, const json& recomputed,
                    const std::string& sources) {
   const auto fail = [&](const std::string& what) {
-    throw model::InputError(fmt::format("{}: {}: {} from {}: unit.json was changed after the record was written",
-                                        rec.unit_json_path, key, what, sources));
+    throw util::InputError(fmt::format("{}: {}: {} from {}: unit.json was changed after the record was written",
+                                       rec.unit_json_path, key, what, sources));
   };
   if (recomputed.is_object()) {
     if (!recorded.is_object()) fail("must be an object");
@@ -65,18 +65,19 @@ void CheckCalibrationRms(const UnitRecord& rec) {
     ++inliers;
   }
   if (inliers == 0) {
-    throw model::InputError(fmt::format("{}/residuals.csv: no inlier corner: the calibration RMS cannot be recomputed",
-                                        rec.directory));
+    throw util::InputError(
+        fmt::format("{}/residuals.csv: no inlier corner: the calibration RMS cannot be recomputed", rec.directory));
   }
   const double rms_px = std::sqrt(sum2 / inliers);
   if (std::abs(rms_px - rec.calibration_rms_px) > kResidualsRmsTolerancePx) {
-    throw model::InputError(fmt::format("{}: calibration.rms_px: recorded {:.9g} px, recomputed {:.9g} px from "
-                                        "residuals.csv ({} inlier corners)",
-                                        rec.unit_json_path, rec.calibration_rms_px, rms_px, inliers));
+    throw util::InputError(
+        fmt::format("{}: calibration.rms_px: recorded {:.9g} px, recomputed {:.9g} px from "
+                    "residuals.csv ({} inlier corners)",
+                    rec.unit_json_path, rec.calibration_rms_px, rms_px, inliers));
   }
   if (rec.calibration.rms_px && !Agree(rec.calibration_rms_px, *rec.calibration.rms_px, kRelativeTolerance)) {
-    throw model::InputError(fmt::format("{}: calibration.rms_px: recorded {:.9g} px, calibration.yaml says {:.9g} px",
-                                        rec.unit_json_path, rec.calibration_rms_px, *rec.calibration.rms_px));
+    throw util::InputError(fmt::format("{}: calibration.rms_px: recorded {:.9g} px, calibration.yaml says {:.9g} px",
+                                       rec.unit_json_path, rec.calibration_rms_px, *rec.calibration.rms_px));
   }
 }
 
@@ -85,15 +86,15 @@ void CheckCalibrationRms(const UnitRecord& rec) {
 void RecomputeRecordNumbers(const UnitRecord& rec, const RecordCheckOptions& options) {
   CheckCalibrationRms(rec);
   if (!rec.config || !rec.topographer_camera) {
-    throw model::InputError(fmt::format("{}: configuration: missing: the record's checks cannot be recomputed",
-                                        rec.unit_json_path));
+    throw util::InputError(
+        fmt::format("{}: configuration: missing: the record's checks cannot be recomputed", rec.unit_json_path));
   }
   // unit.json as read by ReadUnitRecord (the same bytes: its digest is the record's id).
-  const std::string text = model::ReadFile(rec.unit_json_path);
-  if (model::Sha256Hex(text) != rec.unit_json_sha256) {
-    throw model::InputError(fmt::format("{}: changed while it was being reported", rec.unit_json_path));
+  const std::string text = util::ReadFile(rec.unit_json_path);
+  if (util::Sha256Hex(text) != rec.unit_json_sha256) {
+    throw util::InputError(fmt::format("{}: changed while it was being reported", rec.unit_json_path));
   }
-  const json root = model::ParseJsonStrict(text, rec.unit_json_path);
+  const json root = util::ParseJsonStrict(text, rec.unit_json_path);
 
   pipeline::UnitCalibration unit;
   unit.camera = rec.calibration.camera;
@@ -108,15 +109,15 @@ void RecomputeRecordNumbers(const UnitRecord& rec, const RecordCheckOptions& opt
     try {
       return compute();
     } catch (const std::exception& e) {
-      throw model::InputError(fmt::format("{}: {}: cannot be recomputed from {}: {}", rec.unit_json_path, key,
-                                          sources, e.what()));
+      throw util::InputError(
+          fmt::format("{}: {}: cannot be recomputed from {}: {}", rec.unit_json_path, key, sources, e.what()));
     }
   };
   if (rec.verification) {
     const std::string sources = "sphere_spots.csv, calibration.yaml and configuration";
     if (rec.verification->detected.empty()) {
-      throw model::InputError(fmt::format("{}: files: no {}: the reference-sphere check cannot be recomputed",
-                                          rec.unit_json_path, kSphereSpotsCsv));
+      throw util::InputError(fmt::format("{}: files: no {}: the reference-sphere check cannot be recomputed",
+                                         rec.unit_json_path, kSphereSpotsCsv));
     }
     const auto sphere = rerun("verification", sources, [&] {
       pipeline::SphereVerification v;

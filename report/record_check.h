@@ -20,7 +20,7 @@ struct RecordCheckOptions {
   int jobs = 0;  // threads for the Monte Carlo draws (0 = every core); the result does not depend on it
 };
 
-// Throws model::InputError "unit.json: KEY: recorded V, recomputed W from FILES" for the first number that does not
+// Throws util::InputError "unit.json: KEY: recorded V, recomputed W from FILES" for the first number that does not
 // match, and for a record that lacks what the recomputation needs (configuration, sphere_spots.csv).
 void RecomputeRecordNumbers(const UnitRecord& record, const RecordCheckOptions& options = {});
 

@@ -10,11 +10,11 @@
 #include <span>
 #include <sstream>
 
-#include "model/io.h"
-#include "model/json_section.h"
-#include "model/sha256.h"
 #include "model/spots_csv.h"
-#include "model/version.h"
+#include "util/io.h"
+#include "util/json_section.h"
+#include "util/sha256.h"
+#include "util/version.h"
 
 namespace topocal::report {
 namespace {
@@ -28,7 +28,7 @@ constexpr const char* kResidualsCsv = "residuals.csv";
 constexpr const char* kResidualsHeader = "view,image,corner_id,x_px,y_px,dx_px,dy_px,outlier";
 constexpr std::size_t kSha256HexDigits = 64;
 
-using model::JsonSection;
+using util::JsonSection;
 
 // unit.json is read with the project's one strict JSON reader (model/json_section.h): every failure is one line
 // "unit.json: KEY: problem" naming the file and the dotted key. Unknown keys are allowed (a record may carry more
@@ -133,16 +133,16 @@ double ParseCsvNumber(const std::string& path, int line_no, const char* column, 
     used = 0;
   }
   if (used == 0 || used != text.size() || !std::isfinite(v)) {
-    throw model::InputError(fmt::format("{}: line {}: {}: not a finite number: '{}'", path, line_no, column, text));
+    throw util::InputError(fmt::format("{}: line {}: {}: not a finite number: '{}'", path, line_no, column, text));
   }
   return v;
 }
 
 std::vector<CornerResidualRow> ReadResiduals(const std::string& path) {
-  std::istringstream in(model::ReadFile(path));
+  std::istringstream in(util::ReadFile(path));
   std::string line;
   if (!std::getline(in, line) || (line.erase(line.find_last_not_of("\r") + 1), line != kResidualsHeader)) {
-    throw model::InputError(fmt::format("{}: header: must be '{}'", path, kResidualsHeader));
+    throw util::InputError(fmt::format("{}: header: must be '{}'", path, kResidualsHeader));
   }
   std::vector<CornerResidualRow> rows;
   int line_no = 1;
@@ -152,16 +152,16 @@ std::vector<CornerResidualRow> ReadResiduals(const std::string& path) {
     if (line.empty()) continue;
     const std::vector<std::string> f = SplitCsvLine(line);
     if (f.size() != 8) {
-      throw model::InputError(fmt::format("{}: line {}: expected 8 comma-separated fields, got {}", path, line_no,
-                                          f.size()));
+      throw util::InputError(
+          fmt::format("{}: line {}: expected 8 comma-separated fields, got {}", path, line_no, f.size()));
     }
     CornerResidualRow row;
     const double view = ParseCsvNumber(path, line_no, "view", f[0]);
     const double corner = ParseCsvNumber(path, line_no, "corner_id", f[2]);
     const double outlier = ParseCsvNumber(path, line_no, "outlier", f[7]);
     if (view < 0 || view != std::floor(view) || corner != std::floor(corner) || (outlier != 0 && outlier != 1)) {
-      throw model::InputError(fmt::format("{}: line {}: view, corner_id must be integers and outlier 0 or 1", path,
-                                          line_no));
+      throw util::InputError(
+          fmt::format("{}: line {}: view, corner_id must be integers and outlier 0 or 1", path, line_no));
     }
     row.view = static_cast<int>(view);
     row.image = f[1];
@@ -182,15 +182,15 @@ UnitRecord ReadUnitRecord(const std::string& directory) {
   UnitRecord rec;
   rec.directory = directory;
   if (!fs::is_directory(directory)) {
-    throw model::InputError(fmt::format("{}: not a unit record directory (does not exist)", directory));
+    throw util::InputError(fmt::format("{}: not a unit record directory (does not exist)", directory));
   }
   rec.unit_json_path = (fs::path(directory) / kUnitJson).string();
   if (!fs::is_regular_file(rec.unit_json_path)) {
-    throw model::InputError(fmt::format("{}: missing: the unit record is incomplete", rec.unit_json_path));
+    throw util::InputError(fmt::format("{}: missing: the unit record is incomplete", rec.unit_json_path));
   }
-  const std::string text = model::ReadFile(rec.unit_json_path);
-  rec.unit_json_sha256 = model::Sha256Hex(text);
-  const json root = model::ParseJsonStrict(text, rec.unit_json_path);
+  const std::string text = util::ReadFile(rec.unit_json_path);
+  rec.unit_json_sha256 = util::Sha256Hex(text);
+  const json root = util::ParseJsonStrict(text, rec.unit_json_path);
   JsonSection r(root, rec.unit_json_path, "");
 
   // Identity and compatibility first: nothing else is read from a record of another format or version.
@@ -235,24 +235,24 @@ UnitRecord ReadUnitRecord(const std::string& directory) {
     if (!names.insert(f.name).second) fj.Fail(fj.Key("name"), fmt::format("'{}' is listed twice", f.name));
     const std::string path = (fs::path(directory) / f.name).string();
     if (!fs::is_regular_file(path)) {
-      throw model::InputError(fmt::format("{}: missing (listed in {} files[{}]): the unit record is incomplete", path,
-                                          rec.unit_json_path, i));
+      throw util::InputError(fmt::format("{}: missing (listed in {} files[{}]): the unit record is incomplete", path,
+                                         rec.unit_json_path, i));
     }
-    const std::string actual = model::Sha256HexOfFile(path);
+    const std::string actual = util::Sha256HexOfFile(path);
     if (actual != f.sha256) {
-      throw model::InputError(fmt::format("{}: SHA-256 {} differs from {} in {} files[{}]: the file was changed after "
-                                          "the record was written",
-                                          path, actual, f.sha256, rec.unit_json_path, i));
+      throw util::InputError(
+          fmt::format("{}: SHA-256 {} differs from {} in {} files[{}]: the file was changed after "
+                      "the record was written",
+                      path, actual, f.sha256, rec.unit_json_path, i));
     }
     rec.files.push_back(f);
   }
   for (const char* required : {kCalibrationYaml, kResidualsCsv}) {
     if (!names.count(required)) {
       const std::string path = (fs::path(directory) / required).string();
-      throw model::InputError(fs::exists(path)
-                                  ? fmt::format("{}: files: '{}' is not listed, so it cannot be verified",
-                                                rec.unit_json_path, required)
-                                  : fmt::format("{}: missing: the unit record is incomplete", path));
+      throw util::InputError(fs::exists(path) ? fmt::format("{}: files: '{}' is not listed, so it cannot be verified",
+                                                            rec.unit_json_path, required)
+                                              : fmt::format("{}: missing: the unit record is incomplete", path));
     }
   }
 
@@ -375,7 +375,7 @@ UnitRecord ReadUnitRecord(const std::string& directory) {
   for (const RecordFile& f : rec.files) {
     const fs::path name(f.name);
     if (name.parent_path() == "maps" && name.extension() == ".png") {
-      rec.map_png[name.filename().string()] = model::ReadFile((fs::path(directory) / f.name).string());
+      rec.map_png[name.filename().string()] = util::ReadFile((fs::path(directory) / f.name).string());
     }
   }
   return rec;

@@ -9,7 +9,7 @@
 //
 // Every file listed in unit.json's `files` must exist with the listed SHA-256, and calibration.yaml and
 // residuals.csv must be among them: a record that is incomplete or was changed after it was written is refused.
-// Every error is a model::InputError with one line "PATH: KEY: problem".
+// Every error is a util::InputError with one line "PATH: KEY: problem".
 #include <map>
 #include <optional>
 #include <string>
@@ -170,7 +170,7 @@ struct UnitRecord {
   std::map<std::string, std::string> map_png;  // name under maps/ (e.g. "sphere_corrected_axial_power.png") -> bytes
 };
 
-// Reads and verifies the record in `directory`. Throws model::InputError "PATH: KEY: problem" for a missing or
+// Reads and verifies the record in `directory`. Throws util::InputError "PATH: KEY: problem" for a missing or
 // malformed file, a missing key, a value of the wrong type, another format or tool version, a file listed in
 // `files` that is missing or whose SHA-256 differs.
 UnitRecord ReadUnitRecord(const std::string& directory);

@@ -11,16 +11,16 @@
 #include "calib/calibration_file.h"
 #include "model/config.h"
 #include "model/device.h"
-#include "model/io.h"
-#include "model/sha256.h"
 #include "model/spots_csv.h"
 #include "model/topographer_camera.h"
-#include "model/version.h"
 #include "pipeline/map_output.h"
 #include "pipeline/uncertainty.h"
 #include "report/unit_record_reader.h"
 #include "topo/biconic_fit.h"
 #include "topo/power_map.h"
+#include "util/io.h"
+#include "util/sha256.h"
+#include "util/version.h"
 
 namespace topocal::report {
 namespace {
@@ -48,25 +48,26 @@ json FileDigests(const fs::path& dir) {
   }
   std::sort(names.begin(), names.end());
   json files = json::array();
-  for (const auto& n : names) files.push_back({{"name", n}, {"sha256", model::Sha256HexOfFile((dir / n).string())}});
+  for (const auto& n : names) files.push_back({{"name", n}, {"sha256", util::Sha256HexOfFile((dir / n).string())}});
   return files;
 }
 
 // Replaces `out` by the complete directory `staged`: the old record (if any) is moved aside first and removed
 // only after the new one is in place, so every moment either the old or the new record is whole.
 void CommitDirectory(const fs::path& staged, const fs::path& out) {
-  const model::DeferSignalCleanup defer;  // a signal between the two renames would lose both records
+  const util::DeferSignalCleanup defer;  // a signal between the two renames would lose both records
   std::error_code ec;
   const fs::path aside = out.string() + fmt::format(".old-{}", ::getpid());
   const bool had_old = fs::exists(out);
   if (had_old) {
     fs::rename(out, aside, ec);
-    if (ec) throw model::InputError(fmt::format("{}: cannot replace the existing record: {}", out.string(), ec.message()));
+    if (ec)
+      throw util::InputError(fmt::format("{}: cannot replace the existing record: {}", out.string(), ec.message()));
   }
   fs::rename(staged, out, ec);
   if (ec) {
     if (had_old) fs::rename(aside, out, ec);
-    throw model::InputError(fmt::format("{}: cannot write the record: {}", out.string(), ec.message()));
+    throw util::InputError(fmt::format("{}: cannot write the record: {}", out.string(), ec.message()));
   }
   if (had_old) fs::remove_all(aside, ec);
 }
@@ -89,23 +90,25 @@ UnitRecordWriter::UnitRecordWriter(fs::path out)
     : out_(RecordPath(std::move(out))), staging_(out_.string() + fmt::format(".tmp-{}", ::getpid())) {
   std::error_code ec;
   fs::remove_all(staging_, ec);
-  model::RegisterCleanupPath(staging_.string());  // SIGINT/SIGTERM remove it (issue 16: 8 of 8 kills left it)
+  util::RegisterCleanupPath(staging_.string());  // SIGINT/SIGTERM remove it (issue 16: 8 of 8 kills left it)
   fs::create_directories(staging_ / "maps", ec);
-  if (ec) throw model::InputError(fmt::format("{}: cannot create the record directory: {}", out_.string(), ec.message()));
+  if (ec)
+    throw util::InputError(fmt::format("{}: cannot create the record directory: {}", out_.string(), ec.message()));
 }
 
 UnitRecordWriter::~UnitRecordWriter() {
   std::error_code ec;
   if (!committed_) fs::remove_all(staging_, ec);
-  model::UnregisterCleanupPath(staging_.string());
+  util::UnregisterCleanupPath(staging_.string());
 }
 
 void UnitRecordWriter::WriteFile(const std::string& name, std::string_view bytes) const {
   const fs::path path = staging_ / name;
   std::error_code ec;
   fs::create_directories(path.parent_path(), ec);
-  if (ec) throw model::InputError(fmt::format("{}: cannot create directory: {}", path.parent_path().string(), ec.message()));
-  model::WriteFileAtomic(path.string(), bytes);
+  if (ec)
+    throw util::InputError(fmt::format("{}: cannot create directory: {}", path.parent_path().string(), ec.message()));
+  util::WriteFileAtomic(path.string(), bytes);
 }
 
 void UnitRecordWriter::Commit(json body) {
@@ -114,7 +117,7 @@ void UnitRecordWriter::Commit(json body) {
   body["tool_version"] = kVersion;
   body["files"] = FileDigests(staging_);
   CheckFinite(body, "");
-  model::WriteFileAtomic((staging_ / "unit.json").string(), body.dump(2) + "\n");
+  util::WriteFileAtomic((staging_ / "unit.json").string(), body.dump(2) + "\n");
   CommitDirectory(staging_, out_);
   committed_ = true;
 }
@@ -295,9 +298,9 @@ void WriteUnitRecord(const pipeline::UnitResult& u) {
   // The record, staged and committed whole.
   UnitRecordWriter writer(r.out);
   const fs::path& dir = writer.staging_dir();
-  model::WriteFileAtomic((dir / "calibration.yaml").string(),
-                         calib::CalibrationFileText(c.result, {r.target, c.view_paths, u.created_utc}));
-  model::WriteFileAtomic((dir / "residuals.csv").string(), ResidualsCsv(c));
+  util::WriteFileAtomic((dir / "calibration.yaml").string(),
+                        calib::CalibrationFileText(c.result, {r.target, c.view_paths, u.created_utc}));
+  util::WriteFileAtomic((dir / "residuals.csv").string(), ResidualsCsv(c));
   WriteRecordMaps((dir / "maps").string(), u.sphere, u.paper, u.config, r.jobs);
   if (u.sphere) {
     // The sphere's identified spots as the camera saw them: the report recomputes the check from them
@@ -305,12 +308,12 @@ void WriteUnitRecord(const pipeline::UnitResult& u) {
     std::vector<model::ImageSpot> spots;
     spots.reserve(u.sphere->detected.size());
     for (const auto& d : u.sphere->detected) spots.push_back({d.id, d.distorted_mm, Eigen::Vector3d::Zero()});
-    model::WriteFileAtomic((dir / kSphereSpotsCsv).string(), model::SpotsCsv(spots));
+    util::WriteFileAtomic((dir / kSphereSpotsCsv).string(), model::SpotsCsv(spots));
   }
   if (u.device) {
-    model::WriteFileAtomic((dir / "device.json").string(),
-                           model::DeviceToJson(u.device->calibration.fit.device,
-                                               pipeline::DeviceCalibrationJson(u.device->calibration)));
+    util::WriteFileAtomic(
+        (dir / "device.json").string(),
+        model::DeviceToJson(u.device->calibration.fit.device, pipeline::DeviceCalibrationJson(u.device->calibration)));
   }
 
   json record;

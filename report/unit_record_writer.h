@@ -24,7 +24,7 @@ void RequireFiniteNumbers(const nlohmann::json& j);
 
 class UnitRecordWriter {
  public:
-  // Creates the staging directory (with `maps/`). Throws model::InputError naming `out` when it cannot.
+  // Creates the staging directory (with `maps/`). Throws util::InputError naming `out` when it cannot.
   explicit UnitRecordWriter(std::filesystem::path out);
   ~UnitRecordWriter();  // removes the staging directory unless committed
   UnitRecordWriter(const UnitRecordWriter&) = delete;
@@ -35,7 +35,7 @@ class UnitRecordWriter {
   // Writes `name` (relative, inside the record) under the staging directory, creating parent directories.
   void WriteFile(const std::string& name, std::string_view bytes) const;
   // Completes and writes unit.json, then moves the record into place. Throws std::runtime_error for a non-finite
-  // number (nothing written), model::InputError when the record cannot be put in place.
+  // number (nothing written), util::InputError when the record cannot be put in place.
   void Commit(nlohmann::json body);
 
  private:
@@ -54,7 +54,7 @@ nlohmann::json PaperCorneaJson(const pipeline::SimulatedCornea& paper, const pip
 // residuals.csv, maps/ (the before/after power, elevation and height-error maps of the reference sphere and the
 // paper cornea) and, with the device stage, device.json. Staged and committed whole (UnitRecordWriter): on any
 // failure nothing is written and an earlier record at `out` is left as it was. Throws std::runtime_error
-// "SERIAL: the result is not usable: KEY: not a finite number" for a NaN or infinity, model::InputError when the
+// "SERIAL: the result is not usable: KEY: not a finite number" for a NaN or infinity, util::InputError when the
 // record cannot be written.
 void WriteUnitRecord(const pipeline::UnitResult& unit);
 

@@ -4,19 +4,18 @@
 // pipeline/closed_loop.h at a tenth of the pixels), the 13 x 13 checkerboard of 0.9 mm squares at the cornea
 // position, and a reference sphere, both through a camera with the paper's sigma = 6.3e-5 mm^-2.
 // Requires TOPOCAL_EXE and TOPOCAL_BINARY_DIR (tests/CMakeLists.txt) and tests/cli_harness.h.
+#include <fmt/format.h>
 #include <unistd.h>
 
 #include <filesystem>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
 #include <string>
 #include <utility>
 
-#include <fmt/format.h>
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-
-#include "model/io.h"
 #include "tests/cli_harness.h"
+#include "util/io.h"
 
 namespace topocal::testing_cli {
 
@@ -34,12 +33,12 @@ inline std::string UnitInputsDir() {
   const fs::path tmp = dir.string() + fmt::format(".tmp-{}", ::getpid());
   fs::remove_all(tmp);
   fs::create_directories(tmp);
-  model::WriteFileAtomic((tmp / "camera.json").string(),
-                         R"({"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120,)"
-                         R"( "principal_point_px": [559.5, 559.5], "a_mm": 5.2, "rotated_180": false})");
-  model::WriteFileAtomic((tmp / "target.yaml").string(),
-                         "target_type: checkerboard\ntargetCols: 13\ntargetRows: 13\nrowSpacingMeters: 0.0009\n"
-                         "colSpacingMeters: 0.0009\n");
+  util::WriteFileAtomic((tmp / "camera.json").string(),
+                        R"({"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120,)"
+                        R"( "principal_point_px": [559.5, 559.5], "a_mm": 5.2, "rotated_180": false})");
+  util::WriteFileAtomic((tmp / "target.yaml").string(),
+                        "target_type: checkerboard\ntargetCols: 13\ntargetRows: 13\nrowSpacingMeters: 0.0009\n"
+                        "colSpacingMeters: 0.0009\n");
   const auto t = tmp.string();
   const auto target = RunTopocal(fmt::format(
       "render-target --target {0}/target.yaml --out {0}/view.png --width 1120 --height 1120 --focal-mm 5.2 "

@@ -13,10 +13,10 @@
 #include "calib/cross_validation.h"
 #include "calib/detect.h"
 #include "calib/target.h"
-#include "model/file_glob.h"
-#include "model/io.h"
-#include "model/parallel.h"
 #include "tools/commands.h"
+#include "util/file_glob.h"
+#include "util/io.h"
+#include "util/parallel.h"
 
 namespace topocal::tools {
 namespace {
@@ -32,7 +32,7 @@ struct CalibrateArgs {
   std::vector<std::string> fix;
   std::string loss = "huber";
   double loss_scale_px = 1.0, outlier_threshold = 4.0;
-  int jobs = model::AvailableCores();
+  int jobs = util::AvailableCores();
 };
 
 void Run(const CalibrateArgs& a) {
@@ -40,7 +40,7 @@ void Run(const CalibrateArgs& a) {
   // line, so keep glog's lines off the terminal.
   FLAGS_minloglevel = google::GLOG_FATAL;
   const auto model = calib::ParseDistortionModel(a.model);
-  if (!model) throw model::InputError(fmt::format("--model: '{}' is not seidel or brown5", a.model));
+  if (!model) throw util::InputError(fmt::format("--model: '{}' is not seidel or brown5", a.model));
   calib::CalibrationOptions options;
   options.model = *model;
   options.fixed = {a.fix.begin(), a.fix.end()};
@@ -53,31 +53,32 @@ void Run(const CalibrateArgs& a) {
   options.magnification = a.magnification;
   if (a.robust) {
     const auto loss = calib::ParseRobustLoss(a.loss);
-    if (!loss || *loss == calib::RobustLoss::kNone) throw model::InputError(fmt::format("--loss: '{}' is not huber or cauchy", a.loss));
+    if (!loss || *loss == calib::RobustLoss::kNone)
+      throw util::InputError(fmt::format("--loss: '{}' is not huber or cauchy", a.loss));
     options.loss = *loss;
     options.loss_scale_px = a.loss_scale_px;
     options.reject_outliers = true;
     options.outlier_threshold = a.outlier_threshold;
   }
   if (a.single_view && !(a.focal_mm > 0 && a.pixel_pitch_um > 0 && a.distance_mm > 0)) {
-    throw model::InputError("--single-view needs --focal-mm, --pixel-pitch-um and --distance-mm (all > 0)");
+    throw util::InputError("--single-view needs --focal-mm, --pixel-pitch-um and --distance-mm (all > 0)");
   }
   if (a.single_view && a.fix_aspect > 0) {
-    throw model::InputError("--fix-aspect applies to multi-view fits; --single-view already holds fx = fy");
+    throw util::InputError("--fix-aspect applies to multi-view fits; --single-view already holds fx = fy");
   }
   if (a.single_view && a.board_warp) {
-    throw model::InputError("--board-warp needs several views; it does not apply to --single-view");
+    throw util::InputError("--board-warp needs several views; it does not apply to --single-view");
   }
   if (a.single_view && !a.cross_validate_svg.empty()) {
-    throw model::InputError("--cross-validate needs several views; it does not apply to --single-view");
+    throw util::InputError("--cross-validate needs several views; it does not apply to --single-view");
   }
   std::string why;
-  if (!options.IsValid(&why)) throw model::InputError(why);
+  if (!options.IsValid(&why)) throw util::InputError(why);
 
   const auto target = calib::LoadTargetDescription(a.target);
-  const auto paths = model::Glob(a.images);
+  const auto paths = util::Glob(a.images);
   if (a.single_view && paths.size() != 1) {
-    throw model::InputError(fmt::format("--single-view takes one image; '{}' matches {}", a.images, paths.size()));
+    throw util::InputError(fmt::format("--single-view takes one image; '{}' matches {}", a.images, paths.size()));
   }
   calib::FileSetOptions detect;
   detect.jobs = a.jobs;
@@ -135,9 +136,9 @@ void Run(const CalibrateArgs& a) {
   // All texts are complete before any file is written, so a failure leaves none behind.
   const std::string cal_text = calib::CalibrationFileText(result, provenance);
   const std::string json_text = a.json.empty() ? std::string() : calib::CalibrationReportJson(result, provenance);
-  model::WriteFileAtomic(a.out, cal_text);
-  if (!a.json.empty()) model::WriteFileAtomic(a.json, json_text);
-  if (cross) model::WriteFileAtomic(a.cross_validate_svg, cross_svg);
+  util::WriteFileAtomic(a.out, cal_text);
+  if (!a.json.empty()) util::WriteFileAtomic(a.json, json_text);
+  if (cross) util::WriteFileAtomic(a.cross_validate_svg, cross_svg);
   const auto& c = result.camera;
   fmt::print("{} {} calibration from {} view(s), {} corners: rms {:.4f} px, {} outlier(s)\n", calib::ToString(result.model),
              result.single_view ? "single-view" : "multi-view", result.views_used.size(), result.corners_used,

@@ -1,13 +1,13 @@
-#include <filesystem>
-
 #include <fmt/format.h>
 
+#include <filesystem>
+
 #include "model/config.h"
-#include "model/io.h"
 #include "model/null_screen.h"
 #include "model/null_screen_layout.h"
 #include "plot/null_screen_svg.h"
 #include "tools/commands.h"
+#include "util/io.h"
 
 namespace topocal::tools {
 
@@ -43,7 +43,7 @@ void AddDesignCommand(CLI::App& app) {
       }
       svg_text = plot::NullScreenSvg(layout, {.title = std::filesystem::path(*config).stem().string()});
     }
-    model::StagedOutputs outputs;  // the CSV and the SVG are published together or not at all
+    util::StagedOutputs outputs;  // the CSV and the SVG are published together or not at all
     outputs.AddFile(*out, csv);
     if (!svg->empty()) outputs.AddFile(*svg, svg_text);
     outputs.Commit();

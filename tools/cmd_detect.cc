@@ -1,7 +1,7 @@
 // topocal detect: the spots of a raw image, detected, indexed and flagged, with the estimator a user chooses.
-#include <memory>
-
 #include <fmt/format.h>
+
+#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "correct/detect_and_index.h"
@@ -9,9 +9,9 @@
 #include "imageio/image_file.h"
 #include "model/config.h"
 #include "model/device.h"
-#include "model/io.h"
 #include "model/topographer_camera.h"
 #include "tools/commands.h"
+#include "util/io.h"
 
 namespace topocal::tools {
 namespace {
@@ -21,7 +21,7 @@ struct DetectArgs {
 };
 
 void Run(const DetectArgs& a) {
-  if (a.camera.empty() == a.device.empty()) throw model::InputError("detect: give one of --camera or --device");
+  if (a.camera.empty() == a.device.empty()) throw util::InputError("detect: give one of --camera or --device");
   const auto cfg = model::LoadConfig(a.config);
   const auto camera = a.device.empty() ? model::LoadTopographerCamera(a.camera) : model::LoadDevice(a.device).device.camera;
   const std::string& camera_file = a.device.empty() ? a.camera : a.device;
@@ -32,10 +32,10 @@ void Run(const DetectArgs& a) {
   try {
     r = correct::DetectAndIndexSpots(image, camera, cfg.ideal_image, options);
   } catch (const std::invalid_argument& e) {
-    throw model::InputError(fmt::format("{}: {}", a.image, e.what()));
+    throw util::InputError(fmt::format("{}: {}", a.image, e.what()));
   }
   if (r.orientation.status == correct::OrientationCheck::Status::kMismatch) {
-    throw model::InputError(fmt::format("{}: {}", a.image, r.orientation.message));
+    throw util::InputError(fmt::format("{}: {}", a.image, r.orientation.message));
   }
   if (!r.ok) throw std::runtime_error(fmt::format("{}: spot detection/indexing: {}", a.image, r.message));
   nlohmann::json j;
@@ -50,8 +50,8 @@ void Run(const DetectArgs& a) {
                       {"read_noise_dn", r.detection.read_noise_dn},
                       {"gain_e_per_dn", r.detection.gain_e_per_dn}};
   j["orientation"] = r.orientation.message;
-  model::WriteFileAtomic(a.out, correct::DetectedSpotsCsv(r));
-  if (!a.json.empty()) model::WriteFileAtomic(a.json, j.dump(2) + "\n");
+  util::WriteFileAtomic(a.out, correct::DetectedSpotsCsv(r));
+  if (!a.json.empty()) util::WriteFileAtomic(a.json, j.dump(2) + "\n");
   fmt::print("detect ({}): {} spots indexed ({} flagged near a blob or at the border, left out of a measurement), "
              "{} unassigned blobs, {} designed spots missing -> {}\n",
              j["estimator"].get<std::string>(), r.spots.size() + r.excluded.size(), r.excluded.size(),

@@ -1,16 +1,16 @@
 // topocal device calibrate: the whole device (screen pose, principal point, a, distortion) from reference-ball images.
-#include <memory>
-
 #include <fmt/format.h>
+
+#include <memory>
 
 #include "imageio/image_file.h"
 #include "model/config.h"
 #include "model/device.h"
-#include "model/io.h"
-#include "model/sha256.h"
-#include "model/version.h"
 #include "pipeline/device_calibration.h"
 #include "tools/commands.h"
+#include "util/io.h"
+#include "util/sha256.h"
+#include "util/version.h"
 
 namespace topocal::tools {
 namespace {
@@ -25,24 +25,27 @@ struct DeviceArgs {
 };
 
 void Calibrate(DeviceArgs a) {
-  if (a.balls.empty()) throw model::InputError("--balls: at least one reference-ball image is needed");
+  if (a.balls.empty()) throw util::InputError("--balls: at least one reference-ball image is needed");
   if (a.radii_mm.size() != a.balls.size()) {
-    throw model::InputError(fmt::format("--radii-mm: {} radii for {} ball images (one certified radius per image, in "
-                                        "the same order)", a.radii_mm.size(), a.balls.size()));
+    throw util::InputError(
+        fmt::format("--radii-mm: {} radii for {} ball images (one certified radius per image, in "
+                    "the same order)",
+                    a.radii_mm.size(), a.balls.size()));
   }
   for (size_t i = 0; i < a.radii_mm.size(); ++i) {
     // Reference balls for a topographer: radii of human corneas and a little beyond (5-12 mm).
     if (!(a.radii_mm[i] >= 3.0 && a.radii_mm[i] <= 20.0)) {
-      throw model::InputError(fmt::format("--radii-mm: {} for {} is not a reference-ball radius (3-20 mm)",
-                                          a.radii_mm[i], a.balls[i]));
+      throw util::InputError(
+          fmt::format("--radii-mm: {} for {} is not a reference-ball radius (3-20 mm)", a.radii_mm[i], a.balls[i]));
     }
   }
   if (a.datum < 1 || a.datum > static_cast<int>(a.balls.size())) {
-    throw model::InputError(fmt::format("--datum: must name one of the {} balls (1..{})", a.balls.size(), a.balls.size()));
+    throw util::InputError(
+        fmt::format("--datum: must name one of the {} balls (1..{})", a.balls.size(), a.balls.size()));
   }
   a.options.datum_ball = a.datum - 1;
   std::string why;
-  if (!a.options.IsValid(&why)) throw model::InputError(why);
+  if (!a.options.IsValid(&why)) throw util::InputError(why);
   const auto cfg = model::LoadConfig(a.config);
   const auto nominal = model::LoadDevice(a.device);
   std::vector<pipeline::BallImage> images;
@@ -56,19 +59,19 @@ void Calibrate(DeviceArgs a) {
   try {
     result = pipeline::CalibrateDevice(images, nominal.device, cfg, a.options);
   } catch (const std::invalid_argument& e) {
-    throw model::InputError(e.what());
+    throw util::InputError(e.what());
   }
   const auto& fit = result.fit;
   if (!fit.ok) throw std::runtime_error(fmt::format("device calibration failed: {}", fit.message));
   auto report = pipeline::DeviceCalibrationJson(result);
   report["tool"] = fmt::format("topocal {}", kVersion);
-  report["inputs"] = {{"configuration", {{"path", a.config}, {"sha256", model::Sha256HexOfFile(a.config)}}},
-                      {"nominal_device", {{"path", a.device}, {"sha256", model::Sha256HexOfFile(a.device)}}}};
+  report["inputs"] = {{"configuration", {{"path", a.config}, {"sha256", util::Sha256HexOfFile(a.config)}}},
+                      {"nominal_device", {{"path", a.device}, {"sha256", util::Sha256HexOfFile(a.device)}}}};
   for (size_t i = 0; i < a.balls.size(); ++i) {
-    report["balls"][i]["sha256"] = model::Sha256HexOfFile(a.balls[i]);
+    report["balls"][i]["sha256"] = util::Sha256HexOfFile(a.balls[i]);
   }
   report["spot_sigma_px"] = a.options.spot_sigma_px;
-  model::WriteFileAtomic(a.out, model::DeviceToJson(fit.device, report));
+  util::WriteFileAtomic(a.out, model::DeviceToJson(fit.device, report));
 
   if (!a.quiet) {
     fmt::print("device calibration: {}\n", fit.message);

@@ -1,13 +1,13 @@
 // topocal export / import: a calibration to and from other tools' formats (calib/camera_exchange.h).
+#include <fmt/format.h>
+
 #include <memory>
 #include <string>
 
-#include <fmt/format.h>
-
 #include "calib/calibration_file.h"
 #include "calib/camera_exchange.h"
-#include "model/io.h"
 #include "tools/commands.h"
+#include "util/io.h"
 
 namespace topocal::tools {
 namespace {
@@ -22,11 +22,11 @@ struct ImportArgs {
 
 void RunExport(const ExportArgs& a) {
   const auto format = calib::ParseExportFormat(a.to);
-  if (!format) throw model::InputError(fmt::format("--to: '{}' is not ros, kalibr, mrcal or opencv", a.to));
+  if (!format) throw util::InputError(fmt::format("--to: '{}' is not ros, kalibr, mrcal or opencv", a.to));
   const auto cal = calib::LoadCalibrationFile(a.calibration);
   calib::ExportOptions options;
   options.camera_name = a.camera_name;
-  model::WriteFileAtomic(a.out, calib::ExportCalibration(cal, *format, a.calibration, options));
+  util::WriteFileAtomic(a.out, calib::ExportCalibration(cal, *format, a.calibration, options));
   fmt::print("{} -> {} ({})\n", a.calibration, a.out, a.to);
   if (!cal.camera.distortion_centre.isZero(0)) {
     fmt::print("note: {} has a distortion centre; the export holds its closest OpenCV model "
@@ -35,15 +35,15 @@ void RunExport(const ExportArgs& a) {
 }
 
 void RunImport(const ImportArgs& a) {
-  calib::CameraModel camera;
+  model::CameraModel camera;
   if (a.from == "kalibr") {
     camera = calib::ReadKalibrCamchain(a.file, a.camera);
   } else if (a.from == "opencv") {
     camera = calib::LoadCalibrationFile(a.file).opencv_camera;
   } else {
-    throw model::InputError(fmt::format("--from: '{}' is not kalibr or opencv", a.from));
+    throw util::InputError(fmt::format("--from: '{}' is not kalibr or opencv", a.from));
   }
-  model::WriteFileAtomic(a.out, calib::OpenCvCalibrationText(camera, a.from + ": " + a.file));
+  util::WriteFileAtomic(a.out, calib::OpenCvCalibrationText(camera, a.from + ": " + a.file));
   fmt::print("{} ({}) -> {}\n", a.file, a.from, a.out);
 }
 

@@ -1,17 +1,17 @@
 // topocal fleet: the production line's unit records in a SQLite database (report/fleet_db.h) and its fleet report
 // (report/fleet_report.h). docs/fleet.md.
+#include <fmt/format.h>
+
 #include <memory>
 #include <string>
 #include <vector>
 
-#include <fmt/format.h>
-
-#include "model/io.h"
 #include "report/acceptance.h"
 #include "report/fleet_db.h"
 #include "report/fleet_report.h"
 #include "report/unit_record_reader.h"
 #include "tools/commands.h"
+#include "util/io.h"
 
 namespace topocal::tools {
 namespace {
@@ -26,7 +26,7 @@ struct FleetReportArgs {
 };
 
 void Ingest(const IngestArgs& a) {
-  if (a.station.empty()) throw model::InputError("--station: must not be empty");
+  if (a.station.empty()) throw util::InputError("--station: must not be empty");
   // Every record is read and verified before the database is touched: one bad record refuses the batch.
   std::vector<report::UnitRecord> records;
   for (const std::string& dir : a.records) records.push_back(report::ReadUnitRecord(dir));
@@ -40,13 +40,13 @@ void Report(const FleetReportArgs& a) {
   const report::Limits limits = a.limits.empty() ? report::DefaultLimits() : report::LoadLimits(a.limits);
   const report::FleetDb db(a.db, /*create=*/false);
   const report::FleetAnalysis analysis = report::AnalyseFleet(a.db, db.Units(), limits);
-  if (analysis.units.empty()) throw model::InputError(fmt::format("{}: the fleet database holds no unit", a.db));
+  if (analysis.units.empty()) throw util::InputError(fmt::format("{}: the fleet database holds no unit", a.db));
   const std::string html = report::RenderFleetHtml(analysis);
   const std::string csv = a.csv.empty() ? "" : report::FleetCsv(analysis);
   const std::string json = a.json.empty() ? "" : report::FleetJson(analysis).dump(2) + "\n";
-  model::WriteFileAtomic(a.out, html);
-  if (!a.csv.empty()) model::WriteFileAtomic(a.csv, csv);
-  if (!a.json.empty()) model::WriteFileAtomic(a.json, json);
+  util::WriteFileAtomic(a.out, html);
+  if (!a.csv.empty()) util::WriteFileAtomic(a.csv, csv);
+  if (!a.json.empty()) util::WriteFileAtomic(a.json, json);
   int passed = 0;
   for (const auto& v : analysis.verdicts) passed += v.pass ? 1 : 0;
   fmt::print("{}: {} records, {} PASS, {} FAIL, {} out-of-control signal(s)\n", a.out, analysis.units.size(), passed,

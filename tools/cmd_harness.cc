@@ -1,6 +1,8 @@
 // topocal harness: the residual-distortion sweep and its inverse answer (docs/harness.md).
 //   topocal harness --config H.json --out DIR [--shard i/N] [--jobs J]
 //   topocal harness merge --out DIR SHARD...
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
@@ -8,18 +10,16 @@
 #include <string>
 #include <vector>
 
-#include <fmt/format.h>
-
+#include "harness/harness.h"
+#include "harness/harness_answer.h"
+#include "harness/harness_config.h"
+#include "harness/harness_report.h"
 #include "model/config.h"
-#include "model/io.h"
-#include "model/parallel.h"
-#include "pipeline/harness.h"
-#include "pipeline/harness_answer.h"
-#include "pipeline/harness_config.h"
-#include "pipeline/harness_report.h"
 #include "tools/commands.h"
 #include "tools/output_dir.h"
 #include "tools/progress.h"
+#include "util/io.h"
+#include "util/parallel.h"
 
 namespace topocal::tools {
 namespace {
@@ -29,29 +29,29 @@ namespace fs = std::filesystem;
 void PrepareOutputDirectory(const std::string& dir) {
   std::error_code ec;
   if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
-    throw model::InputError(fmt::format("{}: --out: exists and is not a directory", dir));
+    throw util::InputError(fmt::format("{}: --out: exists and is not a directory", dir));
   }
-  // Created with the outputs (model::StagedOutputs), so that an interrupted run leaves no empty directory.
+  // Created with the outputs (util::StagedOutputs), so that an interrupted run leaves no empty directory.
 }
 
 // Stages every file, then publishes them together: a failed or interrupted run leaves no partial set of outputs.
 void WriteAll(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files) {
-  model::StagedOutputs outputs;
+  util::StagedOutputs outputs;
   const fs::path staging = outputs.AddDirectory(dir);  // DIR is created only when the outputs are published
-  for (const auto& [name, content] : files) model::WriteFileAtomic((staging / name).string(), content);
+  for (const auto& [name, content] : files) util::WriteFileAtomic((staging / name).string(), content);
   outputs.Commit();
 }
 
-void WriteOutputs(const std::string& dir, const pipeline::HarnessRun& run) {
-  const auto answer = pipeline::ComputeInverseAnswer(run);
-  WriteAll(dir, pipeline::RenderHarnessOutputs(run, answer));
-  fmt::print("{}", pipeline::HarnessAnswerText(run, answer));
+void WriteOutputs(const std::string& dir, const harness::HarnessRun& run) {
+  const auto answer = harness::ComputeInverseAnswer(run);
+  WriteAll(dir, harness::RenderHarnessOutputs(run, answer));
+  fmt::print("{}", harness::HarnessAnswerText(run, answer));
 }
 
 // A shard argument: a shard file, or a directory holding shard-*-of-*.json files.
 std::vector<std::string> ShardFiles(const std::string& arg) {
   std::error_code ec;
-  if (!fs::exists(arg, ec)) throw model::InputError(fmt::format("{}: shard: no such file or directory", arg));
+  if (!fs::exists(arg, ec)) throw util::InputError(fmt::format("{}: shard: no such file or directory", arg));
   if (!fs::is_directory(arg, ec)) return {arg};
   std::vector<std::string> files;
   for (const auto& entry : fs::directory_iterator(arg, ec)) {
@@ -61,8 +61,8 @@ std::vector<std::string> ShardFiles(const std::string& arg) {
       files.push_back(entry.path().string());
     }
   }
-  if (ec) throw model::InputError(fmt::format("{}: shard: cannot be listed: {}", arg, ec.message()));
-  if (files.empty()) throw model::InputError(fmt::format("{}: shard: no shard-<i>-of-<N>.json file in it", arg));
+  if (ec) throw util::InputError(fmt::format("{}: shard: cannot be listed: {}", arg, ec.message()));
+  if (files.empty()) throw util::InputError(fmt::format("{}: shard: no shard-<i>-of-<N>.json file in it", arg));
   std::sort(files.begin(), files.end());
   return files;
 }
@@ -80,7 +80,7 @@ void AddHarnessCommand(CLI::App& app) {
   auto config = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto shard = std::make_shared<std::string>();
-  auto jobs = std::make_shared<int>(model::AvailableCores());
+  auto jobs = std::make_shared<int>(util::AvailableCores());
   cmd->add_option("--config", *config, "Harness configuration (JSON, docs/harness.md)");
   cmd->add_option("--out", *out, "Output directory (created if missing)");
   cmd->add_option("--shard", *shard,
@@ -97,33 +97,32 @@ void AddHarnessCommand(CLI::App& app) {
   merge->add_option("shards", *inputs, "Shard files, or directories holding shard-<i>-of-<N>.json files")->required();
   merge->callback([=] {
     const NewDirectoryGuard out_guard(*merge_out);  // a failed merge leaves no empty folder
-    std::vector<pipeline::HarnessRun> shards;
+    std::vector<harness::HarnessRun> shards;
     std::vector<std::string> origins;
     for (const auto& arg : *inputs) {
       for (const auto& file : ShardFiles(arg)) {
-        shards.push_back(pipeline::ParseHarnessShard(model::ReadFile(file), file));
+        shards.push_back(harness::ParseHarnessShard(util::ReadFile(file), file));
         origins.push_back(file);
       }
     }
-    const auto run = pipeline::MergeHarnessShards(shards, origins);
+    const auto run = harness::MergeHarnessShards(shards, origins);
     PrepareOutputDirectory(*merge_out);
     WriteOutputs(*merge_out, run);
   });
 
   cmd->callback([=] {
     if (merge->parsed()) return;
-    if (config->empty()) throw model::InputError("harness: --config is required (or: topocal harness merge)");
-    if (out->empty()) throw model::InputError("harness: --out is required");
+    if (config->empty()) throw util::InputError("harness: --config is required (or: topocal harness merge)");
+    if (out->empty()) throw util::InputError("harness: --out is required");
     const NewDirectoryGuard out_guard(*out);  // a failed run leaves no empty folder
-    if (*jobs < 1) throw model::InputError(fmt::format("--jobs: must be >= 1 (got {})", *jobs));
-    const pipeline::ShardSpec spec = shard->empty() ? pipeline::ShardSpec{} : pipeline::ParseShardSpec(*shard);
-    const auto cfg = pipeline::LoadHarnessConfig(*config);
+    if (*jobs < 1) throw util::InputError(fmt::format("--jobs: must be >= 1 (got {})", *jobs));
+    const util::ShardSpec spec = shard->empty() ? util::ShardSpec{} : util::ParseShardSpec(*shard);
+    const auto cfg = harness::LoadHarnessConfig(*config);
     PrepareOutputDirectory(*out);
     const auto t0 = std::chrono::steady_clock::now();
     Progress progress("topocal harness: cases");
-    const auto run = pipeline::RunHarness(cfg, spec, *jobs, [&progress](std::size_t done, std::size_t total) {
-      progress.Update(done, total);
-    });
+    const auto run = harness::RunHarness(
+        cfg, spec, *jobs, [&progress](std::size_t done, std::size_t total) { progress.Update(done, total); });
     const double seconds = SecondsSince(t0);
     fmt::print(stderr, "topocal harness: {} of {} cases in {:.1f} s ({:.1f} ms per case, {} job{})\n",
                run.cases.size(), run.total_cases, seconds, run.cases.empty() ? 0.0 : 1e3 * seconds / run.cases.size(),
@@ -132,8 +131,8 @@ void AddHarnessCommand(CLI::App& app) {
       WriteOutputs(*out, run);
       return;
     }
-    const std::string name = pipeline::HarnessShardFileName(spec);
-    WriteAll(*out, {{name, pipeline::HarnessShardJson(run)}});
+    const std::string name = harness::HarnessShardFileName(spec);
+    WriteAll(*out, {{name, harness::HarnessShardJson(run)}});
     fmt::print("shard {}/{}: {} of {} cases written to {}\n", spec.index, spec.count, run.cases.size(),
                run.total_cases, (fs::path(*out) / name).string());
   });

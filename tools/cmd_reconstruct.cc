@@ -1,26 +1,26 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
-#include <nlohmann/json.hpp>
 
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "calib/calibration_file.h"
 #include "correct/detect_and_index.h"
 #include "model/config.h"
+#include "model/null_screen.h"
+#include "model/spots_csv.h"
 #include "model/topographer_camera.h"
 #include "pipeline/detection_plane.h"
+#include "pipeline/map_output.h"
 #include "pipeline/measure_spots.h"
 #include "pipeline/uncertainty.h"
-#include "model/io.h"
-#include "model/null_screen.h"
+#include "report/analysis_json.h"
 #include "tools/commands.h"
 #include "tools/output_dir.h"
 #include "tools/progress.h"
 #include "tools/surface_option.h"
-#include "model/spots_csv.h"
-#include "pipeline/map_output.h"
-#include "report/analysis_json.h"
 #include "topo/analysis.h"
+#include "util/io.h"
 
 namespace topocal::tools {
 namespace {
@@ -83,10 +83,10 @@ pipeline::SpotMeasurement MeasureImage(const cv::Mat& image, const model::Topogr
   pipeline::SpotMeasurement m;
   try {
     m = pipeline::MeasureSpots(image, camera, ideal, distortion, options);
-  } catch (const model::InputError& e) {
-    throw model::InputError(fmt::format("{}: {}", in.image, e.what()));
+  } catch (const util::InputError& e) {
+    throw util::InputError(fmt::format("{}: {}", in.image, e.what()));
   } catch (const std::invalid_argument& e) {
-    throw model::InputError(fmt::format("{}: {}", in.image, e.what()));
+    throw util::InputError(fmt::format("{}: {}", in.image, e.what()));
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(fmt::format("{}: {}", in.image, e.what()));
   }
@@ -103,14 +103,15 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
   std::vector<topo::MeasuredSpot> measured;
   if (!in.spots.empty()) {
     if (!in.camera.empty() || !in.calibration.empty() || !in.device.empty()) {
-      throw model::InputError("--camera, --device and --calibration go with --image (a spots CSV is already in mm)");
+      throw util::InputError("--camera, --device and --calibration go with --image (a spots CSV is already in mm)");
     }
     for (const auto& r : model::ReadSpotsCsv(in.spots)) measured.push_back({r.id, Eigen::Vector2d(r.x_mm, r.y_mm)});
     (*info)["spots_read"] = measured.size();
     return measured;
   }
   if (in.camera.empty() == in.device.empty()) {
-    throw model::InputError("--image: needs --camera (pixel pitch, principal point) or --device (the calibrated device)");
+    throw util::InputError(
+        "--image: needs --camera (pixel pitch, principal point) or --device (the calibrated device)");
   }
   const auto camera = in.device.empty() ? model::LoadTopographerCamera(in.camera) : device->camera;
   const std::string& camera_file = in.device.empty() ? in.camera : in.device;
@@ -132,12 +133,12 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
   if (!in.calibration.empty()) {
     cal = calib::LoadCalibrationFile(in.calibration);
     if (cal->camera.width_px != camera.width_px || cal->camera.height_px != camera.height_px) {
-      throw model::InputError(fmt::format("{}: calibrated at {} x {} px but {} is {} x {} px: calibrate the same sensor",
-                                          in.calibration, cal->camera.width_px, cal->camera.height_px, in.camera,
-                                          camera.width_px, camera.height_px));
+      throw util::InputError(fmt::format("{}: calibrated at {} x {} px but {} is {} x {} px: calibrate the same sensor",
+                                         in.calibration, cal->camera.width_px, cal->camera.height_px, in.camera,
+                                         camera.width_px, camera.height_px));
     }
     const auto on_plane = pipeline::DetectionPlaneModelOf(cal->camera, camera);
-    if (!on_plane.ok) throw model::InputError(fmt::format("{}: {}", in.calibration, on_plane.message));
+    if (!on_plane.ok) throw util::InputError(fmt::format("{}: {}", in.calibration, on_plane.message));
     distortion = on_plane.distortion;
   }
   const auto m = MeasureImage(image, camera, cfg.ideal_image, distortion, in);
@@ -157,7 +158,7 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
       *uncertainty = pipeline::PropagateCalibrationUncertainty(m.detected, cal->camera, calib::ParameterCovarianceOf(*cal), camera, cfg,
                                                                in.uncertainty_samples, in.seed);
     } catch (const std::invalid_argument& e) {
-      throw model::InputError(fmt::format("{}: {}", in.calibration, e.what()));
+      throw util::InputError(fmt::format("{}: {}", in.calibration, e.what()));
     }
   }
   return m.spots;
@@ -200,9 +201,9 @@ void AddReconstructCommand(CLI::App& app) {
     const NewDirectoryGuard maps_guard(*maps);  // a failed run leaves no empty --maps folder
     auto cfg = model::LoadConfig(*config);
     overrides->ApplyTo(&cfg);
-    if (in->spots.empty() == in->image.empty()) throw model::InputError("reconstruct: give one of --spots or --image");
+    if (in->spots.empty() == in->image.empty()) throw util::InputError("reconstruct: give one of --spots or --image");
     if (in->uncertainty_samples > 0 && (in->image.empty() || in->calibration.empty())) {
-      throw model::InputError("--uncertainty needs --image and --calibration");
+      throw util::InputError("--uncertainty needs --image and --calibration");
     }
     nlohmann::json info;
     std::optional<pipeline::ClinicalUncertainty> uncertainty;
@@ -234,7 +235,7 @@ void AddReconstructCommand(CLI::App& app) {
       for (const auto& [name, q] : uncertainty->quantities) u[name] = {{"mean", q.mean}, {"expanded", q.expanded_k2}};
       info["uncertainty"] = u;
     }
-    model::StagedOutputs outputs;  // the JSON and the maps are published together or not at all
+    util::StagedOutputs outputs;  // the JSON and the maps are published together or not at all
     if (!json_out->empty()) {
       nlohmann::json j = info;
       j["reconstruction"] = report::ReconstructionJson(analysis.reconstruction);

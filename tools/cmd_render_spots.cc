@@ -1,20 +1,20 @@
 // topocal render-spots: the raw sensor image of a measurement (spot pattern of the configured cornea, distorted,
 // seen by the topographer's camera), with its truth. Conventions: docs/camera-conventions.md.
+#include <fmt/format.h>
+
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <memory>
-
-#include <Eigen/SVD>
-#include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
 
 #include "correct/spot_render.h"
 #include "correct/spot_truth.h"
 #include "model/config.h"
-#include "model/io.h"
 #include "model/topographer_camera.h"
 #include "tools/commands.h"
 #include "tools/surface_option.h"
+#include "util/io.h"
 
 namespace topocal::tools {
 namespace {
@@ -30,16 +30,16 @@ struct RenderSpotsArgs {
 
 void RequirePng(const std::string& path, const char* option) {
   if (path.size() < 4 || path.substr(path.size() - 4) != ".png") {
-    throw model::InputError(fmt::format("{}: {}: the output must be a .png file", option, path));
+    throw util::InputError(fmt::format("{}: {}: the output must be a .png file", option, path));
   }
 }
 
 void Run(const RenderSpotsArgs& a) {
   RequirePng(a.out, "--out");
-  if (!std::isfinite(a.sigma)) throw model::InputError("--sigma: must be a finite number");
-  if (!(a.drop >= 0 && a.drop < 1)) throw model::InputError(fmt::format("--drop: must be in [0, 1) (got {})", a.drop));
-  if (a.glints < 0) throw model::InputError(fmt::format("--glints: must be >= 0 (got {})", a.glints));
-  if (a.camera.empty() == a.device.empty()) throw model::InputError("render-spots: give one of --camera or --device");
+  if (!std::isfinite(a.sigma)) throw util::InputError("--sigma: must be a finite number");
+  if (!(a.drop >= 0 && a.drop < 1)) throw util::InputError(fmt::format("--drop: must be in [0, 1) (got {})", a.drop));
+  if (a.glints < 0) throw util::InputError(fmt::format("--glints: must be >= 0 (got {})", a.glints));
+  if (a.camera.empty() == a.device.empty()) throw util::InputError("render-spots: give one of --camera or --device");
   const auto cfg = model::LoadConfig(a.config);
   const model::Surface surface = SurfaceToImage(cfg, a.sphere_radius_mm, a.ball_at_mm);
   model::Device device;
@@ -48,8 +48,8 @@ void Run(const RenderSpotsArgs& a) {
   } else {
     device = model::NominalDevice(model::LoadTopographerCamera(a.camera));
     if (std::abs(device.camera.a_mm - cfg.topographer.a_mm) > 1e-9) {
-      throw model::InputError(fmt::format("{}: a_mm: {} differs from the configuration's topographer.a_mm = {} ({})",
-                                          a.camera, device.camera.a_mm, cfg.topographer.a_mm, a.config));
+      throw util::InputError(fmt::format("{}: a_mm: {} differs from the configuration's topographer.a_mm = {} ({})",
+                                         a.camera, device.camera.a_mm, cfg.topographer.a_mm, a.config));
     }
     RequireFoldFreeSigma(a.sigma, cfg, a.config);
     device.distortion = cfg.distortion.SeidelAt(a.sigma);
@@ -67,7 +67,7 @@ void Run(const RenderSpotsArgs& a) {
   o.gain_e_per_dn = std::isnan(a.gain) ? (b16 ? 4.0 : 0.0) : a.gain;
   o.seed = a.seed;
   std::string why;
-  if (!o.IsValid(&why)) throw model::InputError("render-spots: " + why);
+  if (!o.IsValid(&why)) throw util::InputError("render-spots: " + why);
 
   const auto truth = correct::SpotsOnSensor(surface, cfg.ideal_image, cfg.topographer, device);
   if (truth.spots.empty()) throw std::runtime_error(fmt::format("{}: the surface images no spot", a.config));
@@ -90,8 +90,8 @@ void Run(const RenderSpotsArgs& a) {
   std::vector<uchar> png;
   if (!cv::imencode(".png", image, png)) throw std::runtime_error(fmt::format("{}: PNG encoding failed", a.out));
   const std::string csv = a.truth.empty() ? std::string() : correct::SpotTruthCsv(spots, camera);
-  model::WriteFileAtomic(a.out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
-  if (!a.truth.empty()) model::WriteFileAtomic(a.truth, csv);
+  util::WriteFileAtomic(a.out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  if (!a.truth.empty()) util::WriteFileAtomic(a.truth, csv);
   const int glints = static_cast<int>(std::count_if(spots.begin(), spots.end(), [](const auto& s) { return s.id.ring == 0; }));
   fmt::print("rendered {} spots ({} dropped, {} not imaged) and {} glints, {}-bit {}x{} -> {}\n",
              spots.size() - glints, truth.spots.size() - (spots.size() - glints), truth.failures.size(), glints, a.bits,

@@ -1,20 +1,20 @@
 // topocal render-target: synthetic ground truth — a target seen through a camera with distortion, blur and noise,
 // with the exact corner positions.
-#include <cmath>
-#include <optional>
-
 #include <fmt/format.h>
+
+#include <cmath>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 
 #include "calib/calibration_file.h"
-#include "calib/camera.h"
 #include "calib/render_target.h"
 #include "calib/target.h"
+#include "model/camera_model.h"
 #include "model/distortion.h"
-#include "model/io.h"
 #include "tools/commands.h"
 #include "tools/progress.h"
+#include "util/io.h"
 
 namespace topocal::tools {
 namespace {
@@ -35,38 +35,38 @@ struct RenderArgs {
 };
 
 void RequireFinite(double value, const char* option) {
-  if (!std::isfinite(value)) throw model::InputError(fmt::format("{}: must be a finite number", option));
+  if (!std::isfinite(value)) throw util::InputError(fmt::format("{}: must be a finite number", option));
 }
 
 // An OpenCV calibration file (camera_matrix, distortion_coefficients, image_width, image_height), as written by
 // `topocal calibrate` or cv::FileStorage.
-calib::CameraModel LoadOpenCvCamera(const std::string& path) {
+model::CameraModel LoadOpenCvCamera(const std::string& path) {
   // The one calibration-file reader (calib/calibration_file.h): strict sizes, finite values, guarded parser.
   return calib::LoadCalibrationFile(path).opencv_camera;
 }
 
-calib::CameraModel BuildCamera(const RenderArgs& a, const CLI::App& cmd) {
+model::CameraModel BuildCamera(const RenderArgs& a, const CLI::App& cmd) {
   const bool brown = cmd.count("--k1") + cmd.count("--k2") + cmd.count("--p1") + cmd.count("--p2") + cmd.count("--k3");
   const bool seidel = a.sigma_per_mm2.has_value();
   if (!a.camera_file.empty()) {
     for (const char* opt : {"--fx", "--fy", "--cx", "--cy", "--width", "--height", "--focal-mm", "--pixel-pitch-um"}) {
-      if (cmd.count(opt)) throw model::InputError(fmt::format("{}: not allowed with --camera", opt));
+      if (cmd.count(opt)) throw util::InputError(fmt::format("{}: not allowed with --camera", opt));
     }
-    if (brown || seidel) throw model::InputError("--camera: distortion comes from the file; drop --k1.. / --sigma");
+    if (brown || seidel) throw util::InputError("--camera: distortion comes from the file; drop --k1.. / --sigma");
     return LoadOpenCvCamera(a.camera_file);
   }
-  calib::CameraModel camera;
+  model::CameraModel camera;
   camera.width_px = a.width_px;
   camera.height_px = a.height_px;
-  if (camera.width_px < 1 || camera.width_px > 20000) throw model::InputError("--width: must be 1..20000 px");
-  if (camera.height_px < 1 || camera.height_px > 20000) throw model::InputError("--height: must be 1..20000 px");
+  if (camera.width_px < 1 || camera.width_px > 20000) throw util::InputError("--width: must be 1..20000 px");
+  if (camera.height_px < 1 || camera.height_px > 20000) throw util::InputError("--height: must be 1..20000 px");
   if (a.focal_mm || a.pixel_pitch_um) {
-    if (!(a.focal_mm && a.pixel_pitch_um)) throw model::InputError("--focal-mm and --pixel-pitch-um go together");
-    if (a.fx_px || a.fy_px) throw model::InputError("--fx/--fy: not allowed with --focal-mm/--pixel-pitch-um");
+    if (!(a.focal_mm && a.pixel_pitch_um)) throw util::InputError("--focal-mm and --pixel-pitch-um go together");
+    if (a.fx_px || a.fy_px) throw util::InputError("--fx/--fy: not allowed with --focal-mm/--pixel-pitch-um");
     RequireFinite(*a.focal_mm, "--focal-mm");
     RequireFinite(*a.pixel_pitch_um, "--pixel-pitch-um");
-    if (*a.focal_mm <= 0) throw model::InputError("--focal-mm: must be positive");
-    if (*a.pixel_pitch_um <= 0) throw model::InputError("--pixel-pitch-um: must be positive");
+    if (*a.focal_mm <= 0) throw util::InputError("--focal-mm: must be positive");
+    if (*a.pixel_pitch_um <= 0) throw util::InputError("--pixel-pitch-um: must be positive");
     camera.fx_px = camera.fy_px = *a.focal_mm / (*a.pixel_pitch_um / kUmPerMm);
   } else {
     camera.fx_px = a.fx_px.value_or(600.0);
@@ -76,16 +76,16 @@ calib::CameraModel BuildCamera(const RenderArgs& a, const CLI::App& cmd) {
   camera.cy_px = a.cy_px.value_or(0.5 * (camera.height_px - 1));
   for (auto [v, name] : {std::pair{camera.fx_px, "--fx"}, {camera.fy_px, "--fy"}}) {
     RequireFinite(v, name);
-    if (v <= 0) throw model::InputError(fmt::format("{}: must be positive", name));
+    if (v <= 0) throw util::InputError(fmt::format("{}: must be positive", name));
   }
   RequireFinite(camera.cx_px, "--cx");
   RequireFinite(camera.cy_px, "--cy");
   if (seidel) {
-    if (brown) throw model::InputError("--sigma: not allowed with --k1/--k2/--p1/--p2/--k3");
-    if (!a.focal_mm) throw model::InputError("--sigma: needs --focal-mm and --pixel-pitch-um");
+    if (brown) throw util::InputError("--sigma: not allowed with --k1/--k2/--p1/--p2/--k3");
+    if (!a.focal_mm) throw util::InputError("--sigma: needs --focal-mm and --pixel-pitch-um");
     RequireFinite(*a.sigma_per_mm2, "--sigma");
     RequireFinite(a.magnification, "--magnification");
-    if (a.magnification == 0) throw model::InputError("--magnification: must not be zero");
+    if (a.magnification == 0) throw util::InputError("--magnification: must not be zero");
     camera.dist[0] = model::SeidelSigmaToBrownK1(*a.sigma_per_mm2, a.magnification, *a.focal_mm);
   } else {
     camera.dist = {a.k1, a.k2, a.p1, a.p2, a.k3};
@@ -97,24 +97,24 @@ calib::CameraModel BuildCamera(const RenderArgs& a, const CLI::App& cmd) {
 calib::CamFromTarget BuildPose(const RenderArgs& a, const calib::TargetDescription& target) {
   const bool explicit_pose = !a.rvec_deg.empty() || !a.tvec_mm.empty();
   if (explicit_pose) {
-    if (a.distance_mm) throw model::InputError("--rvec-deg/--tvec-mm: not allowed with --distance-mm");
+    if (a.distance_mm) throw util::InputError("--rvec-deg/--tvec-mm: not allowed with --distance-mm");
     if (a.rvec_deg.size() != 3 || a.tvec_mm.size() != 3) {
-      throw model::InputError("--rvec-deg and --tvec-mm: both needed, three numbers each");
+      throw util::InputError("--rvec-deg and --tvec-mm: both needed, three numbers each");
     }
     for (double v : a.rvec_deg) RequireFinite(v, "--rvec-deg");
     for (double v : a.tvec_mm) RequireFinite(v, "--tvec-mm");
     return calib::PoseFromRotationVector(Eigen::Vector3d(a.rvec_deg[0], a.rvec_deg[1], a.rvec_deg[2]),
                                          Eigen::Vector3d(a.tvec_mm[0], a.tvec_mm[1], a.tvec_mm[2]));
   }
-  if (!a.distance_mm) throw model::InputError("--distance-mm (or --rvec-deg with --tvec-mm): pose is required");
+  if (!a.distance_mm) throw util::InputError("--distance-mm (or --rvec-deg with --tvec-mm): pose is required");
   RequireFinite(*a.distance_mm, "--distance-mm");
-  if (*a.distance_mm <= 0) throw model::InputError("--distance-mm: must be positive");
+  if (*a.distance_mm <= 0) throw util::InputError("--distance-mm: must be positive");
   for (auto [v, name] : {std::pair{a.tilt_x_deg, "--tilt-x-deg"}, {a.tilt_y_deg, "--tilt-y-deg"},
                          {a.roll_deg, "--roll-deg"}, {a.shift_x_mm, "--shift-x-mm"}, {a.shift_y_mm, "--shift-y-mm"}}) {
     RequireFinite(v, name);
   }
   if (std::abs(a.tilt_x_deg) >= 89 || std::abs(a.tilt_y_deg) >= 89) {
-    throw model::InputError("--tilt-x-deg/--tilt-y-deg: must be within +-89 degrees");
+    throw util::InputError("--tilt-x-deg/--tilt-y-deg: must be within +-89 degrees");
   }
   return calib::PoseFacingTarget(target, *a.distance_mm, a.tilt_x_deg, a.tilt_y_deg, a.roll_deg, a.shift_x_mm,
                                  a.shift_y_mm);
@@ -173,21 +173,21 @@ void AddRenderTargetCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->callback([a, cmd] {
     const auto target = calib::LoadTargetDescription(a->target);
-    const calib::CameraModel camera = BuildCamera(*a, *cmd);
+    const model::CameraModel camera = BuildCamera(*a, *cmd);
     const calib::CamFromTarget pose = BuildPose(*a, target);
     std::string why;
-    if (!a->render.IsValid(&why)) throw model::InputError(fmt::format("rendering options: {}", why));
+    if (!a->render.IsValid(&why)) throw util::InputError(fmt::format("rendering options: {}", why));
     const auto view = [&] {
       const Progress progress(fmt::format("topocal render-target: rendering {} x {}", camera.width_px, camera.height_px));
       return calib::RenderTarget(target, camera, pose, a->render, &why);
     }();
-    if (!view) throw model::InputError(fmt::format("cannot render: {}", why));
+    if (!view) throw util::InputError(fmt::format("cannot render: {}", why));
     std::vector<uchar> png;
     if (!cv::imencode(".png", view->image, png)) throw std::runtime_error("cannot encode the PNG");
     // Both files are written only once everything has been computed; each atomically.
     const std::string truth = calib::CornerTruthCsv(*view);
-    model::WriteFileAtomic(a->out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
-    if (!a->truth.empty()) model::WriteFileAtomic(a->truth, truth);
+    util::WriteFileAtomic(a->out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+    if (!a->truth.empty()) util::WriteFileAtomic(a->truth, truth);
     fmt::print("{} seen at {}x{} px: {}/{} corners in view -> {}{}\n", target.Describe(), camera.width_px,
                camera.height_px, view->corners.size(), target.CornerIds().size(), a->out,
                a->truth.empty() ? "" : ", truth -> " + a->truth);

@@ -5,12 +5,12 @@
 #include <memory>
 #include <optional>
 
-#include "model/io.h"
 #include "report/acceptance.h"
 #include "report/html_report.h"
 #include "report/record_check.h"
 #include "report/unit_record_reader.h"
 #include "tools/commands.h"
+#include "util/io.h"
 
 namespace topocal::tools {
 namespace {
@@ -37,8 +37,8 @@ void Run(const ReportArgs& a) {
   in.Validate(record);
   const std::string html = report::RenderHtmlReport(record, in);
   const nlohmann::json verdict_json = report::ReportJson(record, in);
-  model::WriteFileAtomic(a.out, html);
-  if (!a.json.empty()) model::WriteFileAtomic(a.json, verdict_json.dump(2) + "\n");
+  util::WriteFileAtomic(a.out, html);
+  if (!a.json.empty()) util::WriteFileAtomic(a.json, verdict_json.dump(2) + "\n");
   const report::Verdict verdict = report::Evaluate(record, in.limits, in.budget);
   fmt::print("{}: report {} for unit {}: {}\n", a.out, report::ReportId(record, in), record.serial,
              verdict.pass ? "PASS" : "FAIL");

@@ -1,14 +1,14 @@
-#include <cmath>
-
 #include <fmt/format.h>
+
+#include <cmath>
 
 #include "model/config.h"
 #include "model/device.h"
-#include "model/io.h"
-#include "tools/commands.h"
 #include "model/spots_csv.h"
+#include "tools/commands.h"
 #include "tools/surface_option.h"
 #include "topo/sweep.h"
+#include "util/io.h"
 
 namespace topocal::tools {
 namespace {
@@ -21,11 +21,11 @@ struct SimulateArgs {
 };
 
 void Run(const SimulateArgs& a) {
-  if (std::isnan(a.sigma) == a.device.empty()) throw model::InputError("simulate: give one of --sigma or --device");
+  if (std::isnan(a.sigma) == a.device.empty()) throw util::InputError("simulate: give one of --sigma or --device");
   if (a.device.empty() && (a.sphere_radius_mm != 0 || !a.ball_at_mm.empty())) {
-    throw model::InputError("--sphere-radius-mm and --ball-at go with --device");
+    throw util::InputError("--sphere-radius-mm and --ball-at go with --device");
   }
-  if (!std::isnan(a.sigma) && !std::isfinite(a.sigma)) throw model::InputError("--sigma: must be a finite number");
+  if (!std::isnan(a.sigma) && !std::isfinite(a.sigma)) throw util::InputError("--sigma: must be a finite number");
   const auto cfg = model::LoadConfig(a.config);
   if (!std::isnan(a.sigma)) RequireFoldFreeSigma(a.sigma, cfg, a.config);
   const model::Surface surface = SurfaceToImage(cfg, a.sphere_radius_mm, a.ball_at_mm);
@@ -43,7 +43,7 @@ void Run(const SimulateArgs& a) {
     fmt::print(stderr, "topocal simulate: spot ({}, {}): {}\n", f.id.ring, f.id.index, f.reason);
   }
   if (image.spots.empty()) throw std::runtime_error(fmt::format("{}: the surface images no spot", a.config));
-  model::WriteFileAtomic(a.out, model::SpotsCsv(image.spots));
+  util::WriteFileAtomic(a.out, model::SpotsCsv(image.spots));
   fmt::print("simulated {} spots ({} not imaged) {} -> {}\n", image.spots.size(), image.failures.size(),
              a.device.empty() ? fmt::format("at sigma = {} mm^-2", a.sigma) : "through the device " + a.device, a.out);
 }

@@ -1,15 +1,15 @@
 #include <fmt/format.h>
 
 #include "model/config.h"
-#include "model/io.h"
 #include "model/topographer_camera.h"
 #include "pipeline/closed_loop.h"
+#include "pipeline/map_output.h"
+#include "report/analysis_json.h"
 #include "tools/commands.h"
 #include "tools/output_dir.h"
 #include "tools/surface_option.h"
-#include "pipeline/map_output.h"
-#include "report/analysis_json.h"
 #include "topo/sweep.h"
+#include "util/io.h"
 
 namespace topocal::tools {
 namespace {
@@ -110,7 +110,7 @@ void AddSweepCommand(CLI::App& app) {
     const NewDirectoryGuard maps_guard(*maps);  // a failed run leaves no empty --maps folder
     auto cfg = model::LoadConfig(*config);
     overrides->ApplyTo(&cfg);
-    if (!camera->empty() && !*correct) throw model::InputError("--camera goes with --correct");
+    if (!camera->empty() && !*correct) throw util::InputError("--camera goes with --correct");
     // Inputs are checked before any work: a bad camera file fails at once, not after the sweep.
     pipeline::ClosedLoopOptions options;
     if (!camera->empty()) {
@@ -134,7 +134,7 @@ void AddSweepCommand(CLI::App& app) {
       }
       PrintCorrection(result, corrected);
     }
-    model::StagedOutputs outputs;  // the JSON and the maps are published together or not at all
+    util::StagedOutputs outputs;  // the JSON and the maps are published together or not at all
     if (!json_out->empty()) outputs.AddFile(*json_out, report::SweepJson(result, corrected));
     if (!maps->empty()) {
       // One set: every sigma's map of a kind on the same scale, so that the sweep compares by eye.

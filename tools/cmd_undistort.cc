@@ -1,9 +1,9 @@
 // topocal undistort: correct a spots CSV or an image with a calibration file (calib/calibration_file.h).
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <memory>
-
-#include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
 
 #include "calib/calibration_file.h"
@@ -11,11 +11,11 @@
 #include "correct/undistort_coverage.h"
 #include "correct/undistort_map.h"
 #include "correct/undistort_points.h"
-#include "model/io.h"
+#include "model/spots_csv.h"
 #include "model/topographer_camera.h"
 #include "pipeline/detection_plane.h"
 #include "tools/commands.h"
-#include "model/spots_csv.h"
+#include "util/io.h"
 
 namespace topocal::tools {
 namespace {
@@ -31,9 +31,9 @@ model::TopographerCamera CameraFor(const UndistortArgs& a, const calib::Calibrat
   if (!a.camera.empty()) {
     const auto camera = model::LoadTopographerCamera(a.camera);
     if (camera.width_px != cal.camera.width_px || camera.height_px != cal.camera.height_px) {
-      throw model::InputError(fmt::format("{}: the camera is {} x {} px but the calibration {} is for {} x {} px",
-                                          a.camera, camera.width_px, camera.height_px, a.calibration,
-                                          cal.camera.width_px, cal.camera.height_px));
+      throw util::InputError(fmt::format("{}: the camera is {} x {} px but the calibration {} is for {} x {} px",
+                                         a.camera, camera.width_px, camera.height_px, a.calibration,
+                                         cal.camera.width_px, cal.camera.height_px));
     }
     return camera;
   }
@@ -49,19 +49,19 @@ model::TopographerCamera CameraFor(const UndistortArgs& a, const calib::Calibrat
 model::Distortion DistortionFor(const calib::CalibrationFile& cal, const model::TopographerCamera& camera,
                                 const std::string& path) {
   const auto on_plane = pipeline::DetectionPlaneModelOf(cal.camera, camera);
-  if (!on_plane.ok) throw model::InputError(fmt::format("{}: {}", path, on_plane.message));
+  if (!on_plane.ok) throw util::InputError(fmt::format("{}: {}", path, on_plane.message));
   return on_plane.distortion;
 }
 
 void Run(const UndistortArgs& a) {
-  if (a.spots.empty() == a.image.empty()) throw model::InputError("undistort: give exactly one of --spots or --image");
+  if (a.spots.empty() == a.image.empty()) throw util::InputError("undistort: give exactly one of --spots or --image");
   const auto cal = calib::LoadCalibrationFile(a.calibration);
   const auto camera = CameraFor(a, cal);
   const auto distortion = DistortionFor(cal, camera, a.calibration);
   if (!a.spots.empty()) {
     if (a.camera.empty() && !cal.pixel_pitch_um) {
-      throw model::InputError(fmt::format("--spots: {} has no pixel_pitch_um; give --camera to map its pixels to mm",
-                                          a.calibration));
+      throw util::InputError(
+          fmt::format("--spots: {} has no pixel_pitch_um; give --camera to map its pixels to mm", a.calibration));
     }
     const auto rows = model::ReadSpotsCsv(a.spots);
     std::vector<Eigen::Vector2d> mm;
@@ -95,29 +95,29 @@ void Run(const UndistortArgs& a) {
       out.push_back(s);
     }
     if (out.empty() && !rows.empty()) throw std::runtime_error(fmt::format("{}: no spot could be undistorted", a.spots));
-    model::WriteFileAtomic(a.out, model::SpotsCsv(out));
+    util::WriteFileAtomic(a.out, model::SpotsCsv(out));
     fmt::print("undistorted {} of {} spots ({} failed, {} beyond the valid region) -> {}\n", out.size(), rows.size(),
                result.failures.size(), outside, a.out);
     return;
   }
   if (a.out.size() < 4 || a.out.substr(a.out.size() - 4) != ".png") {
-    throw model::InputError(fmt::format("--out: {}: the output image must be a .png file", a.out));
+    throw util::InputError(fmt::format("--out: {}: the output image must be a .png file", a.out));
   }
   // Read once (a missing or unreadable file is named as such, not as "not an image") and decoded from memory.
-  const std::string bytes = model::ReadFile(a.image);
+  const std::string bytes = util::ReadFile(a.image);
   const cv::Mat image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8U, const_cast<char*>(bytes.data())),
                                      cv::IMREAD_UNCHANGED);
-  if (image.empty()) throw model::InputError(fmt::format("{}: not an image OpenCV can read", a.image));
+  if (image.empty()) throw util::InputError(fmt::format("{}: not an image OpenCV can read", a.image));
   if (image.cols != camera.width_px || image.rows != camera.height_px) {
-    throw model::InputError(fmt::format("{}: the image is {} x {} px but the camera is {} x {} px", a.image, image.cols,
-                                        image.rows, camera.width_px, camera.height_px));
+    throw util::InputError(fmt::format("{}: the image is {} x {} px but the camera is {} x {} px", a.image, image.cols,
+                                       image.rows, camera.width_px, camera.height_px));
   }
   const auto map = correct::BuildUndistortMap(distortion, camera);
   const cv::Mat out = correct::UndistortImage(image, map);
   const auto coverage = correct::CoverageOf(map, camera);
   std::vector<uchar> png;
   if (!cv::imencode(".png", out, png)) throw std::runtime_error(fmt::format("{}: PNG encoding failed", a.out));
-  model::WriteFileAtomic(a.out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  util::WriteFileAtomic(a.out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   fmt::print("undistorted {} x {} image -> {}\n", image.cols, image.rows, a.out);
   const auto percent = [&](int n) { return 100.0 * n / std::max(1, coverage.total_px); };
   if (coverage.beyond_fold_px > 0) {

@@ -8,10 +8,6 @@
 #include <vector>
 
 #include "model/config.h"
-#include "model/file_glob.h"
-#include "model/io.h"
-#include "model/parallel.h"
-#include "pipeline/harness.h"
 #include "pipeline/unit_batch.h"
 #include "pipeline/unit_workflow.h"
 #include "report/unit_record_writer.h"
@@ -19,6 +15,10 @@
 #include "tools/data_dir.h"
 #include "tools/output_dir.h"
 #include "tools/progress.h"
+#include "util/file_glob.h"
+#include "util/io.h"
+#include "util/parallel.h"
+#include "util/shard.h"
 
 namespace topocal::tools {
 namespace {
@@ -83,7 +83,7 @@ void RunBatch(const pipeline::UnitBatchOptions& options) {
   };
   const pipeline::UnitBatchResult result = pipeline::RunUnitBatch(options, callbacks);
   if (result.items.empty()) {
-    const pipeline::ShardSpec spec = pipeline::ParseShardSpec(options.shard);
+    const util::ShardSpec spec = util::ParseShardSpec(options.shard);
     fmt::print("shard {}/{}: no unit (fewer units than shards)\n", spec.index, spec.count);
     return;
   }
@@ -125,7 +125,7 @@ void AddUnitCommand(CLI::App& app) {
     QuietCeres();
     UnitRequest request = *r;
     FillDefaults(&request);
-    request.images = model::Glob(*images);
+    request.images = util::Glob(*images);
     Progress progress("topocal unit calibrate: " + request.serial);
     const auto computed = pipeline::CalibrateUnit(
         request, [&progress](const std::string& line) { progress.Line("topocal unit: " + line); });
@@ -136,7 +136,7 @@ void AddUnitCommand(CLI::App& app) {
   auto* batch = unit->add_subcommand(
       "calibrate-batch", "Calibrate every unit of a directory (DIR/<unit>/unit-inputs.json), in parallel");
   auto b = std::make_shared<pipeline::UnitBatchOptions>();
-  b->jobs = model::AvailableCores();
+  b->jobs = util::AvailableCores();
   batch->add_option("dir", b->dir, "Directory of unit directories")->required();
   batch->add_option("--out", b->out, "Where the unit records go: OUT/<serial>/")->required();
   batch->add_option("--jobs", b->jobs, "Units calibrated at once [the cores available]")->check(CLI::Range(1, 256));

@@ -1,6 +1,6 @@
 #pragma once
 // Each verb of the `topocal` command line lives in its own cmd_<verb>.cc and registers itself here.
-// A command's callback throws model::ConfigError / model::InputError for bad input (exit 2) and
+// A command's callback throws util::ConfigError / util::InputError for bad input (exit 2) and
 // std::runtime_error for a computation that failed (exit 1); main() turns them into one line on stderr.
 #include <stdexcept>
 

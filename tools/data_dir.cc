@@ -1,19 +1,19 @@
 #include "tools/data_dir.h"
 
+#include <fmt/format.h>
+
 #include <cstdlib>
 #include <filesystem>
 #include <system_error>
 
-#include <fmt/format.h>
-
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::tools {
 
 std::string DataDir() {
   namespace fs = std::filesystem;
   if (const char* env = std::getenv("TOPOCAL_DATA_DIR"); env && *env) {
-    if (!fs::is_directory(env)) throw model::InputError(fmt::format("TOPOCAL_DATA_DIR={}: not a directory", env));
+    if (!fs::is_directory(env)) throw util::InputError(fmt::format("TOPOCAL_DATA_DIR={}: not a directory", env));
     return env;
   }
   std::error_code ec;
@@ -21,10 +21,10 @@ std::string DataDir() {
   if (!ec) {
     const fs::path data = exe.parent_path().parent_path() / "share" / "topocal" / "data";
     if (fs::is_directory(data)) return data.string();
-    throw model::InputError(fmt::format("the bundled data is not at {} (next to the executable): set TOPOCAL_DATA_DIR",
-                                        data.string()));
+    throw util::InputError(
+        fmt::format("the bundled data is not at {} (next to the executable): set TOPOCAL_DATA_DIR", data.string()));
   }
-  throw model::InputError("cannot locate the executable to find the bundled data: set TOPOCAL_DATA_DIR");
+  throw util::InputError("cannot locate the executable to find the bundled data: set TOPOCAL_DATA_DIR");
 }
 
 }  // namespace topocal::tools

@@ -6,7 +6,7 @@
 
 namespace topocal::tools {
 
-// Throws model::InputError naming what was tried when no data directory is found.
+// Throws util::InputError naming what was tried when no data directory is found.
 std::string DataDir();
 
 }  // namespace topocal::tools

@@ -1,22 +1,22 @@
 // topocal — camera-distortion calibration and correction for cone corneal topographers.
 // Exit codes: 0 success; 1 a computation failed (solver did not converge, no usable data); 2 bad input
 // (usage, missing or corrupt file, invalid configuration); 3 a QA verdict of FAIL (the report is written).
-#include <cstdio>
-#include <exception>
-
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <glog/logging.h>
 
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <exception>
+
 #include "model/config.h"
-#include "model/io.h"
-#include "model/version.h"
 #include "tools/commands.h"
 #include "tools/progress.h"
+#include "util/io.h"
+#include "util/version.h"
 
 int main(int argc, char** argv) {
   // Before any thread starts: SIGINT/SIGTERM/SIGHUP remove staged outputs, then end the process (model/io.h).
-  topocal::model::InstallSignalCleanup();
+  topocal::util::InstallSignalCleanup();
   // Ceres logs through glog (failed steps, rank-deficient covariances); every failure reaches the user as one line
   // from the library's own result, so glog's lines would only be noise on stderr.
   FLAGS_minloglevel = google::GLOG_FATAL;
@@ -58,10 +58,10 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     app.exit(e);
     return 2;
-  } catch (const topocal::model::ConfigError& e) {
+  } catch (const topocal::util::ConfigError& e) {
     fmt::print(stderr, "topocal: {}\n", e.what());
     return 2;
-  } catch (const topocal::model::InputError& e) {
+  } catch (const topocal::util::InputError& e) {
     fmt::print(stderr, "topocal: {}\n", e.what());
     return 2;
   } catch (const topocal::tools::VerdictFailed& e) {

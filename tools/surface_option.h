@@ -12,11 +12,11 @@
 
 namespace topocal::tools {
 
-// Throws model::InputError naming the option for a non-physical radius, --ball-at without a radius, or a vertex
+// Throws util::InputError naming the option for a non-physical radius, --ball-at without a radius, or a vertex
 // more than 5 mm from the cornea position.
 model::Surface SurfaceToImage(const model::Config& config, double sphere_radius_mm, const std::vector<double>& ball_at_mm);
 
-// --sigma of a simulation verb (simulate, render-spots): throws model::InputError when the Seidel sigma folds the
+// --sigma of a simulation verb (simulate, render-spots): throws util::InputError when the Seidel sigma folds the
 // configuration's image (|sigma| at or beyond model::MaxFoldFreeSigmaPerMm2; issue 16: 1e308 wrote rows of -inf).
 void RequireFoldFreeSigma(double sigma_per_mm2, const model::Config& config, const std::string& config_path);
 

@@ -19,7 +19,7 @@ constexpr double kNoisePx = 0.1;
 // Within 4 reported standard deviations (one test of several parameters, seeded).
 constexpr double kSigmas = 4.0;
 
-std::vector<ViewObservations> WarpedViews(const CameraModel& camera, uint32_t seed) {
+std::vector<ViewObservations> WarpedViews(const model::CameraModel& camera, uint32_t seed) {
   const testing::GridTarget grid;
   BoardWarp geometry;
   geometry.centre_mm = {0.5 * (grid.cols - 1) * grid.spacing_mm, 0.5 * (grid.rows - 1) * grid.spacing_mm};
@@ -55,7 +55,7 @@ std::vector<ViewObservations> WarpedViews(const CameraModel& camera, uint32_t se
 }
 
 TEST(BoardWarp, WarpIsRecoveredAndIntrinsicsUnbiased) {
-  const CameraModel truth = testing::ReferenceCamera();
+  const model::CameraModel truth = testing::ReferenceCamera();
   const auto views = WarpedViews(truth, 11);
   CalibrationOptions options;
   options.fit_board_warp = true;
@@ -91,7 +91,7 @@ TEST(BoardWarp, WarpIsRecoveredAndIntrinsicsUnbiased) {
 }
 
 TEST(BoardWarp, FlatBoardFitsZeroWarpAndSingleViewRefusesIt) {
-  const CameraModel truth = testing::ReferenceCamera();
+  const model::CameraModel truth = testing::ReferenceCamera();
   const testing::GridTarget grid;
   std::mt19937 rng(5);
   std::vector<ViewObservations> views;

@@ -50,12 +50,12 @@ const ParameterEstimate& Estimate(const CalibrationResult& r, std::string_view n
   throw std::runtime_error("no parameter " + std::string(name));
 }
 
-std::vector<double> TrueValues(const CameraModel& c) {
+std::vector<double> TrueValues(const model::CameraModel& c) {
   return {c.fx_px,   c.fy_px,   c.cx_px,   c.cy_px,   c.dist[0], c.dist[1],
           c.dist[2], c.dist[3], c.dist[4], c.distortion_centre.x(), c.distortion_centre.y()};
 }
 
-std::vector<ViewObservations> ReferenceViews(const CameraModel& cam, double noise_px, std::mt19937& rng) {
+std::vector<ViewObservations> ReferenceViews(const model::CameraModel& cam, double noise_px, std::mt19937& rng) {
   const GridTarget grid;
   std::vector<ViewObservations> views;
   for (const auto& pose : testing::ReferencePoses(grid)) views.push_back(ProjectGrid(cam, pose, grid, noise_px, rng));
@@ -247,8 +247,8 @@ struct Topographer {
   static constexpr double kFocalMm = 5.2;
   static constexpr double kPitchUm = 1.12;
   static constexpr double kDistanceMm = 70.0;
-  static CameraModel Camera(double sigma_per_mm2, const Eigen::Vector2d& centre = Eigen::Vector2d::Zero()) {
-    CameraModel cam;
+  static model::CameraModel Camera(double sigma_per_mm2, const Eigen::Vector2d& centre = Eigen::Vector2d::Zero()) {
+    model::CameraModel cam;
     // 1600 x 1200 px at 1.12 um: the 29 % pincushion of sigma = -2e-4 still fits on the sensor.
     cam.width_px = 1600;
     cam.height_px = 1200;
@@ -270,7 +270,7 @@ struct Topographer {
   static constexpr GridTarget kGrid{13, 13, 1.0};
   // Placed by hand: 1.5 deg tilt, 0.3 mm off axis, 0.8 mm beyond the nominal distance.
   static ViewPose Pose() { return MakePose(1.5, -1.0, 2.0, {0.3, -0.2, kDistanceMm + 0.8}, kGrid); }
-  static ViewObservations View(const CameraModel& cam, double noise_px, std::mt19937& rng) {
+  static ViewObservations View(const model::CameraModel& cam, double noise_px, std::mt19937& rng) {
     return ProjectGrid(cam, Pose(), kGrid, noise_px, rng);
   }
 };

@@ -26,8 +26,8 @@ constexpr double kSigmaRelative = 2e-3;
 // Pixels on a grid of this step inside the target's footprint in some view are compared.
 constexpr double kGridStepPx = 8.0;
 
-ViewObservations RenderAndDetect(const TargetDescription& target, const CameraModel& camera, const CamFromTarget& pose,
-                                 uint32_t seed, int supersampling) {
+ViewObservations RenderAndDetect(const TargetDescription& target, const model::CameraModel& camera,
+                                 const CamFromTarget& pose, uint32_t seed, int supersampling) {
   RenderOptions options;
   options.blur_sigma_px = 1.0;
   options.noise_grey = 1.0;
@@ -52,7 +52,7 @@ struct FieldComparison {
   int pixels = 0;
 };
 
-FieldComparison CompareDistortionFields(const CameraModel& truth, const CameraModel& fitted,
+FieldComparison CompareDistortionFields(const model::CameraModel& truth, const model::CameraModel& fitted,
                                         const std::vector<ViewObservations>& views) {
   std::vector<std::vector<cv::Point2f>> hulls;
   for (const auto& v : views) {
@@ -96,7 +96,7 @@ FieldComparison CompareDistortionFields(const CameraModel& truth, const CameraMo
 }
 
 TEST(RenderedMultiView, ResidualDistortionOverTheTargetIsWithinBudget) {
-  CameraModel camera;
+  model::CameraModel camera;
   camera.width_px = 640;
   camera.height_px = 480;
   camera.fx_px = 600.0;
@@ -145,7 +145,7 @@ TEST_P(RenderedSingleView, RecoversSigmaAtTheTopographerGeometry) {
   constexpr double kFocalMm = 5.2, kPitchUm = 1.12, kDistanceMm = 70.0;
   const double sigma = GetParam().sigma_per_mm2;
   const int corners = GetParam().corners;
-  CameraModel camera;
+  model::CameraModel camera;
   // The 12 mm target spans ~800 px; 1000 x 1000 px holds it with the strongest distortion of Table IV.
   camera.width_px = 1000;
   camera.height_px = 1000;

@@ -1,20 +1,21 @@
 // The calibration file: OpenCV-loadable, usable by cv::undistort, round trip through LoadCalibrationFile, strict
 // validation of bad files, and the JSON report.
-#include <filesystem>
-#include <fstream>
-#include <random>
+#include "calib/calibration_file.h"
 
 #include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <random>
 
-#include "calib/calibration_file.h"
 #include "calib/opencv_equivalent.h"
-#include "model/io.h"
-#include "model/version.h"
 #include "tests/calib/synthetic_views.h"
+#include "util/io.h"
+#include "util/version.h"
 
 namespace topocal::calib {
 namespace {
@@ -31,7 +32,7 @@ class CalibrationFileTest : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir_); }
   std::string Path(const std::string& name) const { return (dir_ / name).string(); }
   void Write(const std::string& name, const std::string& text) const { std::ofstream(Path(name)) << text; }
-  static CalibrationResult Calibrated(const CameraModel& cam, const CalibrationOptions& o) {
+  static CalibrationResult Calibrated(const model::CameraModel& cam, const CalibrationOptions& o) {
     std::mt19937 rng(21);
     const testing::GridTarget grid;
     std::vector<ViewObservations> views;
@@ -115,7 +116,7 @@ TEST(OpenCvEquivalent, DecentringIsAbsorbedExceptForTheSkewAndTheReportSaysHowMu
   EXPECT_EQ(eq->camera.distortion_centre, Eigen::Vector2d::Zero());
   // The reported figure is what an independent check over the image finds, and it beats dropping the centre.
   double worst = 0, worst_dropped = 0;
-  CameraModel dropped = cam;
+  model::CameraModel dropped = cam;
   dropped.distortion_centre.setZero();
   for (double x = 0; x <= 639; x += 32) {
     for (double y = 0; y <= 479; y += 24) {
@@ -145,7 +146,7 @@ TEST_F(CalibrationFileTest, CovarianceRoundTripsAndOlderFilesFallBackToTheDiagon
   EXPECT_NE(full.matrix(4, 5), 0.0);  // k1-k2 cross term kept
 
   // The same file without the covariance (as written before it was stored): the diagonal of the stddevs.
-  std::string text = model::ReadFile(Path("cal.yaml"));
+  std::string text = util::ReadFile(Path("cal.yaml"));
   const auto begin = text.find("parameter_covariance:");
   const auto end = text.find("rms_px:", begin);
   ASSERT_NE(begin, std::string::npos);
@@ -158,14 +159,14 @@ TEST_F(CalibrationFileTest, CovarianceRoundTripsAndOlderFilesFallBackToTheDiagon
   EXPECT_NEAR(diagonal.matrix(4, 4), r.covariance(4, 4), kYamlRoundTrip * r.covariance(4, 4));
 
   // A corrupt covariance (one entry too many) is named.
-  std::string asymmetric = model::ReadFile(Path("cal.yaml"));
+  std::string asymmetric = util::ReadFile(Path("cal.yaml"));
   const auto data = asymmetric.find("data: [", asymmetric.find("parameter_covariance:"));
   asymmetric.insert(data + 7, "1., ");
   Write("bad.yaml", asymmetric);
   try {
     LoadCalibrationFile(Path("bad.yaml"));
     FAIL() << "accepted a corrupt covariance";
-  } catch (const model::InputError& e) {
+  } catch (const util::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("parameter_covariance"), std::string::npos) << e.what();
   }
 }
@@ -185,7 +186,7 @@ TEST_F(CalibrationFileTest, BadFilesAreOneLineNamingFileAndKey) {
   const auto message = [&](const std::string& name) -> std::string {
     try {
       LoadCalibrationFile(Path(name));
-    } catch (const model::InputError& e) {
+    } catch (const util::InputError& e) {
       return e.what();
     }
     return "no error";

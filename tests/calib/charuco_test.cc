@@ -2,14 +2,13 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
-
 #include <opencv2/imgcodecs.hpp>
 
 #include "calib/detect.h"
 #include "calib/render_target.h"
 #include "calib/target_drawing.h"
 #include "detection_fixtures.h"
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::calib {
 namespace {
@@ -112,7 +111,7 @@ TEST(Charuco, BadDescriptionsNameTheKey) {
   auto error = [](const std::string& yaml) {
     try {
       ParseTargetDescription(yaml, "T.yaml");
-    } catch (const model::InputError& e) {
+    } catch (const util::InputError& e) {
       return std::string(e.what());
     }
     return std::string("no error");

@@ -18,14 +18,14 @@ double Rms(const std::vector<ModelDifferenceSample>& samples) {
 }
 
 TEST(ModelDifference, RemovesAHomographyButNotADistortionChange) {
-  const CameraModel a = testing::ReferenceCamera();
+  const model::CameraModel a = testing::ReferenceCamera();
   // Identical models: only findHomography's Levenberg-Marquardt stop remains (measured 1.9e-7 px on 2026-12-01).
   constexpr double kIdenticalFloorPx = 1e-6;
   EXPECT_LT(Rms(ModelDifference(a, a)), kIdenticalFloorPx);
   // Without distortion, another focal length and principal point is a homography of the rays: no difference.
-  CameraModel pinhole = a;
+  model::CameraModel pinhole = a;
   pinhole.dist = {};
-  CameraModel moved = pinhole;
+  model::CameraModel moved = pinhole;
   moved.fx_px *= 1.01;
   moved.fy_px *= 0.995;
   moved.cx_px += 4.0;
@@ -35,7 +35,7 @@ TEST(ModelDifference, RemovesAHomographyButNotADistortionChange) {
   EXPECT_LT(Rms(ModelDifference(pinhole, moved)), kHomographyFloorPx);
   // A change of k1 by 0.01 moves the image corners (r ~ 0.75 normalised) by ~ 0.01 * 0.42 * 540 = 2 px; a
   // homography takes up part of it, not all.
-  CameraModel distorted = a;
+  model::CameraModel distorted = a;
   distorted.dist[0] += 0.01;
   const auto samples = ModelDifference(a, distorted);
   ASSERT_EQ(samples.size(), 40u * 30u);
@@ -46,7 +46,7 @@ TEST(ModelDifference, RemovesAHomographyButNotADistortionChange) {
 
 TEST(CrossValidation, HalvesOfAGoodSetAgreeToTheNoise) {
   const testing::GridTarget grid;
-  const CameraModel truth = testing::ReferenceCamera();
+  const model::CameraModel truth = testing::ReferenceCamera();
   std::mt19937 rng(7);
   std::vector<ViewObservations> views;
   // Sixteen views, interleaved: each reference pose, then a variant of it (turned and moved), so that each half

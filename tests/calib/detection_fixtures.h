@@ -7,15 +7,15 @@
 #include <string>
 #include <vector>
 
-#include "calib/camera.h"
 #include "calib/observations.h"
 #include "calib/render_target.h"
 #include "calib/target.h"
+#include "model/camera_model.h"
 
 namespace topocal::calib::testing {
 
-inline CameraModel TestCamera() {
-  CameraModel camera;
+inline model::CameraModel TestCamera() {
+  model::CameraModel camera;
   camera.width_px = 640;
   camera.height_px = 480;
   camera.fx_px = 600.0;

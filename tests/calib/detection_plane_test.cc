@@ -9,8 +9,8 @@
 namespace topocal::pipeline {
 namespace {
 
-calib::CameraModel UnitCamera(const model::TopographerCamera& sensor, double fx_over_fy, double k1) {
-  calib::CameraModel c;
+model::CameraModel UnitCamera(const model::TopographerCamera& sensor, double fx_over_fy, double k1) {
+  model::CameraModel c;
   c.width_px = sensor.width_px;
   c.height_px = sensor.height_px;
   const double f = sensor.FocalPx();

@@ -13,8 +13,8 @@ namespace topocal::calib {
 namespace {
 
 // A distortion-free 320 x 240 camera whose principal point is off the pixel grid.
-CameraModel PinholeCamera() {
-  CameraModel camera;
+model::CameraModel PinholeCamera() {
+  model::CameraModel camera;
   camera.width_px = 320;
   camera.height_px = 240;
   camera.fx_px = camera.fy_px = 500.0;
@@ -28,7 +28,7 @@ CameraModel PinholeCamera() {
 // point left of it (an area measure that needs no model of the corner or the blur).
 TEST(RenderTarget, EdgesSitWhereTheyProjectToByAreaMeasure) {
   const auto target = testing::Checkerboard9x6();
-  const CameraModel camera = PinholeCamera();
+  const model::CameraModel camera = PinholeCamera();
   const double distance_mm = 400.0;
   const auto pose = PoseFacingTarget(target, distance_mm, 0, 0, 0, 0.1234, -0.0771);
   RenderOptions options;
@@ -79,7 +79,7 @@ TEST(RenderTarget, EdgesSitWhereTheyProjectToByAreaMeasure) {
 // detected identically, agrees to the sampling noise of the default render.
 TEST(RenderTarget, DefaultSupersamplingAgreesWithDenseSampling) {
   const auto target = testing::Checkerboard9x6();
-  CameraModel camera = PinholeCamera();
+  model::CameraModel camera = PinholeCamera();
   camera.dist = {-0.15, 0.04, 0, 0, 0};
   const auto pose = PoseFacingTarget(target, 420.0, 25.0, -10.0, 7.0);
   RenderOptions coarse, dense;
@@ -110,7 +110,7 @@ TEST(RenderTarget, DefaultSupersamplingAgreesWithDenseSampling) {
 
 TEST(RenderTarget, TruthIsTheProjectionOfVisibleCorners) {
   const auto target = testing::Checkerboard9x6();
-  const CameraModel camera = testing::TestCamera();
+  const model::CameraModel camera = testing::TestCamera();
   // Shifted so that part of the board leaves the image.
   const auto pose = PoseFacingTarget(target, 350.0, 10.0, 0.0, 0.0, 120.0, 0.0);
   RenderOptions options;
@@ -129,7 +129,7 @@ TEST(RenderTarget, TruthIsTheProjectionOfVisibleCorners) {
 
 TEST(RenderTarget, SeededAndValidated) {
   const auto target = testing::AprilGrid6x5();
-  CameraModel camera = PinholeCamera();
+  model::CameraModel camera = PinholeCamera();
   const auto pose = PoseFacingTarget(target, 900.0);
   RenderOptions options;
   options.supersampling = 2;

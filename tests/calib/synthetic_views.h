@@ -1,14 +1,13 @@
 #pragma once
 // Seeded synthetic corner sets for the fitting tests: a planar grid projected through a known CameraModel.
+#include <Eigen/Geometry>
 #include <cmath>
 #include <random>
 #include <vector>
 
-#include <Eigen/Geometry>
-
-#include "calib/camera.h"
 #include "calib/observations.h"
 #include "calib/zhang.h"
+#include "model/camera_model.h"
 
 namespace topocal::calib::testing {
 
@@ -34,7 +33,7 @@ inline ViewPose MakePose(double rx_deg, double ry_deg, double rz_deg, const Eige
 }
 
 // Projects every grid corner; corners outside the image are left out. noise_px: per-axis Gaussian sigma.
-inline ViewObservations ProjectGrid(const CameraModel& camera, const ViewPose& pose, const GridTarget& grid,
+inline ViewObservations ProjectGrid(const model::CameraModel& camera, const ViewPose& pose, const GridTarget& grid,
                                     double noise_px, std::mt19937& rng) {
   ViewObservations view;
   view.image_width = camera.width_px;
@@ -62,8 +61,8 @@ inline ViewObservations ProjectGrid(const CameraModel& camera, const ViewPose& p
 }
 
 // A 640x480 camera with OpenCV-like distortion and a spread of 8 target poses at ~450 mm.
-inline CameraModel ReferenceCamera() {
-  CameraModel cam;
+inline model::CameraModel ReferenceCamera() {
+  model::CameraModel cam;
   cam.width_px = 640;
   cam.height_px = 480;
   cam.fx_px = 540.0;

@@ -1,15 +1,15 @@
+#include "calib/target.h"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
 #include <regex>
 #include <string>
 
-#include <opencv2/imgcodecs.hpp>
-
-#include "calib/target.h"
 #include "calib/target_drawing.h"
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::calib {
 namespace {
@@ -34,7 +34,7 @@ const char* kKalibrAprilGrid =
 std::string ErrorOf(const std::string& yaml) {
   try {
     ParseTargetDescription(yaml, "T.yaml");
-  } catch (const model::InputError& e) {
+  } catch (const util::InputError& e) {
     return e.what();
   }
   return "no error";
@@ -98,7 +98,7 @@ TEST(TargetDescription, RejectsBadFilesNamingFileAndKey) {
             "T.yaml: firstTagId: must be in [0, 1000000], got -1");
   EXPECT_EQ(ErrorOf("   \n"), "T.yaml: empty target description");
   EXPECT_NE(ErrorOf("target_type: [unclosed\n").find("T.yaml: "), std::string::npos);
-  EXPECT_THROW(LoadTargetDescription("/nonexistent/T.yaml"), model::InputError);
+  EXPECT_THROW(LoadTargetDescription("/nonexistent/T.yaml"), util::InputError);
 }
 
 TEST(TargetDescription, CornerPositionsFollowTheDrawnOrdering) {
@@ -210,10 +210,10 @@ TEST(TargetDrawing, PngIsAtPhysicalScaleAndSvgPngWriteAtomically) {
   WriteTargetDrawing(ag, svg, dpi);
   const cv::Mat read = cv::imread(png, cv::IMREAD_GRAYSCALE);
   EXPECT_EQ(cv::norm(read, raster, cv::NORM_INF), 0.0);
-  EXPECT_NE(model::ReadFile(svg).find("<!-- tag 29 -->"), std::string::npos);
-  EXPECT_THROW(WriteTargetDrawing(ag, (dir / "grid.jpg").string(), dpi), model::InputError);
-  EXPECT_THROW(WriteTargetDrawing(ag, png, -1.0), model::InputError);
-  EXPECT_THROW(WriteTargetDrawing(ag, (dir / "huge.png").string(), 1e6), model::InputError);
+  EXPECT_NE(util::ReadFile(svg).find("<!-- tag 29 -->"), std::string::npos);
+  EXPECT_THROW(WriteTargetDrawing(ag, (dir / "grid.jpg").string(), dpi), util::InputError);
+  EXPECT_THROW(WriteTargetDrawing(ag, png, -1.0), util::InputError);
+  EXPECT_THROW(WriteTargetDrawing(ag, (dir / "huge.png").string(), 1e6), util::InputError);
   EXPECT_FALSE(std::filesystem::exists(dir / "huge.png"));
 }
 

@@ -1,19 +1,19 @@
 // The valid region of a distortion model (calib/distortion_valid_region.h): against the closed-form fold of a pure
 // radial model, with a distortion centre, stored in and read from the calibration file (computed for files without
 // it), and what `topocal undistort` says about pixels beyond it.
-#include <filesystem>
-#include <fstream>
-
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "calib/calibration_file.h"
 #include "calib/camera_exchange.h"
 #include "calib/distortion_valid_region.h"
-#include "model/io.h"
 #include "tests/cli_harness.h"
+#include "util/io.h"
 
 namespace topocal::calib {
 namespace {
@@ -23,8 +23,8 @@ namespace fs = std::filesystem;
 // The search bisects to 1e-3 px; the closed form is exact.
 constexpr double kRadiusTolerancePx = 2e-3;
 
-CameraModel Radial(int width, int height, double k1) {
-  CameraModel c;
+model::CameraModel Radial(int width, int height, double k1) {
+  model::CameraModel c;
   c.width_px = width;
   c.height_px = height;
   c.fx_px = c.fy_px = 1000;
@@ -69,7 +69,7 @@ class ValidRegionFile : public topocal::testing_cli::TempDirTest {};
 
 TEST_F(ValidRegionFile, StoredOnWriteAndComputedForOlderFiles) {
   const auto camera = Radial(1600, 1200, -0.5);
-  model::WriteFileAtomic(Path("cal.yaml"), OpenCvCalibrationText(camera, "test"));
+  util::WriteFileAtomic(Path("cal.yaml"), OpenCvCalibrationText(camera, "test"));
   cv::FileStorage stored(Path("cal.yaml"), cv::FileStorage::READ);
   EXPECT_NEAR(static_cast<double>(stored["valid_radius_px"]), ClosedFormFoldPx(-0.5, 1000), kRadiusTolerancePx);
   EXPECT_EQ(static_cast<int>(stored["valid_region_covers_sensor"]), 0);
@@ -88,19 +88,19 @@ TEST_F(ValidRegionFile, StoredOnWriteAndComputedForOlderFiles) {
   EXPECT_FALSE(old.valid_region.covers_sensor);
 
   // A flag that contradicts the radius is a corrupt file.
-  std::ofstream(Path("bad.yaml")) << model::ReadFile(Path("old.yaml"))
+  std::ofstream(Path("bad.yaml")) << util::ReadFile(Path("old.yaml"))
                                   << "valid_radius_px: 544.3\nvalid_region_covers_sensor: 1\n";
   try {
     LoadCalibrationFile(Path("bad.yaml"));
     FAIL() << "accepted a contradicting valid_region_covers_sensor";
-  } catch (const model::InputError& e) {
+  } catch (const util::InputError& e) {
     EXPECT_EQ(std::string(e.what()),
               Path("bad.yaml") + ": valid_region_covers_sensor: contradicts valid_radius_px and the image size");
   }
 }
 
 TEST_F(ValidRegionFile, UndistortSaysWhyPixelsAreBlack) {
-  model::WriteFileAtomic(Path("cal.yaml"), OpenCvCalibrationText(Radial(1600, 1200, -0.5), "test"));
+  util::WriteFileAtomic(Path("cal.yaml"), OpenCvCalibrationText(Radial(1600, 1200, -0.5), "test"));
   cv::imwrite(Path("in.png"), cv::Mat(1200, 1600, CV_8UC1, cv::Scalar(200)));
   const auto run = testing_cli::RunTopocal(fmt::format("undistort --calibration {} --image {} --out {}",
                                                        Path("cal.yaml"), Path("in.png"), Path("out.png")));

@@ -1,6 +1,7 @@
 // Issue 16: outputs are whole or absent, and an output path is handled for what it is — a symbolic link is written
 // through (the link stays), a FIFO or a device is written into (never replaced by a regular file), "-" is refused;
 // several outputs of one run are published together; a signal removes whatever is staged.
+#include <gtest/gtest.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -10,10 +11,8 @@
 #include <string>
 #include <thread>
 
-#include <gtest/gtest.h>
-
-#include "model/io.h"
 #include "tests/cli_harness.h"
+#include "util/io.h"
 
 namespace {
 
@@ -43,7 +42,7 @@ TEST_F(Outputs, ASymlinkIsWrittenThroughAndStaysALink) {
   const auto r = RunTopocal(Design(Path("link.csv")));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(fs::is_symlink(Path("link.csv")));
-  EXPECT_EQ(topocal::model::ReadFile(Path("real.csv")).rfind("ring,index,x_mm,y_mm,z_mm\n", 0), 0u);
+  EXPECT_EQ(topocal::util::ReadFile(Path("real.csv")).rfind("ring,index,x_mm,y_mm,z_mm\n", 0), 0u);
   // A dangling link: its target is created.
   fs::create_symlink("new.csv", Path("dangling.csv"));
   ASSERT_EQ(RunTopocal(Design(Path("dangling.csv"))).exit_code, 0);
@@ -55,7 +54,7 @@ TEST_F(Outputs, ASymlinkIsWrittenThroughAndStaysALink) {
 TEST_F(Outputs, AFifoIsWrittenIntoNotReplaced) {
   ASSERT_EQ(::mkfifo(Path("pipe").c_str(), 0600), 0);
   std::string received;
-  std::thread reader([&] { received = topocal::model::ReadFile(Path("pipe")); });  // blocks until the writer opens
+  std::thread reader([&] { received = topocal::util::ReadFile(Path("pipe")); });  // blocks until the writer opens
   const auto r = RunTopocal(Design(Path("pipe")));
   reader.join();
   ASSERT_EQ(r.exit_code, 0) << r.output;

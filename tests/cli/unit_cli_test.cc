@@ -1,23 +1,22 @@
 // `topocal unit calibrate` and `unit calibrate-batch` end to end on rendered images of one unit: the record's
 // content and provenance, the reference-sphere check, reproducibility, bad input, and the batch.
+#include <fmt/format.h>
+#include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <cstdlib>
+#include <filesystem>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <tuple>
 #include <vector>
-#include <algorithm>
 
-#include <fmt/format.h>
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
-
-#include "model/io.h"
-#include "model/sha256.h"
 #include "tests/cli_harness.h"
 #include "tests/unit_fixture.h"
+#include "util/io.h"
+#include "util/sha256.h"
 
 namespace topocal::testing_cli {
 namespace {
@@ -65,13 +64,13 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
   EXPECT_NE(r.output.find("reference sphere R 7.8 mm"), std::string::npos) << r.output;
   EXPECT_EQ(Entries(dir_ / "units"), std::vector<std::string>{"SN-0001"});
 
-  const json j = json::parse(model::ReadFile(out + "/unit.json"));
+  const json j = json::parse(util::ReadFile(out + "/unit.json"));
   EXPECT_EQ(j["format"], "topocal-unit-record");
   EXPECT_EQ(j["serial"], "SN-0001");
   // Provenance: every input with its digest, every record file with its digest.
   int images = 0;
   for (const auto& input : j["inputs"]) {
-    EXPECT_EQ(input["sha256"], model::Sha256HexOfFile(input["path"])) << input["path"];
+    EXPECT_EQ(input["sha256"], util::Sha256HexOfFile(input["path"])) << input["path"];
     images += input["role"] == "image";
   }
   EXPECT_EQ(images, 1);
@@ -80,7 +79,7 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
   EXPECT_EQ(j["configuration"]["design"]["topographer"]["b_mm"], 70.0);
   EXPECT_GE(j["files"].size(), 10u);  // calibration, residuals, 2 x 2 stages x 4 maps
   for (const auto& f : j["files"]) {
-    EXPECT_EQ(f["sha256"], model::Sha256HexOfFile(out + "/" + f["name"].get<std::string>())) << f["name"];
+    EXPECT_EQ(f["sha256"], util::Sha256HexOfFile(out + "/" + f["name"].get<std::string>())) << f["name"];
   }
   // The calibration found the camera's distortion...
   const double sigma = j["calibration"]["seidel"]["sigma_per_mm2"];
@@ -113,7 +112,7 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
 // held-out ball and the paper cornea come out right only through it. With the trailing slash in --out.
 TEST_F(UnitCli, TheDeviceStageFromBallsFixesWhatTheLensCalibrationCannot) {
   const std::string device = (dir_ / "unit-device.json").string();
-  model::WriteFileAtomic(device, R"({"format": "topocal-device", "format_version": 1,
+  util::WriteFileAtomic(device, R"({"format": "topocal-device", "format_version": 1,
     "camera": {"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120, "principal_point_px": [559.5, 559.5],
                "a_mm": 5.2},
     "distortion": {"model": "seidel", "sigma_per_mm2": 6.3e-5},
@@ -141,7 +140,7 @@ TEST_F(UnitCli, TheDeviceStageFromBallsFixesWhatTheLensCalibrationCannot) {
   ASSERT_TRUE(fs::exists(dir_ / "D-1" / "device.json")) << r.output;
   EXPECT_EQ(Entries(dir_), (std::vector<std::string>{"D-1", "ball-6.5-0.12.png", "ball-7.8--0.25.png",
                                                      "ball-7.8-0.10.png", "ball-9.0-0.20.png", "unit-device.json"}));
-  const auto unit = json::parse(model::ReadFile((dir_ / "D-1" / "unit.json").string()));
+  const auto unit = json::parse(util::ReadFile((dir_ / "D-1" / "unit.json").string()));
   const auto& d = unit["device"];
   // The assembly recovered (truth rx 0.8, ry -0.5 deg); bounds near the errors measured 2026-12-01 (2e-4 deg).
   EXPECT_NEAR(d["parameters"]["rx_deg"]["value"].get<double>(), 0.8, 2e-3);
@@ -161,7 +160,7 @@ TEST_F(UnitCli, TheDeviceStageFromBallsFixesWhatTheLensCalibrationCannot) {
   // three ways.
   const auto rep = RunTopocal(fmt::format("report --unit {} --out {}/r.html", out, dir_.string()));
   ASSERT_TRUE(rep.exit_code == 0 || rep.exit_code == 3) << rep.output;
-  const std::string html = model::ReadFile((dir_ / "r.html").string());
+  const std::string html = util::ReadFile((dir_ / "r.html").string());
   EXPECT_NE(html.find("<section id=\"device\""), std::string::npos);
   EXPECT_NE(html.find("Held-out reference ball"), std::string::npos);
   EXPECT_NE(html.find("<td>rx_deg</td>"), std::string::npos);
@@ -177,7 +176,7 @@ TEST_F(UnitCli, SeveralImagesAreAMultiViewCalibrationThatAlsoPasses) {
       in_, kUnitSphereRadiusMm, kDraws, out));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("multi-view calibration, 4 view(s)"), std::string::npos) << r.output;
-  const json j = json::parse(model::ReadFile(out + "/unit.json"));
+  const json j = json::parse(util::ReadFile(out + "/unit.json"));
   EXPECT_FALSE(j["settings"]["single_view"].get<bool>());
   EXPECT_EQ(j["calibration"]["covariance"]["names"], json::array({"fx", "fy", "cx", "cy", "k1"}));
   EXPECT_NEAR(j["calibration"]["seidel"]["sigma_per_mm2"].get<double>(), kUnitSigmaPerMm2,
@@ -200,9 +199,9 @@ TEST_F(UnitCli, ARerunWithTheSameInputsAndDateGivesTheSameRecord) {
   for (const auto& e : fs::recursive_directory_iterator(a)) {
     if (!e.is_regular_file()) continue;
     const auto rel = fs::relative(e.path(), a);
-    EXPECT_EQ(model::ReadFile(e.path().string()), model::ReadFile((fs::path(b) / rel).string())) << rel;
+    EXPECT_EQ(util::ReadFile(e.path().string()), util::ReadFile((fs::path(b) / rel).string())) << rel;
   }
-  EXPECT_NE(model::ReadFile(a + "/unit.json").find("\"created_utc\": \"2025-11-24T16:00:00Z\""), std::string::npos);
+  EXPECT_NE(util::ReadFile(a + "/unit.json").find("\"created_utc\": \"2025-11-24T16:00:00Z\""), std::string::npos);
 }
 
 TEST_F(UnitCli, BadInputIsOneLineAndLeavesNoRecord) {
@@ -263,22 +262,22 @@ TEST_F(UnitCli, BadInputIsOneLineAndLeavesNoRecord) {
   }
   // --out on a directory that is not a unit record is refused, and its content is left alone.
   fs::create_directories(units / "notes");
-  model::WriteFileAtomic((units / "notes" / "keep.txt").string(), "mine");
+  util::WriteFileAtomic((units / "notes" / "keep.txt").string(), "mine");
   const auto r = RunTopocal(Calibrate("SN-0003", (units / "notes").string()));
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("not a unit record"), std::string::npos) << r.output;
-  EXPECT_EQ(model::ReadFile((units / "notes" / "keep.txt").string()), "mine");
+  EXPECT_EQ(util::ReadFile((units / "notes" / "keep.txt").string()), "mine");
 }
 
 TEST_F(UnitCli, AFailedRerunLeavesTheEarlierRecordWhole) {
   const auto out = (dir_ / "SN-0004").string();
   ASSERT_EQ(RunTopocal(Calibrate("SN-0004", out)).exit_code, 0);
-  const std::string before = model::ReadFile(out + "/unit.json");
+  const std::string before = util::ReadFile(out + "/unit.json");
   const auto r = RunTopocal(fmt::format("unit calibrate --serial SN-0004 --target {0}/target.yaml --images {0}/blank.png "
                                         "--camera {0}/camera.json --out {1}",
                                         in_, out));
   EXPECT_EQ(r.exit_code, 1) << r.output;
-  EXPECT_EQ(model::ReadFile(out + "/unit.json"), before);
+  EXPECT_EQ(util::ReadFile(out + "/unit.json"), before);
   EXPECT_EQ(Entries(dir_), std::vector<std::string>{"SN-0004"});
 }
 
@@ -305,7 +304,7 @@ TEST_F(UnitCli, BatchCalibratesEveryGoodUnitAndListsTheFailures) {
   const auto batch = dir_ / "line";
   const auto write_unit = [&](const std::string& name, const std::string& json_text) {
     fs::create_directories(batch / name);
-    model::WriteFileAtomic((batch / name / "unit-inputs.json").string(), json_text);
+    util::WriteFileAtomic((batch / name / "unit-inputs.json").string(), json_text);
   };
   const auto good = [&](const std::string& serial) {
     return fmt::format(R"({{"serial": "{0}", "target": "{1}/target.yaml", "images": "{1}/view.png",)"
@@ -332,14 +331,14 @@ TEST_F(UnitCli, BatchCalibratesEveryGoodUnitAndListsTheFailures) {
 TEST_F(UnitCli, BatchSeedIsTheSeedOfEveryUnitsDraws) {
   const auto batch = dir_ / "line";
   fs::create_directories(batch / "a");
-  model::WriteFileAtomic((batch / "a" / "unit-inputs.json").string(),
-                         fmt::format(R"({{"serial": "SN-S", "target": "{0}/target.yaml", "images": "{0}/view.png",)"
-                                     R"( "reference_sphere": "{0}/sphere.png", "sphere_radius_mm": {1},)"
-                                     R"( "camera": "{0}/camera.json"}})",
-                                     in_, kUnitSphereRadiusMm));
+  util::WriteFileAtomic((batch / "a" / "unit-inputs.json").string(),
+                        fmt::format(R"({{"serial": "SN-S", "target": "{0}/target.yaml", "images": "{0}/view.png",)"
+                                    R"( "reference_sphere": "{0}/sphere.png", "sphere_radius_mm": {1},)"
+                                    R"( "camera": "{0}/camera.json"}})",
+                                    in_, kUnitSphereRadiusMm));
   const auto radius_u = [](const std::string& record) {
     return json::parse(
-               model::ReadFile(record + "/unit.json"))["verification"]["uncertainty"]["quantities"]["radius_mm"]["U"]
+               util::ReadFile(record + "/unit.json"))["verification"]["uncertainty"]["quantities"]["radius_mm"]["U"]
         .get<double>();
   };
   const auto run_batch = [&](const std::string& out, int seed) {

@@ -45,16 +45,19 @@ class CorrectCli : public topocal::testing_cli::TempDirTest {
     Write("cam.json", model::TopographerCameraToJson(cam));
   }
   // A plain OpenCV calibration file for the crop camera.
-  void WriteCalibration(const std::string& name, const OpenCvCamera& k, int width, int height) const {
+  void WriteCalibration(const std::string& name, const model::CameraModel& k, int width, int height) const {
     cv::FileStorage fs(Path(name), cv::FileStorage::WRITE);
     fs << "image_width" << width << "image_height" << height;
     fs << "camera_matrix" << cv::Mat(cv::Matx33d(k.fx_px, 0, k.cx_px, 0, k.fy_px, k.cy_px, 0, 0, 1));
-    fs << "distortion_coefficients" << cv::Mat(cv::Mat(k.dist).t());
+    fs << "distortion_coefficients" << cv::Mat(cv::Mat(std::vector<double>(k.dist.begin(), k.dist.end())).t());
   }
-  OpenCvCamera Lens() const {
+  model::CameraModel Lens() const {
     const double f = camera_.FocalPx();
-    return {f, f, camera_.principal_point_px.x() + 4.0, camera_.principal_point_px.y() - 3.0,
-            {-0.15, 0.3, 6e-4, -4e-4, 0.0}};
+    return {.fx_px = f,
+            .fy_px = f,
+            .cx_px = camera_.principal_point_px.x() + 4.0,
+            .cy_px = camera_.principal_point_px.y() - 3.0,
+            .dist = {-0.15, 0.3, 6e-4, -4e-4, 0.0}};
   }
   model::TopographerCamera camera_;
 };

@@ -3,7 +3,7 @@
 
 #include <gtest/gtest.h>
 
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::model {
 namespace {
@@ -42,7 +42,7 @@ TEST(TopographerCamera, OrientationAndRoundTrip) {
 std::string ErrorOf(const std::string& text) {
   try {
     ParseTopographerCamera(text, "cam.json");
-  } catch (const InputError& e) {
+  } catch (const util::InputError& e) {
     return e.what();
   }
   return "";
@@ -74,7 +74,7 @@ TEST(TopographerCamera, StrictLoadingNamesFileKeyAndProblem) {
                        "a_mm": 5.2, "rotated_180": "yes"})").find("rotated_180: must be true or false"),
             std::string::npos);
   EXPECT_NE(ErrorOf("{nope").find("cam.json: not valid JSON"), std::string::npos);
-  EXPECT_THROW(LoadTopographerCamera("/nonexistent/cam.json"), InputError);
+  EXPECT_THROW(LoadTopographerCamera("/nonexistent/cam.json"), util::InputError);
 }
 
 }  // namespace

@@ -1,9 +1,10 @@
 // Undistortion of points and whole images, Seidel and Brown-Conrady, over the whole sensor.
-#include <array>
-#include <cmath>
+#include <gtest/gtest.h>
 
 #include <Eigen/SVD>
-#include <gtest/gtest.h>
+#include <array>
+#include <cmath>
+#include <limits>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -125,8 +126,11 @@ TEST(UndistortMap, InvertsThePointUndistortionEverywhere) {
 TEST(UndistortMap, BrownAgreesWithOpenCv) {
   const auto camera = testing::DefaultCamera();
   const double f = camera.FocalPx();
-  OpenCvCamera k{f, f, camera.principal_point_px.x() + 13.0, camera.principal_point_px.y() - 7.0,
-                 {-0.12, 0.25, 8e-4, -5e-4, -0.1}};
+  const model::CameraModel k{.fx_px = f,
+                             .fy_px = f,
+                             .cx_px = camera.principal_point_px.x() + 13.0,
+                             .cy_px = camera.principal_point_px.y() - 7.0,
+                             .dist = {-0.12, 0.25, 8e-4, -5e-4, -0.1}};
   const auto brown = BrownFromOpenCv(k, camera);
   ASSERT_TRUE(brown.ok) << brown.message;
   const auto ours = BuildUndistortMap(brown.brown, camera);
@@ -214,15 +218,10 @@ TEST(UndistortMap, RemapOfARenderedPatternMatchesTheTruth) {
 namespace topocal::correct {
 namespace {
 
-// The pixel-space camera of a calibration file (OpenCV's Brown model with an optional radial centre e, as
-// calib/camera.h defines it), written out here so that this test does not depend on calib/.
-Eigen::Vector2d ProjectOpenCv(const OpenCvCamera& k, const Eigen::Vector2d& normalised) {
-  const double v[2] = {normalised.x() - k.centre_x, normalised.y() - k.centre_y};
-  double d[2];
-  std::array<double, 5> c{};
-  std::copy(k.dist.begin(), k.dist.end(), c.begin());
-  model::BrownConrady::DistortNormalized(c.data(), v, d);
-  return {k.fx_px * (d[0] + k.centre_x) + k.cx_px, k.fy_px * (d[1] + k.centre_y) + k.cy_px};
+// The pixel-space camera of a calibration file (OpenCV's Brown model with an optional radial centre e): the
+// calibration's own projection, which BrownFromOpenCv must reproduce on the detection plane.
+Eigen::Vector2d ProjectOpenCv(const model::CameraModel& k, const Eigen::Vector2d& normalised) {
+  return k.Project(Eigen::Vector3d(normalised.x(), normalised.y(), 1.0));
 }
 
 // Exact agreement: the conversion is algebra, only rounding separates the two paths.
@@ -236,8 +235,12 @@ TEST(BrownFromOpenCv, SameDistortionInPixelsForEveryOrientationAndCentre) {
       auto camera = testing::DefaultCamera();
       camera.orientation = orientation;
       const double f = camera.FocalPx();
-      OpenCvCamera k{f, f, camera.principal_point_px.x() + 21.0, camera.principal_point_px.y() - 9.0,
-                     {-0.12, 0.25, 8e-4, -5e-4, -0.1}, e, -0.5 * e};
+      const model::CameraModel k{.fx_px = f,
+                                 .fy_px = f,
+                                 .cx_px = camera.principal_point_px.x() + 21.0,
+                                 .cy_px = camera.principal_point_px.y() - 9.0,
+                                 .dist = {-0.12, 0.25, 8e-4, -5e-4, -0.1},
+                                 .distortion_centre = {e, -0.5 * e}};
       const auto b = BrownFromOpenCv(k, camera);
       ASSERT_TRUE(b.ok) << b.message;
       for (int v = 0; v < camera.height_px; v += 250) {
@@ -255,15 +258,22 @@ TEST(BrownFromOpenCv, SameDistortionInPixelsForEveryOrientationAndCentre) {
   }
 }
 
+// More than 5 coefficients never reach the conversion: the calibration file's reader refuses a non-zero k4..
+// (tests/calib/calibration_file_test.cc), and CameraModel holds exactly 5.
 TEST(BrownFromOpenCv, RejectsWhatItCannotRepresent) {
   const auto camera = testing::DefaultCamera();
-  const auto eight = BrownFromOpenCv({1000, 1000, 10, 10, {0.1, 0, 0, 0, 0, 0, 0, 0}}, camera);
-  EXPECT_FALSE(eight.ok);
-  EXPECT_NE(eight.message.find("8 distortion coefficients"), std::string::npos);
-  const auto no_focal = BrownFromOpenCv({0, 1000, 10, 10, {0.1, 0, 0, 0}}, camera);
+  const auto lens = [](double fx, double fy) {
+    return model::CameraModel{.fx_px = fx, .fy_px = fy, .cx_px = 10, .cy_px = 10, .dist = {0.1, 0, 0, 0, 0}};
+  };
+  const auto no_focal = BrownFromOpenCv(lens(0, 1000), camera);
   EXPECT_FALSE(no_focal.ok);
   EXPECT_NE(no_focal.message.find("focal lengths must be > 0"), std::string::npos);
-  const auto b = BrownFromOpenCv({1000, 1001, 10, 10, {0.1, 0, 0, 0}}, camera);
+  auto bad_centre = lens(1000, 1000);
+  bad_centre.distortion_centre.x() = std::numeric_limits<double>::quiet_NaN();
+  const auto nan_centre = BrownFromOpenCv(bad_centre, camera);
+  EXPECT_FALSE(nan_centre.ok);
+  EXPECT_NE(nan_centre.message.find("distortion centre must be finite"), std::string::npos);
+  const auto b = BrownFromOpenCv(lens(1000, 1001), camera);
   ASSERT_TRUE(b.ok) << b.message;
   EXPECT_NEAR(b.aspect_error, 1e-3, 1e-6);
 }

@@ -7,7 +7,7 @@ Checked:
     #fragment) relative to the Markdown file;
   - `path` spans without spaces that start with a top-level directory of the repository (model/, calib/, docs/...),
     relative to the repository root: {a,b} alternatives are expanded, * and ? must match at least one file, a
-    trailing / must be a directory. A generated header (model/version.h) counts when its template (.h.in) exists,
+    trailing / must be a directory. A generated header (util/version.h) counts when its template (.h.in) exists,
     a module named without its extension (topo/map_image) when one of its files does. Placeholders (<module>) are
     skipped.
 Not checked: paths inside fenced code blocks (commands whose outputs do not exist until they run; the README's

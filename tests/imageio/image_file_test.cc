@@ -1,19 +1,18 @@
 // The one image loader: headers probed right, bombs refused before decoding, every failure one line naming the file.
-#include <gtest/gtest.h>
+#include "imageio/image_file.h"
 
+#include <fmt/format.h>
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <vector>
 
-#include <fmt/format.h>
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-
-#include "imageio/image_file.h"
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::imageio {
 namespace {
@@ -35,7 +34,7 @@ template <typename F>
 std::string ErrorOf(F f) {
   try {
     f();
-  } catch (const model::InputError& e) {
+  } catch (const util::InputError& e) {
     return e.what();
   }
   return "";

@@ -16,7 +16,7 @@ const char* kPaper = R"({
 std::string ErrorOf(const std::string& text) {
   try {
     ParseConfig(text, "cfg.json");
-  } catch (const ConfigError& e) {
+  } catch (const util::ConfigError& e) {
     return e.what();
   }
   return "";
@@ -85,7 +85,7 @@ TEST(Config, NotJsonAndMissingFile) {
   try {
     LoadConfig("/nonexistent/x.json");
     FAIL();
-  } catch (const ConfigError& e) {
+  } catch (const util::ConfigError& e) {
     EXPECT_STREQ(e.what(), "/nonexistent/x.json: (file): cannot be opened for reading");
   }
 }

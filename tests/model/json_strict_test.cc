@@ -1,13 +1,12 @@
 // The one strict JSON reader (model/json_section.h) on the inputs that crashed or fooled the readers before issue 16:
 // nesting deep enough to overflow the parser's stack, numbers beyond double's range, integers beyond int's range
 // (they wrapped around silently), keys given twice, and megabyte-long values echoed whole in an error line.
-#include "model/json_section.h"
+#include <gtest/gtest.h>
 
 #include <string>
 
-#include <gtest/gtest.h>
-
 #include "model/config.h"
+#include "util/json_section.h"
 
 namespace topocal::model {
 namespace {
@@ -31,7 +30,7 @@ std::string Replaced(std::string text, const std::string& from, const std::strin
 std::string ConfigErrorOf(const std::string& text) {
   try {
     ParseConfig(text, "cfg.json");
-  } catch (const ConfigError& e) {
+  } catch (const util::ConfigError& e) {
     const std::string what = e.what();
     EXPECT_EQ(what.find('\n'), std::string::npos) << "one line";
     return what;
@@ -60,8 +59,8 @@ TEST(JsonStrict, DuplicateKeysAreRefused) {
   EXPECT_EQ(ConfigErrorOf(Replaced(kPaper, "\"kx\": -0.43,", "\"kx\": -0.43, \"kx\": 0.5,")),
             "cfg.json: cornea.kx: given twice in one object");
   // The same key in two different objects is fine (ideal_image and cornea both have keys named like this).
-  EXPECT_EQ(ParseJsonStrict(R"({"a": {"x": 1}, "b": {"x": 2}})", "t.json")["b"]["x"], 2);
-  EXPECT_THROW(ParseJsonStrict(R"({"a": 1, "b": [{"a": 1}], "a": 2})", "t.json"), ConfigError);
+  EXPECT_EQ(util::ParseJsonStrict(R"({"a": {"x": 1}, "b": {"x": 2}})", "t.json")["b"]["x"], 2);
+  EXPECT_THROW(util::ParseJsonStrict(R"({"a": 1, "b": [{"a": 1}], "a": 2})", "t.json"), util::ConfigError);
 }
 
 TEST(JsonStrict, DeepNestingIsRefusedBeforeParsing) {
@@ -69,15 +68,16 @@ TEST(JsonStrict, DeepNestingIsRefusedBeforeParsing) {
   for (const std::string& deep : {std::string(100000, '['), std::string(100000, '[') + std::string(100000, ']'),
                                   "{\"a\":" + std::string(100000, '{')}) {
     try {
-      ParseJsonStrict(deep, "deep.json");
+      util::ParseJsonStrict(deep, "deep.json");
       ADD_FAILURE() << "accepted";
-    } catch (const ConfigError& e) {
+    } catch (const util::ConfigError& e) {
       EXPECT_NE(std::string(e.what()).find("deep.json: nested deeper than 64 levels"), std::string::npos) << e.what();
     }
   }
   // Brackets inside strings are not nesting.
-  EXPECT_NO_THROW(ParseJsonStrict("{\"s\": \"" + std::string(1000, '[') + "\\\"[\"}", "t.json"));
-  EXPECT_NO_THROW(ParseJsonStrict(std::string(kMaxJsonDepth, '[') + std::string(kMaxJsonDepth, ']'), "t.json"));
+  EXPECT_NO_THROW(util::ParseJsonStrict("{\"s\": \"" + std::string(1000, '[') + "\\\"[\"}", "t.json"));
+  EXPECT_NO_THROW(
+      util::ParseJsonStrict(std::string(util::kMaxJsonDepth, '[') + std::string(util::kMaxJsonDepth, ']'), "t.json"));
 }
 
 TEST(JsonStrict, BadValuesAreEchoedShort) {
@@ -88,20 +88,20 @@ TEST(JsonStrict, BadValuesAreEchoedShort) {
   const std::string long_key(5000, 'k');
   const std::string dup = R"({")" + long_key + R"(": 1, ")" + long_key + R"(": 2})";
   try {
-    ParseJsonStrict(dup, "t.json");
+    util::ParseJsonStrict(dup, "t.json");
     ADD_FAILURE() << "accepted";
-  } catch (const ConfigError& err) {
+  } catch (const util::ConfigError& err) {
     EXPECT_LT(std::string(err.what()).size(), 200u);
   }
 }
 
 TEST(JsonStrict, IntegerRangeWithoutTruncation) {
   using nlohmann::json;
-  EXPECT_TRUE(JsonIntegerWithin(json(5), 0, 10));
-  EXPECT_FALSE(JsonIntegerWithin(json(4294967297ULL), 0, 10));
-  EXPECT_FALSE(JsonIntegerWithin(json(18446744073709551615ULL), -1, 2147483647));
-  EXPECT_FALSE(JsonIntegerWithin(json(-1), 0, 10));
-  EXPECT_FALSE(JsonIntegerWithin(json(2.5), 0, 10));
+  EXPECT_TRUE(util::JsonIntegerWithin(json(5), 0, 10));
+  EXPECT_FALSE(util::JsonIntegerWithin(json(4294967297ULL), 0, 10));
+  EXPECT_FALSE(util::JsonIntegerWithin(json(18446744073709551615ULL), -1, 2147483647));
+  EXPECT_FALSE(util::JsonIntegerWithin(json(-1), 0, 10));
+  EXPECT_FALSE(util::JsonIntegerWithin(json(2.5), 0, 10));
 }
 
 }  // namespace

@@ -1,19 +1,19 @@
 // The spots file (model/spots_csv.h) round trip on real output: the paper's design imaged through the paper's
 // cornea (what `topocal simulate` writes), written and read back; every spot comes back with its id and the exact
 // double (fmt's shortest representation round-trips).
+#include "model/spots_csv.h"
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <string>
 
-#include <fmt/format.h>
-#include <gtest/gtest.h>
-
 #include "model/config.h"
-#include "model/io.h"
 #include "model/null_screen.h"
-#include "model/spots_csv.h"
 #include "model/surface.h"
+#include "util/io.h"
 
 namespace topocal::model {
 namespace {
@@ -25,7 +25,7 @@ TEST(SpotsCsv, ASimulatedImageIsReadBackExactly) {
   ASSERT_GT(image.spots.size(), 100u);
   const auto path =
       (std::filesystem::temp_directory_path() / fmt::format("topocal_spots_csv_{}.csv", ::getpid())).string();
-  WriteFileAtomic(path, SpotsCsv(image.spots));
+  util::WriteFileAtomic(path, SpotsCsv(image.spots));
   const auto rows = ReadSpotsCsv(path);
   std::filesystem::remove(path);
   ASSERT_EQ(rows.size(), image.spots.size());

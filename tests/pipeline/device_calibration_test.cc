@@ -1,17 +1,18 @@
 // Issue 19: the device model (camera + distortion + screen pose) and its calibration from reference-ball images.
-#include <cmath>
-#include <random>
+#include "pipeline/device_calibration.h"
 
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <random>
+
 #include "model/config.h"
 #include "model/device.h"
-#include "model/io.h"
-#include "pipeline/device_calibration.h"
 #include "pipeline/measure_spots.h"
 #include "tests/pipeline/device_fixtures.h"
 #include "topo/power_map.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 namespace {

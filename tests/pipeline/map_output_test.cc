@@ -1,17 +1,18 @@
 // The maps of an analysis set are computed and written on several threads (MapSetOptions::jobs, issue 15): the
 // files must not depend on the thread count.
-#include <filesystem>
-#include <string>
-#include <vector>
+#include "pipeline/map_output.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <filesystem>
+#include <string>
+#include <vector>
+
 #include "model/config.h"
-#include "model/io.h"
-#include "pipeline/map_output.h"
 #include "topo/analysis.h"
 #include "topo/sweep.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -43,7 +44,7 @@ TEST(MapOutput, TheFilesAreTheSameWhateverTheThreadCount) {
   for (const auto& entry : fs::directory_iterator(dirs[0])) {
     const fs::path other = dirs[1] / entry.path().filename();
     ASSERT_TRUE(fs::exists(other)) << other;
-    EXPECT_EQ(model::ReadFile(entry.path().string()), model::ReadFile(other.string())) << entry.path().filename();
+    EXPECT_EQ(util::ReadFile(entry.path().string()), util::ReadFile(other.string())) << entry.path().filename();
     ++files;
   }
   // 2 entries x 4 kinds (axial, tangential, elevation, height difference) x CSV and PNG.

@@ -16,7 +16,7 @@ namespace {
 struct Fixture {
   model::Config config = model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json");
   model::TopographerCamera camera;
-  calib::CameraModel calibrated;
+  model::CameraModel calibrated;
   std::vector<MeasuredImageSpot> spots;
   static constexpr double kSigma = 6.3e-5;
   Fixture() {

@@ -4,8 +4,8 @@
 
 #include <gtest/gtest.h>
 
-#include "model/io.h"
 #include "tests/report/record_fixture.h"
+#include "util/io.h"
 
 namespace topocal::report {
 namespace {
@@ -23,17 +23,17 @@ testing::RecordFixture MakeHandRecord(const std::string& dir) {
 
 std::string LimitsError(const std::string& text) {
   const std::string path = FreshDir("limits") + "/limits.json";
-  model::WriteFileAtomic(path, text);
+  util::WriteFileAtomic(path, text);
   try {
     LoadLimits(path);
-  } catch (const model::InputError& e) {
+  } catch (const util::InputError& e) {
     return e.what();
   }
   return "";
 }
 
 nlohmann::json BundledLimits() {
-  return nlohmann::json::parse(model::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json"));
+  return nlohmann::json::parse(util::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json"));
 }
 
 TEST(Limits, BundledFileIsTheBuiltInDefault) {
@@ -201,7 +201,7 @@ TEST(Acceptance, MalformedRepeatabilityIsRefused) {
   try {
     ReadUnitRecord(f.dir);
     FAIL() << "a single repeat was accepted";
-  } catch (const model::InputError& e) {
+  } catch (const util::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("verification.repeatability.radius_mm: needs at least 2"), std::string::npos)
         << e.what();
   }

@@ -1,6 +1,7 @@
 // The report in a real browser: Debian's headless Chromium prints it to PDF, screenshots it and dumps the DOM after
 // the page's load event, and the test checks what is on the page. Chromium is required (scripts/setup.sh test
 // installs it): without it the test FAILS, it does not skip.
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -9,17 +10,15 @@
 #include <cstdlib>
 #include <filesystem>
 #include <future>
-
-#include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "model/io.h"
 #include "tests/cli_harness.h"
 #include "tests/report/chromium.h"
 #include "tests/report/record_fixture.h"
 #include "tests/unit_fixture.h"
+#include "util/io.h"
 
 namespace topocal::report {
 namespace {
@@ -61,7 +60,7 @@ TEST(ReportInBrowser, ChromiumRendersPrintsAndShowsTheReport) {
   const std::string html = work + "/report.html";
   const auto made = RunTopocal("report --unit " + record.dir + " --out " + html);
   ASSERT_EQ(made.exit_code, 0) << made.output;
-  const std::string page = model::ReadFile(html);
+  const std::string page = util::ReadFile(html);
   const std::string id_key = "data-report-id=\"";
   const std::size_t id_at = page.find(id_key);
   ASSERT_NE(id_at, std::string::npos);
@@ -88,7 +87,7 @@ TEST(ReportInBrowser, ChromiumRendersPrintsAndShowsTheReport) {
   ASSERT_EQ(printed.exit_code, 0) << printed.output;
   ASSERT_TRUE(fs::exists(pdf)) << printed.output;
   EXPECT_GE(fs::file_size(pdf), kMinPdfBytes);
-  const std::string pdf_bytes = model::ReadFile(pdf);
+  const std::string pdf_bytes = util::ReadFile(pdf);
   EXPECT_EQ(pdf_bytes.rfind("%PDF-", 0), 0u);
   // Skia writes each page object as "/Type /Page" (the page tree as "/Type /Pages").
   const int pages = static_cast<int>(Count(pdf_bytes, "/Type /Page") - Count(pdf_bytes, "/Type /Pages"));
@@ -175,16 +174,16 @@ TEST(ReportInBrowser, AUnitCalibratedFromImagesReportsAndRendersEndToEnd) {
 
   // Limits this unit cannot meet: the report is still written, says FAIL, and the exit code is 3.
   const std::string strict = work + "/strict.json";
-  std::string limits = model::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json");
+  std::string limits = util::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json");
   const std::string rms_key = "\"calibration_rms_px\": {\n      \"max\": 0.5";
   ASSERT_NE(limits.find(rms_key), std::string::npos);
   limits.replace(limits.find(rms_key), rms_key.size(), "\"calibration_rms_px\": {\n      \"max\": 0.001");
-  model::WriteFileAtomic(strict, limits);
+  util::WriteFileAtomic(strict, limits);
   fs::remove(html);
   const auto failed = RunTopocal("report --unit " + unit + " --out " + html + " --limits " + strict);
   EXPECT_EQ(failed.exit_code, 3) << failed.output;
   EXPECT_NE(failed.output.find("for unit SN-E2E-0001: FAIL"), std::string::npos) << failed.output;
-  EXPECT_NE(model::ReadFile(html).find("data-verdict=\"FAIL\""), std::string::npos);
+  EXPECT_NE(util::ReadFile(html).find("data-verdict=\"FAIL\""), std::string::npos);
   if (!HasFailure()) fs::remove_all(work);
 }
 

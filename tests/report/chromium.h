@@ -1,5 +1,6 @@
 #pragma once
 // Headless Chromium for the report tests: find it, run it under a timeout with its own HOME and profile.
+#include <fmt/format.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -9,9 +10,7 @@
 #include <filesystem>
 #include <string>
 
-#include <fmt/format.h>
-
-#include "model/io.h"
+#include "util/io.h"
 
 namespace topocal::report::testing {
 
@@ -56,7 +55,7 @@ inline ShellRun Chromium(const std::string& chromium, const std::string& work, c
   if (r.exit_code != 0) {
     std::string err;
     try {
-      err = model::ReadFile(log);
+      err = util::ReadFile(log);
     } catch (const std::exception&) {
     }
     r.output += "\n[chromium stderr]\n" + err;

@@ -1,24 +1,23 @@
 // The fleet view end to end: a generated line of unit records (tests/report/fleet_fixture.h, written through the
 // record writer), `topocal fleet ingest` into SQLite - idempotent, all or nothing, concurrent processes - and
 // `topocal fleet report` as HTML, CSV and JSON, rendered by headless Chromium.
+#include <gtest/gtest.h>
 #include <sqlite3.h>
 
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <set>
 
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
-
-#include "model/io.h"
-#include "model/sha256.h"
 #include "report/fleet_db.h"
 #include "report/fleet_report.h"
 #include "report/unit_record_reader.h"
 #include "tests/cli_harness.h"
 #include "tests/report/chromium.h"
 #include "tests/report/fleet_fixture.h"
+#include "util/io.h"
+#include "util/sha256.h"
 
 namespace topocal::report {
 namespace {
@@ -81,17 +80,17 @@ TEST_F(FleetTest, IngestionIsIdempotentAndTheReportFlagsTheDriftingStation) {
     EXPECT_NE(run.output.find("20 record(s) added, 0 already present"), std::string::npos) << run.output;
   }
   ASSERT_EQ(CountUnits(db), 3 * kUnitsPerStation);
-  const std::string before = model::Sha256HexOfFile(db);
+  const std::string before = util::Sha256HexOfFile(db);
   // Again: nothing added, nothing changed.
   const auto again = RunTopocal(Ingest(db, "A") + " " + Dir("B") + "/*/");
   ASSERT_EQ(again.exit_code, 0) << again.output;
   EXPECT_NE(again.output.find("0 record(s) added, 40 already present; 60 record(s)"), std::string::npos) << again.output;
-  EXPECT_EQ(model::Sha256HexOfFile(db), before);
+  EXPECT_EQ(util::Sha256HexOfFile(db), before);
 
   const std::string html = *work_ + "/fleet.html", csv = *work_ + "/fleet.csv", js = *work_ + "/fleet.json";
   const auto rep = RunTopocal("fleet report --db " + db + " --out " + html + " --csv " + csv + " --json " + js);
   ASSERT_EQ(rep.exit_code, 0) << rep.output;
-  const auto j = nlohmann::json::parse(model::ReadFile(js));
+  const auto j = nlohmann::json::parse(util::ReadFile(js));
   EXPECT_EQ(j.at("format"), "topocal-fleet-report");
   EXPECT_EQ(j.at("units").size(), 60u);
   // The drifting station's sphere radius chart has signals at the drifting units; the stable stations' do not.
@@ -109,18 +108,18 @@ TEST_F(FleetTest, IngestionIsIdempotentAndTheReportFlagsTheDriftingStation) {
   EXPECT_EQ(signals_by_chart["LINE-A"], 0);
   EXPECT_EQ(signals_by_chart["LINE-B"], 0);
   // Out-of-control units are listed on the page, by serial.
-  const std::string page = model::ReadFile(html);
+  const std::string page = util::ReadFile(html);
   EXPECT_NE(page.find("data-units=\"60\""), std::string::npos);
   EXPECT_NE(page.find("<tr data-serial=\"SN-C-00"), std::string::npos);
   EXPECT_EQ(page.find("data-parameter=\"sphere_radius_error_mm\"><td>SN-A"), std::string::npos);
   // CSV: a header and one row per unit and parameter.
-  const std::string table = model::ReadFile(csv);
+  const std::string table = util::ReadFile(csv);
   EXPECT_EQ(table.rfind("serial,unit_json_sha256,created_utc,station,parameter,value,U,limit,unit_verdict\n", 0), 0u);
   EXPECT_NE(table.find("SN-C-0020,"), std::string::npos);
   // Same database, same bytes.
   const std::string first = page;
   ASSERT_EQ(RunTopocal("fleet report --db " + db + " --out " + html).exit_code, 0);
-  EXPECT_EQ(model::ReadFile(html), first);
+  EXPECT_EQ(util::ReadFile(html), first);
 }
 
 TEST_F(FleetTest, ConcurrentProcessesLoseNothing) {
@@ -141,7 +140,7 @@ TEST_F(FleetTest, ConcurrentProcessesLoseNothing) {
   int added = 0;
   for (const char* s : {"A", "B", "C"}) {
     for (int k = 0; k < 2; ++k) {
-      const std::string log = model::ReadFile(fmt::format("{}/ingest-{}-{}.log", *work_, s, k));
+      const std::string log = util::ReadFile(fmt::format("{}/ingest-{}-{}.log", *work_, s, k));
       int n = 0;
       ASSERT_EQ(std::sscanf(log.substr(log.find(": ") + 2).c_str(), "%d", &n), 1) << log;
       added += n;
@@ -152,12 +151,12 @@ TEST_F(FleetTest, ConcurrentProcessesLoseNothing) {
 
 // One line, exit 2, and the database as it was.
 void ExpectRefused(const std::string& args, const std::string& expected, const std::string& db) {
-  const std::string before = fs::exists(db) ? model::Sha256HexOfFile(db) : "";
+  const std::string before = fs::exists(db) ? util::Sha256HexOfFile(db) : "";
   const auto run = RunTopocal(args);
   EXPECT_EQ(run.exit_code, 2) << run.output;
   EXPECT_NE(run.output.find(expected), std::string::npos) << run.output;
   EXPECT_EQ(std::count(run.output.begin(), run.output.end(), '\n'), 1) << run.output;
-  EXPECT_EQ(fs::exists(db) ? model::Sha256HexOfFile(db) : "", before);
+  EXPECT_EQ(fs::exists(db) ? util::Sha256HexOfFile(db) : "", before);
 }
 
 TEST_F(FleetTest, BadInputIsRefusedAndTheDatabaseKeepsEverything) {
@@ -171,7 +170,7 @@ TEST_F(FleetTest, BadInputIsRefusedAndTheDatabaseKeepsEverything) {
   ExpectRefused(Ingest(db, "B") + " " + bad + "/SN-B-0001", "residuals.csv: SHA-256", db);
   // A corrupt record.
   fs::copy(Dir("B") + "/SN-B-0002", bad + "/SN-B-0002", fs::copy_options::recursive);
-  model::WriteFileAtomic(bad + "/SN-B-0002/unit.json", "{\"format\": ");
+  util::WriteFileAtomic(bad + "/SN-B-0002/unit.json", "{\"format\": ");
   ExpectRefused("fleet ingest --db " + db + " " + bad + "/SN-B-0002", "unit.json: not valid JSON", db);
   EXPECT_EQ(CountUnits(db), kUnitsPerStation);
   // Another schema version: neither ingested into nor reported.
@@ -188,7 +187,7 @@ TEST_F(FleetTest, BadInputIsRefusedAndTheDatabaseKeepsEverything) {
   EXPECT_FALSE(fs::exists(*work_ + "/v2.html"));
   // Not a database at all; an unwritable path; a directory.
   const std::string text = *work_ + "/not-a-db.sqlite";
-  model::WriteFileAtomic(text, "hello, this is not SQLite, but long enough to look like a header of one.......\n");
+  util::WriteFileAtomic(text, "hello, this is not SQLite, but long enough to look like a header of one.......\n");
   ExpectRefused(Ingest(text, "A"), "not a topocal fleet database", text);
   ExpectRefused(Ingest(*work_ + "/no/such/dir/fleet.sqlite", "A"), "cannot open the fleet database", "");
   ExpectRefused(Ingest(*work_, "A"), "not a file", "");

@@ -134,8 +134,8 @@ TEST_F(HtmlReportTest, ReportIdHashesTheRecordTheLimitsAndTheRule) {
   const std::string id = ReportId(*record_, in);
   EXPECT_TRUE(std::regex_match(id, std::regex("SN-TEST-0001-[0-9a-f]{12}"))) << id;
   const std::string text = ReportIdText(*record_, in);
-  EXPECT_EQ(id.substr(id.size() - 12), model::Sha256Hex(text).substr(0, 12));
-  EXPECT_NE(text.find("unit_json_sha256=" + model::Sha256HexOfFile(fixture_->Path("unit.json"))), std::string::npos);
+  EXPECT_EQ(id.substr(id.size() - 12), util::Sha256Hex(text).substr(0, 12));
+  EXPECT_NE(text.find("unit_json_sha256=" + util::Sha256HexOfFile(fixture_->Path("unit.json"))), std::string::npos);
   EXPECT_EQ(ReportId(*record_, ReportInputs{}), id);  // same inputs, same id
   // Another limit, another rule, another certificate U, another operator: another id.
   ReportInputs limit = in;
@@ -301,7 +301,7 @@ TEST(HtmlReport, SignOffAndPreviousCalibrationAreShown) {
   other.WriteUnitJson();
   const UnitRecord o = ReadUnitRecord(other.dir);
   in.previous = &o;
-  EXPECT_THROW(RenderHtmlReport(rec, in), model::InputError);
+  EXPECT_THROW(RenderHtmlReport(rec, in), util::InputError);
 }
 
 TEST(HtmlReport, FailingRecordSaysFailAndWhy) {

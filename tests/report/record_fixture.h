@@ -20,17 +20,17 @@
 #include "calib/calibration_file.h"
 #include "correct/undistort_points.h"
 #include "model/config.h"
-#include "model/io.h"
 #include "model/null_screen.h"
-#include "model/sha256.h"
 #include "model/spots_csv.h"
 #include "model/topographer_camera.h"
-#include "model/version.h"
 #include "pipeline/detection_plane.h"
 #include "pipeline/unit_verification.h"
 #include "report/unit_record_reader.h"
 #include "report/unit_record_writer.h"
 #include "tests/calib/synthetic_views.h"
+#include "util/io.h"
+#include "util/sha256.h"
+#include "util/version.h"
 
 namespace topocal::report::testing {
 
@@ -61,7 +61,7 @@ struct RecordFixture {
 
   std::string Path(const std::string& name) const { return (fs::path(dir) / name).string(); }
   // Rewrites unit.json from `unit` (after a test changed it).
-  void WriteUnitJson() const { model::WriteFileAtomic(Path("unit.json"), unit.dump(2) + "\n"); }
+  void WriteUnitJson() const { util::WriteFileAtomic(Path("unit.json"), unit.dump(2) + "\n"); }
   // Recomputes the `files` list (sorted, with digests) from the files on disk, then writes unit.json.
   void Seal() {
     std::vector<std::string> names;
@@ -72,13 +72,14 @@ struct RecordFixture {
     }
     std::sort(names.begin(), names.end());
     unit["files"] = json::array();
-    for (const std::string& n : names) unit["files"].push_back({{"name", n}, {"sha256", model::Sha256HexOfFile(Path(n))}});
+    for (const std::string& n : names)
+      unit["files"].push_back({{"name", n}, {"sha256", util::Sha256HexOfFile(Path(n))}});
     WriteUnitJson();
   }
 };
 
 inline calib::CalibrationResult FixtureCalibration() {
-  calib::CameraModel cam;
+  model::CameraModel cam;
   cam.width_px = kWidthPx;
   cam.height_px = kHeightPx;
   cam.fx_px = cam.fy_px = kFocalMm / (kPitchUm * 1e-3);
@@ -189,10 +190,10 @@ inline json RecordBody(const calib::CalibrationResult& r, const std::string& ser
         {"uncertainty_samples", kFixtureDraws},
         {"seed", 1}}},
       {"inputs",
-       {{{"role", "config"}, {"path", "data/paper.json"}, {"sha256", model::Sha256Hex("config")}},
-        {{"role", "camera"}, {"path", "data/camera.json"}, {"sha256", model::Sha256Hex("camera")}},
-        {{"role", "target"}, {"path", "data/target-topographer.yaml"}, {"sha256", model::Sha256Hex("target")}},
-        {{"role", "image"}, {"path", "views/v1.png"}, {"sha256", model::Sha256Hex("v1")}},
+       {{{"role", "config"}, {"path", "data/paper.json"}, {"sha256", util::Sha256Hex("config")}},
+        {{"role", "camera"}, {"path", "data/camera.json"}, {"sha256", util::Sha256Hex("camera")}},
+        {{"role", "target"}, {"path", "data/target-topographer.yaml"}, {"sha256", util::Sha256Hex("target")}},
+        {{"role", "image"}, {"path", "views/v1.png"}, {"sha256", util::Sha256Hex("v1")}},
         {{"role", "reference_sphere"}, {"path", "sphere.png"}, {"sha256", zero_hash}}}},
       {"camera",
        {{"pixel_pitch_um", kPitchUm},
@@ -303,8 +304,8 @@ inline RecordFixture MakeRecord(const std::string& dir) {
   const auto& r = f.calibration;
   calib::WriteCalibrationFile(f.Path("calibration.yaml"), r, {"data/target-topographer.yaml", {"views/v1.png"},
                                                               kCreatedUtc});
-  model::WriteFileAtomic(f.Path("residuals.csv"), ResidualsCsv(r));
-  model::WriteFileAtomic(f.Path("sphere_spots.csv"), model::SpotsCsv(ComputeChecks().sphere_spots));
+  util::WriteFileAtomic(f.Path("residuals.csv"), ResidualsCsv(r));
+  util::WriteFileAtomic(f.Path("sphere_spots.csv"), model::SpotsCsv(ComputeChecks().sphere_spots));
   fs::create_directories(f.Path("maps"));
   int seed = 0;
   for (const char* name : {"sphere_uncorrected_axial_power", "sphere_corrected_axial_power",

@@ -1,16 +1,16 @@
 // `topocal report` end to end: the report of a complete record, the same bytes twice, and every bad input refused
 // with one line, exit 2 and no report file.
+#include <gtest/gtest.h>
+
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <tuple>
 #include <vector>
 
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
-
-#include "model/io.h"
 #include "tests/cli_harness.h"
 #include "tests/report/record_fixture.h"
+#include "util/io.h"
 
 namespace topocal::report {
 namespace {
@@ -48,16 +48,16 @@ TEST(ReportCli, WritesTheReportOfACompleteRecordTheSameTwice) {
   const auto run = RunTopocal("report --unit " + c.record.dir + " --out " + c.out);
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_NE(run.output.find("for unit SN-TEST-0001: PASS"), std::string::npos) << run.output;
-  const std::string first = model::ReadFile(c.out);
+  const std::string first = util::ReadFile(c.out);
   EXPECT_EQ(first.rfind("<!DOCTYPE html>", 0), 0u);
   ASSERT_EQ(RunTopocal("report --unit " + c.record.dir + " --out " + c.out).exit_code, 0);
-  EXPECT_EQ(model::ReadFile(c.out), first);
+  EXPECT_EQ(util::ReadFile(c.out), first);
   // The bundled limits are the defaults: the same page.
   ASSERT_EQ(RunTopocal("report --unit " + c.record.dir + " --out " + c.out + " --limits " + TOPOCAL_SOURCE_DIR +
                        "/data/limits.json")
                 .exit_code,
             0);
-  const std::string with_file = model::ReadFile(c.out);
+  const std::string with_file = util::ReadFile(c.out);
   EXPECT_NE(with_file.find("/data/limits.json"), std::string::npos);
 }
 
@@ -80,19 +80,19 @@ std::vector<std::string> HtmlCheckResults(const std::string& html) {
 TEST(ReportCli, JsonVerdictEqualsTheHtmlVerdict) {
   const Case c = MakeCase("json");
   const std::string dir = fs::path(c.out).parent_path().string();
-  std::string strict = model::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json");
+  std::string strict = util::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json");
   const std::string key = "\"paper_conic_error\": {\n      \"max\": 0.05";
   ASSERT_NE(strict.find(key), std::string::npos);
   strict.replace(strict.find(key), key.size(), "\"paper_conic_error\": {\n      \"max\": 0.0001");
-  model::WriteFileAtomic(dir + "/strict.json", strict);
+  util::WriteFileAtomic(dir + "/strict.json", strict);
   for (const auto& [limits, expected_exit, expected] :
        {std::tuple{std::string(), 0, "PASS"}, std::tuple{" --limits " + dir + "/strict.json", 3, "FAIL"}}) {
     const auto run = RunTopocal("report --unit " + c.record.dir + " --out " + c.out + " --json " + dir +
                                 "/report.json --operator 'A. Tester' --station LINE-2 --ball-certificate B-42 "
                                 "--target-certificate T-7 --ball-radius-U-mm 0.0008" + limits);
     ASSERT_EQ(run.exit_code, expected_exit) << run.output;
-    const std::string html = model::ReadFile(c.out);
-    const auto j = nlohmann::json::parse(model::ReadFile(dir + "/report.json"));
+    const std::string html = util::ReadFile(c.out);
+    const auto j = nlohmann::json::parse(util::ReadFile(dir + "/report.json"));
     EXPECT_EQ(j.at("format"), "topocal-report");
     EXPECT_EQ(j.at("verdict"), expected);
     EXPECT_EQ(HtmlVerdict(html), j.at("verdict").get<std::string>());
@@ -146,7 +146,7 @@ TEST(ReportCli, RefusesAnotherToolVersion) {
 TEST(ReportCli, RefusesMalformedLimits) {
   const Case c = MakeCase("limits");
   const std::string limits = fs::path(c.out).parent_path() / "limits.json";
-  model::WriteFileAtomic(limits, R"({"format": "topocal-limits", "format_version": 1, "decision_rule": "guarded",
+  util::WriteFileAtomic(limits, R"({"format": "topocal-limits", "format_version": 1, "decision_rule": "guarded",
                                      "limits": {}})");
   ExpectRefused(c, " --limits " + limits, "limits.json: limits.calibration_rms_px: missing");
   ExpectRefused(c, " --limits " + limits + ".absent", "limits.json.absent: cannot be opened");
@@ -185,13 +185,13 @@ TEST(ReportCli, ReportsARecordWithoutUncertainty) {
   const auto guarded = RunTopocal("report --unit " + c.record.dir + " --out " + c.out);
   EXPECT_EQ(guarded.exit_code, 3) << guarded.output;
   EXPECT_NE(guarded.output.find("for unit SN-TEST-0001: FAIL"), std::string::npos) << guarded.output;
-  EXPECT_NE(model::ReadFile(c.out).find("no U in the record: guarded acceptance cannot decide"), std::string::npos);
+  EXPECT_NE(util::ReadFile(c.out).find("no U in the record: guarded acceptance cannot decide"), std::string::npos);
   const std::string simple = fs::path(c.out).parent_path() / "simple.json";
-  std::string limits = model::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json");
+  std::string limits = util::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json");
   const std::string rule = "\"decision_rule\": \"guarded\"";
   ASSERT_NE(limits.find(rule), std::string::npos);
   limits.replace(limits.find(rule), rule.size(), "\"decision_rule\": \"simple\"");
-  model::WriteFileAtomic(simple, limits);
+  util::WriteFileAtomic(simple, limits);
   const auto run = RunTopocal("report --unit " + c.record.dir + " --out " + c.out + " --limits " + simple);
   EXPECT_EQ(run.exit_code, 0) << run.output;
   EXPECT_NE(run.output.find("for unit SN-TEST-0001: PASS"), std::string::npos) << run.output;

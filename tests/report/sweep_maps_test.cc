@@ -9,10 +9,10 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
-#include "model/io.h"
 #include "plot/map_image.h"
 #include "tests/cli_harness.h"
 #include "tests/report/record_fixture.h"
+#include "util/io.h"
 
 namespace topocal::report {
 namespace {
@@ -22,7 +22,7 @@ using topocal::testing_cli::RunTopocal;
 
 // A CSV written by plot::WriteMapCsv (square grid, y then x ascending, empty = no data) back as a GridMap.
 plot::GridMap ReadGridCsv(const std::string& path, const std::string& unit) {
-  std::istringstream in(model::ReadFile(path));
+  std::istringstream in(util::ReadFile(path));
   std::string line;
   std::getline(in, line);
   std::vector<double> xs, ys, values;

@@ -2,13 +2,13 @@
 // file and the key.
 #include "report/unit_record_reader.h"
 
+#include <gtest/gtest.h>
+
 #include <filesystem>
 #include <fstream>
 
-#include <gtest/gtest.h>
-
-#include "model/io.h"
 #include "tests/report/record_fixture.h"
+#include "util/io.h"
 
 namespace topocal::report {
 namespace {
@@ -21,7 +21,7 @@ using testing::FreshDir;
 std::string ReadError(const std::string& dir) {
   try {
     ReadUnitRecord(dir);
-  } catch (const model::InputError& e) {
+  } catch (const util::InputError& e) {
     const std::string what = e.what();
     EXPECT_EQ(what.find('\n'), std::string::npos) << "one line: " << what;
     return what;
@@ -50,7 +50,7 @@ TEST(UnitRecordReader, ReadsACompleteRecord) {
             f.unit["paper_cornea"]["uncertainty"]["quantities"]["kx"]["U"].get<double>());
   ASSERT_TRUE(r.config && r.topographer_camera);
   EXPECT_EQ(r.topographer_camera->width_px, testing::kWidthPx);
-  EXPECT_EQ(r.unit_json_sha256, model::Sha256HexOfFile(f.Path("unit.json")));
+  EXPECT_EQ(r.unit_json_sha256, util::Sha256HexOfFile(f.Path("unit.json")));
 }
 
 TEST(UnitRecordReader, OptionalBlocksMayBeAbsent) {
@@ -75,7 +75,7 @@ TEST(UnitRecordReader, RefusesHostileNumbersAndDuplicateKeys) {
     const auto at = text.find(from);
     EXPECT_NE(at, std::string::npos) << from;
     text.replace(at, from.size(), to);
-    model::WriteFileAtomic(f.Path("unit.json"), text);
+    util::WriteFileAtomic(f.Path("unit.json"), text);
     return ReadError(f.dir);
   };
   EXPECT_NE(
@@ -188,17 +188,17 @@ TEST(UnitRecordReader, RefusesNamesOutsideTheRecord) {
 
 TEST(UnitRecordReader, RefusesMalformedJsonAndResiduals) {
   auto f = MakeRecord(FreshDir("malformed"));
-  model::WriteFileAtomic(f.Path("unit.json"), "{\"format\": ");
+  util::WriteFileAtomic(f.Path("unit.json"), "{\"format\": ");
   EXPECT_NE(ReadError(f.dir).find("unit.json: not valid JSON"), std::string::npos);
 
   f = MakeRecord(FreshDir("csv"));
-  model::WriteFileAtomic(f.Path("residuals.csv"), "view,x\n");
+  util::WriteFileAtomic(f.Path("residuals.csv"), "view,x\n");
   f.Seal();
   EXPECT_NE(ReadError(f.dir).find("residuals.csv: header"), std::string::npos);
 
   f = MakeRecord(FreshDir("csv2"));
-  model::WriteFileAtomic(f.Path("residuals.csv"),
-                         "view,image,corner_id,x_px,y_px,dx_px,dy_px,outlier\n0,v.png,1,10,20,nan,0,0\n");
+  util::WriteFileAtomic(f.Path("residuals.csv"),
+                        "view,image,corner_id,x_px,y_px,dx_px,dy_px,outlier\n0,v.png,1,10,20,nan,0,0\n");
   f.Seal();
   EXPECT_NE(ReadError(f.dir).find("residuals.csv: line 2: dx_px: not a finite number"), std::string::npos);
 }

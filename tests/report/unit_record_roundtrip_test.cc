@@ -17,8 +17,6 @@
 
 #include "calib/calibration_file.h"
 #include "model/device.h"
-#include "model/io.h"
-#include "model/version.h"
 #include "pipeline/device_calibration.h"
 #include "pipeline/unit_workflow.h"
 #include "report/record_check.h"
@@ -28,6 +26,8 @@
 #include "tests/report/record_fixture.h"
 #include "tests/unit_fixture.h"
 #include "topo/power_map.h"
+#include "util/io.h"
+#include "util/version.h"
 
 namespace topocal::report {
 namespace {
@@ -89,7 +89,7 @@ TEST(UnitRecordRoundTrip, EveryFieldTheWorkflowComputedIsReadBackUnchanged) {
   const std::string dir = testing::FreshDir("roundtrip");
   // The device stage's inputs: three reference balls and a held-out one through an assembled (tilted) device.
   const std::string device_json = dir + "/unit-device.json";
-  model::WriteFileAtomic(device_json, R"({"format": "topocal-device", "format_version": 1,
+  util::WriteFileAtomic(device_json, R"({"format": "topocal-device", "format_version": 1,
     "camera": {"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120, "principal_point_px": [559.5, 559.5],
                "a_mm": 5.2},
     "distortion": {"model": "seidel", "sigma_per_mm2": 6.3e-5},

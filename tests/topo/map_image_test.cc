@@ -10,9 +10,9 @@
 #include <limits>
 #include <sstream>
 
-#include "model/io.h"
 #include "model/surface.h"
 #include "topo/map_grid.h"
+#include "util/io.h"
 
 namespace topocal::topo {
 namespace {
@@ -203,11 +203,11 @@ TEST_F(MapFiles, UnwritablePathIsInputErrorNamingIt) {
   try {
     WriteMapPng(path, Ramp(11, -1, 1, true));
     FAIL() << "no error for " << path;
-  } catch (const model::InputError& e) {
+  } catch (const util::InputError& e) {
     EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
   }
   EXPECT_FALSE(fs::exists(path));
-  EXPECT_THROW(WriteMapCsv(path, Ramp(11, -1, 1, true)), model::InputError);
+  EXPECT_THROW(WriteMapCsv(path, Ramp(11, -1, 1, true)), util::InputError);
 }
 
 TEST(MapCsv, LongFormatWithUnitInTheHeaderAndEmptyNoData) {

@@ -1,11 +1,11 @@
 // Measures the paper cornea through the bundled nominal device with the installed library and prints r_x, k_x.
-#include <cstdio>
-#include <string>
-
 #include <topocal/model/config.h>
 #include <topocal/model/device.h>
-#include <topocal/model/version.h>
 #include <topocal/pipeline/measure_spots.h>
+#include <topocal/util/version.h>
+
+#include <cstdio>
+#include <string>
 
 int main() {
   using namespace topocal;

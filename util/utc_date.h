@@ -4,10 +4,10 @@
 // so that a rerun with the same inputs can be compared byte for byte.
 #include <string>
 
-namespace topocal::model {
+namespace topocal::util {
 
-// ISO 8601 UTC ("2026-12-01T23:59:59Z"). Throws model::InputError naming SOURCE_DATE_EPOCH when it is set but is
+// ISO 8601 UTC ("2026-12-01T23:59:59Z"). Throws util::InputError naming SOURCE_DATE_EPOCH when it is set but is
 // not a non-negative decimal integer of at most 12 digits (bad input, exit 2).
 std::string FileDateUtc();
 
-}  // namespace topocal::model
+}  // namespace topocal::util

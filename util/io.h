@@ -9,12 +9,19 @@
 #include <string_view>
 #include <vector>
 
-namespace topocal::model {
+namespace topocal::util {
 
 // Bad input or an output that cannot be written: the message is one line naming the file and the problem.
 class InputError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
+};
+
+// Bad input in a configuration-like file (JSON or YAML the user wrote): a kind of InputError, so that every
+// reader's bad input is caught, and reported with exit 2, the same way.
+class ConfigError : public InputError {
+ public:
+  using InputError::InputError;
 };
 
 // The outputs of one run, published all or nothing. What an output path is decides how it is written:
@@ -70,4 +77,4 @@ class DeferSignalCleanup {
   DeferSignalCleanup& operator=(const DeferSignalCleanup&) = delete;
 };
 
-}  // namespace topocal::model
+}  // namespace topocal::util

@@ -1,8 +1,8 @@
-#include "model/json_section.h"
+#include "util/json_section.h"
 
 #include <vector>
 
-namespace topocal::model {
+namespace topocal::util {
 namespace {
 
 // "a.b[].c", each key cut to 40 characters: keys come from the input and may be long.
@@ -34,12 +34,16 @@ nlohmann::json ParseJsonStrict(const std::string& text, const std::string& origi
   for (size_t i = 0; i < text.size(); ++i) {
     const char c = text[i];
     if (in_string) {
-      if (escaped) escaped = false;
-      else if (c == '\\') escaped = true;
-      else if (c == '"') in_string = false;
+      if (escaped)
+        escaped = false;
+      else if (c == '\\')
+        escaped = true;
+      else if (c == '"')
+        in_string = false;
       continue;
     }
-    if (c == '"') in_string = true;
+    if (c == '"')
+      in_string = true;
     else if (c == '[' || c == '{') {
       if (++depth > kMaxJsonDepth) {
         throw ConfigError(fmt::format("{}: nested deeper than {} levels (byte {})", origin, kMaxJsonDepth, i));
@@ -55,8 +59,13 @@ nlohmann::json ParseJsonStrict(const std::string& text, const std::string& origi
   std::string duplicate;
   const json::parser_callback_t check = [&](int /*depth*/, json::parse_event_t event, json& parsed) {
     switch (event) {
-      case json::parse_event_t::object_start: keys.emplace_back(); path.emplace_back(); break;
-      case json::parse_event_t::array_start: path.emplace_back("[]"); break;
+      case json::parse_event_t::object_start:
+        keys.emplace_back();
+        path.emplace_back();
+        break;
+      case json::parse_event_t::array_start:
+        path.emplace_back("[]");
+        break;
       case json::parse_event_t::object_end:
         if (!keys.empty()) keys.pop_back();
         [[fallthrough]];
@@ -69,7 +78,8 @@ nlohmann::json ParseJsonStrict(const std::string& text, const std::string& origi
         if (!keys.empty() && !keys.back().insert(k).second && duplicate.empty()) duplicate = DottedPath(path);
         break;
       }
-      case json::parse_event_t::value: break;
+      case json::parse_event_t::value:
+        break;
     }
     return true;
   };
@@ -80,8 +90,8 @@ nlohmann::json ParseJsonStrict(const std::string& text, const std::string& origi
     throw ConfigError(fmt::format("{}: not valid JSON (byte {})", origin, e.byte));
   } catch (const json::out_of_range& e) {  // 406: a number like 1e999; its text is not echoed (it may be huge)
     const std::string where = DottedPath(path);
-    throw ConfigError(fmt::format("{}: {}: a number beyond the range of a double", origin,
-                                  where.empty() ? "(top level)" : where));
+    throw ConfigError(
+        fmt::format("{}: {}: a number beyond the range of a double", origin, where.empty() ? "(top level)" : where));
   } catch (const json::exception& e) {
     throw ConfigError(fmt::format("{}: not valid JSON (nlohmann error {})", origin, e.id));
   }
@@ -89,4 +99,4 @@ nlohmann::json ParseJsonStrict(const std::string& text, const std::string& origi
   return j;
 }
 
-}  // namespace topocal::model
+}  // namespace topocal::util

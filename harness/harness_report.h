@@ -5,16 +5,17 @@
 #include <utility>
 #include <vector>
 
-#include "pipeline/harness.h"
-#include "pipeline/harness_answer.h"
+#include "harness/harness.h"
+#include "harness/harness_answer.h"
 
-namespace topocal::pipeline {
+namespace topocal::harness {
 
 // (file name, content) of every output, in the order they are written:
 //   cases.csv, summary.json, table.md, dk_vs_residual.svg, dP_vs_residual.svg
-std::vector<std::pair<std::string, std::string>> RenderHarnessOutputs(const HarnessRun& run, const InverseAnswer& answer);
+std::vector<std::pair<std::string, std::string>> RenderHarnessOutputs(const HarnessRun& run,
+                                                                      const InverseAnswer& answer);
 
 // The inverse answer as the few lines printed on stdout.
 std::string HarnessAnswerText(const HarnessRun& run, const InverseAnswer& answer);
 
-}  // namespace topocal::pipeline
+}  // namespace topocal::harness

@@ -2,20 +2,20 @@
 // Strict reading of one JSON object of a configuration file, shared by every configuration topocal reads
 // (model/config.cc, pipeline/harness_config.cc): every key must be read or known, types and ranges are checked, and
 // every failure is one ConfigError "ORIGIN: KEY: problem" naming the file and the dotted key.
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include <fmt/format.h>
-#include <nlohmann/json.hpp>
+#include "util/io.h"
 
-#include "model/config.h"
-
-namespace topocal::model {
+namespace topocal::util {
 
 // A JSON value as quoted in an error message, cut to ~100 characters: a bad value may be megabytes long.
 inline std::string QuoteJsonValue(const nlohmann::json& v) {
@@ -83,13 +83,16 @@ class JsonSection {
 
   // An integer that fits an int: nlohmann's get<int>() truncates silently (4294967297 became 1), so the range is
   // checked on the 64-bit value first.
-  int Integer(const std::string& k) { return IntegerInRange(k, std::numeric_limits<int>::min(), std::numeric_limits<int>::max()); }
+  int Integer(const std::string& k) {
+    return IntegerInRange(k, std::numeric_limits<int>::min(), std::numeric_limits<int>::max());
+  }
   int Integer(const std::string& k, int fallback) { return Has(k) ? Integer(k) : fallback; }
   // An integer within [lo, hi] (fallback when absent).
   int IntegerInRange(const std::string& k, int lo, int hi) {
     const json& v = Get(k);
     if (!v.is_number_integer()) Fail(Key(k), fmt::format("must be an integer (got {})", QuoteJsonValue(v)));
-    if (!JsonIntegerWithin(v, lo, hi)) Fail(Key(k), fmt::format("must be in [{}, {}] (got {})", lo, hi, QuoteJsonValue(v)));
+    if (!JsonIntegerWithin(v, lo, hi))
+      Fail(Key(k), fmt::format("must be in [{}, {}] (got {})", lo, hi, QuoteJsonValue(v)));
     return static_cast<int>(v.get<long long>());
   }
   int IntegerInRange(const std::string& k, int fallback, int lo, int hi) {
@@ -143,7 +146,9 @@ class JsonSection {
   // An array of exactly n finite numbers.
   std::vector<double> Numbers(const std::string& k, size_t n) {
     const json& v = Get(k);
-    const auto bad = [&] { Fail(Key(k), fmt::format("must be an array of {} finite numbers (got {})", n, QuoteJsonValue(v))); };
+    const auto bad = [&] {
+      Fail(Key(k), fmt::format("must be an array of {} finite numbers (got {})", n, QuoteJsonValue(v)));
+    };
     if (!v.is_array() || v.size() != n) bad();
     std::vector<double> out;
     for (const auto& e : v) {
@@ -177,4 +182,4 @@ class JsonSection {
   std::set<std::string> seen_;
 };
 
-}  // namespace topocal::model
+}  // namespace topocal::util

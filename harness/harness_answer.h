@@ -23,9 +23,9 @@
 #include <string>
 #include <vector>
 
-#include "pipeline/harness.h"
+#include "harness/harness.h"
 
-namespace topocal::pipeline {
+namespace topocal::harness {
 
 // Residuals below this are "no residual": the Newton inverses of model/distortion.h close to 1e-12 mm = 1e-9 um,
 // so e = 0 or a zero coefficient leaves ~1e-10 um; 1e-6 um (1 pm) is far below any distortion the sweep applies.
@@ -33,8 +33,8 @@ inline constexpr double kZeroResidualUm = 1e-6;
 
 struct FamilyAnswer {
   DistortionFamily family = DistortionFamily::kSeidelSigma;
-  bool found = false;              // some case of the family is outside the limits
-  double residual_max_um = 0;      // its smallest crossing; when !found, the largest residual tested
+  bool found = false;          // some case of the family is outside the limits
+  double residual_max_um = 0;  // its smallest crossing; when !found, the largest residual tested
 };
 
 struct AssemblyAnswer {
@@ -45,27 +45,27 @@ struct AssemblyAnswer {
   double grid_all_pass_up_to = 0;    // every tested case of the axis with |error| up to this is within the limits
   double grid_first_failure = 0;     // smallest |error| of a case of the axis outside the limits (when found)
   double max_tested = 0;
-  int limiting_case = -1;            // the first case outside the limits of the limiting group
-  std::string limited_by;            // "dk", "dP" or "failure"
+  int limiting_case = -1;  // the first case outside the limits of the limiting group
+  std::string limited_by;  // "dk", "dP" or "failure"
 };
 
 struct InverseAnswer {
-  bool found = false;                  // some case is outside the limits (else the answer is a lower bound)
-  bool noise_alone_exceeds = false;    // a case without residual distortion is already outside the limits
-  double residual_max_um = 0;          // the answer (when !found: the largest residual tested, a lower bound)
+  bool found = false;                // some case is outside the limits (else the answer is a lower bound)
+  bool noise_alone_exceeds = false;  // a case without residual distortion is already outside the limits
+  double residual_max_um = 0;        // the answer (when !found: the largest residual tested, a lower bound)
   double residual_max_px = 0;
-  double sigma_equivalent_per_mm2 = 0; // |sigma| of the Seidel distortion displacing the edge of the spot field
-                                       // of the first cornea by residual_max_um
-  double grid_all_pass_up_to_um = 0;   // every tested case with a residual up to this is within the limits
-  double grid_first_failure_um = 0;    // smallest residual of a case outside the limits (when found)
+  double sigma_equivalent_per_mm2 = 0;  // |sigma| of the Seidel distortion displacing the edge of the spot field
+                                        // of the first cornea by residual_max_um
+  double grid_all_pass_up_to_um = 0;    // every tested case with a residual up to this is within the limits
+  double grid_first_failure_um = 0;     // smallest residual of a case outside the limits (when found)
   double max_tested_um = 0;
-  int limiting_case = -1;              // the first case outside the limits of the limiting group
-  std::string limited_by;              // "dk", "dP" or "failure" (reconstruction failed)
+  int limiting_case = -1;  // the first case outside the limits of the limiting group
+  std::string limited_by;  // "dk", "dP" or "failure" (reconstruction failed)
   // The distortion answer above covers the distortion cases only; the counts below cover every case.
   int cases_within = 0;
   int cases_outside = 0;
-  int cases_failed = 0;                // reconstruction or fit failed
-  std::vector<FamilyAnswer> families;  // one per family present in the sweep
+  int cases_failed = 0;                  // reconstruction or fit failed
+  std::vector<FamilyAnswer> families;    // one per family present in the sweep
   std::vector<AssemblyAnswer> assembly;  // one per assembly axis present in the sweep
 };
 
@@ -74,4 +74,4 @@ double LimitUtilisation(const HarnessCaseResult& c, const HarnessLimits& limits)
 
 InverseAnswer ComputeInverseAnswer(const HarnessRun& run);
 
-}  // namespace topocal::pipeline
+}  // namespace topocal::harness

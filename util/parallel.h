@@ -2,7 +2,7 @@
 // The project's one way to run independent work items on several cores.
 //
 //   std::vector<Result> out(items.size());
-//   model::ParallelFor(items.size(), jobs, [&](size_t i) { out[i] = Work(items[i]); });
+//   util::ParallelFor(items.size(), jobs, [&](size_t i) { out[i] = Work(items[i]); });
 //
 // Each index runs exactly once on one of up to `jobs` threads (0: every core this process may use). Callers write
 // results by index only, so the outcome does not depend on the thread count or the scheduling. If fn throws, the
@@ -12,7 +12,7 @@
 #include <cstddef>
 #include <functional>
 
-namespace topocal::model {
+namespace topocal::util {
 
 // Cores this process may run on (its CPU affinity, as a container or `taskset` limits it), at least 1.
 int AvailableCores();
@@ -20,4 +20,4 @@ int AvailableCores();
 // `jobs` < 0 is a programming error (std::invalid_argument); 0 means AvailableCores().
 void ParallelFor(size_t n, int jobs, const std::function<void(size_t)>& fn);
 
-}  // namespace topocal::model
+}  // namespace topocal::util

@@ -1,16 +1,16 @@
-#include "pipeline/harness_report.h"
+#include "harness/harness_report.h"
+
+#include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
 #include <map>
-
-#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "model/version.h"
 #include "plot/scatter_plot.h"
+#include "util/version.h"
 
-namespace topocal::pipeline {
+namespace topocal::harness {
 namespace {
 
 using nlohmann::json;
@@ -31,17 +31,16 @@ std::string CasesCsv(const HarnessRun& run) {
   for (const auto& c : run.cases) {
     const auto& s = c.spec;
     const bool assembly = s.kind == HarnessCaseKind::kAssembly;
-    out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},", s.index, run.config.corneas[s.cornea].name,
-                       assembly ? AssemblyAxisName(s.axis) : DistortionFamilyName(s.family),
-                       Num(assembly ? s.error : s.coefficient), assembly ? "" : Num(s.calibration_error),
-                       assembly && IsDirectional(s.axis) ? Num(s.azimuth_deg) : "", Num(s.noise_px), s.draw, s.seed, c.ok ? "ok" : "failed", Num(c.residual_max_um), Num(c.residual_rms_um),
-                       Num(c.residual_max_um / pitch), Num(c.residual_rms_um / pitch), c.spots_used,
-                       c.undistort_failures);
+    out += fmt::format(
+        "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},", s.index, run.config.corneas[s.cornea].name,
+        assembly ? AssemblyAxisName(s.axis) : DistortionFamilyName(s.family), Num(assembly ? s.error : s.coefficient),
+        assembly ? "" : Num(s.calibration_error), assembly && IsDirectional(s.axis) ? Num(s.azimuth_deg) : "",
+        Num(s.noise_px), s.draw, s.seed, c.ok ? "ok" : "failed", Num(c.residual_max_um), Num(c.residual_rms_um),
+        Num(c.residual_max_um / pitch), Num(c.residual_rms_um / pitch), c.spots_used, c.undistort_failures);
     if (c.ok) {
       out += fmt::format("{},{},{},{},{},{},{},{},{},{}\n", Num(c.dk_x), Num(c.dk_y), Num(c.dr_x_mm), Num(c.dr_y_mm),
-                         Num(c.dP_axial_max_D), Num(c.dP_tangential_max_D), Num(c.dpv_axial_D),
-                         Num(c.dpv_tangential_D), Num(c.compared_radius_mm),
-                         LimitUtilisation(c, run.config.limits) <= 1 ? 1 : 0);
+                         Num(c.dP_axial_max_D), Num(c.dP_tangential_max_D), Num(c.dpv_axial_D), Num(c.dpv_tangential_D),
+                         Num(c.compared_radius_mm), LimitUtilisation(c, run.config.limits) <= 1 ? 1 : 0);
     } else {
       out += ",,,,,,,,,0\n";  // no number for a case that has none (never NaN)
     }
@@ -62,7 +61,8 @@ json AnswerJson(const HarnessRun& run, const InverseAnswer& a) {
             {"limiting_case", a.limiting_case}};
   json families = json::object();
   for (const auto& f : a.families) {
-    families[DistortionFamilyName(f.family)] = {{"found", f.found}, {"residual_max_um", f.residual_max_um},
+    families[DistortionFamilyName(f.family)] = {{"found", f.found},
+                                                {"residual_max_um", f.residual_max_um},
                                                 {"residual_max_px", f.residual_max_um / run.config.pixel_pitch_um}};
   }
   j["per_family"] = families;
@@ -113,7 +113,9 @@ std::string SummaryJson(const HarnessRun& run, const InverseAnswer& a) {
   j["topocal_version"] = kVersion;
   j["config_sha256"] = run.config_sha256;
   j["config"] = json::parse(CanonicalHarnessJson(run.config));
-  j["cases"] = {{"total", run.total_cases}, {"within_limits", a.cases_within}, {"outside_limits", a.cases_outside},
+  j["cases"] = {{"total", run.total_cases},
+                {"within_limits", a.cases_within},
+                {"outside_limits", a.cases_outside},
                 {"failed", a.cases_failed}};
   j["limits"] = {{"dk", run.config.limits.dk}, {"dP_D", run.config.limits.dP_D}, {"dP_maps", MapsName(run)}};
   if (run.config.HasDistortion()) j["answer"] = AnswerJson(run, a);
@@ -121,8 +123,12 @@ std::string SummaryJson(const HarnessRun& run, const InverseAnswer& a) {
   json truth = json::array();
   for (const auto& t : run.truth) {
     truth.push_back({{"cornea", t.cornea},
-                     {"fit", {{"rx_mm", t.fit.rx_mm}, {"ry_mm", t.fit.ry_mm}, {"kx", t.fit.kx}, {"ky", t.fit.ky},
-                              {"alpha_deg", t.fit.alpha_deg}}},
+                     {"fit",
+                      {{"rx_mm", t.fit.rx_mm},
+                       {"ry_mm", t.fit.ry_mm},
+                       {"kx", t.fit.kx},
+                       {"ky", t.fit.ky},
+                       {"alpha_deg", t.fit.alpha_deg}}},
                      {"covered_radius_mm", t.covered_radius_mm},
                      {"spot_field_radius_mm", t.spot_field_radius_mm},
                      {"spots", t.spots},
@@ -137,17 +143,19 @@ std::string SummaryJson(const HarnessRun& run, const InverseAnswer& a) {
 std::string AnswerSentence(const HarnessRun& run, const InverseAnswer& a) {
   const auto& l = run.config.limits;
   if (!a.found) {
-    return fmt::format("every case is within |dk| <= {:g} and |dP| <= {:g} D ({}) up to the largest residual tested, "
-                       "{:.4g} um ({:.4g} px, |sigma| {:.3g} mm^-2 equivalent): the answer is at least that",
-                       l.dk, l.dP_D, MapsName(run), a.residual_max_um, a.residual_max_px, a.sigma_equivalent_per_mm2);
+    return fmt::format(
+        "every case is within |dk| <= {:g} and |dP| <= {:g} D ({}) up to the largest residual tested, "
+        "{:.4g} um ({:.4g} px, |sigma| {:.3g} mm^-2 equivalent): the answer is at least that",
+        l.dk, l.dP_D, MapsName(run), a.residual_max_um, a.residual_max_px, a.sigma_equivalent_per_mm2);
   }
   if (a.noise_alone_exceeds && a.residual_max_um == 0) {
     return fmt::format("none: the spot-position noise alone puts a case outside |dk| <= {:g} or |dP| <= {:g} D ({})",
                        l.dk, l.dP_D, MapsName(run));
   }
-  return fmt::format("largest residual distortion keeping every case within |dk| <= {:g} and |dP| <= {:g} D ({}): "
-                     "{:.4g} um at the detection plane = {:.4g} px = |sigma| {:.3g} mm^-2 equivalent",
-                     l.dk, l.dP_D, MapsName(run), a.residual_max_um, a.residual_max_px, a.sigma_equivalent_per_mm2);
+  return fmt::format(
+      "largest residual distortion keeping every case within |dk| <= {:g} and |dP| <= {:g} D ({}): "
+      "{:.4g} um at the detection plane = {:.4g} px = |sigma| {:.3g} mm^-2 equivalent",
+      l.dk, l.dP_D, MapsName(run), a.residual_max_um, a.residual_max_px, a.sigma_equivalent_per_mm2);
 }
 
 std::string ErrorText(AssemblyAxis axis, double value) {
@@ -165,11 +173,12 @@ std::string CaseDescription(const HarnessRun& run, int index) {
                        c.spec.noise_px, c.spec.draw, c.MaxAbsDk(), c.MaxAbsDP_D(run.config.limits),
                        c.ok ? "" : " (reconstruction failed: " + c.failure + ")");
   }
-  return fmt::format("case {}: cornea {}, {} = {:.4g}, calibration error {:+g}, noise {:g} px draw {}: residual "
-                     "{:.4g} um, |dk| {:.4g}, |dP| {:.4g} D{}",
-                     c.spec.index, run.config.corneas[c.spec.cornea].name, DistortionFamilyName(c.spec.family),
-                     c.spec.coefficient, c.spec.calibration_error, c.spec.noise_px, c.spec.draw, c.residual_max_um,
-                     c.MaxAbsDk(), c.MaxAbsDP_D(run.config.limits), c.ok ? "" : " (reconstruction failed: " + c.failure + ")");
+  return fmt::format(
+      "case {}: cornea {}, {} = {:.4g}, calibration error {:+g}, noise {:g} px draw {}: residual "
+      "{:.4g} um, |dk| {:.4g}, |dP| {:.4g} D{}",
+      c.spec.index, run.config.corneas[c.spec.cornea].name, DistortionFamilyName(c.spec.family), c.spec.coefficient,
+      c.spec.calibration_error, c.spec.noise_px, c.spec.draw, c.residual_max_um, c.MaxAbsDk(),
+      c.MaxAbsDP_D(run.config.limits), c.ok ? "" : " (reconstruction failed: " + c.failure + ")");
 }
 
 std::string AssemblyAnswerLine(const HarnessRun& run, const AssemblyAnswer& x) {
@@ -191,9 +200,10 @@ std::string AssemblyAnswerLine(const HarnessRun& run, const AssemblyAnswer& x) {
 
 std::string AssemblySentence(const HarnessRun& run) {
   const auto& l = run.config.limits;
-  return fmt::format("largest assembly error, one axis at a time, measured through the nominal device (uncorrected), "
-                     "keeping every cornea, direction, noise level and draw within |dk| <= {:g} and |dP| <= {:g} D ({})",
-                     l.dk, l.dP_D, MapsName(run));
+  return fmt::format(
+      "largest assembly error, one axis at a time, measured through the nominal device (uncorrected), "
+      "keeping every cornea, direction, noise level and draw within |dk| <= {:g} and |dP| <= {:g} D ({})",
+      l.dk, l.dP_D, MapsName(run));
 }
 
 // Text for a markdown table cell: a | would end the cell.
@@ -220,10 +230,11 @@ std::string AssemblyAnswerMd(const HarnessRun& run, const InverseAnswer& a) {
 }
 
 std::string AssemblyRowsMd(const HarnessRun& run) {
-  std::string md = "\n## Cases by assembly error\n\nWorst over corneas, directions, noise levels and draws; the "
-                   "residual is the displacement of the noise-free spots from the nominal device's, on the detection "
-                   "plane.\n\n| axis | error | residual max (um) | max \\|dk\\| | max \\|dP\\| (D) | dpv axial (D) | "
-                   "within limits |\n|---|---:|---:|---:|---:|---:|---:|\n";
+  std::string md =
+      "\n## Cases by assembly error\n\nWorst over corneas, directions, noise levels and draws; the "
+      "residual is the displacement of the noise-free spots from the nominal device's, on the detection "
+      "plane.\n\n| axis | error | residual max (um) | max \\|dk\\| | max \\|dP\\| (D) | dpv axial (D) | "
+      "within limits |\n|---|---:|---:|---:|---:|---:|---:|\n";
   struct Row {
     double residual = 0, dk = 0, dP = 0, dpv_lo = 0, dpv_hi = 0;
     int within = 0, total = 0, failed = 0;
@@ -248,9 +259,9 @@ std::string AssemblyRowsMd(const HarnessRun& run) {
       const auto it = rows.find({static_cast<int>(axis), v});
       if (it == rows.end()) continue;  // a value listed twice is one row
       const Row& r = it->second;
-      md += fmt::format("| {} | {} | {:.4g} | {:.3g} | {:.3g} | {:+.3g} ... {:+.3g} | {}/{}{} |\n", AssemblyAxisName(axis),
-                        ErrorText(axis, v), r.residual, r.dk, r.dP, r.dpv_lo, r.dpv_hi, r.within, r.total,
-                        r.failed ? fmt::format(" ({} failed)", r.failed) : "");
+      md += fmt::format("| {} | {} | {:.4g} | {:.3g} | {:.3g} | {:+.3g} ... {:+.3g} | {}/{}{} |\n",
+                        AssemblyAxisName(axis), ErrorText(axis, v), r.residual, r.dk, r.dP, r.dpv_lo, r.dpv_hi,
+                        r.within, r.total, r.failed ? fmt::format(" ({} failed)", r.failed) : "");
       rows.erase(it);
     }
   }
@@ -260,36 +271,39 @@ std::string AssemblyRowsMd(const HarnessRun& run) {
 std::string TableMd(const HarnessRun& run, const InverseAnswer& a) {
   const auto& cfg = run.config;
   std::string md = cfg.HasDistortion() ? (cfg.HasAssembly() ? "# Residual-distortion and assembly-error harness\n\n"
-                                                                 : "# Residual-distortion harness\n\n")
+                                                            : "# Residual-distortion harness\n\n")
                                        : "# Assembly-error harness\n\n";
   md += fmt::format("Configuration SHA-256 `{}`; {} cases; limits |dk| <= {:g}, |dP| <= {:g} D ({} maps).\n\n",
                     run.config_sha256, run.total_cases, cfg.limits.dk, cfg.limits.dP_D, MapsName(run));
   if (cfg.HasDistortion()) md += "**Inverse answer:** " + AnswerSentence(run, a) + ".\n\n";
   if (cfg.HasDistortion() && a.found) {
-    md += fmt::format("Grid bounds: every tested case with a residual up to {:.4g} um is within the limits; the "
-                      "smallest residual of a case outside them is {:.4g} um. Limiting {} ({}).\n\n",
-                      a.grid_all_pass_up_to_um, a.grid_first_failure_um, CaseDescription(run, a.limiting_case),
-                      a.limited_by);
+    md += fmt::format(
+        "Grid bounds: every tested case with a residual up to {:.4g} um is within the limits; the "
+        "smallest residual of a case outside them is {:.4g} um. Limiting {} ({}).\n\n",
+        a.grid_all_pass_up_to_um, a.grid_first_failure_um, CaseDescription(run, a.limiting_case), a.limited_by);
   }
   if (cfg.HasAssembly()) md += AssemblyAnswerMd(run, a);
   if (cfg.HasDistortion()) md += "| family | largest tolerable residual (um) | (px) |\n|---|---:|---:|\n";
   for (const auto& f : a.families) {
-    md += fmt::format("| {} | {}{:.4g} | {:.4g} |\n", DistortionFamilyName(f.family), f.found ? "" : ">= ",
-                      f.residual_max_um, f.residual_max_um / cfg.pixel_pitch_um);
+    md += fmt::format("| {} | {}{:.4g} | {:.4g} |\n", DistortionFamilyName(f.family),
+                      f.found ? "" : ">= ", f.residual_max_um, f.residual_max_um / cfg.pixel_pitch_um);
   }
   md += "\n## Truth reconstructions (undistorted, noise-free spots)\n\n";
-  md += "| cornea | r_x (mm) | r_y (mm) | k_x | k_y | alpha (deg) | covered radius (mm) | spots |\n"
-        "|---|---:|---:|---:|---:|---:|---:|---:|\n";
+  md +=
+      "| cornea | r_x (mm) | r_y (mm) | k_x | k_y | alpha (deg) | covered radius (mm) | spots |\n"
+      "|---|---:|---:|---:|---:|---:|---:|---:|\n";
   for (const auto& t : run.truth) {
     md += fmt::format("| {} | {:.5f} | {:.5f} | {:.5f} | {:.5f} | {:.4f} | {:.3f} | {} |\n", t.cornea, t.fit.rx_mm,
                       t.fit.ry_mm, t.fit.kx, t.fit.ky, t.fit.alpha_deg, t.covered_radius_mm, t.spots);
   }
   if (cfg.HasAssembly()) md += AssemblyRowsMd(run);
   if (!cfg.HasDistortion()) return md;
-  md += "\n## Cases by distortion and calibration error\n\nWorst over corneas, noise levels and draws. "
-        "e = -1 is no correction.\n\n";
-  md += "| family | coefficient | e | residual max (um) | (px) | max \\|dk\\| | max \\|dP\\| (D) | within limits |\n"
-        "|---|---:|---:|---:|---:|---:|---:|---:|\n";
+  md +=
+      "\n## Cases by distortion and calibration error\n\nWorst over corneas, noise levels and draws. "
+      "e = -1 is no correction.\n\n";
+  md +=
+      "| family | coefficient | e | residual max (um) | (px) | max \\|dk\\| | max \\|dP\\| (D) | within limits |\n"
+      "|---|---:|---:|---:|---:|---:|---:|---:|\n";
   struct Row {
     double residual = 0, dk = 0, dP = 0;
     int within = 0, total = 0, failed = 0;
@@ -326,7 +340,7 @@ std::string Plot(const HarnessRun& run, const InverseAnswer& a, bool power) {
   p.title = power ? "Power-map error against residual distortion" : "Conic-constant error against residual distortion";
   p.x_label = "residual distortion, max displacement over the spot field (um, detection plane)";
   p.y_label = power ? fmt::format("max |P - P_truth| over the disc, {} map{} (D)", MapsName(run),
-                                   run.config.limits.tangential_map ? "s" : "")
+                                  run.config.limits.tangential_map ? "s" : "")
                     : "max |k - k_truth| of k_x, k_y";
   int failed = 0;
   for (const DistortionFamily f : kDistortionFamilies) {
@@ -346,10 +360,10 @@ std::string Plot(const HarnessRun& run, const InverseAnswer& a, bool power) {
     }
     p.series.push_back(std::move(s));
   }
-  p.horizontal.push_back({power ? run.config.limits.dP_D : run.config.limits.dk,
-                          power ? fmt::format("limit {:g} D", run.config.limits.dP_D)
-                                : fmt::format("limit {:g}", run.config.limits.dk),
-                          "#000000"});
+  p.horizontal.push_back(
+      {power ? run.config.limits.dP_D : run.config.limits.dk,
+       power ? fmt::format("limit {:g} D", run.config.limits.dP_D) : fmt::format("limit {:g}", run.config.limits.dk),
+       "#000000"});
   if (a.found && a.residual_max_um > 0) {
     p.vertical.push_back({a.residual_max_um, fmt::format("answer {:.3g} um", a.residual_max_um), "#7f3fbf"});
   }
@@ -393,10 +407,10 @@ std::string AssemblyPlot(const HarnessRun& run, const AssemblyAnswer& x) {
 
 }  // namespace
 
-std::vector<std::pair<std::string, std::string>> RenderHarnessOutputs(const HarnessRun& run, const InverseAnswer& answer) {
-  std::vector<std::pair<std::string, std::string>> out = {{"cases.csv", CasesCsv(run)},
-                                                           {"summary.json", SummaryJson(run, answer)},
-                                                           {"table.md", TableMd(run, answer)}};
+std::vector<std::pair<std::string, std::string>> RenderHarnessOutputs(const HarnessRun& run,
+                                                                      const InverseAnswer& answer) {
+  std::vector<std::pair<std::string, std::string>> out = {
+      {"cases.csv", CasesCsv(run)}, {"summary.json", SummaryJson(run, answer)}, {"table.md", TableMd(run, answer)}};
   if (run.config.HasDistortion()) {
     out.emplace_back("dk_vs_residual.svg", Plot(run, answer, false));
     out.emplace_back("dP_vs_residual.svg", Plot(run, answer, true));
@@ -417,8 +431,8 @@ std::string HarnessAnswerText(const HarnessRun& run, const InverseAnswer& a) {
                        a.grid_all_pass_up_to_um, a.grid_first_failure_um);
   }
   for (const auto& f : a.families) {
-    out += fmt::format("  {}: {}{:.4g} um ({:.4g} px)\n", DistortionFamilyName(f.family), f.found ? "" : ">= ",
-                       f.residual_max_um, f.residual_max_um / run.config.pixel_pitch_um);
+    out += fmt::format("  {}: {}{:.4g} um ({:.4g} px)\n", DistortionFamilyName(f.family),
+                       f.found ? "" : ">= ", f.residual_max_um, f.residual_max_um / run.config.pixel_pitch_um);
   }
   if (!run.config.HasAssembly()) return out;
   out += "assembly answer: " + AssemblySentence(run) + ":\n";
@@ -433,4 +447,4 @@ std::string HarnessAnswerText(const HarnessRun& run, const InverseAnswer& a) {
   return out;
 }
 
-}  // namespace topocal::pipeline
+}  // namespace topocal::harness

@@ -28,13 +28,14 @@
 #include <string>
 #include <vector>
 
+#include "harness/harness_config.h"
 #include "model/config.h"
 #include "model/device.h"
 #include "model/null_screen.h"
-#include "pipeline/harness_config.h"
 #include "topo/analysis.h"
+#include "util/shard.h"
 
-namespace topocal::pipeline {
+namespace topocal::harness {
 
 enum class HarnessCaseKind { kDistortion, kAssembly };
 
@@ -48,33 +49,33 @@ struct HarnessCaseSpec {
   double calibration_error = 0;  // e: the correction uses coefficient x (1 + e)
   // Assembly cases:
   AssemblyAxis axis = AssemblyAxis::kScreenTilt;
-  double error = 0;              // in the axis' unit (a magnitude >= 0 on a directional axis)
-  double azimuth_deg = 0;        // its direction on a directional axis (0 when the magnitude is 0), else 0
+  double error = 0;        // in the axis' unit (a magnitude >= 0 on a directional axis)
+  double azimuth_deg = 0;  // its direction on a directional axis (0 when the magnitude is 0), else 0
   // Both:
   double noise_px = 0;
-  int draw = 0;                  // 0..noise_draws-1 (always 0 when noise_px = 0)
-  std::uint64_t seed = 0;        // of this case's noise generator: from (config seed, index) only
+  int draw = 0;            // 0..noise_draws-1 (always 0 when noise_px = 0)
+  std::uint64_t seed = 0;  // of this case's noise generator: from (config seed, index) only
 };
 
 struct HarnessCaseResult {
   HarnessCaseSpec spec;
-  bool ok = false;              // false: the reconstruction or fit failed (counts as outside the limits)
-  std::string failure;          // why, when !ok
+  bool ok = false;      // false: the reconstruction or fit failed (counts as outside the limits)
+  std::string failure;  // why, when !ok
   // Residual distortion over the noise-free spot field, on the detection plane (assembly cases: the displacement
   // of the noise-free spots measured through the nominal device from the truth spots).
   double residual_max_um = 0;
   double residual_rms_um = 0;
-  int spots_used = 0;           // spots reconstructed
-  int undistort_failures = 0;   // spots the estimated model could not undistort (dropped; assembly cases: 0, and
-                                // spots the as-built device does not image are simply missing from spots_used)
+  int spots_used = 0;          // spots reconstructed
+  int undistort_failures = 0;  // spots the estimated model could not undistort (dropped; assembly cases: 0, and
+                               // spots the as-built device does not image are simply missing from spots_used)
   // Errors against the truth reconstruction of the same cornea (all zero when !ok).
   double dk_x = 0, dk_y = 0;
   double dr_x_mm = 0, dr_y_mm = 0;
-  double dP_axial_max_D = 0;        // max |P - P_truth| over the compared disc
+  double dP_axial_max_D = 0;  // max |P - P_truth| over the compared disc
   double dP_tangential_max_D = 0;
-  double dpv_axial_D = 0;           // pv(P) - pv(P_truth) over the whole map disc (paper Table VII's measure)
+  double dpv_axial_D = 0;  // pv(P) - pv(P_truth) over the whole map disc (paper Table VII's measure)
   double dpv_tangential_D = 0;
-  double compared_radius_mm = 0;    // radius of the compared disc: where both reconstructions have points
+  double compared_radius_mm = 0;  // radius of the compared disc: where both reconstructions have points
 
   double MaxAbsDk() const;
   double MaxAbsDP_D(const HarnessLimits& limits) const;  // the maps the limits name
@@ -83,19 +84,12 @@ struct HarnessCaseResult {
 // The truth reconstruction of one cornea.
 struct HarnessTruth {
   std::string cornea;
-  model::BiconicParams fit;         // biconic fitted to the truth reconstruction
+  model::BiconicParams fit;  // biconic fitted to the truth reconstruction
   double covered_radius_mm = 0;
   double spot_field_radius_mm = 0;  // largest distance of an undistorted spot from the distortion centre
   int spots = 0;
   double pv_axial_D = 0, pv_tangential_D = 0;
 };
-
-struct ShardSpec {
-  int index = 0;
-  int count = 1;
-};
-// "i/N" with 0 <= i < N; throws model::InputError ("--shard: ...") otherwise.
-ShardSpec ParseShardSpec(const std::string& text);
 
 // Every case of the configuration in the fixed global order.
 std::vector<HarnessCaseSpec> EnumerateHarnessCases(const HarnessConfig& config);
@@ -113,16 +107,16 @@ model::Device AssembledDevice(const HarnessConfig& config, const HarnessCaseSpec
 struct HarnessRun {
   HarnessConfig config;
   std::string config_sha256;
-  ShardSpec shard;
+  util::ShardSpec shard;
   int total_cases = 0;
-  std::vector<HarnessTruth> truth;           // one per cornea
-  std::vector<HarnessCaseResult> cases;      // sorted by index
+  std::vector<HarnessTruth> truth;       // one per cornea
+  std::vector<HarnessCaseResult> cases;  // sorted by index
 };
 
 // Runs the shard's cases on `jobs` threads (results do not depend on jobs). Throws std::runtime_error when a truth
 // reconstruction fails (the design cannot reconstruct that cornea at all).
 // `progress`, when given, is called from the worker threads after each case with (cases done, cases of the shard).
-HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs = 1,
+HarnessRun RunHarness(const HarnessConfig& config, util::ShardSpec shard, int jobs = 1,
                       const std::function<void(std::size_t, std::size_t)>& progress = {});
 
 // Runs one case against its truth (exposed for tests and the benchmark).
@@ -145,15 +139,15 @@ class HarnessCaseRunner {
   std::vector<std::shared_ptr<const CorneaData>> data_;
 };
 
-// A shard as a JSON file and back. Reading checks the format and every field; throws model::InputError naming the
+// A shard as a JSON file and back. Reading checks the format and every field; throws util::InputError naming the
 // file and key.
 std::string HarnessShardJson(const HarnessRun& run);
 HarnessRun ParseHarnessShard(const std::string& json_text, const std::string& origin);
 // The file name a shard is written under: "shard-<i>-of-<N>.json".
-std::string HarnessShardFileName(ShardSpec shard);
+std::string HarnessShardFileName(util::ShardSpec shard);
 
-// Combines shards into the run of all cases. Throws model::InputError when the shards come from different
+// Combines shards into the run of all cases. Throws util::InputError when the shards come from different
 // configurations or tool versions, when one is missing or given twice, or when a case is missing or duplicated.
 HarnessRun MergeHarnessShards(const std::vector<HarnessRun>& shards, const std::vector<std::string>& origins);
 
-}  // namespace topocal::pipeline
+}  // namespace topocal::harness

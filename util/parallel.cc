@@ -1,4 +1,4 @@
-#include "model/parallel.h"
+#include "util/parallel.h"
 
 #include <sched.h>
 
@@ -10,7 +10,7 @@
 #include <thread>
 #include <vector>
 
-namespace topocal::model {
+namespace topocal::util {
 
 int AvailableCores() {
   cpu_set_t set;
@@ -49,4 +49,4 @@ void ParallelFor(size_t n, int jobs, const std::function<void(size_t)>& fn) {
   if (error) std::rethrow_exception(error);
 }
 
-}  // namespace topocal::model
+}  // namespace topocal::util

@@ -1,12 +1,11 @@
-#include "model/file_glob.h"
-
-#include <glob.h>
+#include "util/file_glob.h"
 
 #include <fmt/format.h>
+#include <glob.h>
 
-#include "model/io.h"
+#include "util/io.h"
 
-namespace topocal::model {
+namespace topocal::util {
 
 std::vector<std::string> Glob(const std::string& pattern, const std::string& option) {
   glob_t g{};
@@ -16,9 +15,10 @@ std::vector<std::string> Glob(const std::string& pattern, const std::string& opt
     for (size_t i = 0; i < g.gl_pathc; ++i) paths.emplace_back(g.gl_pathv[i]);
   }
   globfree(&g);
-  if (rc == GLOB_NOMATCH || paths.empty()) throw model::InputError(fmt::format("{} '{}': no file matches", option, pattern));
-  if (rc != 0) throw model::InputError(fmt::format("{} '{}': cannot be expanded", option, pattern));
+  if (rc == GLOB_NOMATCH || paths.empty())
+    throw util::InputError(fmt::format("{} '{}': no file matches", option, pattern));
+  if (rc != 0) throw util::InputError(fmt::format("{} '{}': cannot be expanded", option, pattern));
   return paths;  // glob(3) sorts them
 }
 
-}  // namespace topocal::model
+}  // namespace topocal::util

@@ -8,21 +8,20 @@
 // k3 r^6) + tangential(v), r = |v|. e = 0 is exactly OpenCV's model (what cv::undistort applies); the Seidel model of
 // paper Eq. 18 is k1 alone with an optional centre e (sigma = k1 M_T^3 / f_mm^2, model/distortion.h).
 // Pixel convention: OpenCV's (centre of the top-left pixel at (0, 0)).
+#include <Eigen/Core>
 #include <array>
 #include <optional>
 
-#include <Eigen/Core>
-
 #include "model/distortion.h"
 
-namespace topocal::calib {
+namespace topocal::model {
 
 struct CameraModel {
   int width_px = 0;
   int height_px = 0;
   double fx_px = 0, fy_px = 0, cx_px = 0, cy_px = 0;
-  std::array<double, 5> dist{};              // k1, k2, p1, p2, k3
-  Eigen::Vector2d distortion_centre{0, 0};   // e, normalised; zero for the OpenCV model
+  std::array<double, 5> dist{};             // k1, k2, p1, p2, k3
+  Eigen::Vector2d distortion_centre{0, 0};  // e, normalised; zero for the OpenCV model
 
   // Templated kernel (double or Ceres jet): normalised undistorted -> pixel.
   template <typename T>
@@ -30,7 +29,7 @@ struct CameraModel {
                                 const T* centre /* e_x, e_y */, const T* u, T* px) noexcept {
     const T v[2] = {u[0] - centre[0], u[1] - centre[1]};
     T d[2];
-    model::BrownConrady::DistortNormalized(dist, v, d);
+    BrownConrady::DistortNormalized(dist, v, d);
     px[0] = intrinsics[0] * (d[0] + centre[0]) + intrinsics[2];
     px[1] = intrinsics[1] * (d[1] + centre[1]) + intrinsics[3];
   }
@@ -45,12 +44,13 @@ struct CameraModel {
 
   // The undistorted normalised coordinates (X/Z, Y/Z) seen at a pixel; nullopt if the inverse does not converge.
   std::optional<Eigen::Vector2d> PixelToNormalized(const Eigen::Vector2d& px) const noexcept {
-    const double d[2] = {(px.x() - cx_px) / fx_px - distortion_centre.x(), (px.y() - cy_px) / fy_px - distortion_centre.y()};
+    const double d[2] = {(px.x() - cx_px) / fx_px - distortion_centre.x(),
+                         (px.y() - cy_px) / fy_px - distortion_centre.y()};
     double v[2];
     // 1e-6 px expressed in normalised units.
-    if (!model::BrownConrady::UndistortNormalized(dist.data(), d, v, 1e-6 / fx_px)) return std::nullopt;
+    if (!BrownConrady::UndistortNormalized(dist.data(), d, v, 1e-6 / fx_px)) return std::nullopt;
     return Eigen::Vector2d(v[0] + distortion_centre.x(), v[1] + distortion_centre.y());
   }
 };
 
-}  // namespace topocal::calib
+}  // namespace topocal::model

@@ -1,13 +1,13 @@
-#include "model/parallel.h"
+#include "util/parallel.h"
+
+#include <gtest/gtest.h>
 
 #include <atomic>
 #include <stdexcept>
 #include <thread>
 #include <vector>
 
-#include <gtest/gtest.h>
-
-namespace topocal::model {
+namespace topocal::util {
 namespace {
 
 // Every index exactly once, whatever the thread count (0 = every core, more threads than items, one thread).
@@ -15,21 +15,21 @@ TEST(ParallelFor, RunsEveryIndexOnceWhateverTheThreadCount) {
   for (const int jobs : {0, 1, 2, 7, 64}) {
     SCOPED_TRACE(jobs);
     std::vector<std::atomic<int>> hits(37);
-    ParallelFor(hits.size(), jobs, [&](size_t i) { ++hits[i]; });
+    util::ParallelFor(hits.size(), jobs, [&](size_t i) { ++hits[i]; });
     for (const auto& h : hits) EXPECT_EQ(h.load(), 1);
   }
   int calls = 0;
-  ParallelFor(0, 4, [&](size_t) { ++calls; });
+  util::ParallelFor(0, 4, [&](size_t) { ++calls; });
   EXPECT_EQ(calls, 0);
-  EXPECT_GE(AvailableCores(), 1);
-  EXPECT_THROW(ParallelFor(3, -1, [](size_t) {}), std::invalid_argument);
+  EXPECT_GE(util::AvailableCores(), 1);
+  EXPECT_THROW(util::ParallelFor(3, -1, [](size_t) {}), std::invalid_argument);
 }
 
 // An exception in one item reaches the caller after every thread has stopped; later items are not started.
 TEST(ParallelFor, TheFirstExceptionReachesTheCaller) {
   std::atomic<int> started{0};
   try {
-    ParallelFor(1000, 2, [&](size_t i) {
+    util::ParallelFor(1000, 2, [&](size_t i) {
       ++started;
       if (i == 3) throw std::runtime_error("item 3 failed");
       std::this_thread::yield();
@@ -42,4 +42,4 @@ TEST(ParallelFor, TheFirstExceptionReachesTheCaller) {
 }
 
 }  // namespace
-}  // namespace topocal::model
+}  // namespace topocal::util

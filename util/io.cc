@@ -1,6 +1,7 @@
-#include "model/io.h"
+#include "util/io.h"
 
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <pthread.h>
 #include <signal.h>
 #include <sys/stat.h>
@@ -16,9 +17,7 @@
 #include <sstream>
 #include <thread>
 
-#include <fmt/format.h>
-
-namespace topocal::model {
+namespace topocal::util {
 namespace {
 
 namespace fs = std::filesystem;
@@ -85,9 +84,9 @@ std::string StagingName(const fs::path& final_path, const char* kind) {
 
 struct StagedOutputs::State {
   struct File {
-    std::string path;      // as given, for messages
-    fs::path final_path;   // where it is published (a link's target)
-    fs::path staging;      // the staging file
+    std::string path;     // as given, for messages
+    fs::path final_path;  // where it is published (a link's target)
+    fs::path staging;     // the staging file
   };
   struct Stream {
     std::string path;  // a FIFO, a character device, a path under /dev or /proc
@@ -103,9 +102,7 @@ struct StagedOutputs::State {
   std::vector<fs::path> created;  // directories this set created (removed again if it is not committed)
   bool committed = false;
 
-  void Track(const fs::path& p) {
-    RegisterCleanupPath(p.string());
-  }
+  void Track(const fs::path& p) { RegisterCleanupPath(p.string()); }
   // Creates `dir` and its missing parents, remembering the outermost one it created.
   void EnsureDirectory(const fs::path& dir, const std::string& for_path) {
     if (dir.empty()) return;
@@ -118,7 +115,8 @@ struct StagedOutputs::State {
     }
     if (outermost.empty()) {
       std::error_code ec;
-      if (!fs::is_directory(dir, ec)) throw InputError(fmt::format("{}: {} is not a directory", for_path, dir.string()));
+      if (!fs::is_directory(dir, ec))
+        throw InputError(fmt::format("{}: {} is not a directory", for_path, dir.string()));
       return;
     }
     Track(outermost);
@@ -152,7 +150,8 @@ void StagedOutputs::AddFile(const std::string& path, std::string_view content) {
   if (path.empty()) throw InputError("an output path is empty");
   // "-" is refused rather than guessed: every verb prints its summary on standard output, which would mix with the
   // file (/dev/stdout does that deliberately).
-  if (path == "-") throw InputError("-: not an output path (topocal writes files; /dev/stdout writes to standard output)");
+  if (path == "-")
+    throw InputError("-: not an output path (topocal writes files; /dev/stdout writes to standard output)");
   // Paths under /dev and /proc (/dev/stdout, /dev/fd/N, /proc/self/fd/N) name an open stream or a device: written
   // directly, never renamed over.
   if (path.rfind("/dev/", 0) == 0 || path.rfind("/proc/", 0) == 0) {
@@ -344,4 +343,4 @@ void InstallSignalCleanup() {
   });
 }
 
-}  // namespace topocal::model
+}  // namespace topocal::util

@@ -3,9 +3,9 @@
 #include <string>
 #include <vector>
 
-namespace topocal::model {
+namespace topocal::util {
 
-// The matching paths, sorted. Throws model::InputError "OPTION 'PATTERN': ..." when nothing matches.
+// The matching paths, sorted. Throws util::InputError "OPTION 'PATTERN': ..." when nothing matches.
 std::vector<std::string> Glob(const std::string& pattern, const std::string& option = "--images");
 
-}  // namespace topocal::model
+}  // namespace topocal::util

@@ -1,16 +1,15 @@
-#include "model/sha256.h"
+#include "util/sha256.h"
 
+#include <fmt/format.h>
 #include <openssl/evp.h>
 
 #include <array>
 #include <memory>
 #include <stdexcept>
 
-#include <fmt/format.h>
+#include "util/io.h"
 
-#include "model/io.h"
-
-namespace topocal::model {
+namespace topocal::util {
 
 std::string Sha256Hex(std::string_view bytes) {
   std::array<unsigned char, EVP_MAX_MD_SIZE> digest{};
@@ -31,4 +30,4 @@ std::string Sha256Hex(std::string_view bytes) {
 
 std::string Sha256HexOfFile(const std::string& path) { return Sha256Hex(ReadFile(path)); }
 
-}  // namespace topocal::model
+}  // namespace topocal::util

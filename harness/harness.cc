@@ -1,4 +1,6 @@
-#include "pipeline/harness.h"
+#include "harness/harness.h"
+
+#include <fmt/format.h>
 
 #include <algorithm>
 #include <atomic>
@@ -6,22 +8,20 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <stdexcept>
 
-#include <fmt/format.h>
-#include <nlohmann/json.hpp>
-
 #include "model/distortion.h"
-#include "model/io.h"
-#include "model/json_section.h"
 #include "model/null_screen.h"
-#include "model/parallel.h"
-#include "model/version.h"
 #include "pipeline/measure_spots.h"
 #include "topo/analysis.h"
+#include "util/io.h"
+#include "util/json_section.h"
+#include "util/parallel.h"
+#include "util/version.h"
 
-namespace topocal::pipeline {
+namespace topocal::harness {
 namespace {
 
 using nlohmann::json;
@@ -80,12 +80,12 @@ double MaxAbsDifference(const std::vector<double>& a, const std::vector<double>&
 }
 
 [[noreturn]] void ShardFail(const std::string& origin, const std::string& key, const std::string& problem) {
-  throw model::InputError(fmt::format("{}: {}: {}", origin, key, problem));
+  throw util::InputError(fmt::format("{}: {}: {}", origin, key, problem));
 }
 
 json BiconicJson(const model::BiconicParams& p) {
-  return {{"rx_mm", p.rx_mm}, {"ry_mm", p.ry_mm}, {"kx", p.kx}, {"ky", p.ky}, {"alpha_deg", p.alpha_deg},
-          {"z0_mm", p.z0_mm}};
+  return {{"rx_mm", p.rx_mm}, {"ry_mm", p.ry_mm},         {"kx", p.kx},
+          {"ky", p.ky},       {"alpha_deg", p.alpha_deg}, {"z0_mm", p.z0_mm}};
 }
 
 }  // namespace
@@ -93,26 +93,6 @@ json BiconicJson(const model::BiconicParams& p) {
 double HarnessCaseResult::MaxAbsDk() const { return std::max(std::abs(dk_x), std::abs(dk_y)); }
 double HarnessCaseResult::MaxAbsDP_D(const HarnessLimits& limits) const {
   return limits.tangential_map ? std::max(dP_axial_max_D, dP_tangential_max_D) : dP_axial_max_D;
-}
-
-ShardSpec ParseShardSpec(const std::string& text) {
-  const auto slash = text.find('/');
-  auto parse = [&](const std::string& part, int* out) {
-    if (part.empty() || part.size() > 9) return false;
-    for (const char c : part) {
-      if (c < '0' || c > '9') return false;
-    }
-    *out = std::stoi(part);
-    return true;
-  };
-  ShardSpec s;
-  if (slash == std::string::npos || !parse(text.substr(0, slash), &s.index) || !parse(text.substr(slash + 1), &s.count)) {
-    throw model::InputError(fmt::format("--shard: must be i/N with integers 0 <= i < N (got \"{}\")", text));
-  }
-  if (s.count < 1 || s.index >= s.count) {
-    throw model::InputError(fmt::format("--shard: must be i/N with 0 <= i < N and N >= 1 (got \"{}\")", text));
-  }
-  return s;
 }
 
 std::uint64_t HarnessCaseSeed(std::uint64_t config_seed, int index) {
@@ -190,23 +170,29 @@ model::Device AssembledDevice(const HarnessConfig& config, const HarnessCaseSpec
       device.screen.rx_deg = v * std::cos(phi);
       device.screen.ry_deg = v * std::sin(phi);
       break;
-    case AssemblyAxis::kScreenRoll: device.screen.rz_deg = v; break;
+    case AssemblyAxis::kScreenRoll:
+      device.screen.rz_deg = v;
+      break;
     case AssemblyAxis::kScreenDecentration:
       device.screen.tx_mm = v * std::cos(phi);
       device.screen.ty_mm = v * std::sin(phi);
       break;
-    case AssemblyAxis::kScreenAxial: device.screen.tz_mm = v; break;
+    case AssemblyAxis::kScreenAxial:
+      device.screen.tz_mm = v;
+      break;
     case AssemblyAxis::kPrincipalPoint:
       device.camera.principal_point_px += Eigen::Vector2d(std::cos(phi), std::sin(phi)) * v / device.camera.PitchMm();
       break;
-    case AssemblyAxis::kARelative: device.camera.a_mm *= 1.0 + v; break;
+    case AssemblyAxis::kARelative:
+      device.camera.a_mm *= 1.0 + v;
+      break;
   }
   return device;
 }
 
 struct HarnessCaseRunner::CorneaData {
-  model::Config config;                   // the design with this cornea
-  std::vector<model::ImageSpot> spots;    // undistorted, noise-free
+  model::Config config;                              // the design with this cornea
+  std::vector<model::ImageSpot> spots;               // undistorted, noise-free
   std::map<model::SpotId, Eigen::Vector2d> spot_mm;  // the same, by identity
   topo::Analysis truth;
 };
@@ -237,7 +223,8 @@ HarnessCaseRunner::HarnessCaseRunner(const HarnessConfig& config)
     t.fit = d->truth.surface_fit.params;
     t.covered_radius_mm = d->truth.covered_radius_mm;
     t.spots = static_cast<int>(d->spots.size());
-    for (const auto& s : d->spots) t.spot_field_radius_mm = std::max(t.spot_field_radius_mm, (s.position_mm - centre).norm());
+    for (const auto& s : d->spots)
+      t.spot_field_radius_mm = std::max(t.spot_field_radius_mm, (s.position_mm - centre).norm());
     t.pv_axial_D = d->truth.power.pv_axial_D;
     t.pv_tangential_D = d->truth.power.pv_tangential_D;
     truth_.push_back(t);
@@ -347,7 +334,7 @@ HarnessCaseResult HarnessCaseRunner::RunAssembly(const HarnessCaseSpec& spec) co
     return r;
   }
   try {
-    Compare(AnalyzeThroughDevice(measured, nominal_, d.config, nullptr, CaseAnalysisOptions()), d, &r);
+    Compare(pipeline::AnalyzeThroughDevice(measured, nominal_, d.config, nullptr, CaseAnalysisOptions()), d, &r);
   } catch (const std::runtime_error& e) {
     r.failure = e.what();
   }
@@ -368,8 +355,16 @@ void HarnessCaseRunner::Compare(const topo::Analysis& a, const CorneaData& d, Ha
       MaxAbsDifference(a.power.tangential_D, d.truth.power.tangential_D, a.power, r.compared_radius_mm);
   r.dpv_axial_D = a.power.pv_axial_D - d.truth.power.pv_axial_D;
   r.dpv_tangential_D = a.power.pv_tangential_D - d.truth.power.pv_tangential_D;
-  const double values[] = {r.dk_x, r.dk_y, r.dr_x_mm, r.dr_y_mm, r.dP_axial_max_D, r.dP_tangential_max_D,
-                           r.dpv_axial_D, r.dpv_tangential_D, r.residual_max_um, r.residual_rms_um};
+  const double values[] = {r.dk_x,
+                           r.dk_y,
+                           r.dr_x_mm,
+                           r.dr_y_mm,
+                           r.dP_axial_max_D,
+                           r.dP_tangential_max_D,
+                           r.dpv_axial_D,
+                           r.dpv_tangential_D,
+                           r.residual_max_um,
+                           r.residual_rms_um};
   if (!std::all_of(std::begin(values), std::end(values), [](double v) { return std::isfinite(v); })) {
     const HarnessCaseSpec spec = r.spec;
     r = HarnessCaseResult{};
@@ -380,7 +375,7 @@ void HarnessCaseRunner::Compare(const topo::Analysis& a, const CorneaData& d, Ha
   r.ok = true;
 }
 
-HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs,
+HarnessRun RunHarness(const HarnessConfig& config, util::ShardSpec shard, int jobs,
                       const std::function<void(std::size_t, std::size_t)>& progress) {
   HarnessRun run;
   run.config = config;
@@ -397,14 +392,16 @@ HarnessRun RunHarness(const HarnessConfig& config, ShardSpec shard, int jobs,
   run.cases.resize(mine.size());
   // Each case writes only its own slot, from its own seed: the results do not depend on the number of threads.
   std::atomic<size_t> done{0};
-  model::ParallelFor(mine.size(), std::max(1, jobs), [&](size_t i) {
+  util::ParallelFor(mine.size(), std::max(1, jobs), [&](size_t i) {
     run.cases[i] = runner.Run(mine[i]);
     if (progress) progress(++done, mine.size());
   });
   return run;
 }
 
-std::string HarnessShardFileName(ShardSpec shard) { return fmt::format("shard-{}-of-{}.json", shard.index, shard.count); }
+std::string HarnessShardFileName(util::ShardSpec shard) {
+  return fmt::format("shard-{}-of-{}.json", shard.index, shard.count);
+}
 
 std::string HarnessShardJson(const HarnessRun& run) {
   json j;
@@ -417,19 +414,33 @@ std::string HarnessShardJson(const HarnessRun& run) {
   j["total_cases"] = run.total_cases;
   json truth = json::array();
   for (const auto& t : run.truth) {
-    truth.push_back({{"cornea", t.cornea}, {"fit", BiconicJson(t.fit)}, {"covered_radius_mm", t.covered_radius_mm},
-                     {"spot_field_radius_mm", t.spot_field_radius_mm}, {"spots", t.spots},
-                     {"pv_axial_D", t.pv_axial_D}, {"pv_tangential_D", t.pv_tangential_D}});
+    truth.push_back({{"cornea", t.cornea},
+                     {"fit", BiconicJson(t.fit)},
+                     {"covered_radius_mm", t.covered_radius_mm},
+                     {"spot_field_radius_mm", t.spot_field_radius_mm},
+                     {"spots", t.spots},
+                     {"pv_axial_D", t.pv_axial_D},
+                     {"pv_tangential_D", t.pv_tangential_D}});
   }
   j["truth"] = truth;
   json cases = json::array();
   for (const auto& c : run.cases) {
-    cases.push_back({{"index", c.spec.index}, {"seed", c.spec.seed}, {"ok", c.ok}, {"failure", c.failure},
-                     {"residual_max_um", c.residual_max_um}, {"residual_rms_um", c.residual_rms_um},
-                     {"spots_used", c.spots_used}, {"undistort_failures", c.undistort_failures},
-                     {"dk_x", c.dk_x}, {"dk_y", c.dk_y}, {"dr_x_mm", c.dr_x_mm}, {"dr_y_mm", c.dr_y_mm},
-                     {"dP_axial_max_D", c.dP_axial_max_D}, {"dP_tangential_max_D", c.dP_tangential_max_D},
-                     {"dpv_axial_D", c.dpv_axial_D}, {"dpv_tangential_D", c.dpv_tangential_D},
+    cases.push_back({{"index", c.spec.index},
+                     {"seed", c.spec.seed},
+                     {"ok", c.ok},
+                     {"failure", c.failure},
+                     {"residual_max_um", c.residual_max_um},
+                     {"residual_rms_um", c.residual_rms_um},
+                     {"spots_used", c.spots_used},
+                     {"undistort_failures", c.undistort_failures},
+                     {"dk_x", c.dk_x},
+                     {"dk_y", c.dk_y},
+                     {"dr_x_mm", c.dr_x_mm},
+                     {"dr_y_mm", c.dr_y_mm},
+                     {"dP_axial_max_D", c.dP_axial_max_D},
+                     {"dP_tangential_max_D", c.dP_tangential_max_D},
+                     {"dpv_axial_D", c.dpv_axial_D},
+                     {"dpv_tangential_D", c.dpv_tangential_D},
                      {"compared_radius_mm", c.compared_radius_mm}});
   }
   j["cases"] = cases;
@@ -437,34 +448,36 @@ std::string HarnessShardJson(const HarnessRun& run) {
 }
 
 HarnessRun ParseHarnessShard(const std::string& text, const std::string& origin) {
-  const json j = model::ParseJsonStrict(text, origin);
+  const json j = util::ParseJsonStrict(text, origin);
   if (!j.is_object() || !j.contains("format") || j["format"] != kShardFormat) {
     ShardFail(origin, "format", fmt::format("not a harness shard (expected \"{}\")", kShardFormat));
   }
   // The project's strict JSON reader (model/json_section.h): every failure names the shard and the dotted key.
-  model::JsonSection root(j, origin, "");
+  util::JsonSection root(j, origin, "");
   // Every integer of a shard is a count or an index well inside int; beyond it is a corrupt shard, not a wrap.
-  const auto count = [](model::JsonSection& s, const char* key) {
+  const auto count = [](util::JsonSection& s, const char* key) {
     return s.IntegerInRange(key, 0, std::numeric_limits<int>::max());
   };
   if (count(root, "format_version") != kShardFormatVersion) {
-    ShardFail(origin, "format_version", fmt::format("must be {} (written by another topocal version)", kShardFormatVersion));
+    ShardFail(origin, "format_version",
+              fmt::format("must be {} (written by another topocal version)", kShardFormatVersion));
   }
   HarnessRun run;
   try {
     run.config = ParseHarnessConfig(root.Child("config").raw().dump(), origin + ": config", "");
-  } catch (const model::ConfigError& e) {
-    throw model::InputError(e.what());
+  } catch (const util::ConfigError& e) {
+    throw util::InputError(e.what());
   }
   run.config_sha256 = root.String("config_sha256");
   if (run.config_sha256 != HarnessConfigSha256(run.config)) {
     ShardFail(origin, "config_sha256", "does not match the configuration stored in the shard (file edited?)");
   }
-  model::JsonSection shard = root.Child("shard");
+  util::JsonSection shard = root.Child("shard");
   run.shard.index = count(shard, "index");
   run.shard.count = count(shard, "count");
   if (run.shard.count < 1 || run.shard.index < 0 || run.shard.index >= run.shard.count) {
-    ShardFail(origin, "shard", fmt::format("{}/{} is not a shard i/N with 0 <= i < N", run.shard.index, run.shard.count));
+    ShardFail(origin, "shard",
+              fmt::format("{}/{} is not a shard i/N with 0 <= i < N", run.shard.index, run.shard.count));
   }
   const auto all = EnumerateHarnessCases(run.config);
   run.total_cases = count(root, "total_cases");
@@ -475,10 +488,10 @@ HarnessRun ParseHarnessShard(const std::string& text, const std::string& origin)
     ShardFail(origin, "truth", "must hold one entry per cornea");
   }
   for (size_t i = 0; i < run.config.corneas.size(); ++i) {
-    model::JsonSection t_json = root.Element("truth", i);
+    util::JsonSection t_json = root.Element("truth", i);
     HarnessTruth t;
     t.cornea = t_json.String("cornea");
-    model::JsonSection fit = t_json.Child("fit");
+    util::JsonSection fit = t_json.Child("fit");
     t.fit.rx_mm = fit.Number("rx_mm");
     t.fit.ry_mm = fit.Number("ry_mm");
     t.fit.kx = fit.Number("kx");
@@ -495,7 +508,7 @@ HarnessRun ParseHarnessShard(const std::string& text, const std::string& origin)
   const size_t n_cases = root.Array("cases").size();
   int previous = -1;
   for (size_t i = 0; i < n_cases; ++i) {
-    model::JsonSection c = root.Element("cases", i);
+    util::JsonSection c = root.Element("cases", i);
     HarnessCaseResult r;
     const int index = count(c, "index");
     if (index >= run.total_cases || index % run.shard.count != run.shard.index || index <= previous) {
@@ -536,44 +549,45 @@ HarnessRun ParseHarnessShard(const std::string& text, const std::string& origin)
 }
 
 HarnessRun MergeHarnessShards(const std::vector<HarnessRun>& shards, const std::vector<std::string>& origins) {
-  if (shards.empty()) throw model::InputError("harness merge: no shard given");
+  if (shards.empty()) throw util::InputError("harness merge: no shard given");
   const HarnessRun& first = shards.front();
   std::map<int, size_t> by_index;
   for (size_t i = 0; i < shards.size(); ++i) {
     const HarnessRun& s = shards[i];
     if (s.config_sha256 != first.config_sha256) {
-      throw model::InputError(fmt::format("{}: config_sha256: {} differs from {} in {} (shards of another "
-                                          "configuration)",
-                                          origins[i], s.config_sha256, first.config_sha256, origins[0]));
+      throw util::InputError(
+          fmt::format("{}: config_sha256: {} differs from {} in {} (shards of another "
+                      "configuration)",
+                      origins[i], s.config_sha256, first.config_sha256, origins[0]));
     }
     if (s.shard.count != first.shard.count) {
-      throw model::InputError(fmt::format("{}: shard: split into {} shards but {} is split into {}", origins[i],
-                                          s.shard.count, origins[0], first.shard.count));
+      throw util::InputError(fmt::format("{}: shard: split into {} shards but {} is split into {}", origins[i],
+                                         s.shard.count, origins[0], first.shard.count));
     }
     const auto [it, inserted] = by_index.emplace(s.shard.index, i);
     if (!inserted) {
-      throw model::InputError(fmt::format("{}: shard: {}/{} is given twice (also {})", origins[i], s.shard.index,
-                                          s.shard.count, origins[it->second]));
+      throw util::InputError(fmt::format("{}: shard: {}/{} is given twice (also {})", origins[i], s.shard.index,
+                                         s.shard.count, origins[it->second]));
     }
     for (size_t c = 0; c < s.truth.size(); ++c) {
       const auto& a = s.truth[c];
       const auto& b = first.truth[c];
       if (a.fit.kx != b.fit.kx || a.fit.ky != b.fit.ky || a.fit.rx_mm != b.fit.rx_mm || a.fit.ry_mm != b.fit.ry_mm ||
           a.covered_radius_mm != b.covered_radius_mm) {
-        throw model::InputError(fmt::format("{}: truth[{}]: differs from {} (shards computed by different builds)",
-                                            origins[i], c, origins[0]));
+        throw util::InputError(fmt::format("{}: truth[{}]: differs from {} (shards computed by different builds)",
+                                           origins[i], c, origins[0]));
       }
     }
   }
   for (int k = 0; k < first.shard.count; ++k) {
     if (!by_index.count(k)) {
-      throw model::InputError(fmt::format("harness merge: shard {}/{} is missing", k, first.shard.count));
+      throw util::InputError(fmt::format("harness merge: shard {}/{} is missing", k, first.shard.count));
     }
   }
   HarnessRun merged;
   merged.config = first.config;
   merged.config_sha256 = first.config_sha256;
-  merged.shard = ShardSpec{0, 1};
+  merged.shard = util::ShardSpec{0, 1};
   merged.total_cases = first.total_cases;
   merged.truth = first.truth;
   merged.cases.resize(static_cast<size_t>(merged.total_cases));
@@ -582,16 +596,16 @@ HarnessRun MergeHarnessShards(const std::vector<HarnessRun>& shards, const std::
     for (const auto& c : s.cases) {
       const auto i = static_cast<size_t>(c.spec.index);
       if (i >= filled.size() || filled[i]) {
-        throw model::InputError(fmt::format("harness merge: case {} is given twice", c.spec.index));
+        throw util::InputError(fmt::format("harness merge: case {} is given twice", c.spec.index));
       }
       filled[i] = true;
       merged.cases[i] = c;
     }
   }
   for (size_t i = 0; i < filled.size(); ++i) {
-    if (!filled[i]) throw model::InputError(fmt::format("harness merge: case {} is missing", i));
+    if (!filled[i]) throw util::InputError(fmt::format("harness merge: case {} is missing", i));
   }
   return merged;
 }
 
-}  // namespace topocal::pipeline
+}  // namespace topocal::harness

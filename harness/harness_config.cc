@@ -1,18 +1,18 @@
-#include "pipeline/harness_config.h"
+#include "harness/harness_config.h"
+
+#include <fmt/format.h>
 
 #include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <set>
 
-#include <fmt/format.h>
-#include <nlohmann/json.hpp>
+#include "util/io.h"
+#include "util/json_section.h"
+#include "util/sha256.h"
 
-#include "model/io.h"
-#include "model/json_section.h"
-#include "model/sha256.h"
-
-namespace topocal::pipeline {
+namespace topocal::harness {
 namespace {
 
 using nlohmann::json;
@@ -20,7 +20,7 @@ using nlohmann::json;
 // A sweep larger than this is a configuration mistake, not a plan: 1e7 cases are ~1 CPU-day at ~10 ms a case.
 constexpr double kMaxCases = 1e7;
 
-using Reader = model::JsonSection;
+using Reader = util::JsonSection;
 
 // A range object {"from", "to", "count", "spacing", "both_signs"} (see harness_config.h); `key` names it.
 std::vector<double> ParseRange(const json& v, const std::string& origin, const std::string& key) {
@@ -28,26 +28,29 @@ std::vector<double> ParseRange(const json& v, const std::string& origin, const s
   const double from = r.Number("from");
   const double to = r.Number("to");
   const json& count_json = r.Get("count");
-  if (!count_json.is_number_integer()) r.Fail(r.Key("count"), fmt::format("must be an integer (got {})", model::QuoteJsonValue(count_json)));
+  if (!count_json.is_number_integer())
+    r.Fail(r.Key("count"), fmt::format("must be an integer (got {})", util::QuoteJsonValue(count_json)));
   // The 64-bit value, clamped: an unsigned count beyond LLONG_MAX must not wrap to a negative one.
-  const long long count =
-      !count_json.is_number_unsigned()                                            ? count_json.get<long long>()
-      : count_json.get<unsigned long long>() > static_cast<unsigned long long>(kMaxCases) ? static_cast<long long>(kMaxCases) + 1
-                                                                                  : static_cast<long long>(count_json.get<unsigned long long>());
+  const long long count = !count_json.is_number_unsigned() ? count_json.get<long long>()
+                          : count_json.get<unsigned long long>() > static_cast<unsigned long long>(kMaxCases)
+                              ? static_cast<long long>(kMaxCases) + 1
+                              : static_cast<long long>(count_json.get<unsigned long long>());
   const std::string spacing = r.Has("spacing") ? r.String("spacing") : "linear";
   bool both_signs = false;
   if (r.Has("both_signs")) {
     const json& b = r.Get("both_signs");
-    if (!b.is_boolean()) r.Fail(r.Key("both_signs"), fmt::format("must be true or false (got {})", model::QuoteJsonValue(b)));
+    if (!b.is_boolean())
+      r.Fail(r.Key("both_signs"), fmt::format("must be true or false (got {})", util::QuoteJsonValue(b)));
     both_signs = b.get<bool>();
   }
   r.RejectUnknown();
-  if (count < 1) r.Fail(r.Key("count"), fmt::format("must be >= 1 (got {})", model::QuoteJsonValue(count_json)));
+  if (count < 1) r.Fail(r.Key("count"), fmt::format("must be >= 1 (got {})", util::QuoteJsonValue(count_json)));
   if (count > kMaxCases) {
-    r.Fail(r.Key("count"), fmt::format("must be <= {:.0f} (got {})", kMaxCases, model::QuoteJsonValue(count_json)));
+    r.Fail(r.Key("count"), fmt::format("must be <= {:.0f} (got {})", kMaxCases, util::QuoteJsonValue(count_json)));
   }
   if (from > to) r.Fail(r.Key("from"), fmt::format("must not exceed to (got from {} > to {})", from, to));
-  if (count == 1 && from != to) r.Fail(r.Key("count"), fmt::format("1 value needs from == to (got {} and {})", from, to));
+  if (count == 1 && from != to)
+    r.Fail(r.Key("count"), fmt::format("1 value needs from == to (got {} and {})", from, to));
   if (spacing != "log" && spacing != "linear") {
     r.Fail(r.Key("spacing"), fmt::format("must be \"log\" or \"linear\" (got \"{}\")", spacing));
   }
@@ -77,7 +80,8 @@ std::vector<double> ParseValues(Reader& parent, const std::string& k) {
   if (v.is_object()) return ParseRange(v, parent.origin(), key);
   if (!v.is_array()) {
     parent.Fail(key, fmt::format("must be a list of numbers or a range {{\"from\", \"to\", \"count\", \"spacing\"}} "
-                                 "(got {})", model::QuoteJsonValue(v)));
+                                 "(got {})",
+                                 util::QuoteJsonValue(v)));
   }
   if (v.empty()) parent.Fail(key, "must not be empty (give at least one value)");
   std::vector<double> out;
@@ -89,7 +93,7 @@ std::vector<double> ParseValues(Reader& parent, const std::string& k) {
       continue;
     }
     if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) {
-      parent.Fail(item, fmt::format("must be a finite number or a range (got {})", model::QuoteJsonValue(v[i])));
+      parent.Fail(item, fmt::format("must be a finite number or a range (got {})", util::QuoteJsonValue(v[i])));
     }
     out.push_back(v[i].get<double>());
   }
@@ -116,15 +120,16 @@ model::Config ParseDesign(Reader& top, const std::string& base_dir) {
   const json& d = top.Get("design");
   const std::string origin = fmt::format("{}: design", top.origin());
   if (d.is_object()) return model::ParseConfig(d.dump(), origin);
-  if (!d.is_string()) top.Fail("design", fmt::format("must be a configuration file path or object (got {})", model::QuoteJsonValue(d)));
+  if (!d.is_string())
+    top.Fail("design", fmt::format("must be a configuration file path or object (got {})", util::QuoteJsonValue(d)));
   std::filesystem::path path(d.get<std::string>());
   if (path.is_relative() && !base_dir.empty()) path = std::filesystem::path(base_dir) / path;
   try {
     model::Config c = model::LoadConfig(path.string());
     c.path = origin;
     return c;
-  } catch (const model::ConfigError& e) {
-    throw model::ConfigError(fmt::format("{}: {}", origin, e.what()));
+  } catch (const util::ConfigError& e) {
+    throw util::ConfigError(fmt::format("{}: {}", origin, e.what()));
   }
 }
 
@@ -135,7 +140,8 @@ std::vector<HarnessCornea> ParseCorneas(Reader& top, const model::Config& design
     return out;
   }
   const json& list = top.Get("corneas");
-  if (!list.is_array()) top.Fail("corneas", fmt::format("must be a list of biconics (got {})", model::QuoteJsonValue(list)));
+  if (!list.is_array())
+    top.Fail("corneas", fmt::format("must be a list of biconics (got {})", util::QuoteJsonValue(list)));
   if (list.empty()) top.Fail("corneas", "must not be empty (leave it out for the design's own cornea)");
   std::set<std::string> names;
   for (size_t i = 0; i < list.size(); ++i) {
@@ -195,8 +201,9 @@ void ParseAssembly(Reader& top, HarnessConfig* h) {
   }
   if (a.Has("azimuths_deg")) {
     if (!directional) {
-      a.Fail(a.Key("azimuths_deg"), "applies to screen_tilt_deg, screen_decentration_mm and principal_point_offset_mm "
-                                    "only, and none is given");
+      a.Fail(a.Key("azimuths_deg"),
+             "applies to screen_tilt_deg, screen_decentration_mm and principal_point_offset_mm "
+             "only, and none is given");
     }
     h->assembly_azimuths_deg = ParseValues(a, "azimuths_deg");
     for (size_t i = 0; i < h->assembly_azimuths_deg.size(); ++i) {
@@ -212,7 +219,8 @@ void ParseAssembly(Reader& top, HarnessConfig* h) {
   if (!h->HasAssembly()) {
     top.Fail("assembly", fmt::format("must give at least one of {}", [] {
                std::string names;
-               for (const AssemblyAxis axis : kAssemblyAxes) names += (names.empty() ? "" : ", ") + std::string(AssemblyAxisName(axis));
+               for (const AssemblyAxis axis : kAssemblyAxes)
+                 names += (names.empty() ? "" : ", ") + std::string(AssemblyAxisName(axis));
                return names;
              }()));
   }
@@ -222,21 +230,30 @@ void ParseAssembly(Reader& top, HarnessConfig* h) {
 
 const char* DistortionFamilyName(DistortionFamily family) {
   switch (family) {
-    case DistortionFamily::kSeidelSigma: return "seidel_sigma_per_mm2";
-    case DistortionFamily::kBrownK1: return "brown_k1";
-    case DistortionFamily::kBrownK2: return "brown_k2";
+    case DistortionFamily::kSeidelSigma:
+      return "seidel_sigma_per_mm2";
+    case DistortionFamily::kBrownK1:
+      return "brown_k1";
+    case DistortionFamily::kBrownK2:
+      return "brown_k2";
   }
   return "?";
 }
 
 const char* AssemblyAxisName(AssemblyAxis axis) {
   switch (axis) {
-    case AssemblyAxis::kScreenTilt: return "screen_tilt_deg";
-    case AssemblyAxis::kScreenRoll: return "screen_roll_deg";
-    case AssemblyAxis::kScreenDecentration: return "screen_decentration_mm";
-    case AssemblyAxis::kScreenAxial: return "screen_axial_mm";
-    case AssemblyAxis::kPrincipalPoint: return "principal_point_offset_mm";
-    case AssemblyAxis::kARelative: return "a_relative_error";
+    case AssemblyAxis::kScreenTilt:
+      return "screen_tilt_deg";
+    case AssemblyAxis::kScreenRoll:
+      return "screen_roll_deg";
+    case AssemblyAxis::kScreenDecentration:
+      return "screen_decentration_mm";
+    case AssemblyAxis::kScreenAxial:
+      return "screen_axial_mm";
+    case AssemblyAxis::kPrincipalPoint:
+      return "principal_point_offset_mm";
+    case AssemblyAxis::kARelative:
+      return "a_relative_error";
   }
   return "?";
 }
@@ -244,11 +261,14 @@ const char* AssemblyAxisName(AssemblyAxis axis) {
 const char* AssemblyAxisUnit(AssemblyAxis axis) {
   switch (axis) {
     case AssemblyAxis::kScreenTilt:
-    case AssemblyAxis::kScreenRoll: return "deg";
+    case AssemblyAxis::kScreenRoll:
+      return "deg";
     case AssemblyAxis::kScreenDecentration:
     case AssemblyAxis::kScreenAxial:
-    case AssemblyAxis::kPrincipalPoint: return "mm";
-    case AssemblyAxis::kARelative: return "";
+    case AssemblyAxis::kPrincipalPoint:
+      return "mm";
+    case AssemblyAxis::kARelative:
+      return "";
   }
   return "";
 }
@@ -261,11 +281,15 @@ bool IsDirectional(AssemblyAxis axis) {
 double AssemblyAxisMaximum(AssemblyAxis axis) {
   switch (axis) {
     case AssemblyAxis::kScreenTilt:
-    case AssemblyAxis::kScreenRoll: return 10.0;           // deg: the device file's +-10 deg
+    case AssemblyAxis::kScreenRoll:
+      return 10.0;  // deg: the device file's +-10 deg
     case AssemblyAxis::kScreenDecentration:
-    case AssemblyAxis::kScreenAxial: return 10.0;          // mm: the device file's +-10 mm
-    case AssemblyAxis::kPrincipalPoint: return 1.0;        // mm on the sensor: ~900 px, a fifth of its width
-    case AssemblyAxis::kARelative: return 0.1;             // 10 % of a
+    case AssemblyAxis::kScreenAxial:
+      return 10.0;  // mm: the device file's +-10 mm
+    case AssemblyAxis::kPrincipalPoint:
+      return 1.0;  // mm on the sensor: ~900 px, a fifth of its width
+    case AssemblyAxis::kARelative:
+      return 0.1;  // 10 % of a
   }
   return 0.0;
 }
@@ -283,9 +307,12 @@ bool HarnessConfig::HasAssembly() const {
 
 const std::vector<double>& HarnessConfig::Coefficients(DistortionFamily family) const {
   switch (family) {
-    case DistortionFamily::kSeidelSigma: return seidel_sigma_per_mm2;
-    case DistortionFamily::kBrownK1: return brown_k1;
-    case DistortionFamily::kBrownK2: return brown_k2;
+    case DistortionFamily::kSeidelSigma:
+      return seidel_sigma_per_mm2;
+    case DistortionFamily::kBrownK1:
+      return brown_k1;
+    case DistortionFamily::kBrownK2:
+      return brown_k2;
   }
   return seidel_sigma_per_mm2;
 }
@@ -295,7 +322,7 @@ std::vector<double>& HarnessConfig::Coefficients(DistortionFamily family) {
 }
 
 HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string& origin, const std::string& base_dir) {
-  const json j = model::ParseJsonStrict(json_text, origin);
+  const json j = util::ParseJsonStrict(json_text, origin);
   HarnessConfig h;
   Reader top(j, origin, "");
   if (top.Has("description")) top.String("description");  // free text for the reader; not part of the identity
@@ -303,7 +330,8 @@ HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string
   h.pixel_pitch_um = top.PositiveNumber("pixel_pitch_um", h.pixel_pitch_um);
   if (top.Has("seed")) {
     const json& s = top.Get("seed");
-    if (!s.is_number_unsigned()) top.Fail("seed", fmt::format("must be a non-negative integer (got {})", model::QuoteJsonValue(s)));
+    if (!s.is_number_unsigned())
+      top.Fail("seed", fmt::format("must be a non-negative integer (got {})", util::QuoteJsonValue(s)));
     h.seed = s.get<std::uint64_t>();
   }
   if (top.Has("distortion")) {
@@ -325,13 +353,16 @@ HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string
   h.corneas = ParseCorneas(top, h.design);
   h.noise_px = ParseValues(top, "noise_px");
   for (size_t i = 0; i < h.noise_px.size(); ++i) {
-    if (h.noise_px[i] < 0) top.Fail(fmt::format("noise_px[{}]", i), fmt::format("must be >= 0 px (got {})", h.noise_px[i]));
+    if (h.noise_px[i] < 0)
+      top.Fail(fmt::format("noise_px[{}]", i), fmt::format("must be >= 0 px (got {})", h.noise_px[i]));
   }
   if (top.Has("noise_draws")) {
     const json& n = top.Get("noise_draws");
-    if (!n.is_number_integer()) top.Fail("noise_draws", fmt::format("must be an integer (got {})", model::QuoteJsonValue(n)));
-    const long long draws = model::JsonIntegerWithin(n, 1, static_cast<long long>(kMaxCases)) ? n.get<long long>() : -1;
-    if (draws < 1 || draws > kMaxCases) top.Fail("noise_draws", fmt::format("must lie in [1, {:.0f}] (got {})", kMaxCases, model::QuoteJsonValue(n)));
+    if (!n.is_number_integer())
+      top.Fail("noise_draws", fmt::format("must be an integer (got {})", util::QuoteJsonValue(n)));
+    const long long draws = util::JsonIntegerWithin(n, 1, static_cast<long long>(kMaxCases)) ? n.get<long long>() : -1;
+    if (draws < 1 || draws > kMaxCases)
+      top.Fail("noise_draws", fmt::format("must lie in [1, {:.0f}] (got {})", kMaxCases, util::QuoteJsonValue(n)));
     h.noise_draws = static_cast<int>(draws);
   }
   if (h.HasDistortion()) {
@@ -343,8 +374,9 @@ HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string
       }
     }
   } else if (top.Has("calibration_errors")) {
-    top.Fail("calibration_errors", "applies to distortion coefficients only, and none is given (assembly errors are "
-                                   "measured uncorrected)");
+    top.Fail("calibration_errors",
+             "applies to distortion coefficients only, and none is given (assembly errors are "
+             "measured uncorrected)");
   }
   {
     Reader l(top.Get("limits"), origin, "limits");
@@ -381,9 +413,9 @@ HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string
 HarnessConfig LoadHarnessConfig(const std::string& path) {
   std::string text;
   try {
-    text = model::ReadFile(path);
-  } catch (const model::InputError&) {
-    throw model::ConfigError(fmt::format("{}: (file): cannot be opened for reading", path));
+    text = util::ReadFile(path);
+  } catch (const util::InputError&) {
+    throw util::ConfigError(fmt::format("{}: (file): cannot be opened for reading", path));
   }
   return ParseHarnessConfig(text, path, std::filesystem::path(path).parent_path().string());
 }
@@ -413,19 +445,26 @@ std::string CanonicalHarnessJson(const HarnessConfig& h) {
   }
   json corneas = json::array();
   for (const auto& c : h.corneas) {
-    corneas.push_back({{"name", c.name}, {"rx_mm", c.params.rx_mm}, {"ry_mm", c.params.ry_mm}, {"kx", c.params.kx},
-                       {"ky", c.params.ky}, {"alpha_deg", c.params.alpha_deg}, {"x0_mm", c.params.x0_mm},
-                       {"y0_mm", c.params.y0_mm}, {"z0_mm", c.params.z0_mm}});
+    corneas.push_back({{"name", c.name},
+                       {"rx_mm", c.params.rx_mm},
+                       {"ry_mm", c.params.ry_mm},
+                       {"kx", c.params.kx},
+                       {"ky", c.params.ky},
+                       {"alpha_deg", c.params.alpha_deg},
+                       {"x0_mm", c.params.x0_mm},
+                       {"y0_mm", c.params.y0_mm},
+                       {"z0_mm", c.params.z0_mm}});
   }
   j["corneas"] = corneas;
   j["noise_px"] = ValuesJson(h.noise_px);
   j["noise_draws"] = h.noise_draws;
   if (h.HasDistortion()) j["calibration_errors"] = ValuesJson(h.calibration_errors);
-  j["limits"] = {{"dk", h.limits.dk}, {"dP_D", h.limits.dP_D},
+  j["limits"] = {{"dk", h.limits.dk},
+                 {"dP_D", h.limits.dP_D},
                  {"dP_maps", h.limits.tangential_map ? "axial+tangential" : "axial"}};
   return j.dump();
 }
 
-std::string HarnessConfigSha256(const HarnessConfig& config) { return model::Sha256Hex(CanonicalHarnessJson(config)); }
+std::string HarnessConfigSha256(const HarnessConfig& config) { return util::Sha256Hex(CanonicalHarnessJson(config)); }
 
-}  // namespace topocal::pipeline
+}  // namespace topocal::harness

@@ -1,4 +1,4 @@
-#include "pipeline/harness_answer.h"
+#include "harness/harness_answer.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 #include <map>
 #include <tuple>
 
-namespace topocal::pipeline {
+namespace topocal::harness {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -94,7 +94,8 @@ AssemblyAnswer AxisAnswer(const HarnessRun& run, AssemblyAxis axis) {
   }
   a.grid_first_failure = kInf;
   for (const auto* c : mine) {
-    if (LimitUtilisation(*c, limits) > 1) a.grid_first_failure = std::min(a.grid_first_failure, std::abs(c->spec.error));
+    if (LimitUtilisation(*c, limits) > 1)
+      a.grid_first_failure = std::min(a.grid_first_failure, std::abs(c->spec.error));
   }
   for (const auto* c : mine) {
     if (std::abs(c->spec.error) < a.grid_first_failure) {
@@ -227,4 +228,4 @@ InverseAnswer ComputeInverseAnswer(const HarnessRun& run) {
   return a;
 }
 
-}  // namespace topocal::pipeline
+}  // namespace topocal::harness

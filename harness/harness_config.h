@@ -3,7 +3,7 @@
 // spot-position noise levels and calibration errors to sweep, and the clinical limits the inverse answer is asked for.
 //
 // Loading is strict like model::LoadConfig: an unknown key, a missing key, a mistyped or non-finite value, an empty
-// list or a range with no value in it throws model::ConfigError whose message is one line "FILE: KEY: problem".
+// list or a range with no value in it throws util::ConfigError whose message is one line "FILE: KEY: problem".
 //
 // Every list may be given explicitly ([v0, v1, ...]) or as a range
 //   {"from": a, "to": b, "count": n, "spacing": "log" | "linear", "both_signs": false}
@@ -17,7 +17,7 @@
 
 #include "model/config.h"
 
-namespace topocal::pipeline {
+namespace topocal::harness {
 
 // One distortion axis of the sweep: the true distortion is one coefficient of one model on the detection plane,
 // about the design's distortion centre; the others are zero.
@@ -58,8 +58,8 @@ struct HarnessCornea {
 };
 
 struct HarnessLimits {
-  double dk = 0.05;     // largest |k - k_truth| of either conic constant (docs/harness.md: source)
-  double dP_D = 0.25;   // largest |P - P_truth| of the maps over the compared disc, diopters
+  double dk = 0.05;            // largest |k - k_truth| of either conic constant (docs/harness.md: source)
+  double dP_D = 0.25;          // largest |P - P_truth| of the maps over the compared disc, diopters
   bool tangential_map = true;  // "dP_maps": "axial+tangential" (default) or "axial" (the tangential map not limited)
 };
 
@@ -74,11 +74,11 @@ struct HarnessConfig {
   // The assembly axes, indexed by AssemblyAxis (any may be empty; at least one distortion or assembly value).
   std::vector<double> assembly[kNumAssemblyAxes];
   std::vector<double> assembly_azimuths_deg;  // directions of the directional axes, [0, 360); default 0, 45, ..., 315
-  std::vector<HarnessCornea> corneas;     // default: the design's own cornea, named "design"
-  std::vector<double> noise_px;           // standard deviation of the spot position per axis, >= 0
-  int noise_draws = 1;                    // seeded draws per noise level > 0 (a noise of 0 is drawn once)
-  std::vector<double> calibration_errors; // relative error e of the calibrated coefficient, >= -1 (-1: uncorrected);
-                                          // needed with distortion axes only (assembly errors are never corrected)
+  std::vector<HarnessCornea> corneas;         // default: the design's own cornea, named "design"
+  std::vector<double> noise_px;               // standard deviation of the spot position per axis, >= 0
+  int noise_draws = 1;                        // seeded draws per noise level > 0 (a noise of 0 is drawn once)
+  std::vector<double> calibration_errors;  // relative error e of the calibrated coefficient, >= -1 (-1: uncorrected);
+                                           // needed with distortion axes only (assembly errors are never corrected)
   HarnessLimits limits;
 
   const std::vector<double>& Coefficients(DistortionFamily family) const;
@@ -89,10 +89,10 @@ struct HarnessConfig {
   bool HasAssembly() const;
 };
 
-inline constexpr DistortionFamily kDistortionFamilies[] = {DistortionFamily::kSeidelSigma,
-                                                           DistortionFamily::kBrownK1, DistortionFamily::kBrownK2};
+inline constexpr DistortionFamily kDistortionFamilies[] = {DistortionFamily::kSeidelSigma, DistortionFamily::kBrownK1,
+                                                           DistortionFamily::kBrownK2};
 
-// Loads H.json; a "design" given as a path is resolved against the directory of H.json. Throws model::ConfigError.
+// Loads H.json; a "design" given as a path is resolved against the directory of H.json. Throws util::ConfigError.
 HarnessConfig LoadHarnessConfig(const std::string& path);
 // `origin` names the source in messages; `base_dir` resolves a relative design path.
 HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string& origin, const std::string& base_dir);
@@ -103,4 +103,4 @@ std::string CanonicalHarnessJson(const HarnessConfig& config);
 // Lower-case hex SHA-256 of CanonicalHarnessJson: the identity of a sweep, stored in every shard.
 std::string HarnessConfigSha256(const HarnessConfig& config);
 
-}  // namespace topocal::pipeline
+}  // namespace topocal::harness

@@ -1,4 +1,4 @@
-#include "model/utc_date.h"
+#include "util/utc_date.h"
 
 #include <fmt/format.h>
 
@@ -7,9 +7,9 @@
 #include <cstring>
 #include <ctime>
 
-#include "model/io.h"
+#include "util/io.h"
 
-namespace topocal::model {
+namespace topocal::util {
 
 std::string FileDateUtc() {
   std::time_t t = std::time(nullptr);
@@ -31,4 +31,4 @@ std::string FileDateUtc() {
   return buf;
 }
 
-}  // namespace topocal::model
+}  // namespace topocal::util
