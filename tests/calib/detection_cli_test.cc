@@ -23,6 +23,26 @@ namespace fs = std::filesystem;
 using topocal::testing_cli::Run;
 using topocal::testing_cli::RunTopocal;
 
+// The truth file's corners, in id order (the header checked; with every_id, that no id is missing: a whole board in
+// the frame).
+std::vector<Eigen::Vector2d> ReadTruth(const std::string& path, bool every_id = false) {
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "id,x_px,y_px");
+  std::vector<Eigen::Vector2d> corners;
+  while (std::getline(in, line)) {
+    std::istringstream row(line);
+    std::string id, x, y;
+    std::getline(row, id, ',');
+    std::getline(row, x, ',');
+    std::getline(row, y, ',');
+    if (every_id) EXPECT_EQ(std::stoi(id), static_cast<int>(corners.size()));
+    corners.emplace_back(std::stod(x), std::stod(y));
+  }
+  return corners;
+}
+
 class DetectionCli : public topocal::testing_cli::TempDirTest {
  protected:
   void SetUp() override {
@@ -49,20 +69,7 @@ TEST_F(DetectionCli, RenderTargetWritesImageAndTruthThatDetectionMatches) {
   const auto r = RunTopocal("render-target --target " + Path("board.yaml") + " --out " + Path("v.png") + " --truth " +
                             Path("t.csv") + " --k1 -0.1 --distance-mm 420 --tilt-x-deg 20 --roll-deg 5 --noise 1");
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  std::ifstream in(Path("t.csv"));
-  std::string line;
-  std::getline(in, line);
-  EXPECT_EQ(line, "id,x_px,y_px");
-  std::vector<Eigen::Vector2d> truth;
-  while (std::getline(in, line)) {
-    std::istringstream row(line);
-    std::string id, x, y;
-    std::getline(row, id, ',');
-    std::getline(row, x, ',');
-    std::getline(row, y, ',');
-    EXPECT_EQ(std::stoi(id), static_cast<int>(truth.size()));
-    truth.emplace_back(std::stod(x), std::stod(y));
-  }
+  const auto truth = ReadTruth(Path("t.csv"), /*every_id=*/true);
   ASSERT_EQ(truth.size(), 54u);
   const auto target = topocal::calib::LoadTargetDescription(Path("board.yaml"));
   const auto view = topocal::calib::DetectTargetInFile(target, Path("v.png"));
@@ -131,23 +138,6 @@ TEST_F(DetectionCli, BadInputIsOneLineAndNoOutput) {
 }
 
 // --- Every render-target option moves the truth or the image as it says (issue 14: a test for every option). ---
-
-// The truth file's corners, in id order.
-std::vector<Eigen::Vector2d> ReadTruth(const std::string& path) {
-  std::ifstream in(path);
-  std::string line;
-  std::getline(in, line);
-  std::vector<Eigen::Vector2d> corners;
-  while (std::getline(in, line)) {
-    std::istringstream row(line);
-    std::string id, x, y;
-    std::getline(row, id, ',');
-    std::getline(row, x, ',');
-    std::getline(row, y, ',');
-    corners.emplace_back(std::stod(x), std::stod(y));
-  }
-  return corners;
-}
 
 class RenderTargetOptions : public DetectionCli {
  protected:
