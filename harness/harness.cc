@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <map>
 #include <memory>
@@ -397,6 +398,25 @@ HarnessRun RunHarness(const HarnessConfig& config, util::ShardSpec shard, int jo
     if (progress) progress(++done, mine.size());
   });
   return run;
+}
+
+std::vector<std::string> ShardFilesIn(const std::string& arg) {
+  std::error_code ec;
+  if (!std::filesystem::exists(arg, ec))
+    throw util::InputError(fmt::format("{}: shard: no such file or directory", arg));
+  if (!std::filesystem::is_directory(arg, ec)) return {arg};
+  std::vector<std::string> files;
+  for (const auto& entry : std::filesystem::directory_iterator(arg, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (entry.is_regular_file() && name.rfind("shard-", 0) == 0 && name.size() > 5 &&
+        name.compare(name.size() - 5, 5, ".json") == 0) {
+      files.push_back(entry.path().string());
+    }
+  }
+  if (ec) throw util::InputError(fmt::format("{}: shard: cannot be listed: {}", arg, ec.message()));
+  if (files.empty()) throw util::InputError(fmt::format("{}: shard: no shard-<i>-of-<N>.json file in it", arg));
+  std::sort(files.begin(), files.end());
+  return files;
 }
 
 std::string HarnessShardFileName(util::ShardSpec shard) {

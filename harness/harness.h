@@ -143,6 +143,9 @@ class HarnessCaseRunner {
 // file and key.
 std::string HarnessShardJson(const HarnessRun& run);
 HarnessRun ParseHarnessShard(const std::string& json_text, const std::string& origin);
+// The shard files one `harness merge` argument names: the file itself, or the shard-*.json files of a directory,
+// sorted. Throws util::InputError naming the argument when it does not exist, cannot be listed or holds no shard.
+std::vector<std::string> ShardFilesIn(const std::string& path);
 // The file name a shard is written under: "shard-<i>-of-<N>.json".
 std::string HarnessShardFileName(util::ShardSpec shard);
 

@@ -48,25 +48,6 @@ void WriteOutputs(const std::string& dir, const harness::HarnessRun& run) {
   fmt::print("{}", harness::HarnessAnswerText(run, answer));
 }
 
-// A shard argument: a shard file, or a directory holding shard-*-of-*.json files.
-std::vector<std::string> ShardFiles(const std::string& arg) {
-  std::error_code ec;
-  if (!fs::exists(arg, ec)) throw util::InputError(fmt::format("{}: shard: no such file or directory", arg));
-  if (!fs::is_directory(arg, ec)) return {arg};
-  std::vector<std::string> files;
-  for (const auto& entry : fs::directory_iterator(arg, ec)) {
-    const std::string name = entry.path().filename().string();
-    if (entry.is_regular_file() && name.rfind("shard-", 0) == 0 && name.size() > 5 &&
-        name.compare(name.size() - 5, 5, ".json") == 0) {
-      files.push_back(entry.path().string());
-    }
-  }
-  if (ec) throw util::InputError(fmt::format("{}: shard: cannot be listed: {}", arg, ec.message()));
-  if (files.empty()) throw util::InputError(fmt::format("{}: shard: no shard-<i>-of-<N>.json file in it", arg));
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
 double SecondsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -100,7 +81,7 @@ void AddHarnessCommand(CLI::App& app) {
     std::vector<harness::HarnessRun> shards;
     std::vector<std::string> origins;
     for (const auto& arg : *inputs) {
-      for (const auto& file : ShardFiles(arg)) {
+      for (const auto& file : harness::ShardFilesIn(arg)) {
         shards.push_back(harness::ParseHarnessShard(util::ReadFile(file), file));
         origins.push_back(file);
       }

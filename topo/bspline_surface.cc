@@ -37,6 +37,13 @@ void BSplineSurface::Basis(double t_mm, int* first, double* b, double* db, doubl
   d2b[3] = u * ih * ih;
 }
 
+BSplineSurface::TensorBasis BSplineSurface::BasisAt(double x, double y) const {
+  TensorBasis t;
+  Basis(x, &t.mx, t.bx, t.dbx, t.d2bx);
+  Basis(y, &t.my, t.by, t.dby, t.d2by);
+  return t;
+}
+
 double BSplineSurface::Value(double x, double y) const {
   double z, zx, zy, zxx, zxy, zyy;
   Derivatives(x, y, &z, &zx, &zy, &zxx, &zxy, &zyy);
@@ -45,10 +52,7 @@ double BSplineSurface::Value(double x, double y) const {
 
 void BSplineSurface::Derivatives(double x, double y, double* z, double* zx, double* zy, double* zxx, double* zxy,
                                  double* zyy) const {
-  int mx, my;
-  double bx[4], dbx[4], d2bx[4], by[4], dby[4], d2by[4];
-  Basis(x, &mx, bx, dbx, d2bx);
-  Basis(y, &my, by, dby, d2by);
+  const auto [mx, my, bx, dbx, d2bx, by, dby, d2by] = BasisAt(x, y);
   *z = *zx = *zy = *zxx = *zxy = *zyy = 0;
   for (int j = 0; j < 4; ++j) {
     for (int i = 0; i < 4; ++i) {
@@ -64,10 +68,7 @@ void BSplineSurface::Derivatives(double x, double y, double* z, double* zx, doub
 }
 
 void BSplineSurface::GradientStencil(double x, double y, int* index, double* wx, double* wy) const {
-  int mx, my;
-  double bx[4], dbx[4], d2bx[4], by[4], dby[4], d2by[4];
-  Basis(x, &mx, bx, dbx, d2bx);
-  Basis(y, &my, by, dby, d2by);
+  const auto [mx, my, bx, dbx, d2bx, by, dby, d2by] = BasisAt(x, y);
   for (int j = 0; j < 4; ++j) {
     for (int i = 0; i < 4; ++i) {
       index[4 * j + i] = (my + j) * n_ + (mx + i);

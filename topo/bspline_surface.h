@@ -41,6 +41,12 @@ class BSplineSurface {
  private:
   // Interval and the 4 basis values and derivatives along one axis.
   void Basis(double t_mm, int* first, double* b, double* db, double* d2b) const;
+  // Both axes' bases at (x, y): the first coefficient index and the 4 values and derivatives along each.
+  struct TensorBasis {
+    int mx, my;
+    double bx[4], dbx[4], d2bx[4], by[4], dby[4], d2by[4];
+  };
+  TensorBasis BasisAt(double x_mm, double y_mm) const;
   int intervals_ = 0, n_ = 0;  // n_ = intervals_ + 3 coefficients per axis
   double half_width_ = 0, h_ = 1;
   Eigen::VectorXd c_;

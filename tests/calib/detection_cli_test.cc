@@ -37,7 +37,9 @@ std::vector<Eigen::Vector2d> ReadTruth(const std::string& path, bool every_id = 
     std::getline(row, id, ',');
     std::getline(row, x, ',');
     std::getline(row, y, ',');
-    if (every_id) EXPECT_EQ(std::stoi(id), static_cast<int>(corners.size()));
+    if (every_id) {
+      EXPECT_EQ(std::stoi(id), static_cast<int>(corners.size()));
+    }
     corners.emplace_back(std::stod(x), std::stod(y));
   }
   return corners;
