@@ -1,4 +1,4 @@
-// Fuzz target: the harness configuration and a harness shard (pipeline/harness_config.h, pipeline/harness.h).
+// Fuzz target: the harness configuration and a harness shard (harness/harness_config.h, harness/harness.h).
 #include "fuzz/fuzz_input.h"
 #include "harness/harness.h"
 #include "harness/harness_config.h"

@@ -472,7 +472,7 @@ HarnessRun ParseHarnessShard(const std::string& text, const std::string& origin)
   if (!j.is_object() || !j.contains("format") || j["format"] != kShardFormat) {
     ShardFail(origin, "format", fmt::format("not a harness shard (expected \"{}\")", kShardFormat));
   }
-  // The project's strict JSON reader (model/json_section.h): every failure names the shard and the dotted key.
+  // The project's strict JSON reader (util/json_section.h): every failure names the shard and the dotted key.
   util::JsonSection root(j, origin, "");
   // Every integer of a shard is a count or an index well inside int; beyond it is a corrupt shard, not a wrap.
   const auto count = [](util::JsonSection& s, const char* key) {

@@ -30,7 +30,7 @@ constexpr std::size_t kSha256HexDigits = 64;
 
 using util::JsonSection;
 
-// unit.json is read with the project's one strict JSON reader (model/json_section.h): every failure is one line
+// unit.json is read with the project's one strict JSON reader (util/json_section.h): every failure is one line
 // "unit.json: KEY: problem" naming the file and the dotted key. Unknown keys are allowed (a record may carry more
 // than the report reads), so RejectUnknown() is not called.
 std::string Sha256(JsonSection& s, const std::string& k) {

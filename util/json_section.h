@@ -1,6 +1,6 @@
 #pragma once
 // Strict reading of one JSON object of a configuration file, shared by every configuration topocal reads
-// (model/config.cc, pipeline/harness_config.cc): every key must be read or known, types and ranges are checked, and
+// (model/config.cc, harness/harness_config.cc): every key must be read or known, types and ranges are checked, and
 // every failure is one ConfigError "ORIGIN: KEY: problem" naming the file and the dotted key.
 #include <fmt/format.h>
 

@@ -159,7 +159,7 @@ TEST_F(HarnessCli, RefusesBadInputWithOneLineAndNoOutput) {
     EXPECT_FALSE(fs::exists(out)) << c.to;
   }
   const std::string good = Config("good.json");
-  // Each launch costs ~0.1-0.4 s of process start; tests/pipeline/harness_test.cc parses every other malformed form.
+  // Each launch costs ~0.1-0.4 s of process start; tests/harness/harness_test.cc parses every other malformed form.
   for (const char* shard : {"3/3", "0/0", "x/3"}) {
     const auto r = RunTopocal("harness --config " + good + " --shard " + shard + " --out " + Path("shard_out"));
     EXPECT_EQ(r.exit_code, 2) << shard << ": " << r.output;

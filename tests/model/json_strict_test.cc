@@ -1,4 +1,4 @@
-// The one strict JSON reader (model/json_section.h) on the inputs that crashed or fooled the readers before issue 16:
+// The one strict JSON reader (util/json_section.h) on the inputs that crashed or fooled the readers before issue 16:
 // nesting deep enough to overflow the parser's stack, numbers beyond double's range, integers beyond int's range
 // (they wrapped around silently), keys given twice, and megabyte-long values echoed whole in an error line.
 #include <gtest/gtest.h>
