@@ -1,6 +1,10 @@
 #include "imageio/image_file.h"
 
 #include <dlfcn.h>
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
@@ -14,6 +18,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>  // the IMREAD_ and IMWRITE_ constants only: the codecs are the plugin's
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include "imageio/imgcodecs_abi.h"
@@ -172,26 +177,57 @@ cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string
   return image;
 }
 
-std::string ReadImageBytes(const std::string& path, const ImageLimits& limits) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw util::InputError(fmt::format("{}: cannot be opened for reading: {}", path, std::strerror(errno)));
+ImageBytes::~ImageBytes() {
+  if (map_) munmap(map_, map_size_);
+}
+
+ImageBytes::ImageBytes(ImageBytes&& other) noexcept
+    : map_(std::exchange(other.map_, nullptr)), map_size_(std::exchange(other.map_size_, 0)),
+      owned_(std::move(other.owned_)) {}
+
+ImageBytes& ImageBytes::operator=(ImageBytes&& other) noexcept {
+  if (this != &other) {
+    if (map_) munmap(map_, map_size_);
+    map_ = std::exchange(other.map_, nullptr);
+    map_size_ = std::exchange(other.map_size_, 0);
+    owned_ = std::move(other.owned_);
+  }
+  return *this;
+}
+
+std::string_view ImageBytes::view() const noexcept {
+  return map_ ? std::string_view(static_cast<const char*>(map_), map_size_) : std::string_view(owned_);
+}
+
+ImageBytes ReadImageBytes(const std::string& path, const ImageLimits& limits) {
   const auto too_large = [&] {
     return util::InputError(
         fmt::format("{}: over the {} MiB an image file may have", path, limits.max_file_bytes >> 20));
   };
-  // A regular file of known size is refused before reading and otherwise read in one piece (appending 1 MiB chunks
-  // to a growing string copied a 17 MB image about three times: issue 15).
-  std::error_code ec;
-  const auto size = std::filesystem::is_regular_file(path, ec) ? std::filesystem::file_size(path, ec) : 0;
-  std::string bytes;
-  if (!ec && size > 0) {
-    if (size > limits.max_file_bytes) throw too_large();
-    bytes.resize(static_cast<size_t>(size));
-    in.read(bytes.data(), static_cast<std::streamsize>(size));
-    if (in.bad() || in.gcount() != static_cast<std::streamsize>(size)) {
-      throw util::InputError(fmt::format("{}: read error", path));
+  // A regular file of known size is refused before reading and otherwise mapped whole (ImageBytes).
+  {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) throw util::InputError(fmt::format("{}: cannot be opened for reading: {}", path, std::strerror(errno)));
+    struct stat st {};
+    const bool regular = ::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0;
+    if (regular && static_cast<std::uint64_t>(st.st_size) > limits.max_file_bytes) {
+      ::close(fd);
+      throw too_large();
+    }
+    void* map = regular ? ::mmap(nullptr, static_cast<size_t>(st.st_size), PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0)
+                        : MAP_FAILED;
+    ::close(fd);
+    if (map != MAP_FAILED) {
+      ImageBytes bytes;
+      bytes.map_ = map;
+      bytes.map_size_ = static_cast<size_t>(st.st_size);
+      return bytes;
     }
   }
+  // Anything else (a pipe, a device, a file that cannot be mapped) is read.
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw util::InputError(fmt::format("{}: cannot be opened for reading: {}", path, std::strerror(errno)));
+  std::string bytes;
   // Anything else (a pipe), and whatever a file grew by while being read: read at most one byte more than allowed,
   // so that a stream over the limit is refused without reading it all.
   std::vector<char> chunk(1 << 20);
@@ -201,7 +237,7 @@ std::string ReadImageBytes(const std::string& path, const ImageLimits& limits) {
     if (bytes.size() > limits.max_file_bytes) throw too_large();
   }
   if (in.bad()) throw util::InputError(fmt::format("{}: read error", path));
-  return bytes;
+  return ImageBytes(std::move(bytes));
 }
 
 cv::Mat ReadImage(const std::string& path, Channels channels, const ImageLimits& limits) {

@@ -60,8 +60,8 @@ struct LoadedInputs {
   model::TopographerCamera camera;
   calib::TargetDescription target;
   calib::CalibrationOptions options;
-  std::vector<std::string> view_bytes;  // the calibration images as read for their digests, decoded by CalibrateViews
-  std::string sphere_bytes;  // the reference sphere as read (empty without one), decoded by StartSphere
+  std::vector<imageio::ImageBytes> view_bytes;  // the calibration images as read for their digests, decoded by CalibrateViews
+  imageio::ImageBytes sphere_bytes;  // the reference sphere as read (empty without one), decoded by StartSphere
   size_t sphere_provenance = 0;  // its entry in `provenance`, whose digest StartSphere computes
   model::Device nominal_device;
   std::vector<pipeline::BallImage> balls;  // empty: no device stage
@@ -140,7 +140,7 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   };
   // An image is read once: its digest and its decoding come from the same bytes, on two threads (issue 15).
   const auto add_image = [&](const std::string& role, const std::string& path) -> cv::Mat {
-    const std::string bytes = imageio::ReadImageBytes(path);
+    const imageio::ImageBytes bytes = imageio::ReadImageBytes(path);
     auto digest = std::async(std::launch::async, [&bytes] { return util::Sha256Hex(bytes); });
     cv::Mat image = imageio::DecodeImage(bytes, imageio::Channels::kAsStored, path);
     in.provenance.push_back({role, path, digest.get()});
@@ -188,7 +188,7 @@ std::future<SphereImage> StartSphere(const UnitRequest& r, LoadedInputs& in) {
   return std::async(std::launch::async, [&r, &in] {
     SphereImage s;
     {
-      const std::string bytes = std::move(in.sphere_bytes);
+      const imageio::ImageBytes bytes = std::move(in.sphere_bytes);
       auto digest = std::async(std::launch::async, [&bytes] { return util::Sha256Hex(bytes); });
       s.image = imageio::DecodeImage(bytes, imageio::Channels::kAsStored, r.reference_sphere);
       in.provenance[in.sphere_provenance].sha256 = digest.get();
@@ -245,7 +245,7 @@ UnitCameraCalibration CalibrateViews(const UnitRequest& r, LoadedInputs& in,
   for (size_t v = 0; v < r.images.size(); ++v) {
     const std::string& path = r.images[v];
     const cv::Mat image = imageio::DecodeImage(in.view_bytes[v], imageio::Channels::kGrey, path);
-    std::string().swap(in.view_bytes[v]);  // decoded: the bytes are no longer needed
+    in.view_bytes[v] = {};  // decoded: the bytes are no longer needed
     CheckImageSize(image, path, in, r);
     const auto found = calib::DetectTargetDetailed(in.target, image);
     if (!found.view) {
