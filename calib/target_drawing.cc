@@ -6,10 +6,10 @@
 #include <cctype>
 #include <cmath>
 #include <opencv2/aruco.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
 
 #include "calib/apriltag_raii.h"
+#include "imageio/image_file.h"
 #include "plot/paper_svg.h"
 #include "util/io.h"
 
@@ -208,10 +208,8 @@ void WriteTargetDrawing(const TargetDescription& target, const std::string& path
     throw util::InputError(
         fmt::format("{}: {} at {} dpi is too large a raster (use SVG or a lower --dpi)", path, target.Describe(), dpi));
   }
-  std::vector<uchar> png;
   // PNG's pHYs chunk is not written by OpenCV; the physical size comes from the dpi the user prints at.
-  if (!cv::imencode(".png", image, png)) throw util::InputError(fmt::format("{}: cannot encode PNG", path));
-  util::WriteFileAtomic(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  imageio::WritePng(path, image);
 }
 
 }  // namespace topocal::calib

@@ -1,4 +1,4 @@
-# Installation: the libraries (static, exported as topocal::<module>), the CLI, the public headers under
+# Installation: the libraries (static, exported as topocal::<module>), the CLI and its image codec plugin, the public headers under
 # include/topocal/<module>/, the bundled data under share/topocal/data, a CMake package (topocalConfig.cmake +
 # version), a pkg-config file, and a Debian package through CPack (`cpack -G DEB` in the build tree).
 include(GNUInstallDirs)
@@ -23,6 +23,9 @@ install(TARGETS ${TOPOCAL_LIBRARY_TARGETS} EXPORT topocalTargets
 install(FILES ${PROJECT_BINARY_DIR}/generated/util/version.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/topocal/util
         COMPONENT dev)
 install(TARGETS topocal RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT cli)
+# imageio's codec plugin (imageio/imgcodecs_abi.h), where the installed CLI finds it relative to itself
+# (<bindir>/../<libdir>/topocal) and programs linking the installed libraries find it by the configured prefix.
+install(TARGETS topocal_imgcodecs LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}/topocal COMPONENT cli)
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/data/ DESTINATION ${TOPOCAL_INSTALL_DATADIR} COMPONENT cli)
 
 install(EXPORT topocalTargets NAMESPACE topocal:: DESTINATION ${TOPOCAL_INSTALL_CMAKEDIR} COMPONENT dev)

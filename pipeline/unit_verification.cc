@@ -98,9 +98,8 @@ model::Config WithSphere(const model::Config& config, double radius_mm) {
   return c;
 }
 
-SphereVerification VerifyOnReferenceSphere(const cv::Mat& image, double radius_mm, const UnitCalibration& unit,
-                                           const model::TopographerCamera& camera, const model::Config& config,
-                                           const CheckOptions& options) {
+SphereVerification DetectReferenceSphere(const cv::Mat& image, double radius_mm, const model::TopographerCamera& camera,
+                                         const model::Config& config) {
   if (!(radius_mm >= kMinSphereRadiusMm && radius_mm <= kMaxSphereRadiusMm)) {
     throw std::invalid_argument(fmt::format("sphere radius {} mm is outside [{}, {}] mm", radius_mm,
                                             kMinSphereRadiusMm, kMaxSphereRadiusMm));
@@ -117,7 +116,14 @@ SphereVerification VerifyOnReferenceSphere(const cv::Mat& image, double radius_m
   v.spots_indexed = raw.indexed;
   v.spots_unassigned = raw.unassigned;
   v.spots_missing = raw.missing;
-  return VerifyOnReferenceSphere(std::move(v), radius_mm, unit, camera, config, options);
+  return v;
+}
+
+SphereVerification VerifyOnReferenceSphere(const cv::Mat& image, double radius_mm, const UnitCalibration& unit,
+                                           const model::TopographerCamera& camera, const model::Config& config,
+                                           const CheckOptions& options) {
+  return VerifyOnReferenceSphere(DetectReferenceSphere(image, radius_mm, camera, config), radius_mm, unit, camera,
+                                 config, options);
 }
 
 SphereVerification VerifyOnReferenceSphere(SphereVerification v, double radius_mm, const UnitCalibration& unit,

@@ -72,6 +72,12 @@ SphereVerification VerifyOnReferenceSphere(const cv::Mat& image, double radius_m
                                            const model::TopographerCamera& camera, const model::Config& config,
                                            const CheckOptions& options);
 
+// The first half of VerifyOnReferenceSphere: the checks of the radius and the image, and the spots detected and
+// identified (`detected` and the detector's counts; nothing else set). It needs no calibration, so the unit
+// workflow runs it while the camera is being calibrated. Same exceptions as VerifyOnReferenceSphere.
+SphereVerification DetectReferenceSphere(const cv::Mat& image, double radius_mm, const model::TopographerCamera& camera,
+                                         const model::Config& config);
+
 // The same check from spots already detected and identified (`v.detected` and the detector's counts in `v`, the
 // rest of `v` ignored): what VerifyOnReferenceSphere does after detection, and what the QA report recomputes from
 // the record's sphere_spots.csv. Same exceptions, std::invalid_argument also for an empty spot list.

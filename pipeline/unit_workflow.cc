@@ -60,8 +60,9 @@ struct LoadedInputs {
   model::TopographerCamera camera;
   calib::TargetDescription target;
   calib::CalibrationOptions options;
-  std::vector<std::string> view_bytes;  // the calibration images as read for their digests, decoded by CalibrateViews
-  cv::Mat sphere_image;  // empty without a reference sphere
+  std::vector<imageio::ImageBytes> view_bytes;  // the calibration images as read for their digests, decoded by CalibrateViews
+  imageio::ImageBytes sphere_bytes;  // the reference sphere as read (empty without one), decoded by StartSphere
+  size_t sphere_provenance = 0;  // its entry in `provenance`, whose digest StartSphere computes
   model::Device nominal_device;
   std::vector<pipeline::BallImage> balls;  // empty: no device stage
   std::vector<UnitInputDigest> provenance;
@@ -137,10 +138,9 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   const auto add = [&](const std::string& role, const std::string& path) {
     in.provenance.push_back({role, path, util::Sha256HexOfFile(path)});
   };
-  // An image is read once: its digest and its decoding come from the same bytes, on two threads (each is ~0.1-0.2
-  // s for the 17 MB reference sphere; issue 15).
+  // An image is read once: its digest and its decoding come from the same bytes, on two threads (issue 15).
   const auto add_image = [&](const std::string& role, const std::string& path) -> cv::Mat {
-    const std::string bytes = imageio::ReadImageBytes(path);
+    const imageio::ImageBytes bytes = imageio::ReadImageBytes(path);
     auto digest = std::async(std::launch::async, [&bytes] { return util::Sha256Hex(bytes); });
     cv::Mat image = imageio::DecodeImage(bytes, imageio::Channels::kAsStored, path);
     in.provenance.push_back({role, path, digest.get()});
@@ -154,8 +154,9 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
     in.provenance.push_back({"image", path, util::Sha256Hex(in.view_bytes.back())});
   }
   if (!r.reference_sphere.empty()) {
-    in.sphere_image = add_image("reference_sphere", r.reference_sphere);
-    CheckImageSize(in.sphere_image, r.reference_sphere, in, r);
+    in.sphere_bytes = imageio::ReadImageBytes(r.reference_sphere);
+    in.sphere_provenance = in.provenance.size();
+    in.provenance.push_back({"reference_sphere", r.reference_sphere, ""});
   }
   if (!r.device.empty()) add("device", r.device);
   for (size_t i = 0; i < r.balls.size(); ++i) {
@@ -171,8 +172,39 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   return in;
 }
 
+// The reference sphere as the camera saw it: decoded, its size checked and its spots detected and identified. None of
+// it needs the calibration, so it runs on a thread of its own while the camera is calibrated (issue 15: the 17 MB
+// 16-bit PNG takes longer to decode than the target image takes to decode, detect and calibrate).
+struct SphereImage {
+  cv::Mat image;
+  std::optional<SphereVerification> detected;
+  std::exception_ptr detection_error;  // DetectReferenceSphere's, rethrown where the check would have thrown it
+};
+
+// Decoding or size errors are the future's exception (bad input, reported before a calibration failure, as when the
+// sphere was decoded first); the bytes are released once decoded.
+std::future<SphereImage> StartSphere(const UnitRequest& r, LoadedInputs& in) {
+  if (r.reference_sphere.empty()) return {};
+  return std::async(std::launch::async, [&r, &in] {
+    SphereImage s;
+    {
+      const imageio::ImageBytes bytes = std::move(in.sphere_bytes);
+      auto digest = std::async(std::launch::async, [&bytes] { return util::Sha256Hex(bytes); });
+      s.image = imageio::DecodeImage(bytes, imageio::Channels::kAsStored, r.reference_sphere);
+      in.provenance[in.sphere_provenance].sha256 = digest.get();
+    }
+    CheckImageSize(s.image, r.reference_sphere, in, r);
+    try {
+      s.detected = DetectReferenceSphere(s.image, r.sphere_radius_mm, in.camera, in.config);
+    } catch (...) {
+      s.detection_error = std::current_exception();
+    }
+    return s;
+  });
+}
+
 std::optional<UnitDeviceStage> CalibrateDeviceStage(const UnitRequest& r, const LoadedInputs& in,
-                                                    const model::Distortion& lens) {
+                                                    const cv::Mat& sphere_image, const model::Distortion& lens) {
   if (in.balls.empty()) return std::nullopt;
   UnitDeviceStage d;
   try {
@@ -191,8 +223,8 @@ std::optional<UnitDeviceStage> CalibrateDeviceStage(const UnitRequest& r, const 
   d.lens_only.distortion = lens;
   const auto& device = d.calibration.fit.device;
   try {
-    if (!in.sphere_image.empty()) {
-      d.held_out = pipeline::VerifyHeldOutBall(in.sphere_image, r.sphere_radius_mm, in.nominal_device, d.lens_only,
+    if (!sphere_image.empty()) {
+      d.held_out = pipeline::VerifyHeldOutBall(sphere_image, r.sphere_radius_mm, in.nominal_device, d.lens_only,
                                                device, in.config);
     }
     d.paper = pipeline::PaperCorneaThroughDevice(in.nominal_device, d.lens_only, device, in.config);
@@ -213,7 +245,7 @@ UnitCameraCalibration CalibrateViews(const UnitRequest& r, LoadedInputs& in,
   for (size_t v = 0; v < r.images.size(); ++v) {
     const std::string& path = r.images[v];
     const cv::Mat image = imageio::DecodeImage(in.view_bytes[v], imageio::Channels::kGrey, path);
-    std::string().swap(in.view_bytes[v]);  // decoded: the bytes are no longer needed
+    in.view_bytes[v] = {};  // decoded: the bytes are no longer needed
     CheckImageSize(image, path, in, r);
     const auto found = calib::DetectTargetDetailed(in.target, image);
     if (!found.view) {
@@ -322,10 +354,30 @@ bool IsValidSerial(const std::string& serial) {
 }
 
 UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const std::string&)>& log) {
-  LoadedInputs in = LoadInputs(r);  // everything checked before any work or output
+  // OpenCV's image codecs are loaded (~0.1 s of dynamic linking) while the inputs are read and hashed.
+  const auto codecs = imageio::LoadCodecsInBackground();
+  LoadedInputs in = LoadInputs(r);  // everything read and checked before any work or output, the images undecoded
   UnitResult u;
   u.request = r;
-  u.calibration = CalibrateViews(r, in, log);
+  auto sphere_image = StartSphere(r, in);
+  const auto rethrow_sphere = [&](const std::exception_ptr& error) {
+    try {
+      std::rethrow_exception(error);
+    } catch (const std::invalid_argument& e) {
+      throw util::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
+    } catch (const util::InputError& e) {
+      throw util::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(fmt::format("{}: {}: {}", r.serial, r.reference_sphere, e.what()));
+    }
+  };
+  try {
+    u.calibration = CalibrateViews(r, in, log);
+  } catch (...) {
+    if (sphere_image.valid()) sphere_image.get();  // a sphere that cannot be read is the error to report
+    throw;
+  }
+  SphereImage sphere = sphere_image.valid() ? sphere_image.get() : SphereImage{};
   u.created_utc = util::FileDateUtc();
   const auto& c = u.calibration;
 
@@ -336,18 +388,24 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
   unit.covariance.matrix = c.result.covariance;
   unit.covariance.full = true;
   u.check = CheckOptions{r.uncertainty_samples, r.seed, r.jobs};
-  if (!in.sphere_image.empty()) {
+  // The two checks are independent: with more than one thread allowed, the paper cornea's runs beside the sphere's,
+  // so that each one's serial parts (detection, nominal analyses, the draws' last stragglers) overlap the other's
+  // draws. Each writes only its own result: the record is the same either way.
+  std::future<SimulatedCornea> paper;
+  if (r.jobs != 1 && !sphere.image.empty()) {
+    paper = std::async(std::launch::async,
+                       [&] { return SimulateThroughCalibratedCamera(unit, in.camera, in.config, u.check); });
+  }
+  if (!sphere.image.empty()) {
+    if (sphere.detection_error) rethrow_sphere(sphere.detection_error);
     try {
-      u.sphere = VerifyOnReferenceSphere(in.sphere_image, r.sphere_radius_mm, unit, in.camera, in.config, u.check);
-    } catch (const std::invalid_argument& e) {
-      throw util::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
-    } catch (const util::InputError& e) {
-      throw util::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
-    } catch (const std::runtime_error& e) {
-      throw std::runtime_error(fmt::format("{}: {}: {}", r.serial, r.reference_sphere, e.what()));
+      u.sphere = VerifyOnReferenceSphere(std::move(*sphere.detected), r.sphere_radius_mm, unit, in.camera, in.config,
+                                         u.check);
+    } catch (...) {
+      rethrow_sphere(std::current_exception());
     }
   }
-  u.paper = SimulateThroughCalibratedCamera(unit, in.camera, in.config, u.check);
+  u.paper = paper.valid() ? paper.get() : SimulateThroughCalibratedCamera(unit, in.camera, in.config, u.check);
   u.field = MeasureDistortionField(c.result.camera, in, r.serial);
   if (!in.balls.empty()) {
     const auto lens = DetectionPlaneModelOf(c.result.camera, in.camera);
@@ -355,7 +413,7 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
       throw std::runtime_error(
           fmt::format("{}: the calibration cannot be put on the detection plane: {}", r.serial, lens.message));
     }
-    u.device = CalibrateDeviceStage(r, in, lens.distortion);
+    u.device = CalibrateDeviceStage(r, in, sphere.image, lens.distortion);
   }
   u.config = std::move(in.config);
   u.camera = std::move(in.camera);

@@ -9,11 +9,11 @@
 #include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/freetype.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <string_view>
 
+#include "imageio/image_file.h"
 #include "util/io.h"
 
 namespace topocal::plot {
@@ -568,10 +568,7 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
 
 void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOptions& options) {
   MapImage image = RenderMap(map, options);
-  const cv::Mat img(image.height_px, image.width_px, CV_8UC3, image.bgr.data());
-  std::vector<std::uint8_t> png;
-  if (!cv::imencode(".png", img, png)) throw std::runtime_error(path + ": PNG encoding failed");
-  util::WriteFileAtomic(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  imageio::WritePng(path, cv::Mat(image.height_px, image.width_px, CV_8UC3, image.bgr.data()));
 }
 
 std::string GridMapCsv(const GridMap& map) {

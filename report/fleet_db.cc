@@ -172,9 +172,13 @@ FleetDb::FleetDb(const std::string& path, bool create) : path_(path) {
     // schema version is refused without being changed.
     std::int64_t app = 0, version = 0, tables = 0;
     try {
+      // One read transaction, so one snapshot: a process creating the schema meanwhile is seen whole or not at all
+      // (read one statement at a time, its tables could be seen before its application_id: "application_id 0").
+      Exec(db_, path, "BEGIN");
       app = PragmaInt(db_, path, "PRAGMA application_id");
       version = PragmaInt(db_, path, "PRAGMA user_version");
       tables = PragmaInt(db_, path, "SELECT count(*) FROM sqlite_master");
+      Exec(db_, path, "COMMIT");
     } catch (const std::runtime_error& e) {
       throw util::InputError(fmt::format("{}: not a topocal fleet database ({})", path, sqlite3_errmsg(db_)));
     }

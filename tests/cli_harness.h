@@ -21,8 +21,9 @@ struct Run {
   std::string output;  // stdout and stderr together
 };
 
-inline Run RunTopocal(const std::string& args) {
-  const std::string cmd = std::string(TOPOCAL_EXE) + " " + args + " 2>&1";
+// `env`: variable assignments (NAME=value ...) for this run only.
+inline Run RunTopocal(const std::string& args, const std::string& env = "") {
+  const std::string cmd = env + (env.empty() ? "" : " ") + TOPOCAL_EXE + " " + args + " 2>&1";
   FILE* pipe = popen(cmd.c_str(), "r");
   if (!pipe) return {-1, "popen failed"};
   std::string out;

@@ -2,7 +2,6 @@
 #include <fmt/ranges.h>
 
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "calib/calibration_file.h"
 #include "correct/detect_and_index.h"

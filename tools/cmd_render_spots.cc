@@ -6,10 +6,10 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
-#include <opencv2/imgcodecs.hpp>
 
 #include "correct/spot_render.h"
 #include "correct/spot_truth.h"
+#include "imageio/image_file.h"
 #include "model/config.h"
 #include "model/topographer_camera.h"
 #include "tools/commands.h"
@@ -87,8 +87,7 @@ void Run(const RenderSpotsArgs& a) {
   if (off_sensor > 0) fmt::print(stderr, "topocal render-spots: {} spots fall off the sensor\n", off_sensor);
 
   const cv::Mat image = correct::RenderSpotImage(spots, camera.width_px, camera.height_px, o);
-  std::vector<uchar> png;
-  if (!cv::imencode(".png", image, png)) throw std::runtime_error(fmt::format("{}: PNG encoding failed", a.out));
+  const auto png = imageio::EncodePng(image, a.out);
   const std::string csv = a.truth.empty() ? std::string() : correct::SpotTruthCsv(spots, camera);
   util::WriteFileAtomic(a.out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   if (!a.truth.empty()) util::WriteFileAtomic(a.truth, csv);

@@ -4,12 +4,12 @@
 
 #include <cmath>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <optional>
 
 #include "calib/calibration_file.h"
 #include "calib/render_target.h"
 #include "calib/target.h"
+#include "imageio/image_file.h"
 #include "model/camera_model.h"
 #include "model/distortion.h"
 #include "tools/commands.h"
@@ -182,8 +182,7 @@ void AddRenderTargetCommand(CLI::App& app) {
       return calib::RenderTarget(target, camera, pose, a->render, &why);
     }();
     if (!view) throw util::InputError(fmt::format("cannot render: {}", why));
-    std::vector<uchar> png;
-    if (!cv::imencode(".png", view->image, png)) throw std::runtime_error("cannot encode the PNG");
+    const auto png = imageio::EncodePng(view->image, a->out);
     // Both files are written only once everything has been computed; each atomically.
     const std::string truth = calib::CornerTruthCsv(*view);
     util::WriteFileAtomic(a->out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));

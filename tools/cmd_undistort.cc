@@ -4,13 +4,13 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
-#include <opencv2/imgcodecs.hpp>
 
 #include "calib/calibration_file.h"
 #include "calib/distortion_valid_region.h"
 #include "correct/undistort_coverage.h"
 #include "correct/undistort_map.h"
 #include "correct/undistort_points.h"
+#include "imageio/image_file.h"
 #include "model/spots_csv.h"
 #include "model/topographer_camera.h"
 #include "pipeline/detection_plane.h"
@@ -104,10 +104,7 @@ void Run(const UndistortArgs& a) {
     throw util::InputError(fmt::format("--out: {}: the output image must be a .png file", a.out));
   }
   // Read once (a missing or unreadable file is named as such, not as "not an image") and decoded from memory.
-  const std::string bytes = util::ReadFile(a.image);
-  const cv::Mat image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8U, const_cast<char*>(bytes.data())),
-                                     cv::IMREAD_UNCHANGED);
-  if (image.empty()) throw util::InputError(fmt::format("{}: not an image OpenCV can read", a.image));
+  const cv::Mat image = imageio::ReadImage(a.image, imageio::Channels::kAsStored);
   if (image.cols != camera.width_px || image.rows != camera.height_px) {
     throw util::InputError(fmt::format("{}: the image is {} x {} px but the camera is {} x {} px", a.image, image.cols,
                                        image.rows, camera.width_px, camera.height_px));
@@ -115,8 +112,7 @@ void Run(const UndistortArgs& a) {
   const auto map = correct::BuildUndistortMap(distortion, camera);
   const cv::Mat out = correct::UndistortImage(image, map);
   const auto coverage = correct::CoverageOf(map, camera);
-  std::vector<uchar> png;
-  if (!cv::imencode(".png", out, png)) throw std::runtime_error(fmt::format("{}: PNG encoding failed", a.out));
+  const auto png = imageio::EncodePng(out, a.out);
   util::WriteFileAtomic(a.out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   fmt::print("undistorted {} x {} image -> {}\n", image.cols, image.rows, a.out);
   const auto percent = [&](int n) { return 100.0 * n / std::max(1, coverage.total_px); };

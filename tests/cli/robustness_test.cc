@@ -2,6 +2,7 @@
 // a wrapped integer or a result computed to Inf. Each test is a reproducer from the mutation campaign.
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -194,3 +195,33 @@ TEST_F(Robustness, AnInfiniteFocalLengthNeverReachesCeres) {
 }
 
 }  // namespace
+
+// The image codecs are a plugin loaded at the first image (imageio/image_file.h): without it, a verb that writes or
+// reads an image fails with one line naming the file (exit 1: a broken installation, not bad input) and writes
+// nothing, while the verbs that touch no image run as before.
+TEST_F(Robustness, AMissingCodecsPluginIsOneLineNamingItAndOnlyImageVerbsNeedIt) {
+  const auto run_with_plugin = [&](const std::string& plugin, const std::string& args) {
+    return RunTopocal(args, "TOPOCAL_IMGCODECS_PLUGIN=" + plugin);
+  };
+  const std::string render = "render-spots --config " + paper_ + " --camera " + TOPOCAL_SOURCE_DIR +
+                             "/data/camera.json --sigma 6.3e-5 --out " + Path("s.png");
+  const topocal::testing_cli::Run missing = run_with_plugin(Path("nowhere/libtopocal_imgcodecs.so"), render);
+  EXPECT_EQ(missing.exit_code, 1) << missing.output;
+  EXPECT_NE(missing.output.find("libtopocal_imgcodecs.so is not installed: not found at " +
+                                Path("nowhere/libtopocal_imgcodecs.so")),
+            std::string::npos)
+      << missing.output;
+  EXPECT_EQ(std::count(missing.output.begin(), missing.output.end(), '\n'), 1) << missing.output;
+  EXPECT_FALSE(fs::exists(Path("s.png")));
+
+  Write("not-a-plugin.so", "not a shared object\n");
+  const topocal::testing_cli::Run bogus = run_with_plugin(Path("not-a-plugin.so"), render);
+  EXPECT_EQ(bogus.exit_code, 1) << bogus.output;
+  EXPECT_NE(bogus.output.find(Path("not-a-plugin.so") + ": cannot load the image codecs plugin"), std::string::npos)
+      << bogus.output;
+  EXPECT_EQ(std::count(bogus.output.begin(), bogus.output.end(), '\n'), 1) << bogus.output;
+  EXPECT_FALSE(fs::exists(Path("s.png")));
+
+  const topocal::testing_cli::Run sweep = run_with_plugin(Path("nowhere/libtopocal_imgcodecs.so"), "sweep --config " + paper_);
+  EXPECT_EQ(sweep.exit_code, 0) << sweep.output.substr(0, 300);
+}

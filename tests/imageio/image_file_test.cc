@@ -1,4 +1,5 @@
-// The one image loader: headers probed right, bombs refused before decoding, every failure one line naming the file.
+// The one image loader and writer: headers probed right, bombs refused before decoding, every failure one line naming
+// the file, PNGs encoded as OpenCV encodes them.
 #include "imageio/image_file.h"
 
 #include <fmt/format.h>
@@ -121,6 +122,33 @@ TEST(ImageFile, EveryBadFileIsOneLineNamingIt) {
             std::string::npos);
   EXPECT_EQ(ErrorOf([&] { RequireSize(good, path("good.jpg"), 200, 100, "camera.json"); }), "");
   std::filesystem::remove_all(dir);
+}
+
+// Encoding goes through the codec plugin: the bytes are OpenCV's own (what cv::imencode writes in this process,
+// which links imgcodecs directly), so every PNG topocal wrote before the plugin is written the same.
+TEST(ImageFile, EncodesPngByteForByteAsOpenCvDoes) {
+  cv::Mat deep(37, 51, CV_16UC1);
+  cv::randu(deep, 0, 65535);
+  for (const cv::Mat& image : {Gradient(64, 48), Gradient(31, 7, CV_8UC3), Gradient(9, 5, CV_8UC4), deep}) {
+    SCOPED_TRACE(fmt::format("type {} {}x{}", image.type(), image.cols, image.rows));
+    const std::vector<unsigned char> png = EncodePng(image, "mem.png");
+    EXPECT_EQ(std::string(png.begin(), png.end()), Encode(image, ".png"));
+    const cv::Mat back = DecodeImage(std::string(png.begin(), png.end()), Channels::kAsStored, "mem.png");
+    ASSERT_EQ(back.type(), image.type());
+    EXPECT_EQ(cv::norm(back, image, cv::NORM_INF), 0.0);
+  }
+  const auto path = std::filesystem::temp_directory_path() / fmt::format("topocal_imageio_png_{}.png", ::getpid());
+  WritePng(path.string(), deep);
+  EXPECT_EQ(cv::norm(cv::imread(path.string(), cv::IMREAD_UNCHANGED), deep, cv::NORM_INF), 0.0);
+  std::filesystem::remove(path);
+  // What PNG cannot hold is refused with the output's name, never written.
+  try {
+    EncodePng(cv::Mat(4, 4, CV_8UC2, cv::Scalar(1, 2)), "two-channels.png");
+    ADD_FAILURE() << "a two-channel image was encoded as PNG";
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("two-channels.png: PNG encoding failed: ", 0), 0u) << e.what();
+    EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -25,6 +25,26 @@ cd "$work"
 "$prefix/bin/topocal" --version
 mkdir unit && cd unit
 "$prefix/bin/topocal" sweep --config "$prefix/share/topocal/data/paper.json" >/dev/null
+# Images: the installed CLI writes a PNG and reads it back through its codec plugin (<prefix>/lib/topocal), loaded
+# only by the verbs that touch an image.
+data="$prefix/share/topocal/data"
+"$prefix/bin/topocal" render-spots --config "$data/paper.json" --camera "$data/camera.json" --sigma 6.3e-5 \
+  --out spots.png >/dev/null
+"$prefix/bin/topocal" detect --image spots.png --camera "$data/camera.json" --config "$data/paper.json" \
+  --out detected.csv >/dev/null
+test -s detected.csv
+# Without the plugin: the image verbs fail with one line naming it, write nothing, and the others still run.
+mv "$prefix/lib/topocal/libtopocal_imgcodecs.so" "$work/plugin.so"
+set +e
+msg=$("$prefix/bin/topocal" render-spots --config "$data/paper.json" --camera "$data/camera.json" --sigma 6.3e-5 \
+      --out missing.png 2>&1)
+code=$?
+set -e
+case "$code:$msg" in 1:*"libtopocal_imgcodecs.so is not installed"*) ;; *) echo "without the plugin ($code): $msg" >&2; exit 1 ;; esac
+test "$(wc -l <<< "$msg")" -eq 1
+test ! -e missing.png
+"$prefix/bin/topocal" sweep --config "$data/paper.json" >/dev/null
+mv "$work/plugin.so" "$prefix/lib/topocal/libtopocal_imgcodecs.so"
 # `unit calibrate` takes its default design and camera from the installed data: a run without images fails on the
 # images, not on the data.
 set +e
@@ -39,4 +59,5 @@ info=$(dpkg-deb -I "$work"/deb/topocal_*_amd64.deb)
 grep "Depends:.*libceres-dev" <<< "$info" >/dev/null
 contents=$(dpkg-deb -c "$work"/deb/topocal_*_amd64.deb)
 grep "usr/share/topocal/data/paper.json" <<< "$contents" >/dev/null
+grep "usr/lib/topocal/libtopocal_imgcodecs.so" <<< "$contents" >/dev/null
 echo "install test passed"
