@@ -52,13 +52,14 @@ struct GradientFit {
   double rms_slope_residual = 0;  // rms of the fitted minus measured slopes (dimensionless)
 };
 
-// Repeated gradient fits on slowly moving points (the normal-refinement loop): the first fit factors the design
-// matrix by Householder QR and keeps R; later fits solve the same least-squares problem by CGLS preconditioned with
-// that R and warm-started from the previous coefficients. While the points move by micrometres the preconditioned
-// operator A R^-1 stays within ~1e-4 of orthonormal, so CGLS reaches the least-squares solution in a few matrix-
-// vector products instead of a new O(m n^2) factorisation. Written by hand because Eigen's iterative solvers take
-// sparse or square systems, not a dense rectangular one with a triangular preconditioner. Falls back to a fresh QR
-// whenever CGLS has not converged within its budget.
+// Repeated gradient fits on slowly moving points (the normal-refinement loop): the first fit factors the normal
+// matrix A^T A by Cholesky (R = L^T; Householder QR of A when that is too ill-conditioned) and keeps R; every fit
+// solves the least-squares problem by CGLS preconditioned with that R, warm-started from the previous
+// coefficients. While the points move by micrometres the preconditioned operator A R^-1 stays within ~1e-4 of
+// orthonormal, so CGLS reaches the least-squares solution in a few matrix-vector products instead of a new
+// O(m n^2) factorisation. Written by hand because Eigen's iterative solvers take sparse or square systems, not a
+// dense rectangular one with a triangular preconditioner. Falls back to a fresh factor whenever CGLS has not
+// converged within its budget, and to QR when CGLS does not converge with the Cholesky factor either.
 class GradientFitter {
  public:
   GradientFit Fit(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes,
@@ -72,6 +73,7 @@ class GradientFitter {
  private:
   Eigen::MatrixXd r_;        // upper-triangular factor of the last QR (empty before the first fit)
   Eigen::MatrixXd a_;        // design matrix, reused storage
+  Eigen::MatrixXd normal_;   // A^T A and its Cholesky factor, reused storage
   Eigen::VectorXd rhs_;
   int factorizations_ = 0;
 };
