@@ -269,12 +269,13 @@ GradientFit GradientFitter::Fit(const std::vector<Eigen::Vector2d>& points_mm,
   if (2 * static_cast<int>(points_mm.size()) < unknowns || slopes.size() != points_mm.size()) return {};
   BuildDesign(*poly, points_mm, slopes, &a_, &rhs_);
   Eigen::VectorXd x = poly->coefficients().tail(unknowns);
-  if (r_.rows() == unknowns && PreconditionedCgls(a_, rhs_, r_, &x)) {
+  if (started_ && r_.rows() == unknowns && PreconditionedCgls(a_, rhs_, r_, &x)) {
     return Finish(a_, rhs_, x, z_at_origin_mm, poly);
   }
+  started_ = false;
   ++factorizations_;
-  // A new factor: from the normal equations first (cheap), by QR when they are too ill-conditioned to serve or
-  // CGLS does not converge with their factor.
+  // The factor of these points: from the normal equations (cheap), by QR when they are too ill-conditioned to
+  // serve or CGLS does not converge with their factor.
   x = poly->coefficients().tail(unknowns);
   if (FactorNormalEquations(*poly, points_mm, &normal_, &r_) && PreconditionedCgls(a_, rhs_, r_, &x)) {
     return Finish(a_, rhs_, x, z_at_origin_mm, poly);
