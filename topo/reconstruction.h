@@ -74,11 +74,11 @@ struct Reconstruction {
   int vertex_evaluations = 0;       // t values tried
   int spots_used = 0;
   std::vector<model::SpotId> unmatched;  // spots whose identity is not in the design
-  // The R factor of the slope fit's last QR and the normalisation radius it belongs to: hand it to
+  // The factor R (R^T R = A^T A) of the slope fit's last pass and the normalisation radius it belongs to: hand it to
   // ReconstructOptions::start to reconstruct slightly moved spots without a factorisation of their own.
   Eigen::MatrixXd slope_fit_factor;
   double slope_fit_norm_radius_mm = 0;
-  int slope_fit_factorizations = 0;  // QR factorisations the slope fits needed at the chosen t
+  int slope_fit_factorizations = 0;  // factorisations the slope fits needed at the chosen t (cold: one per pass)
 };
 
 struct ReconstructOptions {

@@ -23,7 +23,7 @@ struct SweepRow {
 struct SweepTiming {
   double design_ms = 0;
   double synthesis_ms = 0;
-  double analysis_ms = 0;  // reconstruction + biconic fit + power maps, all sigmas
+  double analysis_ms = 0;  // reconstruction + biconic fit + power maps, summed over the sigmas (thread time)
   double total_ms = 0;
 };
 
@@ -37,7 +37,8 @@ struct SweepResult {
 };
 
 // Throws std::runtime_error with a one-line message when the configuration cannot be swept (no spot images, etc.).
-SweepResult RunSweep(const model::Config& config);
+// The sigmas run on `jobs` threads (0: every core, util::ParallelFor); the result does not depend on `jobs`.
+SweepResult RunSweep(const model::Config& config, int jobs = 0);
 
 // The distorted spot image of the configured cornea for one sigma (as `topocal simulate` writes it).
 model::SyntheticImage SimulateSpots(const model::Config& config, double sigma_per_mm2);

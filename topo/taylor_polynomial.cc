@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include <Eigen/Cholesky>
 #include <Eigen/QR>
 
 namespace topocal::topo {
@@ -156,8 +157,10 @@ void BuildDesign(const TaylorPolynomial& poly, const std::vector<Eigen::Vector2d
 // residual |R^-T A^T (b - A x)| falls below `tolerance` times its value at x = 0.
 bool PreconditionedCgls(const Eigen::MatrixXd& A, const Eigen::VectorXd& b, const Eigen::MatrixXd& R,
                         Eigen::VectorXd* x) {
-  // 1e-13: the normal residual of a QR solution in double on this problem is ~1e-15 relative; CGLS stops close above.
-  constexpr double kTolerance = 1e-13;
+  // 1e-14: the normal residual of a QR solution in double on this problem is ~1e-15 relative; CGLS stops close
+  // above. (1e-13 left a cold first fit from the Cholesky factor 4e-11 from the QR solution; 1e-14 took as many
+  // iterations over the paper sweep and 40 harness cases, 2-16, median 7, never the budget; issue 15.)
+  constexpr double kTolerance = 1e-14;
   constexpr int kMaxIterations = 25;
   const auto Rt = R.triangularView<Eigen::Upper>();
   Eigen::VectorXd r = b - A * (*x);
@@ -193,6 +196,58 @@ bool SolveByQr(const Eigen::MatrixXd& A, const Eigen::VectorXd& rhs, Eigen::Vect
   return x->allFinite();
 }
 
+// A^T A of the design matrix (BuildDesign) from the moments of the points, M(p, q) = sum_i u_i^p v_i^q: the
+// entry of the terms u^a v^b and u^c v^d is (a c M(a+c-2, b+d) + b d M(a+c, b+d-2)) / R^2 (the x rows and the
+// y rows of the gradient). The moments up to degree 2D - 2 are ~150 sums over the points, against the 2 m n^2 of
+// forming A^T A from A (whose blocked product also packed A into fresh buffers: page faults). Lower triangle only.
+void NormalMatrixFromMoments(const TaylorPolynomial& poly, const std::vector<Eigen::Vector2d>& points_mm,
+                             Eigen::MatrixXd* normal) {
+  constexpr int kMaxMoment = 2 * kMaxDegree - 2;
+  const int top = 2 * poly.degree() - 2;
+  const double norm = poly.norm_radius_mm();
+  double moments[kMaxMoment + 1][kMaxMoment + 1] = {};
+  for (const auto& p : points_mm) {
+    double pu[kMaxMoment + 1], pv[kMaxMoment + 1];
+    Powers(p.x() / norm, p.y() / norm, top, pu, pv);
+    for (int a = 0; a <= top; ++a) {
+      for (int b = 0; a + b <= top; ++b) moments[a][b] += pu[a] * pv[b];
+    }
+  }
+  const int unknowns = poly.terms() - 1;
+  const double inv2 = 1.0 / (norm * norm);
+  normal->resize(unknowns, unknowns);
+  for (int k = 1; k <= unknowns; ++k) {
+    const auto [a, b] = poly.Exponents(k);
+    for (int l = 1; l <= k; ++l) {
+      const auto [c, d] = poly.Exponents(l);
+      double sum = 0;
+      if (a >= 1 && c >= 1) sum += a * c * moments[a + c - 2][b + d];
+      if (b >= 1 && d >= 1) sum += b * d * moments[a + c][b + d - 2];
+      (*normal)(k - 1, l - 1) = sum * inv2;
+    }
+  }
+}
+
+// The factor R (R^T R = A^T A) from the Cholesky factorisation of the normal matrix A^T A. Far less work than the
+// Householder QR of A and no copy of A (the QR's 1248 x 64 copy was a fresh 640 KB block per reconstruction: page
+// faults and a memset). R only preconditions CGLS, which then iterates to the least-squares solution itself, so
+// the squared condition number of the normal equations costs iterations, not accuracy: with the polynomial
+// normalised on the data radius cond(A) is ~4e3 (degree 10 over a disc of 600 points:
+// tests/topo/power_map_test.cc), so A R^-1 is orthonormal to ~1e-8 and CGLS reaches the QR solution to ~5e-14
+// relative in a few iterations from a cold start (the normal equations alone: ~1e-10). False (the caller falls
+// back to QR) when the factorisation fails or R's diagonal spans more than 1e6 (A^T A's condition number beyond
+// ~1e12: the preconditioner would be too far from A's own R to trust).
+bool FactorNormalEquations(const TaylorPolynomial& poly, const std::vector<Eigen::Vector2d>& points_mm,
+                           Eigen::MatrixXd* normal, Eigen::MatrixXd* r) {
+  NormalMatrixFromMoments(poly, points_mm, normal);
+  const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Lower> llt(*normal);  // in place: L in the lower triangle
+  if (llt.info() != Eigen::Success) return false;
+  const auto diag = normal->diagonal().cwiseAbs();
+  if (!(diag.minCoeff() > 1e-6 * diag.maxCoeff())) return false;
+  *r = normal->transpose().triangularView<Eigen::Upper>();
+  return r->allFinite();
+}
+
 GradientFit Finish(const Eigen::MatrixXd& A, const Eigen::VectorXd& rhs, const Eigen::VectorXd& b,
                    double z_at_origin_mm, TaylorPolynomial* poly) {
   GradientFit fit;
@@ -214,10 +269,18 @@ GradientFit GradientFitter::Fit(const std::vector<Eigen::Vector2d>& points_mm,
   if (2 * static_cast<int>(points_mm.size()) < unknowns || slopes.size() != points_mm.size()) return {};
   BuildDesign(*poly, points_mm, slopes, &a_, &rhs_);
   Eigen::VectorXd x = poly->coefficients().tail(unknowns);
-  if (r_.rows() == unknowns && PreconditionedCgls(a_, rhs_, r_, &x)) {
+  if (started_ && r_.rows() == unknowns && PreconditionedCgls(a_, rhs_, r_, &x)) {
     return Finish(a_, rhs_, x, z_at_origin_mm, poly);
   }
+  started_ = false;
   ++factorizations_;
+  // The factor of these points: from the normal equations (cheap), by QR when they are too ill-conditioned to
+  // serve or CGLS does not converge with their factor.
+  x = poly->coefficients().tail(unknowns);
+  if (FactorNormalEquations(*poly, points_mm, &normal_, &r_) && PreconditionedCgls(a_, rhs_, r_, &x)) {
+    return Finish(a_, rhs_, x, z_at_origin_mm, poly);
+  }
+  x = poly->coefficients().tail(unknowns);
   if (!SolveByQr(a_, rhs_, &x, &r_)) {
     r_.resize(0, 0);
     return {};
