@@ -91,7 +91,7 @@ struct ReconstructionSettings {
                                              // 1.12 um pixel of data/camera.json): the noise the model-adequacy
                                              // figure compares the slope residual with
   std::string surface_model = "polynomial";  // "polynomial" (Psi alone, the paper's Eq. 21) or "spline" (Psi plus
-                                             // a bicubic P-spline residual, GCV-smoothed: freeform corneas;
+                                             // a bicubic P-spline residual, REML-smoothed: freeform corneas;
                                              // docs/reconstruction.md)
   double spline_spacing_mm = 0.33;           // knot spacing of the spline residual (spots lie ~0.35 mm apart)
   std::string biconic_fit = "free-apex";     // "free-apex" (apex position and tilt free, default), "paper" or "sphere" (topo/sphere_fit.h)

@@ -41,7 +41,7 @@ void ReconstructionOverrides::AddTo(CLI::App* cmd) {
                   "reconstruction.biconic_fit")
       ->check(CLI::IsMember({"free-apex", "paper", "sphere"}));
   cmd->add_option("--surface-model", surface_model,
-                  "Surface: polynomial (the paper's Psi; default) or spline (Psi plus a GCV-smoothed spline "
+                  "Surface: polynomial (the paper's Psi; default) or spline (Psi plus a REML-smoothed spline "
                   "residual: keratoconus, ablations); overrides reconstruction.surface_model")
       ->check(CLI::IsMember({"polynomial", "spline"}));
 }

@@ -262,9 +262,9 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   if (spline_mode) spline = BSplineSurface(norm_radius, settings.spline_spacing_mm);
   const RecoveredSurface recovered{psi, spline};
   // The spline joins once the polynomial alone has converged (or at once for the single-pass paper method): its
-  // penalty is then chosen by GCV on the residual the polynomial really leaves — on the first pass the normals
-  // still carry the error of the sphere estimate P2', smooth and large, and GCV would smooth the cone away — and
-  // kept for the remaining refinement.
+  // penalty is then chosen (REML) on the residual the polynomial really leaves — on the first pass the normals
+  // still carry the error of the sphere estimate P2', smooth and large, and the choice (GCV, when measured) smoothed
+  // the cone away — and kept for the remaining refinement.
   bool spline_active = spline_mode && !iterate;
   double lambda = -1;
   std::vector<Eigen::Vector2d> residual_slopes(n);

@@ -48,7 +48,7 @@ struct Reconstruction {
   // surface_model "spline": a bicubic P-spline fitted to the slopes Psi leaves, with B(0, 0) = 0 (empty
   // otherwise). The recovered surface is Psi + residual: use Height() / Derivatives(), not Psi alone.
   BSplineSurface residual;
-  double spline_lambda = 0;          // GCV-chosen penalty weight
+  double spline_lambda = 0;          // REML-chosen penalty weight
   double spline_effective_params = 0;
   double Height(double x_mm, double y_mm) const;
   void Derivatives(double x_mm, double y_mm, model::SurfaceDerivatives* d) const;

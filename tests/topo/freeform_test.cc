@@ -47,12 +47,13 @@ TEST(Freeform, SplineHoldsAKeratoconusCone) {
   const auto e = Measure("kc-33um-0.85mm", SplineConfig());
   ExpectAllTargets(e);
   EXPECT_NEAR(e.cone_height_recovered_um, e.cone_height_true_um, kConeHeightRelative * e.cone_height_true_um);
-  // Regression (measured 2026-12-01): axial rms 0.015 / max 0.122 D, tangential rms 0.089 D, height rms 0.027 um,
-  // Kmax -0.004 D at 0.059 mm, cone 19.99 -> 20.01 um.
+  // Regression (measured 2026-12-02, lambda by REML): axial rms 0.015 / max 0.121 D, tangential rms 0.145 D,
+  // height rms 0.071 um, Kmax -0.004 D at 0.059 mm, cone 19.99 -> 19.97 um. (With GCV, 2026-12-01: tangential
+  // 0.089 D, height 0.027 um; REML smooths this cone a little more and holds the ablations and noisy data better.)
   EXPECT_LT(e.axial_rms_D, 0.03);
   EXPECT_LT(e.axial_max_D, 0.25);
   EXPECT_LT(e.tangential_rms_D, 0.18);
-  EXPECT_LT(e.height_rms_um, 0.055);
+  EXPECT_LT(e.height_rms_um, 0.09);
   EXPECT_NEAR(e.cone_height_recovered_um, e.cone_height_true_um, 0.1);
 }
 
@@ -60,25 +61,27 @@ TEST(Freeform, SplineHoldsANippleCone) {
   const auto e = Measure("kc-14um-0.87mm-nipple", SplineConfig());
   ExpectAllTargets(e);
   EXPECT_NEAR(e.cone_height_recovered_um, e.cone_height_true_um, kConeHeightRelative * e.cone_height_true_um);
-  // Regression (2026-12-01): axial rms 0.007 / max 0.055 D, tangential rms 0.039 D, height 0.007 um.
+  // Regression (2026-12-02, REML): axial rms 0.008 / max 0.056 D, tangential rms 0.099 D, height 0.039 um
+  // (GCV, 2026-12-01: tangential 0.039 D).
   EXPECT_LT(e.axial_rms_D, 0.015);
-  EXPECT_LT(e.tangential_rms_D, 0.08);
+  EXPECT_LT(e.tangential_rms_D, 0.13);
 }
 
 TEST(Freeform, SplineOnAMyopicAblation) {
   // -5 D over 6 mm, decentred 0.5 mm. Axial map, Kmax and sim-K meet the targets; the tangential map and the
   // height do NOT yet (the C2 blend's curvature kink at r = 3-4 mm is narrower than the spot spacing:
-  // tangential rms 1.37 D against 0.25 D, height rms 0.42 um against 0.1 um, measured 2026-12-01).
+  // tangential rms 0.86 D against 0.25 D, height rms 0.17 um against 0.1 um, measured 2026-12-02).
   const auto e = Measure("lasik-myopic-5D-decentred", SplineConfig());
   EXPECT_LT(e.axial_rms_D, kAxialRmsD);
   EXPECT_LT(e.axial_max_D, kAxialMaxD);
   EXPECT_LT(std::abs(e.kmax_error_D), kKmaxD);
   EXPECT_LT(std::abs(e.steep_k_error_D), kSimKD);
   EXPECT_LT(std::abs(e.flat_k_error_D), kSimKD);
-  // Regression bounds (measured 0.053 D axial rms, 1.37 D tangential rms, 0.42 um height rms).
-  EXPECT_LT(e.axial_rms_D, 0.1);
-  EXPECT_LT(e.tangential_rms_D, 2.8);
-  EXPECT_LT(e.height_rms_um, 0.85);
+  // Regression bounds (measured 2026-12-02, REML: 0.032 D axial rms, 0.86 D tangential rms, 0.17 um height rms;
+  // with GCV, 2026-12-01: 0.053 D, 1.37 D, 0.42 um).
+  EXPECT_LT(e.axial_rms_D, 0.05);
+  EXPECT_LT(e.tangential_rms_D, 1.1);
+  EXPECT_LT(e.height_rms_um, 0.22);
 }
 
 TEST(Freeform, BothModelsHoldAnObliqueToricBiconic) {
@@ -161,7 +164,9 @@ TEST(Freeform, TheModelFitsThePaperCorneaAndMapsBeyondTheDataAreFlagged) {
 }
 
 // A refit after the points moved by a micrometre reuses the factorisation (conjugate gradients preconditioned by
-// it) and gives the fresh direct solution. Measured 2026-12-01: coefficients agree to ~1e-14 relative.
+// it) and gives the fresh direct solution. Measured 2026-12-02 (lambda by REML, 1.0e-5; GCV chose a larger one):
+// coefficients agree to 1.3e-9 relative (~1e-14 at GCV's lambda), and one of the three refits is left to a fresh
+// factorisation because conjugate gradients did not reach 1e-13 in 12 steps.
 TEST(SplineFit, RefitsReuseTheFactorisationAndMatchAFreshSolve) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(-4.0, 4.0);
@@ -184,10 +189,10 @@ TEST(SplineFit, RefitsReuseTheFactorisationAndMatchAFreshSolve) {
     ASSERT_TRUE(fitter.Fit(points, slopes, chosen.lambda, SplineFitOptions{}, &refit).ok);
     ASSERT_TRUE(FitSplineToSlopes(points, slopes, chosen.lambda, SplineFitOptions{}, &fresh).ok);
     const double relative = (refit.coefficients() - fresh.coefficients()).norm() / fresh.coefficients().norm();
-    EXPECT_LT(relative, 1e-10);  // regression bound; the solver's own target is a 1e-13 relative residual
+    EXPECT_LT(relative, 5e-9);  // regression bound; the solver's own target is a 1e-13 relative residual
   }
-  // The first refit after GCV factorises at the chosen lambda; the next two reuse it.
-  EXPECT_EQ(fitter.refits_by_cg(), 2);
+  // The first refit after the lambda search factorises at the chosen lambda; the next two reuse it.
+  EXPECT_GE(fitter.refits_by_cg(), 1);
 }
 
 }  // namespace
