@@ -23,6 +23,8 @@ install(TARGETS ${TOPOCAL_LIBRARY_TARGETS} EXPORT topocalTargets
 install(FILES ${PROJECT_BINARY_DIR}/generated/util/version.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/topocal/util
         COMPONENT dev)
 install(TARGETS topocal RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT cli)
+# Every verb; `topocal` (tools/launcher.cc) runs it from <bindir>/../<libexecdir>.
+install(TARGETS topocal_full RUNTIME DESTINATION ${CMAKE_INSTALL_LIBEXECDIR} COMPONENT cli)
 # imageio's codec plugin (imageio/imgcodecs_abi.h), where the installed CLI finds it relative to itself
 # (<bindir>/../<libdir>/topocal) and programs linking the installed libraries find it by the configured prefix.
 install(TARGETS topocal_imgcodecs LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}/topocal COMPONENT cli)
@@ -39,12 +41,12 @@ install(FILES ${PROJECT_BINARY_DIR}/topocalConfig.cmake ${PROJECT_BINARY_DIR}/to
 configure_file(${PROJECT_SOURCE_DIR}/cmake/topocal.pc.in ${PROJECT_BINARY_DIR}/topocal.pc @ONLY)
 install(FILES ${PROJECT_BINARY_DIR}/topocal.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig COMPONENT dev)
 
-# The build tree mirrors the installed layout for the data, so that build/tools/topocal finds it the same way an
+# The build tree mirrors the installed layout for the data, so that build/libexec/topocal-full finds it the same way an
 # installed binary does (relative to itself: <bindir>/../share/topocal/data), never through a source path.
 add_custom_target(topocal_data ALL
   COMMAND ${CMAKE_COMMAND} -E copy_directory ${PROJECT_SOURCE_DIR}/data ${PROJECT_BINARY_DIR}/share/topocal/data
   COMMENT "Copying the bundled data into the build tree")
-add_dependencies(topocal topocal_data)
+add_dependencies(topocal_full topocal_data)
 
 # Debian package: `cpack -G DEB` in the build tree. Runtime dependencies are Debian 12's packages.
 set(CPACK_PACKAGE_NAME topocal)

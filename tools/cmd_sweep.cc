@@ -3,8 +3,8 @@
 #include "model/config.h"
 #include "model/topographer_camera.h"
 #include "pipeline/closed_loop.h"
-#include "pipeline/map_output.h"
 #include "report/analysis_json.h"
+#include "tools/cli_app.h"
 #include "tools/commands.h"
 #include "tools/output_dir.h"
 #include "tools/surface_option.h"
@@ -90,7 +90,7 @@ void PrintTableV(const topo::SweepResult& r) {
 
 }  // namespace
 
-void AddSweepCommand(CLI::App& app) {
+void AddSweepCommand(CLI::App& app, const SweepImageStages* image_stages) {
   auto* cmd = app.add_subcommand("sweep", "Run every sigma of the configuration and print the paper's tables");
   auto config = std::make_shared<std::string>();
   auto json_out = std::make_shared<std::string>();
@@ -107,6 +107,7 @@ void AddSweepCommand(CLI::App& app) {
                 "sensor image, undistort, reconstruct; print before and after side by side");
   cmd->add_option("--camera", *camera, "Topographer camera (JSON) for --correct; default: 1.12 um pitch, a from the config");
   cmd->callback([=] {
+    if ((*correct || !maps->empty()) && !image_stages) throw NeedsFullCli{};  // before any work or output
     const NewDirectoryGuard maps_guard(*maps);  // a failed run leaves no empty --maps folder
     auto cfg = model::LoadConfig(*config);
     overrides->ApplyTo(&cfg);
@@ -128,24 +129,12 @@ void AddSweepCommand(CLI::App& app) {
     PrintClinical(result);
     std::vector<pipeline::ClosedLoopResult> corrected;
     if (*correct) {
-      for (const auto& row : result.rows) {
-        fmt::print(stderr, "topocal sweep: closing the loop at sigma = {:.3g} ...\n", row.sigma_per_mm2);
-        corrected.push_back(pipeline::RunClosedLoop(cfg, row.sigma_per_mm2, options));
-      }
+      corrected = image_stages->close_loops(cfg, result, options);
       PrintCorrection(result, corrected);
     }
     util::StagedOutputs outputs;  // the JSON and the maps are published together or not at all
     if (!json_out->empty()) outputs.AddFile(*json_out, report::SweepJson(result, corrected));
-    if (!maps->empty()) {
-      // One set: every sigma's map of a kind on the same scale, so that the sweep compares by eye.
-      std::vector<pipeline::AnalysisMapEntry> entries;
-      for (const auto& row : result.rows) {
-        entries.push_back({fmt::format("sigma_{:+.3g}_", row.sigma_per_mm2),
-                           fmt::format(", \u03c3 = {:.3g} mm\u207b\u00b2", row.sigma_per_mm2), &row.analysis,
-                           &cfg.cornea, {}});
-      }
-      pipeline::WriteAnalysisMapSet(outputs.AddDirectory(*maps), entries);
-    }
+    if (!maps->empty()) image_stages->write_maps(outputs, *maps, cfg, result);
     outputs.Commit();
   });
 }

@@ -2,12 +2,15 @@
 // Each verb of the `topocal` command line lives in its own cmd_<verb>.cc and registers itself here.
 // A command's callback throws util::ConfigError / util::InputError for bad input (exit 2) and
 // std::runtime_error for a computation that failed (exit 1); main() turns them into one line on stderr.
-#include <stdexcept>
-
 #include <CLI/CLI.hpp>
 #include <opencv2/core/mat.hpp>
+#include <stdexcept>
 
+#include "model/config.h"
 #include "model/topographer_camera.h"
+#include "pipeline/closed_loop.h"
+#include "topo/sweep.h"
+#include "util/io.h"
 
 namespace topocal::tools {
 
@@ -20,7 +23,17 @@ class VerdictFailed : public std::runtime_error {
 
 void AddDesignCommand(CLI::App& app);
 void AddSimulateCommand(CLI::App& app);
-void AddSweepCommand(CLI::App& app);
+// The sweep's two stages that need OpenCV: --correct (a rendered target and sensor image, calibrated, detected,
+// undistorted) and --maps (map images). topocal-full passes kSweepImageStages (cmd_sweep_stages.cc); the launcher,
+// which links no OpenCV, passes nullptr, and a sweep that asks for either throws NeedsFullCli (cli_app.h).
+struct SweepImageStages {
+  std::vector<pipeline::ClosedLoopResult> (*close_loops)(const model::Config& config, const topo::SweepResult& result,
+                                                         const pipeline::ClosedLoopOptions& options);
+  void (*write_maps)(util::StagedOutputs& outputs, const std::string& dir, const model::Config& config,
+                     const topo::SweepResult& result);
+};
+extern const SweepImageStages kSweepImageStages;
+void AddSweepCommand(CLI::App& app, const SweepImageStages* image_stages);
 void AddReconstructCommand(CLI::App& app);
 void AddRenderSpotsCommand(CLI::App& app);
 void AddUndistortCommand(CLI::App& app);

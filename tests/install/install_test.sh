@@ -52,6 +52,20 @@ msg=$("$prefix/bin/topocal" unit calibrate --serial SN-1 --target "$prefix/share
       --images 'none*.png' --out "$work/unit/SN-1/" 2>&1)
 set -e
 case "$msg" in *"no file matches"*|*"none*.png"*) ;; *) echo "installed unit calibrate: $msg" >&2; exit 1 ;; esac
+# Without topocal-full: `--version` and the sweep still run in the launcher; every other verb fails with one line
+# naming the missing program, and writes nothing.
+mv "$prefix/libexec/topocal-full" "$work/full"
+"$prefix/bin/topocal" --version
+"$prefix/bin/topocal" sweep --config "$data/paper.json" --json sweep.json >/dev/null
+test -s sweep.json
+set +e
+msg=$("$prefix/bin/topocal" simulate --config "$data/paper.json" --sigma 0 --out nofull.csv 2>&1)
+code=$?
+set -e
+case "$code:$msg" in 1:*"cannot run"*"libexec/topocal-full"*) ;; *) echo "without topocal-full ($code): $msg" >&2; exit 1 ;; esac
+test "$(wc -l <<< "$msg")" -eq 1
+test ! -e nofull.csv
+mv "$work/full" "$prefix/libexec/topocal-full"
 # The Debian package, with Debian 12's runtime dependencies.
 (cd "$build" && cpack -G DEB -B "$work/deb" >/dev/null)
 # (captured first: grep -q would close the pipe early and pipefail would report dpkg-deb's SIGPIPE)
@@ -60,4 +74,5 @@ grep "Depends:.*libceres-dev" <<< "$info" >/dev/null
 contents=$(dpkg-deb -c "$work"/deb/topocal_*_amd64.deb)
 grep "usr/share/topocal/data/paper.json" <<< "$contents" >/dev/null
 grep "usr/lib/topocal/libtopocal_imgcodecs.so" <<< "$contents" >/dev/null
+grep "usr/libexec/topocal-full" <<< "$contents" >/dev/null
 echo "install test passed"

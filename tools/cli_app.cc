@@ -1,0 +1,62 @@
+#include "tools/cli_app.h"
+
+#include <fmt/format.h>
+#include <glog/logging.h>
+
+#include <cstdio>
+#include <exception>
+#include <string>
+
+#include "tools/commands.h"
+#include "tools/progress.h"
+#include "util/io.h"
+#include "util/version.h"
+
+namespace topocal::tools {
+
+void SetUpApp(CLI::App& app) {
+  // Before any thread starts: SIGINT/SIGTERM/SIGHUP remove staged outputs, then end the process (util/io.h).
+  util::InstallSignalCleanup();
+  // Ceres logs through glog (failed steps, rank-deficient covariances); every failure reaches the user as one line
+  // from the library's own result, so glog's lines would only be noise on stderr.
+  FLAGS_minloglevel = google::GLOG_FATAL;
+  app.set_version_flag("--version", std::string("topocal ") + kVersion);
+  app.require_subcommand(1);
+  // Every option shows its default in --help (subcommands inherit this when they are created).
+  app.option_defaults()->always_capture_default();
+  // --quiet anywhere on the line (before or after the verb): no progress lines on stderr.
+  auto quiet = std::make_shared<bool>(false);
+  app.add_flag("--quiet", *quiet, "No progress lines on stderr (they are off anyway when stderr is not a terminal)");
+  app.fallthrough();
+  app.parse_complete_callback([quiet] { SetQuiet(*quiet); });
+}
+
+int RunApp(CLI::App& app, int argc, char** argv) {
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return 2;
+  } catch (const util::ConfigError& e) {
+    fmt::print(stderr, "topocal: {}\n", e.what());
+    return 2;
+  } catch (const util::InputError& e) {
+    fmt::print(stderr, "topocal: {}\n", e.what());
+    return 2;
+  } catch (const VerdictFailed& e) {
+    fmt::print(stderr, "topocal: {}\n", e.what());
+    return 3;
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "topocal: {}\n", e.what());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace topocal::tools
