@@ -307,9 +307,10 @@ SplineFit SplineSlopeFitter::Fit(const std::vector<Eigen::Vector2d>& points_mm,
       }
       return value;
     };
-    // The walk: from the grid point nearest lambda_start towards the smaller criterion while it falls. On every
-    // cornea measured REML over the grid has one minimum (docs/reconstruction.md), so the walk stops where the
-    // whole grid's minimum is — in 3 factorisations when it is at the start, instead of one per grid point.
+    // The walk: from the grid point nearest lambda_start towards the smaller criterion while it falls — 3
+    // factorisations when the minimum is at the start, instead of one per grid point. Where REML over the grid has
+    // one minimum the walk ends there; on the freeform test set it chose what the whole grid chose (the table is
+    // unchanged to the printed digits, docs/reconstruction.md).
     int start = 0;
     for (int i = 1; i < static_cast<int>(grid.size()); ++i) {
       if (std::abs(std::log(grid[i] / o.lambda_start)) < std::abs(std::log(grid[start] / o.lambda_start))) start = i;

@@ -61,7 +61,7 @@ struct SplineFitOptions {
   double lambda_min = 1e-8;   // REML over the grid lambda / lambda_scale = lambda_max / lambda_step^k in
   double lambda_max = 1e2;    // [lambda_min, lambda_max], lambda_scale = tr(A^T A) / tr(D^T D); walked from the
   double lambda_step = 100;   // grid point nearest lambda_start towards the smaller criterion until it rises
-  double lambda_start = 1e-4; // (REML chose 1e-4 on every cornea of the test set: 3 factorisations, not 6)
+  double lambda_start = 1e-4; // (3 factorisations when REML's minimum is there, instead of one per grid point)
   int support_margin = 1;     // rings of coefficients solved for around those whose support holds a point
 };
 
