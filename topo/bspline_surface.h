@@ -58,9 +58,11 @@ struct SplineFitOptions {
                               // their peak power), penalising its change
   int trace_probes = 8;         // Rademacher vectors for tr H (effective parameters, at the chosen lambda)
   unsigned seed = 1;          // of the probes (determinism)
-  double lambda_min = 1e-8;   // REML search over lambda / lambda_scale in [min, max], lambda_step apart,
-  double lambda_max = 1e2;    // lambda_scale = tr(A^T A) / tr(D^T D) (6 factorisations: the search is the
-  double lambda_step = 100;   // spline's main cost)
+  double lambda_min = 1e-8;   // REML over the grid lambda / lambda_scale = lambda_max / lambda_step^k in
+  double lambda_max = 1e2;    // [lambda_min, lambda_max], lambda_scale = tr(A^T A) / tr(D^T D); walked from the
+  double lambda_step = 100;   // grid point nearest lambda_start towards the smaller criterion until it rises
+  double lambda_start = 1e-4; // (3 factorisations when REML's minimum is there, instead of one per grid point)
+  int support_margin = 1;     // rings of coefficients solved for around those whose support holds a point
 };
 
 struct SplineFit {
@@ -74,12 +76,12 @@ struct SplineFit {
 SplineFit FitSplineToSlopes(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes,
                             double lambda, const SplineFitOptions& options, BSplineSurface* spline);
 
-// The same fit, repeated as the reconstruction refines its points: a refit with the previous lambda on the same
-// spline reuses the previous factorisation of M = A^T A + lambda P as the preconditioner of conjugate gradients on
-// the new system. Between iterations the points move by micrometres, M changes by far less than itself, and a few
-// CG steps reach the direct solution (relative residual 1e-13); the sparse factorisation was ~40 % of a spline
-// reconstruction (about one per iteration, 3 ms each for 961 unknowns). If CG does not converge in a few steps the
-// system is factorised afresh, so the result never depends on the history beyond rounding.
+// The same fit, repeated as the reconstruction refines its points (micrometres between passes). The unknowns are
+// the coefficients near the data (SplineFitOptions::support_margin; the others are 0); M = A^T A + lambda P is
+// assembled in place on a pattern built once for them (every pair of unknowns within 3 grid steps) and analysed
+// once per slot, and every fit factorises its own M: a refit equals a fresh fit exactly. lambda by REML walks the
+// grid from lambda_start (3 factorisations when REML's minimum is there) and keeps the chosen one's factorisation
+// for the trace probes. Measured 2026-12-02 (docs/reconstruction.md, "The spline's cost").
 class SplineSlopeFitter {
  public:
   SplineFit Fit(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes, double lambda,
@@ -90,14 +92,30 @@ class SplineSlopeFitter {
   // Natural ordering: the coefficients in grid order (row by row) make M banded (half-bandwidth 3 rows + 3); its
   // symbolic analysis is ~0.5 ms against AMD's 1.4-8 ms on the keratoconus measurement, for a factorisation as fast
   // (nnz(L) 158 k against 130 k, 5.5-6 ms either way; measured 2026-12-02, docs/reconstruction.md).
-  Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>> solver_;
-  bool factorised_ = false;    // solver_ holds a factorisation of M for factorised_lambda_
-  double factorised_lambda_ = -1;
-  int unknowns_ = 0;
-  int refits_by_cg_ = 0;
+  using Solver = Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>>;
+  // Two factorisations: the REML walk factorises each lambda into the slot that does not hold the best so far, so
+  // the chosen lambda's factorisation is kept (for the trace probes) without a repeat.
+  Solver solvers_[2];
+  int best_ = 0;               // the slot that holds the chosen lambda's factorisation
+  std::vector<int> pattern_key_;  // the unknowns (and the penalty order) of the analysed pattern
+  SparseMatrix m_;                // M's pattern (both triangles) and the values of the last M assembled
+  std::vector<double> ata_values_, penalty_values_;  // A^T A and the penalty D^T D on m_'s pattern
+  std::vector<int> diagonal_;     // places of the diagonal in m_'s values
+  std::vector<int> local_;        // per unknown (column), the place of each neighbour (span_ x span_) in m_'s values
+  std::vector<int> grid_of_;      // the grid index of each unknown
+  int span_ = 0, half_span_ = 0;
+  // The place in m_'s values of (row, column) unknowns (both in the neighbourhood).
+  int Place(int row, int column, int side) const {
+    const int dr = grid_of_[row] / side - grid_of_[column] / side, dc = grid_of_[row] % side - grid_of_[column] % side;
+    return local_[(static_cast<size_t>(column) * span_ + dr + half_span_) * span_ + dc + half_span_];
+  }
+  bool analysed_[2] = {false, false};
+  int analyses_ = 0;
+  int factorisations_ = 0;
 
  public:
-  int refits_by_cg() const { return refits_by_cg_; }  // refits that reused a factorisation (diagnostics, tests)
+  int analyses() const { return analyses_; }  // patterns built and analysed so far (diagnostics, tests)
+  int factorisations() const { return factorisations_; }  // numeric factorisations so far (diagnostics, tests)
 };
 
 }  // namespace topocal::topo

@@ -268,7 +268,7 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   bool spline_active = spline_mode && !iterate;
   double lambda = -1;
   std::vector<Eigen::Vector2d> residual_slopes(n);
-  SplineSlopeFitter spline_fitter;  // keeps its factorisation from one refinement to the next
+  SplineSlopeFitter spline_fitter;  // keeps its pattern and analysis from one refinement to the next
   for (int it = 0; it < max_iterations; ++it) {
     for (int i = 0; i < n; ++i) {
       normals[i] = NormalFromRays(prep.rays[i].incident, p2[i], prep.rays[i].target);
