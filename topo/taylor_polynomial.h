@@ -29,6 +29,10 @@ class TaylorPolynomial {
   double Value(double x_mm, double y_mm) const;
   // Value and gradient (mm, dimensionless slopes).
   void ValueAndGradient(double x_mm, double y_mm, double* z, double* zx, double* zy) const;
+  // ValueAndGradient at `count` points (x_mm[i], y_mm[i]), each bit for bit the single-point result (the same
+  // operations in the same order), four points interleaved so that their Horner chains overlap.
+  void ValueAndGradientMany(int count, const double* x_mm, const double* y_mm, double* z, double* zx,
+                            double* zy) const;
   // Value, gradient and Hessian (1/mm).
   void Derivatives(double x_mm, double y_mm, double* z, double* zx, double* zy, double* zxx, double* zxy,
                    double* zyy) const;
