@@ -1,5 +1,6 @@
 #include "model/surface.h"
 
+#include <cmath>
 #include <limits>
 
 #include <ceres/jet.h>
@@ -40,11 +41,38 @@ bool EvaluateByJets(const S& surface, double x, double y, SurfaceDerivatives* d)
 }  // namespace
 
 bool Biconic::Evaluate(double x, double y, SurfaceDerivatives* d) const noexcept {
-  // Eq. 12-13 are written once, in BiconicKernel (templated); its gradient in jets carries the exact Hessian, tilted
-  // or not (the tilted kernel's final Newton step makes z exact to first order). A second, hand-derived Hessian
-  // formula here is not worth its upkeep: Evaluate serves the truth's power maps and height differences (a few
-  // 10^4 points per analysis), not an inner loop.
-  return EvaluateByJets(*this, x, y, d);
+  // Eq. 12-13 are written once, in BiconicKernel (templated). The tilted surface takes its Hessian from jets of the
+  // kernel's gradient (its final Newton step makes z exact to first order). The untilted one — every truth of the
+  // paper sweep, whose ideal power maps sample it at 36,000 points — differentiates the kernel's gradient in closed
+  // form below (issue 15: the jets were 8 % of the one-thread sweep); tests/model/surface_test.cc checks it against
+  // the jets and against central differences.
+  if (Tilted()) return EvaluateByJets(*this, x, y, d);
+  double q[BiconicKernel::kNumParams];
+  BiconicKernel::FromParams(params, q);
+  const BiconicKernel::Frame<double> fr = BiconicKernel::FrameOf(q);
+  if (!BiconicKernel::UntiltedSag(fr, q, x, y, &d->z, &d->zx, &d->zy)) return false;
+  // In the biconic's own frame (X, Y) = Rot(alpha) (x, y) - (x0, y0): zz = N / (1 + s), N = c_x X^2 + c_y Y^2,
+  // s = sqrt(1 - qx X^2 - qy Y^2). From zz (1 + s) = N: zz_i = (N_i - zz s_i) / (1 + s) and
+  // zz_ij = (N_ij - zz_i s_j - zz_j s_i - zz s_ij) / (1 + s), with s_X = -qx X / s, s_XX = -(qx + s_X^2) / s,
+  // s_XY = -s_X s_Y / s (the kernel's expressions for zz and its gradient).
+  const double cx = q[BiconicKernel::kCx], cy = q[BiconicKernel::kCy];
+  const double X = fr.ca * x + fr.sa * y - q[BiconicKernel::kX0];
+  const double Y = -fr.sa * x + fr.ca * y - q[BiconicKernel::kY0];
+  const double s = std::sqrt(1.0 - fr.qx * X * X - fr.qy * Y * Y);
+  const double den = 1.0 + s;
+  const double zz = (cx * X * X + cy * Y * Y) / den;
+  const double sX = -fr.qx * X / s, sY = -fr.qy * Y / s;
+  const double zX = (2.0 * cx * X - zz * sX) / den, zY = (2.0 * cy * Y - zz * sY) / den;
+  const double sXX = -(fr.qx + sX * sX) / s, sYY = -(fr.qy + sY * sY) / s, sXY = -sX * sY / s;
+  const double zXX = (2.0 * cx - 2.0 * zX * sX - zz * sXX) / den;
+  const double zYY = (2.0 * cy - 2.0 * zY * sY - zz * sYY) / den;
+  const double zXY = (-zX * sY - zY * sX - zz * sXY) / den;
+  // Back to (x, y): X_x = ca, X_y = sa, Y_x = -sa, Y_y = ca.
+  const double ca = fr.ca, sa = fr.sa;
+  d->zxx = ca * ca * zXX - 2.0 * ca * sa * zXY + sa * sa * zYY;
+  d->zxy = ca * sa * (zXX - zYY) + (ca * ca - sa * sa) * zXY;
+  d->zyy = sa * sa * zXX + 2.0 * ca * sa * zXY + ca * ca * zYY;
+  return true;
 }
 
 double Biconic::DefinedRadiusMm() const noexcept {

@@ -38,17 +38,17 @@ bool ComputePowerMaps(const TaylorPolynomial& psi, const PowerMapOptions& o, Pow
   const int top = psi.degree();
   const auto sampler = [&](double theta, int n, const double* rho, double* f, double* df, double* d2f) {
     psi.MeridianCoefficients(theta, g.data());
-    for (int k = 0; k < n; ++k) {
-      const double r = rho[k];
-      double v = g[top], d1 = 0, d2 = 0;  // Horner for the value and both derivatives together
-      for (int d = top - 1; d >= 0; --d) {
-        d2 = d2 * r + 2.0 * d1;
-        d1 = d1 * r + v;
-        v = v * r + g[d];
+    // Horner for the value and both derivatives together, one degree at a time over all samples: the samples'
+    // chains are independent, so they vectorise and overlap (each sample's operations as in a per-sample loop).
+    for (int k = 0; k < n; ++k) f[k] = g[top], df[k] = 0, d2f[k] = 0;
+    for (int d = top - 1; d >= 0; --d) {
+      const double gd = g[d];
+      for (int k = 0; k < n; ++k) {
+        const double r = rho[k];
+        d2f[k] = d2f[k] * r + 2.0 * df[k];
+        df[k] = df[k] * r + f[k];
+        f[k] = f[k] * r + gd;
       }
-      f[k] = v;
-      df[k] = d1;
-      d2f[k] = d2;
     }
     return true;
   };
@@ -101,13 +101,18 @@ bool ComputePowerMaps(const MeridianSampler& meridian, const PowerMapOptions& o,
         d2s(k) = d2 / (o.radius_mm * o.radius_mm);
       }
     }
-    for (int k = 0; k < K; ++k) {
+    double* axial = maps->axial_D.data() + static_cast<size_t>(j) * K;
+    double* tangential = maps->tangential_D.data() + static_cast<size_t>(j) * K;
+    for (int k = 0; k < K; ++k) {  // no branch inside: it vectorises
       const double g = 1.0 + d1s(k) * d1s(k);
       const double ka = d1s(k) / (rho(k) * std::sqrt(g));   // Eq. 24
       const double km = d2s(k) / (g * std::sqrt(g));
-      if (!std::isfinite(ka) || !std::isfinite(km)) return Fail(why, "curvature is not finite");
-      maps->axial_D[static_cast<size_t>(j) * K + k] = ka * power_per_curvature;  // Eq. 25
-      maps->tangential_D[static_cast<size_t>(j) * K + k] = km * power_per_curvature;
+      axial[k] = ka * power_per_curvature;  // Eq. 25
+      tangential[k] = km * power_per_curvature;
+    }
+    for (int k = 0; k < K; ++k) {
+      // A non-finite curvature is non-finite times a finite power_per_curvature: the same test as on ka, km.
+      if (!std::isfinite(axial[k]) || !std::isfinite(tangential[k])) return Fail(why, "curvature is not finite");
     }
   }
   const auto [amin, amax] = std::minmax_element(maps->axial_D.begin(), maps->axial_D.end());

@@ -53,31 +53,80 @@ struct RecoveredSurface {
     *zx += sx;
     *zy += sy;
   }
+  // At `count` points, each bit for bit as ValueAndGradient.
+  void ValueAndGradientMany(int count, const double* x, const double* y, double* z, double* zx, double* zy) const {
+    psi.ValueAndGradientMany(count, x, y, z, zx, zy);
+    if (spline.empty()) return;
+    for (int i = 0; i < count; ++i) {
+      double s, sx, sy, sxx, sxy, syy;
+      spline.Derivatives(x[i], y[i], &s, &sx, &sy, &sxx, &sxy, &syy);
+      z[i] += s;
+      zx[i] += sx;
+      zy[i] += sy;
+    }
+  }
 };
 
-// Intersection of the ray h + lambda I with z = S(x, y), by Newton on lambda from lambda0.
-bool IntersectSurface(const RecoveredSurface& psi, const Eigen::Vector3d& h, const Eigen::Vector3d& dir,
-                      double lambda0, Eigen::Vector3d* hit) {
+// Reused buffers of IntersectSurfaces and of the batched evaluations.
+struct BatchScratch {
+  std::vector<double> lambda, x, y, z, zx, zy, pz;
+  std::vector<int> active;
+};
+
+// Intersections of the rays h + lambda dirs[i] with z = S(x, y), each by Newton on lambda from lambda0[i]; ok[i] = 0
+// where Newton fails (flat derivative, non-finite step, no convergence). The rays step in lockstep, the surface
+// evaluated at all rays still iterating in one ValueAndGradientMany call per step (issue 15: the interleaved
+// evaluation overlaps the rays' Horner chains); each ray takes the Newton steps it would take alone, bit for bit.
+void IntersectSurfaces(const RecoveredSurface& psi, const Eigen::Vector3d& h, const std::vector<Eigen::Vector3d>& dirs,
+                       const std::vector<double>& lambda0, std::vector<Eigen::Vector3d>* hits, std::vector<char>* ok,
+                       BatchScratch* w) {
   // 1e-12 mm on lambda: far below the nm accuracy the reconstruction targets, above the double floor at ~70 mm.
   constexpr double kLambdaToleranceMm = 1e-12;
   constexpr int kMaxIterations = 30;
-  double lambda = lambda0;
-  for (int it = 0; it < kMaxIterations; ++it) {
-    const Eigen::Vector3d p = h + lambda * dir;
-    double z, zx, zy;
-    psi.ValueAndGradient(p.x(), p.y(), &z, &zx, &zy);
-    const double f = p.z() - z;
-    const double df = dir.z() - zx * dir.x() - zy * dir.y();
-    if (!(std::abs(df) > 1e-12)) return false;
-    const double step = f / df;
-    lambda -= step;
-    if (!std::isfinite(lambda)) return false;
-    if (std::abs(step) < kLambdaToleranceMm) {
-      *hit = h + lambda * dir;
-      return true;
+  const int n = static_cast<int>(dirs.size());
+  hits->resize(n);
+  ok->assign(n, 0);
+  w->lambda = lambda0;
+  w->active.resize(n);
+  for (int i = 0; i < n; ++i) w->active[i] = i;
+  for (int it = 0; it < kMaxIterations && !w->active.empty(); ++it) {
+    const int m = static_cast<int>(w->active.size());
+    w->x.resize(m), w->y.resize(m), w->pz.resize(m), w->z.resize(m), w->zx.resize(m), w->zy.resize(m);
+    for (int j = 0; j < m; ++j) {
+      const int i = w->active[j];
+      const Eigen::Vector3d p = h + w->lambda[i] * dirs[i];
+      w->x[j] = p.x(), w->y[j] = p.y(), w->pz[j] = p.z();
     }
+    psi.ValueAndGradientMany(m, w->x.data(), w->y.data(), w->z.data(), w->zx.data(), w->zy.data());
+    int kept = 0;
+    for (int j = 0; j < m; ++j) {
+      const int i = w->active[j];
+      const Eigen::Vector3d& dir = dirs[i];
+      const double f = w->pz[j] - w->z[j];
+      const double df = dir.z() - w->zx[j] * dir.x() - w->zy[j] * dir.y();
+      if (!(std::abs(df) > 1e-12)) continue;
+      const double step = f / df;
+      double& lambda = w->lambda[i];
+      lambda -= step;
+      if (!std::isfinite(lambda)) continue;
+      if (std::abs(step) < kLambdaToleranceMm) {
+        (*hits)[i] = h + lambda * dir;
+        (*ok)[i] = 1;
+        continue;
+      }
+      w->active[kept++] = i;
+    }
+    w->active.resize(kept);
   }
-  return false;
+}
+
+// Value and gradient of the surface at the points' (x, y), each as RecoveredSurface::ValueAndGradient.
+template <typename Point>
+void EvaluateAt(const RecoveredSurface& psi, const std::vector<Point>& points, BatchScratch* w) {
+  const int n = static_cast<int>(points.size());
+  w->x.resize(n), w->y.resize(n), w->z.resize(n), w->zx.resize(n), w->zy.resize(n);
+  for (int i = 0; i < n; ++i) w->x[i] = points[i].x(), w->y[i] = points[i].y();
+  psi.ValueAndGradientMany(n, w->x.data(), w->y.data(), w->z.data(), w->zx.data(), w->zy.data());
 }
 
 Eigen::Vector3d NormalFromRays(const Eigen::Vector3d& incident, const Eigen::Vector3d& p2, const Eigen::Vector3d& p3) {
@@ -93,29 +142,36 @@ Eigen::Vector2d SlopesOf(const Eigen::Vector3d& n) { return {-n.x() / n.z(), -n.
 // with the surface and the reflected ray to the same target.
 double ExpectedSlopeNoise(const std::vector<Ray>& rays, const std::vector<Eigen::Vector3d>& p2,
                           const std::vector<Eigen::Vector2d>& slopes, const RecoveredSurface& psi,
-                          const model::Topographer& topo, double sigma_mm, int parameters) {
+                          const model::Topographer& topo, double sigma_mm, int parameters, BatchScratch* w) {
   constexpr double kStepMm = 1e-4;
   const Eigen::Vector3d h = topo.Pinhole();
+  const int count = static_cast<int>(rays.size());
+  // What the fit sees: the measured slope against the surface's own slope at the (moved) incidence point.
+  EvaluateAt(psi, p2, w);
+  const std::vector<double> zx0 = w->zx, zy0 = w->zy;
+  std::vector<Eigen::Matrix2d> J(count);
+  std::vector<char> good(count, 1), ok;
+  std::vector<Eigen::Vector3d> inc(count), hits;
+  std::vector<double> lambda0(count);
+  for (int i = 0; i < count; ++i) lambda0[i] = (p2[i] - h).norm();
+  for (int c = 0; c < 2; ++c) {
+    for (int i = 0; i < count; ++i) inc[i] = topo.IncidentDirection(rays[i].image_mm + kStepMm * Eigen::Vector2d::Unit(c));
+    IntersectSurfaces(psi, h, inc, lambda0, &hits, &ok, w);
+    EvaluateAt(psi, hits, w);
+    for (int i = 0; i < count; ++i) {
+      if (!ok[i]) {
+        good[i] = 0;
+        continue;
+      }
+      const Eigen::Vector2d moved = SlopesOf(NormalFromRays(inc[i], hits[i], rays[i].target)) - Eigen::Vector2d(w->zx[i], w->zy[i]);
+      J[i].col(c) = (moved - (slopes[i] - Eigen::Vector2d(zx0[i], zy0[i]))) / kStepMm;
+    }
+  }
   double sum = 0;
   int n = 0;
-  for (size_t i = 0; i < rays.size(); ++i) {
-    Eigen::Matrix2d J;
-    bool ok = true;
-    for (int c = 0; c < 2 && ok; ++c) {
-      const Eigen::Vector2d image = rays[i].image_mm + kStepMm * Eigen::Vector2d::Unit(c);
-      const Eigen::Vector3d inc = topo.IncidentDirection(image);
-      Eigen::Vector3d hit;
-      ok = IntersectSurface(psi, h, inc, (p2[i] - h).norm(), &hit);
-      if (!ok) break;
-      // What the fit sees: the measured slope against the surface's own slope at the (moved) incidence point.
-      double z, zx0, zy0, zx1, zy1;
-      psi.ValueAndGradient(p2[i].x(), p2[i].y(), &z, &zx0, &zy0);
-      psi.ValueAndGradient(hit.x(), hit.y(), &z, &zx1, &zy1);
-      const Eigen::Vector2d moved = SlopesOf(NormalFromRays(inc, hit, rays[i].target)) - Eigen::Vector2d(zx1, zy1);
-      J.col(c) = (moved - (slopes[i] - Eigen::Vector2d(zx0, zy0))) / kStepMm;
-    }
-    if (!ok) continue;
-    sum += sigma_mm * sigma_mm * J.squaredNorm() / 2.0;  // mean variance of the two slope components
+  for (int i = 0; i < count; ++i) {
+    if (!good[i]) continue;
+    sum += sigma_mm * sigma_mm * J[i].squaredNorm() / 2.0;  // mean variance of the two slope components
     ++n;
   }
   if (n == 0) return 0;
@@ -166,13 +222,12 @@ NeighbourCovariance ResidualNeighbourCovariance(const std::vector<Ray>& rays, co
 
 // Std of |U - n| (paper Sec. 4.1, Eq. 22 against Eq. 19), U = (Psi_x, Psi_y, -1)/norm.
 double Consistency(const RecoveredSurface& psi, const std::vector<Eigen::Vector3d>& p2,
-                   const std::vector<Eigen::Vector3d>& normals) {
+                   const std::vector<Eigen::Vector3d>& normals, BatchScratch* w) {
   const int n = static_cast<int>(p2.size());
   double sum = 0, sum2 = 0;
+  EvaluateAt(psi, p2, w);
   for (int i = 0; i < n; ++i) {
-    double z, zx, zy;
-    psi.ValueAndGradient(p2[i].x(), p2[i].y(), &z, &zx, &zy);
-    const Eigen::Vector3d u = Eigen::Vector3d(zx, zy, -1.0).normalized();
+    const Eigen::Vector3d u = Eigen::Vector3d(w->zx[i], w->zy[i], -1.0).normalized();
     const double d = (u - normals[i]).norm();
     sum += d;
     sum2 += d * d;
@@ -285,6 +340,11 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   bool spline_active = spline_mode && !iterate;
   double lambda = -1;
   std::vector<Eigen::Vector2d> residual_slopes(n);
+  std::vector<Eigen::Vector3d> incident(n), hits;
+  for (int i = 0; i < n; ++i) incident[i] = prep.rays[i].incident;
+  std::vector<double> lambda0(n);
+  std::vector<char> hit_ok;
+  BatchScratch scratch;
   SplineSlopeFitter spline_fitter;  // keeps its pattern and analysis from one refinement to the next
   for (int it = 0; it < max_iterations; ++it) {
     for (int i = 0; i < n; ++i) {
@@ -317,15 +377,16 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
     r.iterations = it + 1;
     if (!iterate) break;
     double moved = 0;
+    for (int i = 0; i < n; ++i) lambda0[i] = (p2[i] - h).norm();
+    IntersectSurfaces(recovered, h, incident, lambda0, &hits, &hit_ok, &scratch);
     for (int i = 0; i < n; ++i) {
-      Eigen::Vector3d hit;
-      if (!IntersectSurface(recovered, h, prep.rays[i].incident, (p2[i] - h).norm(), &hit)) {
+      if (!hit_ok[i]) {
         r.message = fmt::format("spot ({}, {}): its ray misses the reconstructed surface", prep.rays[i].id.ring,
                                 prep.rays[i].id.index);
         return r;
       }
-      moved = std::max(moved, (hit - p2[i]).norm());
-      p2[i] = hit;
+      moved = std::max(moved, (hits[i] - p2[i]).norm());
+      p2[i] = hits[i];
     }
     if (moved <= tolerance_mm) {
       if (spline_mode && !spline_active) {
@@ -342,18 +403,15 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   }
   // Points on the recovered surface: for the paper's method the estimates P2' lie on G, not on Psi; report the
   // surface height Psi at their (x, y), as the paper's point cloud does.
-  r.consistency = Consistency(recovered, p2, normals);
+  r.consistency = Consistency(recovered, p2, normals, &scratch);
   if (options.adequacy) {
     const int parameters = psi.terms() - 1 + static_cast<int>(std::lround(r.spline_effective_params));
     r.expected_slope_noise = ExpectedSlopeNoise(prep.rays, p2, slopes, recovered, topo,
-                                                settings.spot_uncertainty_um * 1e-3, parameters);
+                                                settings.spot_uncertainty_um * 1e-3, parameters, &scratch);
     r.adequacy_ratio = r.expected_slope_noise > 0 ? r.rms_slope_residual / r.expected_slope_noise : 0.0;
     std::vector<Eigen::Vector2d> residuals(n);
-    for (int i = 0; i < n; ++i) {
-      double z, zx, zy;
-      recovered.ValueAndGradient(xy[i].x(), xy[i].y(), &z, &zx, &zy);
-      residuals[i] = slopes[i] - Eigen::Vector2d(zx, zy);
-    }
+    EvaluateAt(recovered, xy, &scratch);
+    for (int i = 0; i < n; ++i) residuals[i] = slopes[i] - Eigen::Vector2d(scratch.zx[i], scratch.zy[i]);
     const NeighbourCovariance nc = ResidualNeighbourCovariance(prep.rays, xy, residuals);
     if (nc.variance > 0) r.residual_neighbour_correlation = nc.covariance / nc.variance;
     if (r.expected_slope_noise > 0) {
@@ -362,11 +420,10 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   }
   const std::vector<double> zonal = ZonalHeights(prep.rays, p2, slopes, t_mm);
   r.points.resize(n);
+  EvaluateAt(recovered, p2, &scratch);
   for (int i = 0; i < n; ++i) {
     r.points[i].id = prep.rays[i].id;
-    double z, zx, zy;
-    recovered.ValueAndGradient(p2[i].x(), p2[i].y(), &z, &zx, &zy);
-    r.points[i].point_mm = Eigen::Vector3d(p2[i].x(), p2[i].y(), z);
+    r.points[i].point_mm = Eigen::Vector3d(p2[i].x(), p2[i].y(), scratch.z[i]);
     r.points[i].normal = normals[i];
     r.points[i].zonal_z_mm = zonal[i];
   }

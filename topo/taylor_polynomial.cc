@@ -1,5 +1,6 @@
 #include "topo/taylor_polynomial.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/Cholesky>
@@ -61,6 +62,46 @@ void TaylorPolynomial::ValueAndGradient(double x_mm, double y_mm, double* z, dou
   *z = p;
   *zx = pu / norm_radius_mm_;
   *zy = pv / norm_radius_mm_;
+}
+
+void TaylorPolynomial::ValueAndGradientMany(int count, const double* x_mm, const double* y_mm, double* z,
+                                            double* zx, double* zy) const {
+  // The scheme of ValueAndGradient, statement for statement, on kWidth points at once: one point's Horner chain is
+  // a sequence of dependent multiply-adds (latency-bound); four independent chains fill the pipeline.
+  constexpr int kWidth = 4;
+  const double* c = coefficients_.data();
+  const int n = degree_;
+  int i = 0;
+  for (; i + kWidth <= count; i += kWidth) {
+    double u[kWidth], v[kWidth], p[kWidth], pu[kWidth], pv[kWidth], q[kWidth], dq[kWidth];
+    for (int w = 0; w < kWidth; ++w) {
+      u[w] = x_mm[i + w] / norm_radius_mm_;
+      v[w] = y_mm[i + w] / norm_radius_mm_;
+      p[w] = pu[w] = pv[w] = 0;
+    }
+    for (int a = n; a >= 0; --a) {
+      const double top = c[n * (n + 1) / 2 + (n - a)];
+      for (int w = 0; w < kWidth; ++w) q[w] = top, dq[w] = 0;
+      for (int d = n - 1; d >= a; --d) {
+        const double cd = c[d * (d + 1) / 2 + (d - a)];
+        for (int w = 0; w < kWidth; ++w) {
+          dq[w] = dq[w] * v[w] + q[w];
+          q[w] = q[w] * v[w] + cd;
+        }
+      }
+      for (int w = 0; w < kWidth; ++w) {
+        pu[w] = pu[w] * u[w] + p[w];
+        p[w] = p[w] * u[w] + q[w];
+        pv[w] = pv[w] * u[w] + dq[w];
+      }
+    }
+    for (int w = 0; w < kWidth; ++w) {
+      z[i + w] = p[w];
+      zx[i + w] = pu[w] / norm_radius_mm_;
+      zy[i + w] = pv[w] / norm_radius_mm_;
+    }
+  }
+  for (; i < count; ++i) ValueAndGradient(x_mm[i], y_mm[i], z + i, zx + i, zy + i);
 }
 
 void TaylorPolynomial::Derivatives(double x_mm, double y_mm, double* z, double* zx, double* zy, double* zxx,
@@ -153,33 +194,141 @@ void BuildDesign(const TaylorPolynomial& poly, const std::vector<Eigen::Vector2d
   }
 }
 
+// The gradient fit without its design matrix (issue 15). The rows of A are the gradients of the monomials, so
+// every product CGLS needs is a product with the table T of the monomials of degree <= D - 1 at the points
+// (T(i, j) = u_i^p v_i^q, j the term index of u^p v^q): A x is the polynomial's gradient, (T gx, T gy) with gx, gy
+// the coefficients of d Psi / dx and d Psi / dy, and A^T r gathers (T^T r_x, T^T r_y) back onto the terms. T has
+// half as many entries as A and is built column by column from its neighbours (one multiplication per entry, no
+// branch); filling A every pass was 14 % of the paper sweep. The slopes are columns (S_x, S_y) of an n x 2 matrix.
+using TermMap = std::vector<internal::GradientTerm>;
+// CGLS vectors.
+struct CglsWork {
+  Eigen::MatrixXd r, q, g, h;  // n x 2 residual and product, m x 2 gradient coefficients and gathered sums
+  Eigen::VectorXd s, p, rp;
+};
+
+// The fit's buffers, one set per thread, kept from one fit to the next: the basis table alone is 270 KB for the
+// paper's 624 spots, and a fresh block of that size comes from mmap, its pages faulted in on every reconstruction
+// (~20 us per page on the development VM: 0.9 ms per reconstruction, measured). A fit does not call another, so
+// one set per thread serves every fitter.
+struct FitScratch {
+  Eigen::MatrixXd basis;   // n x m: the monomials u^p v^q, p + q <= D - 1, at the points
+  Eigen::MatrixXd slopes;  // n x 2: S_x, S_y
+  Eigen::MatrixXd normal;  // A^T A and its Cholesky factor
+  CglsWork work;
+};
+
+FitScratch& ThreadScratch() {
+  thread_local FitScratch scratch;
+  return scratch;
+}
+
+// Index of the term u^p v^q in the term order of the header.
+int TermIndex(int p, int q) { return (p + q) * (p + q + 1) / 2 + q; }
+
+TermMap GradientTerms(const TaylorPolynomial& poly) {
+  TermMap terms(static_cast<size_t>(poly.terms() - 1));
+  const double inv = 1.0 / poly.norm_radius_mm();
+  for (int k = 1; k < poly.terms(); ++k) {
+    const auto [a, b] = poly.Exponents(k);
+    auto& t = terms[static_cast<size_t>(k - 1)];
+    if (a >= 1) t.dx = TermIndex(a - 1, b), t.scale_x = a * inv;
+    if (b >= 1) t.dy = TermIndex(a, b - 1), t.scale_y = b * inv;
+  }
+  return terms;
+}
+
+// T(i, j) = u_i^p v_i^q for the terms j = (p, q) of degree <= D - 1, each column from one of the previous degree:
+// one multiplication per entry, vectorised over the points.
+void BuildGradientBasis(const TaylorPolynomial& poly, const std::vector<Eigen::Vector2d>& points_mm,
+                        Eigen::MatrixXd* T) {
+  const Eigen::Index n = static_cast<Eigen::Index>(points_mm.size());
+  const int top = poly.degree() - 1;
+  T->resize(n, TaylorPolynomial::TermCount(top));
+  if (top < 0) return;
+  const double inv = 1.0 / poly.norm_radius_mm();
+  T->col(0).setOnes();
+  if (top == 0) return;
+  // Degree 1 holds u and v themselves.
+  for (Eigen::Index i = 0; i < n; ++i) {
+    (*T)(i, 1) = points_mm[static_cast<size_t>(i)].x() * inv;
+    (*T)(i, 2) = points_mm[static_cast<size_t>(i)].y() * inv;
+  }
+  for (int d = 2; d <= top; ++d) {
+    for (int q = 0; q < d; ++q) T->col(TermIndex(d - q, q)) = T->col(TermIndex(d - q - 1, q)).cwiseProduct(T->col(1));
+    T->col(TermIndex(0, d)) = T->col(TermIndex(0, d - 1)).cwiseProduct(T->col(2));
+  }
+}
+
+struct GradientOperator {
+  const Eigen::MatrixXd& T;
+  const TermMap& terms;
+  // A x as an n x 2 matrix (d Psi / dx, d Psi / dy at the points).
+  void Apply(const Eigen::VectorXd& x, Eigen::MatrixXd* g, Eigen::MatrixXd* out) const {
+    g->setZero(T.cols(), 2);
+    for (size_t k = 0; k < terms.size(); ++k) {
+      const TermMap::value_type& t = terms[k];
+      const double c = x[static_cast<Eigen::Index>(k)];
+      if (t.dx >= 0) (*g)(t.dx, 0) = t.scale_x * c;
+      if (t.dy >= 0) (*g)(t.dy, 1) = t.scale_y * c;
+    }
+    // Column by column (axpy): Eigen's general product packs T into a fresh buffer on every call.
+    out->setZero(T.rows(), 2);
+    for (Eigen::Index j = 0; j < T.cols(); ++j) {
+      out->col(0) += (*g)(j, 0) * T.col(j);
+      out->col(1) += (*g)(j, 1) * T.col(j);
+    }
+  }
+  // A^T r for r given as an n x 2 matrix.
+  void ApplyTransposed(const Eigen::MatrixXd& r, Eigen::MatrixXd* h, Eigen::VectorXd* out) const {
+    h->resize(T.cols(), 2);
+    for (Eigen::Index j = 0; j < T.cols(); ++j) {
+      (*h)(j, 0) = T.col(j).dot(r.col(0));
+      (*h)(j, 1) = T.col(j).dot(r.col(1));
+    }
+    out->resize(static_cast<Eigen::Index>(terms.size()));
+    for (size_t k = 0; k < terms.size(); ++k) {
+      const TermMap::value_type& t = terms[k];
+      double sum = 0;
+      if (t.dx >= 0) sum += t.scale_x * (*h)(t.dx, 0);
+      if (t.dy >= 0) sum += t.scale_y * (*h)(t.dy, 1);
+      (*out)[static_cast<Eigen::Index>(k)] = sum;
+    }
+  }
+};
+
 // Preconditioned CGLS on min |A x - b| with x = R^-1 y, warm-started at x. True when the preconditioned normal
 // residual |R^-T A^T (b - A x)| falls below `tolerance` times its value at x = 0.
-bool PreconditionedCgls(const Eigen::MatrixXd& A, const Eigen::VectorXd& b, const Eigen::MatrixXd& R,
-                        Eigen::VectorXd* x) {
+bool PreconditionedCgls(const GradientOperator& A, const Eigen::MatrixXd& b, const Eigen::MatrixXd& R,
+                        Eigen::VectorXd* x, CglsWork* w) {
   // 1e-14: the normal residual of a QR solution in double on this problem is ~1e-15 relative; CGLS stops close
   // above. (1e-13 left a cold first fit from the Cholesky factor 4e-11 from the QR solution; 1e-14 took as many
   // iterations over the paper sweep and 40 harness cases, 2-16, median 7, never the budget; issue 15.)
   constexpr double kTolerance = 1e-14;
   constexpr int kMaxIterations = 25;
   const auto Rt = R.triangularView<Eigen::Upper>();
-  Eigen::VectorXd r = b - A * (*x);
-  Eigen::VectorXd s = Rt.transpose().solve(A.transpose() * r);
-  const double reference = Rt.transpose().solve(A.transpose() * b).norm();
-  Eigen::VectorXd p = s;
-  double gamma = s.squaredNorm();
+  A.Apply(*x, &w->g, &w->q);
+  w->r = b - w->q;
+  A.ApplyTransposed(w->r, &w->h, &w->s);
+  Rt.transpose().solveInPlace(w->s);
+  // The normal residual at x = 0, R^-T A^T b = R^-T A^T r + R x (A^T A = R^T R), without a product with A.
+  const double reference = (w->s + Rt * (*x)).norm();
+  w->p = w->s;
+  double gamma = w->s.squaredNorm();
   for (int it = 0; it < kMaxIterations; ++it) {
     if (std::sqrt(gamma) <= kTolerance * reference) return true;
-    const Eigen::VectorXd rp = Rt.solve(p);
-    const Eigen::VectorXd q = A * rp;
-    const double qq = q.squaredNorm();
+    w->rp = w->p;
+    Rt.solveInPlace(w->rp);
+    A.Apply(w->rp, &w->g, &w->q);
+    const double qq = w->q.squaredNorm();
     if (!(qq > 0)) return false;
     const double alpha = gamma / qq;
-    *x += alpha * rp;
-    r -= alpha * q;
-    s = Rt.transpose().solve(A.transpose() * r);
-    const double gamma_next = s.squaredNorm();
-    p = s + (gamma_next / gamma) * p;
+    *x += alpha * w->rp;
+    w->r -= alpha * w->q;
+    A.ApplyTransposed(w->r, &w->h, &w->s);
+    Rt.transpose().solveInPlace(w->s);
+    const double gamma_next = w->s.squaredNorm();
+    w->p = w->s + (gamma_next / gamma) * w->p;
     gamma = gamma_next;
   }
   return std::sqrt(gamma) <= kTolerance * reference;
@@ -198,32 +347,36 @@ bool SolveByQr(const Eigen::MatrixXd& A, const Eigen::VectorXd& rhs, Eigen::Vect
 
 // A^T A of the design matrix (BuildDesign) from the moments of the points, M(p, q) = sum_i u_i^p v_i^q: the
 // entry of the terms u^a v^b and u^c v^d is (a c M(a+c-2, b+d) + b d M(a+c, b+d-2)) / R^2 (the x rows and the
-// y rows of the gradient). The moments up to degree 2D - 2 are ~150 sums over the points, against the 2 m n^2 of
-// forming A^T A from A (whose blocked product also packed A into fresh buffers: page faults). Lower triangle only.
-void NormalMatrixFromMoments(const TaylorPolynomial& poly, const std::vector<Eigen::Vector2d>& points_mm,
+// y rows of the gradient). The moments up to degree 2D - 2 are ~190 dot products of two columns of the gradient
+// basis T (monomials of degree <= D - 1), against the 2 m n^2 of forming A^T A from A. Lower triangle only.
+void NormalMatrixFromMoments(const TaylorPolynomial& poly, const Eigen::MatrixXd& T, const TermMap& terms,
                              Eigen::MatrixXd* normal) {
   constexpr int kMaxMoment = 2 * kMaxDegree - 2;
-  const int top = 2 * poly.degree() - 2;
-  const double norm = poly.norm_radius_mm();
+  const int top = poly.degree() - 1;
   double moments[kMaxMoment + 1][kMaxMoment + 1] = {};
-  for (const auto& p : points_mm) {
-    double pu[kMaxMoment + 1], pv[kMaxMoment + 1];
-    Powers(p.x() / norm, p.y() / norm, top, pu, pv);
-    for (int a = 0; a <= top; ++a) {
-      for (int b = 0; a + b <= top; ++b) moments[a][b] += pu[a] * pv[b];
+  for (int p = 0; p <= 2 * top; ++p) {
+    for (int q = 0; p + q <= 2 * top; ++q) {
+      if (p + q <= top) {
+        moments[p][q] = T.col(TermIndex(p, q)).sum();
+        continue;
+      }
+      // u^p v^q = (u^p1 v^q1) (u^p2 v^q2), both of degree <= D - 1.
+      const int p1 = std::min(p, top), q1 = top - p1;
+      moments[p][q] = T.col(TermIndex(p1, q1)).dot(T.col(TermIndex(p - p1, q - q1)));
     }
   }
   const int unknowns = poly.terms() - 1;
-  const double inv2 = 1.0 / (norm * norm);
   normal->resize(unknowns, unknowns);
   for (int k = 1; k <= unknowns; ++k) {
     const auto [a, b] = poly.Exponents(k);
+    const auto& tk = terms[static_cast<size_t>(k - 1)];
     for (int l = 1; l <= k; ++l) {
       const auto [c, d] = poly.Exponents(l);
+      const auto& tl = terms[static_cast<size_t>(l - 1)];
       double sum = 0;
-      if (a >= 1 && c >= 1) sum += a * c * moments[a + c - 2][b + d];
-      if (b >= 1 && d >= 1) sum += b * d * moments[a + c][b + d - 2];
-      (*normal)(k - 1, l - 1) = sum * inv2;
+      if (a >= 1 && c >= 1) sum += tk.scale_x * tl.scale_x * moments[a + c - 2][b + d];
+      if (b >= 1 && d >= 1) sum += tk.scale_y * tl.scale_y * moments[a + c][b + d - 2];
+      (*normal)(k - 1, l - 1) = sum;
     }
   }
 }
@@ -237,9 +390,9 @@ void NormalMatrixFromMoments(const TaylorPolynomial& poly, const std::vector<Eig
 // relative in a few iterations from a cold start (the normal equations alone: ~1e-10). False (the caller falls
 // back to QR) when the factorisation fails or R's diagonal spans more than 1e6 (A^T A's condition number beyond
 // ~1e12: the preconditioner would be too far from A's own R to trust).
-bool FactorNormalEquations(const TaylorPolynomial& poly, const std::vector<Eigen::Vector2d>& points_mm,
+bool FactorNormalEquations(const TaylorPolynomial& poly, const Eigen::MatrixXd& T, const TermMap& terms,
                            Eigen::MatrixXd* normal, Eigen::MatrixXd* r) {
-  NormalMatrixFromMoments(poly, points_mm, normal);
+  NormalMatrixFromMoments(poly, T, terms, normal);
   const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Lower> llt(*normal);  // in place: L in the lower triangle
   if (llt.info() != Eigen::Success) return false;
   const auto diag = normal->diagonal().cwiseAbs();
@@ -248,14 +401,28 @@ bool FactorNormalEquations(const TaylorPolynomial& poly, const std::vector<Eigen
   return r->allFinite();
 }
 
-GradientFit Finish(const Eigen::MatrixXd& A, const Eigen::VectorXd& rhs, const Eigen::VectorXd& b,
-                   double z_at_origin_mm, TaylorPolynomial* poly) {
-  GradientFit fit;
+void SetCoefficients(const Eigen::VectorXd& b, double z_at_origin_mm, TaylorPolynomial* poly) {
   const int unknowns = static_cast<int>(b.size());
   poly->coefficients().tail(unknowns) = b;
   // Psi(0, 0) is the piston alone (every other monomial vanishes at the origin).
   poly->coefficients()(0) = z_at_origin_mm;
+}
+
+GradientFit Finish(const Eigen::MatrixXd& A, const Eigen::VectorXd& rhs, const Eigen::VectorXd& b,
+                   double z_at_origin_mm, TaylorPolynomial* poly) {
+  GradientFit fit;
+  SetCoefficients(b, z_at_origin_mm, poly);
   fit.rms_slope_residual = std::sqrt((A * b - rhs).squaredNorm() / A.rows());
+  fit.ok = true;
+  return fit;
+}
+
+// After PreconditionedCgls: its residual b - A x (updated by recurrence, equal to the explicit one to rounding)
+// gives the rms.
+GradientFit Finish(const CglsWork& w, const Eigen::VectorXd& b, double z_at_origin_mm, TaylorPolynomial* poly) {
+  GradientFit fit;
+  SetCoefficients(b, z_at_origin_mm, poly);
+  fit.rms_slope_residual = std::sqrt(w.r.squaredNorm() / static_cast<double>(w.r.size()));
   fit.ok = true;
   return fit;
 }
@@ -266,26 +433,40 @@ GradientFit GradientFitter::Fit(const std::vector<Eigen::Vector2d>& points_mm,
                                 const std::vector<Eigen::Vector2d>& slopes, double z_at_origin_mm,
                                 TaylorPolynomial* poly) {
   const int unknowns = poly->terms() - 1;
-  if (2 * static_cast<int>(points_mm.size()) < unknowns || slopes.size() != points_mm.size()) return {};
-  BuildDesign(*poly, points_mm, slopes, &a_, &rhs_);
+  const int n = static_cast<int>(points_mm.size());
+  if (2 * n < unknowns || slopes.size() != points_mm.size()) return {};
+  if (terms_degree_ != poly->degree() || terms_radius_mm_ != poly->norm_radius_mm()) {
+    terms_ = GradientTerms(*poly);
+    terms_degree_ = poly->degree();
+    terms_radius_mm_ = poly->norm_radius_mm();
+  }
+  FitScratch& w = ThreadScratch();
+  BuildGradientBasis(*poly, points_mm, &w.basis);
+  w.slopes.resize(n, 2);
+  for (int i = 0; i < n; ++i) w.slopes.row(i) = slopes[static_cast<size_t>(i)].transpose();
+  const GradientOperator A{w.basis, terms_};
   Eigen::VectorXd x = poly->coefficients().tail(unknowns);
-  if (started_ && r_.rows() == unknowns && PreconditionedCgls(a_, rhs_, r_, &x)) {
-    return Finish(a_, rhs_, x, z_at_origin_mm, poly);
+  if (started_ && r_.rows() == unknowns && PreconditionedCgls(A, w.slopes, r_, &x, &w.work)) {
+    return Finish(w.work, x, z_at_origin_mm, poly);
   }
   started_ = false;
   ++factorizations_;
   // The factor of these points: from the normal equations (cheap), by QR when they are too ill-conditioned to
   // serve or CGLS does not converge with their factor.
   x = poly->coefficients().tail(unknowns);
-  if (FactorNormalEquations(*poly, points_mm, &normal_, &r_) && PreconditionedCgls(a_, rhs_, r_, &x)) {
-    return Finish(a_, rhs_, x, z_at_origin_mm, poly);
+  if (FactorNormalEquations(*poly, w.basis, terms_, &w.normal, &r_) &&
+      PreconditionedCgls(A, w.slopes, r_, &x, &w.work)) {
+    return Finish(w.work, x, z_at_origin_mm, poly);
   }
+  Eigen::MatrixXd design;
+  Eigen::VectorXd rhs;
+  BuildDesign(*poly, points_mm, slopes, &design, &rhs);
   x = poly->coefficients().tail(unknowns);
-  if (!SolveByQr(a_, rhs_, &x, &r_)) {
+  if (!SolveByQr(design, rhs, &x, &r_)) {
     r_.resize(0, 0);
     return {};
   }
-  return Finish(a_, rhs_, x, z_at_origin_mm, poly);
+  return Finish(design, rhs, x, z_at_origin_mm, poly);
 }
 
 GradientFit FitGradient(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes,

@@ -29,6 +29,10 @@ class TaylorPolynomial {
   double Value(double x_mm, double y_mm) const;
   // Value and gradient (mm, dimensionless slopes).
   void ValueAndGradient(double x_mm, double y_mm, double* z, double* zx, double* zy) const;
+  // ValueAndGradient at `count` points (x_mm[i], y_mm[i]), each bit for bit the single-point result (the same
+  // operations in the same order), four points interleaved so that their Horner chains overlap.
+  void ValueAndGradientMany(int count, const double* x_mm, const double* y_mm, double* z, double* zx,
+                            double* zy) const;
   // Value, gradient and Hessian (1/mm).
   void Derivatives(double x_mm, double y_mm, double* z, double* zx, double* zy, double* zxx, double* zxy,
                    double* zyy) const;
@@ -52,23 +56,34 @@ struct GradientFit {
   double rms_slope_residual = 0;  // rms of the fitted minus measured slopes (dimensionless)
 };
 
+namespace internal {
+// Term k + 1 of Psi (unknown k of the gradient fit) in the gradient's monomial table (GradientFitter): d/dx of
+// u^a v^b is (a / R) u^(a-1) v^b, column dx of the table; d/dy is (b / R) u^a v^(b-1), column dy (-1: no such
+// component).
+struct GradientTerm {
+  int dx = -1, dy = -1;
+  double scale_x = 0, scale_y = 0;
+};
+}  // namespace internal
+
 // Repeated gradient fits on slowly moving points (the normal-refinement loop). Each fit factors the normal matrix
-// A^T A of its own points by Cholesky, from the points' moments (R = L^T; ~0.1 ms for the paper's 624 spots and 64
-// unknowns; Householder QR of A when the normal matrix is too ill-conditioned), and solves the least-squares
-// problem by CGLS preconditioned with R, warm-started from the previous coefficients: A R^-1 is orthonormal to
-// ~1e-8, so CGLS lands on the QR solution (to ~1e-13) in about 2 iterations. Reusing the first fit's R for the
-// later fits (as before issue 15) took 7-8 iterations per fit, more than the new factor costs (harness case 4.9
-// against 4.4 ms). A fitter started from another fit's R (StartFrom: Monte Carlo draws of slightly moved spots)
-// keeps using that R while CGLS converges with it, and factors anew only when it does not. Written by hand because
-// Eigen's iterative solvers take sparse or square systems, not a dense rectangular one with a triangular
+// A^T A of its own points by Cholesky, from the points' moments (R = L^T; Householder QR of A when the normal
+// matrix is too ill-conditioned), and solves the least-squares problem by CGLS preconditioned with R,
+// warm-started from the previous coefficients: A R^-1 is orthonormal to ~1e-8, so CGLS lands on the QR solution
+// (to ~1e-13) in about 2 iterations. CGLS never forms A (1248 x 65 for the paper's 624 spots): its products are
+// products with the table of the gradient's monomials at the points (issue 15, taylor_polynomial.cc). Reusing the
+// first fit's R for the later fits (as before issue 15) took 7-8 iterations per fit, more than the new factor
+// costs. A fitter started from another fit's R (StartFrom: Monte Carlo draws of slightly moved spots) keeps using
+// that R while CGLS converges with it, and factors anew only when it does not. Written by hand because Eigen's
+// iterative solvers take sparse or square systems, not a matrix-free rectangular one with a triangular
 // preconditioner.
 class GradientFitter {
  public:
   GradientFit Fit(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes,
                   double z_at_origin_mm, TaylorPolynomial* poly);
   int factorizations() const { return factorizations_; }
-  // The R of the last QR (empty before the first), and a fitter that starts from another fit's R: refits of
-  // slightly moved points (Monte Carlo draws of a calibration) then need no factorisation of their own.
+  // The R of the last factorisation (empty before the first), and a fitter that starts from another fit's R:
+  // refits of slightly moved points (Monte Carlo draws of a calibration) then need no factorisation of their own.
   const Eigen::MatrixXd& factor() const { return r_; }
   void StartFrom(const Eigen::MatrixXd& r) {
     r_ = r;
@@ -76,10 +91,10 @@ class GradientFitter {
   }
 
  private:
-  Eigen::MatrixXd r_;        // upper-triangular factor of the last QR (empty before the first fit)
-  Eigen::MatrixXd a_;        // design matrix, reused storage
-  Eigen::MatrixXd normal_;   // A^T A and its Cholesky factor, reused storage
-  Eigen::VectorXd rhs_;
+  Eigen::MatrixXd r_;        // upper-triangular factor (empty before the first fit)
+  std::vector<internal::GradientTerm> terms_;
+  int terms_degree_ = -1;
+  double terms_radius_mm_ = 0;
   int factorizations_ = 0;
   bool started_ = false;  // r_ came from StartFrom and still serves
 };

@@ -2,6 +2,7 @@
 // here as the reference.
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include <Eigen/QR>
 #include <gtest/gtest.h>
@@ -73,6 +74,29 @@ TEST(TaylorPolynomial, HornerMatchesTheSumOfMonomials) {
     }
   }
   EXPECT_LE(worst, kRegressionRelTol);
+}
+
+// The batched evaluation (the reconstruction's ray intersections, issue 15) interleaves four points: each must be
+// the single-point evaluation bit for bit, including the points of an incomplete last group.
+TEST(TaylorPolynomial, ValueAndGradientManyIsTheSinglePointEvaluationBitForBit) {
+  std::mt19937 rng(16);
+  std::uniform_real_distribution<double> coefficient(-1.0, 1.0), position(-6.0, 6.0);
+  for (int degree : {0, 1, 3, 10, 14}) {
+    TaylorPolynomial p(degree, 5.3);
+    for (int k = 0; k < p.terms(); ++k) p.coefficients()[k] = coefficient(rng);
+    for (int count : {0, 1, 4, 7, 101}) {
+      std::vector<double> x(count), y(count), z(count), zx(count), zy(count);
+      for (int i = 0; i < count; ++i) x[i] = position(rng), y[i] = position(rng);
+      p.ValueAndGradientMany(count, x.data(), y.data(), z.data(), zx.data(), zy.data());
+      for (int i = 0; i < count; ++i) {
+        double z1, zx1, zy1;
+        p.ValueAndGradient(x[i], y[i], &z1, &zx1, &zy1);
+        ASSERT_EQ(z[i], z1) << "degree " << degree << ", point " << i << " of " << count;
+        ASSERT_EQ(zx[i], zx1) << "degree " << degree << ", point " << i << " of " << count;
+        ASSERT_EQ(zy[i], zy1) << "degree " << degree << ", point " << i << " of " << count;
+      }
+    }
+  }
 }
 
 // The gradient fit's design matrix is built column by column from tables of powers (issue 15); before, row by row
