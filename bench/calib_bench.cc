@@ -189,4 +189,3 @@ BENCHMARK(BM_DetectAndSolveOpenCv)->Unit(benchmark::kMillisecond)->UseRealTime()
 
 }  // namespace
 
-BENCHMARK_MAIN();

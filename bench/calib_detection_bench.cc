@@ -158,4 +158,3 @@ BENCHMARK(BM_DetectUnitTargetOpenCv)->Arg(0)->Arg(1)->Unit(benchmark::kMilliseco
 }  // namespace
 }  // namespace topocal::calib
 
-BENCHMARK_MAIN();

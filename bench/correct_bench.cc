@@ -203,4 +203,3 @@ BENCHMARK(BM_CvUndistort)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 
-BENCHMARK_MAIN();

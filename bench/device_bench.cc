@@ -92,4 +92,3 @@ BENCHMARK(BM_OpenCvCalibrateCameraThreeViews)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
-BENCHMARK_MAIN();

@@ -86,4 +86,3 @@ void BM_HarnessOutputs(benchmark::State& state) {
 BENCHMARK(BM_HarnessOutputs)->Unit(benchmark::kMillisecond);
 
 }  // namespace
-BENCHMARK_MAIN();

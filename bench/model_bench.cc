@@ -24,4 +24,3 @@ BENCHMARK(BM_DesignAndSynthesize)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 
-BENCHMARK_MAIN();

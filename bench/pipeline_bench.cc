@@ -76,4 +76,3 @@ BENCHMARK(BM_SimulatePaperCornea)->Arg(0)->Arg(20)->Unit(benchmark::kMillisecond
 
 }  // namespace
 
-BENCHMARK_MAIN();

@@ -154,4 +154,3 @@ BENCHMARK(BM_PowerMaps)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
-BENCHMARK_MAIN();

@@ -9,6 +9,7 @@
 
 #include "tools/commands.h"
 #include "tools/progress.h"
+#include "util/allocator.h"
 #include "util/io.h"
 #include "util/version.h"
 
@@ -20,6 +21,7 @@ void SetUpApp(CLI::App& app) {
   // Ceres logs through glog (failed steps, rank-deficient covariances); every failure reaches the user as one line
   // from the library's own result, so glog's lines would only be noise on stderr.
   FLAGS_minloglevel = google::GLOG_FATAL;
+  util::KeepAnalysisBuffersInTheHeap();  // analyses reuse their buffers instead of faulting in fresh pages
   app.set_version_flag("--version", std::string("topocal ") + kVersion);
   app.require_subcommand(1);
   // Every option shows its default in --help (subcommands inherit this when they are created).
