@@ -10,10 +10,12 @@
 #include <CLI/CLI.hpp>
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <string_view>
 #include <system_error>
+#include <vector>
 
 #include "tools/cli_app.h"
 #include "tools/commands.h"
