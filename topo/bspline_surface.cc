@@ -4,8 +4,6 @@
 #include <cmath>
 #include <random>
 
-#include <Eigen/SparseCholesky>
-
 namespace topocal::topo {
 
 BSplineSurface::BSplineSurface(double half_width_mm, double spacing_mm) {
@@ -160,7 +158,6 @@ SplineFit SplineSlopeFitter::Fit(const std::vector<Eigen::Vector2d>& points_mm,
   const int pr = unknowns;
   if (key != pattern_key_) {
     pattern_key_ = std::move(key);
-    analysed_[0] = analysed_[1] = false;
     ++analyses_;
     // Pattern of M = A^T A + lambda P + ridge I (both triangles: the products below use it): every pair of
     // unknowns at most w = max(3, order) grid steps apart along both axes, built column by column in CSC (a point
@@ -175,6 +172,7 @@ SplineFit SplineSlopeFitter::Fit(const std::vector<Eigen::Vector2d>& points_mm,
     local_.assign(static_cast<size_t>(pr) * span * span, -1);
     std::vector<int> outer(pr + 1, 0), inner;
     inner.reserve(static_cast<size_t>(pr) * span * span);
+    band_ = 0;
     for (int u = 0; u < pr; ++u) {
       const int row = grid_of[u] / side, col = grid_of[u] % side;
       for (int dr = -w; dr <= w; ++dr) {
@@ -186,6 +184,7 @@ SplineFit SplineSlopeFitter::Fit(const std::vector<Eigen::Vector2d>& points_mm,
         }
       }
       outer[u + 1] = static_cast<int>(inner.size());
+      band_ = std::max(band_, inner.back() - u);  // rows ascend: the last is the farthest below the diagonal
     }
     const int nnz = static_cast<int>(inner.size());
     m_.resize(pr, pr);
@@ -255,16 +254,11 @@ SplineFit SplineSlopeFitter::Fit(const std::vector<Eigen::Vector2d>& points_mm,
   // Factorises M(lam) into `slot` and solves for c.
   const auto solve = [&](int slot, double lam, Eigen::VectorXd* c) {
     assemble(lam);
-    Solver& solver = solvers_[slot];
-    if (!analysed_[slot]) {  // the pattern does not depend on lambda
-      solver.analyzePattern(m_);
-      analysed_[slot] = true;
-    }
-    solver.factorize(m_);
+    BandCholesky& solver = solvers_[slot];
     ++factorisations_;
-    if (solver.info() != Eigen::Success) return false;
-    *c = solver.solve(Atb);
-    return solver.info() == Eigen::Success && c->allFinite();
+    if (!solver.Factorize(m_, band_)) return false;
+    *c = solver.Solve(Atb);
+    return c->allFinite();
   };
   Eigen::VectorXd c;
   if (lambda < 0) {
@@ -292,7 +286,7 @@ SplineFit SplineSlopeFitter::Fit(const std::vector<Eigen::Vector2d>& points_mm,
       double value = INFINITY;
       if (solve(slot, lam, &ci)) {
         const double fit_and_penalty = residual_sum(ci) + lam * ci.dot(P * ci);
-        const double log_det = solvers_[slot].vectorD().array().log().sum();
+        const double log_det = solvers_[slot].LogDeterminant();
         if (fit_and_penalty > 0 && std::isfinite(log_det)) {
           value = (m - null_dim) * std::log(fit_and_penalty) + log_det - (pr - null_dim) * std::log(lam);
         }
@@ -327,13 +321,15 @@ SplineFit SplineSlopeFitter::Fit(const std::vector<Eigen::Vector2d>& points_mm,
     // of freedom): Hutchinson's estimator with seeded Rademacher probes.
     std::mt19937 rng(o.seed);
     std::bernoulli_distribution coin(0.5);
-    Eigen::VectorXd z(pr);
-    double trace = 0;
+    // The probes are solved together (one pass over the factor).
+    Eigen::MatrixXd z(pr, o.trace_probes);
     for (int k = 0; k < o.trace_probes; ++k) {
-      for (int i = 0; i < pr; ++i) z(i) = coin(rng) ? 1.0 : -1.0;
-      trace += z.dot(solvers_[best_].solve(AtA * z));
+      for (int i = 0; i < pr; ++i) z(i, k) = coin(rng) ? 1.0 : -1.0;
     }
-    fit.effective_params = trace / o.trace_probes;
+    const Eigen::MatrixXd h_z = solvers_[best_].SolveColumns(Eigen::MatrixXd(AtA * z));
+    double trace = 0;
+    for (int k = 0; k < o.trace_probes; ++k) trace += z.col(k).dot(h_z.col(k));
+    fit.effective_params = o.trace_probes > 0 ? trace / o.trace_probes : 0.0;
   } else {
     // A refit at a given lambda: a direct solve of its own M on the kept analysis (a refit by conjugate gradients
     // preconditioned with the previous factorisation differed from a fresh solve by up to 7e-6 relative on these

@@ -6,17 +6,17 @@
 //   min  sum_k |grad B(p_k) - s_k|^2 + lambda |D c|^2,   D = differences of order `penalty_order` along x and y,
 // lambda chosen by restricted maximum likelihood (REML, the smoothing parameter as a variance ratio: Wood 2011),
 // which needs only log det M from the factorisation (GCV needed tr H, estimated with seeded probes: noisy, and
-// misled on ablations; docs/reconstruction.md). Solved with Eigen's sparse
-// Cholesky: each slope touches 16 coefficients, so the normal matrix is banded (~900 unknowns for 4.6 mm, h = 0.33).
+// misled on ablations; docs/reconstruction.md). Each slope touches 16 coefficients, so in grid order the normal
+// matrix is a band (~1,000 unknowns for 4.6 mm, h = 0.33), solved by LAPACK's band Cholesky (topo/band_cholesky.h).
 //
 // The piston is not observed by slopes nor by the penalty: B(0, 0) is set to 0 (the B-splines sum to one, so a
 // constant shift of all coefficients moves the piston alone). Outside the data the penalty alone shapes B: do not
 // use it beyond the covered radius (the analysis flags maps there).
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
 #include <vector>
 
-#include <Eigen/Core>
-#include <Eigen/SparseCholesky>
-#include <Eigen/SparseCore>
+#include "topo/band_cholesky.h"
 
 namespace topocal::topo {
 
@@ -78,8 +78,8 @@ SplineFit FitSplineToSlopes(const std::vector<Eigen::Vector2d>& points_mm, const
 
 // The same fit, repeated as the reconstruction refines its points (micrometres between passes). The unknowns are
 // the coefficients near the data (SplineFitOptions::support_margin; the others are 0); M = A^T A + lambda P is
-// assembled in place on a pattern built once for them (every pair of unknowns within 3 grid steps) and analysed
-// once per slot, and every fit factorises its own M: a refit equals a fresh fit exactly. lambda by REML walks the
+// assembled in place on a pattern built once for them (every pair of unknowns within 3 grid steps), and every fit
+// factorises its own M (a band: topo/band_cholesky.h): a refit equals a fresh fit exactly. lambda by REML walks the
 // grid from lambda_start (3 factorisations when REML's minimum is there) and keeps the chosen one's factorisation
 // for the trace probes. Measured 2026-12-02 (docs/reconstruction.md, "The spline's cost").
 class SplineSlopeFitter {
@@ -89,13 +89,12 @@ class SplineSlopeFitter {
 
  private:
   using SparseMatrix = Eigen::SparseMatrix<double>;
-  // Natural ordering: the coefficients in grid order (row by row) make M banded (half-bandwidth 3 rows + 3); its
-  // symbolic analysis is ~0.5 ms against AMD's 1.4-8 ms on the keratoconus measurement, for a factorisation as fast
-  // (nnz(L) 158 k against 130 k, 5.5-6 ms either way; measured 2026-12-02, docs/reconstruction.md).
-  using Solver = Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>>;
+  // Natural ordering: the coefficients in grid order (row by row) make M a band of half-width band_ (3 grid rows
+  // and 3 coefficients), factorised as such by LAPACK (topo/band_cholesky.h).
   // Two factorisations: the REML walk factorises each lambda into the slot that does not hold the best so far, so
   // the chosen lambda's factorisation is kept (for the trace probes) without a repeat.
-  Solver solvers_[2];
+  BandCholesky solvers_[2];
+  int band_ = 0;               // M's half-bandwidth in the unknowns' order
   int best_ = 0;               // the slot that holds the chosen lambda's factorisation
   std::vector<int> pattern_key_;  // the unknowns (and the penalty order) of the analysed pattern
   SparseMatrix m_;                // M's pattern (both triangles) and the values of the last M assembled
@@ -109,12 +108,11 @@ class SplineSlopeFitter {
     const int dr = grid_of_[row] / side - grid_of_[column] / side, dc = grid_of_[row] % side - grid_of_[column] % side;
     return local_[(static_cast<size_t>(column) * span_ + dr + half_span_) * span_ + dc + half_span_];
   }
-  bool analysed_[2] = {false, false};
   int analyses_ = 0;
   int factorisations_ = 0;
 
  public:
-  int analyses() const { return analyses_; }  // patterns built and analysed so far (diagnostics, tests)
+  int analyses() const { return analyses_; }              // patterns built so far (diagnostics, tests)
   int factorisations() const { return factorisations_; }  // numeric factorisations so far (diagnostics, tests)
 };
 
