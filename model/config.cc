@@ -168,8 +168,9 @@ void ParseReconstruction(Section s, ReconstructionSettings& p) {
   p.spot_uncertainty_um = s.Number("spot_uncertainty_um", p.spot_uncertainty_um);
   s.Positive("spot_uncertainty_um", p.spot_uncertainty_um);
   p.surface_model = s.String("surface_model", p.surface_model);
-  if (p.surface_model != "polynomial" && p.surface_model != "spline") {
-    s.Fail(s.Key("surface_model"), fmt::format("must be \"polynomial\" or \"spline\" (got \"{}\")", p.surface_model));
+  if (p.surface_model != "polynomial" && p.surface_model != "spline" && p.surface_model != "auto") {
+    s.Fail(s.Key("surface_model"),
+           fmt::format("must be \"polynomial\", \"spline\" or \"auto\" (got \"{}\")", p.surface_model));
   }
   p.spline_spacing_mm = s.Number("spline_spacing_mm", p.spline_spacing_mm);
   if (!(p.spline_spacing_mm >= 0.1 && p.spline_spacing_mm <= 2.0)) {

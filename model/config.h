@@ -90,9 +90,10 @@ struct ReconstructionSettings {
   double spot_uncertainty_um = 0.045;        // spot-centre uncertainty on the detection plane (0.04 px of the
                                              // 1.12 um pixel of data/camera.json): the noise the model-adequacy
                                              // figure compares the slope residual with
-  std::string surface_model = "polynomial";  // "polynomial" (Psi alone, the paper's Eq. 21) or "spline" (Psi plus
+  std::string surface_model = "polynomial";  // "polynomial" (Psi alone, the paper's Eq. 21), "spline" (Psi plus
                                              // a bicubic P-spline residual, REML-smoothed: freeform corneas;
-                                             // docs/reconstruction.md)
+                                             // docs/reconstruction.md) or "auto" (the spline only when the
+                                             // polynomial does not fit the data: topo::ModelFitsData)
   double spline_spacing_mm = 0.33;           // knot spacing of the spline residual (spots lie ~0.35 mm apart)
   std::string biconic_fit = "free-apex";     // "free-apex" (apex position and tilt free, default), "paper" or "sphere" (topo/sphere_fit.h)
                                              // (Eq. 12 with x0 = y0 = 0 and no tilt: the paper's 6 parameters)

@@ -76,6 +76,8 @@ nlohmann::json AdequacyJson(const topo::Analysis& a) {
           {"structured_residual_ratio", r.structured_residual_ratio},
           {"structured_warning_ratio", topo::kStructuredResidualWarningRatio},
           {"model_fits_data", topo::ModelFitsData(r)},
+          {"surface_model", r.surface_model},
+          {"surface_model_reason", r.surface_model_reason},
           {"covered_radius_mm", a.covered_radius_mm},
           {"supported_radius_mm", a.supported_radius_mm},
           {"map_radius_mm", a.power.radius_mm},

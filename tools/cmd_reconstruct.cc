@@ -53,6 +53,8 @@ void PrintAnalysis(const topo::Analysis& a) {
              "neighbour correlation {:.2f}, shared part {:.2f} x\n",
              r.rms_slope_residual, r.adequacy_ratio, r.expected_slope_noise, r.residual_neighbour_correlation,
              r.structured_residual_ratio);
+  fmt::print("surface model: {}{}\n", r.surface_model,
+             r.surface_model_reason.empty() ? "" : " (" + r.surface_model_reason + ")");
   if (a.clinical_ok) {
     const auto& c = a.clinical;
     fmt::print("clinical (data to {:.2f} mm): sim-K {:.2f} D @ {:.0f} deg / {:.2f} D @ {:.0f} deg; Kmax {:.2f} D at "

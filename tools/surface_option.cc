@@ -41,9 +41,10 @@ void ReconstructionOverrides::AddTo(CLI::App* cmd) {
                   "reconstruction.biconic_fit")
       ->check(CLI::IsMember({"free-apex", "paper", "sphere"}));
   cmd->add_option("--surface-model", surface_model,
-                  "Surface: polynomial (the paper's Psi; default) or spline (Psi plus a REML-smoothed spline "
-                  "residual: keratoconus, ablations); overrides reconstruction.surface_model")
-      ->check(CLI::IsMember({"polynomial", "spline"}));
+                  "Surface: polynomial (the paper's Psi; default), spline (Psi plus a REML-smoothed spline "
+                  "residual: keratoconus, ablations) or auto (the spline only where the polynomial does not fit "
+                  "the data); overrides reconstruction.surface_model")
+      ->check(CLI::IsMember({"polynomial", "spline", "auto"}));
 }
 
 void ReconstructionOverrides::ApplyTo(model::Config* config) const {

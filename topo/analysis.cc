@@ -9,10 +9,6 @@
 
 namespace topocal::topo {
 
-bool ModelFitsData(const Reconstruction& r) {
-  return r.adequacy_ratio <= kAdequacyWarningRatio && r.structured_residual_ratio <= kStructuredResidualWarningRatio;
-}
-
 PowerMapOptions PowerMapOptionsFrom(const model::ReconstructionSettings& s) {
   PowerMapOptions o;
   o.radius_mm = s.power_map_radius_mm;
@@ -133,18 +129,21 @@ Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<
                                      "supported disc only)", a.power.radius_mm, a.supported_radius_mm));
   }
   const auto& r = a.reconstruction;
+  // What to try: the local model, when it was not used.
+  const std::string hint = r.surface_model == "polynomial" ? "; try --surface-model auto (or spline)" : "";
   if (options.adequacy && r.adequacy_ratio > kAdequacyWarningRatio) {
-    a.warnings.push_back(fmt::format("the surface model does not represent the data: slope residual {:.3g} is {:.1f} x "
-                                     "the {:.3g} expected from {:.3g} um spot-centre noise",
-                                     r.rms_slope_residual, r.adequacy_ratio, r.expected_slope_noise,
-                                     config.reconstruction.spot_uncertainty_um));
+    a.warnings.push_back(
+        fmt::format("the surface model does not represent the data: slope residual {:.3g} is {:.1f} x "
+                    "the {:.3g} expected from {:.3g} um spot-centre noise{}",
+                    r.rms_slope_residual, r.adequacy_ratio, r.expected_slope_noise,
+                    config.reconstruction.spot_uncertainty_um, hint));
   }
   if (options.adequacy && r.structured_residual_ratio > kStructuredResidualWarningRatio) {
-    a.warnings.push_back(fmt::format("the surface model misses a local shape: neighbouring spots share their slope "
-                                     "residual (correlation {:.2f}; shared part {:.2f} x the expected noise, "
-                                     "warning above {:.1f}); try --surface-model spline",
-                                     r.residual_neighbour_correlation, r.structured_residual_ratio,
-                                     kStructuredResidualWarningRatio));
+    a.warnings.push_back(fmt::format(
+        "the surface model misses a local shape: neighbouring spots share their slope "
+        "residual (correlation {:.2f}; shared part {:.2f} x the expected noise, "
+        "warning above {:.1f}){}",
+        r.residual_neighbour_correlation, r.structured_residual_ratio, kStructuredResidualWarningRatio, hint));
   }
   if (options.clinical) {
     a.clinical_ok = ComputeClinicalIndices(a.power, shape_eval, a.supported_radius_mm, ClinicalOptions{}, &a.clinical,

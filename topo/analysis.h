@@ -37,18 +37,8 @@ struct Analysis {
   std::vector<std::string> warnings;
 };
 
-// Above this ratio of slope residual to the expected noise the model, not the noise, leaves the residual: 3 x
-// (a fit that holds leaves ~1 x; the paper biconic from exact spots leaves 1e-3 x, the keratoconus 10-100 x).
-inline constexpr double kAdequacyWarningRatio = 3.0;
-// Above this structured_residual_ratio (Reconstruction: the square root of the residual's neighbour covariance over
-// the expected noise) the residual is a shape the model misses, whatever its size against the noise: spot-centre
-// noise is independent per spot and leaves a covariance ~0 (measured <= 0 on every biconic and Zernike cornea of the
-// test set with 0.04 px noise: 0.00), while the mildest cones that kAdequacyWarningRatio misses with the polynomial
-// leave 0.54-1.96 (12 um cone 0.54-0.63, wide 40 um 0.81-0.87, 5 um 1.95; docs/reconstruction.md). 0.4: noise alone
-// reaches it only with a neighbour correlation of +0.16, ~8 standard deviations of the estimate over ~1,200 pairs.
-inline constexpr double kStructuredResidualWarningRatio = 0.4;
-// The surface model represents the data: neither figure above its warning ratio.
-bool ModelFitsData(const Reconstruction& r);
+// kAdequacyWarningRatio, kStructuredResidualWarningRatio and ModelFitsData: topo/reconstruction.h (the
+// reconstruction's "auto" surface model decides with them).
 
 PowerMapOptions PowerMapOptionsFrom(const model::ReconstructionSettings& settings);
 

@@ -306,13 +306,24 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   const double norm_radius = std::ceil(radius * 10.0 + 1.0) / 10.0;
   TaylorPolynomial psi(settings.taylor_degree, norm_radius);
   const double tolerance_mm = settings.convergence_um * 1e-3;
-  const int max_iterations = iterate ? settings.max_iterations : 1;
+  // surface_model "auto": the polynomial first; once it has converged (or after the paper method's single fit), the
+  // spline joins only if the polynomial does not fit the data (ModelFitsData: either adequacy figure above its
+  // warning ratio). A reconstruction started from another (a Monte Carlo draw of the same measurement) follows
+  // that one's choice, so that every draw uses the same model.
+  const bool auto_mode = settings.surface_model == "auto";
+  bool auto_decided = false;
+  const int max_iterations = iterate ? settings.max_iterations : (auto_mode ? 2 : 1);
   GradientFitter fitter;
   if (const Reconstruction* start = options.start;
       start && start->slope_fit_norm_radius_mm == norm_radius && start->slope_fit_factor.rows() == psi.terms() - 1) {
     fitter.StartFrom(start->slope_fit_factor);
   }
-  const bool spline_mode = settings.surface_model == "spline";
+  bool spline_mode = settings.surface_model == "spline" || auto_mode;
+  if (auto_mode && options.start) {
+    spline_mode = !options.start->residual.empty();
+    auto_decided = true;
+    r.surface_model_reason = "auto: as the reconstruction it started from";
+  }
   BSplineSurface spline;
   if (spline_mode) spline = BSplineSurface(norm_radius, settings.spline_spacing_mm);
   const RecoveredSurface recovered{psi, spline};
@@ -320,7 +331,7 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   // penalty is then chosen (REML) on the residual the polynomial really leaves — on the first pass the normals
   // still carry the error of the sphere estimate P2', smooth and large, and the choice (GCV, when measured) smoothed
   // the cone away — and kept for the remaining refinement.
-  bool spline_active = spline_mode && !iterate;
+  bool spline_active = spline_mode && !iterate && !(auto_mode && !auto_decided);
   double lambda = -1;
   std::vector<Eigen::Vector2d> residual_slopes(n);
   std::vector<Eigen::Vector3d> incident(n), hits;
@@ -329,6 +340,35 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   std::vector<char> hit_ok;
   BatchScratch scratch;
   SplineSlopeFitter spline_fitter;  // keeps its pattern and analysis from one refinement to the next
+  // The model-adequacy figures of the surface as fitted now (Reconstruction: expected_slope_noise, adequacy_ratio,
+  // residual_neighbour_correlation, structured_residual_ratio).
+  bool adequacy_current = false;  // r's figures belong to the final fit (no refit since they were computed)
+  const auto assess_adequacy = [&] {
+    const int parameters = psi.terms() - 1 + static_cast<int>(std::lround(r.spline_effective_params));
+    r.expected_slope_noise = ExpectedSlopeNoise(prep.rays, p2, slopes, recovered, topo,
+                                                settings.spot_uncertainty_um * 1e-3, parameters, &scratch);
+    r.adequacy_ratio = r.expected_slope_noise > 0 ? r.rms_slope_residual / r.expected_slope_noise : 0.0;
+    std::vector<Eigen::Vector2d> residuals(n);
+    EvaluateAt(recovered, xy, &scratch);
+    for (int i = 0; i < n; ++i) residuals[i] = slopes[i] - Eigen::Vector2d(scratch.zx[i], scratch.zy[i]);
+    const NeighbourCovariance nc = ResidualNeighbourCovariance(prep.rays, xy, residuals);
+    r.residual_neighbour_correlation = nc.variance > 0 ? nc.covariance / nc.variance : 0.0;
+    r.structured_residual_ratio =
+        r.expected_slope_noise > 0 ? std::sqrt(std::max(0.0, nc.covariance)) / r.expected_slope_noise : 0.0;
+    adequacy_current = true;
+  };
+  // "auto" at the polynomial's convergence: true when the spline is to join.
+  const auto auto_wants_spline = [&] {
+    auto_decided = true;
+    assess_adequacy();
+    const bool fits = ModelFitsData(r);
+    r.surface_model_reason = fmt::format(
+        "auto: the polynomial's adequacy ratio {:.3g} (warning above {:g}) and structured residual ratio "
+        "{:.3g} (above {:g}){}",
+        r.adequacy_ratio, kAdequacyWarningRatio, r.structured_residual_ratio, kStructuredResidualWarningRatio,
+        fits ? ": it fits" : ": the spline joins");
+    return !fits;
+  };
   for (int it = 0; it < max_iterations; ++it) {
     for (int i = 0; i < n; ++i) {
       normals[i] = NormalFromRays(prep.rays[i].incident, p2[i], prep.rays[i].target);
@@ -341,6 +381,7 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
       return r;
     }
     r.rms_slope_residual = fit.rms_slope_residual;
+    adequacy_current = false;
     if (spline_active) {
       for (int i = 0; i < n; ++i) {
         double z, zx, zy;
@@ -358,7 +399,16 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
       r.rms_slope_residual = sf.rms_slope_residual;
     }
     r.iterations = it + 1;
-    if (!iterate) break;
+    if (!iterate) {
+      if (auto_mode && !auto_decided) {
+        if (auto_wants_spline()) {
+          spline_mode = spline_active = true;  // the same points, refitted with the spline
+          continue;
+        }
+        spline = BSplineSurface();
+      }
+      break;
+    }
     double moved = 0;
     for (int i = 0; i < n; ++i) lambda0[i] = (p2[i] - h).norm();
     IntersectSurfaces(recovered, h, incident, lambda0, &hits, &hit_ok, &scratch);
@@ -372,6 +422,10 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
       p2[i] = hits[i];
     }
     if (moved <= tolerance_mm) {
+      if (auto_mode && !auto_decided && !auto_wants_spline()) {
+        spline_mode = false;
+        spline = BSplineSurface();  // the polynomial alone (an empty residual adds nothing and costs nothing)
+      }
       if (spline_mode && !spline_active) {
         spline_active = true;  // one more pass at least, now with the spline
         continue;
@@ -387,20 +441,7 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   // Points on the recovered surface: for the paper's method the estimates P2' lie on G, not on Psi; report the
   // surface height Psi at their (x, y), as the paper's point cloud does.
   r.consistency = Consistency(recovered, p2, normals, &scratch);
-  if (options.adequacy) {
-    const int parameters = psi.terms() - 1 + static_cast<int>(std::lround(r.spline_effective_params));
-    r.expected_slope_noise = ExpectedSlopeNoise(prep.rays, p2, slopes, recovered, topo,
-                                                settings.spot_uncertainty_um * 1e-3, parameters, &scratch);
-    r.adequacy_ratio = r.expected_slope_noise > 0 ? r.rms_slope_residual / r.expected_slope_noise : 0.0;
-    std::vector<Eigen::Vector2d> residuals(n);
-    EvaluateAt(recovered, xy, &scratch);
-    for (int i = 0; i < n; ++i) residuals[i] = slopes[i] - Eigen::Vector2d(scratch.zx[i], scratch.zy[i]);
-    const NeighbourCovariance nc = ResidualNeighbourCovariance(prep.rays, xy, residuals);
-    if (nc.variance > 0) r.residual_neighbour_correlation = nc.covariance / nc.variance;
-    if (r.expected_slope_noise > 0) {
-      r.structured_residual_ratio = std::sqrt(std::max(0.0, nc.covariance)) / r.expected_slope_noise;
-    }
-  }
+  if (options.adequacy && !adequacy_current) assess_adequacy();
   const std::vector<double> zonal = ZonalHeights(prep.rays, p2, slopes, t_mm);
   r.points.resize(n);
   EvaluateAt(recovered, p2, &scratch);
@@ -414,6 +455,7 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   r.slope_fit_factorizations = fitter.factorizations();
   r.slope_fit_norm_radius_mm = norm_radius;
   r.surface = std::move(psi);
+  r.surface_model = spline_active ? "spline" : "polynomial";
   r.residual = std::move(spline);
   r.ok = true;
   return r;
@@ -436,6 +478,10 @@ void Reconstruction::Derivatives(double x, double y, model::SurfaceDerivatives* 
   d->zxx += sxx;
   d->zxy += sxy;
   d->zyy += syy;
+}
+
+bool ModelFitsData(const Reconstruction& r) {
+  return r.adequacy_ratio <= kAdequacyWarningRatio && r.structured_residual_ratio <= kStructuredResidualWarningRatio;
 }
 
 Reconstruction ReconstructAt(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,

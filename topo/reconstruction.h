@@ -48,6 +48,10 @@ struct Reconstruction {
   // surface_model "spline": a bicubic P-spline fitted to the slopes Psi leaves, with B(0, 0) = 0 (empty
   // otherwise). The recovered surface is Psi + residual: use Height() / Derivatives(), not Psi alone.
   BSplineSurface residual;
+  // The surface model used: "polynomial" or "spline" (settings.surface_model, or what "auto" chose) and, for
+  // "auto", why (the polynomial's two adequacy figures against their warning ratios).
+  std::string surface_model;
+  std::string surface_model_reason;
   double spline_lambda = 0;          // REML-chosen penalty weight
   double spline_effective_params = 0;
   double Height(double x_mm, double y_mm) const;
@@ -80,6 +84,19 @@ struct Reconstruction {
   double slope_fit_norm_radius_mm = 0;
   int slope_fit_factorizations = 0;  // factorisations the slope fits needed at the chosen t (cold: one per pass)
 };
+
+// Above this ratio of slope residual to the expected noise the model, not the noise, leaves the residual: 3 x
+// (a fit that holds leaves ~1 x; the paper biconic from exact spots leaves 1e-3 x, the keratoconus 10-100 x).
+inline constexpr double kAdequacyWarningRatio = 3.0;
+// Above this structured_residual_ratio (Reconstruction: the square root of the residual's neighbour covariance over
+// the expected noise) the residual is a shape the model misses, whatever its size against the noise: spot-centre
+// noise is independent per spot and leaves a covariance ~0 (measured <= 0 on every biconic and Zernike cornea of the
+// test set with 0.04 px noise: 0.00), while the mildest cones that kAdequacyWarningRatio misses with the polynomial
+// leave 0.54-1.96 (12 um cone 0.54-0.63, wide 40 um 0.81-0.87, 5 um 1.95; docs/reconstruction.md). 0.4: noise alone
+// reaches it only with a neighbour correlation of +0.16, ~8 standard deviations of the estimate over ~1,200 pairs.
+inline constexpr double kStructuredResidualWarningRatio = 0.4;
+// The surface model represents the data: neither figure above its warning ratio.
+bool ModelFitsData(const Reconstruction& r);
 
 struct ReconstructOptions {
   // Model adequacy (expected_slope_noise, adequacy_ratio): finite differences through every ray, which a Monte

@@ -193,7 +193,14 @@ TEST_F(Cli, ReconstructBiconicFitAndSurfaceModelOverrideTheConfig) {
   const auto paper_fit = reconstruct("paper.json", "--biconic-fit paper");
   const auto sphere = reconstruct("sphere.json", "--biconic-fit sphere");
   const auto spline = reconstruct("spline.json", "--surface-model spline");
+  const auto automatic = reconstruct("auto.json", "--surface-model auto");
   EXPECT_EQ(plain["surface_fit"]["mode"], "free-apex");
+  // "auto" keeps the polynomial on the paper cornea (it fits: adequacy ratio 2.7e-3) and says so.
+  EXPECT_EQ(plain["adequacy"]["surface_model"], "polynomial");
+  EXPECT_EQ(spline["adequacy"]["surface_model"], "spline");
+  EXPECT_EQ(automatic["adequacy"]["surface_model"], "polynomial");
+  EXPECT_NE(automatic["adequacy"]["surface_model_reason"].get<std::string>().find("it fits"), std::string::npos);
+  EXPECT_EQ(automatic["adequacy"]["ratio"].get<double>(), plain["adequacy"]["ratio"].get<double>());
   // The paper's fit: apex on the axis, no tilt, the paper cornea's parameters back.
   EXPECT_EQ(paper_fit["surface_fit"]["mode"], "paper");
   EXPECT_EQ(paper_fit["surface_fit"]["tilt_deg"].get<double>(), 0.0);
@@ -219,6 +226,18 @@ TEST_F(Cli, SweepBiconicFitAndSurfaceModelOverrideTheConfig) {
   const auto [plain, plain_text] = sweep("plain.json", "");
   const auto [sphere, sphere_text] = sweep("sphere.json", "--biconic-fit sphere");
   const auto [spline, spline_text] = sweep("spline.json", "--surface-model spline");
+  const auto [automatic, automatic_text] = sweep("auto.json", "--surface-model auto");
+  // "auto": the spline exactly in the rows where the polynomial does not fit (the uncorrected distortion's
+  // non-integrable slopes at the largest |sigma|), the polynomial elsewhere.
+  ASSERT_EQ(automatic["rows"].size(), 7u);
+  int spline_rows = 0;
+  for (size_t i = 0; i < 7; ++i) {
+    const bool fits = plain["rows"][i]["adequacy"]["model_fits_data"].get<bool>();
+    EXPECT_EQ(automatic["rows"][i]["adequacy"]["surface_model"], fits ? "polynomial" : "spline") << i;
+    spline_rows += !fits;
+  }
+  EXPECT_GT(spline_rows, 0);
+  EXPECT_LT(spline_rows, 7);
   EXPECT_NE(sphere_text.find("sphere fit"), std::string::npos) << sphere_text;
   ASSERT_EQ(sphere["rows"].size(), 7u);
   for (const auto& row : sphere["rows"]) {

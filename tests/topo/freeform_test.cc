@@ -115,6 +115,43 @@ TEST(Freeform, ThePolynomialFlattensTheConeAndTheAdequacyFigureSaysSo) {
   EXPECT_LT(spline.reconstruction.adequacy_ratio, kAdequacyWarningRatio);
 }
 
+// surface_model "auto": the spline joins exactly where the polynomial does not fit the data, and the result is then
+// the spline model's bit for bit (the same passes, the decision computes only the adequacy figures); where the
+// polynomial fits, the polynomial's bit for bit.
+TEST(Freeform, AutoTakesTheSplineWhereThePolynomialDoesNotFit) {
+  const auto with = [](const char* model) {
+    auto c = SplineConfig();
+    c.reconstruction.surface_model = model;
+    return c;
+  };
+  // The mildest cone (flagged only by the structured residual), the 33 um cone, an ablation; and a biconic.
+  for (const char* name : {"kc-5um-0.8mm", "kc-33um-0.85mm", "lasik-myopic-5D-decentred"}) {
+    SCOPED_TRACE(name);
+    Analysis a, s;
+    const auto ea = Measure(name, with("auto"), &a);
+    const auto es = Measure(name, with("spline"), &s);
+    EXPECT_EQ(a.reconstruction.surface_model, "spline");
+    EXPECT_NE(a.reconstruction.surface_model_reason.find("the spline joins"), std::string::npos)
+        << a.reconstruction.surface_model_reason;
+    EXPECT_EQ(ea.tangential_rms_D, es.tangential_rms_D);
+    EXPECT_EQ(ea.height_rms_um, es.height_rms_um);
+    EXPECT_EQ(a.surface_fit.params.rx_mm, s.surface_fit.params.rx_mm);
+    EXPECT_EQ(a.reconstruction.iterations, s.reconstruction.iterations);
+  }
+  Analysis a, p;
+  const auto ea = Measure("biconic-toric-1.5mm-oblique", with("auto"), &a);
+  const auto ep = Measure("biconic-toric-1.5mm-oblique", with("polynomial"), &p);
+  EXPECT_EQ(a.reconstruction.surface_model, "polynomial");
+  EXPECT_TRUE(a.reconstruction.residual.empty());
+  EXPECT_NE(a.reconstruction.surface_model_reason.find("it fits"), std::string::npos);
+  EXPECT_EQ(ea.axial_rms_D, ep.axial_rms_D);
+  EXPECT_EQ(a.reconstruction.adequacy_ratio, p.reconstruction.adequacy_ratio);
+  EXPECT_EQ(a.reconstruction.structured_residual_ratio, p.reconstruction.structured_residual_ratio);
+  EXPECT_EQ(a.surface_fit.params.kx, p.surface_fit.params.kx);
+  EXPECT_EQ(p.reconstruction.surface_model, "polynomial");
+  EXPECT_TRUE(p.reconstruction.surface_model_reason.empty());
+}
+
 // The mildest cones: the polynomial leaves a slope residual only 0.8-2.5 x the expected noise (below
 // kAdequacyWarningRatio), but neighbouring spots share it — a shape, not noise — and the structured-residual figure
 // flags it; on good fits with spot noise it stays at 0 (the noise is independent per spot). 0.04 px noise, seed 1.
