@@ -1,14 +1,14 @@
 #include "topo/biconic_fit.h"
 
-#include <algorithm>
-#include <cmath>
-#include <stdexcept>
-
 #include <ceres/ceres.h>
+#include <fmt/format.h>
+
 #include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 #include <Eigen/SVD>
-#include <fmt/format.h>
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
 
 #include "model/surface.h"
 #include "topo/biconic_jacobian.h"
