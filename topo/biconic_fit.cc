@@ -27,12 +27,18 @@ using K = model::BiconicKernel;
 // parameters: the sags of the last cost-only evaluation are kept and reused then, so that the tilted surface's
 // Newton root is found once per point and step, not twice. Reuse needs the parameters bit for bit equal, so the
 // values are the ones a fresh evaluation would give. (The solver runs on one thread: SurfaceFitSolverOptions.)
+// With keep_jacobian, the Jacobian of the last evaluation that computed one is kept too: Ceres' last one is at the
+// solution, where the covariance needs it (FitCovariance), so the covariance costs no evaluation of its own.
 class BiconicSagResiduals final : public ceres::CostFunction {
  public:
-  BiconicSagResiduals(const std::vector<Eigen::Vector3d>& points_mm, bool tilted)
-      : points_(points_mm), tilted_(tilted), sag_mm_(points_mm.size()) {
+  BiconicSagResiduals(const std::vector<Eigen::Vector3d>& points_mm, bool tilted, bool keep_jacobian)
+      : points_(points_mm), tilted_(tilted), keep_jacobian_(keep_jacobian), sag_mm_(points_mm.size()) {
     set_num_residuals(static_cast<int>(points_.size()));
     mutable_parameter_block_sizes()->push_back(K::kNumParams);
+  }
+  // The Jacobian (row-major, num_residuals x kNumParams) kept at exactly these parameters, or null.
+  const double* KeptJacobianAt(const double* q) const {
+    return jacobian_valid_ && std::equal(q, q + K::kNumParams, jacobian_q_) ? kept_jacobian_.data() : nullptr;
   }
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
     const double* q = parameters[0];
@@ -54,12 +60,22 @@ class BiconicSagResiduals final : public ceres::CostFunction {
     }
     std::copy(q, q + K::kNumParams, sag_q_);
     sags_valid_ = true;
+    if (jacobian && keep_jacobian_) {
+      kept_jacobian_.assign(jacobian, jacobian + K::kNumParams * points_.size());
+      std::copy(q, q + K::kNumParams, jacobian_q_);
+      jacobian_valid_ = true;
+    }
     return true;
   }
 
  private:
   const std::vector<Eigen::Vector3d>& points_;
   bool tilted_;
+  bool keep_jacobian_;
+  // The Jacobian of the last successful evaluation that computed one, and its parameters (keep_jacobian).
+  mutable std::vector<double> kept_jacobian_;
+  mutable double jacobian_q_[K::kNumParams] = {};
+  mutable bool jacobian_valid_ = false;
   // The sags of the last successful evaluation and its parameters.
   mutable std::vector<double> sag_mm_;
   mutable double sag_q_[K::kNumParams] = {};
@@ -123,10 +139,14 @@ bool FitCovariance(const BiconicSagResiduals& residuals, const double* q, bool f
   using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   const int n = residuals.num_residuals();
   RowMatrix jacobian(n, K::kNumParams);
-  Eigen::VectorXd r(n);
-  const double* parameters[] = {q};
-  double* jacobians[] = {jacobian.data()};
-  if (!residuals.Evaluate(parameters, r.data(), jacobians)) return false;
+  if (const double* kept = residuals.KeptJacobianAt(q)) {
+    jacobian = Eigen::Map<const RowMatrix>(kept, n, K::kNumParams);
+  } else {
+    Eigen::VectorXd r(n);
+    const double* parameters[] = {q};
+    double* jacobians[] = {jacobian.data()};
+    if (!residuals.Evaluate(parameters, r.data(), jacobians)) return false;
+  }
   constexpr int kPaperFree[] = {K::kCx, K::kCy, K::kKx, K::kKy, K::kAlpha, K::kZ0};
   std::vector<int> free;
   for (int j = 0; j < K::kNumParams; ++j) {
@@ -257,7 +277,7 @@ BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const Bicon
     return fit;
   }
   ceres::Problem problem;
-  auto* residuals = new BiconicSagResiduals(points_mm, free_apex);  // owned by the problem
+  auto* residuals = new BiconicSagResiduals(points_mm, free_apex, options.stddev);  // owned by the problem
   problem.AddResidualBlock(residuals, nullptr, q);
   if (!free_apex) {
     problem.SetManifold(q, new ceres::SubsetManifold(K::kNumParams, {K::kX0, K::kY0, K::kTiltX, K::kTiltY}));
