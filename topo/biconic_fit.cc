@@ -1,13 +1,14 @@
 #include "topo/biconic_fit.h"
 
+#include <ceres/ceres.h>
+#include <fmt/format.h>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/QR>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
-
-#include <ceres/ceres.h>
-#include <Eigen/Eigenvalues>
-#include <Eigen/QR>
-#include <fmt/format.h>
 
 #include "model/surface.h"
 #include "topo/biconic_jacobian.h"
@@ -26,12 +27,18 @@ using K = model::BiconicKernel;
 // parameters: the sags of the last cost-only evaluation are kept and reused then, so that the tilted surface's
 // Newton root is found once per point and step, not twice. Reuse needs the parameters bit for bit equal, so the
 // values are the ones a fresh evaluation would give. (The solver runs on one thread: SurfaceFitSolverOptions.)
+// With keep_jacobian, the Jacobian of the last evaluation that computed one is kept too: Ceres' last one is at the
+// solution, where the covariance needs it (FitCovariance), so the covariance costs no evaluation of its own.
 class BiconicSagResiduals final : public ceres::CostFunction {
  public:
-  BiconicSagResiduals(const std::vector<Eigen::Vector3d>& points_mm, bool tilted)
-      : points_(points_mm), tilted_(tilted), sag_mm_(points_mm.size()) {
+  BiconicSagResiduals(const std::vector<Eigen::Vector3d>& points_mm, bool tilted, bool keep_jacobian)
+      : points_(points_mm), tilted_(tilted), keep_jacobian_(keep_jacobian), sag_mm_(points_mm.size()) {
     set_num_residuals(static_cast<int>(points_.size()));
     mutable_parameter_block_sizes()->push_back(K::kNumParams);
+  }
+  // The Jacobian (row-major, num_residuals x kNumParams) kept at exactly these parameters, or null.
+  const double* KeptJacobianAt(const double* q) const {
+    return jacobian_valid_ && std::equal(q, q + K::kNumParams, jacobian_q_) ? kept_jacobian_.data() : nullptr;
   }
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
     const double* q = parameters[0];
@@ -53,12 +60,22 @@ class BiconicSagResiduals final : public ceres::CostFunction {
     }
     std::copy(q, q + K::kNumParams, sag_q_);
     sags_valid_ = true;
+    if (jacobian && keep_jacobian_) {
+      kept_jacobian_.assign(jacobian, jacobian + K::kNumParams * points_.size());
+      std::copy(q, q + K::kNumParams, jacobian_q_);
+      jacobian_valid_ = true;
+    }
     return true;
   }
 
  private:
   const std::vector<Eigen::Vector3d>& points_;
   bool tilted_;
+  bool keep_jacobian_;
+  // The Jacobian of the last successful evaluation that computed one, and its parameters (keep_jacobian).
+  mutable std::vector<double> kept_jacobian_;
+  mutable double jacobian_q_[K::kNumParams] = {};
+  mutable bool jacobian_valid_ = false;
   // The sags of the last successful evaluation and its parameters.
   mutable std::vector<double> sag_mm_;
   mutable double sag_q_[K::kNumParams] = {};
@@ -107,6 +124,48 @@ bool InitialGuess(const std::vector<Eigen::Vector3d>& pts, bool free_apex, doubl
     q[K::kX0] = ca * apex.x() + sa * apex.y();
     q[K::kY0] = -sa * apex.x() + ca * apex.y();
     q[K::kZ0] = s(0) + 0.5 * Eigen::Vector2d(s(1), s(2)).dot(apex);
+  }
+  return true;
+}
+
+// The covariance (J^T J)^+ of the parameters from the Jacobian J at the solution, over the free parameters (the
+// ones a "paper" fit holds fixed get zero rows and columns), computed as ceres::Covariance's DENSE_SVD did it
+// (the algorithm the fit used before; docs/performance.md, sixth round): the SVD J = U S V^T, and directions whose
+// singular value is below sqrt(1e-14) of the largest dropped (a pseudo-inverse, as with null_space_rank = -1)
+// instead of failing. Without Ceres' covariance machinery (a second program, evaluator and sparse Jacobian) and
+// without U, which the covariance does not use. False if the Jacobian cannot be evaluated.
+bool FitCovariance(const BiconicSagResiduals& residuals, const double* q, bool free_apex,
+                   Eigen::Matrix<double, K::kNumParams, K::kNumParams>* cov) {
+  using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  const int n = residuals.num_residuals();
+  RowMatrix jacobian(n, K::kNumParams);
+  if (const double* kept = residuals.KeptJacobianAt(q)) {
+    jacobian = Eigen::Map<const RowMatrix>(kept, n, K::kNumParams);
+  } else {
+    Eigen::VectorXd r(n);
+    const double* parameters[] = {q};
+    double* jacobians[] = {jacobian.data()};
+    if (!residuals.Evaluate(parameters, r.data(), jacobians)) return false;
+  }
+  constexpr int kPaperFree[] = {K::kCx, K::kCy, K::kKx, K::kKy, K::kAlpha, K::kZ0};
+  std::vector<int> free;
+  for (int j = 0; j < K::kNumParams; ++j) {
+    if (free_apex || std::find(std::begin(kPaperFree), std::end(kPaperFree), j) != std::end(kPaperFree)) {
+      free.push_back(j);
+    }
+  }
+  const int p = static_cast<int>(free.size());
+  RowMatrix j_free(n, p);
+  for (int c = 0; c < p; ++c) j_free.col(c) = jacobian.col(free[c]);
+  const Eigen::JacobiSVD<RowMatrix> svd(j_free, Eigen::ComputeThinV);
+  const Eigen::VectorXd& s = svd.singularValues();
+  Eigen::VectorXd inverse_squared = Eigen::VectorXd::Zero(p);
+  const double min_ratio = std::sqrt(1e-14);  // Ceres' default min_reciprocal_condition_number
+  for (int i = 0; i < p && s(i) / s(0) >= min_ratio; ++i) inverse_squared(i) = 1.0 / (s(i) * s(i));
+  const RowMatrix c = svd.matrixV() * inverse_squared.asDiagonal() * svd.matrixV().transpose();
+  cov->setZero();
+  for (int a = 0; a < p; ++a) {
+    for (int b = 0; b < p; ++b) (*cov)(free[a], free[b]) = c(a, b);
   }
   return true;
 }
@@ -218,7 +277,8 @@ BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const Bicon
     return fit;
   }
   ceres::Problem problem;
-  problem.AddResidualBlock(new BiconicSagResiduals(points_mm, free_apex), nullptr, q);
+  auto* residuals = new BiconicSagResiduals(points_mm, free_apex, options.stddev);  // owned by the problem
+  problem.AddResidualBlock(residuals, nullptr, q);
   if (!free_apex) {
     problem.SetManifold(q, new ceres::SubsetManifold(K::kNumParams, {K::kX0, K::kY0, K::kTiltX, K::kTiltY}));
   }
@@ -234,43 +294,34 @@ BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const Bicon
   fit.rms_residual_um = std::sqrt(ssr / fit.points) * 1e3;
   const model::BiconicParams p = K::ToParams(q);
 
-  if (options.stddev) {
-    ceres::Covariance::Options co;
-    co.algorithm_type = ceres::DENSE_SVD;
-    co.null_space_rank = -1;  // drop directions below min_reciprocal_condition_number instead of failing
-    ceres::Covariance covariance(co);
-    std::vector<std::pair<const double*, const double*>> blocks = {{q, q}};
-    if (covariance.Compute(blocks, &problem)) {
-      // Ambient-space covariance: the parameters a "paper" fit holds fixed get zero rows and columns.
-      Eigen::Matrix<double, K::kNumParams, K::kNumParams, Eigen::RowMajor> cov;
-      covariance.GetCovarianceBlock(q, q, cov.data());
-      const int dof = std::max(1, fit.points - free_params);
-      cov *= ssr / dof;
-      const auto sd = [&](int i) { return std::sqrt(std::max(0.0, cov(i, i))); };
-      auto& s = fit.stddev;
-      s.rx_mm = sd(K::kCx) / (q[K::kCx] * q[K::kCx]);
-      s.ry_mm = sd(K::kCy) / (q[K::kCy] * q[K::kCy]);
-      s.kx = sd(K::kKx);
-      s.ky = sd(K::kKy);
-      s.alpha_deg = sd(K::kAlpha) * 180.0 / M_PI;
-      s.z0_mm = sd(K::kZ0);
-      s.x0_mm = sd(K::kX0);
-      s.y0_mm = sd(K::kY0);
-      s.tilt_x_deg = sd(K::kTiltX) * 180.0 / M_PI;
-      s.tilt_y_deg = sd(K::kTiltY) * 180.0 / M_PI;
-      // apex = Rot(-alpha) (x0, y0): first-order propagation through (alpha, x0, y0).
-      const double ca = std::cos(q[K::kAlpha]), sa = std::sin(q[K::kAlpha]);
-      Eigen::Matrix<double, 2, 3> J;
-      J << -sa * q[K::kX0] - ca * q[K::kY0], ca, -sa, ca * q[K::kX0] - sa * q[K::kY0], sa, ca;
-      Eigen::Matrix3d c3;
-      const int idx[3] = {K::kAlpha, K::kX0, K::kY0};
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) c3(i, j) = cov(idx[i], idx[j]);
-      const Eigen::Matrix2d ca2 = J * c3 * J.transpose();
-      s.apex_x_mm = std::sqrt(std::max(0.0, ca2(0, 0)));
-      s.apex_y_mm = std::sqrt(std::max(0.0, ca2(1, 1)));
-      fit.stddev_ok = true;
-    }
+  Eigen::Matrix<double, K::kNumParams, K::kNumParams> cov;  // ambient space: zero where the fit holds fixed
+  if (options.stddev && FitCovariance(*residuals, q, free_apex, &cov)) {
+    const int dof = std::max(1, fit.points - free_params);
+    cov *= ssr / dof;
+    const auto sd = [&](int i) { return std::sqrt(std::max(0.0, cov(i, i))); };
+    auto& s = fit.stddev;
+    s.rx_mm = sd(K::kCx) / (q[K::kCx] * q[K::kCx]);
+    s.ry_mm = sd(K::kCy) / (q[K::kCy] * q[K::kCy]);
+    s.kx = sd(K::kKx);
+    s.ky = sd(K::kKy);
+    s.alpha_deg = sd(K::kAlpha) * 180.0 / M_PI;
+    s.z0_mm = sd(K::kZ0);
+    s.x0_mm = sd(K::kX0);
+    s.y0_mm = sd(K::kY0);
+    s.tilt_x_deg = sd(K::kTiltX) * 180.0 / M_PI;
+    s.tilt_y_deg = sd(K::kTiltY) * 180.0 / M_PI;
+    // apex = Rot(-alpha) (x0, y0): first-order propagation through (alpha, x0, y0).
+    const double ca = std::cos(q[K::kAlpha]), sa = std::sin(q[K::kAlpha]);
+    Eigen::Matrix<double, 2, 3> J;
+    J << -sa * q[K::kX0] - ca * q[K::kY0], ca, -sa, ca * q[K::kX0] - sa * q[K::kY0], sa, ca;
+    Eigen::Matrix3d c3;
+    const int idx[3] = {K::kAlpha, K::kX0, K::kY0};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) c3(i, j) = cov(idx[i], idx[j]);
+    const Eigen::Matrix2d ca2 = J * c3 * J.transpose();
+    s.apex_x_mm = std::sqrt(std::max(0.0, ca2(0, 0)));
+    s.apex_y_mm = std::sqrt(std::max(0.0, ca2(1, 1)));
+    fit.stddev_ok = true;
   }
   const bool swapped = p.rx_mm < p.ry_mm;
   fit.params = CanonicalBiconic(p);

@@ -41,19 +41,24 @@ bool ComputeClinicalIndices(const PowerMaps& axial, const SurfaceEvaluator& surf
     return Fail(why, fmt::format("clinical indices: the data reach {:.2f} mm, less than the sim-K ring ({:.2f} mm)",
                                  supported, o.sim_k_outer_mm));
   }
+  // The samples' radii are the same on every meridian: which of them lie in the sim-K ring, and how many lie
+  // within the supported radius, is decided once (the same tests on the same RhoMm values as per sample).
+  std::vector<int> ring;
+  int supported_samples = 0;
+  for (int k = 0; k < K; ++k) {
+    const double rho = axial.RhoMm(k);
+    if (!(rho < o.sim_k_inner_mm || rho > o.sim_k_outer_mm)) ring.push_back(k);
+    if (supported_samples == k && rho <= supported) ++supported_samples;
+  }
+  if (ring.empty()) return Fail(why, "clinical indices: no power-map sample lies in the sim-K ring");
   // sim-K over the ring; meridian theta and theta + 180 together.
   std::vector<double> meridian_mean(M, 0.0);
+  const int n_ring = static_cast<int>(ring.size());
   for (int j = 0; j < M; ++j) {
+    const double* row = &axial.axial_D[static_cast<size_t>(j) * K];
     double sum = 0;
-    int n = 0;
-    for (int k = 0; k < K; ++k) {
-      const double rho = axial.RhoMm(k);
-      if (rho < o.sim_k_inner_mm || rho > o.sim_k_outer_mm) continue;
-      sum += axial.axial_D[static_cast<size_t>(j) * K + k];
-      ++n;
-    }
-    if (n == 0) return Fail(why, "clinical indices: no power-map sample lies in the sim-K ring");
-    meridian_mean[j] = sum / n;
+    for (const int k : ring) sum += row[k];
+    meridian_mean[j] = sum / n_ring;
   }
   const auto opposite = [&](int j, double deg) { return (j + static_cast<int>(std::lround(deg / 360.0 * M))) % M; };
   int steep = 0;
@@ -69,7 +74,7 @@ bool ComputeClinicalIndices(const PowerMaps& axial, const SurfaceEvaluator& surf
   // Kmax within the supported radius.
   ci.kmax_D = -INFINITY;
   for (int j = 0; j < M; ++j) {
-    for (int k = 0; k < K && axial.RhoMm(k) <= supported; ++k) {
+    for (int k = 0; k < supported_samples; ++k) {
       const double p = axial.axial_D[static_cast<size_t>(j) * K + k];
       if (p > ci.kmax_D) {
         ci.kmax_D = p;
@@ -82,12 +87,18 @@ bool ComputeClinicalIndices(const PowerMaps& axial, const SurfaceEvaluator& surf
   // Best-fit sphere over the zone: algebraic fit for the start, then the sag residual with Ceres.
   const double zone = std::min(o.bfs_radius_mm, supported);
   ci.bfs_zone_radius_mm = zone;
+  // std::hypot(x, y) > zone, with std::hypot (slow) called only near the rim: well inside it, x^2 + y^2 is below
+  // zone^2 by far more than its rounding (and hypot's error of < 1 ulp), so the answer is the same.
+  const double inside_for_sure_mm2 = zone * zone * (1.0 - 1e-9);
+  const auto outside_zone = [&](double x, double y) {
+    return !(x * x + y * y < inside_for_sure_mm2) && std::hypot(x, y) > zone;
+  };
   std::vector<Eigen::Vector3d> pts;
   const int half = static_cast<int>(std::floor(zone / o.bfs_step_mm));
   for (int iy = -half; iy <= half; ++iy) {
     for (int ix = -half; ix <= half; ++ix) {
       const double x = ix * o.bfs_step_mm, y = iy * o.bfs_step_mm;
-      if (std::hypot(x, y) > zone) continue;
+      if (outside_zone(x, y)) continue;
       model::SurfaceDerivatives d;
       if (!surface(x, y, &d)) return Fail(why, fmt::format("clinical indices: the surface is undefined at ({:.2f}, {:.2f}) mm", x, y));
       pts.emplace_back(x, y, d.z);
@@ -120,7 +131,7 @@ bool ComputeClinicalIndices(const PowerMaps& axial, const SurfaceEvaluator& surf
   const auto elevation_at = [&](double x, double y, double* e_um) {
     model::SurfaceDerivatives d;
     const double dx = x - s[0], dy = y - s[1];
-    if (std::hypot(x, y) > zone || !surface(x, y, &d)) return false;
+    if (outside_zone(x, y) || !surface(x, y, &d)) return false;
     *e_um = (s[2] - std::sqrt(std::max(0.0, s[3] * s[3] - dx * dx - dy * dy)) - d.z) * 1e3;
     return true;
   };

@@ -40,15 +40,16 @@ bool ComputePowerMaps(const TaylorPolynomial& psi, const PowerMapOptions& o, Pow
     psi.MeridianCoefficients(theta, g.data());
     // Horner for the value and both derivatives together, one degree at a time over all samples: the samples'
     // chains are independent, so they vectorise and overlap (each sample's operations as in a per-sample loop).
-    for (int k = 0; k < n; ++k) f[k] = g[top], df[k] = 0, d2f[k] = 0;
+    // Eigen arrays, because the compiler cannot vectorise the loop over raw pointers that may alias.
+    const Eigen::Map<const Eigen::ArrayXd> r(rho, n);
+    Eigen::Map<Eigen::ArrayXd> fa(f, n), dfa(df, n), d2fa(d2f, n);
+    fa.setConstant(g[top]);
+    dfa.setZero();
+    d2fa.setZero();
     for (int d = top - 1; d >= 0; --d) {
-      const double gd = g[d];
-      for (int k = 0; k < n; ++k) {
-        const double r = rho[k];
-        d2f[k] = d2f[k] * r + 2.0 * df[k];
-        df[k] = df[k] * r + f[k];
-        f[k] = f[k] * r + gd;
-      }
+      d2fa = d2fa * r + 2.0 * dfa;
+      dfa = dfa * r + fa;
+      fa = fa * r + g[d];
     }
     return true;
   };
@@ -80,6 +81,8 @@ bool ComputePowerMaps(const MeridianSampler& meridian, const PowerMapOptions& o,
   maps->axial_D.assign(static_cast<size_t>(M) * K, 0.0);
   maps->tangential_D.assign(static_cast<size_t>(M) * K, 0.0);
   Eigen::VectorXd f(K), d1s(K), d2s(K), rho(K);
+  Eigen::ArrayXd g(K), sqrt_g(K);
+  double axial_min = INFINITY, axial_max = -INFINITY, tangential_min = INFINITY, tangential_max = -INFINITY;
   for (int k = 0; k < K; ++k) rho(k) = o.radius_mm * (k + 1) / K;
   for (int j = 0; j < M; ++j) {
     const double theta = 2.0 * M_PI * j / M;
@@ -101,24 +104,27 @@ bool ComputePowerMaps(const MeridianSampler& meridian, const PowerMapOptions& o,
         d2s(k) = d2 / (o.radius_mm * o.radius_mm);
       }
     }
-    double* axial = maps->axial_D.data() + static_cast<size_t>(j) * K;
-    double* tangential = maps->tangential_D.data() + static_cast<size_t>(j) * K;
-    for (int k = 0; k < K; ++k) {  // no branch inside: it vectorises
-      const double g = 1.0 + d1s(k) * d1s(k);
-      const double ka = d1s(k) / (rho(k) * std::sqrt(g));   // Eq. 24
-      const double km = d2s(k) / (g * std::sqrt(g));
-      axial[k] = ka * power_per_curvature;  // Eq. 25
-      tangential[k] = km * power_per_curvature;
+    Eigen::Map<Eigen::ArrayXd> axial(maps->axial_D.data() + static_cast<size_t>(j) * K, K);
+    Eigen::Map<Eigen::ArrayXd> tangential(maps->tangential_D.data() + static_cast<size_t>(j) * K, K);
+    // Eigen's array sqrt and division are the packed IEEE instructions (std::sqrt in a loop is not vectorised:
+    // it may set errno), with the same correctly rounded results as the scalar ones.
+    g = 1.0 + d1s.array() * d1s.array();
+    sqrt_g = g.sqrt();
+    axial = d1s.array() / (rho.array() * sqrt_g) * power_per_curvature;  // Eq. 24, 25
+    tangential = d2s.array() / (g * sqrt_g) * power_per_curvature;
+    // A non-finite curvature is non-finite times a finite power_per_curvature: the same test as on ka, km. x * 0
+    // is 0 exactly when x is finite (NaN for an infinity or a NaN); a packed comparison, unlike std::isfinite.
+    if (!((axial * 0.0 == 0.0).all() && (tangential * 0.0 == 0.0).all())) {
+      return Fail(why, "curvature is not finite");
     }
-    for (int k = 0; k < K; ++k) {
-      // A non-finite curvature is non-finite times a finite power_per_curvature: the same test as on ka, km.
-      if (!std::isfinite(axial[k]) || !std::isfinite(tangential[k])) return Fail(why, "curvature is not finite");
-    }
+    // The extremes of the maps, meridian by meridian while it is in cache (packed min and max: the same values).
+    axial_min = std::min(axial_min, axial.minCoeff());
+    axial_max = std::max(axial_max, axial.maxCoeff());
+    tangential_min = std::min(tangential_min, tangential.minCoeff());
+    tangential_max = std::max(tangential_max, tangential.maxCoeff());
   }
-  const auto [amin, amax] = std::minmax_element(maps->axial_D.begin(), maps->axial_D.end());
-  const auto [tmin, tmax] = std::minmax_element(maps->tangential_D.begin(), maps->tangential_D.end());
-  maps->pv_axial_D = *amax - *amin;       // Eq. 28b
-  maps->pv_tangential_D = *tmax - *tmin;  // Eq. 28a
+  maps->pv_axial_D = axial_max - axial_min;                 // Eq. 28b
+  maps->pv_tangential_D = tangential_max - tangential_min;  // Eq. 28a
   return true;
 }
 
