@@ -227,16 +227,32 @@ TEST(AnalysisStart, AWarmStartedDrawAgreesWithAColdAnalysis) {
   draw.start = &nominal;
   const Analysis warm = AnalyzeSpots(moved, design.targets, config, nullptr, draw);
   const Analysis cold = AnalyzeSpots(moved, design.targets, config, nullptr);
-  // CGLS from the nominal factor stops at 1e-13 of the normal residual and both biconic fits at Ceres' tolerances
-  // (1e-16 in cost): the clinical numbers agree far below their own uncertainty (U(k) ~ 2e-4).
-  // Measured on 2026-12-01: |dk| 9e-14, |dr| 4e-14 mm, |dpv| 1.9e-11 D.
-  constexpr double kConicTol = 1e-9, kRadiusTolMm = 1e-10, kPowerTolD = 1e-9;
-  EXPECT_NEAR(warm.surface_fit.params.kx, cold.surface_fit.params.kx, kConicTol);
-  EXPECT_NEAR(warm.surface_fit.params.ky, cold.surface_fit.params.ky, kConicTol);
-  EXPECT_NEAR(warm.surface_fit.params.rx_mm, cold.surface_fit.params.rx_mm, kRadiusTolMm);
-  EXPECT_NEAR(warm.surface_fit.params.ry_mm, cold.surface_fit.params.ry_mm, kRadiusTolMm);
-  EXPECT_NEAR(warm.power.pv_axial_D, cold.power.pv_axial_D, kPowerTolD);
-  EXPECT_NEAR(warm.power.pv_tangential_D, cold.power.pv_tangential_D, kPowerTolD);
+  // The warm draw refines its incidence points from the nominal surface, the cold one from the design sphere: both
+  // stop when no point moves by more than convergence_um (1e-4 um), so they agree to what that tolerance leaves,
+  // not bit for bit. Acceptance: far below the clinical numbers' own Monte Carlo uncertainty on the demo unit
+  // (U(k) ~ 1.9e-4, U(r_x) ~ 1.4e-5 mm, U(pv_t) ~ 3e-3 D): 1/100 of it. Regression bounds near what is measured
+  // (2026-12-02: |dk| 3.0e-8, |dr| 1.7e-8 mm, |dpv| 3.2e-7 (axial) / 3.9e-6 D (tangential); with the sphere start
+  // for both, 2026-12-01, it was 9e-14, 4e-14 mm and 1.9e-11 D).
+  constexpr double kConicLimit = 2e-6, kRadiusLimitMm = 1.4e-7, kPowerLimitD = 3e-5;
+  constexpr double kConicTol = 1e-7, kRadiusTolMm = 5e-8, kPowerTolD = 1e-5;
+  for (const double tol : {kConicLimit, kConicTol}) {
+    EXPECT_NEAR(warm.surface_fit.params.kx, cold.surface_fit.params.kx, tol);
+    EXPECT_NEAR(warm.surface_fit.params.ky, cold.surface_fit.params.ky, tol);
+  }
+  for (const double tol : {kRadiusLimitMm, kRadiusTolMm}) {
+    EXPECT_NEAR(warm.surface_fit.params.rx_mm, cold.surface_fit.params.rx_mm, tol);
+    EXPECT_NEAR(warm.surface_fit.params.ry_mm, cold.surface_fit.params.ry_mm, tol);
+  }
+  for (const double tol : {kPowerLimitD, kPowerTolD}) {
+    EXPECT_NEAR(warm.power.pv_axial_D, cold.power.pv_axial_D, tol);
+    EXPECT_NEAR(warm.power.pv_tangential_D, cold.power.pv_tangential_D, tol);
+  }
+  // What the start saves (issue 15): refinement passes (from the nominal surface, not the sphere) and fit
+  // iterations (Gauss-Newton from the nominal fit instead of the quadratic guess).
+  std::printf("refinement passes warm %d / cold %d, fit iterations warm %d / cold %d\n", warm.reconstruction.iterations,
+              cold.reconstruction.iterations, warm.surface_fit.iterations, cold.surface_fit.iterations);
+  EXPECT_LT(warm.reconstruction.iterations, cold.reconstruction.iterations);
+  EXPECT_LT(warm.surface_fit.iterations, cold.surface_fit.iterations);
   // No factorisation of its own, and nothing computed that a draw does not read.
   EXPECT_EQ(warm.reconstruction.slope_fit_factorizations, 0);
   // A cold analysis factors the normal matrix of every refinement pass's own points (issue 15: cheaper than CGLS
