@@ -313,6 +313,11 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
     fitter.StartFrom(start->slope_fit_factor);
   }
   const bool spline_mode = settings.surface_model == "spline";
+  std::vector<Eigen::Vector3d> incident(n), hits;
+  for (int i = 0; i < n; ++i) incident[i] = prep.rays[i].incident;
+  std::vector<double> lambda0(n);
+  std::vector<char> hit_ok;
+  BatchScratch scratch;
   // A reconstruction of nearly the same spots (a Monte Carlo draw: nanometres to micrometres away) starts on the
   // surface that one recovered instead of on the sphere G: the refinement then begins at the nominal solution's
   // error (~nm) rather than the sphere's (tens of um) and meets convergence_um in 1-2 passes instead of 3-6. It
@@ -323,12 +328,9 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
                                                     start->residual.empty() && start->vertex_t_mm == t_mm) {
     const BSplineSurface none;
     const RecoveredSurface nominal{start->surface, none};
-    std::vector<Eigen::Vector3d> on_start(n);
-    bool all = true;
-    for (int i = 0; i < n && all; ++i) {
-      all = IntersectSurface(nominal, h, prep.rays[i].incident, (p2[i] - h).norm(), &on_start[i]);
-    }
-    if (all) p2 = std::move(on_start);
+    for (int i = 0; i < n; ++i) lambda0[i] = (p2[i] - h).norm();
+    IntersectSurfaces(nominal, h, incident, lambda0, &hits, &hit_ok, &scratch);
+    if (std::all_of(hit_ok.begin(), hit_ok.end(), [](char ok) { return ok != 0; })) p2 = hits;
   }
   BSplineSurface spline;
   if (spline_mode) spline = BSplineSurface(norm_radius, settings.spline_spacing_mm);
@@ -340,11 +342,6 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   bool spline_active = spline_mode && !iterate;
   double lambda = -1;
   std::vector<Eigen::Vector2d> residual_slopes(n);
-  std::vector<Eigen::Vector3d> incident(n), hits;
-  for (int i = 0; i < n; ++i) incident[i] = prep.rays[i].incident;
-  std::vector<double> lambda0(n);
-  std::vector<char> hit_ok;
-  BatchScratch scratch;
   SplineSlopeFitter spline_fitter;  // keeps its pattern and analysis from one refinement to the next
   for (int it = 0; it < max_iterations; ++it) {
     for (int i = 0; i < n; ++i) {
