@@ -174,7 +174,8 @@ BiconicFit SphereAsBiconic(const std::vector<Eigen::Vector3d>& points_mm, const 
   if (options.start) {
     start.ok = true;
     start.radius_mm = options.start->rx_mm;
-    start.centre_mm = Eigen::Vector3d(options.start->x0_mm, options.start->y0_mm, options.start->z0_mm + start.radius_mm);
+    start.centre_mm =
+        Eigen::Vector3d(options.start->x0_mm, options.start->y0_mm, options.start->z0_mm + start.radius_mm);
     so.start = &start;
   }
   const SphereFit s = FitSphere(points_mm, so);
@@ -232,8 +233,8 @@ BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const Bicon
   if (!free_apex) {
     problem.SetManifold(q, new ceres::SubsetManifold(K::kNumParams, {K::kX0, K::kY0, K::kTiltX, K::kTiltY}));
   }
-  const ceres::Solver::Options so = options.start ? WarmStartSolverOptions(options.max_iterations)
-                                                  : SurfaceFitSolverOptions(options.max_iterations);
+  const ceres::Solver::Options so =
+      options.start ? WarmStartSolverOptions(options.max_iterations) : SurfaceFitSolverOptions(options.max_iterations);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   fit.iterations = static_cast<int>(summary.iterations.size());

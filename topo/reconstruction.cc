@@ -324,8 +324,8 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   // converges to the same fixed point, to the same tolerance. A start with a spline residual, a spline
   // reconstruction (whose spline joins only once the polynomial has converged) or another vertex offset is not used
   // for the points; a ray that misses the start's surface leaves every ray on the sphere.
-  if (const Reconstruction* start = options.start; start && iterate && !spline_mode && start->ok &&
-                                                    start->residual.empty() && start->vertex_t_mm == t_mm) {
+  if (const Reconstruction* start = options.start;
+      start && iterate && !spline_mode && start->ok && start->residual.empty() && start->vertex_t_mm == t_mm) {
     const BSplineSurface none;
     const RecoveredSurface nominal{start->surface, none};
     for (int i = 0; i < n; ++i) lambda0[i] = (p2[i] - h).norm();

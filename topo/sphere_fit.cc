@@ -147,8 +147,9 @@ SphereFit FitSphere(const std::vector<Eigen::Vector3d>& points_mm, const SphereF
   }
   // The problem is well conditioned (4 parameters, thousands of points): the shared tight tolerances are met in a
   // handful of iterations.
-  const ceres::Solver::Options so = options.start && options.start->ok ? WarmStartSolverOptions(options.max_iterations)
-                                                                      : SurfaceFitSolverOptions(options.max_iterations);
+  const ceres::Solver::Options so = options.start && options.start->ok
+                                        ? WarmStartSolverOptions(options.max_iterations)
+                                        : SurfaceFitSolverOptions(options.max_iterations);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   fit.iterations = static_cast<int>(summary.iterations.size());
