@@ -80,6 +80,7 @@ bool ComputePowerMaps(const MeridianSampler& meridian, const PowerMapOptions& o,
   maps->axial_D.assign(static_cast<size_t>(M) * K, 0.0);
   maps->tangential_D.assign(static_cast<size_t>(M) * K, 0.0);
   Eigen::VectorXd f(K), d1s(K), d2s(K), rho(K);
+  Eigen::ArrayXd g(K), root_g(K);  // 1 + F'^2 and its square root
   for (int k = 0; k < K; ++k) rho(k) = o.radius_mm * (k + 1) / K;
   for (int j = 0; j < M; ++j) {
     const double theta = 2.0 * M_PI * j / M;
@@ -101,15 +102,16 @@ bool ComputePowerMaps(const MeridianSampler& meridian, const PowerMapOptions& o,
         d2s(k) = d2 / (o.radius_mm * o.radius_mm);
       }
     }
-    double* axial = maps->axial_D.data() + static_cast<size_t>(j) * K;
-    double* tangential = maps->tangential_D.data() + static_cast<size_t>(j) * K;
-    for (int k = 0; k < K; ++k) {  // no branch inside: it vectorises
-      const double g = 1.0 + d1s(k) * d1s(k);
-      const double ka = d1s(k) / (rho(k) * std::sqrt(g));   // Eq. 24
-      const double km = d2s(k) / (g * std::sqrt(g));
-      axial[k] = ka * power_per_curvature;  // Eq. 25
-      tangential[k] = km * power_per_curvature;
-    }
+    Eigen::Map<Eigen::ArrayXd> axial(maps->axial_D.data() + static_cast<size_t>(j) * K, K);
+    Eigen::Map<Eigen::ArrayXd> tangential(maps->tangential_D.data() + static_cast<size_t>(j) * K, K);
+    // As Eigen array expressions, so that the square roots and divisions run two samples at a time (issue 15: the
+    // scalar loop did not vectorise, as std::sqrt may set errno); each element is the same correctly rounded
+    // operations in the same order as the per-sample formulas, so the same bits.
+    const auto d1 = d1s.array(), d2 = d2s.array();
+    g = 1.0 + d1 * d1;
+    root_g = g.sqrt();
+    axial = d1 / (rho.array() * root_g) * power_per_curvature;  // Eq. 24, 25
+    tangential = d2 / (g * root_g) * power_per_curvature;
     for (int k = 0; k < K; ++k) {
       // A non-finite curvature is non-finite times a finite power_per_curvature: the same test as on ka, km.
       if (!std::isfinite(axial[k]) || !std::isfinite(tangential[k])) return Fail(why, "curvature is not finite");
