@@ -87,8 +87,9 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
 
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
 
-  // The nominal analysis (the calibration as it is): every draw moves the spots by micrometres from it, so its
-  // slope-fit factor starts each draw's slope fits, and no draw factorises the least-squares matrix anew.
+  // The nominal analysis (the calibration as it is): every draw moves the spots by micrometres or less from it, so
+  // each draw starts from it: its slope-fit factor (no draw factorises the least-squares matrix anew), its surface
+  // (the incidence points' refinement begins there, not on the design sphere) and its fit (Gauss-Newton steps).
   // Draws read only the biconic parameters and the power maps: no standard deviations, adequacy or clinical indices.
   std::optional<topo::Analysis> nominal;
   {

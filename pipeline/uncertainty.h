@@ -51,8 +51,9 @@ struct ClinicalUncertainty {
 std::vector<std::string> DistortionParametersToDraw(const calib::ParameterCovariance& covariance);
 
 // The draws run on `jobs` threads (<= 0: every core; model/parallel.h); draw i takes its normals from
-// std::seed_seq{seed, i}, so the result is bit-identical whatever `jobs` is. Each draw starts its slope fits from the
-// nominal analysis (the calibration as it is) and computes only what the quantities need.
+// std::seed_seq{seed, i}, so the result is bit-identical whatever `jobs` is. Each draw starts from the nominal
+// analysis (the calibration as it is: topo::AnalysisOptions::start — its slope-fit factor, its surface for the first
+// incidence points, its biconic or sphere fit) and computes only what the quantities need.
 // Throws std::invalid_argument for samples < 2, a covariance whose size does not match its names, or no distortion
 // parameter with a positive variance;
 // std::runtime_error when more than half of the draws fail.

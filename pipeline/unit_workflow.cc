@@ -377,7 +377,6 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
     if (sphere_image.valid()) sphere_image.get();  // a sphere that cannot be read is the error to report
     throw;
   }
-  SphereImage sphere = sphere_image.valid() ? sphere_image.get() : SphereImage{};
   u.created_utc = util::FileDateUtc();
   const auto& c = u.calibration;
 
@@ -390,12 +389,17 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
   u.check = CheckOptions{r.uncertainty_samples, r.seed, r.jobs};
   // The two checks are independent: with more than one thread allowed, the paper cornea's runs beside the sphere's,
   // so that each one's serial parts (detection, nominal analyses, the draws' last stragglers) overlap the other's
-  // draws. Each writes only its own result: the record is the same either way.
+  // draws. It starts as soon as the camera is calibrated, before the sphere is decoded and detected (issue 15: the
+  // 17 MB 16-bit sphere takes longer than the target's calibration, and the core that calibrated would wait). It
+  // reads only the calibration, the camera and the configuration, which the sphere's thread does not write. Each
+  // check writes only its own result: the record is the same either way. (A sphere that cannot be read is still the
+  // error reported; the paper check then runs to its end first, as the future's destructor waits for it.)
   std::future<SimulatedCornea> paper;
-  if (r.jobs != 1 && !sphere.image.empty()) {
+  if (r.jobs != 1 && sphere_image.valid()) {
     paper = std::async(std::launch::async,
                        [&] { return SimulateThroughCalibratedCamera(unit, in.camera, in.config, u.check); });
   }
+  SphereImage sphere = sphere_image.valid() ? sphere_image.get() : SphereImage{};
   if (!sphere.image.empty()) {
     if (sphere.detection_error) rethrow_sphere(sphere.detection_error);
     try {

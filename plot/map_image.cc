@@ -7,11 +7,13 @@
 #include <cmath>
 #include <iterator>
 #include <limits>
+#include <map>
 #include <opencv2/core.hpp>
 #include <opencv2/freetype.hpp>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <string_view>
+#include <utility>
 
 #include "imageio/image_file.h"
 #include "util/io.h"
@@ -133,8 +135,17 @@ int HersheyThickness(const Font& f) { return std::max(1, static_cast<int>(std::l
 cv::Size TextSize(const std::string& text, const Font& f) {
   int baseline = 0;
   if (auto* ft = TrueType()) {
+    // Measured once per text and size on each thread (issue 15: the legend's word wrapping measures each line once
+    // per word, the tick labels are measured for the layout and again to be placed, and a record's maps share their
+    // legends; FreeType shapes and hints every glyph anew on each call: ~3 % of unit calibrate's CPU). A measure
+    // depends only on the text, the size and the font, so the images are the same bytes.
+    thread_local std::map<std::pair<int, std::string>, cv::Size> measured;
+    constexpr size_t kMaxMeasured = 4096;  // a long calibrate-batch must not grow it without bound
+    const auto key = std::make_pair(f.height_px, text);
+    if (const auto it = measured.find(key); it != measured.end()) return it->second;
+    if (measured.size() >= kMaxMeasured) measured.clear();
     const cv::Size size = ft->getTextSize(text, f.height_px, -1, &baseline);
-    return {size.width, size.height};
+    return measured.emplace(key, cv::Size{size.width, size.height}).first->second;
   }
   std::string ascii = Transliterate(text);
   std::replace(ascii.begin(), ascii.end(), '\x01', 'u');

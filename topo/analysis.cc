@@ -84,6 +84,9 @@ Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<
   BiconicFitOptions fit_options;
   fit_options.mode = BiconicFitModeFromName(config.reconstruction.biconic_fit);
   fit_options.stddev = options.stddev;
+  if (options.start && options.start->surface_fit.ok && options.start->surface_fit.mode == fit_options.mode) {
+    fit_options.start = &options.start->surface_fit.params;
+  }
   a.surface_fit = FitBiconic(cloud, fit_options);
   if (!a.surface_fit.ok) throw std::runtime_error(fmt::format("biconic fit failed: {}", a.surface_fit.message));
   // Sec. 4.2: piston B_1 and tilts B_2, B_3 do not affect the shape and are zeroed before the maps.

@@ -49,9 +49,12 @@ struct AnalysisOptions {
   bool stddev = true;     // the biconic's standard deviations
   bool adequacy = true;   // Reconstruction::expected_slope_noise, adequacy_ratio (and its warning)
   bool clinical = true;   // Analysis::clinical (sim-K, Kmax, best-fit sphere, I-S)
-  // The analysis of nearly the same spots: its slope-fit factor starts this one's slope fits (results agree with a
-  // cold start to ~1e-13; starting the biconic fit from its parameters was tried and took more iterations, 12
-  // against 9, as Ceres' trust region starts wide either way).
+  // The analysis of nearly the same spots (a draw's nominal): its slope-fit factor starts this one's slope fits,
+  // its recovered surface the refinement of the incidence points (ReconstructOptions::start) and its fit, in the same
+  // mode, the biconic or sphere fit (BiconicFitOptions::start). The results agree with a cold analysis to the
+  // refinement's convergence_um (not bit for bit). Starting the fit from the nominal with the cold fit's solver
+  // settings was tried and took as many iterations (7-12: rounding-level steps at its 1e-14 tolerances); the warm
+  // start's own settings take 3.
   const Analysis* start = nullptr;
 };
 

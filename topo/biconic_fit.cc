@@ -229,6 +229,14 @@ namespace {
 BiconicFit SphereAsBiconic(const std::vector<Eigen::Vector3d>& points_mm, const BiconicFitOptions& options) {
   SphereFitOptions so;
   so.stddev = options.stddev;
+  SphereFit start;
+  if (options.start) {
+    start.ok = true;
+    start.radius_mm = options.start->rx_mm;
+    start.centre_mm =
+        Eigen::Vector3d(options.start->x0_mm, options.start->y0_mm, options.start->z0_mm + start.radius_mm);
+    so.start = &start;
+  }
   const SphereFit s = FitSphere(points_mm, so);
   BiconicFit fit;
   fit.mode = BiconicFitMode::kSphere;
@@ -272,7 +280,10 @@ BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const Bicon
     return fit;
   }
   double q[K::kNumParams];
-  if (!InitialGuess(points_mm, free_apex, q)) {
+  if (options.start) {
+    K::FromParams(*options.start, q);
+    if (!free_apex) q[K::kX0] = q[K::kY0] = q[K::kTiltX] = q[K::kTiltY] = 0.0;
+  } else if (!InitialGuess(points_mm, free_apex, q)) {
     fit.message = "the point cloud is not a convex cap (no positive vertex curvature)";
     return fit;
   }
@@ -282,7 +293,8 @@ BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const Bicon
   if (!free_apex) {
     problem.SetManifold(q, new ceres::SubsetManifold(K::kNumParams, {K::kX0, K::kY0, K::kTiltX, K::kTiltY}));
   }
-  const ceres::Solver::Options so = SurfaceFitSolverOptions(options.max_iterations);
+  const ceres::Solver::Options so =
+      options.start ? WarmStartSolverOptions(options.max_iterations) : SurfaceFitSolverOptions(options.max_iterations);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   fit.iterations = static_cast<int>(summary.iterations.size());

@@ -103,8 +103,10 @@ struct ReconstructOptions {
   // Carlo draw does not need (both are left 0 when false).
   bool adequacy = true;
   // A reconstruction of nearly the same spots (micrometres apart) whose slope-fit factor starts the fits here
-  // (preconditioned CGLS instead of a new QR, topo/taylor_polynomial.h); results agree with a fresh QR to ~1e-13.
-  // Ignored when the polynomial's degree or normalisation radius differ.
+  // (preconditioned CGLS instead of a new QR, topo/taylor_polynomial.h; ignored when the polynomial's degree or
+  // normalisation radius differ) and, for the iterative method, whose recovered surface holds the first incidence
+  // points (instead of the sphere G): the refinement converges to the same convergence_um from there in fewer
+  // passes (results agree with a cold start to that tolerance, not bit for bit).
   const Reconstruction* start = nullptr;
 };
 

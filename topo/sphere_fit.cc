@@ -129,7 +129,12 @@ SphereFit FitSphere(const std::vector<Eigen::Vector3d>& points_mm, const SphereF
     return fit;
   }
   double q[kNumParams];
-  if (!AlgebraicStart(points_mm, q)) {
+  if (options.start && options.start->ok) {
+    q[0] = options.start->centre_mm.x();
+    q[1] = options.start->centre_mm.y();
+    q[2] = options.start->centre_mm.z();
+    q[3] = options.start->radius_mm;
+  } else if (!AlgebraicStart(points_mm, q)) {
     fit.message = "the points do not determine a sphere (they lie on a plane or a circle)";
     return fit;
   }
@@ -142,7 +147,9 @@ SphereFit FitSphere(const std::vector<Eigen::Vector3d>& points_mm, const SphereF
   }
   // The problem is well conditioned (4 parameters, thousands of points): the shared tight tolerances are met in a
   // handful of iterations.
-  const ceres::Solver::Options so = SurfaceFitSolverOptions(options.max_iterations);
+  const ceres::Solver::Options so = options.start && options.start->ok
+                                        ? WarmStartSolverOptions(options.max_iterations)
+                                        : SurfaceFitSolverOptions(options.max_iterations);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   fit.iterations = static_cast<int>(summary.iterations.size());

@@ -30,10 +30,15 @@ enum class SphereResidual {
                 // along the instrument axis; a point beyond the sphere's equator rejects the step
 };
 
+struct SphereFit;
+
 struct SphereFitOptions {
   SphereResidual residual = SphereResidual::kOrthogonal;
   int max_iterations = 50;
   bool stddev = true;  // SphereFit::stddev_*; a Monte Carlo draw does not need it
+  // The fit of nearly the same cloud (a Monte Carlo draw's nominal): start from it instead of the algebraic fit
+  // (WarmStartSolverOptions: Gauss-Newton steps, 1e-12 relative step to stop).
+  const SphereFit* start = nullptr;
 };
 
 struct SphereFit {
