@@ -4,9 +4,6 @@
 
 #include <cmath>
 #include <filesystem>
-#include <functional>
-#include <map>
-#include <mutex>
 #include <optional>
 #include <utility>
 
@@ -114,9 +111,9 @@ struct EntryMaps {
   std::optional<PendingMap> elevation, difference;
 };
 
-EntryMaps ComputeEntryMaps(const AnalysisMapEntry& e) {
+EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
   EntryMaps out;
-  const std::string& base = e.prefix;  // file names relative to the set's directory
+  const std::string base = (std::filesystem::path(dir) / e.prefix).string();
   const topo::Analysis& a = *e.analysis;
   const auto& pm = a.power;
   // The clinical summary under the power maps' titles (topo/clinical_indices.h), unless the caller gave its own.
@@ -213,20 +210,17 @@ EntryMaps ComputeEntryMaps(const AnalysisMapEntry& e) {
   return out;
 }
 
-void CreateMapDirectory(const std::string& dir) {
+}  // namespace
+
+void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEntry>& entries,
+                         const MapSetOptions& o) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw util::InputError(fmt::format("{}: cannot create directory: {}", dir, ec.message()));
-}
-
-// The set's files, each handed to `sink` as it is made (from o.jobs threads; slot 2k is map k's CSV, 2k + 1 its PNG,
-// `name` relative to the set's directory).
-void MakeAnalysisMapSet(const std::vector<AnalysisMapEntry>& entries, const MapSetOptions& o,
-                        const std::function<void(size_t slot, const std::string& name, std::string bytes)>& sink) {
   // The grids of each entry, then every file, on o.jobs threads: each item writes only its own slot or its own
   // files, and the scales are selected in between over the whole set, so the files do not depend on the threads.
   std::vector<EntryMaps> computed(entries.size());
-  util::ParallelFor(entries.size(), o.jobs, [&](size_t k) { computed[k] = ComputeEntryMaps(entries[k]); });
+  util::ParallelFor(entries.size(), o.jobs, [&](size_t k) { computed[k] = ComputeEntryMaps(dir, entries[k]); });
   std::vector<PendingMap> axial, tangential, elevation, difference;
   for (EntryMaps& m : computed) {
     axial.push_back(std::move(m.axial));
@@ -247,37 +241,8 @@ void MakeAnalysisMapSet(const std::vector<AnalysisMapEntry>& entries, const MapS
   AddKind(difference, o.elevation, o, false, &jobs);
   util::ParallelFor(jobs.size(), o.jobs, [&](size_t k) {
     const MapJob& job = jobs[k];
-    if (job.csv) sink(2 * k, job.map->file + ".csv", plot::GridMapCsv(job.map->grid));
-    const std::string png = job.map->file + ".png";
-    sink(2 * k + 1, png, plot::MapPng(job.map->grid, job.image, png));
-  });
-}
-
-}  // namespace
-
-std::vector<MapFile> RenderAnalysisMapSet(const std::vector<AnalysisMapEntry>& entries, const MapSetOptions& o) {
-  std::mutex mutex;
-  std::map<size_t, MapFile> by_slot;  // in the set's order, whatever order the threads finish in
-  MakeAnalysisMapSet(entries, o, [&](size_t slot, const std::string& name, std::string bytes) {
-    MapFile f{name, std::move(bytes)};
-    const std::lock_guard lock(mutex);
-    by_slot.emplace(slot, std::move(f));
-  });
-  std::vector<MapFile> files;
-  files.reserve(by_slot.size());
-  for (auto& [slot, f] : by_slot) files.push_back(std::move(f));
-  return files;
-}
-
-void WriteMapFiles(const std::string& dir, const std::vector<MapFile>& files) {
-  CreateMapDirectory(dir);
-  for (const MapFile& f : files) util::WriteFileAtomic((std::filesystem::path(dir) / f.name).string(), f.bytes);
-}
-
-void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEntry>& entries, const MapSetOptions& o) {
-  CreateMapDirectory(dir);
-  MakeAnalysisMapSet(entries, o, [&](size_t, const std::string& name, std::string bytes) {
-    util::WriteFileAtomic((std::filesystem::path(dir) / name).string(), bytes);
+    if (job.csv) plot::WriteMapCsv(job.map->file + ".csv", job.map->grid);
+    plot::WriteMapPng(job.map->file + ".png", job.map->grid, job.image);
   });
 }
 

@@ -39,20 +39,6 @@ struct MapSetOptions {
 void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEntry>& entries,
                          const MapSetOptions& options = {});
 
-// A file of a map set: its name inside the set's directory (e.g. "sphere_corrected_axial_power.png") and its bytes.
-struct MapFile {
-  std::string name;
-  std::string bytes;
-};
-
-// The files WriteAnalysisMapSet writes, in memory (in a fixed order: map by map, CSV then PNG), for a caller that
-// renders them before it has the directory (a unit record's maps, rendered beside the other check's draws).
-// The same bytes; nothing touches the disc.
-std::vector<MapFile> RenderAnalysisMapSet(const std::vector<AnalysisMapEntry>& entries,
-                                          const MapSetOptions& options = {});
-// Writes rendered files into `dir` (created if needed), each atomically. Throws util::InputError naming the path.
-void WriteMapFiles(const std::string& dir, const std::vector<MapFile>& files);
-
 // One analysis (a set of one): the power maps on the standard absolute scale, the others normalised.
 void WriteAnalysisMaps(const std::string& dir, const std::string& prefix, const std::string& label,
                        const topo::Analysis& analysis, const model::BiconicParams* truth, bool csv = true,

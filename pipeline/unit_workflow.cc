@@ -3,12 +3,10 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <future>
-#include <iterator>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -25,7 +23,6 @@
 #include "pipeline/detection_plane.h"
 #include "pipeline/device_calibration.h"
 #include "pipeline/device_verification.h"
-#include "pipeline/map_output.h"
 #include "pipeline/unit_verification.h"
 #include "util/file_glob.h"
 #include "util/io.h"
@@ -289,33 +286,6 @@ DistortionField MeasureDistortionField(const model::CameraModel& calibrated, con
   return f;
 }
 
-// The record's maps of each check (UnitResult::maps). The PNGs at half the default size (~0.15 MB each; the report
-// embeds them all), with the numbers behind every picture as CSV grids (~0.6 MB a map, 16 maps). Each check's
-// before/after pair is one set: both stages on the same scales, so that they compare by eye. The same files on any
-// number of threads.
-MapSetOptions RecordMapOptions(int jobs) {
-  MapSetOptions o;
-  o.csv = true;
-  o.size_px = 400;
-  o.jobs = jobs;
-  return o;
-}
-
-std::vector<MapFile> SphereRecordMaps(const SphereVerification& sphere, const model::Config& config, int jobs) {
-  const auto truth = WithSphere(config, sphere.radius_true_mm).cornea;
-  return RenderAnalysisMapSet(
-      {{"sphere_uncorrected_", " - reference sphere, uncorrected", &sphere.uncorrected.analysis, &truth, {}},
-       {"sphere_corrected_", " - reference sphere, corrected", &sphere.corrected.analysis, &truth, {}}},
-      RecordMapOptions(jobs));
-}
-
-std::vector<MapFile> PaperRecordMaps(const SimulatedCornea& paper, const model::Config& config, int jobs) {
-  return RenderAnalysisMapSet(
-      {{"paper_uncorrected_", " - paper cornea, uncorrected", &paper.uncorrected.analysis, &config.cornea, {}},
-       {"paper_corrected_", " - paper cornea, corrected", &paper.corrected.analysis, &config.cornea, {}}},
-      RecordMapOptions(jobs));
-}
-
 }  // namespace
 
 std::vector<std::string> UnitSummary(const UnitResult& unit) {
@@ -424,43 +394,22 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
   // reads only the calibration, the camera and the configuration, which the sphere's thread does not write. Each
   // check writes only its own result: the record is the same either way. (A sphere that cannot be read is still the
   // error reported; the paper check then runs to its end first, as the future's destructor waits for it.)
-  // Each check's maps are rendered as soon as it is done, beside the other check's draws (issue 15: they were ~25 %
-  // of the CPU, all of it after both checks); in memory, so that a failure still writes nothing. When the sphere's
-  // side fails, the paper's maps are skipped, so that its error waits for no more than the paper check.
   std::future<SimulatedCornea> paper;
-  std::vector<MapFile> paper_maps;
-  std::atomic<bool> sphere_failed = false;
   if (r.jobs != 1 && sphere_image.valid()) {
-    paper = std::async(std::launch::async, [&] {
-      SimulatedCornea p = SimulateThroughCalibratedCamera(unit, in.camera, in.config, u.check);
-      if (!sphere_failed) paper_maps = PaperRecordMaps(p, in.config, r.jobs);
-      return p;
-    });
+    paper = std::async(std::launch::async,
+                       [&] { return SimulateThroughCalibratedCamera(unit, in.camera, in.config, u.check); });
   }
-  SphereImage sphere;
-  try {
-    if (sphere_image.valid()) sphere = sphere_image.get();
-    if (!sphere.image.empty()) {
-      if (sphere.detection_error) rethrow_sphere(sphere.detection_error);
-      try {
-        u.sphere = VerifyOnReferenceSphere(std::move(*sphere.detected), r.sphere_radius_mm, unit, in.camera, in.config,
-                                           u.check);
-      } catch (...) {
-        rethrow_sphere(std::current_exception());
-      }
-      u.maps = SphereRecordMaps(*u.sphere, in.config, r.jobs);
+  SphereImage sphere = sphere_image.valid() ? sphere_image.get() : SphereImage{};
+  if (!sphere.image.empty()) {
+    if (sphere.detection_error) rethrow_sphere(sphere.detection_error);
+    try {
+      u.sphere = VerifyOnReferenceSphere(std::move(*sphere.detected), r.sphere_radius_mm, unit, in.camera, in.config,
+                                         u.check);
+    } catch (...) {
+      rethrow_sphere(std::current_exception());
     }
-  } catch (...) {
-    sphere_failed = true;
-    throw;  // after the paper check's end (the future's destructor)
   }
-  if (paper.valid()) {
-    u.paper = paper.get();
-  } else {
-    u.paper = SimulateThroughCalibratedCamera(unit, in.camera, in.config, u.check);
-    paper_maps = PaperRecordMaps(u.paper, in.config, r.jobs);
-  }
-  std::move(paper_maps.begin(), paper_maps.end(), std::back_inserter(u.maps));
+  u.paper = paper.valid() ? paper.get() : SimulateThroughCalibratedCamera(unit, in.camera, in.config, u.check);
   u.field = MeasureDistortionField(c.result.camera, in, r.serial);
   if (!in.balls.empty()) {
     const auto lens = DetectionPlaneModelOf(c.result.camera, in.camera);

@@ -15,7 +15,6 @@
 #include "model/topographer_camera.h"
 #include "pipeline/device_calibration.h"
 #include "pipeline/device_verification.h"
-#include "pipeline/map_output.h"
 #include "pipeline/unit_verification.h"
 
 namespace topocal::pipeline {
@@ -87,9 +86,6 @@ struct UnitResult {
   std::optional<SphereVerification> sphere;  // with a reference sphere
   SimulatedCornea paper;
   std::optional<UnitDeviceStage> device;     // with reference balls
-  // The record's maps/ (the before/after power, elevation and height-error maps of the reference sphere and the
-  // paper cornea, from the nominal analyses), rendered as each check is done, beside the other check's draws.
-  std::vector<MapFile> maps;
 };
 
 // Runs the whole workflow. Throws util::InputError / util::ConfigError for bad input (exit 2) and

@@ -577,14 +577,9 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   return out;
 }
 
-std::string MapPng(const GridMap& map, const MapImageOptions& options, const std::string& name) {
-  MapImage image = RenderMap(map, options);
-  const auto png = imageio::EncodePng(cv::Mat(image.height_px, image.width_px, CV_8UC3, image.bgr.data()), name);
-  return std::string(png.begin(), png.end());
-}
-
 void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOptions& options) {
-  util::WriteFileAtomic(path, MapPng(map, options, path));
+  MapImage image = RenderMap(map, options);
+  imageio::WritePng(path, cv::Mat(image.height_px, image.width_px, CV_8UC3, image.bgr.data()));
 }
 
 std::string GridMapCsv(const GridMap& map) {

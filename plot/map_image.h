@@ -144,9 +144,7 @@ std::array<std::uint8_t, 3> NoDataColour();
 
 // Renders the map. Throws std::invalid_argument if the map or the options are invalid (see IsValid).
 MapImage RenderMap(const GridMap& map, const MapImageOptions& options = {});
-// Renders and encodes the map as PNG bytes (`name` for the error messages).
-std::string MapPng(const GridMap& map, const MapImageOptions& options, const std::string& name);
-// MapPng written atomically. Throws util::InputError naming the path if it cannot be written.
+// Renders and writes a PNG atomically. Throws util::InputError naming the path if it cannot be written.
 void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOptions& options = {});
 
 // The map as CSV, long format: a header "x_mm,y_mm,<quantity>_<unit>" (e.g. value_D, value_um) then one row per

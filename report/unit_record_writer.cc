@@ -233,6 +233,30 @@ std::string ResidualsCsv(const pipeline::UnitCameraCalibration& c) {
   return csv;
 }
 
+void WriteRecordMaps(const std::string& dir, const std::optional<pipeline::SphereVerification>& sphere,
+                     const pipeline::SimulatedCornea& paper, const model::Config& config, int jobs) {
+  // The PNGs go in the record, at half the default size (~0.15 MB each; the report embeds them all); the numbers
+  // are in unit.json (CSV grids would be ~0.6 MB each).
+  constexpr bool kMapCsv = true;  // the numbers behind every picture (~0.6 MB a map, 16 maps)
+  constexpr int kMapSizePx = 400;
+  // Each case's before/after pair is one set: both stages on the same scales, so that they compare by eye.
+  pipeline::MapSetOptions o;
+  o.csv = kMapCsv;
+  o.size_px = kMapSizePx;
+  o.jobs = jobs;  // the unit's threads (its draws are done by now); the same files on any number
+  if (sphere) {
+    const auto truth = pipeline::WithSphere(config, sphere->radius_true_mm).cornea;
+    pipeline::WriteAnalysisMapSet(dir,
+                        {{"sphere_uncorrected_", " - reference sphere, uncorrected", &sphere->uncorrected.analysis, &truth, {}},
+                         {"sphere_corrected_", " - reference sphere, corrected", &sphere->corrected.analysis, &truth, {}}},
+                        o);
+  }
+  pipeline::WriteAnalysisMapSet(dir,
+                      {{"paper_uncorrected_", " - paper cornea, uncorrected", &paper.uncorrected.analysis, &config.cornea, {}},
+                       {"paper_corrected_", " - paper cornea, corrected", &paper.corrected.analysis, &config.cornea, {}}},
+                      o);
+}
+
 }  // namespace
 
 json VerificationJson(const pipeline::SphereVerification& s, const std::string& image,
@@ -277,7 +301,7 @@ void WriteUnitRecord(const pipeline::UnitResult& u) {
   util::WriteFileAtomic((dir / "calibration.yaml").string(),
                         calib::CalibrationFileText(c.result, {r.target, c.view_paths, u.created_utc}));
   util::WriteFileAtomic((dir / "residuals.csv").string(), ResidualsCsv(c));
-  pipeline::WriteMapFiles((dir / "maps").string(), u.maps);  // rendered with the checks
+  WriteRecordMaps((dir / "maps").string(), u.sphere, u.paper, u.config, r.jobs);
   if (u.sphere) {
     // The sphere's identified spots as the camera saw them: the report recomputes the check from them
     // (report/record_check.h). Shortest round-trip decimals, so the recomputation starts from the same doubles.
