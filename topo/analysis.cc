@@ -62,8 +62,12 @@ PowerMaps IdealPowerMaps(const model::BiconicParams& cornea, const model::Recons
   const model::Biconic b{cornea};
   PowerMaps maps;
   std::string why;
-  if (!ComputePowerMaps([&](double x, double y, model::SurfaceDerivatives* d) { return b.Evaluate(x, y, d); },
-                        PowerMapOptionsFrom(settings), &maps, &why)) {
+  PowerMapOptions options = PowerMapOptionsFrom(settings);
+  // Centred and untilted, the biconic's sag depends on the squares of the rotated coordinates only: z(-x, -y) =
+  // z(x, y), so half the meridians give the maps (the paper's eye; a decentred or tilted one is not symmetric).
+  options.point_symmetric = cornea.x0_mm == 0 && cornea.y0_mm == 0 && cornea.tilt_x_deg == 0 && cornea.tilt_y_deg == 0;
+  if (!ComputePowerMaps([&](double x, double y, model::SurfaceDerivatives* d) { return b.Evaluate(x, y, d); }, options,
+                        &maps, &why)) {
     throw std::runtime_error(fmt::format("ideal power maps: {}", why));
   }
   return maps;

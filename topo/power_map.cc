@@ -84,7 +84,10 @@ bool ComputePowerMaps(const MeridianSampler& meridian, const PowerMapOptions& o,
   Eigen::ArrayXd g(K), sqrt_g(K);
   double axial_min = INFINITY, axial_max = -INFINITY, tangential_min = INFINITY, tangential_max = -INFINITY;
   for (int k = 0; k < K; ++k) rho(k) = o.radius_mm * (k + 1) / K;
-  for (int j = 0; j < M; ++j) {
+  // A point-symmetric surface: meridian j + M/2 has meridian j's profile, so its powers are the same numbers
+  // (copied below, after the first half; the extremes are those of the first half).
+  const int computed = o.point_symmetric && M % 2 == 0 ? M / 2 : M;
+  for (int j = 0; j < computed; ++j) {
     const double theta = 2.0 * M_PI * j / M;
     if (!meridian(theta, K, rho.data(), f.data(), d1s.data(), d2s.data())) {
       return Fail(why, fmt::format("surface undefined within rho = {:.3f} mm on the meridian at {:.1f} deg",
@@ -122,6 +125,11 @@ bool ComputePowerMaps(const MeridianSampler& meridian, const PowerMapOptions& o,
     axial_max = std::max(axial_max, axial.maxCoeff());
     tangential_min = std::min(tangential_min, tangential.minCoeff());
     tangential_max = std::max(tangential_max, tangential.maxCoeff());
+  }
+  const size_t half = static_cast<size_t>(computed) * K;
+  if (computed < M) {
+    std::copy_n(maps->axial_D.begin(), half, maps->axial_D.begin() + half);
+    std::copy_n(maps->tangential_D.begin(), half, maps->tangential_D.begin() + half);
   }
   maps->pv_axial_D = axial_max - axial_min;                 // Eq. 28b
   maps->pv_tangential_D = tangential_max - tangential_min;  // Eq. 28a

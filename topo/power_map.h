@@ -38,6 +38,10 @@ struct PowerMapOptions {
   int meridian_polynomial_order = 8;  // Eq. 23
   double corneal_index = kKeratometricIndex;
   double surrounding_index = 1.0;
+  // The surface is point-symmetric about the axis (S(-x, -y) = S(x, y): a centred, untilted biconic), so meridian
+  // theta + 180 deg has meridian theta's profile F, F', F''. With an even number of meridians the second half of
+  // the maps is then a copy of the first (half the surface evaluations); ignored for an odd number.
+  bool point_symmetric = false;
 };
 
 struct PowerMaps {

@@ -50,41 +50,21 @@ class SphereDistances final : public ceres::CostFunction {
   const std::vector<Eigen::Vector3d>& points_;
 };
 
-// The sag residuals r_i = z_i - (c_z - sqrt(A_i)), A_i = r^2 - (x_i - c_x)^2 - (y_i - c_y)^2, of the cap facing the
-// camera, with the analytic Jacobian dr/dc_x = (x_i - c_x) / sqrt(A_i), dr/dc_y = (y_i - c_y) / sqrt(A_i),
-// dr/dc_z = -1, dr/dr = r / sqrt(A_i). One block, as above.
-class SphereSags final : public ceres::CostFunction {
- public:
-  explicit SphereSags(const std::vector<Eigen::Vector3d>& points_mm) : points_(points_mm) {
-    set_num_residuals(static_cast<int>(points_.size()));
-    mutable_parameter_block_sizes()->push_back(kNumParams);
-  }
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
-    const double* q = parameters[0];
-    for (size_t i = 0; i < points_.size(); ++i) {
-      double row[kNumParams];
-      if (!SagResidual(points_[i], q, &residuals[i], row)) return false;
-      if (jacobians && jacobians[0]) std::copy(row, row + kNumParams, jacobians[0] + kNumParams * i);
-    }
-    return true;
-  }
-  // One point's residual and Jacobian row; false beyond the sphere's equator (the sag is undefined there).
-  static bool SagResidual(const Eigen::Vector3d& p, const double* q, double* residual, double* row) {
-    const double dx = p.x() - q[0], dy = p.y() - q[1];
-    const double arg = q[3] * q[3] - dx * dx - dy * dy;
-    if (!(arg > 0)) return false;
-    const double root = std::sqrt(arg);
-    *residual = p.z() - (q[2] - root);
-    row[0] = dx / root;
-    row[1] = dy / root;
-    row[2] = -1.0;
-    row[3] = q[3] / root;
-    return true;
-  }
-
- private:
-  const std::vector<Eigen::Vector3d>& points_;
-};
+// The sag residual r_i = z_i - (c_z - sqrt(A_i)), A_i = r^2 - (x_i - c_x)^2 - (y_i - c_y)^2, of the cap facing the
+// camera, and its Jacobian row dr/dc_x = (x_i - c_x) / sqrt(A_i), dr/dc_y = (y_i - c_y) / sqrt(A_i), dr/dc_z = -1,
+// dr/dr = r / sqrt(A_i), at q = (c_x, c_y, c_z, r); false beyond the sphere's equator (the sag is undefined there).
+bool SagResidual(const Eigen::Vector3d& p, const double* q, double* residual, double* row) {
+  const double dx = p.x() - q[0], dy = p.y() - q[1];
+  const double arg = q[3] * q[3] - dx * dx - dy * dy;
+  if (!(arg > 0)) return false;
+  const double root = std::sqrt(arg);
+  *residual = p.z() - (q[2] - root);
+  row[0] = dx / root;
+  row[1] = dy / root;
+  row[2] = -1.0;
+  row[3] = q[3] / root;
+  return true;
+}
 
 // Kasa's algebraic fit: |p|^2 + D.p + E = 0 is linear in (D, E); c = -D/2, r^2 = |c|^2 - E. Exact for points on a
 // sphere; under noise a fine start (its bias is O(noise^2 / r)).
@@ -107,6 +87,68 @@ bool AlgebraicStart(const std::vector<Eigen::Vector3d>& pts, double* q) {
   q[2] = c.z();
   q[3] = std::sqrt(r2);
   return true;
+}
+
+// The sag fit by Gauss-Newton steps on the 4 x 4 normal equations, in Eigen (issue 15): the clinical best-fit
+// sphere of every analysis is ~2,900 points in 4 parameters started at Kasa's fit, well inside the quadratic region,
+// and Ceres' per-iteration machinery (program evaluator, jacobian writer, column scaling, array validation) cost more
+// than the arithmetic. Stops like SurfaceFitSolverOptions: when the cost changes by <= 1e-12 of itself or the step is
+// <= 1e-13 of the parameter norm. A step that raises the cost or crosses a point's equator is halved (never needed
+// from Kasa's start on a corneal cap; it keeps the fit from leaving the region where the sag is defined). Returns
+// the iterations taken (every evaluated step counts, as Ceres counts its iterations) and the final cost
+// (1/2 sum of squares, Ceres' convention); false if the start itself is invalid.
+bool FitSagGaussNewton(const std::vector<Eigen::Vector3d>& pts, int max_iterations, double* q, int* iterations,
+                       double* final_cost) {
+  // The cost at q and, when asked, J^T J and J^T r; false beyond a point's equator.
+  const auto evaluate = [&pts](const double* at, double* cost, Eigen::Matrix4d* jtj, Eigen::Vector4d* jtr) {
+    double sum2 = 0;
+    if (jtj) jtj->setZero(), jtr->setZero();
+    for (const auto& p : pts) {
+      double r;
+      Eigen::Vector4d row;
+      if (!SagResidual(p, at, &r, row.data())) return false;
+      sum2 += r * r;
+      if (jtj) {
+        jtj->selfadjointView<Eigen::Lower>().rankUpdate(row);
+        *jtr += r * row;
+      }
+    }
+    *cost = 0.5 * sum2;
+    return true;
+  };
+  double cost;
+  Eigen::Matrix4d jtj;
+  Eigen::Vector4d jtr;
+  *iterations = 0;
+  if (!evaluate(q, &cost, &jtj, &jtr)) return false;
+  while (*iterations < max_iterations) {
+    const Eigen::LDLT<Eigen::Matrix4d> ldlt(jtj);  // lower triangle only
+    if (ldlt.info() != Eigen::Success) break;
+    Eigen::Vector4d step = -ldlt.solve(jtr);
+    const Eigen::Map<Eigen::Vector4d> x(q);
+    Eigen::Vector4d trial;
+    double trial_cost = INFINITY;
+    bool accepted = false;
+    for (int halvings = 0; halvings < 30 && *iterations < max_iterations; ++halvings, step *= 0.5) {
+      ++*iterations;
+      trial = x + step;
+      if (evaluate(trial.data(), &trial_cost, nullptr, nullptr) && trial_cost <= cost) {
+        accepted = true;
+        break;
+      }
+    }
+    if (!accepted) break;
+    const bool small_step = step.norm() <= (x.norm() + 1e-13) * 1e-13;
+    const bool small_change = cost - trial_cost <= 1e-12 * cost;
+    std::copy(trial.data(), trial.data() + kNumParams, q);
+    if (small_step || small_change) {
+      cost = trial_cost;
+      break;
+    }
+    if (!evaluate(q, &cost, &jtj, &jtr)) return false;
+  }
+  *final_cost = cost;
+  return std::isfinite(cost);
 }
 
 }  // namespace
@@ -138,28 +180,33 @@ SphereFit FitSphere(const std::vector<Eigen::Vector3d>& points_mm, const SphereF
     fit.message = "the points do not determine a sphere (they lie on a plane or a circle)";
     return fit;
   }
-  ceres::Problem problem;
   const bool sag = options.residual == SphereResidual::kSag;
+  double final_cost = 0;
   if (sag) {
-    problem.AddResidualBlock(new SphereSags(points_mm), nullptr, q);
+    if (!FitSagGaussNewton(points_mm, options.max_iterations, q, &fit.iterations, &final_cost) || !(q[3] > 0)) {
+      fit.message = "sphere fit failed: the sag is undefined (a point beyond the sphere's equator) or not finite";
+      return fit;
+    }
   } else {
+    ceres::Problem problem;
     problem.AddResidualBlock(new SphereDistances(points_mm), nullptr, q);
-  }
-  // The problem is well conditioned (4 parameters, thousands of points): the shared tight tolerances are met in a
-  // handful of iterations.
-  const ceres::Solver::Options so = options.start && options.start->ok
-                                        ? WarmStartSolverOptions(options.max_iterations)
-                                        : SurfaceFitSolverOptions(options.max_iterations);
-  ceres::Solver::Summary summary;
-  ceres::Solve(so, &problem, &summary);
-  fit.iterations = static_cast<int>(summary.iterations.size());
-  if (!summary.IsSolutionUsable() || !(q[3] > 0) || !std::isfinite(summary.final_cost)) {
-    fit.message = fmt::format("sphere fit failed: {}", summary.message);
-    return fit;
+    // The problem is well conditioned (4 parameters, thousands of points): the shared tight tolerances are met in
+    // a handful of iterations.
+    const ceres::Solver::Options so = options.start && options.start->ok
+                                          ? WarmStartSolverOptions(options.max_iterations)
+                                          : SurfaceFitSolverOptions(options.max_iterations);
+    ceres::Solver::Summary summary;
+    ceres::Solve(so, &problem, &summary);
+    fit.iterations = static_cast<int>(summary.iterations.size());
+    if (!summary.IsSolutionUsable() || !(q[3] > 0) || !std::isfinite(summary.final_cost)) {
+      fit.message = fmt::format("sphere fit failed: {}", summary.message);
+      return fit;
+    }
+    final_cost = summary.final_cost;
   }
   fit.centre_mm = Eigen::Vector3d(q[0], q[1], q[2]);
   fit.radius_mm = q[3];
-  const double ssr = 2.0 * summary.final_cost;
+  const double ssr = 2.0 * final_cost;
   fit.rms_residual_um = std::sqrt(ssr / fit.points) * 1e3;
 
   if (options.stddev) {
@@ -169,7 +216,7 @@ SphereFit FitSphere(const std::vector<Eigen::Vector3d>& points_mm, const SphereF
       Eigen::Vector4d row;
       if (sag) {
         double unused;
-        if (!SphereSags::SagResidual(p, q, &unused, row.data())) continue;
+        if (!SagResidual(p, q, &unused, row.data())) continue;
       } else {
         const Eigen::Vector3d d = p - fit.centre_mm;
         row << -d / d.norm(), -1.0;

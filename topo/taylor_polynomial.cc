@@ -66,41 +66,37 @@ void TaylorPolynomial::ValueAndGradient(double x_mm, double y_mm, double* z, dou
 
 void TaylorPolynomial::ValueAndGradientMany(int count, const double* x_mm, const double* y_mm, double* z,
                                             double* zx, double* zy) const {
-  // The scheme of ValueAndGradient, statement for statement, on kWidth points at once: one point's Horner chain is
-  // a sequence of dependent multiply-adds (latency-bound); four independent chains fill the pipeline.
-  constexpr int kWidth = 4;
+  // The scheme of ValueAndGradient, statement for statement, on W points at once (bit-identical to it): one point's
+  // Horner chain is a sequence of dependent multiplies and adds (latency-bound); as Eigen fixed-size arrays, W = 8
+  // points are four packed (two-double) chains per statement, which fill the pipeline, where scalar code of four
+  // chains left it half idle (issue 15).
   const double* c = coefficients_.data();
   const int n = degree_;
-  int i = 0;
-  for (; i + kWidth <= count; i += kWidth) {
-    double u[kWidth], v[kWidth], p[kWidth], pu[kWidth], pv[kWidth], q[kWidth], dq[kWidth];
-    for (int w = 0; w < kWidth; ++w) {
-      u[w] = x_mm[i + w] / norm_radius_mm_;
-      v[w] = y_mm[i + w] / norm_radius_mm_;
-      p[w] = pu[w] = pv[w] = 0;
-    }
+  const double radius = norm_radius_mm_;
+  const auto block = [&]<int W>(int i) {
+    using A = Eigen::Array<double, W, 1>;
+    const A u = Eigen::Map<const A>(x_mm + i) / radius;
+    const A v = Eigen::Map<const A>(y_mm + i) / radius;
+    A p = A::Zero(), pu = A::Zero(), pv = A::Zero(), q, dq;
     for (int a = n; a >= 0; --a) {
-      const double top = c[n * (n + 1) / 2 + (n - a)];
-      for (int w = 0; w < kWidth; ++w) q[w] = top, dq[w] = 0;
+      q.setConstant(c[n * (n + 1) / 2 + (n - a)]);
+      dq.setZero();
       for (int d = n - 1; d >= a; --d) {
         const double cd = c[d * (d + 1) / 2 + (d - a)];
-        for (int w = 0; w < kWidth; ++w) {
-          dq[w] = dq[w] * v[w] + q[w];
-          q[w] = q[w] * v[w] + cd;
-        }
+        dq = dq * v + q;
+        q = q * v + cd;
       }
-      for (int w = 0; w < kWidth; ++w) {
-        pu[w] = pu[w] * u[w] + p[w];
-        p[w] = p[w] * u[w] + q[w];
-        pv[w] = pv[w] * u[w] + dq[w];
-      }
+      pu = pu * u + p;
+      p = p * u + q;
+      pv = pv * u + dq;
     }
-    for (int w = 0; w < kWidth; ++w) {
-      z[i + w] = p[w];
-      zx[i + w] = pu[w] / norm_radius_mm_;
-      zy[i + w] = pv[w] / norm_radius_mm_;
-    }
-  }
+    Eigen::Map<A>(z + i) = p;
+    Eigen::Map<A>(zx + i) = pu / radius;
+    Eigen::Map<A>(zy + i) = pv / radius;
+  };
+  int i = 0;
+  for (; i + 8 <= count; i += 8) block.template operator()<8>(i);
+  for (; i + 2 <= count; i += 2) block.template operator()<2>(i);
   for (; i < count; ++i) ValueAndGradient(x_mm[i], y_mm[i], z + i, zx + i, zy + i);
 }
 

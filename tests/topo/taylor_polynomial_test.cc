@@ -76,8 +76,8 @@ TEST(TaylorPolynomial, HornerMatchesTheSumOfMonomials) {
   EXPECT_LE(worst, kRegressionRelTol);
 }
 
-// The batched evaluation (the reconstruction's ray intersections, issue 15) interleaves four points: each must be
-// the single-point evaluation bit for bit, including the points of an incomplete last group.
+// The batched evaluation (the reconstruction's ray intersections, issue 15) runs eight points at once, then pairs,
+// then single points: each must be the single-point evaluation bit for bit, whichever group it falls in.
 TEST(TaylorPolynomial, ValueAndGradientManyIsTheSinglePointEvaluationBitForBit) {
   std::mt19937 rng(16);
   std::uniform_real_distribution<double> coefficient(-1.0, 1.0), position(-6.0, 6.0);
