@@ -96,7 +96,7 @@ bool AlgebraicStart(const std::vector<Eigen::Vector3d>& pts, double* q) {
 // <= 1e-13 of the parameter norm. A step that raises the cost or crosses a point's equator is halved (never needed
 // from Kasa's start on a corneal cap; it keeps the fit from leaving the region where the sag is defined). Returns
 // the iterations taken (every evaluated step counts, as Ceres counts its iterations) and the final cost
-// (1/2 sum of squares, Ceres' convention); false if the start itself is invalid.
+// (1/2 sum of squares, Ceres' convention); false if the start itself is invalid or J^T J is singular.
 bool FitSagGaussNewton(const std::vector<Eigen::Vector3d>& pts, int max_iterations, double* q, int* iterations,
                        double* final_cost) {
   // The cost at q and, when asked, J^T J and J^T r; false beyond a point's equator.
@@ -123,7 +123,8 @@ bool FitSagGaussNewton(const std::vector<Eigen::Vector3d>& pts, int max_iteratio
   if (!evaluate(q, &cost, &jtj, &jtr)) return false;
   while (*iterations < max_iterations) {
     const Eigen::LDLT<Eigen::Matrix4d> ldlt(jtj);  // lower triangle only
-    if (ldlt.info() != Eigen::Success) break;
+    // A singular J^T J: the points do not determine the sphere (no fit rather than the start reported as one).
+    if (ldlt.info() != Eigen::Success || !ldlt.isPositive() || !(ldlt.vectorD().minCoeff() > 0)) return false;
     Eigen::Vector4d step = -ldlt.solve(jtr);
     const Eigen::Map<Eigen::Vector4d> x(q);
     Eigen::Vector4d trial;
@@ -184,7 +185,9 @@ SphereFit FitSphere(const std::vector<Eigen::Vector3d>& points_mm, const SphereF
   double final_cost = 0;
   if (sag) {
     if (!FitSagGaussNewton(points_mm, options.max_iterations, q, &fit.iterations, &final_cost) || !(q[3] > 0)) {
-      fit.message = "sphere fit failed: the sag is undefined (a point beyond the sphere's equator) or not finite";
+      fit.message =
+          "sphere fit failed: the sag is undefined (a point beyond the sphere's equator), not finite, or "
+          "the points do not determine the sphere";
       return fit;
     }
   } else {
