@@ -84,7 +84,7 @@ bool ComputeClinicalIndices(const PowerMaps& axial, const SurfaceEvaluator& surf
     }
   }
 
-  // Best-fit sphere over the zone: algebraic fit for the start, then the sag residual with Ceres.
+  // Best-fit sphere over the zone: algebraic fit for the start, then the sag residual by Gauss-Newton (sphere_fit.h).
   const double zone = std::min(o.bfs_radius_mm, supported);
   ci.bfs_zone_radius_mm = zone;
   // std::hypot(x, y) > zone, with std::hypot (slow) called only near the rim: well inside it, x^2 + y^2 is below

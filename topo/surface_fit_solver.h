@@ -47,7 +47,7 @@ inline ceres::Solver::Options SurfaceFitSolverOptions(int max_iterations) {
 // instead of 3 (issue 15). A cost change of 1e-11 relative is a step of sqrt(1e-11 n) ~ 1e-4 of the fit's own
 // standard deviations (n = 624 points), and Gauss-Newton's last real step is far below that.
 // Measured on the demo unit's draws (2026-12-02): 3 iterations for the paper cornea and 2-3 for the sphere; the
-// fits agree with a cold fit to 1e-10 mm (tests/topo/sphere_fit_test.cc, tests/topo/reconstruction_test.cc).
+// fits agree with a cold fit to ~1e-9 mm (tests/topo/sphere_fit_test.cc, tests/topo/reconstruction_test.cc).
 inline ceres::Solver::Options WarmStartSolverOptions(int max_iterations) {
   ceres::Solver::Options so = SurfaceFitSolverOptions(max_iterations);
   so.initial_trust_region_radius = so.max_trust_region_radius;
