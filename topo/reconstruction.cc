@@ -456,6 +456,11 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
   // surface height Psi at their (x, y), as the paper's point cloud does.
   r.consistency = Consistency(recovered, p2, normals, &scratch);
   if (options.adequacy && !adequacy_current) assess_adequacy();
+  if (!options.adequacy) {
+    // Left 0 when not asked for (ReconstructOptions::adequacy), even when "auto" computed them for its decision:
+    // after the spline joined they would describe the polynomial, not the surface returned.
+    r.expected_slope_noise = r.adequacy_ratio = r.residual_neighbour_correlation = r.structured_residual_ratio = 0;
+  }
   const std::vector<double> zonal = ZonalHeights(prep.rays, p2, slopes, t_mm);
   r.points.resize(n);
   EvaluateAt(recovered, p2, &scratch);

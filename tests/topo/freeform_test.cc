@@ -3,13 +3,16 @@
 // is tabulated by build/bench/accuracy_tables freeform (docs/reconstruction.md).
 #include <gtest/gtest.h>
 
-#include "model/config.h"
-#include "model/freeform_test_set.h"
-#include "topo/bspline_surface.h"
-#include "topo/truth_comparison.h"
-
 #include <cmath>
 #include <random>
+#include <vector>
+
+#include "model/config.h"
+#include "model/freeform_test_set.h"
+#include "model/null_screen.h"
+#include "topo/bspline_surface.h"
+#include "topo/reconstruction.h"
+#include "topo/truth_comparison.h"
 
 namespace topocal::topo {
 namespace {
@@ -150,6 +153,23 @@ TEST(Freeform, AutoTakesTheSplineWhereThePolynomialDoesNotFit) {
   EXPECT_EQ(a.surface_fit.params.kx, p.surface_fit.params.kx);
   EXPECT_EQ(p.reconstruction.surface_model, "polynomial");
   EXPECT_TRUE(p.reconstruction.surface_model_reason.empty());
+  // Without the adequacy figures asked for, "auto" still decides (it computes them) but returns them as 0, so that
+  // they never describe the polynomial when the spline joined.
+  auto config = with("auto");
+  const auto cornea = model::FreeformTestSubset({"kc-33um-0.85mm"}).front();
+  const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
+  std::vector<MeasuredSpot> spots;
+  for (const auto& s :
+       model::SynthesizeImage(cornea.surface, model::Topographer{config.topographer}, design.targets).spots) {
+    spots.push_back({s.id, s.position_mm});
+  }
+  ReconstructOptions no_adequacy;
+  no_adequacy.adequacy = false;
+  const Reconstruction r = Reconstruct(spots, design.targets, config.topographer, config.reconstruction, no_adequacy);
+  ASSERT_TRUE(r.ok) << r.message;
+  EXPECT_EQ(r.surface_model, "spline");
+  EXPECT_EQ(r.adequacy_ratio, 0.0);
+  EXPECT_EQ(r.structured_residual_ratio, 0.0);
 }
 
 // "auto" with the paper's single-pass method (the vertex search of Fig. 8): decided after the polynomial's one fit
