@@ -167,6 +167,7 @@ void ParseReconstruction(Section s, ReconstructionSettings& p) {
   s.AtLeast("power_map_radial_samples", p.power_map_radial_samples, 10);
   p.spot_uncertainty_um = s.Number("spot_uncertainty_um", p.spot_uncertainty_um);
   s.Positive("spot_uncertainty_um", p.spot_uncertainty_um);
+  p.surface_model_given = s.Has("surface_model");
   p.surface_model = s.String("surface_model", p.surface_model);
   if (p.surface_model != "polynomial" && p.surface_model != "spline" && p.surface_model != "auto") {
     s.Fail(s.Key("surface_model"),

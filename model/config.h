@@ -94,6 +94,10 @@ struct ReconstructionSettings {
                                              // a bicubic P-spline residual, REML-smoothed: freeform corneas;
                                              // docs/reconstruction.md) or "auto" (the spline only when the
                                              // polynomial does not fit the data: topo::ModelFitsData)
+  bool surface_model_given = false;          // the configuration (or --surface-model) named surface_model; when
+                                             // it did not, `reconstruct` (the verb that measures eyes) takes
+                                             // "auto" and everything that reproduces or sweeps the paper keeps
+                                             // the polynomial (docs/reconstruction.md, "The default surface model")
   double spline_spacing_mm = 0.33;           // knot spacing of the spline residual (spots lie ~0.35 mm apart)
   std::string biconic_fit = "free-apex";     // "free-apex" (apex position and tilt free, default), "paper" or "sphere" (topo/sphere_fit.h)
                                              // (Eq. 12 with x0 = y0 = 0 and no tilt: the paper's 6 parameters)

@@ -202,6 +202,9 @@ void AddReconstructCommand(CLI::App& app) {
     const NewDirectoryGuard maps_guard(*maps);  // a failed run leaves no empty --maps folder
     auto cfg = model::LoadConfig(*config);
     overrides->ApplyTo(&cfg);
+    // The verb that measures eyes: unless the configuration or --surface-model names a model, the spline joins
+    // where the polynomial does not fit the data (keratoconus, ablations; docs/reconstruction.md).
+    if (!cfg.reconstruction.surface_model_given) cfg.reconstruction.surface_model = "auto";
     if (in->spots.empty() == in->image.empty()) throw util::InputError("reconstruct: give one of --spots or --image");
     if (in->uncertainty_samples > 0 && (in->image.empty() || in->calibration.empty())) {
       throw util::InputError("--uncertainty needs --image and --calibration");

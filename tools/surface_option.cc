@@ -41,15 +41,18 @@ void ReconstructionOverrides::AddTo(CLI::App* cmd) {
                   "reconstruction.biconic_fit")
       ->check(CLI::IsMember({"free-apex", "paper", "sphere"}));
   cmd->add_option("--surface-model", surface_model,
-                  "Surface: polynomial (the paper's Psi; default), spline (Psi plus a REML-smoothed spline "
-                  "residual: keratoconus, ablations) or auto (the spline only where the polynomial does not fit "
-                  "the data); overrides reconstruction.surface_model")
+                  "Surface: polynomial (the paper's Psi), spline (Psi plus a REML-smoothed spline residual: "
+                  "keratoconus, ablations) or auto (the spline only where the polynomial does not fit the data); "
+                  "overrides reconstruction.surface_model. Neither given: auto in reconstruct, polynomial elsewhere")
       ->check(CLI::IsMember({"polynomial", "spline", "auto"}));
 }
 
 void ReconstructionOverrides::ApplyTo(model::Config* config) const {
   if (!biconic_fit.empty()) config->reconstruction.biconic_fit = biconic_fit;
-  if (!surface_model.empty()) config->reconstruction.surface_model = surface_model;
+  if (!surface_model.empty()) {
+    config->reconstruction.surface_model = surface_model;
+    config->reconstruction.surface_model_given = true;
+  }
 }
 
 void RequireFoldFreeSigma(double sigma_per_mm2, const model::Config& config, const std::string& config_path) {
