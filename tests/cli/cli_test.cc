@@ -227,8 +227,7 @@ TEST_F(Cli, ReconstructMeasuresWithAutoUnlessAModelIsNamed) {
   named["reconstruction"] = {{"surface_model", "polynomial"}};
   std::ofstream(Path("named.json")) << named.dump(2);
   const auto reconstruct = [&](const std::string& config, const std::string& name) {
-    const auto r =
-        RunTopocal("reconstruct --config " + config + " --spots " + Path("s.csv") + " --json " + Path(name));
+    const auto r = RunTopocal("reconstruct --config " + config + " --spots " + Path("s.csv") + " --json " + Path(name));
     EXPECT_EQ(r.exit_code, 0) << r.output;
     return std::make_pair(ReadJson(Path(name)), r.output);
   };
