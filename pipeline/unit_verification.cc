@@ -77,6 +77,8 @@ ClinicalNumbers Summarize(const topo::Analysis& analysis, int spots) {
   n.central_axial_power_D = topo::MeanAxialPowerD(analysis.power, kCentralPowerRadiusMm);
   n.pv_tangential_D = analysis.power.pv_tangential_D;
   n.pv_axial_D = analysis.power.pv_axial_D;
+  n.adequacy_ratio = analysis.reconstruction.adequacy_ratio;
+  n.structured_residual_ratio = analysis.reconstruction.structured_residual_ratio;
   if (analysis.errors) {
     n.height_pv_um = analysis.errors->pv_um;
     n.height_rms_um = analysis.errors->rms_um;

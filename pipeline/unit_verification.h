@@ -29,6 +29,10 @@ struct ClinicalNumbers {
   double radius_mm = 0;              // mean of rx and ry
   double central_axial_power_D = 0;  // topo::MeanAxialPowerD over kCentralPowerRadiusMm
   double pv_tangential_D = 0, pv_axial_D = 0;
+  // Model adequacy (topo::Reconstruction): the slope residual over what spot-centre noise would leave, and its
+  // part that neighbouring spots share; above topo::kAdequacyWarningRatio / kStructuredResidualWarningRatio the
+  // surface model does not represent the spots (uncorrected distortion makes them non-integrable).
+  double adequacy_ratio = 0, structured_residual_ratio = 0;
   std::optional<double> height_pv_um, height_rms_um;  // against the truth, when known
 };
 ClinicalNumbers Summarize(const topo::Analysis& analysis, int spots);

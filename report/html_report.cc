@@ -11,8 +11,10 @@
 #include <tuple>
 
 #include "model/camera_model.h"
+#include "model/config.h"
 #include "plot/svg.h"
 #include "plot/svg_charts.h"
+#include "topo/reconstruction.h"
 #include "util/io.h"
 #include "util/sha256.h"
 #include "util/version.h"
@@ -69,6 +71,8 @@ constexpr Quantity kSphereRows[] = {
     {"radius_error_mm", "radius error", "mm", 4}, {"central_axial_power_D", "mean axial power, central 3 mm", "D", 3},
     {"power_error_D", "power error", "D", 3},     {"pv_tangential_D", "tangential power pv", "D", 3},
     {"pv_axial_D", "axial power pv", "D", 3},     {"spots_indexed", "spots indexed", "", 0},
+    {"adequacy_ratio", "model adequacy: slope residual / expected noise", "", 2},
+    {"structured_residual_ratio", "model adequacy: structured part / expected noise", "", 2},
 };
 constexpr Quantity kPaperRows[] = {
     {"rx_mm", "r<sub>x</sub>", "mm", 4},
@@ -80,7 +84,21 @@ constexpr Quantity kPaperRows[] = {
     {"pv_axial_D", "axial power pv", "D", 3},
     {"height_pv_um", "height error pv", "\u00b5m", 3},
     {"height_rms_um", "height error rms", "\u00b5m", 3},
+    {"adequacy_ratio", "model adequacy: slope residual / expected noise", "", 2},
+    {"structured_residual_ratio", "model adequacy: structured part / expected noise", "", 2},
 };
+
+// Below the sphere's and the paper cornea's tables: how to read the two model-adequacy rows (issue 18).
+std::string AdequacyNote(const UnitRecord& rec) {
+  return fmt::format(
+      "<p class=\"note adequacy\">Model adequacy: the surface model's slope residual over what {} \u00b5m of "
+      "spot-centre noise would leave, and the part of it that neighbouring spots share. Above {} (or {} for the "
+      "shared part) the surface model does not represent the spots: uncorrected distortion makes them "
+      "non-integrable; after correction both should fall below.</p>\n",
+      Sig((rec.config ? rec.config->reconstruction : model::ReconstructionSettings{}).spot_uncertainty_um, 2),
+      Sig(topo::kAdequacyWarningRatio, 2),
+      Sig(topo::kStructuredResidualWarningRatio, 2));
+}
 
 std::string ValueU(const std::optional<UncertaintyBlock>& block, const char* key, int decimals) {
   if (!block) return "";
@@ -705,6 +723,7 @@ std::string RenderHtmlReport(const UnitRecord& rec, const ReportInputs& inputs) 
                      Lookup(v.uncorrected, "alpha_deg", 1), Lookup(v.corrected, "alpha_deg", 1),
                      Sig(std::abs(v.uncorrected.at("rx_mm") - v.uncorrected.at("ry_mm")), 2),
                      Sig(std::abs(v.corrected.at("rx_mm") - v.corrected.at("ry_mm")), 2));
+    s += AdequacyNote(rec);
   } else {
     s += "<p class=\"note\">No reference sphere was given: the unit is not verified.</p>\n";
   }
@@ -728,6 +747,7 @@ std::string RenderHtmlReport(const UnitRecord& rec, const ReportInputs& inputs) 
                      ValueU(rec.paper.uncertainty, q.key, q.decimals));
   }
   s += "</table>\n";
+  s += AdequacyNote(rec);
   s += MapsFigure(rec, "paper");
   s += "</section>\n";
 

@@ -136,7 +136,9 @@ json Numbers(const pipeline::ClinicalNumbers& n) {
             {"radius_mm", n.radius_mm},
             {"central_axial_power_D", n.central_axial_power_D},
             {"pv_tangential_D", n.pv_tangential_D},
-            {"pv_axial_D", n.pv_axial_D}};
+            {"pv_axial_D", n.pv_axial_D},
+            {"adequacy_ratio", n.adequacy_ratio},
+            {"structured_residual_ratio", n.structured_residual_ratio}};
   if (n.height_pv_um) j["height_pv_um"] = *n.height_pv_um;
   if (n.height_rms_um) j["height_rms_um"] = *n.height_rms_um;
   return j;

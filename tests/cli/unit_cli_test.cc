@@ -15,6 +15,7 @@
 
 #include "tests/cli_harness.h"
 #include "tests/unit_fixture.h"
+#include "topo/reconstruction.h"
 #include "util/io.h"
 #include "util/sha256.h"
 
@@ -104,6 +105,15 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
   const auto& p = j["paper_cornea"];
   EXPECT_NEAR(p["corrected"]["kx"].get<double>(), p["truth"]["kx"].get<double>(), 1e-3);
   EXPECT_GT(std::abs(p["uncorrected"]["kx"].get<double>() - p["truth"]["kx"].get<double>()), 0.1);
+  // Model adequacy in every stage (issue 18): corrected, the paper cornea's slopes fit the polynomial far below the
+  // warning ratio 3 (measured 2026-12-02: 0.0027); uncorrected, the distortion leaves a residual that neighbouring
+  // spots share (structured ratio 1.01, above the 0.4 warning).
+  const double adequacy = p["corrected"]["adequacy_ratio"], structured = p["uncorrected"]["structured_residual_ratio"];
+  EXPECT_LT(adequacy, topo::kAdequacyWarningRatio);
+  EXPECT_LT(adequacy, 0.01);
+  EXPECT_GT(structured, topo::kStructuredResidualWarningRatio);
+  EXPECT_GT(structured, 0.8);
+  EXPECT_LT(structured, 1.3);
 }
 
 // The device stage (issue 19): a unit whose cone is tilted and decentred (its lens as the fixture's: the target views

@@ -243,7 +243,9 @@ inline json StageSphere(double radius_mm, double dr_mm, double dk) {
           {"central_axial_power_D", power},
           {"power_error_D", power - 337.5 / radius_mm},
           {"pv_tangential_D", 0.02 + 10 * std::abs(dk)},
-          {"pv_axial_D", 0.01 + 5 * std::abs(dk)}};
+          {"pv_axial_D", 0.01 + 5 * std::abs(dk)},
+          {"adequacy_ratio", 0.5 + 100 * std::abs(dk)},
+          {"structured_residual_ratio", 0.1 + 20 * std::abs(dk)}};
 }
 
 inline json Uncertainty(double u_r, double u_k) {
@@ -280,7 +282,9 @@ inline void UseHandPickedChecks(RecordFixture& f) {
         {"pv_tangential_D", 6.1},
         {"pv_axial_D", 3.2},
         {"height_pv_um", 3.5},
-        {"height_rms_um", 0.8}}},
+        {"height_rms_um", 0.8},
+        {"adequacy_ratio", 3.4},
+        {"structured_residual_ratio", 2.9}}},
       {"corrected",
        {{"rx_mm", 7.8001},
         {"ry_mm", 7.6299},
@@ -290,7 +294,9 @@ inline void UseHandPickedChecks(RecordFixture& f) {
         {"pv_tangential_D", 5.6},
         {"pv_axial_D", 2.9},
         {"height_pv_um", 0.05},
-        {"height_rms_um", 0.01}}},
+        {"height_rms_um", 0.01},
+        {"adequacy_ratio", 0.04},
+        {"structured_residual_ratio", 0.03}}},
       {"uncertainty", Uncertainty(0.001, 0.003)}};
   f.WriteUnitJson();
 }
