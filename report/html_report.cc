@@ -96,8 +96,7 @@ std::string AdequacyNote(const UnitRecord& rec) {
       "shared part) the surface model does not represent the spots: uncorrected distortion makes them "
       "non-integrable; after correction both should fall below.</p>\n",
       Sig((rec.config ? rec.config->reconstruction : model::ReconstructionSettings{}).spot_uncertainty_um, 2),
-      Sig(topo::kAdequacyWarningRatio, 2),
-      Sig(topo::kStructuredResidualWarningRatio, 2));
+      Sig(topo::kAdequacyWarningRatio, 2), Sig(topo::kStructuredResidualWarningRatio, 2));
 }
 
 std::string ValueU(const std::optional<UncertaintyBlock>& block, const char* key, int decimals) {

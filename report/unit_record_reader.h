@@ -106,10 +106,9 @@ inline constexpr const char* kSphereStageKeys[] = {
     "spots_indexed", "rx_mm", "ry_mm", "kx", "ky", "alpha_deg", "radius_mm", "radius_error_mm",
     "central_axial_power_D",  "power_error_D", "pv_tangential_D", "pv_axial_D", "adequacy_ratio",
     "structured_residual_ratio"};
-inline constexpr const char* kPaperStageKeys[] = {"rx_mm",          "ry_mm",         "kx",
-                                                  "ky",             "alpha_deg",     "pv_tangential_D",
-                                                  "pv_axial_D",     "height_pv_um",  "height_rms_um",
-                                                  "adequacy_ratio", "structured_residual_ratio"};
+inline constexpr const char* kPaperStageKeys[] = {
+    "rx_mm",        "ry_mm",         "kx",             "ky",  "alpha_deg", "pv_tangential_D", "pv_axial_D",
+    "height_pv_um", "height_rms_um", "adequacy_ratio", "structured_residual_ratio"};
 inline constexpr const char* kPaperTruthKeys[] = {"rx_mm", "ry_mm", "kx", "ky", "alpha_deg"};
 
 // The device stage of a record (issue 19; docs/unit-record.md): the calibrated device as device.json holds it (read

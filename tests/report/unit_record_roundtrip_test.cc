@@ -45,11 +45,17 @@ void ExpectNumbers(const StageValues& read, const pipeline::ClinicalNumbers& n, 
                    const std::map<std::string, double>& extra = {}) {
   SCOPED_TRACE(where);
   // The key of each number, spelt here independently of the writer: the oracle the round trip is checked against.
-  std::map<std::string, double> computed = {
-      {"rx_mm", n.rx_mm}, {"ry_mm", n.ry_mm}, {"kx", n.kx}, {"ky", n.ky}, {"alpha_deg", n.alpha_deg},
-      {"radius_mm", n.radius_mm}, {"central_axial_power_D", n.central_axial_power_D},
-      {"pv_tangential_D", n.pv_tangential_D}, {"pv_axial_D", n.pv_axial_D}, {"adequacy_ratio", n.adequacy_ratio},
-      {"structured_residual_ratio", n.structured_residual_ratio}};
+  std::map<std::string, double> computed = {{"rx_mm", n.rx_mm},
+                                            {"ry_mm", n.ry_mm},
+                                            {"kx", n.kx},
+                                            {"ky", n.ky},
+                                            {"alpha_deg", n.alpha_deg},
+                                            {"radius_mm", n.radius_mm},
+                                            {"central_axial_power_D", n.central_axial_power_D},
+                                            {"pv_tangential_D", n.pv_tangential_D},
+                                            {"pv_axial_D", n.pv_axial_D},
+                                            {"adequacy_ratio", n.adequacy_ratio},
+                                            {"structured_residual_ratio", n.structured_residual_ratio}};
   for (const auto& [key, value] : {std::pair{"height_pv_um", n.height_pv_um}, std::pair{"height_rms_um", n.height_rms_um}}) {
     if (value) computed[key] = *value;
   }
