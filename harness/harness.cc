@@ -70,12 +70,17 @@ model::Distortion DistortionOf(const model::Config& design, DistortionFamily fam
 // Largest |P - P_truth| over the samples of the two maps (same layout) within radius_mm.
 double MaxAbsDifference(const std::vector<double>& a, const std::vector<double>& b, const topo::PowerMaps& layout,
                         double radius_mm) {
+  // The samples within the radius are the first `inside` of every meridian (the radii grow with k): found once,
+  // by the same test, instead of a division per sample (it was ~4 % of a harness case).
+  int inside = 0;
+  while (inside < layout.radial_samples && layout.RhoMm(inside) <= radius_mm) ++inside;
   double worst = 0;
+  if (inside == 0) return worst;
   for (int j = 0; j < layout.meridians; ++j) {
-    for (int k = 0; k < layout.radial_samples && layout.RhoMm(k) <= radius_mm; ++k) {
-      const size_t i = static_cast<size_t>(j) * layout.radial_samples + k;
-      worst = std::max(worst, std::abs(a[i] - b[i]));
-    }
+    // Packed (the maps are finite: ComputePowerMaps fails otherwise, so the maximum is that of the scalar loop).
+    const size_t row = static_cast<size_t>(j) * layout.radial_samples;
+    const Eigen::Map<const Eigen::ArrayXd> pa(a.data() + row, inside), pb(b.data() + row, inside);
+    worst = std::max(worst, (pa - pb).abs().maxCoeff());
   }
   return worst;
 }
