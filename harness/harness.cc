@@ -70,12 +70,17 @@ model::Distortion DistortionOf(const model::Config& design, DistortionFamily fam
 // Largest |P - P_truth| over the samples of the two maps (same layout) within radius_mm.
 double MaxAbsDifference(const std::vector<double>& a, const std::vector<double>& b, const topo::PowerMaps& layout,
                         double radius_mm) {
+  // The samples within the radius are the first `inside` of every meridian (the radii grow with k): found once,
+  // by the same test, instead of a division per sample (it was ~4 % of a harness case).
+  int inside = 0;
+  while (inside < layout.radial_samples && layout.RhoMm(inside) <= radius_mm) ++inside;
   double worst = 0;
+  if (inside == 0) return worst;
   for (int j = 0; j < layout.meridians; ++j) {
-    for (int k = 0; k < layout.radial_samples && layout.RhoMm(k) <= radius_mm; ++k) {
-      const size_t i = static_cast<size_t>(j) * layout.radial_samples + k;
-      worst = std::max(worst, std::abs(a[i] - b[i]));
-    }
+    // Packed (the maps are finite: ComputePowerMaps fails otherwise, so the maximum is that of the scalar loop).
+    const size_t row = static_cast<size_t>(j) * layout.radial_samples;
+    const Eigen::Map<const Eigen::ArrayXd> pa(a.data() + row, inside), pb(b.data() + row, inside);
+    worst = std::max(worst, (pa - pb).abs().maxCoeff());
   }
   return worst;
 }
@@ -237,13 +242,17 @@ namespace {
 
 // What Compare reads of a case's analysis: the biconic's parameters, the power maps and the covered radius. The
 // biconic's standard deviations, the adequacy check and the clinical indices change none of these and are not
-// computed (they were a fifth of a case; issue 15). Starting the slope fits from the cornea's undistorted truth
-// (AnalysisOptions::start, as a unit's Monte Carlo draws do) was tried and dropped: no gain measured in the same
-// run (12.4-12.7 ms per case either way; the profile still showed a QR in the cases, so the truth's factor did
-// not serve them), while the results moved by up to 1e-11.
-topo::AnalysisOptions CaseAnalysisOptions() {
+// computed (they were a fifth of a case; issue 15). The biconic fit starts from the cornea's truth fit
+// (AnalysisOptions::fit_start): 3-4 iterations instead of 5-21 (mean 9.3) over data/harness.json, the case
+// 2.0 -> 1.8 ms; the fits agree with cold ones to 1e-8 in k and mm where |dk| is within the harness' limits, and
+// to 4e-7 for the uncorrected cases 13 x beyond them (docs/performance.md, eighth round). Starting the slope fits
+// from the truth too (AnalysisOptions::start, as a unit's Monte Carlo draws do) was tried and dropped: no gain
+// measured in the same run (12.4-12.7 ms per case either way; the profile still showed a QR in the cases, so the
+// truth's factor did not serve them), while the results moved by up to 1e-11.
+topo::AnalysisOptions CaseAnalysisOptions(const topo::Analysis& truth) {
   topo::AnalysisOptions o;
   o.stddev = o.adequacy = o.clinical = false;
+  o.fit_start = &truth.surface_fit.params;
   return o;
 }
 
@@ -290,7 +299,7 @@ HarnessCaseResult HarnessCaseRunner::RunDistortion(const HarnessCaseSpec& spec) 
     return r;
   }
   try {
-    Compare(topo::AnalyzeSpots(measured, *targets_, d.config, nullptr, CaseAnalysisOptions()), d, &r);
+    Compare(topo::AnalyzeSpots(measured, *targets_, d.config, nullptr, CaseAnalysisOptions(d.truth)), d, &r);
   } catch (const std::runtime_error& e) {
     r.failure = e.what();
   }
@@ -335,7 +344,7 @@ HarnessCaseResult HarnessCaseRunner::RunAssembly(const HarnessCaseSpec& spec) co
     return r;
   }
   try {
-    Compare(pipeline::AnalyzeThroughDevice(measured, nominal_, d.config, nullptr, CaseAnalysisOptions()), d, &r);
+    Compare(pipeline::AnalyzeThroughDevice(measured, nominal_, d.config, nullptr, CaseAnalysisOptions(d.truth)), d, &r);
   } catch (const std::runtime_error& e) {
     r.failure = e.what();
   }

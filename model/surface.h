@@ -118,6 +118,15 @@ struct BiconicKernel {
     return {cos(q[kAlpha]), sin(q[kAlpha]), (1.0 + q[kKx]) * q[kCx] * q[kCx], (1.0 + q[kKy]) * q[kCy] * q[kCy]};
   }
 
+  // The rotated, decentred coordinates (X, Y) of (x, y) and 1 - Q_x c_x^2 X^2 - Q_y c_y^2 Y^2, whose square root G
+  // takes: G is defined where it is positive.
+  template <typename T, typename P>
+  static T SquareRootArgument(const Frame<P>& fr, const P* q, const T& x, const T& y, T* X, T* Y) noexcept {
+    *X = fr.ca * x + fr.sa * y - q[kX0];
+    *Y = -fr.sa * x + fr.ca * y - q[kY0];
+    return 1.0 - fr.qx * *X * *X - fr.qy * *Y * *Y;
+  }
+
   // Eq. 12-13 without tilt: sag and gradient of G at (x, y).
   template <typename T, typename P>
   static bool UntiltedSag(const P* q, const T& x, const T& y, T* z, T* zx, T* zy) noexcept {
@@ -131,9 +140,8 @@ struct BiconicKernel {
     const P& sa = fr.sa;
     const P& qx = fr.qx;
     const P& qy = fr.qy;
-    const T X = ca * x + sa * y - q[kX0];
-    const T Y = -sa * x + ca * y - q[kY0];
-    const T s2 = 1.0 - qx * X * X - qy * Y * Y;
+    T X, Y;
+    const T s2 = SquareRootArgument(fr, q, x, y, &X, &Y);
     if (!(ScalarPart(s2) > 0.0)) return false;
     const T s = sqrt(s2);
     const T den = 1.0 + s;
@@ -190,11 +198,38 @@ struct BiconicKernel {
     V u[3];
     ToUntilted(t, x, y, z, u);
     V g, gx, gy;
-    if (!fp) return UntiltedSag(fr, q, u[0], u[1], &g, static_cast<V*>(nullptr), static_cast<V*>(nullptr));
+    if (!fp) {
+      // UntiltedSag's own test, without computing the sag (a square root and a division) only to discard it.
+      V X, Y;
+      return ScalarPart(SquareRootArgument(fr, q, u[0], u[1], &X, &Y)) > 0.0;
+    }
     if (!UntiltedSag(fr, q, u[0], u[1], &g, &gx, &gy)) return false;
     *f = u[2] - g;
     for (int j = 0; j < 3; ++j) fp[j] = t.m[2][j] - gx * t.m[0][j] - gy * t.m[1][j];
     return true;
+  }
+
+  // Newton in double for the root of F on the line along z through (x, y), from *z (the start) until a step is
+  // below step_tolerance_mm; *z is then the point after that step. 20 steps at most: from G's own sag Newton
+  // converges in 3-4 for tilts below 30 deg. False where G is undefined on the way, the line grazes the tilted
+  // surface or the iteration does not converge (*z is then unspecified).
+  static bool TiltedRoot(const Frame<double>& fr, const double* q, const Tilt<double>& tilt, double x, double y,
+                         double step_tolerance_mm, double* z) noexcept {
+    constexpr int kMaxNewton = 20;
+    double zd = *z;
+    for (int it = 0; it < kMaxNewton; ++it) {
+      double f, fp[3];
+      if (!TiltedResidual(fr, q, tilt, x, y, zd, &f, fp)) return false;
+      if (!(std::abs(fp[2]) > 1e-6)) return false;  // the ray along z grazes the tilted surface
+      const double step = f / fp[2];
+      zd -= step;
+      if (!std::isfinite(zd)) return false;
+      if (std::abs(step) < step_tolerance_mm) {
+        *z = zd;
+        return true;
+      }
+    }
+    return false;
   }
 
   // The tilted sag z(x, y): the root of F near G's own sag (see above), the one implementation of the kernel and of
@@ -210,23 +245,9 @@ struct BiconicKernel {
     if (!UntiltedSag(fr_d, q_d, xd, yd, &zd, static_cast<double*>(nullptr), static_cast<double*>(nullptr))) {
       return false;
     }
-    // 1e-14 mm: the double floor of a sag of ~1 mm; 20 steps: Newton converges in 3-4 for tilts below 30 deg.
+    // 1e-14 mm: the double floor of a sag of ~1 mm.
     constexpr double kSagToleranceMm = 1e-14;
-    constexpr int kMaxNewton = 20;
-    bool converged = false;
-    for (int it = 0; it < kMaxNewton; ++it) {
-      double f, fp[3];
-      if (!TiltedResidual(fr_d, q_d, tilt_d, xd, yd, zd, &f, fp)) return false;
-      if (!(std::abs(fp[2]) > 1e-6)) return false;  // the ray along z grazes the tilted surface
-      const double step = f / fp[2];
-      zd -= step;
-      if (!std::isfinite(zd)) return false;
-      if (std::abs(step) < kSagToleranceMm) {
-        converged = true;
-        break;
-      }
-    }
-    if (!converged) return false;
+    if (!TiltedRoot(fr_d, q_d, tilt_d, xd, yd, kSagToleranceMm, &zd)) return false;
     // One Newton step in the full type: exact first derivatives in every jet variable.
     R zr = R(zd), f, fp[3];
     if (!TiltedResidual(fr, q, tilt, R(x), R(y), zr, &f, fp)) return false;

@@ -90,6 +90,8 @@ Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<
   fit_options.stddev = options.stddev;
   if (options.start && options.start->surface_fit.ok && options.start->surface_fit.mode == fit_options.mode) {
     fit_options.start = &options.start->surface_fit.params;
+  } else if (!options.start) {
+    fit_options.start = options.fit_start;
   }
   a.surface_fit = FitBiconic(cloud, fit_options);
   if (!a.surface_fit.ok) throw std::runtime_error(fmt::format("biconic fit failed: {}", a.surface_fit.message));

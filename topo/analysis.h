@@ -56,6 +56,10 @@ struct AnalysisOptions {
   // settings was tried and took as many iterations (7-12: rounding-level steps at its 1e-14 tolerances); the warm
   // start's own settings take 3.
   const Analysis* start = nullptr;
+  // Without `start`: the biconic or sphere fit alone starts from these parameters of a fit in the same mode
+  // (BiconicFitOptions::start), the rest of the analysis as from cold. The harness starts every case's fit from
+  // its cornea's truth fit (harness/harness.cc).
+  const model::BiconicParams* fit_start = nullptr;
 };
 
 // Runs reconstruction, fit and maps. Throws std::runtime_error (one line) when the reconstruction or the fit fails.

@@ -26,7 +26,10 @@ using K = model::BiconicKernel;
 // Ceres' trust region evaluates the cost at a candidate and, when it accepts it, the Jacobian at the same
 // parameters: the sags of the last cost-only evaluation are kept and reused then, so that the tilted surface's
 // Newton root is found once per point and step, not twice. Reuse needs the parameters bit for bit equal, so the
-// values are the ones a fresh evaluation would give. (The solver runs on one thread: SurfaceFitSolverOptions.)
+// values are the ones an evaluation at these parameters gave. (The solver runs on one thread:
+// SurfaceFitSolverOptions.) A new candidate's tilted roots start from the kept sags (BiconicSagJacobian::SagNear):
+// one or two Newton steps per point instead of five, the same roots to a few ulps (docs/performance.md, eighth
+// round).
 // With keep_jacobian, the Jacobian of the last evaluation that computed one is kept too: Ceres' last one is at the
 // solution, where the covariance needs it (FitCovariance), so the covariance costs no evaluation of its own.
 class BiconicSagResiduals final : public ceres::CostFunction {
@@ -45,11 +48,17 @@ class BiconicSagResiduals final : public ceres::CostFunction {
     const BiconicSagJacobian surface(q, tilted_);
     double* jacobian = jacobians ? jacobians[0] : nullptr;
     const bool reuse = sags_valid_ && std::equal(q, q + K::kNumParams, sag_q_);
+    // Otherwise each tilted root starts from the last evaluation's sag of its point, when that evaluation
+    // succeeded: Ceres' steps near the optimum are small, and one Newton step then finds the root.
+    const bool warm = sags_valid_;
     sags_valid_ = false;
     for (size_t i = 0; i < points_.size(); ++i) {
       const Eigen::Vector3d& p = points_[i];
       // Outside the biconic's domain: Ceres rejects the step instead of seeing NaN.
-      if (!reuse && !surface.Sag(p.x(), p.y(), &sag_mm_[i])) return false;
+      if (!reuse &&
+          !(warm ? surface.SagNear(p.x(), p.y(), sag_mm_[i], &sag_mm_[i]) : surface.Sag(p.x(), p.y(), &sag_mm_[i]))) {
+        return false;
+      }
       residuals[i] = p.z() - sag_mm_[i];
       if (jacobian) {
         double dz_dq[K::kNumParams];

@@ -54,6 +54,20 @@ bool BiconicSagJacobian::Sag(double x_mm, double y_mm, double* z_mm) const noexc
                       static_cast<double*>(nullptr));
 }
 
+bool BiconicSagJacobian::SagNear(double x_mm, double y_mm, double z_start_mm, double* z_mm) const noexcept {
+  if (tilted_) {
+    double z = z_start_mm;
+    // The kernel's domain check at the point found (TiltedSag checks its final point the same way).
+    if (K::TiltedRoot(frame_, q_, tilt_, x_mm, y_mm, kNearStepMm, &z) &&
+        K::TiltedResidual(frame_, q_, tilt_, x_mm, y_mm, z, static_cast<double*>(nullptr),
+                          static_cast<double*>(nullptr))) {
+      *z_mm = z;
+      return true;
+    }
+  }
+  return Sag(x_mm, y_mm, z_mm);
+}
+
 bool BiconicSagJacobian::Derivatives(double x_mm, double y_mm, double z_mm, double* dz_dq) const noexcept {
   if (!tilted_) {
     double g, gu, gv;

@@ -1,12 +1,13 @@
 #include "topo/power_map.h"
 
-#include <algorithm>
-#include <cmath>
-#include <limits>
+#include <fmt/format.h>
 
 #include <Eigen/Core>
 #include <Eigen/QR>
-#include <fmt/format.h>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <type_traits>
 
 namespace topocal::topo {
 namespace {
@@ -38,19 +39,27 @@ bool ComputePowerMaps(const TaylorPolynomial& psi, const PowerMapOptions& o, Pow
   const int top = psi.degree();
   const auto sampler = [&](double theta, int n, const double* rho, double* f, double* df, double* d2f) {
     psi.MeridianCoefficients(theta, g.data());
-    // Horner for the value and both derivatives together, one degree at a time over all samples: the samples'
-    // chains are independent, so they vectorise and overlap (each sample's operations as in a per-sample loop).
+    // Horner for the value and both derivatives together, 8 samples at a time in registers (the samples' chains
+    // are independent, so they vectorise and overlap), then one at a time; each sample's operations as in a
+    // per-sample loop. Over all the samples one degree at a time, as before, every statement was a pass through
+    // memory (3 loads and a store for 2-3 operations): the same numbers, bit for bit, at about half the time.
     // Eigen arrays, because the compiler cannot vectorise the loop over raw pointers that may alias.
-    const Eigen::Map<const Eigen::ArrayXd> r(rho, n);
-    Eigen::Map<Eigen::ArrayXd> fa(f, n), dfa(df, n), d2fa(d2f, n);
-    fa.setConstant(g[top]);
-    dfa.setZero();
-    d2fa.setZero();
-    for (int d = top - 1; d >= 0; --d) {
-      d2fa = d2fa * r + 2.0 * dfa;
-      dfa = dfa * r + fa;
-      fa = fa * r + g[d];
-    }
+    const auto samples = [&](auto block, int k) {
+      using Block = Eigen::Array<double, decltype(block)::value, 1>;
+      const Block r = Eigen::Map<const Block>(rho + k);
+      Block fa = Block::Constant(g[top]), dfa = Block::Zero(), d2fa = Block::Zero();
+      for (int d = top - 1; d >= 0; --d) {
+        d2fa = d2fa * r + 2.0 * dfa;
+        dfa = dfa * r + fa;
+        fa = fa * r + g[d];
+      }
+      Eigen::Map<Block>(f + k) = fa;
+      Eigen::Map<Block>(df + k) = dfa;
+      Eigen::Map<Block>(d2f + k) = d2fa;
+    };
+    int k = 0;
+    for (; k + 8 <= n; k += 8) samples(std::integral_constant<int, 8>(), k);
+    for (; k < n; ++k) samples(std::integral_constant<int, 1>(), k);
     return true;
   };
   return ComputePowerMaps(sampler, o, maps, why);

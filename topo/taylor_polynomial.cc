@@ -1,10 +1,10 @@
 #include "topo/taylor_polynomial.h"
 
-#include <algorithm>
-#include <cmath>
-
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
+#include <algorithm>
+#include <cmath>
+#include <type_traits>
 
 namespace topocal::topo {
 namespace {
@@ -268,12 +268,28 @@ struct GradientOperator {
       if (t.dx >= 0) (*g)(t.dx, 0) = t.scale_x * c;
       if (t.dy >= 0) (*g)(t.dy, 1) = t.scale_y * c;
     }
-    // Column by column (axpy): Eigen's general product packs T into a fresh buffer on every call.
-    out->setZero(T.rows(), 2);
-    for (Eigen::Index j = 0; j < T.cols(); ++j) {
-      out->col(0) += (*g)(j, 0) * T.col(j);
-      out->col(1) += (*g)(j, 1) * T.col(j);
-    }
+    // Eigen's general product packs T into a fresh buffer on every call. Instead, blocks of 8 rows keep both sums
+    // in registers over all the columns: T is read once and `out` written once (the column-by-column axpy this
+    // replaces read and wrote `out` once per column: ~8 % of a harness case). Each entry is the same sum in the
+    // same order, 0 + g_0 T_i0 + g_1 T_i1 + ..., so the result is the axpy's bit for bit.
+    const Eigen::Index n = T.rows(), m = T.cols();
+    out->resize(n, 2);
+    const double* gx = g->col(0).data();
+    const double* gy = g->col(1).data();
+    const auto rows = [&](auto block, Eigen::Index i) {
+      using Block = Eigen::Array<double, decltype(block)::value, 1>;
+      Block sx = Block::Zero(), sy = Block::Zero();
+      for (Eigen::Index j = 0; j < m; ++j) {
+        const Eigen::Map<const Block> t(T.col(j).data() + i);
+        sx += gx[j] * t;
+        sy += gy[j] * t;
+      }
+      Eigen::Map<Block>(out->col(0).data() + i) = sx;
+      Eigen::Map<Block>(out->col(1).data() + i) = sy;
+    };
+    Eigen::Index i = 0;
+    for (; i + 8 <= n; i += 8) rows(std::integral_constant<int, 8>(), i);
+    for (; i < n; ++i) rows(std::integral_constant<int, 1>(), i);
   }
   // A^T r for r given as an n x 2 matrix.
   void ApplyTransposed(const Eigen::MatrixXd& r, Eigen::MatrixXd* h, Eigen::VectorXd* out) const {

@@ -30,6 +30,10 @@ constexpr double kSameSpotsDk = 1e-6;
 constexpr double kSameSpotsDP_D = 1e-4;  // the same convergence in power: ~1e-5 D
 // The e = -1 (uncorrected) case is the sweep's row of the same sigma: the same spots through the same code.
 constexpr double kSameComputation = 1e-12;
+// ... except the biconic fit, which a harness case starts from its cornea's truth fit (the sweep from the quadratic
+// guess): both stop within the fit's tolerances of the same optimum. Measured 5.8e-11 in k_x, 8.6e-12 in k_y
+// (2026-12-02, docs/performance.md eighth round); the bound leaves a factor 3.
+constexpr double kSameFitDk = 2e-10;
 
 std::string SmallConfig(const std::string& extra = "") {
   return fmt::format(R"({{"design": "{}", "seed": 7,
@@ -212,8 +216,8 @@ TEST(HarnessCase, UncorrectedIsThePaperSweepAndExactCorrectionIsTheTruth) {
   const auto sweep = topo::RunSweep(paper);
   const auto& truth = sweep.rows[0].analysis;
   const auto& distorted = sweep.rows[1].analysis;
-  EXPECT_NEAR(uncorrected.dk_x, distorted.surface_fit.params.kx - truth.surface_fit.params.kx, kSameComputation);
-  EXPECT_NEAR(uncorrected.dk_y, distorted.surface_fit.params.ky - truth.surface_fit.params.ky, kSameComputation);
+  EXPECT_NEAR(uncorrected.dk_x, distorted.surface_fit.params.kx - truth.surface_fit.params.kx, kSameFitDk);
+  EXPECT_NEAR(uncorrected.dk_y, distorted.surface_fit.params.ky - truth.surface_fit.params.ky, kSameFitDk);
   EXPECT_NEAR(uncorrected.dpv_axial_D, distorted.power.pv_axial_D - truth.power.pv_axial_D, kSameComputation);
   // Its residual is the Seidel displacement at the edge of the spot field: |sigma / M_T^3| r^3.
   const double r = runner.truth()[0].spot_field_radius_mm;

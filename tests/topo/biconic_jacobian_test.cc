@@ -86,6 +86,54 @@ TEST(BiconicJacobian, SagIsTheKernelsBitForBit) {
   EXPECT_EQ(compared, 6 * 200);
 }
 
+TEST(BiconicJacobian, SagNearIsTheRootToRounding) {
+  // The fit's warm root (BiconicSagJacobian::SagNear) from the sag at parameters moved as by one of Ceres' steps,
+  // small (1e-9: near the optimum) or large (1e-3: the first steps), and from 0.05 mm off: the same root as Sag's
+  // to rounding: F = u_z - G is a difference of terms of ~1 mm, so its root is defined to a few ulps only, and
+  // the last bits depend on the start. Measured max 1.3e-15 mm on 2026-12-02: regression bound 3e-15; acceptance
+  // 1e-13 mm, far below the fits' residuals (~1e-3 mm) and their 1e-12 relative cost tolerance.
+  constexpr double kAcceptanceMm = 1e-13;
+  constexpr double kRegressionMm = 3e-15;
+  double worst = 0;
+  int compared = 0;
+  for (const auto& q : Cases()) {
+    const BiconicSagJacobian surface(q.data(), true);
+    for (const double move : {1e-9, 1e-3}) {
+      auto moved = q;
+      for (int j = 0; j < K::kNumParams; ++j) moved[j] += move * (j % 2 == 0 ? 1.0 : -1.0);
+      const BiconicSagJacobian before(moved.data(), true);
+      for (const auto& p : Points()) {
+        double z, z_start, z_near;
+        ASSERT_TRUE(surface.Sag(p.x(), p.y(), &z));
+        ASSERT_TRUE(before.Sag(p.x(), p.y(), &z_start));
+        for (const double start : {z_start, z + 0.05}) {
+          ASSERT_TRUE(surface.SagNear(p.x(), p.y(), start, &z_near));
+          worst = std::max(worst, std::abs(z_near - z));
+          ++compared;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(compared, 3 * 2 * 200 * 2);
+  RecordProperty("worst_mm", fmt::format("{:.3g}", worst));
+  EXPECT_LT(worst, kAcceptanceMm);
+  EXPECT_LT(worst, kRegressionMm);
+  // Where the kernel refuses, so does the warm root, whatever its start; untilted, it is Sag itself.
+  const std::array<double, K::kNumParams> steep = {0.25, 0.25, 0, 0, 0, 0, 0, 0, 0.01, 0};
+  const BiconicSagJacobian sphere(steep.data(), true);
+  double z;
+  EXPECT_FALSE(sphere.SagNear(4.5, 0.0, 0.0, &z));
+  EXPECT_TRUE(sphere.SagNear(1.0, 0.5, 3.0, &z));
+  double z_sag;
+  ASSERT_TRUE(sphere.Sag(1.0, 0.5, &z_sag));
+  EXPECT_NEAR(z, z_sag, kRegressionMm);
+  const BiconicSagJacobian untilted(Cases()[1].data(), false);
+  double z_untilted;
+  ASSERT_TRUE(untilted.Sag(1.0, 0.5, &z_untilted));
+  ASSERT_TRUE(untilted.SagNear(1.0, 0.5, 0.3, &z));
+  EXPECT_EQ(z, z_untilted);
+}
+
 TEST(BiconicJacobian, AgreesWithCentralDifferences) {
   // Independent of the kernel's jets: central differences of the sag itself, step 1e-6 (truncation ~1e-12,
   // rounding ~1e-16 / 1e-6 = 1e-10). Measured max 1.1e-10 on 2026-12-01 (relative to the point's largest
