@@ -378,7 +378,7 @@ Reconstruction Solve(const Prepared& prep, const model::TopographerParams& tp,
     const bool fits = ModelFitsData(r);
     r.surface_model_reason = fmt::format(
         "auto: the polynomial's adequacy ratio {:.3g} (warning above {:g}) and structured residual ratio "
-        "{:.3g} (above {:g}){}",
+        "{:.3g} (warning above {:g}){}",
         r.adequacy_ratio, kAdequacyWarningRatio, r.structured_residual_ratio, kStructuredResidualWarningRatio,
         fits ? ": it fits" : ": the spline joins");
     return !fits;
