@@ -1,16 +1,19 @@
 #include "util/io.h"
 
+#include <dirent.h>
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <pthread.h>
 #include <signal.h>
 #include <sys/stat.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -24,13 +27,15 @@ namespace fs = std::filesystem;
 
 // ---- paths removed when a signal ends the process -----------------------------------------------------------------
 
+// Both are never destroyed: a signal may arrive while exit() runs the static destructors, and the cleanup thread
+// must still find them whole.
 std::recursive_mutex& CleanupMutex() {
-  static std::recursive_mutex m;
-  return m;
+  static auto* m = new std::recursive_mutex;
+  return *m;
 }
 std::vector<std::string>& CleanupPaths() {
-  static std::vector<std::string> paths;
-  return paths;
+  static auto* paths = new std::vector<std::string>;
+  return *paths;
 }
 
 // ---- writing --------------------------------------------------------------------------------------------------------
@@ -308,9 +313,94 @@ void UnregisterCleanupPath(const std::string& path) {
 DeferSignalCleanup::DeferSignalCleanup() { CleanupMutex().lock(); }
 DeferSignalCleanup::~DeferSignalCleanup() { CleanupMutex().unlock(); }
 
+namespace {
+
+// ---- stopping the world before the cleanup ------------------------------------------------------------------------
+// While the cleanup removes staged paths, no other thread may run: one writing a map could re-create a staging
+// directory after it was removed (1 kill in 150 left units/SN.tmp-PID/), and one leaving main() would run the static
+// destructors under the cleanup (a kill during `unit calibrate` once ended in SIGSEGV instead of SIGTERM). So the
+// cleanup thread first parks every other thread of the process in a signal handler that never returns, then removes
+// the paths and ends the process. A parked thread may hold any lock, malloc's included, so from then on the cleanup
+// calls only system calls: the tree removal below is written on openat/getdents64/unlinkat with buffers on the stack
+// because std::filesystem allocates (no library offers an allocation-free removal).
+
+std::atomic<int> g_parked{0};
+
+extern "C" void ParkThisThread(int) {
+  g_parked.fetch_add(1);
+  for (;;) ::pause();
+}
+
+int ParkSignal() { return SIGRTMIN + 7; }  // glibc keeps SIGRTMIN-2 .. SIGRTMIN-1 for itself; nothing here uses +7
+
+// Calls fn(name) for every entry of the open directory `fd` but "." and ".."; false if it cannot be read.
+template <typename Fn>
+bool ForEachEntry(int fd, Fn&& fn) {
+  alignas(8) char buf[4096];
+  for (;;) {
+    const long n = ::syscall(SYS_getdents64, fd, buf, sizeof buf);
+    if (n < 0) return false;
+    if (n == 0) return true;
+    for (long off = 0; off < n;) {
+      // glibc's dirent64 has the kernel's linux_dirent64 layout
+      const auto* d = reinterpret_cast<const struct dirent64*>(buf + off);
+      off += d->d_reclen;
+      if (std::strcmp(d->d_name, ".") != 0 && std::strcmp(d->d_name, "..") != 0) fn(d->d_name);
+    }
+  }
+}
+
+// Sends the park signal to every thread but this one, until a pass over /proc/self/task finds none it has not
+// signalled (threads may be starting meanwhile), then waits up to 2 s for them to be parked. A thread that blocks
+// the signal (none of ours does) is not waited for beyond that.
+void ParkOtherThreads() {
+  static pid_t signalled[4096];  // static storage: no allocation
+  int count = 0;
+  const pid_t self = static_cast<pid_t>(::syscall(SYS_gettid));
+  const pid_t process = ::getpid();
+  for (bool found_new = true; found_new && count < 4096;) {
+    found_new = false;
+    const int fd = ::open("/proc/self/task", O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd < 0) break;
+    ForEachEntry(fd, [&](const char* name) {
+      pid_t tid = 0;
+      for (const char* c = name; *c >= '0' && *c <= '9'; ++c) tid = tid * 10 + (*c - '0');
+      if (tid <= 0 || tid == self || count >= 4096) return;
+      for (int i = 0; i < count; ++i)
+        if (signalled[i] == tid) return;
+      if (::syscall(SYS_tgkill, process, tid, ParkSignal()) == 0) signalled[count++] = tid;
+      found_new = true;
+    });
+    ::close(fd);
+  }
+  const timespec ms{0, 1000000};
+  for (int waited = 0; g_parked.load() < count && waited < 2000; ++waited) ::nanosleep(&ms, nullptr);
+}
+
+// Removes `name` (relative to `dirfd`) and, if it is a directory, everything under it; symbolic links are removed,
+// not followed. Entries that appear meanwhile cannot (every other thread is parked), but the listing is repeated
+// should the kernel's readdir miss entries removed under it.
+void RemoveTree(int dirfd, const char* name, int depth) {
+  if (::unlinkat(dirfd, name, 0) == 0 || errno == ENOENT) return;
+  if (depth > 64) return;
+  for (int attempt = 0; attempt < 8; ++attempt) {
+    const int fd = ::openat(dirfd, name, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+    if (fd < 0) return;
+    ForEachEntry(fd, [&](const char* entry) { RemoveTree(fd, entry, depth + 1); });
+    ::close(fd);
+    if (::unlinkat(dirfd, name, AT_REMOVEDIR) == 0 || errno != ENOTEMPTY) return;
+  }
+}
+
+}  // namespace
+
 void InstallSignalCleanup() {
   static std::once_flag once;
   std::call_once(once, [] {
+    struct sigaction park {};
+    park.sa_handler = ParkThisThread;
+    sigfillset(&park.sa_mask);  // nothing else runs in a parked thread
+    ::sigaction(ParkSignal(), &park, nullptr);
     sigset_t set;
     sigemptyset(&set);
     for (const int sig : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&set, sig);
@@ -318,20 +408,13 @@ void InstallSignalCleanup() {
     std::thread([set] {
       int sig = 0;
       if (sigwait(&set, &sig) != 0) return;
-      CleanupMutex().lock();  // never released: the process ends below
-      std::error_code ec;
-      auto& paths = CleanupPaths();
-      // Other threads keep running until the signal is raised below: one may still be writing a file into a staging
-      // directory, and remove_all fails (ENOTEMPTY) when an entry appears while it empties the directory. Retried
-      // until the path is gone; once a directory is removed nothing can be created in it again. (New staging paths
-      // cannot appear: registering one takes the mutex held here.)
-      for (auto it = paths.rbegin(); it != paths.rend(); ++it) {
-        for (int attempt = 0; attempt < 1000; ++attempt) {
-          fs::remove_all(*it, ec);
-          if (!fs::exists(fs::symlink_status(*it, ec))) break;
-        }
-      }
-      // End with the signal itself, so the parent sees what happened (128 + signal in a shell).
+      // Taken first, so that renames that must not be cut in two (DeferSignalCleanup) finish before the world stops;
+      // never released: the process ends below.
+      CleanupMutex().lock();
+      ParkOtherThreads();
+      for (auto it = CleanupPaths().rbegin(); it != CleanupPaths().rend(); ++it) RemoveTree(AT_FDCWD, it->c_str(), 0);
+      // End with the signal itself, so the parent sees what happened (128 + signal in a shell). raise() reaches this
+      // thread, where the signal is unblocked below.
       ::signal(sig, SIG_DFL);
       sigset_t one;
       sigemptyset(&one);

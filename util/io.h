@@ -63,7 +63,8 @@ std::string ReadFile(const std::string& path);
 // SIGINT, SIGTERM and SIGHUP remove every path registered here (staging files and directories), then end the
 // process with the same signal. Call InstallSignalCleanup() once at the start of main(), before any thread starts:
 // it blocks these signals in the calling thread (so in every thread created later) and waits for them in a thread
-// of its own, where removing files is safe (a signal handler could not call std::filesystem).
+// of its own. On a signal that thread parks every other thread first (so nothing re-creates a removed path and
+// nothing runs the static destructors under it), then removes the paths with plain system calls.
 void InstallSignalCleanup();
 void RegisterCleanupPath(const std::string& path);
 void UnregisterCleanupPath(const std::string& path);

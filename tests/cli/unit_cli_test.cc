@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "tests/cli_harness.h"
@@ -292,9 +293,11 @@ TEST_F(UnitCli, AFailedRerunLeavesTheEarlierRecordWhole) {
 }
 
 // Issue 16: SIGTERM or SIGINT during `unit calibrate` left units/SN.tmp-PID/ (8 of 8 kills). Killed as soon as its
-// staging directory appears (the run is then calibrating), it leaves nothing and ends by the signal.
+// staging directory appears (the record is then being written), or a few milliseconds later while its maps are
+// written on other threads, it leaves nothing and ends by the signal. (Before the cleanup parked the other threads,
+// 1 kill in 150 left the staging directory, re-created by a map writer, and one ended in SIGSEGV: docs/robustness.md.)
 TEST_F(UnitCli, ASignalDuringCalibrationLeavesNoStaging) {
-  for (const int sig : {SIGTERM, SIGINT}) {
+  for (const auto& [sig, delay_us] : {std::pair{SIGTERM, 0}, std::pair{SIGINT, 0}, std::pair{SIGHUP, 5000}}) {
     const pid_t pid = SpawnTopocal(Calibrate("SN-KILL", (dir_ / "SN-KILL").string()));
     ASSERT_GT(pid, 0);
     const std::string staging = fmt::format("SN-KILL.tmp-{}", pid);
@@ -304,6 +307,7 @@ TEST_F(UnitCli, ASignalDuringCalibrationLeavesNoStaging) {
       if (!seen) ::usleep(1000);
     }
     EXPECT_TRUE(seen) << "the staging directory never appeared";
+    if (delay_us > 0) ::usleep(delay_us);
     ::kill(pid, sig);
     EXPECT_EQ(WaitTopocal(pid), 128 + sig);
     EXPECT_EQ(Entries(dir_), std::vector<std::string>{}) << "signal " << sig;
