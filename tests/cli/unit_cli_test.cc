@@ -295,7 +295,8 @@ TEST_F(UnitCli, AFailedRerunLeavesTheEarlierRecordWhole) {
 // Issue 16: SIGTERM or SIGINT during `unit calibrate` left units/SN.tmp-PID/ (8 of 8 kills). Killed as soon as its
 // staging directory appears (the record is then being written), or a few milliseconds later while its maps are
 // written on other threads, it leaves nothing and ends by the signal. (Before the cleanup parked the other threads,
-// 1 kill in 150 left the staging directory, re-created by a map writer, and one ended in SIGSEGV: docs/robustness.md.)
+// 1 kill in 150 left the staging directory, re-created by a map writer, and one CI run's kill ended in SIGSEGV:
+// docs/robustness.md.)
 TEST_F(UnitCli, ASignalDuringCalibrationLeavesNoStaging) {
   for (const auto& [sig, delay_us] : {std::pair{SIGTERM, 0}, std::pair{SIGINT, 0}, std::pair{SIGHUP, 5000}}) {
     const pid_t pid = SpawnTopocal(Calibrate("SN-KILL", (dir_ / "SN-KILL").string()));
