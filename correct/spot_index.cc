@@ -4,87 +4,29 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <optional>
+#include <queue>
+#include <set>
+#include <utility>
 
-#include <Eigen/Dense>
+#include <Eigen/LU>
 #include <fmt/format.h>
+#include <opencv2/imgproc.hpp>
+
+#include "correct/spot_lattice.h"
 
 namespace topocal::correct {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
+using lattice::DetectionGrid;
+using lattice::LocalAffine;
+using lattice::Template;
 
-// A bivariate polynomial map R^2 -> R^2 of total degree <= d in t = q / scale (scaled for conditioning).
-// Written here because the deformation is a tiny linear least-squares problem (<= 21 terms) solved by Eigen.
-class PolynomialMap {
- public:
-  PolynomialMap() = default;
-  PolynomialMap(int degree, double scale) : degree_(degree), scale_(scale) {}
-
-  static constexpr int kMaxDegree = 5;
-  static int Terms(int degree) { return (degree + 1) * (degree + 2) / 2; }
-  int degree() const { return degree_; }
-
-  void Monomials(const Eigen::Vector2d& q, double* out) const {
-    const double x = q.x() / scale_, y = q.y() / scale_;
-    double px[kMaxDegree + 1], py[kMaxDegree + 1];
-    px[0] = py[0] = 1.0;
-    for (int i = 1; i <= degree_; ++i) {
-      px[i] = px[i - 1] * x;
-      py[i] = py[i - 1] * y;
-    }
-    int k = 0;
-    for (int d = 0; d <= degree_; ++d) {
-      for (int j = 0; j <= d; ++j) out[k++] = px[d - j] * py[j];
-    }
-  }
-  Eigen::Vector2d operator()(const Eigen::Vector2d& q) const {
-    double m[32] = {};  // Monomials fills the first Terms(degree_) entries; zeroed to keep -Wmaybe-uninitialized quiet
-    Monomials(q, m);
-    Eigen::Vector2d p = Eigen::Vector2d::Zero();
-    for (int k = 0; k < coef_.rows(); ++k) p += m[k] * coef_.row(k).transpose();
-    return p;
-  }
-  // Smallest singular value of the Jacobian at q: the local scale by which spacings shrink at worst.
-  double MinScale(const Eigen::Vector2d& q) const {
-    const double h = 1e-4 * scale_;
-    Eigen::Matrix2d j;
-    j.col(0) = ((*this)(q + Eigen::Vector2d(h, 0)) - (*this)(q - Eigen::Vector2d(h, 0))) / (2 * h);
-    j.col(1) = ((*this)(q + Eigen::Vector2d(0, h)) - (*this)(q - Eigen::Vector2d(0, h))) / (2 * h);
-    return Eigen::JacobiSVD<Eigen::Matrix2d>(j).singularValues()(1);
-  }
-  bool Fit(const std::vector<Eigen::Vector2d>& q, const std::vector<Eigen::Vector2d>& p) {
-    const int n = static_cast<int>(q.size()), t = Terms(degree_);
-    if (n < t) return false;
-    Eigen::MatrixXd a(n, t), b(n, 2);
-    for (int i = 0; i < n; ++i) {
-      double m[32];
-      Monomials(q[i], m);
-      for (int k = 0; k < t; ++k) a(i, k) = m[k];
-      b.row(i) = p[i].transpose();
-    }
-    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(a);
-    if (qr.rank() < t) return false;
-    coef_ = qr.solve(b);
-    return coef_.allFinite();
-  }
-  void SetAffine(const Eigen::Vector2d& offset, const Eigen::Matrix2d& linear) {
-    degree_ = 1;
-    coef_.resize(3, 2);
-    coef_.row(0) = offset.transpose();
-    coef_.row(1) = scale_ * linear.col(0).transpose();  // coefficient of x / scale
-    coef_.row(2) = scale_ * linear.col(1).transpose();
-  }
-
- private:
-  int degree_ = 1;
-  double scale_ = 1;
-  Eigen::MatrixXd coef_;  // Terms x 2
-};
-
-Eigen::Matrix2d SqrtSym(const Eigen::Matrix2d& m) {
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(m);
-  return es.eigenvectors() * es.eigenvalues().cwiseMax(0).cwiseSqrt().asDiagonal() * es.eigenvectors().transpose();
-}
+// Neighbours of a designed spot must spread at least this many of its spacings in both directions for its local
+// affine prediction (one arc of neighbours leaves the radial scale unknown).
+constexpr double kMinSpreadSpacings = 0.3;
+constexpr int kMinDetections = 8;  // fewer than one ring: nothing to anchor the pattern on
+constexpr size_t kStartCandidatesTried = 3;
 
 double Median(std::vector<double> v) {
   if (v.empty()) return 0;
@@ -93,72 +35,507 @@ double Median(std::vector<double> v) {
   return v[k];
 }
 
-struct Template {
-  std::vector<model::IdealSpot> spots;
-  std::vector<std::vector<int>> rings;  // indices into spots, per ring (0-based ring number)
-  std::vector<double> spacing;          // per spot: min(arc, ring) spacing in the ideal image, mm
+// The assignment between designed spots (j) and detections (i), and the pairings the checks refused.
+struct State {
+  const Template& tpl;
+  const std::vector<Eigen::Vector2d>& det;
+  DetectionGrid grid;
+  std::vector<int> det_of_tpl, tpl_of_det;
+  std::set<std::pair<int, int>> refused;  // (j, i)
+
+  State(const Template& t, const std::vector<Eigen::Vector2d>& d, double cell)
+      : tpl(t), det(d), grid(d, cell), det_of_tpl(t.spots.size(), -1), tpl_of_det(d.size(), -1) {}
+  void Assign(int j, int i) {
+    det_of_tpl[j] = i;
+    tpl_of_det[i] = j;
+  }
+  void Unassign(int j) {
+    tpl_of_det[det_of_tpl[j]] = -1;
+    det_of_tpl[j] = -1;
+  }
+  int Assigned() const {
+    return static_cast<int>(std::count_if(det_of_tpl.begin(), det_of_tpl.end(), [](int i) { return i >= 0; }));
+  }
 };
 
-Template MakeTemplate(const model::IdealImageParams& ideal) {
-  Template t;
-  t.spots = model::IdealImage(ideal);
-  const int n_rings = ideal.rings_N + 1;
-  t.rings.resize(n_rings);
-  const double ring_step = model::RingStepMm(ideal);
-  for (int i = 0; i < static_cast<int>(t.spots.size()); ++i) {
-    const auto& s = t.spots[i];
-    t.rings[s.id.ring - 1].push_back(i);
-    const int per_ring = model::SpotsOnRing(ideal, s.id.ring);
-    const double arc = 2.0 * M_PI * s.position_mm.norm() / per_ring;
-    t.spacing.push_back(std::min(arc, ring_step));
+// ---- 1. Start ----
+
+struct Hypothesis {
+  Eigen::Vector2d centre;
+  double scale = 1, score = 0;
+};
+
+std::vector<int> InnerSpots(const Template& tpl, int rings) {
+  std::vector<int> ids;
+  for (int r = 0; r < std::min<int>(rings, tpl.rings.size()); ++r) {
+    ids.insert(ids.end(), tpl.rings[r].begin(), tpl.rings[r].end());
   }
-  return t;
+  return ids;
 }
 
-// The start's centre, moved to where the two innermost rings are. On a misaligned device (a tilted cone, a decentred
-// screen or principal point) the rings are not concentric: the inner rings' centre sits up to a ring spacing or
-// more from the moments' centre (a 1.5 deg tilt: ~0.8 spacings), beyond the growth's gate, and ring 1 would be
-// lost. Score each candidate offset on a grid over a disc of `search_radius` by the truncated squared distances
-// from the predicted spots of rings 1 and 2 to their nearest detections; take the best.
-Eigen::Vector2d InnerRingsCentre(const std::vector<Eigen::Vector2d>& det, const Template& tpl,
-                                 const Eigen::Vector2d& mu, const Eigen::Matrix2d& a0, double search_radius,
-                                 double step, double gate) {
-  std::vector<Eigen::Vector2d> q;
-  for (int r = 0; r < std::min<int>(2, tpl.rings.size()); ++r) {
-    for (const int j : tpl.rings[r]) q.push_back(a0 * tpl.spots[j].position_mm);
-  }
-  double reach = 0;
-  for (const auto& v : q) reach = std::max(reach, v.norm());
-  // Only detections that a candidate's prediction could reach.
-  std::vector<Eigen::Vector2d> near;
-  for (const auto& p : det) {
-    if ((p - mu).norm() <= search_radius + reach + gate) near.push_back(p);
-  }
-  const double gate2 = gate * gate;
-  const auto score = [&](const Eigen::Vector2d& c) {
-    double sum = 0;
-    for (const auto& v : q) {
-      double best = gate2;
-      for (const auto& p : near) best = std::min(best, (p - c - v).squaredNorm());
-      sum += best;
+// Distance to the nearest detection on a raster over the start's search region (cv::distanceTransform): the coarse
+// search scores tens of thousands of hypotheses, each by a few dozen lookups.
+class DistanceField {
+ public:
+  DistanceField(const std::vector<Eigen::Vector2d>& det, const Eigen::Vector2d& centre, double half_width,
+                double cell)
+      : origin_(centre - Eigen::Vector2d::Constant(half_width)), cell_(cell) {
+    const int n = static_cast<int>(std::ceil(2 * half_width / cell)) + 1;
+    cv::Mat seeds(n, n, CV_8UC1, cv::Scalar(255));
+    for (const auto& p : det) {
+      const Eigen::Vector2d c = (p - origin_) / cell_;
+      if (c.x() >= 0 && c.y() >= 0 && c.x() < n - 0.5 && c.y() < n - 0.5) {
+        seeds.at<uint8_t>(static_cast<int>(std::lround(c.y())), static_cast<int>(std::lround(c.x()))) = 0;
+      }
     }
-    return sum;
-  };
-  Eigen::Vector2d best_c = mu;
-  double best = score(mu);
-  const int n = static_cast<int>(std::ceil(search_radius / step));
-  for (int iy = -n; iy <= n; ++iy) {
-    for (int ix = -n; ix <= n; ++ix) {
-      const Eigen::Vector2d off(ix * step, iy * step);
-      if (off.norm() > search_radius) continue;
-      const double sc = score(mu + off);
-      if (sc < best) {
-        best = sc;
-        best_c = mu + off;
+    cv::distanceTransform(seeds, dist_, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  }
+  // Distance (mm) from p to the nearest detection, capped at `cap`.
+  double At(const Eigen::Vector2d& p, double cap) const {
+    const Eigen::Vector2d c = (p - origin_) / cell_;
+    if (!(c.x() >= 0 && c.y() >= 0 && c.x() < dist_.cols - 0.5 && c.y() < dist_.rows - 0.5)) return cap;
+    return std::min(cap, cell_ * dist_.at<float>(static_cast<int>(std::lround(c.y())),
+                                                 static_cast<int>(std::lround(c.x()))));
+  }
+
+ private:
+  Eigen::Vector2d origin_;
+  double cell_;
+  cv::Mat dist_;
+};
+
+// Coarse search over centres and isotropic scales, scored on rings 1-2 by sum min(d, gate)^2 / gate^2 (0 for a
+// perfect match, ~0.75 per spot for points that only land somewhere on the lattice). The gate and the grid are set
+// by the image's own spot spacing (`image_spacing`: the median distance between neighbouring detections), not by the
+// hypothesis' scale, so that no scale is favoured; scales are searched around the one that spacing implies. The grid
+// (a quarter spacing, 5 % in scale) keeps the true hypothesis within ~0.25 spacings of every inner spot of a
+// near-isotropic image, inside the 0.4-spacing gate. Returns the best dozen, a spot spacing apart.
+std::vector<Hypothesis> CoarseStart(const State& st, const Eigen::Vector2d& around, double radius,
+                                    double image_spacing, double scale_lo, double scale_hi) {
+  const std::vector<int> ids = InnerSpots(st.tpl, 2);
+  double reach = 0;
+  for (const int j : ids) reach = std::max(reach, st.tpl.spots[j].position_mm.norm());
+  const double step = 0.25 * image_spacing, gate = 0.4 * image_spacing;
+  const DistanceField field(st.det, around, radius + scale_hi * reach + gate, 0.08 * image_spacing);
+  std::vector<Hypothesis> all;
+  const int n = static_cast<int>(std::ceil(radius / step));
+  for (double s = scale_lo; s <= scale_hi * 1.0001; s *= 1.05) {
+    for (int iy = -n; iy <= n; ++iy) {
+      for (int ix = -n; ix <= n; ++ix) {
+        if (ix * ix + iy * iy > n * n) continue;
+        const Eigen::Vector2d c = around + Eigen::Vector2d(ix * step, iy * step);
+        double sum = 0;
+        for (const int j : ids) {
+          const double d = field.At(c + s * st.tpl.spots[j].position_mm, gate);
+          sum += d * d;
+        }
+        all.push_back({c, s, sum / (gate * gate)});
       }
     }
   }
-  return best_c;
+  std::sort(all.begin(), all.end(), [](const Hypothesis& a, const Hypothesis& b) { return a.score < b.score; });
+  std::vector<Hypothesis> best;
+  for (const auto& h : all) {
+    bool distinct = true;
+    for (const auto& b : best) distinct &= (h.centre - b.centre).norm() > image_spacing;
+    if (distinct) best.push_back(h);
+    if (best.size() == 12) break;
+  }
+  return best;
+}
+
+// A coarse hypothesis refined to the affine map that best carries rings 1-3 onto the detections (nearest
+// detections within 0.4 local spacings, refitted three times), scored like the coarse search with a 0.3-spacing
+// gate. An eye's inner rings are an affine image of the design to a few hundredths of a spacing; a cone near the
+// apex bends them by tenths, which the affine refinement absorbs where an isotropic grid cannot.
+double RefineAffine(const State& st, const std::vector<int>& ids, LocalAffine* map) {
+  for (int it = 0; it < 4; ++it) {
+    std::vector<Eigen::Vector2d> q, p;
+    const double shrink = map->MinScale();
+    for (const int j : ids) {
+      double d;
+      const int i = st.grid.Nearest((*map)(st.tpl.spots[j].position_mm), 0.4 * shrink * st.tpl.spacing[j], &d);
+      if (i < 0) continue;
+      q.push_back(st.tpl.spots[j].position_mm);
+      p.push_back(st.det[i]);
+    }
+    LocalAffine fitted;
+    if (q.size() < 6 || !lattice::FitAffine(q, p, &fitted)) break;
+    *map = fitted;
+  }
+  double sum = 0;
+  const double shrink = map->MinScale();
+  for (const int j : ids) {
+    const double gate = 0.3 * shrink * st.tpl.spacing[j];
+    double d;
+    st.grid.Nearest((*map)(st.tpl.spots[j].position_mm), gate, &d);
+    sum += d * d / (gate * gate);
+  }
+  return sum;
+}
+
+// Assigns the designed spots `ids` predicted by `map` to their nearest free detections within gate_fraction x the
+// local spacing, when detection and spot are each other's nearest. Returns the number assigned.
+int AssignMutualNearest(State& st, const std::vector<int>& ids, const LocalAffine& map, double gate_fraction) {
+  std::vector<Eigen::Vector2d> pred;
+  for (const int j : ids) pred.push_back(map(st.tpl.spots[j].position_mm));
+  const double shrink = map.MinScale();
+  int added = 0;
+  for (size_t a = 0; a < ids.size(); ++a) {
+    const int j = ids[a];
+    const double gate = gate_fraction * st.tpl.spacing[j] * shrink;
+    double d;
+    const int i = st.grid.Nearest(pred[a], gate, &d);
+    if (i < 0 || st.tpl_of_det[i] >= 0 || st.det_of_tpl[j] >= 0) continue;
+    bool mutual = true;
+    for (size_t b = 0; b < ids.size() && mutual; ++b) mutual = b == a || (st.det[i] - pred[b]).norm() > d;
+    if (mutual) {
+      st.Assign(j, i);
+      ++added;
+    }
+  }
+  return added;
+}
+
+// The start's candidates: the coarse hypotheses refined to affine maps of rings 1-3, best (lowest score) first.
+// Empty, with the reason, when the detections give no hypothesis.
+std::vector<LocalAffine> StartCandidates(const State& st, const IndexingOptions& o, double rho_n, std::string* why) {
+  std::vector<double> xs, ys;
+  for (const auto& p : st.det) {
+    xs.push_back(p.x());
+    ys.push_back(p.y());
+  }
+  const Eigen::Vector2d median(Median(xs), Median(ys));
+  // The image's spot spacing: the median distance from a detection to its nearest neighbour; against the design's,
+  // the pattern's scale (to the spread of spacings across the pattern, which the search covers).
+  std::vector<double> nn_image, nn_design;
+  for (const auto& p : st.det) {
+    int best, second;
+    double d1, d2;
+    st.grid.Nearest2(p, 4 * st.tpl.ring_step * o.max_scale, [](int) { return true; }, &best, &d1, &second, &d2);
+    if (second >= 0) nn_image.push_back(d2);  // the nearest is the detection itself
+  }
+  for (size_t j = 0; j < st.tpl.spots.size(); ++j) {
+    nn_design.push_back((st.tpl.spots[st.tpl.neighbours[j].front()].position_mm - st.tpl.spots[j].position_mm).norm());
+  }
+  const double image_spacing = Median(nn_image);
+  if (!(image_spacing > 0)) {
+    *why = "the detections have no neighbours at the pattern's spacing";
+    return {};
+  }
+  const double scale = image_spacing / Median(nn_design);
+  const auto coarse = CoarseStart(st, median, o.centre_search_fraction * rho_n, image_spacing,
+                                  std::max(o.min_scale, 0.75 * scale), std::min(o.max_scale, 1.33 * scale));
+  const std::vector<int> inner = InnerSpots(st.tpl, 3);
+  std::vector<std::pair<double, LocalAffine>> refined;
+  for (const auto& h : coarse) {
+    LocalAffine m;
+    m.offset = h.centre;
+    m.linear = h.scale * Eigen::Matrix2d::Identity();
+    const double score = RefineAffine(st, inner, &m);
+    refined.emplace_back(score, m);
+  }
+  std::stable_sort(refined.begin(), refined.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  std::vector<LocalAffine> out;
+  for (const auto& r : refined) out.push_back(r.second);
+  if (out.empty()) *why = "no candidate centre for the pattern";
+  return out;
+}
+
+// Rings 1-3 identified from a start candidate by mutual nearest neighbours, the affine map refitted once. False,
+// with the reason, when fewer than half of them are found.
+bool Seed(State& st, LocalAffine map, const IndexingOptions& o, std::string* why) {
+  const std::vector<int> inner = InnerSpots(st.tpl, 3);
+  const int needed = static_cast<int>(inner.size()) / 2;
+  for (int pass = 0; pass < 2; ++pass) {
+    for (const int j : inner) {
+      if (st.det_of_tpl[j] >= 0) st.Unassign(j);
+    }
+    if (AssignMutualNearest(st, inner, map, o.gate_fraction) < needed) break;
+    std::vector<Eigen::Vector2d> q, p;
+    for (const int j : inner) {
+      if (st.det_of_tpl[j] < 0) continue;
+      q.push_back(st.tpl.spots[j].position_mm);
+      p.push_back(st.det[st.det_of_tpl[j]]);
+    }
+    if (!lattice::FitAffine(q, p, &map)) break;
+  }
+  if (st.Assigned() < needed) {
+    *why = fmt::format("the pattern's centre was not found: at most {} of the {} spots of rings 1-3 where the best "
+                       "centre puts them (need {}); is the centre of the pattern covered or out of the image?",
+                       st.Assigned(), inner.size(), needed);
+    return false;
+  }
+  return true;
+}
+
+// ---- 2. Growth ----
+
+struct Candidate {
+  double rank;
+  int j, i;
+};
+
+// The candidate detection for designed spot j from its identified neighbours, if unambiguous. Its rank is the
+// ambiguity: the distance to the prediction over the distance to the nearest alternative (a second detection, or
+// another designed spot's prediction); lower is surer.
+bool Propose(const State& st, int j, const IndexingOptions& o, Candidate* out) {
+  LocalAffine map;
+  if (!lattice::FitLocalAffine(st.tpl, j, st.det_of_tpl, st.det, kMinSpreadSpacings, &map)) return false;
+  const Eigen::Vector2d pj = map(st.tpl.spots[j].position_mm);
+  const double local_spacing = st.tpl.spacing[j] * map.MinScale();
+  const double gate = o.gate_fraction * local_spacing;
+  int best, second;
+  double d1, d2;
+  const auto free = [&](int i) { return st.tpl_of_det[i] < 0 && !st.refused.count({j, i}); };
+  st.grid.Nearest2(pj, gate / o.ambiguity_ratio, free, &best, &d1, &second, &d2);
+  if (best < 0 || d1 > gate) return false;
+  double alternative = second >= 0 ? d2 : gate / o.ambiguity_ratio;  // two detections where one spot should be
+  const Eigen::Vector2d& p = st.det[best];
+  for (const int k : st.tpl.neighbours[j]) {
+    if (st.det_of_tpl[k] >= 0) {
+      // A detection hard by an identified spot is a glint or a split blob, not the next spot.
+      if ((p - st.det[st.det_of_tpl[k]]).norm() < 0.5 * local_spacing) return false;
+    } else {
+      alternative = std::min(alternative, (p - map(st.tpl.spots[k].position_mm)).norm());
+    }
+  }
+  const double rank = d1 / alternative;
+  if (rank > o.ambiguity_ratio) return false;
+  *out = {rank, j, best};
+  return true;
+}
+
+// Best-first growth: the surest proposal is accepted first and its unidentified neighbours propose again with the
+// new support, so that interpolations come before extrapolations and a spot in a compressed zone (an ablation's
+// blend, a cone's flank) is predicted from its own ring's identified neighbours before it is guessed from the next
+// ring. Returns the number of identities added.
+int Grow(State& st, const IndexingOptions& o) {
+  const int n = static_cast<int>(st.tpl.spots.size());
+  struct Queued {
+    Candidate c;
+    int version;
+    bool operator<(const Queued& b) const { return c.rank != b.c.rank ? c.rank > b.c.rank : c.j > b.c.j; }
+  };
+  std::priority_queue<Queued> queue;
+  std::vector<int> version(n, 0);
+  const auto propose = [&](int j) {
+    Candidate c;
+    if (Propose(st, j, o, &c)) queue.push({c, ++version[j]});
+  };
+  for (int j = 0; j < n; ++j) {
+    if (st.det_of_tpl[j] >= 0) continue;
+    bool touches = false;
+    for (const int k : st.tpl.neighbours[j]) touches |= st.det_of_tpl[k] >= 0;
+    if (touches) propose(j);
+  }
+  int added = 0;
+  while (!queue.empty()) {
+    const Queued q = queue.top();
+    queue.pop();
+    if (q.version != version[q.c.j] || st.det_of_tpl[q.c.j] >= 0) continue;
+    if (st.tpl_of_det[q.c.i] >= 0) {  // its detection was taken meanwhile
+      propose(q.c.j);
+      continue;
+    }
+    st.Assign(q.c.j, q.c.i);
+    ++added;
+    for (const int k : st.tpl.neighbours[q.c.j]) {
+      if (st.det_of_tpl[k] < 0) propose(k);
+    }
+  }
+  return added;
+}
+
+// ---- 3. Check ----
+
+// Leave-one-out residual of identity j in units of its local spacing; infinity when its neighbours cannot predict it.
+double LooResidual(const State& st, int j, double* residual_abs) {
+  LocalAffine map;
+  if (!lattice::FitLocalAffine(st.tpl, j, st.det_of_tpl, st.det, kMinSpreadSpacings, &map)) {
+    *residual_abs = 0;
+    return std::numeric_limits<double>::infinity();
+  }
+  *residual_abs = (st.det[st.det_of_tpl[j]] - map(st.tpl.spots[j].position_mm)).norm();
+  return *residual_abs / (st.tpl.spacing[j] * map.MinScale());
+}
+
+// Quadrants about designed position q that hold an identified designed spot within 1.6 spacings of q (among
+// designed spot j and its neighbours, `exclude` left out): 4 inside the identified lattice, 2 or fewer at its edge.
+int IdentifiedSides(const State& st, int j, const Eigen::Vector2d& q, int exclude) {
+  unsigned sides = 0;
+  const auto add = [&](int k) {
+    const Eigen::Vector2d dq = st.tpl.spots[k].position_mm - q;
+    if (k != exclude && st.det_of_tpl[k] >= 0 && dq.norm() < 1.6 * st.tpl.spacing[k]) {
+      sides |= 1u << ((dq.x() > 0) + 2 * (dq.y() > 0));
+    }
+  };
+  add(j);
+  for (const int k : st.tpl.neighbours[j]) add(k);
+  return __builtin_popcount(sides);
+}
+
+// Drops the identities inconsistent with their neighbours, worst first. An identity at the lattice's edge (support
+// from one side: a lid's margin, the pattern's rim) is held to a tighter floor, 0.6 of the interior's: there a
+// stray blob (a glint on the lid margin) can sit near where a hidden spot would be, and nothing on the far side
+// contradicts it. Returns the number dropped.
+int Check(State& st, const IndexingOptions& o) {
+  const int n = static_cast<int>(st.tpl.spots.size());
+  int dropped = 0;
+  for (;;) {
+    std::vector<double> r(n, -1), finite;
+    std::vector<bool> edge(n, false);
+    double abs;
+    for (int j = 0; j < n; ++j) {
+      if (st.det_of_tpl[j] < 0) continue;
+      r[j] = LooResidual(st, j, &abs);
+      edge[j] = IdentifiedSides(st, j, st.tpl.spots[j].position_mm, j) < 3;
+      if (std::isfinite(r[j])) finite.push_back(r[j]);
+    }
+    const double spread = o.residual_gate_sigmas * 1.4826 * Median(finite);
+    const double inner = std::min(o.gate_fraction, std::max(spread, o.residual_gate_floor_fraction));
+    const double outer = std::min(o.gate_fraction, std::max(spread, 0.6 * o.residual_gate_floor_fraction));
+    int worst = -1;
+    double worst_ratio = 1;
+    for (int j = 0; j < n; ++j) {
+      const double ratio = r[j] / (edge[j] ? outer : inner);
+      if (r[j] >= 0 && ratio > worst_ratio) {
+        worst_ratio = ratio;
+        worst = j;
+      }
+    }
+    if (worst < 0) return dropped;
+    st.refused.insert({worst, st.det_of_tpl[worst]});
+    st.Unassign(worst);
+    ++dropped;
+  }
+}
+
+// A ring slip (growth stepping over a compressed ring: an ablation's blend, a cone's flank) leaves that ring's
+// detections without identity INSIDE the identified lattice, between designed positions; an isolated glint leaves
+// one. Each free detection within the lattice is carried back into design coordinates by the local map of its
+// nearest identity; one that falls between designed spots (>= 0.35 spacings from each) with identities around it
+// (in three quadrants) is unexplained. Identities
+// with two or more unexplained detections in their neighbourhood are refused, and those pairings not tried again.
+// Returns the number refused.
+int RefuseAroundUnexplained(State& st) {
+  const int n = static_cast<int>(st.tpl.spots.size());
+  std::vector<int> identified;
+  std::vector<Eigen::Vector2d> positions;
+  for (int j = 0; j < n; ++j) {
+    if (st.det_of_tpl[j] >= 0) {
+      identified.push_back(j);
+      positions.push_back(st.det[st.det_of_tpl[j]]);
+    }
+  }
+  if (identified.empty()) return 0;
+  const DetectionGrid labelled(positions, st.tpl.ring_step);
+  std::vector<int> unexplained_near(n, 0);
+  for (size_t i = 0; i < st.det.size(); ++i) {
+    if (st.tpl_of_det[i] >= 0) continue;
+    double d;
+    const int nearest = labelled.Nearest(st.det[i], 4 * st.tpl.ring_step, &d);
+    if (nearest < 0) continue;
+    const int j = identified[nearest];
+    LocalAffine map;
+    if (!lattice::FitLocalAffine(st.tpl, j, st.det_of_tpl, st.det, kMinSpreadSpacings, &map)) continue;
+    if (d > 1.5 * st.tpl.spacing[j] * map.MinScale()) continue;  // outside the lattice: a blob beyond its edge
+    const Eigen::Vector2d q = map.q0 + map.linear.inverse() * (st.det[i] - map.offset);
+    double closest = (q - st.tpl.spots[j].position_mm).norm() / st.tpl.spacing[j];
+    for (const int k : st.tpl.neighbours[j]) {
+      closest = std::min(closest, (q - st.tpl.spots[k].position_mm).norm() / st.tpl.spacing[k]);
+    }
+    // Where a designed spot is (a spot not yet identified), or at the lattice's edge (the map extrapolated).
+    if (closest < 0.35 || IdentifiedSides(st, j, q, -1) < 3) continue;
+    ++unexplained_near[j];
+    for (const int k : st.tpl.neighbours[j]) ++unexplained_near[k];
+  }
+  int refused = 0;
+  for (const int j : identified) {
+    if (unexplained_near[j] < 2) continue;
+    st.refused.insert({j, st.det_of_tpl[j]});
+    st.Unassign(j);
+    ++refused;
+  }
+  return refused;
+}
+
+// Keeps the largest set of identities connected through neighbours (the one grown from the start, unless the
+// checks refused its seeds) and drops the islands: nothing ties their identities to the pattern's centre. Returns
+// the number dropped.
+int KeepLargestConnected(State& st) {
+  const int n = static_cast<int>(st.tpl.spots.size());
+  std::vector<int> component(n, -1), sizes;
+  for (int seed = 0; seed < n; ++seed) {
+    if (st.det_of_tpl[seed] < 0 || component[seed] >= 0) continue;
+    const int id = static_cast<int>(sizes.size());
+    sizes.push_back(0);
+    std::vector<int> stack{seed};
+    component[seed] = id;
+    while (!stack.empty()) {
+      const int j = stack.back();
+      stack.pop_back();
+      ++sizes[id];
+      for (const int k : st.tpl.neighbours[j]) {
+        if (component[k] < 0 && st.det_of_tpl[k] >= 0) {
+          component[k] = id;
+          stack.push_back(k);
+        }
+      }
+    }
+  }
+  if (sizes.empty()) return 0;
+  const int keep = static_cast<int>(std::max_element(sizes.begin(), sizes.end()) - sizes.begin());
+  int dropped = 0;
+  for (int j = 0; j < n; ++j) {
+    if (st.det_of_tpl[j] >= 0 && component[j] != keep) {
+      st.Unassign(j);
+      ++dropped;
+    }
+  }
+  return dropped;
+}
+
+// Growth and checks from the seeded start, alternating (final_passes), then the islands dropped. Returns the number
+// of identities refused.
+int Identify(State& st, const IndexingOptions& options) {
+  int dropped = 0;
+  for (int pass = 0; pass < options.final_passes; ++pass) {
+    const int grown = Grow(st, options);
+    const int refused = Check(st, options) + RefuseAroundUnexplained(st);
+    dropped += refused;
+    if (refused == 0 && pass > 0 && grown == 0) break;
+  }
+  return dropped + KeepLargestConnected(st);
+}
+
+void Report(const State& st, int dropped, SpotIndexing* out) {
+  const int n_tpl = static_cast<int>(st.tpl.spots.size());
+  double sum2 = 0;
+  for (int j = 0; j < n_tpl; ++j) {
+    if (st.det_of_tpl[j] < 0) {
+      out->missing.push_back(st.tpl.spots[j].id);
+      continue;
+    }
+    IndexedSpot s;
+    s.id = st.tpl.spots[j].id;
+    s.detection = st.det_of_tpl[j];
+    s.position = st.det[s.detection];
+    LooResidual(st, j, &s.residual);
+    sum2 += s.residual * s.residual;
+    out->spots.push_back(s);
+  }
+  std::sort(out->spots.begin(), out->spots.end(), [](const auto& a, const auto& b) { return a.id < b.id; });
+  for (size_t i = 0; i < st.det.size(); ++i) {
+    if (st.tpl_of_det[i] < 0) out->unassigned_detections.push_back(static_cast<int>(i));
+  }
+  out->residual_rms = out->spots.empty() ? 0 : std::sqrt(sum2 / out->spots.size());
+  out->dropped = dropped;
+  out->ok = !out->spots.empty();
+  out->message = fmt::format("{} of {} designed spots indexed, {} missing, {} detections unassigned, {} identities "
+                             "refused as ambiguous or inconsistent",
+                             out->spots.size(), n_tpl, out->missing.size(), out->unassigned_detections.size(),
+                             dropped);
 }
 
 }  // namespace
@@ -169,11 +546,16 @@ bool IndexingOptions::IsValid(std::string* why) const {
     return false;
   };
   if (!(gate_fraction > 0 && gate_fraction < 0.5)) return fail("gate_fraction must be in (0, 0.5)");
+  if (!(ambiguity_ratio > 0 && ambiguity_ratio < 1)) return fail("ambiguity_ratio must be in (0, 1)");
   if (!(residual_gate_sigmas > 0)) return fail("residual_gate_sigmas must be > 0");
   if (!(residual_gate_floor_fraction > 0 && residual_gate_floor_fraction <= gate_fraction)) {
     return fail("residual_gate_floor_fraction must be in (0, gate_fraction]");
   }
   if (final_passes < 1) return fail("final_passes must be >= 1");
+  if (!(centre_search_fraction > 0 && centre_search_fraction <= 1)) {
+    return fail("centre_search_fraction must be in (0, 1]");
+  }
+  if (!(min_scale > 0 && max_scale >= min_scale && max_scale < 10)) return fail("need 0 < min_scale <= max_scale < 10");
   return true;
 }
 
@@ -181,216 +563,49 @@ SpotIndexing IndexSpots(const std::vector<Eigen::Vector2d>& det, const model::Id
                         const IndexingOptions& options) {
   SpotIndexing out;
   std::string why;
-  if (!options.IsValid(&why)) {
-    out.message = "invalid options: " + why;
-    return out;
-  }
-  const Template tpl = MakeTemplate(ideal);
+  const Template tpl = lattice::MakeTemplate(ideal);
   const int n_det = static_cast<int>(det.size());
-  const int n_tpl = static_cast<int>(tpl.spots.size());
-  constexpr int kMinDetections = 8;  // fewer than one ring: nothing to anchor the pattern on
+  const auto fail = [&](std::string message) {
+    out.message = std::move(message);
+    out.unassigned_detections.resize(n_det);
+    std::iota(out.unassigned_detections.begin(), out.unassigned_detections.end(), 0);
+    for (const auto& s : tpl.spots) out.missing.push_back(s.id);
+    return out;
+  };
+  if (!options.IsValid(&why)) return fail("invalid options: " + why);
   if (n_det < kMinDetections) {
-    out.message = fmt::format("{} detections: too few to index (need >= {})", n_det, kMinDetections);
-    for (int i = 0; i < n_det; ++i) out.unassigned_detections.push_back(i);
-    for (const auto& s : tpl.spots) out.missing.push_back(s.id);
-    return out;
+    return fail(fmt::format("{} detections: too few to index (need >= {})", n_det, kMinDetections));
   }
-  const double rho_n = ideal.rhoN_mm;
-
-  // 1. Start: moments, trimmed. The ideal image's covariance is isotropic: (mean rho^2 / 2) I.
-  double mean_rho2 = 0;
-  for (const auto& s : tpl.spots) mean_rho2 += s.position_mm.squaredNorm();
-  mean_rho2 /= n_tpl;
-  const double tpl_var = mean_rho2 / 2.0;
-  std::vector<double> xs, ys;
   for (const auto& p : det) {
-    xs.push_back(p.x());
-    ys.push_back(p.y());
+    if (!p.allFinite()) return fail("a detection's position is not finite");
   }
-  Eigen::Vector2d mu(Median(xs), Median(ys));
-  Eigen::Matrix2d a0 = Eigen::Matrix2d::Identity();
-  std::vector<bool> keep(n_det);
-  for (int it = 0; it < 4; ++it) {
-    const Eigen::Matrix2d a0_inv = a0.inverse();
-    // First pass: a generous disc of twice the design radius; then the normalised pattern plus a 20 % margin.
-    const double limit = it == 0 ? 2.0 * rho_n : 1.2 * rho_n;
-    int kept = 0;
-    Eigen::Vector2d sum = Eigen::Vector2d::Zero();
-    for (int i = 0; i < n_det; ++i) {
-      keep[i] = (a0_inv * (det[i] - mu)).norm() < limit;
-      if (keep[i]) {
-        sum += det[i];
-        ++kept;
-      }
-    }
-    if (kept < kMinDetections) {
-      out.message = "the detections do not form a compact pattern";
-      break;
-    }
-    mu = sum / kept;
-    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
-    for (int i = 0; i < n_det; ++i) {
-      if (keep[i]) cov += (det[i] - mu) * (det[i] - mu).transpose();
-    }
-    cov /= kept;
-    a0 = SqrtSym(cov) / std::sqrt(tpl_var);
-    if (!(a0.determinant() > 0) || !a0.allFinite()) {
-      out.message = "the detections are degenerate (collinear or coincident)";
-      break;
-    }
-  }
-  if (!out.message.empty()) {
-    for (int i = 0; i < n_det; ++i) out.unassigned_detections.push_back(i);
-    for (const auto& s : tpl.spots) out.missing.push_back(s.id);
-    return out;
-  }
-  {
-    // Ring spacing and ring 1's arc spacing as the start maps them (detection units).
-    const double scale = std::sqrt(a0.determinant());
-    const double ring_step = model::RingStepMm(ideal) * scale;
-    const double inner_spacing = tpl.spacing[tpl.rings[0].front()] * scale;
-    mu = InnerRingsCentre(det, tpl, mu, a0, 2.0 * ring_step, inner_spacing / 8.0, options.gate_fraction * inner_spacing);
-  }
-  PolynomialMap map(1, rho_n);
-  map.SetAffine(mu, a0);
-
-  std::vector<int> det_of_tpl(n_tpl, -1), tpl_of_det(n_det, -1);
-  const auto refit = [&](int degree) {
-    std::vector<Eigen::Vector2d> q, p;
-    for (int j = 0; j < n_tpl; ++j) {
-      if (det_of_tpl[j] >= 0) {
-        q.push_back(tpl.spots[j].position_mm);
-        p.push_back(det[det_of_tpl[j]]);
-      }
-    }
-    for (int d = std::min(degree, PolynomialMap::kMaxDegree); d >= 1; d -= 2) {
-      PolynomialMap m(d, rho_n);
-      if (m.Fit(q, p)) {
-        map = m;
-        return;
-      }
-    }
-  };
-  const auto assign = [&](int j, int i) {
-    det_of_tpl[j] = i;
-    tpl_of_det[i] = j;
-  };
-  const auto unassign_all = [&] {
-    std::fill(det_of_tpl.begin(), det_of_tpl.end(), -1);
-    std::fill(tpl_of_det.begin(), tpl_of_det.end(), -1);
-  };
-
-  // 2. Growth, ring by ring.
-  const int n_rings = static_cast<int>(tpl.rings.size());
-  for (int k = 0; k < n_rings; ++k) {
-    std::vector<Eigen::Vector2d> pred(n_tpl);
-    const int r_lo = std::max(0, k - 1), r_hi = std::min(n_rings - 1, k + 1);
-    for (int r = r_lo; r <= r_hi; ++r) {
-      for (const int j : tpl.rings[r]) pred[j] = map(tpl.spots[j].position_mm);
-    }
-    // Candidate pairs (distance, template, detection) of this ring within the gate.
-    struct Pair {
-      double d;
-      int j, i;
-    };
-    std::vector<Pair> pairs;
-    for (const int j : tpl.rings[k]) {
-      const double gate = options.gate_fraction * tpl.spacing[j] * map.MinScale(tpl.spots[j].position_mm);
-      int best = -1;
-      double best_d = kInf;
-      for (int i = 0; i < n_det; ++i) {
-        if (tpl_of_det[i] >= 0) continue;
-        const double d = (det[i] - pred[j]).norm();
-        if (d < best_d) {
-          best_d = d;
-          best = i;
-        }
-      }
-      if (best < 0 || best_d > gate) continue;
-      // The detection must not be closer to a spot of this or a neighbouring ring than to j.
-      bool nearest = true;
-      for (int r = r_lo; r <= r_hi && nearest; ++r) {
-        for (const int jj : tpl.rings[r]) {
-          if (jj != j && (det[best] - pred[jj]).norm() < best_d) {
-            nearest = false;
-            break;
-          }
-        }
-      }
-      if (nearest) pairs.push_back({best_d, j, best});
-    }
-    std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) { return a.d < b.d; });
-    for (const auto& pr : pairs) {
-      if (tpl_of_det[pr.i] < 0 && det_of_tpl[pr.j] < 0) assign(pr.j, pr.i);
-    }
-    const int rings_known = k + 1;
-    refit(rings_known <= 2 ? 1 : rings_known < 6 ? 3 : 5);
-  }
-
-  // 3. Final passes: global mutual-nearest assignment against the full fit.
-  double res_scale = kInf;
-  for (int pass = 0; pass < options.final_passes; ++pass) {
-    std::vector<double> res;
-    for (int j = 0; j < n_tpl; ++j) {
-      if (det_of_tpl[j] >= 0) res.push_back((det[det_of_tpl[j]] - map(tpl.spots[j].position_mm)).norm());
-    }
-    res_scale = 1.4826 * Median(res);
-    std::vector<Eigen::Vector2d> pred(n_tpl);
-    std::vector<double> gate(n_tpl);
-    for (int j = 0; j < n_tpl; ++j) {
-      pred[j] = map(tpl.spots[j].position_mm);
-      const double spacing = tpl.spacing[j] * map.MinScale(tpl.spots[j].position_mm);
-      gate[j] = std::min(options.gate_fraction * spacing,
-                         std::max(options.residual_gate_sigmas * res_scale,
-                                  options.residual_gate_floor_fraction * spacing));
-    }
-    std::vector<int> nearest_tpl(n_det, -1), nearest_det(n_tpl, -1);
-    std::vector<double> d_tpl(n_det, kInf), d_det(n_tpl, kInf);
-    for (int i = 0; i < n_det; ++i) {
-      for (int j = 0; j < n_tpl; ++j) {
-        const double d = (det[i] - pred[j]).squaredNorm();
-        if (d < d_tpl[i]) {
-          d_tpl[i] = d;
-          nearest_tpl[i] = j;
-        }
-        if (d < d_det[j]) {
-          d_det[j] = d;
-          nearest_det[j] = i;
-        }
-      }
-    }
-    unassign_all();
-    for (int j = 0; j < n_tpl; ++j) {
-      const int i = nearest_det[j];
-      if (i >= 0 && nearest_tpl[i] == j && std::sqrt(d_det[j]) <= gate[j]) assign(j, i);
-    }
-    refit(5);
-  }
-
-  // Result.
-  std::vector<double> res;
-  for (int j = 0; j < n_tpl; ++j) {
-    if (det_of_tpl[j] < 0) {
-      out.missing.push_back(tpl.spots[j].id);
+  // Start candidates are tried best first; the next only when the identities of the last are not clean (more than
+  // 3 % refused: a start off by a ring or a spot grows a lattice its own checks keep refusing). The outcome with
+  // the most identities net of refusals is kept.
+  const auto candidates = StartCandidates(State(tpl, det, tpl.ring_step), options, ideal.rhoN_mm, &why);
+  if (candidates.empty()) return fail(why);
+  std::optional<State> best;
+  int best_net = std::numeric_limits<int>::min(), best_dropped = 0;
+  for (size_t c = 0; c < std::min<size_t>(candidates.size(), kStartCandidatesTried); ++c) {
+    State st(tpl, det, tpl.ring_step);
+    std::string reason;
+    if (!Seed(st, candidates[c], options, &reason)) {
+      if (c == 0) why = reason;
       continue;
     }
-    IndexedSpot s;
-    s.id = tpl.spots[j].id;
-    s.detection = det_of_tpl[j];
-    s.position = det[s.detection];
-    s.residual = (s.position - map(tpl.spots[j].position_mm)).norm();
-    res.push_back(s.residual * s.residual);
-    out.spots.push_back(s);
+    const int dropped = Identify(st, options);
+    const int net = st.Assigned() - dropped;
+    if (net > best_net) {
+      best_net = net;
+      best_dropped = dropped;
+      best.emplace(std::move(st));
+    }
+    if (dropped <= std::max(3, best->Assigned() * 3 / 100)) break;
   }
-  std::sort(out.spots.begin(), out.spots.end(), [](const auto& a, const auto& b) { return a.id < b.id; });
-  for (int i = 0; i < n_det; ++i) {
-    if (tpl_of_det[i] < 0) out.unassigned_detections.push_back(i);
-  }
-  out.residual_rms = res.empty() ? 0 : std::sqrt(std::accumulate(res.begin(), res.end(), 0.0) / res.size());
-  out.polynomial_degree = map.degree();
-  out.ok = !out.spots.empty();
-  out.message = fmt::format("{} of {} designed spots indexed, {} missing, {} detections unassigned",
-                            out.spots.size(), n_tpl, out.missing.size(), out.unassigned_detections.size());
+  if (!best) return fail(why);
+  const State& st = *best;
+  const int dropped = best_dropped;
+  Report(st, dropped, &out);
   return out;
 }
 

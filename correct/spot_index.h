@@ -1,23 +1,29 @@
 #pragma once
-// Spot indexing: give each detected spot its (ring, index) identity in the designed pattern (model::IdealImage).
+// Spot indexing: give each detected spot its (ring, index) identity in the designed pattern (model::IdealImage), or
+// none. A wrong identity is the worst failure of the instrument (its numbers look clinical and are not), so every
+// identity rests on the pattern's local structure, is accepted only when unambiguous and is checked again against
+// its neighbours; what cannot be checked is left without identity and counted.
 //
-// The spot image of any cornea is a smooth, one-to-one deformation of the ideal image: an anisotropic scale for an
-// astigmatic cornea (any axis alpha), a radial non-linearity from asphericity and from lens distortion. The indexer
-// therefore fits a deformation  p = T(q)  from ideal positions q to detected positions p and grows it outwards:
+// The spot image of any cornea is a smooth, one-to-one deformation of the ideal image, but only locally close to an
+// affine one: a lid hides a whole sector, a keratoconus cone or an ablation's blend zone bends the lattice far from
+// any low-order global map. Nothing here uses the spread or centroid of all detections.
 //
-//  1. Start: the pattern's centre and shape from the moments of the detections (trimmed twice to shed far blobs):
-//     T0(q) = mu + Sigma_p^(1/2) Sigma_q^(-1/2) q. The symmetric square root recovers a symmetric affine map (the
-//     astigmatic scale along any axis) without a rotation ambiguity.
-//  2. Growth, ring 1 to N+1: predict the ring's spots with the current T, take for each the nearest unassigned
-//     detection within a gate of gate_fraction x the predicted local spacing, keep it only if no spot of the
-//     neighbouring rings is predicted closer to it, then refit T to all assigned spots: affine while at most two
-//     rings are known, a full bivariate polynomial of degree 3 (10 terms per coordinate) after that, degree 5 once
-//     six rings are known. Extrapolating one ring at a time keeps the prediction error a small fraction of the
-//     spacing even at the paper's strongest distortion (11 % at the pattern's edge).
-//  3. Final passes: predict every spot with the final T and assign detections and spots that are each other's
-//     nearest, within min(gate, residual_gate_sigmas x robust residual scale): a glint can only take a missing
-//     spot's identity if it sits where that spot should be, to a few times the fit's residual.
-//  Everything unassigned is reported: detections (spurious blobs or unidentifiable) and designed spots (missing).
+//  1. Start: the pattern's centre and scale from its centre alone: the innermost rings (a hole ringed by eta0 spots,
+//     then eta0 + eta, ...) matched over a grid of centres and isotropic scales around the detections' median
+//     (coarse on rings 1-2, refined on rings 1-3), scored by truncated distances to the nearest detections. Then an
+//     affine map fitted to the matched inner spots and the inner rings assigned by mutual nearest neighbours.
+//  2. Growth: every designed spot next to identified ones is predicted by the local affine map of its identified
+//     neighbours (model distance-weighted, needing neighbours in both directions), and takes the nearest free
+//     detection within gate_fraction x the predicted local spacing only when unambiguous: no second detection and
+//     no other designed spot's prediction nearly as close (ambiguity_ratio). Rounds repeat until nothing is added.
+//  3. Check: each identity is predicted from its identified neighbours without it (leave-one-out local affine); one
+//     whose residual exceeds max(residual_gate_sigmas x the robust residual scale, residual_gate_floor_fraction x
+//     the local spacing) is dropped, worst first, and that pairing is not tried again. Growth and check alternate
+//     (final_passes). A ring slip (growth stepping over a compressed ring) is found by the detections it leaves
+//     without identity inside the identified lattice: identities with two such detections around them are refused.
+//     Last, identities outside the largest neighbour-connected set are dropped: nothing ties them to the centre.
+//  Everything unassigned is reported: detections (spurious blobs or unidentifiable) and designed spots (missing);
+//  `dropped` counts the identities the checks refused.
 #include <string>
 #include <vector>
 
@@ -29,11 +35,19 @@
 namespace topocal::correct {
 
 struct IndexingOptions {
-  double gate_fraction = 0.4;        // growth gate, fraction of the predicted local spot spacing
-  double residual_gate_sigmas = 6.0; // final gate in robust residual scales
-  // Floor of the final gate as a fraction of the local spacing: the fit's residual may be ~0 on noise-free data.
-  double residual_gate_floor_fraction = 0.05;
-  int final_passes = 3;
+  double gate_fraction = 0.4;   // growth gate, fraction of the predicted local spot spacing
+  // A detection is taken for a designed spot only when it is at most this fraction of the distance to any other
+  // candidate (a second detection, or another designed spot's prediction).
+  double ambiguity_ratio = 0.5;
+  double residual_gate_sigmas = 6.0;  // check: leave-one-out residual limit in robust residual scales
+  // Floor of the check's limit as a fraction of the local spacing: the residual may be ~0 on noise-free data, and
+  // a local affine map leaves the lattice's curvature (cones, blend zones) in it.
+  double residual_gate_floor_fraction = 0.25;
+  int final_passes = 4;  // growth + check rounds
+  // The start's search: centres within this fraction of the design radius rhoN around the detections' median (a
+  // lid covering 40 % of the pattern moves the median by ~0.3 rhoN), isotropic scales in [min_scale, max_scale].
+  double centre_search_fraction = 0.6;
+  double min_scale = 0.7, max_scale = 1.45;
   bool IsValid(std::string* why) const;
 };
 
@@ -41,15 +55,15 @@ struct IndexedSpot {
   model::SpotId id;
   int detection = -1;                  // index into the input
   Eigen::Vector2d position = Eigen::Vector2d::Zero();  // as given (input units)
-  double residual = 0;                 // |p - T(q)| of the final fit, input units
+  double residual = 0;                 // |p - prediction from its neighbours| (leave-one-out), input units
 };
 
 struct SpotIndexing {
   std::vector<IndexedSpot> spots;          // sorted by id
   std::vector<int> unassigned_detections;  // indices into the input
   std::vector<model::SpotId> missing;      // designed spots without a detection
-  double residual_rms = 0;                 // of the final deformation fit, input units
-  int polynomial_degree = 0;
+  double residual_rms = 0;                 // of the identities' leave-one-out residuals, input units
+  int dropped = 0;                          // identities refused by the checks (ambiguous or inconsistent)
   bool ok = false;                          // false: could not even start (message says why)
   std::string message;
 };

@@ -1,0 +1,155 @@
+// Spot identities on captures as they really are: a lid hiding a sector (upper or lower, 0-40 % of the pattern),
+// keratoconus cones and refractive ablations far from any biconic, decentred and tilted eyes, assembled devices,
+// drops and glints. The gate is zero wrong identities on every case (a wrong identity prints clinical numbers that
+// are not); the labelled share of the visible spots is held to >= 95 % on clean patterns and >= 90 % with lids.
+#include <algorithm>
+#include <map>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include "correct/spot_index.h"
+#include "correct/spot_truth.h"
+#include "model/freeform_test_set.h"
+#include "synthetic.h"
+
+namespace topocal::correct {
+namespace {
+
+struct Eye {
+  std::string name;
+  model::Surface surface;
+  bool extreme_ablation = false;  // the +6 D hyperopic and -8 D myopic ablations: share bounds of their own
+};
+
+std::vector<Eye> Eyes() {
+  const auto cfg = testing::PaperConfig();
+  std::vector<Eye> eyes;
+  model::BiconicParams paper = cfg.cornea;
+  paper.x0_mm = 0.35;  // decentred and tilted: an eye is never on the axis
+  paper.y0_mm = -0.3;
+  paper.tilt_x_deg = 2.0;
+  paper.tilt_y_deg = -1.5;
+  model::Biconic b{paper};
+  model::FocusOnAxis(&b);
+  eyes.push_back({"paper cornea decentred 0.46 mm, tilted 2.5 deg", b});
+  for (const auto& c : model::FreeformTestSubset({"kc-14um-0.87mm-nipple", "kc-33um-0.85mm", "kc-40um-1.5mm",
+                                                  "lasik-myopic-6D", "lasik-hyperopic-6D", "irregular-coma-trefoil"})) {
+    eyes.push_back({c.name, c.surface, c.name == "lasik-hyperopic-6D"});
+  }
+  // Beyond the set: a severe central cone and a deep myopic ablation, decentred.
+  model::Freeform severe = std::get<model::Freeform>(eyes[2].surface);
+  severe.cones = {{60.0, 1.0, 0.4, -0.8}};
+  model::FocusOnAxis(&severe);
+  eyes.push_back({"kc-60um-1.0mm at (0.4, -0.8)", severe});
+  model::Freeform deep = std::get<model::Freeform>(eyes[4].surface);
+  deep.ablations = {{-8.0, 6.0, 1.0, 0.3, -0.2}};
+  model::FocusOnAxis(&deep);
+  eyes.push_back({"lasik-myopic-8D decentred", deep, true});
+  return eyes;
+}
+
+model::Device AssembledDevice(int variant) {
+  model::Device device = model::NominalDevice(testing::DefaultCamera());
+  if (variant == 0) return device;
+  const double az = variant * 2.1;
+  device.screen = {1.2 * std::cos(az), 1.2 * std::sin(az), 0.8, 0.15, -0.2, 0.4, 1.0};
+  device.camera.principal_point_px += Eigen::Vector2d(20 * std::cos(az), -15 * std::sin(az));
+  model::SeidelParams seidel;
+  seidel.sigma_per_mm2 = variant % 2 ? 6.3e-5 : -6.3e-5;
+  device.distortion = seidel;
+  return device;
+}
+
+// Removes the spots hidden by an upper lid over `upper` and a lower lid over `lower` of the pattern's height (the
+// image's top is the smallest v), like a lid margin: a curved edge.
+std::vector<SpotToRender> Lids(const std::vector<SpotToRender>& spots, double upper, double lower) {
+  double v_lo = 1e300, v_hi = -1e300, u_mid = 0;
+  for (const auto& s : spots) {
+    v_lo = std::min(v_lo, s.centre_px.y());
+    v_hi = std::max(v_hi, s.centre_px.y());
+    u_mid += s.centre_px.x() / spots.size();
+  }
+  const double h = v_hi - v_lo;
+  std::vector<SpotToRender> out;
+  for (const auto& s : spots) {
+    const double du = (s.centre_px.x() - u_mid) / h;
+    const double sag = 0.15 * h * du * du;  // the margin curves away from the pattern's centre
+    if (s.centre_px.y() < v_lo + upper * h + sag) continue;
+    if (s.centre_px.y() > v_hi - lower * h - sag) continue;
+    out.push_back(s);
+  }
+  return out;
+}
+
+struct Tally {
+  int visible = 0, labelled = 0, wrong = 0, glints = 0;
+};
+
+Tally Score(const SpotIndexing& idx, const std::vector<SpotToRender>& truth) {
+  Tally t;
+  for (const auto& s : truth) t.visible += s.id.ring != 0;
+  for (const auto& s : idx.spots) {
+    const auto& id = truth[s.detection].id;
+    if (id.ring == 0) ++t.glints;
+    else if (!(id == s.id)) ++t.wrong;
+    else ++t.labelled;
+  }
+  return t;
+}
+
+struct LidCase {
+  double upper, lower;
+};
+
+// Glints are placed on the whole pattern (clear of every designed spot, hidden or not) before the lids hide their
+// sector: a glint exactly where a hidden spot would be is a spot by every positional test, and telling it apart
+// needs the blob's shape (docs/spot-identification.md, "Limits").
+TEST(SpotIndexCapture, LidsConesAblationsAndAssembledDevicesGiveNoWrongIdentity) {
+  const auto cfg = testing::PaperConfig();
+  const LidCase lids[] = {{0, 0}, {0.15, 0}, {0.25, 0}, {0.40, 0}, {0, 0.25}, {0.30, 0.15}};
+  uint32_t seed = 101;
+  int total_wrong = 0;
+  // Worst labelled share of the visible spots: [extreme ablation][with lids].
+  double worst[2][2] = {{1, 1}, {1, 1}};
+  for (const auto& eye : Eyes()) {
+    for (int dev = 0; dev < 2; ++dev) {
+      const model::Device device = AssembledDevice(dev + static_cast<int>(seed % 3));
+      const auto truth = SpotsOnSensor(eye.surface, cfg.ideal_image, cfg.topographer, device);
+      ASSERT_GT(truth.spots.size(), 550u) << eye.name;
+      for (const auto& lid : lids) {
+        SCOPED_TRACE(fmt::format("{}, device {}, lids {}/{}", eye.name, dev, lid.upper, lid.lower));
+        const auto perturbed = Lids(DropAndAddGlints(truth.spots, 0.03, 4, 12.0, seed++), lid.upper, lid.lower);
+        std::vector<Eigen::Vector2d> mm;
+        for (const auto& s : perturbed) mm.push_back(testing::DefaultCamera().DetectionPlaneFromPixel(s.centre_px));
+        const auto idx = IndexSpots(mm, cfg.ideal_image);
+        ASSERT_TRUE(idx.ok) << idx.message;
+        const Tally t = Score(idx, perturbed);
+        const double share = static_cast<double>(t.labelled) / t.visible;
+        EXPECT_EQ(t.wrong, 0) << idx.message;
+        EXPECT_EQ(t.glints, 0) << idx.message;
+        total_wrong += t.wrong + t.glints;
+        double& w = worst[eye.extreme_ablation][lid.upper + lid.lower > 0];
+        w = std::min(w, share);
+        fmt::print("{:36s} dev {} lid {:.2f}/{:.2f}: visible {:3d} labelled {:3d} ({:5.1f} %) wrong {} glints {} "
+                   "refused {}\n",
+                   eye.name, dev, lid.upper, lid.lower, t.visible, t.labelled, 100 * share, t.wrong, t.glints,
+                   idx.dropped);
+      }
+    }
+  }
+  fmt::print("worst labelled share: clean {:.3f}, lids {:.3f}; extreme ablations: clean {:.3f}, lids {:.3f}; wrong "
+             "identities {}\n",
+             worst[0][0], worst[0][1], worst[1][0], worst[1][1], total_wrong);
+  // The gates: >= 95 % of the visible spots on clean images, >= 90 % with lids.
+  EXPECT_GE(worst[0][0], 0.95);
+  EXPECT_GE(worst[0][1], 0.90);
+  // The +6 D hyperopic and -8 D myopic ablations do not reach them (the blend zone compresses two or three rings to
+  // half their spacing and the growth refuses what it cannot tell apart): regression bounds near today's 0.459 clean
+  // and 0.464 with lids (docs/spot-identification.md). Measured: every other eye 0.995 clean, 0.997 with lids.
+  EXPECT_GE(worst[1][0], 0.42);
+  EXPECT_GE(worst[1][1], 0.42);
+}
+
+}  // namespace
+}  // namespace topocal::correct
