@@ -109,16 +109,17 @@ DetectAndIndexResult DetectAndIndexSpots(const cv::Mat& image, const model::Topo
   std::set<model::SpotId> taken;
   for (const auto& s : idx.spots) {
     const auto& d = out.detection.spots[s.detection];
-    LocatedSpot l{s.id, d.flags, d.centre_px, mm[s.detection]};
+    LocatedSpot l{s.id, d.flags, d.centre_px, mm[s.detection], d.area_px};
     (d.flags & options.exclude_flags ? out.excluded : out.spots).push_back(l);
     taken.insert(s.id);
   }
   for (const int i : idx.unassigned_detections) {
     const auto& d = out.detection.spots[i];
-    out.unassigned.push_back({model::SpotId{0, i}, d.flags, d.centre_px, mm[i]});
+    out.unassigned.push_back({model::SpotId{0, i}, d.flags, d.centre_px, mm[i], d.area_px});
   }
   out.missing = idx.missing;
   out.index_residual_rms_mm = idx.residual_rms;
+  out.refused_identities = idx.dropped;
   out.ok = idx.ok;
   out.message = idx.message;
   if (out.ok) {

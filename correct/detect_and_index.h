@@ -33,6 +33,7 @@ struct LocatedSpot {
   unsigned flags = 0;  // SpotFlag bits of the detection
   Eigen::Vector2d position_px = Eigen::Vector2d::Zero();
   Eigen::Vector2d position_mm = Eigen::Vector2d::Zero();  // detection plane, paper frame
+  int area_px = 0;   // pixels above the detection threshold
 };
 
 struct DetectAndIndexOptions {
@@ -58,6 +59,7 @@ struct DetectAndIndexResult {
   SpotDetection detection;              // background, noise, threshold, rejected blobs
   OrientationCheck orientation;
   double index_residual_rms_mm = 0;
+  int refused_identities = 0;           // identities the indexer's checks refused (ambiguous or inconsistent)
   bool ok = false;
   std::string message;
   // The identified spots as model::ImageSpot (position_mm only; on_surface_mm is unknown and zero).

@@ -32,8 +32,12 @@ SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamer
   if (located.orientation.status == correct::OrientationCheck::Status::kMismatch) {
     throw util::InputError(located.orientation.message);
   }
-  if (!located.ok) throw std::runtime_error(fmt::format("spot detection/indexing: {}", located.message));
   SpotMeasurement m;
+  m.capture = AssessCapture(located, camera, ideal);
+  if (!located.ok || m.capture.visible_fraction < kMinVisibleFraction) {
+    throw util::MeasurementRefused(fmt::format("measurement refused: spot identification: {}; {}", located.message,
+                                               m.capture.Line()));
+  }
   m.excluded = static_cast<int>(located.excluded.size());
   m.orientation_message = located.orientation.message;
   m.indexed = static_cast<int>(located.spots.size());

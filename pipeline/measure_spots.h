@@ -8,6 +8,7 @@
 #include <opencv2/core/mat.hpp>
 
 #include "correct/detect_and_index.h"
+#include "pipeline/capture_quality.h"
 #include "model/config.h"
 #include "model/device.h"
 #include "model/distortion.h"
@@ -32,6 +33,7 @@ struct SpotMeasurement {
   int undistort_failures = 0;              // identified spots outside the calibration's invertible domain
   int excluded = 0;                        // identified but flagged (near another blob, at the border): left out
   std::string orientation_message;         // the image-orientation check, one line for the measurement's output
+  CaptureQuality capture;
 };
 
 // The detected (distorted) spots undistorted with `distortion`. Spots outside its invertible domain are left out;
@@ -40,7 +42,8 @@ std::vector<topo::MeasuredSpot> UndistortSpots(const std::vector<MeasuredImageSp
                                                const model::Distortion& distortion, int* failures = nullptr);
 
 // Throws util::InputError when the image's orientation contradicts the camera's (the orientation key says so: a
-// camera file that does not describe this camera), std::runtime_error (one line) when detection or indexing fails,
+// camera file that does not describe this camera), util::MeasurementRefused (one line, with the capture-quality
+// line) when the pattern cannot be identified or too few of its spots are,
 // std::invalid_argument for an image type the detector cannot use.
 SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,
                              const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion,

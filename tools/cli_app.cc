@@ -55,6 +55,9 @@ int RunApp(CLI::App& app, int argc, char** argv) {
   } catch (const VerdictFailed& e) {
     fmt::print(stderr, "topocal: {}\n", e.what());
     return 3;
+  } catch (const util::MeasurementRefused& e) {
+    fmt::print(stderr, "topocal: {}\n", e.what());
+    return 4;
   } catch (const std::exception& e) {
     fmt::print(stderr, "topocal: {}\n", e.what());
     return 1;

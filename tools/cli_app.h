@@ -2,7 +2,8 @@
 // What topocal-full (main.cc) and the launcher (launcher.cc) share: the application's description, version and global
 // options, and how a command's outcome becomes an exit code.
 // Exit codes: 0 success; 1 a computation failed (solver did not converge, no usable data); 2 bad input (usage,
-// missing or corrupt file, invalid configuration); 3 a QA verdict of FAIL (the report is written).
+// missing or corrupt file, invalid configuration); 3 a QA verdict of FAIL (the report is written); 4 a measurement
+// refused because the capture cannot support it (util::MeasurementRefused; the reasons are printed).
 #include <CLI/CLI.hpp>
 
 namespace topocal::tools {

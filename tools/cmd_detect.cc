@@ -10,6 +10,7 @@
 #include "model/config.h"
 #include "model/device.h"
 #include "model/topographer_camera.h"
+#include "pipeline/capture_quality.h"
 #include "tools/commands.h"
 #include "util/io.h"
 
@@ -37,7 +38,13 @@ void Run(const DetectArgs& a) {
   if (r.orientation.status == correct::OrientationCheck::Status::kMismatch) {
     throw util::InputError(fmt::format("{}: {}", a.image, r.orientation.message));
   }
-  if (!r.ok) throw std::runtime_error(fmt::format("{}: spot detection/indexing: {}", a.image, r.message));
+  const auto capture = pipeline::AssessCapture(r, camera, cfg.ideal_image);
+  if (!r.ok || capture.visible_fraction < pipeline::kMinVisibleFraction) {
+    fmt::print("{}\n", capture.Line());
+    throw util::MeasurementRefused(
+        fmt::format("{}: spot identification refused: {} ({:.0f} % of the designed spots identified, need {:.0f} %)",
+                    a.image, r.message, 100 * capture.visible_fraction, 100 * pipeline::kMinVisibleFraction));
+  }
   nlohmann::json j;
   j["image"] = a.image;
   j["estimator"] = correct::CentroidMethodName(options.detection.method);
@@ -50,6 +57,8 @@ void Run(const DetectArgs& a) {
                       {"read_noise_dn", r.detection.read_noise_dn},
                       {"gain_e_per_dn", r.detection.gain_e_per_dn}};
   j["orientation"] = r.orientation.message;
+  j["refused_identities"] = capture.refused;
+  j["capture"] = capture.Line();
   util::WriteFileAtomic(a.out, correct::DetectedSpotsCsv(r));
   if (!a.json.empty()) util::WriteFileAtomic(a.json, j.dump(2) + "\n");
   fmt::print("detect ({}): {} spots indexed ({} flagged near a blob or at the border, left out of a measurement), "
@@ -57,6 +66,7 @@ void Run(const DetectArgs& a) {
              j["estimator"].get<std::string>(), r.spots.size() + r.excluded.size(), r.excluded.size(),
              r.unassigned.size(), r.missing.size(), a.out);
   fmt::print("{}\n", r.orientation.message);
+  fmt::print("{}\n", capture.Line());
 }
 
 }  // namespace

@@ -86,6 +86,8 @@ pipeline::SpotMeasurement MeasureImage(const cv::Mat& image, const model::Topogr
     m = pipeline::MeasureSpots(image, camera, ideal, distortion, options);
   } catch (const util::InputError& e) {
     throw util::InputError(fmt::format("{}: {}", in.image, e.what()));
+  } catch (const util::MeasurementRefused& e) {
+    throw util::MeasurementRefused(fmt::format("{}: {}", in.image, e.what()));
   } catch (const std::invalid_argument& e) {
     throw util::InputError(fmt::format("{}: {}", in.image, e.what()));
   } catch (const std::runtime_error& e) {
@@ -100,7 +102,8 @@ pipeline::SpotMeasurement MeasureImage(const cv::Mat& image, const model::Topogr
 // Spots from a CSV, or detected, indexed and (with a calibration) undistorted in a raw image.
 std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::Config& cfg,
                                                 const std::optional<model::Device>& device, nlohmann::json* info,
-                                                std::optional<pipeline::ClinicalUncertainty>* uncertainty) {
+                                                std::optional<pipeline::ClinicalUncertainty>* uncertainty,
+                                                std::optional<pipeline::CaptureQuality>* capture) {
   std::vector<topo::MeasuredSpot> measured;
   if (!in.spots.empty()) {
     if (!in.camera.empty() || !in.calibration.empty() || !in.device.empty()) {
@@ -127,6 +130,7 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
                         {"missing", m.missing},
                         {"device", in.device},
                         {"undistort_failures", m.undistort_failures}};
+    *capture = m.capture;
     return m.spots;
   }
   std::optional<model::Distortion> distortion;
@@ -153,6 +157,7 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
                       {"missing", m.missing},
                       {"undistorted", distortion.has_value()},
                       {"undistort_failures", m.undistort_failures}};
+  *capture = m.capture;
   if (in.uncertainty_samples > 0) {
     try {
       const Progress progress(fmt::format("topocal reconstruct: {} uncertainty draws", in.uncertainty_samples));
@@ -163,6 +168,34 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
     }
   }
   return m.spots;
+}
+
+nlohmann::json CaptureJson(const pipeline::CaptureQuality& q) {
+  return {{"designed", q.designed},
+          {"identified", q.identified},
+          {"usable", q.usable},
+          {"refused_identities", q.refused},
+          {"unidentified_blobs", q.unassigned},
+          {"visible_fraction", q.visible_fraction},
+          {"largest_gap_deg", q.largest_gap_deg},
+          {"gap_side", q.gap_side},
+          {"median_spot_area_px", q.median_spot_area_px}};
+}
+
+// A measurement the data cannot support: its reasons on stdout and in the JSON (marked invalid, no clinical
+// number), no maps, exit 4.
+[[noreturn]] void RefuseMeasurement(const std::string& image, const pipeline::MeasurementVerdict& verdict,
+                                    nlohmann::json info, const std::string& json_out) {
+  fmt::print("measurement REFUSED (no clinical number is given):\n");
+  for (const auto& r : verdict.reasons) fmt::print("  - {}\n", r);
+  info["refused"] = verdict.reasons;
+  if (!json_out.empty()) {
+    util::StagedOutputs outputs;
+    outputs.AddFile(json_out, info.dump(2) + "\n");
+    outputs.Commit();
+  }
+  throw util::MeasurementRefused(
+      fmt::format("{}: measurement refused: {}", image, fmt::join(verdict.reasons, "; ")));
 }
 
 }  // namespace
@@ -213,10 +246,18 @@ void AddReconstructCommand(CLI::App& app) {
     std::optional<pipeline::ClinicalUncertainty> uncertainty;
     std::optional<model::Device> device;
     if (!in->device.empty()) device = model::LoadDevice(in->device).device;
-    const auto measured = ReadMeasurement(*in, cfg, device, &info, &uncertainty);
+    std::optional<pipeline::CaptureQuality> capture;
+    const auto measured = ReadMeasurement(*in, cfg, device, &info, &uncertainty, &capture);
     const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
     const auto analysis = device ? pipeline::AnalyzeThroughDevice(measured, *device, cfg, *truth ? &cfg.cornea : nullptr)
                                  : topo::AnalyzeSpots(measured, design.targets, cfg, *truth ? &cfg.cornea : nullptr);
+    if (capture) {
+      fmt::print("{}\n", capture->Line());
+      info["capture"] = CaptureJson(*capture);
+      const auto verdict = pipeline::JudgeMeasurement(*capture, analysis);
+      info["valid"] = verdict.valid;
+      if (!verdict.valid) RefuseMeasurement(in->image, verdict, info, *json_out);
+    }
     PrintAnalysis(analysis);
     if (uncertainty) {
       fmt::print("calibration uncertainty carried through ({} draws of {}, {}; {} failed; {} spot(s) not undistorted "

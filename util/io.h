@@ -24,6 +24,14 @@ class ConfigError : public InputError {
   using InputError::InputError;
 };
 
+// A measurement the data cannot support (too few spots identified, the pattern's centre not found, the sim-K zone
+// not covered, the surface model failing the identified spots): refused with its reasons, never printed as if valid;
+// exit code 4, distinct from a failed computation (1) and bad input (2).
+class MeasurementRefused : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 // The outputs of one run, published all or nothing. What an output path is decides how it is written:
 //  - a regular file or a new name: a staging file ".NAME.tmp-PID-N" in the same directory, renamed over it at
 //    Commit (atomic; a failed or interrupted run leaves the old file);

@@ -1,0 +1,111 @@
+#include "pipeline/capture_quality.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+
+#include <fmt/format.h>
+
+#include "model/null_screen_layout.h"
+
+namespace topocal::pipeline {
+namespace {
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  const size_t k = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
+}
+
+// The side of the image a detection-plane direction points to.
+std::string SideOf(const Eigen::Vector2d& direction_mm, const model::TopographerCamera& camera) {
+  const Eigen::Vector2d px = camera.Orientation() * direction_mm;  // pixel axes: u right, v down
+  if (std::abs(px.y()) >= std::abs(px.x())) return px.y() < 0 ? "top" : "bottom";
+  return px.x() < 0 ? "left" : "right";
+}
+
+}  // namespace
+
+CaptureQuality AssessCapture(const correct::DetectAndIndexResult& located, const model::TopographerCamera& camera,
+                             const model::IdealImageParams& ideal) {
+  CaptureQuality q;
+  const auto keys = model::OrientationKeySpots(ideal);
+  const std::set<model::SpotId> key_set(keys.begin(), keys.end());
+  const auto spots = model::IdealImage(ideal);
+  q.designed = static_cast<int>(spots.size() - key_set.size());
+  q.usable = static_cast<int>(located.spots.size());
+  q.identified = q.usable + static_cast<int>(located.excluded.size());
+  q.refused = located.refused_identities;
+  q.unassigned = static_cast<int>(located.unassigned.size());
+  q.visible_fraction = q.designed > 0 ? static_cast<double>(q.identified) / q.designed : 0;
+  std::set<model::SpotId> found;
+  std::vector<double> areas;
+  for (const auto* list : {&located.spots, &located.excluded}) {
+    for (const auto& s : *list) {
+      found.insert(s.id);
+      areas.push_back(s.area_px);
+    }
+  }
+  q.median_spot_area_px = Median(areas);
+  // Azimuths (1 deg bins) of the outer half of the rings where a designed spot was identified.
+  std::vector<bool> seen(360, false);
+  const int first_outer = (ideal.rings_N + 1) / 2 + 1;
+  for (const auto& s : spots) {
+    if (s.id.ring < first_outer || key_set.count(s.id) || !found.count(s.id)) continue;
+    const double az = std::atan2(s.position_mm.y(), s.position_mm.x()) * 180.0 / M_PI;
+    seen[static_cast<int>(std::floor(az + 360.0)) % 360] = true;
+  }
+  // Bins narrower than the outer rings' spot spacing are empty between spots: a gap counts from 10 deg up.
+  int best_len = 0, best_start = 0;
+  for (int start = 0; start < 360; ++start) {
+    if (seen[start] || !seen[(start + 359) % 360]) continue;  // a run starts after a seen bin
+    int len = 0;
+    while (len < 360 && !seen[(start + len) % 360]) ++len;
+    if (len > best_len) {
+      best_len = len;
+      best_start = start;
+    }
+  }
+  if (std::none_of(seen.begin(), seen.end(), [](bool b) { return b; })) best_len = 360;
+  q.largest_gap_deg = best_len;
+  if (best_len >= 30 && best_len < 360) {
+    const double mid = (best_start + 0.5 * best_len) * M_PI / 180.0;
+    q.gap_side = SideOf(Eigen::Vector2d(std::cos(mid), std::sin(mid)), camera);
+  }
+  return q;
+}
+
+std::string CaptureQuality::Line() const {
+  std::string gap = largest_gap_deg >= 30
+                        ? fmt::format("outer rings missing over {:.0f} deg{}", largest_gap_deg,
+                                      gap_side.empty() ? std::string() : " at the image's " + gap_side +
+                                                                            (gap_side == "top" ? " (upper lid?)" : ""))
+                        : std::string("no sector missing");
+  return fmt::format("capture: {} of {} spots identified ({:.0f} % visible), {} usable; {}; {} unidentified blobs "
+                     "(glints, lashes, skin); {} identities refused as ambiguous; median spot area {:.0f} px",
+                     identified, designed, 100 * visible_fraction, usable, gap, unassigned, refused,
+                     median_spot_area_px);
+}
+
+MeasurementVerdict JudgeMeasurement(const CaptureQuality& capture, const topo::Analysis& analysis) {
+  MeasurementVerdict v;
+  if (capture.visible_fraction < kMinVisibleFraction) {
+    v.reasons.push_back(fmt::format("only {} of the {} designed spots identified ({:.0f} %, need {:.0f} %)",
+                                    capture.identified, capture.designed, 100 * capture.visible_fraction,
+                                    100 * kMinVisibleFraction));
+  }
+  if (!analysis.clinical_ok) v.reasons.push_back(analysis.clinical_message);
+  const auto& r = analysis.reconstruction;
+  if (!topo::ModelFitsData(r)) {
+    v.reasons.push_back(fmt::format("the surface model does not represent the identified spots (slope residual "
+                                    "{:.1f} x the expected noise, shared part {:.2f} x): a wrong identity or a shape "
+                                    "no model here holds",
+                                    r.adequacy_ratio, r.structured_residual_ratio));
+  }
+  v.valid = v.reasons.empty();
+  return v;
+}
+
+}  // namespace topocal::pipeline

@@ -1,0 +1,46 @@
+#pragma once
+// What a capture shows and whether it can support a measurement: the capture-quality line printed with every
+// measurement from an image, and the verdict that refuses one the data cannot support (wrong is worse than absent:
+// a refused measurement prints its reasons and no clinical number).
+#include <string>
+#include <vector>
+
+#include "correct/detect_and_index.h"
+#include "model/null_screen.h"
+#include "model/topographer_camera.h"
+#include "topo/analysis.h"
+
+namespace topocal::pipeline {
+
+struct CaptureQuality {
+  int designed = 0;     // spots the screen shows (the orientation key's gaps excluded)
+  int identified = 0;   // detections given an identity (usable + flagged)
+  int usable = 0;       // identified and not flagged near a blob or at the border
+  int refused = 0;      // identities the indexer's checks refused (ambiguous or inconsistent with neighbours)
+  int unassigned = 0;   // blobs without identity: glints, lashes' edges, skin, refused identities
+  double visible_fraction = 0;  // identified / designed
+  // The largest azimuth span of the outer half of the rings without one identified spot (a lid, a lash shadow, the
+  // image's edge), and on which side of the image it lies ("top", "bottom", "left", "right"; empty below 30 deg).
+  double largest_gap_deg = 0;
+  std::string gap_side;
+  double median_spot_area_px = 0;  // of the identified spots: grows with defocus and motion blur
+  std::string Line() const;        // "capture: ..." one line
+};
+
+CaptureQuality AssessCapture(const correct::DetectAndIndexResult& located, const model::TopographerCamera& camera,
+                             const model::IdealImageParams& ideal);
+
+// Below this share of the designed spots identified, no measurement is made.
+inline constexpr double kMinVisibleFraction = 0.30;
+
+struct MeasurementVerdict {
+  bool valid = true;
+  std::vector<std::string> reasons;  // why not, one line each
+};
+
+// A measurement from an image is refused when too few spots are identified, the clinical indices cannot be computed
+// from the data (the sim-K zone not covered in every direction) or the surface model does not represent the
+// identified spots (topo::ModelFitsData: a wrong identity or a shape no model here can hold).
+MeasurementVerdict JudgeMeasurement(const CaptureQuality& capture, const topo::Analysis& analysis);
+
+}  // namespace topocal::pipeline
