@@ -156,4 +156,24 @@ std::vector<SpotToRender> DropAndAddGlints(const std::vector<SpotToRender>& spot
   return out;
 }
 
+std::vector<SpotToRender> HideUnderLids(const std::vector<SpotToRender>& spots, double upper, double lower) {
+  if (spots.empty() || (upper <= 0 && lower <= 0)) return spots;
+  double v_lo = spots.front().centre_px.y(), v_hi = v_lo, u_mid = 0;
+  for (const auto& s : spots) {
+    v_lo = std::min(v_lo, s.centre_px.y());
+    v_hi = std::max(v_hi, s.centre_px.y());
+    u_mid += s.centre_px.x() / static_cast<double>(spots.size());
+  }
+  const double h = v_hi - v_lo;
+  std::vector<SpotToRender> out;
+  for (const auto& s : spots) {
+    const double du = h > 0 ? (s.centre_px.x() - u_mid) / h : 0;
+    const double sag = 0.15 * h * du * du;  // the margin curves away from the pattern's centre
+    if (upper > 0 && s.centre_px.y() < v_lo + upper * h + sag) continue;
+    if (lower > 0 && s.centre_px.y() > v_hi - lower * h - sag) continue;
+    out.push_back(s);
+  }
+  return out;
+}
+
 }  // namespace topocal::correct

@@ -56,4 +56,9 @@ cv::Mat RenderSpotImage(const std::vector<SpotToRender>& spots, int width_px, in
 std::vector<SpotToRender> DropAndAddGlints(const std::vector<SpotToRender>& spots, double drop_fraction,
                                            int glint_count, double min_glint_distance_px, uint32_t seed);
 
+// The spots (and glints) an upper lid over the top `upper` fraction and a lower lid over the bottom `lower`
+// fraction of the pattern's height hide (the image's top is the smallest v), as a lid margin does: an edge that
+// curves away from the pattern's centre. The lid's skin is not drawn. Fractions in [0, 1).
+std::vector<SpotToRender> HideUnderLids(const std::vector<SpotToRender>& spots, double upper, double lower);
+
 }  // namespace topocal::correct

@@ -185,10 +185,19 @@ nlohmann::json CaptureJson(const pipeline::CaptureQuality& q) {
 // A measurement the data cannot support: its reasons on stdout and in the JSON (marked invalid, no clinical
 // number), no maps, exit 4.
 [[noreturn]] void RefuseMeasurement(const std::string& image, const pipeline::MeasurementVerdict& verdict,
-                                    nlohmann::json info, const std::string& json_out) {
+                                    nlohmann::json info, const std::string& json_out, bool print = true) {
+  info["valid"] = false;
+  info["refused"] = verdict.reasons;
+  if (!print) {  // the reason is already a whole line naming the image
+    if (!json_out.empty()) {
+      util::StagedOutputs outputs;
+      outputs.AddFile(json_out, info.dump(2) + "\n");
+      outputs.Commit();
+    }
+    throw util::MeasurementRefused(verdict.reasons.front());
+  }
   fmt::print("measurement REFUSED (no clinical number is given):\n");
   for (const auto& r : verdict.reasons) fmt::print("  - {}\n", r);
-  info["refused"] = verdict.reasons;
   if (!json_out.empty()) {
     util::StagedOutputs outputs;
     outputs.AddFile(json_out, info.dump(2) + "\n");
@@ -247,7 +256,12 @@ void AddReconstructCommand(CLI::App& app) {
     std::optional<model::Device> device;
     if (!in->device.empty()) device = model::LoadDevice(in->device).device;
     std::optional<pipeline::CaptureQuality> capture;
-    const auto measured = ReadMeasurement(*in, cfg, device, &info, &uncertainty, &capture);
+    std::vector<topo::MeasuredSpot> measured;
+    try {
+      measured = ReadMeasurement(*in, cfg, device, &info, &uncertainty, &capture);
+    } catch (const util::MeasurementRefused& e) {  // the spots could not be identified: the JSON says so too
+      RefuseMeasurement(in->image, {false, {e.what()}}, info, *json_out, /*print=*/false);
+    }
     const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
     const auto analysis = device ? pipeline::AnalyzeThroughDevice(measured, *device, cfg, *truth ? &cfg.cornea : nullptr)
                                  : topo::AnalyzeSpots(measured, design.targets, cfg, *truth ? &cfg.cornea : nullptr);

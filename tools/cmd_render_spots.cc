@@ -21,7 +21,7 @@ namespace {
 
 struct RenderSpotsArgs {
   std::string config, camera, device, out, truth, spot = "ellipse";
-  double sigma = 0, psf_px = 1.0, drop = 0, sphere_radius_mm = 0;
+  double sigma = 0, psf_px = 1.0, drop = 0, sphere_radius_mm = 0, upper_lid = 0, lower_lid = 0;
   std::vector<double> ball_at_mm;  // vertex of the reference ball (x, y, z)
   double background = NAN, peak = NAN, noise = NAN, gain = NAN;
   int bits = 16, glints = 0;
@@ -38,6 +38,9 @@ void Run(const RenderSpotsArgs& a) {
   RequirePng(a.out, "--out");
   if (!std::isfinite(a.sigma)) throw util::InputError("--sigma: must be a finite number");
   if (!(a.drop >= 0 && a.drop < 1)) throw util::InputError(fmt::format("--drop: must be in [0, 1) (got {})", a.drop));
+  for (const auto& [name, v] : {std::pair{"--upper-lid", a.upper_lid}, std::pair{"--lower-lid", a.lower_lid}}) {
+    if (!(v >= 0 && v < 1)) throw util::InputError(fmt::format("{}: must be in [0, 1) (got {})", name, v));
+  }
   if (a.glints < 0) throw util::InputError(fmt::format("--glints: must be >= 0 (got {})", a.glints));
   if (a.camera.empty() == a.device.empty()) throw util::InputError("render-spots: give one of --camera or --device");
   const auto cfg = model::LoadConfig(a.config);
@@ -81,7 +84,8 @@ void Run(const RenderSpotsArgs& a) {
     largest_px = std::max(largest_px, Eigen::JacobiSVD<Eigen::Matrix2d>(s.shape_px).singularValues()(0));
   }
   const double clearance = (o.shape == correct::SpotShape::kEllipse ? largest_px : 3.0 * a.psf_px) + 8.0;
-  const auto spots = correct::DropAndAddGlints(truth.spots, a.drop, a.glints, clearance, a.seed + 1);
+  const auto spots = correct::HideUnderLids(
+      correct::DropAndAddGlints(truth.spots, a.drop, a.glints, clearance, a.seed + 1), a.upper_lid, a.lower_lid);
   int off_sensor = 0;
   for (const auto& s : spots) off_sensor += !camera.OnSensor(s.centre_px);
   if (off_sensor > 0) fmt::print(stderr, "topocal render-spots: {} spots fall off the sensor\n", off_sensor);
@@ -92,7 +96,7 @@ void Run(const RenderSpotsArgs& a) {
   util::WriteFileAtomic(a.out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   if (!a.truth.empty()) util::WriteFileAtomic(a.truth, csv);
   const int glints = static_cast<int>(std::count_if(spots.begin(), spots.end(), [](const auto& s) { return s.id.ring == 0; }));
-  fmt::print("rendered {} spots ({} dropped, {} not imaged) and {} glints, {}-bit {}x{} -> {}\n",
+  fmt::print("rendered {} spots ({} dropped or under a lid, {} not imaged) and {} glints, {}-bit {}x{} -> {}\n",
              spots.size() - glints, truth.spots.size() - (spots.size() - glints), truth.failures.size(), glints, a.bits,
              camera.width_px, camera.height_px, a.out);
 }
@@ -127,6 +131,9 @@ void AddRenderSpotsCommand(CLI::App& app) {
   cmd->add_option("--seed", a->seed, "Seed of the noise, drops and glints");
   cmd->add_option("--drop", a->drop, "Fraction of spots to leave out, [0, 1)");
   cmd->add_option("--glints", a->glints, "Number of spurious blobs to add");
+  cmd->add_option("--upper-lid", a->upper_lid,
+                  "Fraction of the pattern's height an upper lid hides, [0, 1) (its spots left out; skin not drawn)");
+  cmd->add_option("--lower-lid", a->lower_lid, "Fraction of the pattern's height a lower lid hides, [0, 1)");
   cmd->callback([a] { Run(*a); });
 }
 

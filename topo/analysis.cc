@@ -55,7 +55,14 @@ double SupportedRadiusMm(const std::vector<ReconstructedPoint>& points) {
     const int sector = std::clamp(static_cast<int>(std::floor((angle + M_PI) / (2.0 * M_PI) * kSectors)), 0, kSectors - 1);
     reach[sector] = std::max(reach[sector], p.point_mm.head<2>().norm());
   }
-  return *std::min_element(reach.begin(), reach.end());
+  // A direction is covered as far as the farthest point within +-15 deg of it (three sectors): the innermost rings
+  // hold too few spots to put one in every 10 deg sector, and a lid-hidden sector must read as the lid's edge, not as
+  // no data at all.
+  double supported = reach[0];
+  for (int s = 0; s < kSectors; ++s) {
+    supported = std::min(supported, std::max({reach[(s + kSectors - 1) % kSectors], reach[s], reach[(s + 1) % kSectors]}));
+  }
+  return supported;
 }
 
 PowerMaps IdealPowerMaps(const model::BiconicParams& cornea, const model::ReconstructionSettings& settings) {

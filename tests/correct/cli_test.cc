@@ -8,6 +8,7 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "tests/cli_harness.h"
 #include <opencv2/core.hpp>
@@ -206,6 +207,65 @@ TEST_F(CorrectCli, UndistortBadInputIsOneLineExitTwoNoOutput) {
     EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
     EXPECT_FALSE(fs::exists(Path("o.csv")));
   }
+}
+
+// A capture with an upper and a lower lid is measured over what is visible, with its capture-quality line; a lid
+// that hides the sim-K zone above the centre is refused: exit 4, the reasons, the JSON marked invalid without a
+// clinical number, no maps.
+TEST_F(CorrectCli, ALidIsMeasuredOverWhatIsVisibleAndOneHidingTheSimKZoneIsRefused) {
+  const std::string cfg = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
+  auto r = RunTopocal(fmt::format("render-spots --config {} --camera {} --sigma 0 --upper-lid 0.25 --lower-lid 0.1 "
+                                  "--glints 2 --out {}",
+                                  cfg, Path("cam.json"), Path("lid.png")));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = RunTopocal(fmt::format("reconstruct --config {} --image {} --camera {} --truth --json {}", cfg, Path("lid.png"),
+                             Path("cam.json"), Path("lid.json")));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("at the image's top (upper lid?)"), std::string::npos) << r.output;
+  auto j = nlohmann::json::parse(std::ifstream(Path("lid.json")));
+  EXPECT_TRUE(j["valid"].get<bool>());
+  const int identified = j["capture"]["identified"];
+  EXPECT_GT(identified, 350) << r.output;  // ~60 % of 624 visible below and above the lids
+  EXPECT_LT(identified, 500);
+  // The paper cornea (rx 8.35, kx -0.43) over what the lids leave: the clean-image limits 0.005 mm and 0.005.
+  const auto& fit = j["surface_fit"];
+  EXPECT_NEAR(fit["rx_mm"].get<double>(), 8.35, 0.005);
+  EXPECT_NEAR(fit["ry_mm"].get<double>(), 7.63, 0.005);
+  EXPECT_NEAR(fit["kx"].get<double>(), -0.43, 0.005);
+  EXPECT_NEAR(fit["ky"].get<double>(), -0.25, 0.005);
+  EXPECT_TRUE(j.contains("clinical"));
+
+  r = RunTopocal(fmt::format("render-spots --config {} --camera {} --sigma 0 --upper-lid 0.45 --out {}", cfg,
+                             Path("cam.json"), Path("lid60.png")));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = RunTopocal(fmt::format("reconstruct --config {} --image {} --camera {} --json {} --maps {}", cfg,
+                             Path("lid60.png"), Path("cam.json"), Path("lid60.json"), Path("maps60")));
+  EXPECT_EQ(r.exit_code, 4) << r.output;
+  EXPECT_NE(r.output.find("measurement REFUSED"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("sim-K"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("clinical (data to"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(Path("maps60")));
+  j = nlohmann::json::parse(std::ifstream(Path("lid60.json")));
+  EXPECT_FALSE(j["valid"].get<bool>());
+  EXPECT_FALSE(j["refused"].empty());
+  EXPECT_FALSE(j.contains("clinical"));
+  EXPECT_FALSE(j.contains("surface_fit"));
+
+  // A lid over the pattern's centre: no identity can be anchored; refused at identification, the JSON says so.
+  r = RunTopocal(fmt::format("render-spots --config {} --camera {} --sigma 0 --upper-lid 0.7 --out {}", cfg,
+                             Path("cam.json"), Path("lid70.png")));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = RunTopocal(fmt::format("reconstruct --config {} --image {} --camera {} --json {}", cfg, Path("lid70.png"),
+                             Path("cam.json"), Path("lid70.json")));
+  EXPECT_EQ(r.exit_code, 4) << r.output;
+  EXPECT_NE(r.output.find("measurement refused: spot identification"), std::string::npos) << r.output;
+  j = nlohmann::json::parse(std::ifstream(Path("lid70.json")));
+  EXPECT_FALSE(j["valid"].get<bool>());
+  EXPECT_FALSE(j.contains("clinical"));
+  r = RunTopocal(fmt::format("detect --image {} --camera {} --config {} --out {}", Path("lid70.png"),
+                             Path("cam.json"), cfg, Path("lid70.csv")));
+  EXPECT_EQ(r.exit_code, 4) << r.output;
+  EXPECT_FALSE(fs::exists(Path("lid70.csv")));
 }
 
 }  // namespace

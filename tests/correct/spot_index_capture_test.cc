@@ -61,27 +61,6 @@ model::Device AssembledDevice(int variant) {
   return device;
 }
 
-// Removes the spots hidden by an upper lid over `upper` and a lower lid over `lower` of the pattern's height (the
-// image's top is the smallest v), like a lid margin: a curved edge.
-std::vector<SpotToRender> Lids(const std::vector<SpotToRender>& spots, double upper, double lower) {
-  double v_lo = 1e300, v_hi = -1e300, u_mid = 0;
-  for (const auto& s : spots) {
-    v_lo = std::min(v_lo, s.centre_px.y());
-    v_hi = std::max(v_hi, s.centre_px.y());
-    u_mid += s.centre_px.x() / spots.size();
-  }
-  const double h = v_hi - v_lo;
-  std::vector<SpotToRender> out;
-  for (const auto& s : spots) {
-    const double du = (s.centre_px.x() - u_mid) / h;
-    const double sag = 0.15 * h * du * du;  // the margin curves away from the pattern's centre
-    if (s.centre_px.y() < v_lo + upper * h + sag) continue;
-    if (s.centre_px.y() > v_hi - lower * h - sag) continue;
-    out.push_back(s);
-  }
-  return out;
-}
-
 struct Tally {
   int visible = 0, labelled = 0, wrong = 0, glints = 0;
 };
@@ -119,7 +98,7 @@ TEST(SpotIndexCapture, LidsConesAblationsAndAssembledDevicesGiveNoWrongIdentity)
       ASSERT_GT(truth.spots.size(), 550u) << eye.name;
       for (const auto& lid : lids) {
         SCOPED_TRACE(fmt::format("{}, device {}, lids {}/{}", eye.name, dev, lid.upper, lid.lower));
-        const auto perturbed = Lids(DropAndAddGlints(truth.spots, 0.03, 4, 12.0, seed++), lid.upper, lid.lower);
+        const auto perturbed = HideUnderLids(DropAndAddGlints(truth.spots, 0.03, 4, 12.0, seed++), lid.upper, lid.lower);
         std::vector<Eigen::Vector2d> mm;
         for (const auto& s : perturbed) mm.push_back(testing::DefaultCamera().DetectionPlaneFromPixel(s.centre_px));
         const auto idx = IndexSpots(mm, cfg.ideal_image);
