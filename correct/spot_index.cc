@@ -26,7 +26,7 @@ using lattice::Template;
 // affine prediction (one arc of neighbours leaves the radial scale unknown).
 constexpr double kMinSpreadSpacings = 0.3;
 constexpr int kMinDetections = 8;  // fewer than one ring: nothing to anchor the pattern on
-constexpr size_t kStartCandidatesTried = 3;
+constexpr size_t kStartCandidatesTried = 5;
 
 double Median(std::vector<double> v) {
   if (v.empty()) return 0;
@@ -579,9 +579,9 @@ SpotIndexing IndexSpots(const std::vector<Eigen::Vector2d>& det, const model::Id
   for (const auto& p : det) {
     if (!p.allFinite()) return fail("a detection's position is not finite");
   }
-  // Start candidates are tried best first; the next only when the identities of the last are not clean (more than
-  // 3 % refused: a start off by a ring or a spot grows a lattice its own checks keep refusing). The outcome with
-  // the most identities net of refusals is kept.
+  // Start candidates are tried best first (up to five); the next only when the identities of the last are not clean
+  // (more than 3 % refused: a start off by a ring or a spot grows a lattice its own checks keep refusing). The
+  // outcome with the most identities net of refusals is kept.
   const auto candidates = StartCandidates(State(tpl, det, tpl.ring_step), options, ideal.rhoN_mm, &why);
   if (candidates.empty()) return fail(why);
   std::optional<State> best;
@@ -603,6 +603,13 @@ SpotIndexing IndexSpots(const std::vector<Eigen::Vector2d>& det, const model::Id
     if (dropped <= std::max(3, best->Assigned() * 3 / 100)) break;
   }
   if (!best) return fail(why);
+  // A lattice whose own checks refused more identities than they kept grew from a start they could not confirm:
+  // none of its identities is trusted.
+  if (best_dropped > best->Assigned()) {
+    return fail(fmt::format("the identities do not hold together: {} refused against {} kept (a start the checks "
+                            "could not confirm; is the pattern's centre covered or deformed beyond recognition?)",
+                            best_dropped, best->Assigned()));
+  }
   const State& st = *best;
   const int dropped = best_dropped;
   Report(st, dropped, &out);

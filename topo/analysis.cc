@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include <fmt/format.h>
@@ -55,12 +56,14 @@ double SupportedRadiusMm(const std::vector<ReconstructedPoint>& points) {
     const int sector = std::clamp(static_cast<int>(std::floor((angle + M_PI) / (2.0 * M_PI) * kSectors)), 0, kSectors - 1);
     reach[sector] = std::max(reach[sector], p.point_mm.head<2>().norm());
   }
-  // A direction is covered as far as the farthest point within +-15 deg of it (three sectors): the innermost rings
-  // hold too few spots to put one in every 10 deg sector, and a lid-hidden sector must read as the lid's edge, not as
-  // no data at all.
-  double supported = reach[0];
+  // A sector without any point (the innermost rings hold too few spots to put one in every 10 deg sector, and a lid
+  // can hide the outer ones) is covered as far as the nearer of its two neighbours reach: a lid-hidden sector then
+  // reads as the lid's edge, not as no data at all. Sectors with points keep their own reach.
+  double supported = std::numeric_limits<double>::infinity();
   for (int s = 0; s < kSectors; ++s) {
-    supported = std::min(supported, std::max({reach[(s + kSectors - 1) % kSectors], reach[s], reach[(s + 1) % kSectors]}));
+    const double own = reach[s] > 0 ? reach[s]
+                                    : std::min(reach[(s + kSectors - 1) % kSectors], reach[(s + 1) % kSectors]);
+    supported = std::min(supported, own);
   }
   return supported;
 }

@@ -23,8 +23,8 @@ struct Analysis {
   BiconicFit surface_fit;
   PowerMaps power;                       // of Psi with piston and tilts removed (Sec. 4.2)
   double covered_radius_mm = 0;          // radius the reconstructed points reach (farthest point)
-  // Radius to which the data reach in EVERY direction: the smallest, over 36 directions 10 deg apart, of the
-  // farthest point within +-15 deg of the direction. Maps beyond it extrapolate in some direction; the clinical indices and the
+  // Radius to which the data reach in EVERY direction: the smallest, over 36 sectors of 10 deg about the axis, of
+  // the farthest point in the sector (an empty sector: the nearer reach of its two neighbours). Maps beyond it extrapolate in some direction; the clinical indices and the
   // truth comparisons use only the disc of this radius.
   double supported_radius_mm = 0;
   std::optional<SurfaceErrors> errors;   // when the truth is given
