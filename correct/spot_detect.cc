@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include <ceres/ceres.h>
@@ -15,7 +16,26 @@ namespace {
 
 struct Stats {
   double median = 0, sigma = 0, bright = 0;
+  // The noise from differences of horizontally adjacent pixels (1.4826 MAD / sqrt 2): blind to a background that
+  // changes smoothly (a lid's skin over part of the frame), which widens the histogram's own MAD (sigma) by the
+  // difference of the levels.
+  double sigma_diff = 0;
 };
+
+// sigma_diff of `img` over every 2nd row.
+template <typename T>
+double DifferenceSigma(const cv::Mat& img) {
+  std::vector<float> d;
+  d.reserve(static_cast<size_t>(img.rows / 2 + 1) * img.cols);
+  for (int r = 0; r < img.rows; r += 2) {
+    const T* p = img.ptr<T>(r);
+    for (int c = 0; c + 1 < img.cols; c += 2) d.push_back(std::abs(static_cast<float>(p[c + 1]) - static_cast<float>(p[c])));
+  }
+  if (d.empty()) return 0;
+  const size_t k = d.size() / 2;
+  std::nth_element(d.begin(), d.begin() + k, d.end());
+  return 1.4826 * d[k] / std::sqrt(2.0);
+}
 
 // Robust statistics from every 2nd pixel of every 2nd row (a quarter of the image: enough samples, a quarter of
 // the cost). Integer images go through a histogram (one pass, no sort); float images through nth_element.
@@ -68,6 +88,62 @@ Stats RobustStats(const cv::Mat& img) {
   for (auto& x : v) x = std::abs(x - static_cast<float>(s.median));
   s.sigma = 1.4826 * pct(0.5);
   return s;
+}
+
+// The local background where it rises above the global one: skin of a lid, the lid's margin, a bright iris or
+// sclera behind the pattern. The floor of the image in 8 x 8 blocks (the darkest pixel of each), its minimum over
+// the 3 x 3 blocks around (a 24 px window: wider than a spot and its neighbours' gap), smoothed, plus the floor's
+// bias below the mean (kFloorBiasSigmas noise sigmas). Written here because OpenCV has no block-minimum reduction;
+// cv::erode over the full frame costs several times more for the same floor.
+// Pixels above the global threshold stay foreground only if they are also above this background plus the same
+// margin the global threshold keeps above the global background. Where the floor is within kLocalSigmas of the
+// global background (a uniform frame), the global threshold stands unchanged.
+constexpr int kBlockPx = 8;
+constexpr double kFloorBiasSigmas = 3.0, kLocalSigmas = 4.0;
+
+template <typename T>
+cv::Mat BlockFloor(const cv::Mat& image) {
+  const int rows = (image.rows + kBlockPx - 1) / kBlockPx, cols = (image.cols + kBlockPx - 1) / kBlockPx;
+  cv::Mat floor(rows, cols, CV_32FC1, cv::Scalar(std::numeric_limits<float>::max()));
+  for (int r = 0; r < image.rows; ++r) {
+    const T* p = image.ptr<T>(r);
+    float* f = floor.ptr<float>(r / kBlockPx);
+    for (int c = 0; c < image.cols; ++c) f[c / kBlockPx] = std::min(f[c / kBlockPx], static_cast<float>(p[c]));
+  }
+  return floor;
+}
+
+// Clears the foreground pixels of `mask` (inside `box`) that do not stand above the local background; returns false
+// (mask untouched) where the background is uniform.
+bool ApplyLocalBackground(const cv::Mat& image, double median, double sigma, double above_bg, const cv::Rect& box,
+                          cv::Mat* mask) {
+  cv::Mat floor = image.depth() == CV_8U    ? BlockFloor<uint8_t>(image)
+                  : image.depth() == CV_16U ? BlockFloor<uint16_t>(image)
+                                            : BlockFloor<float>(image);
+  cv::erode(floor, floor, cv::Mat::ones(3, 3, CV_8U));
+  cv::blur(floor, floor, cv::Size(3, 3));
+  const float lift = static_cast<float>(kFloorBiasSigmas * sigma);
+  const float uniform = static_cast<float>(median + kLocalSigmas * sigma);
+  bool any = false;
+  for (int r = 0; r < floor.rows && !any; ++r) {
+    const float* f = floor.ptr<float>(r);
+    for (int c = 0; c < floor.cols; ++c) any |= f[c] + lift > uniform;
+  }
+  if (!any) return false;
+  for (int r = box.y; r < box.y + box.height; ++r) {
+    uint8_t* m = mask->ptr<uint8_t>(r);
+    const float* f = floor.ptr<float>(r / kBlockPx);
+    for (int c = box.x; c < box.x + box.width; ++c) {
+      if (!m[c]) continue;
+      const double local = f[c / kBlockPx] + lift;
+      if (local <= uniform) continue;
+      const double value = image.depth() == CV_8U    ? image.ptr<uint8_t>(r)[c]
+                           : image.depth() == CV_16U ? image.ptr<uint16_t>(r)[c]
+                                                     : image.ptr<float>(r)[c];
+      if (value <= local + above_bg) m[c] = 0;
+    }
+  }
+  return true;
 }
 
 // The bounding box of all above-threshold pixels, grown by `margin`: connected components run only there (the
@@ -292,15 +368,27 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
   }
   SpotDetection out;
   if (image.empty()) return out;
-  const Stats st = RobustStats(image);
+  Stats st = RobustStats(image);
+  st.sigma_diff = image.depth() == CV_8U    ? DifferenceSigma<uint8_t>(image)
+                  : image.depth() == CV_16U ? DifferenceSigma<uint16_t>(image)
+                                            : DifferenceSigma<float>(image);
+  // The threshold's noise: the smaller estimate (equal on a uniform frame; the difference-based one where a
+  // smooth background change widens the histogram). An integer image's difference MAD can be 0 at < 1 DN noise.
+  const double threshold_sigma = st.sigma_diff > 0 ? std::min(st.sigma, st.sigma_diff) : st.sigma;
   out.background_dn = st.median;
   out.noise_dn = st.sigma;
-  out.threshold_dn = st.median + std::max(options.threshold_sigmas * st.sigma,
+  out.threshold_dn = st.median + std::max(options.threshold_sigmas * threshold_sigma,
                                           options.threshold_fraction * (st.bright - st.median));
   cv::Mat full_mask;
   cv::compare(image, out.threshold_dn, full_mask, cv::CMP_GT);
-  const cv::Rect box = ForegroundBox(full_mask, options.window_margin_px + 1);
+  cv::Rect box = ForegroundBox(full_mask, options.window_margin_px + 1);
   if (box.empty()) return out;
+  if (options.local_background &&
+      ApplyLocalBackground(image, st.median, threshold_sigma, out.threshold_dn - st.median,
+                           box & cv::Rect(0, 0, image.cols, image.rows), &full_mask)) {
+    box = ForegroundBox(full_mask, options.window_margin_px + 1);
+    if (box.empty()) return out;
+  }
   // From here on everything is in the box's coordinates; centres are shifted back at the end.
   const cv::Mat image_box = image(box);
   cv::Mat labels, stats, centroids;

@@ -5,6 +5,9 @@
 //  2. Global threshold  bg + max(threshold_sigmas * noise, threshold_fraction * (bright - bg)),  `bright` the
 //     99.99th percentile of the subsample (the spots' level); the second term keeps the threshold clear of the
 //     blur tails between neighbouring spots in low-noise images.
+//     Where the local background (the image's floor over 24 px windows) rises above the global one by more than
+//     4 noise sigmas — a lid's skin, its margin, a bright iris — a pixel must also clear that local background by
+//     the same margin (local_background; a uniform frame is thresholded exactly as before).
 //  3. Connected components (cv::connectedComponentsWithStats, 8-connected); components outside
 //     [min_area_px, max_area_px] are dropped and counted.
 //  4. Sub-pixel centre per component in a window = its bounding box grown by window_margin_px, ignoring the
@@ -57,6 +60,7 @@ struct SpotDetectionOptions {
   // grown by window_margin_px): its tail light then reaches the window.
   int near_blob_gap_px = 1;
   double threshold_sigmas = 8.0;
+  bool local_background = true;  // step 2's local background (skin, lid margin, iris)
   double threshold_fraction = 0.25;
   int min_area_px = 3;
   int max_area_px = 5000;

@@ -6,6 +6,7 @@
 
 #include <Eigen/LU>
 #include <fmt/format.h>
+#include <opencv2/imgproc.hpp>
 
 namespace topocal::correct {
 namespace {
@@ -63,6 +64,36 @@ void AddEllipseSpot(const SpotToRender& s, double sigma, double peak, cv::Mat* a
   }
 }
 
+// A smooth random field of unit standard deviation: Gaussian noise on a grid `cell` pixels apart, interpolated.
+cv::Mat Texture(int width, int height, int cell, std::mt19937* rng) {
+  std::normal_distribution<float> normal(0.f, 1.f);
+  cv::Mat coarse(height / cell + 2, width / cell + 2, CV_32FC1);
+  for (int r = 0; r < coarse.rows; ++r) {
+    for (int c = 0; c < coarse.cols; ++c) coarse.at<float>(r, c) = normal(*rng);
+  }
+  cv::Mat fine;
+  cv::resize(coarse, fine, cv::Size(coarse.cols * cell, coarse.rows * cell), 0, 0, cv::INTER_CUBIC);
+  cv::Scalar mean, sd;
+  cv::meanStdDev(fine, mean, sd);
+  return (fine(cv::Rect(0, 0, width, height)) - mean[0]) / std::max(sd[0], 1e-6);
+}
+
+// The lids' skin: level plus texture (two scales: ~24 px patches and ~5 px grain) where the lids hide the pattern.
+void AddSkin(const SpotRenderOptions& o, cv::Mat* acc) {
+  std::mt19937 rng(o.seed ^ 0x5eed5u);
+  const cv::Mat patches = Texture(acc->cols, acc->rows, 24, &rng);
+  const cv::Mat grain = Texture(acc->cols, acc->rows, 5, &rng);
+  for (int v = 0; v < acc->rows; ++v) {
+    float* a = acc->ptr<float>(v);
+    const float* p = patches.ptr<float>(v);
+    const float* g = grain.ptr<float>(v);
+    for (int u = 0; u < acc->cols; ++u) {
+      if (!o.lids.Hides(u, v)) continue;
+      a[u] += static_cast<float>(std::max(0.0, o.skin_dn + o.skin_texture_dn * (0.8 * p[u] + 0.6 * g[u])));
+    }
+  }
+}
+
 }  // namespace
 
 bool SpotRenderOptions::IsValid(std::string* why) const {
@@ -78,6 +109,10 @@ bool SpotRenderOptions::IsValid(std::string* why) const {
     return fail(fmt::format("background ({}) + peak ({}) must be within 0..{} DN", background_dn, peak_dn, full));
   }
   if (!(read_noise_dn >= 0) || !(gain_e_per_dn >= 0)) return fail("noise and gain must be >= 0");
+  if (!(skin_dn >= 0) || !(skin_texture_dn >= 0) || background_dn + skin_dn > full) {
+    return fail("the skin's level and texture must be >= 0 and the skin within the full scale");
+  }
+  if (!(lids.upper >= 0 && lids.upper < 1 && lids.lower >= 0 && lids.lower < 1)) return fail("lids must be in [0, 1)");
   return true;
 }
 
@@ -95,6 +130,7 @@ cv::Mat RenderSpotImage(const std::vector<SpotToRender>& spots, int width_px, in
       AddEllipseSpot(s, sigma, peak, &acc);
     }
   }
+  if (options.lids.Any() && (options.skin_dn > 0 || options.skin_texture_dn > 0)) AddSkin(options, &acc);
   std::mt19937 rng(options.seed);
   std::normal_distribution<float> normal(0.f, 1.f);
   const double full = options.bits == 8 ? 255.0 : 65535.0;
@@ -156,22 +192,32 @@ std::vector<SpotToRender> DropAndAddGlints(const std::vector<SpotToRender>& spot
   return out;
 }
 
-std::vector<SpotToRender> HideUnderLids(const std::vector<SpotToRender>& spots, double upper, double lower) {
-  if (spots.empty() || (upper <= 0 && lower <= 0)) return spots;
-  double v_lo = spots.front().centre_px.y(), v_hi = v_lo, u_mid = 0;
+bool Lids::Hides(double u_px, double v_px) const {
+  const double h = v_bottom_px - v_top_px;
+  if (!(h > 0)) return false;
+  const double du = (u_px - u_mid_px) / h;
+  const double sag = 0.15 * h * du * du;  // the margin curves away from the pattern's centre
+  return (upper > 0 && v_px < v_top_px + upper * h + sag) || (lower > 0 && v_px > v_bottom_px - lower * h - sag);
+}
+
+Lids LidsOver(const std::vector<SpotToRender>& spots, double upper, double lower) {
+  Lids lids;
+  lids.upper = upper;
+  lids.lower = lower;
+  if (spots.empty()) return lids;
+  lids.v_top_px = lids.v_bottom_px = spots.front().centre_px.y();
   for (const auto& s : spots) {
-    v_lo = std::min(v_lo, s.centre_px.y());
-    v_hi = std::max(v_hi, s.centre_px.y());
-    u_mid += s.centre_px.x() / static_cast<double>(spots.size());
+    lids.v_top_px = std::min(lids.v_top_px, s.centre_px.y());
+    lids.v_bottom_px = std::max(lids.v_bottom_px, s.centre_px.y());
+    lids.u_mid_px += s.centre_px.x() / static_cast<double>(spots.size());
   }
-  const double h = v_hi - v_lo;
+  return lids;
+}
+
+std::vector<SpotToRender> HideUnderLids(const std::vector<SpotToRender>& spots, const Lids& lids) {
   std::vector<SpotToRender> out;
   for (const auto& s : spots) {
-    const double du = h > 0 ? (s.centre_px.x() - u_mid) / h : 0;
-    const double sag = 0.15 * h * du * du;  // the margin curves away from the pattern's centre
-    if (upper > 0 && s.centre_px.y() < v_lo + upper * h + sag) continue;
-    if (lower > 0 && s.centre_px.y() > v_hi - lower * h - sag) continue;
-    out.push_back(s);
+    if (!lids.Hides(s.centre_px.x(), s.centre_px.y())) out.push_back(s);
   }
   return out;
 }

@@ -33,6 +33,17 @@ struct SpotToRender {
 
 enum class SpotShape { kPsf, kEllipse };
 
+// Lids over the pattern: an upper lid over the top `upper` fraction and a lower lid over the bottom `lower` fraction
+// of the pattern's height (the image's top is the smallest v), each margin an edge that curves away from the
+// pattern's centre. Fractions in [0, 1).
+struct Lids {
+  double upper = 0, lower = 0;
+  double v_top_px = 0, v_bottom_px = 0, u_mid_px = 0;  // the pattern's extent (set by LidsOver)
+  bool Hides(double u_px, double v_px) const;
+  bool Any() const { return upper > 0 || lower > 0; }
+};
+
+
 struct SpotRenderOptions {
   SpotShape shape = SpotShape::kEllipse;
   double psf_sigma_px = 1.0;
@@ -41,6 +52,11 @@ struct SpotRenderOptions {
   double peak_dn = 40000;        // spot level above background (kEllipse plateau, kPsf Gaussian peak)
   double read_noise_dn = 20;     // Gaussian, standard deviation
   double gain_e_per_dn = 0;      // > 0 adds shot noise of variance signal / gain (DN^2); 0: none
+  // The lids' skin, drawn where `lids` hides the pattern: a level above the background and a smooth random texture
+  // (standard deviation, DN) at the scale of a few spot spacings and finer, as skin, lashes' roots and the lid
+  // margin's shading make it.
+  Lids lids;
+  double skin_dn = 0, skin_texture_dn = 0;
   uint32_t seed = 1;
   bool IsValid(std::string* why) const;
 };
@@ -56,9 +72,8 @@ cv::Mat RenderSpotImage(const std::vector<SpotToRender>& spots, int width_px, in
 std::vector<SpotToRender> DropAndAddGlints(const std::vector<SpotToRender>& spots, double drop_fraction,
                                            int glint_count, double min_glint_distance_px, uint32_t seed);
 
-// The spots (and glints) an upper lid over the top `upper` fraction and a lower lid over the bottom `lower`
-// fraction of the pattern's height hide (the image's top is the smallest v), as a lid margin does: an edge that
-// curves away from the pattern's centre. The lid's skin is not drawn. Fractions in [0, 1).
-std::vector<SpotToRender> HideUnderLids(const std::vector<SpotToRender>& spots, double upper, double lower);
+Lids LidsOver(const std::vector<SpotToRender>& spots, double upper, double lower);
+// The spots (and glints) the lids leave visible.
+std::vector<SpotToRender> HideUnderLids(const std::vector<SpotToRender>& spots, const Lids& lids);
 
 }  // namespace topocal::correct

@@ -23,7 +23,7 @@ struct RenderSpotsArgs {
   std::string config, camera, device, out, truth, spot = "ellipse";
   double sigma = 0, psf_px = 1.0, drop = 0, sphere_radius_mm = 0, upper_lid = 0, lower_lid = 0;
   std::vector<double> ball_at_mm;  // vertex of the reference ball (x, y, z)
-  double background = NAN, peak = NAN, noise = NAN, gain = NAN;
+  double background = NAN, peak = NAN, noise = NAN, gain = NAN, skin = 0;
   int bits = 16, glints = 0;
   uint32_t seed = 1;
 };
@@ -84,8 +84,12 @@ void Run(const RenderSpotsArgs& a) {
     largest_px = std::max(largest_px, Eigen::JacobiSVD<Eigen::Matrix2d>(s.shape_px).singularValues()(0));
   }
   const double clearance = (o.shape == correct::SpotShape::kEllipse ? largest_px : 3.0 * a.psf_px) + 8.0;
-  const auto spots = correct::HideUnderLids(
-      correct::DropAndAddGlints(truth.spots, a.drop, a.glints, clearance, a.seed + 1), a.upper_lid, a.lower_lid);
+  o.lids = correct::LidsOver(truth.spots, a.upper_lid, a.lower_lid);
+  o.skin_dn = a.skin;
+  o.skin_texture_dn = 0.25 * o.skin_dn;
+  if (!o.IsValid(&why)) throw util::InputError("render-spots: " + why);
+  const auto spots =
+      correct::HideUnderLids(correct::DropAndAddGlints(truth.spots, a.drop, a.glints, clearance, a.seed + 1), o.lids);
   int off_sensor = 0;
   for (const auto& s : spots) off_sensor += !camera.OnSensor(s.centre_px);
   if (off_sensor > 0) fmt::print(stderr, "topocal render-spots: {} spots fall off the sensor\n", off_sensor);
@@ -132,8 +136,9 @@ void AddRenderSpotsCommand(CLI::App& app) {
   cmd->add_option("--drop", a->drop, "Fraction of spots to leave out, [0, 1)");
   cmd->add_option("--glints", a->glints, "Number of spurious blobs to add");
   cmd->add_option("--upper-lid", a->upper_lid,
-                  "Fraction of the pattern's height an upper lid hides, [0, 1) (its spots left out; skin not drawn)");
+                  "Fraction of the pattern's height an upper lid hides, [0, 1) (its spots left out)");
   cmd->add_option("--lower-lid", a->lower_lid, "Fraction of the pattern's height a lower lid hides, [0, 1)");
+  cmd->add_option("--lid-skin", a->skin, "The lids' skin: level above the background, DN, textured +-25 % (0: not drawn)");
   cmd->callback([a] { Run(*a); });
 }
 

@@ -209,13 +209,14 @@ TEST_F(CorrectCli, UndistortBadInputIsOneLineExitTwoNoOutput) {
   }
 }
 
-// A capture with an upper and a lower lid is measured over what is visible, with its capture-quality line; a lid
+// A capture with an upper and a lower lid (their skin drawn) is measured over what is visible, with its capture-
+// quality line (2 glints, no blob from the skin); a lid
 // that hides the sim-K zone above the centre is refused: exit 4, the reasons, the JSON marked invalid without a
 // clinical number, no maps.
 TEST_F(CorrectCli, ALidIsMeasuredOverWhatIsVisibleAndOneHidingTheSimKZoneIsRefused) {
   const std::string cfg = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
   auto r = RunTopocal(fmt::format("render-spots --config {} --camera {} --sigma 0 --upper-lid 0.25 --lower-lid 0.1 "
-                                  "--glints 2 --out {}",
+                                  "--lid-skin 8000 --glints 2 --out {}",
                                   cfg, Path("cam.json"), Path("lid.png")));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   r = RunTopocal(fmt::format("reconstruct --config {} --image {} --camera {} --truth --json {}", cfg, Path("lid.png"),
@@ -227,6 +228,7 @@ TEST_F(CorrectCli, ALidIsMeasuredOverWhatIsVisibleAndOneHidingTheSimKZoneIsRefus
   const int identified = j["capture"]["identified"];
   EXPECT_GT(identified, 350) << r.output;  // ~60 % of 624 visible below and above the lids
   EXPECT_LT(identified, 500);
+  EXPECT_LE(j["capture"]["unidentified_blobs"].get<int>(), 4);
   // The paper cornea (rx 8.35, kx -0.43) over what the lids leave: the clean-image limits 0.005 mm and 0.005.
   const auto& fit = j["surface_fit"];
   EXPECT_NEAR(fit["rx_mm"].get<double>(), 8.35, 0.005);

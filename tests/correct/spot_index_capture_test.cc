@@ -98,7 +98,7 @@ TEST(SpotIndexCapture, LidsConesAblationsAndAssembledDevicesGiveNoWrongIdentity)
       ASSERT_GT(truth.spots.size(), 550u) << eye.name;
       for (const auto& lid : lids) {
         SCOPED_TRACE(fmt::format("{}, device {}, lids {}/{}", eye.name, dev, lid.upper, lid.lower));
-        const auto perturbed = HideUnderLids(DropAndAddGlints(truth.spots, 0.03, 4, 12.0, seed++), lid.upper, lid.lower);
+        const auto perturbed = HideUnderLids(DropAndAddGlints(truth.spots, 0.03, 4, 12.0, seed++), LidsOver(truth.spots, lid.upper, lid.lower));
         std::vector<Eigen::Vector2d> mm;
         for (const auto& s : perturbed) mm.push_back(testing::DefaultCamera().DetectionPlaneFromPixel(s.centre_px));
         const auto idx = IndexSpots(mm, cfg.ideal_image);
@@ -124,8 +124,8 @@ TEST(SpotIndexCapture, LidsConesAblationsAndAssembledDevicesGiveNoWrongIdentity)
   EXPECT_GE(worst[0][0], 0.95);
   EXPECT_GE(worst[0][1], 0.90);
   // The +6 D hyperopic and -8 D myopic ablations do not reach them (the blend zone compresses two or three rings to
-  // half their spacing and the growth refuses what it cannot tell apart): regression bounds near today's 0.459 clean
-  // and 0.464 with lids (docs/spot-identification.md). Measured: every other eye 0.995 clean, 0.997 with lids.
+  // half their spacing and the growth refuses what it cannot tell apart): regression bounds near today's 0.458 clean
+  // and 0.516 with lids (docs/spot-identification.md). Measured: every other eye 0.995 clean, 0.992 with lids.
   EXPECT_GE(worst[1][0], 0.42);
   EXPECT_GE(worst[1][1], 0.42);
 }
