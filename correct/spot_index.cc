@@ -11,7 +11,6 @@
 
 #include <Eigen/LU>
 #include <fmt/format.h>
-#include <opencv2/imgproc.hpp>
 
 #include "correct/spot_lattice.h"
 
@@ -20,6 +19,7 @@ namespace {
 
 using lattice::DetectionGrid;
 using lattice::LocalAffine;
+using lattice::DistanceField;
 using lattice::Template;
 
 // Neighbours of a designed spot must spread at least this many of its spacings in both directions for its local
@@ -72,37 +72,6 @@ std::vector<int> InnerSpots(const Template& tpl, int rings) {
   }
   return ids;
 }
-
-// Distance to the nearest detection on a raster over the start's search region (cv::distanceTransform): the coarse
-// search scores tens of thousands of hypotheses, each by a few dozen lookups.
-class DistanceField {
- public:
-  DistanceField(const std::vector<Eigen::Vector2d>& det, const Eigen::Vector2d& centre, double half_width,
-                double cell)
-      : origin_(centre - Eigen::Vector2d::Constant(half_width)), cell_(cell) {
-    const int n = static_cast<int>(std::ceil(2 * half_width / cell)) + 1;
-    cv::Mat seeds(n, n, CV_8UC1, cv::Scalar(255));
-    for (const auto& p : det) {
-      const Eigen::Vector2d c = (p - origin_) / cell_;
-      if (c.x() >= 0 && c.y() >= 0 && c.x() < n - 0.5 && c.y() < n - 0.5) {
-        seeds.at<uint8_t>(static_cast<int>(std::lround(c.y())), static_cast<int>(std::lround(c.x()))) = 0;
-      }
-    }
-    cv::distanceTransform(seeds, dist_, cv::DIST_L2, cv::DIST_MASK_PRECISE);
-  }
-  // Distance (mm) from p to the nearest detection, capped at `cap`.
-  double At(const Eigen::Vector2d& p, double cap) const {
-    const Eigen::Vector2d c = (p - origin_) / cell_;
-    if (!(c.x() >= 0 && c.y() >= 0 && c.x() < dist_.cols - 0.5 && c.y() < dist_.rows - 0.5)) return cap;
-    return std::min(cap, cell_ * dist_.at<float>(static_cast<int>(std::lround(c.y())),
-                                                 static_cast<int>(std::lround(c.x()))));
-  }
-
- private:
-  Eigen::Vector2d origin_;
-  double cell_;
-  cv::Mat dist_;
-};
 
 // Coarse search over centres and isotropic scales, scored on rings 1-2 by sum min(d, gate)^2 / gate^2 (0 for a
 // perfect match, ~0.75 per spot for points that only land somewhere on the lattice). The gate and the grid are set

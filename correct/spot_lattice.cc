@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include <Eigen/Dense>
+#include <opencv2/imgproc.hpp>
 
 namespace topocal::correct::lattice {
 
@@ -60,6 +61,27 @@ DetectionGrid::DetectionGrid(const std::vector<Eigen::Vector2d>& points, double 
   items_.resize(points.size());
   std::vector<int> fill(start_.begin(), start_.end() - 1);
   for (size_t i = 0; i < points.size(); ++i) items_[fill[cell_of[i]]++] = static_cast<int>(i);
+}
+
+DistanceField::DistanceField(const std::vector<Eigen::Vector2d>& points, const Eigen::Vector2d& centre,
+                             double half_width, double cell)
+    : origin_(centre - Eigen::Vector2d::Constant(half_width)), cell_(cell) {
+  const int n = static_cast<int>(std::ceil(2 * half_width / cell)) + 1;
+  cv::Mat seeds(n, n, CV_8UC1, cv::Scalar(255));
+  for (const auto& p : points) {
+    const Eigen::Vector2d c = (p - origin_) / cell_;
+    if (c.x() >= 0 && c.y() >= 0 && c.x() < n - 0.5 && c.y() < n - 0.5) {
+      seeds.at<uint8_t>(static_cast<int>(std::lround(c.y())), static_cast<int>(std::lround(c.x()))) = 0;
+    }
+  }
+  cv::distanceTransform(seeds, dist_, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+}
+
+double DistanceField::At(const Eigen::Vector2d& p, double cap) const {
+  const Eigen::Vector2d c = (p - origin_) / cell_;
+  if (!(c.x() >= 0 && c.y() >= 0 && c.x() < dist_.cols - 0.5 && c.y() < dist_.rows - 0.5)) return cap;
+  return std::min(cap, cell_ * dist_.at<float>(static_cast<int>(std::lround(c.y())),
+                                               static_cast<int>(std::lround(c.x()))));
 }
 
 double LocalAffine::MinScale() const { return Eigen::JacobiSVD<Eigen::Matrix2d>(linear).singularValues()(1); }

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <opencv2/core.hpp>
 
 #include "model/config.h"
 #include "model/null_screen.h"
@@ -48,6 +49,21 @@ class DetectionGrid {
   Eigen::Vector2d origin_;
   int nx_ = 0, ny_ = 0;
   std::vector<int> start_, items_;  // CSR buckets
+};
+
+// Distance to the nearest detection on a raster (cv::distanceTransform) over a square about `centre`: the
+// indexer's start scores tens of thousands of hypotheses, each by a few dozen lookups.
+class DistanceField {
+ public:
+  DistanceField(const std::vector<Eigen::Vector2d>& points, const Eigen::Vector2d& centre, double half_width,
+                double cell);
+  // Distance from p to the nearest point, capped at `cap` (and `cap` outside the raster).
+  double At(const Eigen::Vector2d& p, double cap) const;
+
+ private:
+  Eigen::Vector2d origin_;
+  double cell_;
+  cv::Mat dist_;
 };
 
 // p(q) = offset + linear (q - q0): the image of designed position q near q0.

@@ -207,6 +207,79 @@ nlohmann::json CaptureJson(const pipeline::CaptureQuality& q) {
       fmt::format("{}: measurement refused: {}", image, fmt::join(verdict.reasons, "; ")));
 }
 
+// The verb's work, once its options are parsed.
+void Run(const std::string& config, const Inputs& in, const std::string& json_out, const std::string& maps, bool truth,
+         const ReconstructionOverrides& overrides) {
+  const NewDirectoryGuard maps_guard(maps);  // a failed run leaves no empty --maps folder
+  auto cfg = model::LoadConfig(config);
+  overrides.ApplyTo(&cfg);
+  // The verb that measures eyes: unless the configuration or --surface-model names a model, the spline joins
+  // where the polynomial does not fit the data (keratoconus, ablations; docs/reconstruction.md).
+  if (!cfg.reconstruction.surface_model_given) cfg.reconstruction.surface_model = "auto";
+  if (in.spots.empty() == in.image.empty()) throw util::InputError("reconstruct: give one of --spots or --image");
+  if (in.uncertainty_samples > 0 && (in.image.empty() || in.calibration.empty())) {
+    throw util::InputError("--uncertainty needs --image and --calibration");
+  }
+  nlohmann::json info;
+  std::optional<pipeline::ClinicalUncertainty> uncertainty;
+  std::optional<model::Device> device;
+  if (!in.device.empty()) device = model::LoadDevice(in.device).device;
+  std::optional<pipeline::CaptureQuality> capture;
+  std::vector<topo::MeasuredSpot> measured;
+  try {
+    measured = ReadMeasurement(in, cfg, device, &info, &uncertainty, &capture);
+  } catch (const util::MeasurementRefused& e) {  // the spots could not be identified: the JSON says so too
+    RefuseMeasurement(in.image, {false, {e.what()}}, info, json_out, /*print=*/false);
+  }
+  const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
+  const auto analysis = device ? pipeline::AnalyzeThroughDevice(measured, *device, cfg, truth ? &cfg.cornea : nullptr)
+                               : topo::AnalyzeSpots(measured, design.targets, cfg, truth ? &cfg.cornea : nullptr);
+  if (capture) {
+    fmt::print("{}\n", capture->Line());
+    info["capture"] = CaptureJson(*capture);
+    const auto verdict = pipeline::JudgeMeasurement(*capture, analysis);
+    info["valid"] = verdict.valid;
+    if (!verdict.valid) RefuseMeasurement(in.image, verdict, info, json_out);
+  }
+  PrintAnalysis(analysis);
+  if (uncertainty) {
+    fmt::print("calibration uncertainty carried through ({} draws of {}, {}; {} failed; {} spot(s) not undistorted "
+               "in {} draw(s)), mean +- U (k = 2):\n",
+               uncertainty->samples, fmt::join(uncertainty->drawn, ", "),
+               uncertainty->correlated ? "with their covariance" : "independent (the file has no covariance)",
+               uncertainty->failed_samples, uncertainty->undistort_failures,
+               uncertainty->draws_with_undistort_failures);
+    for (const auto& [name, q] : uncertainty->quantities) {
+      fmt::print("  {:<16} {:>12.6f} +- {:.3g}\n", name, q.mean, q.expanded_k2);
+    }
+    nlohmann::json u;
+    u["samples"] = uncertainty->samples;
+    u["failed_samples"] = uncertainty->failed_samples;
+    u["undistort_failures"] = uncertainty->undistort_failures;
+    u["draws_with_undistort_failures"] = uncertainty->draws_with_undistort_failures;
+    u["drawn"] = uncertainty->drawn;
+    u["correlated"] = uncertainty->correlated;
+    u["coverage_factor"] = 2;
+    for (const auto& [name, q] : uncertainty->quantities) u[name] = {{"mean", q.mean}, {"expanded", q.expanded_k2}};
+    info["uncertainty"] = u;
+  }
+  util::StagedOutputs outputs;  // the JSON and the maps are published together or not at all
+  if (!json_out.empty()) {
+    nlohmann::json j = info;
+    j["reconstruction"] = report::ReconstructionJson(analysis.reconstruction);
+    j["polynomial"] = report::PolynomialJson(analysis.reconstruction.surface);
+    j["surface_fit"] = report::SurfaceFitJson(analysis.surface_fit);
+    j["power"] = {{"pv_tangential_D", analysis.power.pv_tangential_D}, {"pv_axial_D", analysis.power.pv_axial_D},
+                  {"map_radius_mm", analysis.power.radius_mm}, {"covered_radius_mm", analysis.covered_radius_mm}};
+    if (truth) j["errors"] = report::ErrorsJson(analysis);
+    j["clinical"] = report::ClinicalJson(analysis);
+    j["adequacy"] = report::AdequacyJson(analysis);
+    outputs.AddFile(json_out, j.dump(2) + "\n");
+  }
+  if (!maps.empty()) pipeline::WriteAnalysisMaps(outputs.AddDirectory(maps), "", "", analysis, truth ? &cfg.cornea : nullptr);
+  outputs.Commit();
+}
+
 }  // namespace
 
 void AddReconstructCommand(CLI::App& app) {
@@ -240,76 +313,7 @@ void AddReconstructCommand(CLI::App& app) {
   auto overrides = std::make_shared<ReconstructionOverrides>();
   overrides->AddTo(cmd);
   cmd->add_flag("--truth", *truth, "Compare with the configuration's cornea (pv and rms of the height difference)");
-  cmd->callback([=] {
-    const NewDirectoryGuard maps_guard(*maps);  // a failed run leaves no empty --maps folder
-    auto cfg = model::LoadConfig(*config);
-    overrides->ApplyTo(&cfg);
-    // The verb that measures eyes: unless the configuration or --surface-model names a model, the spline joins
-    // where the polynomial does not fit the data (keratoconus, ablations; docs/reconstruction.md).
-    if (!cfg.reconstruction.surface_model_given) cfg.reconstruction.surface_model = "auto";
-    if (in->spots.empty() == in->image.empty()) throw util::InputError("reconstruct: give one of --spots or --image");
-    if (in->uncertainty_samples > 0 && (in->image.empty() || in->calibration.empty())) {
-      throw util::InputError("--uncertainty needs --image and --calibration");
-    }
-    nlohmann::json info;
-    std::optional<pipeline::ClinicalUncertainty> uncertainty;
-    std::optional<model::Device> device;
-    if (!in->device.empty()) device = model::LoadDevice(in->device).device;
-    std::optional<pipeline::CaptureQuality> capture;
-    std::vector<topo::MeasuredSpot> measured;
-    try {
-      measured = ReadMeasurement(*in, cfg, device, &info, &uncertainty, &capture);
-    } catch (const util::MeasurementRefused& e) {  // the spots could not be identified: the JSON says so too
-      RefuseMeasurement(in->image, {false, {e.what()}}, info, *json_out, /*print=*/false);
-    }
-    const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
-    const auto analysis = device ? pipeline::AnalyzeThroughDevice(measured, *device, cfg, *truth ? &cfg.cornea : nullptr)
-                                 : topo::AnalyzeSpots(measured, design.targets, cfg, *truth ? &cfg.cornea : nullptr);
-    if (capture) {
-      fmt::print("{}\n", capture->Line());
-      info["capture"] = CaptureJson(*capture);
-      const auto verdict = pipeline::JudgeMeasurement(*capture, analysis);
-      info["valid"] = verdict.valid;
-      if (!verdict.valid) RefuseMeasurement(in->image, verdict, info, *json_out);
-    }
-    PrintAnalysis(analysis);
-    if (uncertainty) {
-      fmt::print("calibration uncertainty carried through ({} draws of {}, {}; {} failed; {} spot(s) not undistorted "
-                 "in {} draw(s)), mean +- U (k = 2):\n",
-                 uncertainty->samples, fmt::join(uncertainty->drawn, ", "),
-                 uncertainty->correlated ? "with their covariance" : "independent (the file has no covariance)",
-                 uncertainty->failed_samples, uncertainty->undistort_failures,
-                 uncertainty->draws_with_undistort_failures);
-      for (const auto& [name, q] : uncertainty->quantities) {
-        fmt::print("  {:<16} {:>12.6f} +- {:.3g}\n", name, q.mean, q.expanded_k2);
-      }
-      nlohmann::json u;
-      u["samples"] = uncertainty->samples;
-      u["failed_samples"] = uncertainty->failed_samples;
-      u["undistort_failures"] = uncertainty->undistort_failures;
-      u["draws_with_undistort_failures"] = uncertainty->draws_with_undistort_failures;
-      u["drawn"] = uncertainty->drawn;
-      u["correlated"] = uncertainty->correlated;
-      u["coverage_factor"] = 2;
-      for (const auto& [name, q] : uncertainty->quantities) u[name] = {{"mean", q.mean}, {"expanded", q.expanded_k2}};
-      info["uncertainty"] = u;
-    }
-    util::StagedOutputs outputs;  // the JSON and the maps are published together or not at all
-    if (!json_out->empty()) {
-      nlohmann::json j = info;
-      j["reconstruction"] = report::ReconstructionJson(analysis.reconstruction);
-      j["polynomial"] = report::PolynomialJson(analysis.reconstruction.surface);
-      j["surface_fit"] = report::SurfaceFitJson(analysis.surface_fit);
-      j["power"] = {{"pv_tangential_D", analysis.power.pv_tangential_D}, {"pv_axial_D", analysis.power.pv_axial_D},
-                    {"map_radius_mm", analysis.power.radius_mm}, {"covered_radius_mm", analysis.covered_radius_mm}};
-      if (*truth) j["errors"] = report::ErrorsJson(analysis);
-      j["clinical"] = report::ClinicalJson(analysis);
-      j["adequacy"] = report::AdequacyJson(analysis);
-      outputs.AddFile(*json_out, j.dump(2) + "\n");
-    }
-    if (!maps->empty()) pipeline::WriteAnalysisMaps(outputs.AddDirectory(*maps), "", "", analysis, *truth ? &cfg.cornea : nullptr);
-    outputs.Commit();
-  });
+  cmd->callback([=] { Run(*config, *in, *json_out, *maps, *truth, *overrides); });
 }
 
 }  // namespace topocal::tools

@@ -131,18 +131,24 @@ INSTANTIATE_TEST_SUITE_P(
       return n;
     });
 
-// The raw-image entry point end to end: drops and glints, 8-bit, every spot identified correctly.
-TEST(DetectAndIndex, RawImageWithDropsAndGlints) {
-  const auto cfg = testing::PaperConfig();
-  const auto camera = CropCamera();
-  const auto truth = testing::Truth(cfg, cfg.cornea, 6.3e-5, camera);
-  const auto spots = DropAndAddGlints(truth.spots, 0.10, 5, 14.0, 3);
+// An 8-bit frame: background 10 DN, spots 200 DN above it, read noise 1.5 DN, no shot noise.
+SpotRenderOptions EightBit() {
   SpotRenderOptions o = Realistic(SpotShape::kEllipse, 1.0);
   o.bits = 8;
   o.background_dn = 10;
   o.peak_dn = 200;
   o.read_noise_dn = 1.5;
   o.gain_e_per_dn = 0;
+  return o;
+}
+
+// The raw-image entry point end to end: drops and glints, 8-bit, every spot identified correctly.
+TEST(DetectAndIndex, RawImageWithDropsAndGlints) {
+  const auto cfg = testing::PaperConfig();
+  const auto camera = CropCamera();
+  const auto truth = testing::Truth(cfg, cfg.cornea, 6.3e-5, camera);
+  const auto spots = DropAndAddGlints(truth.spots, 0.10, 5, 14.0, 3);
+  SpotRenderOptions o = EightBit();
   const cv::Mat image = RenderSpotImage(spots, camera.width_px, camera.height_px, o);
   const auto r = DetectAndIndexSpots(image, camera, cfg.ideal_image);
   ASSERT_TRUE(r.ok) << r.message;
@@ -171,12 +177,7 @@ TEST(DetectAndIndex, ALidsTexturedSkinGivesNoSpuriousBlobs) {
   const auto cfg = testing::PaperConfig();
   const auto camera = CropCamera();
   const auto truth = testing::Truth(cfg, cfg.cornea, 6.3e-5, camera);
-  SpotRenderOptions o = Realistic(SpotShape::kEllipse, 1.0);
-  o.bits = 8;
-  o.background_dn = 10;
-  o.peak_dn = 200;
-  o.read_noise_dn = 1.5;
-  o.gain_e_per_dn = 0;
+  SpotRenderOptions o = EightBit();
   o.lids = LidsOver(truth.spots, 0.3, 0.0);
   o.skin_dn = 35;
   o.skin_texture_dn = 9;
