@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <type_traits>
 
 #include <ceres/ceres.h>
 #include <ceres/tiny_solver.h>
@@ -22,19 +23,40 @@ struct Stats {
   double sigma_diff = 0;
 };
 
-// sigma_diff of `img` over every 2nd row.
+// sigma_diff of `img` from disjoint pairs of horizontally adjacent pixels on every 4th row (a histogram for integer
+// images: one pass, no sort).
 template <typename T>
 double DifferenceSigma(const cv::Mat& img) {
+  constexpr bool kInteger = std::is_integral_v<T>;
+  std::vector<uint32_t> hist(kInteger ? (sizeof(T) == 1 ? 256 : 65536) : 0, 0);
   std::vector<float> d;
-  d.reserve(static_cast<size_t>(img.rows / 2 + 1) * img.cols);
-  for (int r = 0; r < img.rows; r += 2) {
+  size_t n = 0;
+  for (int r = 0; r < img.rows; r += 4) {
     const T* p = img.ptr<T>(r);
-    for (int c = 0; c + 1 < img.cols; c += 2) d.push_back(std::abs(static_cast<float>(p[c + 1]) - static_cast<float>(p[c])));
+    for (int c = 0; c + 1 < img.cols; c += 2, ++n) {
+      if constexpr (kInteger) {
+        ++hist[std::abs(static_cast<int>(p[c + 1]) - static_cast<int>(p[c]))];
+      } else {
+        d.push_back(std::abs(p[c + 1] - p[c]));
+      }
+    }
   }
-  if (d.empty()) return 0;
-  const size_t k = d.size() / 2;
-  std::nth_element(d.begin(), d.begin() + k, d.end());
-  return 1.4826 * d[k] / std::sqrt(2.0);
+  if (n == 0) return 0;
+  double mad = 0;
+  if constexpr (kInteger) {
+    size_t acc = 0;
+    for (size_t b = 0; b < hist.size(); ++b) {
+      acc += hist[b];
+      if (acc > (n - 1) / 2) {
+        mad = static_cast<double>(b);
+        break;
+      }
+    }
+  } else {
+    std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+    mad = d[d.size() / 2];
+  }
+  return 1.4826 * mad / std::sqrt(2.0);
 }
 
 // Robust statistics from every 2nd pixel of every 2nd row (a quarter of the image: enough samples, a quarter of
@@ -383,7 +405,9 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
   cv::compare(image, out.threshold_dn, full_mask, cv::CMP_GT);
   cv::Rect box = ForegroundBox(full_mask, options.window_margin_px + 1);
   if (box.empty()) return out;
-  if (options.local_background &&
+  // A background that is not uniform shows as a histogram wider than the pixel-to-pixel noise; only then is the
+  // local background worth its pass over the frame.
+  if (options.local_background && st.sigma > 1.5 * threshold_sigma &&
       ApplyLocalBackground(image, st.median, threshold_sigma, out.threshold_dn - st.median,
                            box & cv::Rect(0, 0, image.cols, image.rows), &full_mask)) {
     box = ForegroundBox(full_mask, options.window_margin_px + 1);

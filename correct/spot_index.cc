@@ -86,19 +86,34 @@ std::vector<Hypothesis> CoarseStart(const State& st, const Eigen::Vector2d& arou
   for (const int j : ids) reach = std::max(reach, st.tpl.spots[j].position_mm.norm());
   const double step = 0.25 * image_spacing, gate = 0.4 * image_spacing;
   const DistanceField field(st.det, around, radius + scale_hi * reach + gate, 0.08 * image_spacing);
-  std::vector<Hypothesis> all;
+  // Only the best kKept hypotheses matter (a true centre spawns a few dozen near-duplicates over neighbouring grid
+  // points and scales): a hypothesis stops adding spots once its sum passes the worst of those kept.
+  constexpr size_t kKept = 600;
+  const auto worse = [](const Hypothesis& a, const Hypothesis& b) { return a.score < b.score; };
+  std::vector<Hypothesis> all;  // a max-heap on score while it is full
+  all.reserve(kKept + 1);
+  std::vector<Eigen::Vector2d> offsets(ids.size());
   const int n = static_cast<int>(std::ceil(radius / step));
+  const double gate2 = gate * gate;
   for (double s = scale_lo; s <= scale_hi * 1.0001; s *= 1.05) {
+    for (size_t k = 0; k < ids.size(); ++k) offsets[k] = s * st.tpl.spots[ids[k]].position_mm;
     for (int iy = -n; iy <= n; ++iy) {
       for (int ix = -n; ix <= n; ++ix) {
         if (ix * ix + iy * iy > n * n) continue;
         const Eigen::Vector2d c = around + Eigen::Vector2d(ix * step, iy * step);
+        const double bound = all.size() == kKept ? all.front().score * gate2 : 1e300;
         double sum = 0;
-        for (const int j : ids) {
-          const double d = field.At(c + s * st.tpl.spots[j].position_mm, gate);
+        for (size_t k = 0; k < offsets.size() && sum < bound; ++k) {
+          const double d = field.At(c + offsets[k], gate);
           sum += d * d;
         }
-        all.push_back({c, s, sum / (gate * gate)});
+        if (sum >= bound) continue;
+        all.push_back({c, s, sum / gate2});
+        std::push_heap(all.begin(), all.end(), worse);
+        if (all.size() > kKept) {
+          std::pop_heap(all.begin(), all.end(), worse);
+          all.pop_back();
+        }
       }
     }
   }

@@ -77,13 +77,6 @@ DistanceField::DistanceField(const std::vector<Eigen::Vector2d>& points, const E
   cv::distanceTransform(seeds, dist_, cv::DIST_L2, cv::DIST_MASK_PRECISE);
 }
 
-double DistanceField::At(const Eigen::Vector2d& p, double cap) const {
-  const Eigen::Vector2d c = (p - origin_) / cell_;
-  if (!(c.x() >= 0 && c.y() >= 0 && c.x() < dist_.cols - 0.5 && c.y() < dist_.rows - 0.5)) return cap;
-  return std::min(cap, cell_ * dist_.at<float>(static_cast<int>(std::lround(c.y())),
-                                               static_cast<int>(std::lround(c.x()))));
-}
-
 double LocalAffine::MinScale() const { return Eigen::JacobiSVD<Eigen::Matrix2d>(linear).singularValues()(1); }
 
 namespace {

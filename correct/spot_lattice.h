@@ -58,7 +58,12 @@ class DistanceField {
   DistanceField(const std::vector<Eigen::Vector2d>& points, const Eigen::Vector2d& centre, double half_width,
                 double cell);
   // Distance from p to the nearest point, capped at `cap` (and `cap` outside the raster).
-  double At(const Eigen::Vector2d& p, double cap) const;
+  double At(const Eigen::Vector2d& p, double cap) const {
+    const double x = (p.x() - origin_.x()) / cell_ + 0.5, y = (p.y() - origin_.y()) / cell_ + 0.5;
+    if (!(x >= 0 && y >= 0 && x < dist_.cols && y < dist_.rows)) return cap;
+    const double d = cell_ * dist_.ptr<float>(static_cast<int>(y))[static_cast<int>(x)];
+    return d < cap ? d : cap;
+  }
 
  private:
   Eigen::Vector2d origin_;
