@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <tuple>
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -229,12 +230,14 @@ TEST_F(CorrectCli, ALidIsMeasuredOverWhatIsVisibleAndOneHidingTheSimKZoneIsRefus
   EXPECT_GT(identified, 350) << r.output;  // ~60 % of 624 visible below and above the lids
   EXPECT_LT(identified, 500);
   EXPECT_LE(j["capture"]["unidentified_blobs"].get<int>(), 4);
-  // The paper cornea (rx 8.35, kx -0.43) over what the lids leave: the clean-image limits 0.005 mm and 0.005.
+  // The paper cornea (rx 8.35, kx -0.43) over what the lids leave: the clean-image limits 0.005 mm and 0.005,
+  // and regression bounds near today's errors (rx +0.00034, ry +0.00024 mm; kx +0.00010, ky -0.00086).
   const auto& fit = j["surface_fit"];
-  EXPECT_NEAR(fit["rx_mm"].get<double>(), 8.35, 0.005);
-  EXPECT_NEAR(fit["ry_mm"].get<double>(), 7.63, 0.005);
-  EXPECT_NEAR(fit["kx"].get<double>(), -0.43, 0.005);
-  EXPECT_NEAR(fit["ky"].get<double>(), -0.25, 0.005);
+  for (const auto& [key, truth, limit, bound] : {std::tuple{"rx_mm", 8.35, 0.005, 0.001}, std::tuple{"ry_mm", 7.63, 0.005, 0.001},
+                                                 std::tuple{"kx", -0.43, 0.005, 0.002}, std::tuple{"ky", -0.25, 0.005, 0.002}}) {
+    EXPECT_NEAR(fit[key].get<double>(), truth, limit) << key;
+    EXPECT_NEAR(fit[key].get<double>(), truth, bound) << key;
+  }
   EXPECT_TRUE(j.contains("clinical"));
 
   r = RunTopocal(fmt::format("render-spots --config {} --camera {} --sigma 0 --upper-lid 0.45 --out {}", cfg,
