@@ -57,8 +57,7 @@ void Run(const DetectArgs& a) {
                       {"read_noise_dn", r.detection.read_noise_dn},
                       {"gain_e_per_dn", r.detection.gain_e_per_dn}};
   j["orientation"] = r.orientation.message;
-  j["refused_identities"] = capture.refused;
-  j["capture"] = capture.Line();
+  j["capture"] = CaptureJson(capture);
   util::WriteFileAtomic(a.out, correct::DetectedSpotsCsv(r));
   if (!a.json.empty()) util::WriteFileAtomic(a.json, j.dump(2) + "\n");
   fmt::print("detect ({}): {} spots indexed ({} flagged near a blob or at the border, left out of a measurement), "
@@ -70,6 +69,18 @@ void Run(const DetectArgs& a) {
 }
 
 }  // namespace
+
+nlohmann::json CaptureJson(const pipeline::CaptureQuality& q) {
+  return {{"designed", q.designed},
+          {"identified", q.identified},
+          {"usable", q.usable},
+          {"refused_identities", q.refused},
+          {"unidentified_blobs", q.unassigned},
+          {"visible_fraction", q.visible_fraction},
+          {"largest_gap_deg", q.largest_gap_deg},
+          {"gap_side", q.gap_side},
+          {"median_spot_area_px", q.median_spot_area_px}};
+}
 
 cv::Mat ReadSpotImage(const std::string& path, const model::TopographerCamera& camera, const std::string& camera_file) {
   cv::Mat image = imageio::ReadImage(path, imageio::Channels::kAsStored);

@@ -170,17 +170,6 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
   return m.spots;
 }
 
-nlohmann::json CaptureJson(const pipeline::CaptureQuality& q) {
-  return {{"designed", q.designed},
-          {"identified", q.identified},
-          {"usable", q.usable},
-          {"refused_identities", q.refused},
-          {"unidentified_blobs", q.unassigned},
-          {"visible_fraction", q.visible_fraction},
-          {"largest_gap_deg", q.largest_gap_deg},
-          {"gap_side", q.gap_side},
-          {"median_spot_area_px", q.median_spot_area_px}};
-}
 
 // A measurement the data cannot support: its reasons on stdout and in the JSON (marked invalid, no clinical
 // number), no maps, exit 4.
