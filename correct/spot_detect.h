@@ -5,9 +5,11 @@
 //  2. Global threshold  bg + max(threshold_sigmas * noise, threshold_fraction * (bright - bg)),  `bright` the
 //     99.99th percentile of the subsample (the spots' level); the second term keeps the threshold clear of the
 //     blur tails between neighbouring spots in low-noise images.
-//     Where the local background (the image's floor over 24 px windows) rises above the global one by more than
-//     4 noise sigmas — a lid's skin, its margin, a bright iris — a pixel must also clear that local background by
-//     the same margin (local_background; a uniform frame is thresholded exactly as before).
+//     The threshold's noise is the smaller of the histogram's MAD and the MAD of neighbouring-pixel differences
+//     (a skin over part of the frame widens the first). Where the histogram is wider than the pixel noise and the
+//     local background (the image's floor over 24 px windows) rises above the global one by more than 4 noise
+//     sigmas — a lid's skin, its margin, a bright iris — a pixel must also clear that local background by the same
+//     margin (local_background). noise_dn stays the histogram's MAD (the PSF fit's read noise when not given).
 //  3. Connected components (cv::connectedComponentsWithStats, 8-connected); components outside
 //     [min_area_px, max_area_px] are dropped and counted.
 //  4. Sub-pixel centre per component in a window = its bounding box grown by window_margin_px, ignoring the

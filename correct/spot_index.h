@@ -8,17 +8,22 @@
 // affine one: a lid hides a whole sector, a keratoconus cone or an ablation's blend zone bends the lattice far from
 // any low-order global map. Nothing here uses the spread or centroid of all detections.
 //
-//  1. Start: the pattern's centre and scale from its centre alone: the innermost rings (a hole ringed by eta0 spots,
-//     then eta0 + eta, ...) matched over a grid of centres and isotropic scales around the detections' median
-//     (coarse on rings 1-2, refined on rings 1-3), scored by truncated distances to the nearest detections. Then an
-//     affine map fitted to the matched inner spots and the inner rings assigned by mutual nearest neighbours.
-//  2. Growth: every designed spot next to identified ones is predicted by the local affine map of its identified
-//     neighbours (model distance-weighted, needing neighbours in both directions), and takes the nearest free
-//     detection within gate_fraction x the predicted local spacing only when unambiguous: no second detection and
-//     no other designed spot's prediction nearly as close (ambiguity_ratio). Rounds repeat until nothing is added.
+//  1. Start: the pattern's centre and scale from its centre alone. The image's spot spacing (median distance between
+//     neighbouring detections) gives the scale to within the spread of spacings; the innermost rings (a hole ringed
+//     by eta0 spots, then eta0 + eta, ...) are matched over a grid of centres around the detections' median and of
+//     isotropic scales about that one, scored on a distance field of the detections with truncated distances; the
+//     best dozen are refined to affine maps of rings 1-3 and ranked. Rings 1-3 are then assigned from the best by
+//     mutual nearest neighbours; the next candidate (up to five) is tried when its identities are not clean.
+//  2. Growth, best first: every designed spot next to identified ones is predicted by the local affine map of its
+//     identified neighbours (weighted by inverse squared distance, neighbours needed in both directions) and
+//     proposes the nearest free detection within gate_fraction x the predicted local spacing, ranked by its
+//     ambiguity (distance over the distance to the nearest alternative: a second detection, another designed
+//     spot's prediction); above ambiguity_ratio it is not proposed. The surest proposal is accepted first and its
+//     neighbours propose again with the new support.
 //  3. Check: each identity is predicted from its identified neighbours without it (leave-one-out local affine); one
 //     whose residual exceeds max(residual_gate_sigmas x the robust residual scale, residual_gate_floor_fraction x
-//     the local spacing) is dropped, worst first, and that pairing is not tried again. Growth and check alternate
+//     the local spacing; 0.6 x that floor at the lattice's edge) is dropped, worst first, and that pairing is not
+//     tried again. Growth and check alternate
 //     (final_passes). A ring slip (growth stepping over a compressed ring) is found by the detections it leaves
 //     without identity inside the identified lattice: identities with two such detections around them are refused.
 //     Last, identities outside the largest neighbour-connected set are dropped: nothing ties them to the centre.
@@ -45,7 +50,8 @@ struct IndexingOptions {
   double residual_gate_floor_fraction = 0.25;
   int final_passes = 4;  // growth + check rounds
   // The start's search: centres within this fraction of the design radius rhoN around the detections' median (a
-  // lid covering 40 % of the pattern moves the median by ~0.3 rhoN), isotropic scales in [min_scale, max_scale].
+  // lid covering 40 % of the pattern moves the median by ~0.3 rhoN); isotropic scales from 0.75 to 1.33 x the one
+  // the image's spot spacing implies, clamped to [min_scale, max_scale].
   double centre_search_fraction = 0.6;
   double min_scale = 0.7, max_scale = 1.45;
   bool IsValid(std::string* why) const;

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 #include <set>
 
 #include <fmt/format.h>
@@ -57,7 +56,7 @@ CaptureQuality AssessCapture(const correct::DetectAndIndexResult& located, const
     const double az = std::atan2(s.position_mm.y(), s.position_mm.x()) * 180.0 / M_PI;
     seen[static_cast<int>(std::floor(az + 360.0)) % 360] = true;
   }
-  // Bins narrower than the outer rings' spot spacing are empty between spots: a gap counts from 10 deg up.
+  // Bins narrower than the outer rings' spot spacing are empty between spots: a gap is reported from 30 deg up.
   int best_len = 0, best_start = 0;
   for (int start = 0; start < 360; ++start) {
     if (seen[start] || !seen[(start + 359) % 360]) continue;  // a run starts after a seen bin
