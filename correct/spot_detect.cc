@@ -286,7 +286,41 @@ struct Component {
   cv::Mat window;    // CV_8U mask over roi: the component grown by the margin
   DetectedSpot spot; // centroid, flux, peak, area, flags (box coordinates)
   std::vector<double> values;  // the component's own pixels above background (for the profile test)
+  std::vector<int> neighbours; // labels of the other components within near_blob_gap_px of the window
 };
+
+// Restricts comp's window to the pixels nearer to its own component than to any other. Close neighbours then share
+// the gap between them along the line of equal distance: each window holds its spot's light less the tail that
+// crosses the line, plus the neighbour's tail that crosses it the other way — for neighbours of like brightness and
+// size the mirror image of the first, so the two nearly cancel in the centre (docs/spot-noise.md has the figures).
+// A distance transform of the window's surroundings labels every pixel with its nearest component pixel
+// (cv::distanceTransform, DIST_LABEL_PIXEL); those labels are mapped back to the components'.
+void KeepNearestPixels(const cv::Mat& labels, int margin, Component* comp) {
+  const cv::Rect region = cv::Rect(comp->roi.x - margin, comp->roi.y - margin, comp->roi.width + 2 * margin,
+                                   comp->roi.height + 2 * margin) &
+                          cv::Rect(0, 0, labels.cols, labels.rows);
+  const cv::Mat lab = labels(region);
+  cv::Mat distance, nearest;
+  cv::distanceTransform(lab == 0, distance, nearest, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
+  std::vector<int> owner;  // OpenCV's label of a component pixel -> the component's label
+  for (int r = 0; r < lab.rows; ++r) {
+    const int* l = lab.ptr<int>(r);
+    const int* n = nearest.ptr<int>(r);
+    for (int c = 0; c < lab.cols; ++c) {
+      if (l[c] == 0) continue;
+      if (n[c] >= static_cast<int>(owner.size())) owner.resize(n[c] + 1, 0);
+      owner[n[c]] = l[c];
+    }
+  }
+  const int du = comp->roi.x - region.x, dv = comp->roi.y - region.y;
+  for (int r = 0; r < comp->window.rows; ++r) {
+    uint8_t* w = comp->window.ptr<uint8_t>(r);
+    const int* n = nearest.ptr<int>(r + dv) + du;
+    for (int c = 0; c < comp->window.cols; ++c) {
+      if (w[c] && (n[c] >= static_cast<int>(owner.size()) || owner[n[c]] != comp->label)) w[c] = 0;
+    }
+  }
+}
 
 // Is the spot's profile that of the PSF (a Gaussian) or flat-topped (the image of a screen disc several PSF widths
 // across)? A Gaussian of peak p covers 2 pi s^2 ln(p / L) pixels above level L, so the share of the thresholded
@@ -338,6 +372,30 @@ bool FitPsf(const cv::Mat& image_box, const cv::Mat& labels, const Component& co
   if (summary.status == decltype(solver)::HIT_MAX_ITERATIONS || !x.allFinite() || !(x[3] > 0.05)) return false;
   std::copy(x.data(), x.data() + 5, params);
   return true;
+}
+
+// kNearBlob on the spots whose window was split with a neighbour that is not a like spot: a blob left out (too
+// large: a lid margin, a lash's glint) or one whose light above background differs by more than a factor
+// kLikeFluxRatio from the spot's own (a glint, a spot cut by a lash). Between like spots the split leaves the
+// centre unbiased (KeepNearestPixels); next to an unlike blob it does not, and the spot is flagged.
+void FlagUnlikeNeighbours(int label_count, std::vector<Component>* comps) {
+  constexpr double kLikeFluxRatio = 2.0;
+  std::vector<double> core(label_count, -1.0);  // the component's own light above background; -1: not a spot
+  for (const auto& comp : *comps) {
+    double sum = 0;
+    for (double v : comp.values) sum += v;
+    core[comp.label] = sum;
+  }
+  for (auto& comp : *comps) {
+    const double own = core[comp.label];
+    for (int other : comp.neighbours) {
+      const double theirs = core[other];
+      if (!(theirs > 0) || !(own > 0) || theirs > kLikeFluxRatio * own || own > kLikeFluxRatio * theirs) {
+        comp.spot.flags |= kNearBlob;
+        break;
+      }
+    }
+  }
 }
 
 }  // namespace
@@ -451,18 +509,34 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
         bottom + box.y + m > image.rows - 1) {
       flags |= kTruncated;
     }
+    // The other components (of at least min_area_px) within the gap of the window: grow the component by
+    // margin + gap and look. The window then keeps only the pixels nearer to this spot than to them.
+    {
+      const int g = m + options.near_blob_gap_px;
+      const cv::Rect wide = cv::Rect(left - g, top - g, right - left + 1 + 2 * g, bottom - top + 1 + 2 * g) &
+                            cv::Rect(0, 0, labels.cols, labels.rows);
+      cv::Mat grown = labels(wide) == k;
+      if (g > 0) cv::dilate(grown, grown, Disc(g));
+      for (int r = 0; r < wide.height; ++r) {
+        const int* lab = labels.ptr<int>(r + wide.y) + wide.x;
+        const uint8_t* gr = grown.ptr<uint8_t>(r);
+        for (int c = 0; c < wide.width; ++c) {
+          if (gr[c] && lab[c] != 0 && lab[c] != k && stats.at<int>(lab[c], cv::CC_STAT_AREA) >= options.min_area_px &&
+              std::find(comp.neighbours.begin(), comp.neighbours.end(), lab[c]) == comp.neighbours.end()) {
+            comp.neighbours.push_back(lab[c]);
+          }
+        }
+      }
+      std::sort(comp.neighbours.begin(), comp.neighbours.end());
+      if (!comp.neighbours.empty()) KeepNearestPixels(labels, m, &comp);
+    }
     double sw = 0, su = 0, sv = 0, peak = 0;
-    bool crowded = false;
     std::vector<double>& values = comp.values;
     for (int r = r0; r <= r1; ++r) {
       const int* lab = labels.ptr<int>(r);
       const uint8_t* win = comp.window.ptr<uint8_t>(r - r0) - c0;
       for (int c = c0; c <= c1; ++c) {
-        if (!win[c]) continue;
-        if (lab[c] != 0 && lab[c] != k) {
-          crowded = true;
-          continue;
-        }
+        if (!win[c] || (lab[c] != 0 && lab[c] != k)) continue;
         const double value = At(image_box, r, c);
         if (Saturates(image_box, value)) flags |= kSaturated;
         const double w = value - bg;
@@ -474,25 +548,6 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
       }
     }
     if (!(sw > 0)) continue;
-    if (!crowded && options.near_blob_gap_px > 0) {
-      // Another blob's pixels within the gap of the window: grow the component by margin + gap and look.
-      const int g = m + options.near_blob_gap_px;
-      const cv::Rect wide = cv::Rect(left - g, top - g, right - left + 1 + 2 * g, bottom - top + 1 + 2 * g) &
-                            cv::Rect(0, 0, labels.cols, labels.rows);
-      cv::Mat grown = labels(wide) == k;
-      cv::dilate(grown, grown, Disc(g));
-      for (int r = 0; r < wide.height && !crowded; ++r) {
-        const int* lab = labels.ptr<int>(r + wide.y) + wide.x;
-        const uint8_t* gr = grown.ptr<uint8_t>(r);
-        for (int c = 0; c < wide.width; ++c) {
-          if (gr[c] && lab[c] != 0 && lab[c] != k && stats.at<int>(lab[c], cv::CC_STAT_AREA) >= options.min_area_px) {
-            crowded = true;
-            break;
-          }
-        }
-      }
-    }
-    if (crowded) flags |= kNearBlob;
     DetectedSpot& s = comp.spot;
     s.centre_px = {su / sw, sv / sw};
     s.flux_dn = sw;
@@ -501,6 +556,7 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
     s.flags = flags;
     comps.push_back(std::move(comp));
   }
+  FlagUnlikeNeighbours(n, &comps);
 
   if (options.method == CentroidMethod::kGaussianFit) {
     for (auto& comp : comps) {

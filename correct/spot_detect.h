@@ -27,9 +27,14 @@
 //       profile is flat-topped rather than PSF-like (the image of a screen disc several PSF widths across: more of
 //       the thresholded pixels above half the peak than a Gaussian has) keep their centroid, which is the better
 //       estimator there (docs/spot-noise.md has the measurements).
-//  5. Flags per spot (SpotFlag): kNearBlob when another blob's above-threshold pixels come within near_blob_gap_px
-//     of this spot's window (so that its tail light falls in it), kSaturated when a pixel of the window is at full scale, kTruncated when the window
-//     is cut by the image border.
+//     Close neighbours share the gap between them: where another component lies within near_blob_gap_px of the
+//     window, the window keeps only the pixels nearer to its own component (each spot's light less its tail across
+//     the line of equal distance, plus the neighbour's tail across it: mirror images for like spots). A sensor
+//     whose spots are 10 px apart (3 MP) measures every spot (docs/spot-noise.md, "Close neighbours").
+//  5. Flags per spot (SpotFlag): kNearBlob when such a neighbour is not a like spot — a blob left out as too large,
+//     or one whose light above background differs from the spot's by more than 2x (a glint, a spot cut by a lash) —
+//     so that its tail can pull the centre; kSaturated when a pixel of the window is at full scale, kTruncated when
+//     the window is cut by the image border.
 //  The centres are OpenCV pixel coordinates (centre of the top-left pixel = (0, 0)).
 #include <string>
 #include <vector>
@@ -45,7 +50,7 @@ CentroidMethod CentroidMethodFromName(const std::string& name);
 const char* CentroidMethodName(CentroidMethod method) noexcept;
 
 enum SpotFlag : unsigned {
-  kNearBlob = 1u,   // another blob's light reaches the spot's window (glint or neighbour): centre may be pulled
+  kNearBlob = 1u,   // an unlike blob's light reaches the spot's window (glint, lid margin): centre may be pulled
   kSaturated = 2u,  // a window pixel at full scale (left out by kWeightedPsfFit)
   kTruncated = 4u,  // the window is cut by the image border: centre biased towards the inside
 };
@@ -58,8 +63,8 @@ struct SpotDetectionOptions {
   // residuals against their model signal); read_noise_dn 0: the background's robust sigma.
   double gain_e_per_dn = 0;
   double read_noise_dn = 0;
-  // kNearBlob when another blob's pixels lie within near_blob_gap_px of this spot's window (the window is the spot
-  // grown by window_margin_px): its tail light then reaches the window.
+  // Another blob's pixels within near_blob_gap_px of this spot's window (the spot grown by window_margin_px): the
+  // two share the gap between them, and kNearBlob is set if the blob is not a like spot (step 5).
   int near_blob_gap_px = 1;
   double threshold_sigmas = 8.0;
   bool local_background = true;  // step 2's local background (skin, lid margin, iris)

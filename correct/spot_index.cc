@@ -184,6 +184,12 @@ int AssignMutualNearest(State& st, const std::vector<int>& ids, const LocalAffin
 // The start's candidates: the coarse hypotheses refined to affine maps of rings 1-3, best (lowest score) first.
 // Empty, with the reason, when the detections give no hypothesis.
 std::vector<LocalAffine> StartCandidates(const State& st, const IndexingOptions& o, double rho_n, std::string* why) {
+  const std::vector<int> inner = InnerSpots(st.tpl, 3);
+  if (st.det.size() < inner.size()) {
+    *why = fmt::format("{} detections, fewer than the {} spots of the pattern's three inner rings (merged or missing "
+                       "spots)", st.det.size(), inner.size());
+    return {};
+  }
   std::vector<double> xs, ys;
   for (const auto& p : st.det) {
     xs.push_back(p.x());
@@ -210,7 +216,6 @@ std::vector<LocalAffine> StartCandidates(const State& st, const IndexingOptions&
   const double scale = image_spacing / Median(nn_design);
   const auto coarse = CoarseStart(st, median, o.centre_search_fraction * rho_n, image_spacing,
                                   std::max(o.min_scale, 0.75 * scale), std::min(o.max_scale, 1.33 * scale));
-  const std::vector<int> inner = InnerSpots(st.tpl, 3);
   std::vector<std::pair<double, LocalAffine>> refined;
   for (const auto& h : coarse) {
     LocalAffine m;

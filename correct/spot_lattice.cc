@@ -65,8 +65,10 @@ DetectionGrid::DetectionGrid(const std::vector<Eigen::Vector2d>& points, double 
 
 DistanceField::DistanceField(const std::vector<Eigen::Vector2d>& points, const Eigen::Vector2d& centre,
                              double half_width, double cell)
-    : origin_(centre - Eigen::Vector2d::Constant(half_width)), cell_(cell) {
-  const int n = static_cast<int>(std::ceil(2 * half_width / cell)) + 1;
+    : origin_(centre - Eigen::Vector2d::Constant(half_width)),
+      // At most kMaxCells a side (16 MB): a few stray detections far apart must not ask for gigabytes.
+      cell_(std::max(cell, 2 * half_width / (kMaxCells - 1))) {
+  const int n = static_cast<int>(std::ceil(2 * half_width / cell_)) + 1;
   cv::Mat seeds(n, n, CV_8UC1, cv::Scalar(255));
   for (const auto& p : points) {
     const Eigen::Vector2d c = (p - origin_) / cell_;

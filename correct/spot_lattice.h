@@ -67,6 +67,7 @@ class DistanceField {
 
  private:
   Eigen::Vector2d origin_;
+  static constexpr double kMaxCells = 2048;
   double cell_;
   cv::Mat dist_;
 };

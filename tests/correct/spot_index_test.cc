@@ -112,5 +112,16 @@ TEST(SpotIndex, TooFewDetectionsIsReportedNotThrown) {
   EXPECT_EQ(idx.missing.size(), static_cast<size_t>(cfg.ideal_image.SpotCount()));
 }
 
+// A dozen blobs spread over the pattern (a sensor so coarse that the spots merge into a few large blobs) once made
+// the start's distance field ask OpenCV for 93 GB: refused with the reason, in bounded memory.
+TEST(SpotIndex, AFewMergedBlobsAreRefusedWithTheReason) {
+  const auto cfg = testing::PaperConfig();
+  std::vector<Eigen::Vector2d> blobs;
+  for (int k = 0; k < 12; ++k) blobs.push_back(0.02 * Eigen::Vector2d(std::cos(k * 0.52), std::sin(k * 0.52)) * (1 + k % 3));
+  const auto idx = IndexSpots(blobs, cfg.ideal_image);
+  EXPECT_FALSE(idx.ok);
+  EXPECT_NE(idx.message.find("12 detections, fewer than the 48 spots"), std::string::npos) << idx.message;
+}
+
 }  // namespace
 }  // namespace topocal::correct
