@@ -94,7 +94,146 @@ void AddSkin(const SpotRenderOptions& o, cv::Mat* acc) {
   }
 }
 
+// The pattern's centre and radius from the extent LidsOver measured.
+Eigen::Vector2d PatternCentre(const Lids& e) { return {e.u_mid_px, 0.5 * (e.v_top_px + e.v_bottom_px)}; }
+double PatternRadius(const Lids& e) { return 0.5 * (e.v_bottom_px - e.v_top_px); }
+
+// The iris behind the pattern (Artefacts): radial streaks (a random function of the angle) times a smooth radial
+// profile, plus grain; the pupil and the sclera beyond 1.3 radii left at the background.
+void AddIris(const SpotRenderOptions& o, cv::Mat* acc) {
+  std::mt19937 rng(o.seed ^ 0x1815u);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  constexpr int kStreaks = 240;
+  std::vector<double> streak(kStreaks);
+  for (auto& v : streak) v = normal(rng);
+  const cv::Mat grain = Texture(acc->cols, acc->rows, 4, &rng);
+  const Eigen::Vector2d c = PatternCentre(o.lids);
+  const double radius = PatternRadius(o.lids);
+  if (!(radius > 0)) return;
+  for (int v = 0; v < acc->rows; ++v) {
+    float* a = acc->ptr<float>(v);
+    const float* g = grain.ptr<float>(v);
+    for (int u = 0; u < acc->cols; ++u) {
+      const double rho = std::hypot(u - c.x(), v - c.y()) / radius;
+      if (rho < 0.3 || rho > 1.35) continue;
+      // Smooth edges over 0.05 radii at the pupil and at the limbus.
+      const double edge = std::clamp((rho - 0.3) / 0.05, 0.0, 1.0) * std::clamp((1.35 - rho) / 0.05, 0.0, 1.0);
+      const double t = (std::atan2(v - c.y(), u - c.x()) + M_PI) / (2 * M_PI) * kStreaks;
+      const int i = static_cast<int>(t) % kStreaks;
+      const double f = t - std::floor(t);
+      const double s = (1 - f) * streak[i] + f * streak[(i + 1) % kStreaks];
+      const double level = o.artefacts.iris_dn * (1.0 + 0.3 * s + 0.25 * g[u]);
+      a[u] += static_cast<float>(edge * std::max(0.0, level));
+    }
+  }
+}
+
+// The eye's movement during the exposure: `acc` convolved with a centred straight segment (64 sub-samples splatted
+// bilinearly into the kernel, normalised), so that a spot's centre does not move.
+void MotionBlur(const Artefacts& a, cv::Mat* acc) {
+  const double len = a.motion_blur_px;
+  const int half = static_cast<int>(std::ceil(0.5 * len)) + 1;
+  cv::Mat kernel(2 * half + 1, 2 * half + 1, CV_32FC1, cv::Scalar(0));
+  const Eigen::Vector2d dir(std::cos(a.motion_blur_deg * M_PI / 180), std::sin(a.motion_blur_deg * M_PI / 180));
+  constexpr int kSamples = 64;
+  for (int k = 0; k < kSamples; ++k) {
+    const Eigen::Vector2d p = Eigen::Vector2d::Constant(half) + ((k + 0.5) / kSamples - 0.5) * len * dir;
+    const int u = static_cast<int>(std::floor(p.x())), v = static_cast<int>(std::floor(p.y()));
+    const double fu = p.x() - u, fv = p.y() - v;
+    kernel.at<float>(v, u) += static_cast<float>((1 - fu) * (1 - fv));
+    kernel.at<float>(v, u + 1) += static_cast<float>(fu * (1 - fv));
+    kernel.at<float>(v + 1, u) += static_cast<float>((1 - fu) * fv);
+    kernel.at<float>(v + 1, u + 1) += static_cast<float>(fu * fv);
+  }
+  kernel /= cv::sum(kernel)[0];
+  cv::filter2D(*acc, *acc, -1, kernel, cv::Point(-1, -1), 0, cv::BORDER_CONSTANT);
+}
+
+// Lash shadows (Artefacts): curved bands from the upper lid's margin, drawn anti-aliased into a mask, softened, and
+// multiplied into the light.
+void ShadowLashes(const SpotRenderOptions& o, cv::Mat* acc) {
+  std::mt19937 rng(o.seed ^ 0x1a54u);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  const Lids& lids = o.lids;
+  const Eigen::Vector2d c = PatternCentre(lids);
+  const double radius = PatternRadius(lids);
+  if (!(radius > 0)) return;
+  cv::Mat mask(acc->rows, acc->cols, CV_8UC1, cv::Scalar(0));
+  double widest = 1;
+  for (int k = 0; k < o.artefacts.lashes; ++k) {
+    const double u_root = c.x() + (2 * uniform(rng) - 1) * 0.8 * radius;
+    double v_root = lids.v_top_px - 0.1 * radius;
+    if (lids.upper > 0) {  // the margin of Lids::Hides
+      const double h = lids.v_bottom_px - lids.v_top_px, du = (u_root - lids.u_mid_px) / h;
+      v_root = lids.v_top_px + lids.upper * h + 0.15 * h * du * du;
+    }
+    const double length = (0.35 + 0.35 * uniform(rng)) * radius;
+    const double angle = (2 * uniform(rng) - 1) * 25.0 * M_PI / 180;  // from straight down
+    const double bow = (2 * uniform(rng) - 1) * 0.25 * length;
+    const double width = (0.02 + 0.03 * uniform(rng)) * radius;
+    widest = std::max(widest, width);
+    const Eigen::Vector2d root(u_root, v_root), tip = root + length * Eigen::Vector2d(std::sin(angle), std::cos(angle));
+    const Eigen::Vector2d normal = Eigen::Vector2d(-(tip - root).y(), (tip - root).x()).normalized();
+    std::vector<cv::Point> line;
+    for (int i = 0; i <= 24; ++i) {
+      const double t = i / 24.0;
+      const Eigen::Vector2d p = (1 - t) * root + t * tip + 4 * t * (1 - t) * bow * normal;
+      line.emplace_back(static_cast<int>(std::lround(p.x())), static_cast<int>(std::lround(p.y())));
+    }
+    cv::polylines(mask, std::vector<std::vector<cv::Point>>{line}, false, cv::Scalar(255), std::max(1, static_cast<int>(std::lround(width))), cv::LINE_AA);
+  }
+  cv::Mat soft;
+  mask.convertTo(soft, CV_32FC1, 1.0 / 255.0);
+  cv::GaussianBlur(soft, soft, cv::Size(), 0.25 * widest);
+  const float dark = static_cast<float>(1.0 - o.artefacts.lash_transmission);
+  for (int v = 0; v < acc->rows; ++v) {
+    float* a = acc->ptr<float>(v);
+    const float* m = soft.ptr<float>(v);
+    for (int u = 0; u < acc->cols; ++u) a[u] *= 1.0f - dark * std::min(1.0f, m[u]);
+  }
+}
+
 }  // namespace
+
+std::vector<SpotToRender> GrowDefocus(const std::vector<SpotToRender>& spots, const Lids& extent, double centre_px,
+                                      double rim_px) {
+  std::vector<SpotToRender> out = spots;
+  const Eigen::Vector2d c = PatternCentre(extent);
+  const double radius = PatternRadius(extent);
+  if (!(radius > 0)) return out;
+  for (auto& s : out) {
+    if (s.id.ring == 0) continue;
+    s.psf_sigma_px = centre_px + (rim_px - centre_px) * (s.centre_px - c).norm() / radius;
+  }
+  return out;
+}
+
+std::vector<SpotToRender> BreakTearFilm(const std::vector<SpotToRender>& spots, const Lids& extent, int patches,
+                                        double psf_sigma_px, uint32_t seed) {
+  std::mt19937 rng(seed ^ 0x7ea5u);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  const Eigen::Vector2d c = PatternCentre(extent);
+  const double radius = PatternRadius(extent);
+  std::vector<std::pair<Eigen::Vector2d, double>> dry;
+  for (int k = 0; k < patches; ++k) {
+    const double rho = radius * std::sqrt(uniform(rng)), phi = 2 * M_PI * uniform(rng);
+    dry.emplace_back(c + rho * Eigen::Vector2d(std::cos(phi), std::sin(phi)), (0.05 + 0.07 * uniform(rng)) * radius);
+  }
+  std::vector<SpotToRender> out;
+  for (auto s : spots) {
+    const bool inside = s.id.ring != 0 && std::any_of(dry.begin(), dry.end(), [&](const auto& d) {
+                          return (s.centre_px - d.first).norm() < d.second;
+                        });
+    const double draw = uniform(rng);  // one draw per spot, inside or not: the rest of the pattern stays the same
+    if (inside && draw < 0.5) continue;
+    if (inside) {
+      s.psf_sigma_px = 2.5 * (s.psf_sigma_px > 0 ? s.psf_sigma_px : psf_sigma_px);
+      s.relative_brightness *= 0.5;
+    }
+    out.push_back(s);
+  }
+  return out;
+}
 
 bool SpotRenderOptions::IsValid(std::string* why) const {
   const auto fail = [why](std::string m) {
@@ -113,6 +252,14 @@ bool SpotRenderOptions::IsValid(std::string* why) const {
     return fail("the skin's level and texture must be >= 0 and the skin within the full scale");
   }
   if (!(lids.upper >= 0 && lids.upper < 1 && lids.lower >= 0 && lids.lower < 1)) return fail("lids must be in [0, 1)");
+  const Artefacts& a = artefacts;
+  if (a.lashes < 0 || !(a.lash_transmission >= 0 && a.lash_transmission <= 1)) {
+    return fail("lashes must be >= 0 and their transmission in [0, 1]");
+  }
+  if (!(a.iris_dn >= 0) || background_dn + 2 * a.iris_dn > full) return fail("the iris must be >= 0 and within the full scale");
+  if (!(a.motion_blur_px >= 0 && a.motion_blur_px <= 100) || !std::isfinite(a.motion_blur_deg)) {
+    return fail("motion blur must be 0-100 px at a finite angle");
+  }
   return true;
 }
 
@@ -130,6 +277,10 @@ cv::Mat RenderSpotImage(const std::vector<SpotToRender>& spots, int width_px, in
       AddEllipseSpot(s, sigma, peak, &acc);
     }
   }
+  const Artefacts& art = options.artefacts;
+  if (art.iris_dn > 0) AddIris(options, &acc);
+  if (art.motion_blur_px > 0) MotionBlur(art, &acc);
+  if (art.lashes > 0) ShadowLashes(options, &acc);
   if (options.lids.Any() && (options.skin_dn > 0 || options.skin_texture_dn > 0)) AddSkin(options, &acc);
   std::mt19937 rng(options.seed);
   std::normal_distribution<float> normal(0.f, 1.f);

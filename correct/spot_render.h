@@ -43,6 +43,21 @@ struct Lids {
   bool Any() const { return upper > 0 || lower > 0; }
 };
 
+// What a clinical capture adds over the pattern besides lids (capture issue, item 5), drawn by RenderSpotImage about
+// the pattern's extent in `lids` (LidsOver):
+//  * lashes: shadows hanging from the upper lid's margin (from just above the pattern without a lid), each a
+//    curved band 2-5 % of the pattern's radius wide and 35-70 % of it long, letting lash_transmission through;
+//  * iris: a textured annulus behind the pattern (0.35-1.3 pattern radii; radial streaks and grain, mean iris_dn
+//    above background, +-40 %), the pupil dark;
+//  * motion blur: the eye's movement during the exposure, a straight smear of motion_blur_px at motion_blur_deg
+//    (from the image's +u axis), centred, so that the spots' centres stay the truth's.
+struct Artefacts {
+  int lashes = 0;
+  double lash_transmission = 0.25;
+  double iris_dn = 0;
+  double motion_blur_px = 0, motion_blur_deg = 0;
+  bool Any() const { return lashes > 0 || iris_dn > 0 || motion_blur_px > 0; }
+};
 
 struct SpotRenderOptions {
   SpotShape shape = SpotShape::kEllipse;
@@ -57,6 +72,7 @@ struct SpotRenderOptions {
   // margin's shading make it.
   Lids lids;
   double skin_dn = 0, skin_texture_dn = 0;
+  Artefacts artefacts;
   uint32_t seed = 1;
   bool IsValid(std::string* why) const;
 };
@@ -71,6 +87,18 @@ cv::Mat RenderSpotImage(const std::vector<SpotToRender>& spots, int width_px, in
 // spot centre (a glint on top of a spot would be one merged blob, which no detector can undo).
 std::vector<SpotToRender> DropAndAddGlints(const std::vector<SpotToRender>& spots, double drop_fraction,
                                            int glint_count, double min_glint_distance_px, uint32_t seed);
+
+// Defocus that grows towards the rim (a cornea's periphery lies off the camera's focal surface): each spot's PSF
+// sigma runs linearly with its distance from the pattern's centre (lids' u_mid, mid-height) from `centre_px` there
+// to `rim_px` at the pattern's radius (half its height), and beyond.
+std::vector<SpotToRender> GrowDefocus(const std::vector<SpotToRender>& spots, const Lids& extent, double centre_px,
+                                      double rim_px);
+
+// Tear-film break-up: `patches` dry patches (radius 5-12 % of the pattern's radius) at random places within the
+// pattern, seeded. A spot inside a patch is lost (probability 1/2) or smeared: its PSF 2.5x wider, half as bright.
+// Glints are left as they are.
+std::vector<SpotToRender> BreakTearFilm(const std::vector<SpotToRender>& spots, const Lids& extent, int patches,
+                                        double psf_sigma_px, uint32_t seed);
 
 Lids LidsOver(const std::vector<SpotToRender>& spots, double upper, double lower);
 // The spots (and glints) the lids leave visible.

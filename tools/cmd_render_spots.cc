@@ -24,7 +24,8 @@ struct RenderSpotsArgs {
   double sigma = 0, psf_px = 1.0, drop = 0, sphere_radius_mm = 0, upper_lid = 0, lower_lid = 0;
   std::vector<double> ball_at_mm;  // vertex of the reference ball (x, y, z)
   double background = NAN, peak = NAN, noise = NAN, gain = NAN, skin = 0;
-  int bits = 16, glints = 0;
+  double iris = 0, defocus_rim_px = 0, motion_blur_px = 0, motion_blur_deg = 0;
+  int bits = 16, glints = 0, lashes = 0, tear_film = 0;
   uint32_t seed = 1;
 };
 
@@ -87,9 +88,15 @@ void Run(const RenderSpotsArgs& a) {
   o.lids = correct::LidsOver(truth.spots, a.upper_lid, a.lower_lid);
   o.skin_dn = a.skin;
   o.skin_texture_dn = 0.25 * o.skin_dn;
+  o.artefacts.lashes = a.lashes;
+  o.artefacts.iris_dn = a.iris;
+  o.artefacts.motion_blur_px = a.motion_blur_px;
+  o.artefacts.motion_blur_deg = a.motion_blur_deg;
   if (!o.IsValid(&why)) throw util::InputError("render-spots: " + why);
-  const auto spots =
-      correct::HideUnderLids(correct::DropAndAddGlints(truth.spots, a.drop, a.glints, clearance, a.seed + 1), o.lids);
+  auto spots = correct::DropAndAddGlints(truth.spots, a.drop, a.glints, clearance, a.seed + 1);
+  if (a.defocus_rim_px > 0) spots = correct::GrowDefocus(spots, o.lids, a.psf_px, a.defocus_rim_px);
+  if (a.tear_film > 0) spots = correct::BreakTearFilm(spots, o.lids, a.tear_film, a.psf_px, a.seed + 2);
+  spots = correct::HideUnderLids(spots, o.lids);
   int off_sensor = 0;
   for (const auto& s : spots) off_sensor += !camera.OnSensor(s.centre_px);
   if (off_sensor > 0) fmt::print(stderr, "topocal render-spots: {} spots fall off the sensor\n", off_sensor);
@@ -139,6 +146,18 @@ void AddRenderSpotsCommand(CLI::App& app) {
                   "Fraction of the pattern's height an upper lid hides, [0, 1) (its spots left out)");
   cmd->add_option("--lower-lid", a->lower_lid, "Fraction of the pattern's height a lower lid hides, [0, 1)");
   cmd->add_option("--lid-skin", a->skin, "The lids' skin: level above the background, DN, textured +-25 % (0: not drawn)");
+  cmd->add_option("--lashes", a->lashes, "Lash shadows hanging from the upper lid's margin, count")
+      ->check(CLI::Range(0, 50));
+  cmd->add_option("--iris", a->iris, "Textured iris behind the pattern: mean level above the background, DN (0: none)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--defocus-rim-px", a->defocus_rim_px,
+                  "Defocus growing towards the rim: PSF sigma at the pattern's radius, px (--psf-px at its centre)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--motion-blur-px", a->motion_blur_px, "The eye's movement during the exposure: smear length, px")
+      ->check(CLI::Range(0.0, 100.0));
+  cmd->add_option("--motion-blur-deg", a->motion_blur_deg, "Direction of the smear from the image's +u axis, degrees");
+  cmd->add_option("--tear-film", a->tear_film, "Tear-film break-up: dry patches (spots in them lost or smeared), count")
+      ->check(CLI::Range(0, 50));
   cmd->callback([a] { Run(*a); });
 }
 
