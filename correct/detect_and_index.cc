@@ -1,6 +1,7 @@
 #include "correct/detect_and_index.h"
 
 #include <algorithm>
+#include <map>
 #include <set>
 
 #include <Eigen/LU>
@@ -96,6 +97,31 @@ OrientationCheck CheckOrientation(const std::set<model::SpotId>& taken, const mo
   return out;
 }
 
+// kFluxOutlier (DetectAndIndexOptions): the spot's light against the median of its identified ring neighbours
+// (indices +-1, +-2, cyclic). Like spots on a ring carry like light — their images change size slowly along it —
+// so a spot that lost part of its light to a lash's shadow, the lid margin or a dry patch, or gained a glint's, shows
+// as an outlier, and its centre is pulled by what was lost or added.
+void FlagFluxOutliers(const model::IdealImageParams& ideal, const SpotIndexing& idx, const DetectAndIndexOptions& o,
+                      SpotDetection* detection) {
+  std::map<model::SpotId, double> flux;
+  for (const auto& s : idx.spots) flux[s.id] = detection->spots[s.detection].flux_dn;
+  for (const auto& s : idx.spots) {
+    const int on_ring = ideal.eta0 + ideal.eta * (s.id.ring - 1);
+    if (on_ring <= 0) continue;
+    std::vector<double> around;
+    for (const int step : {-2, -1, 1, 2}) {
+      const auto it = flux.find(model::SpotId{s.id.ring, ((s.id.index + step) % on_ring + on_ring) % on_ring});
+      if (it != flux.end() && it->first != s.id) around.push_back(it->second);
+    }
+    if (around.size() < 3) continue;
+    std::sort(around.begin(), around.end());
+    const double median = around.size() % 2 ? around[around.size() / 2]
+                                             : 0.5 * (around[around.size() / 2 - 1] + around[around.size() / 2]);
+    const double own = flux[s.id];
+    if (own < o.flux_low * median || own > o.flux_high * median) detection->spots[s.detection].flags |= kFluxOutlier;
+  }
+}
+
 }  // namespace
 
 DetectAndIndexResult DetectAndIndexSpots(const cv::Mat& image, const model::TopographerCamera& camera,
@@ -106,6 +132,7 @@ DetectAndIndexResult DetectAndIndexSpots(const cv::Mat& image, const model::Topo
   mm.reserve(out.detection.spots.size());
   for (const auto& s : out.detection.spots) mm.push_back(camera.DetectionPlaneFromPixel(s.centre_px));
   const SpotIndexing idx = IndexSpots(mm, ideal, options.indexing);
+  FlagFluxOutliers(ideal, idx, options, &out.detection);
   std::set<model::SpotId> taken;
   for (const auto& s : idx.spots) {
     const auto& d = out.detection.spots[s.detection];

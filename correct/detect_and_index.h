@@ -39,7 +39,10 @@ struct LocatedSpot {
 struct DetectAndIndexOptions {
   SpotDetectionOptions detection;
   IndexingOptions indexing;
-  unsigned exclude_flags = kNearBlob | kTruncated;
+  unsigned exclude_flags = kNearBlob | kTruncated | kFluxOutlier | kUnevenBackground;
+  // kFluxOutlier when a spot's light (flux_dn) is below flux_low or above flux_high times the median of its
+  // identified neighbours on the same ring (two on either side; at least three needed to judge).
+  double flux_low = 0.8, flux_high = 1.5;
 };
 
 struct OrientationCheck {

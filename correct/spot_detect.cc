@@ -374,6 +374,157 @@ bool FitPsf(const cv::Mat& image_box, const cv::Mat& labels, const Component& co
   return true;
 }
 
+// Splits the components that hold several spots merged above the threshold (defocus, a small sensor, a glint on a
+// spot's flank): the component is thresholded again at rising levels, up to 5/7 of the way from the threshold to its
+// peak; at the first level where it falls into two or more pieces of at least a tenth of its area (and min_area_px),
+// the pieces become the spots' cores and the rest of the component goes to the nearest core (distance-transform
+// labels, as KeepNearestPixels); each piece is examined again. A flat-topped spot's plateau lies above the highest level, so its noise cannot split
+// it; two spots split when the saddle between them is below ~75 % of their level. The new components are appended
+// to `labels` and `stats`.
+void DeblendMerged(const cv::Mat& image_box, double threshold_dn, double noise_dn, const SpotDetectionOptions& options,
+                   cv::Mat* labels, cv::Mat* stats) {
+  constexpr int kLevels = 7, kHighestLevel = 5;
+  constexpr double kCoreRiseNoiseSigmas = 6.0, kCoreRiseShare = 0.15;
+  constexpr int kMaxMergedSpots = 20;  // a whole defocused ring can merge: up to 20 spots' largest area
+  // The pieces are examined again in turn (a defocused ring first splits into chains of spots): every split shrinks
+  // the components, so the loop ends.
+  for (int k = 1; k < stats->rows; ++k) {
+    const int area = stats->at<int>(k, cv::CC_STAT_AREA);
+    if (area < 4 * options.min_area_px || area > kMaxMergedSpots * options.max_area_px) continue;
+    const cv::Rect rect(stats->at<int>(k, cv::CC_STAT_LEFT), stats->at<int>(k, cv::CC_STAT_TOP),
+                        stats->at<int>(k, cv::CC_STAT_WIDTH), stats->at<int>(k, cv::CC_STAT_HEIGHT));
+    const cv::Mat own = (*labels)(rect) == k;
+    cv::Mat values;
+    image_box(rect).convertTo(values, CV_32F);
+    double peak = 0;
+    cv::minMaxLoc(values, nullptr, &peak, nullptr, nullptr, own);
+    for (int j = 1; j <= kHighestLevel; ++j) {
+      const double level = threshold_dn + (peak - threshold_dn) * j / kLevels;
+      cv::Mat above = (values > level) & own;
+      cv::Mat pieces, piece_stats, piece_centres;
+      const int count = cv::connectedComponentsWithStats(above, pieces, piece_stats, piece_centres, 8, CV_32S);
+      int largest = 0;
+      for (int p = 1; p < count; ++p) largest = std::max(largest, piece_stats.at<int>(p, cv::CC_STAT_AREA));
+      // Each piece's peak above the level: a core must rise clear of the saddle, not by a noise ripple.
+      std::vector<double> rise(count, 0.0);
+      for (int r = 0; r < rect.height; ++r) {
+        const int* pc = pieces.ptr<int>(r);
+        const float* v = values.ptr<float>(r);
+        for (int c = 0; c < rect.width; ++c) {
+          if (pc[c] > 0) rise[pc[c]] = std::max(rise[pc[c]], v[c] - level);
+        }
+      }
+      const double clear = std::max(kCoreRiseNoiseSigmas * noise_dn, kCoreRiseShare * (peak - threshold_dn));
+      std::vector<int> cores;
+      for (int p = 1; p < count; ++p) {
+        const int a = piece_stats.at<int>(p, cv::CC_STAT_AREA);
+        if (a >= options.min_area_px && 5 * a >= largest && rise[p] >= clear) cores.push_back(p);
+      }
+      if (cores.size() < 2) continue;
+      // Core p keeps label k (the first) or takes a new one; the other pixels go to the nearest core.
+      std::vector<int> core_label(count, 0);
+      for (size_t i = 0; i < cores.size(); ++i) core_label[cores[i]] = i == 0 ? k : stats->rows + static_cast<int>(i) - 1;
+      cv::Mat not_core(rect.size(), CV_8UC1, cv::Scalar(255));
+      for (int r = 0; r < rect.height; ++r) {
+        for (int c = 0; c < rect.width; ++c) {
+          if (core_label[pieces.at<int>(r, c)] != 0) not_core.at<uint8_t>(r, c) = 0;
+        }
+      }
+      cv::Mat distance, nearest;
+      cv::distanceTransform(not_core, distance, nearest, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
+      std::vector<int> owner;
+      for (int r = 0; r < rect.height; ++r) {
+        for (int c = 0; c < rect.width; ++c) {
+          const int l = core_label[pieces.at<int>(r, c)];
+          if (l == 0) continue;
+          const int idx = nearest.at<int>(r, c);
+          if (idx >= static_cast<int>(owner.size())) owner.resize(idx + 1, 0);
+          owner[idx] = l;
+        }
+      }
+      std::vector<cv::Rect> boxes(cores.size() + 1);
+      std::vector<int> areas(cores.size() + 1, 0);
+      const int first_new = stats->rows;
+      for (int r = 0; r < rect.height; ++r) {
+        int* lab = labels->ptr<int>(r + rect.y) + rect.x;
+        for (int c = 0; c < rect.width; ++c) {
+          if (lab[c] != k) continue;
+          const int idx = nearest.at<int>(r, c);
+          const int l = idx < static_cast<int>(owner.size()) && owner[idx] != 0 ? owner[idx] : k;
+          lab[c] = l;
+          const size_t slot = l == k ? 0 : static_cast<size_t>(l - first_new + 1);
+          boxes[slot] |= cv::Rect(c + rect.x, r + rect.y, 1, 1);
+          ++areas[slot];
+        }
+      }
+      for (size_t slot = 0; slot < boxes.size(); ++slot) {
+        const cv::Mat row = (cv::Mat_<int>(1, 5) << boxes[slot].x, boxes[slot].y, boxes[slot].width,
+                             boxes[slot].height, areas[slot]);
+        if (slot == 0) {
+          row.copyTo(stats->row(k));
+        } else {
+          stats->push_back(row);
+        }
+      }
+      --k;  // this component again, now one piece
+      break;
+    }
+  }
+}
+
+// A window's own background: a plane fitted by least squares to the window's outer edge (its pixels 3 px beyond the
+// spot's threshold contour, less those on a line shared with a neighbour and those of other blobs). An iris, a
+// skin's level or a slope under the spot then leaves the centroid (a constant or a plane subtracted from a window
+// about the spot moves its centroid only by what the plane misses). residual_dn: the edge pixels' rms about the
+// plane — the background's structure that no plane describes (a lid margin, a lash's edge, a neighbour's light).
+// Fewer than 8 edge pixels: the global background, residual 0.
+struct LocalBackground {
+  double b0 = 0, bu = 0, bv = 0, u0 = 0, v0 = 0;
+  double residual_dn = 0;
+  double At(double u, double v) const { return b0 + bu * (u - u0) + bv * (v - v0); }
+};
+
+constexpr double kUnevenPeakShare = 0.03, kUnevenNoiseSigmas = 6.0;
+constexpr double kOwnBackgroundSigmas = 4.0, kOwnBackgroundPeakShare = 0.05;
+
+LocalBackground WindowBackground(const cv::Mat& image_box, const cv::Mat& labels, const Component& comp,
+                                 const cv::Mat& uncut, double bg) {
+  LocalBackground out;
+  out.b0 = bg;
+  cv::Mat inner;
+  cv::erode(uncut, inner, cv::Mat::ones(3, 3, CV_8U), cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+  const cv::Mat edge = uncut & ~inner & comp.window;
+  std::vector<Eigen::Vector3d> px;  // u, v, value
+  for (int r = 0; r < edge.rows; ++r) {
+    const uint8_t* e = edge.ptr<uint8_t>(r);
+    const int* lab = labels.ptr<int>(r + comp.roi.y) + comp.roi.x;
+    for (int c = 0; c < edge.cols; ++c) {
+      if (e[c] && lab[c] == 0) {
+        px.emplace_back(c + comp.roi.x, r + comp.roi.y, At(image_box, r + comp.roi.y, c + comp.roi.x));
+      }
+    }
+  }
+  if (px.size() < 8) return out;
+  out.u0 = comp.roi.x + 0.5 * (comp.roi.width - 1);
+  out.v0 = comp.roi.y + 0.5 * (comp.roi.height - 1);
+  Eigen::Matrix3d n = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  for (const auto& p : px) {
+    const Eigen::Vector3d a(1.0, p.x() - out.u0, p.y() - out.v0);
+    n += a * a.transpose();
+    b += a * p.z();
+  }
+  const Eigen::Vector3d x = n.ldlt().solve(b);
+  if (!x.allFinite()) return out;
+  out.b0 = x(0);
+  out.bu = x(1);
+  out.bv = x(2);
+  double ss = 0;
+  for (const auto& p : px) ss += std::pow(p.z() - out.At(p.x(), p.y()), 2);
+  out.residual_dn = std::sqrt(ss / px.size());
+  return out;
+}
+
 // kNearBlob on the spots whose window was split with a neighbour that is not a like spot: a blob left out (too
 // large: a lid margin, a lash's glint) or one whose light above background differs by more than a factor
 // kLikeFluxRatio from the spot's own (a glint, a spot cut by a lash). Between like spots the split leaves the
@@ -422,6 +573,8 @@ std::string SpotFlagsText(unsigned flags) {
   if (flags & kNearBlob) add("near_blob");
   if (flags & kSaturated) add("saturated");
   if (flags & kTruncated) add("truncated");
+  if (flags & kFluxOutlier) add("flux_outlier");
+  if (flags & kUnevenBackground) add("uneven_background");
   return out;
 }
 
@@ -464,8 +617,10 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
   cv::Rect box = ForegroundBox(full_mask, options.window_margin_px + 1);
   if (box.empty()) return out;
   // A background that is not uniform shows as a histogram wider than the pixel-to-pixel noise; only then is the
-  // local background worth its pass over the frame.
-  if (options.local_background && st.sigma > 1.5 * threshold_sigma &&
+  // local background worth its pass over the frame, and each window's own background subtracted in the centroid
+  // (on a uniform frame its estimate would only add noise).
+  const bool uneven_frame = st.sigma > 1.5 * threshold_sigma;
+  if (options.local_background && uneven_frame &&
       ApplyLocalBackground(image, st.median, threshold_sigma, out.threshold_dn - st.median,
                            box & cv::Rect(0, 0, image.cols, image.rows), &full_mask)) {
     box = ForegroundBox(full_mask, options.window_margin_px + 1);
@@ -474,8 +629,10 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
   // From here on everything is in the box's coordinates; centres are shifted back at the end.
   const cv::Mat image_box = image(box);
   cv::Mat labels, stats, centroids;
-  const int n = cv::connectedComponentsWithStats(full_mask(box), labels, stats, centroids, 8, CV_32S);
+  cv::connectedComponentsWithStats(full_mask(box), labels, stats, centroids, 8, CV_32S);
   const double bg = out.background_dn;
+  DeblendMerged(image_box, out.threshold_dn, threshold_sigma, options, &labels, &stats);
+  const int n = stats.rows;
   const int m = options.window_margin_px;
   std::vector<Component> comps;
   comps.reserve(n);
@@ -528,9 +685,10 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
         }
       }
       std::sort(comp.neighbours.begin(), comp.neighbours.end());
-      if (!comp.neighbours.empty()) KeepNearestPixels(labels, m, &comp);
     }
-    double sw = 0, su = 0, sv = 0, peak = 0;
+    const cv::Mat uncut = comp.window.clone();
+    if (!comp.neighbours.empty()) KeepNearestPixels(labels, m, &comp);
+    double peak = 0;
     std::vector<double>& values = comp.values;
     for (int r = r0; r <= r1; ++r) {
       const int* lab = labels.ptr<int>(r);
@@ -540,17 +698,39 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
         const double value = At(image_box, r, c);
         if (Saturates(image_box, value)) flags |= kSaturated;
         const double w = value - bg;
-        sw += w;
-        su += w * c;
-        sv += w * r;
         peak = std::max(peak, w);
         if (lab[c] == k) values.push_back(w);
       }
     }
-    if (!(sw > 0)) continue;
+    const LocalBackground local = WindowBackground(image_box, labels, comp, uncut, bg);
+    // The window's own background where its level departs from the global one by more than the spot's own tails
+    // can lift the window's edge (kOwnBackgroundPeakShare of its peak: 0.7 % at the edge of a spot blurred by 2 px)
+    // and by more than kOwnBackgroundSigmas pixel noise sigmas — an iris, skin — or where the whole frame's
+    // background is uneven. Elsewhere the edge is the spot's own tail, and a plane fitted to it would bias the
+    // centroid (measured: 4x the error on 2 px PSF spots).
+    const bool own_background = uneven_frame || std::abs(local.b0 - bg) > std::max(kOwnBackgroundSigmas * threshold_sigma,
+                                                                                  kOwnBackgroundPeakShare * peak);
+    if (local.residual_dn > kUnevenPeakShare * peak + kUnevenNoiseSigmas * threshold_sigma) flags |= kUnevenBackground;
+    // The centroid above the window's own background (or the global one); the flux above the global background
+    // (the PSF fit's scale, which fits its own background level).
+    double sw = 0, su = 0, sv = 0, flux = 0;
+    for (int r = r0; r <= r1; ++r) {
+      const int* lab = labels.ptr<int>(r);
+      const uint8_t* win = comp.window.ptr<uint8_t>(r - r0) - c0;
+      for (int c = c0; c <= c1; ++c) {
+        if (!win[c] || (lab[c] != 0 && lab[c] != k)) continue;
+        const double value = At(image_box, r, c);
+        const double w = value - (own_background ? local.At(c, r) : bg);
+        flux += value - bg;
+        sw += w;
+        su += w * c;
+        sv += w * r;
+      }
+    }
+    if (!(sw > 0) || !(flux > 0)) continue;
     DetectedSpot& s = comp.spot;
     s.centre_px = {su / sw, sv / sw};
-    s.flux_dn = sw;
+    s.flux_dn = flux;
     s.peak_dn = peak;
     s.area_px = area;
     s.flags = flags;

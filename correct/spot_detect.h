@@ -53,8 +53,13 @@ enum SpotFlag : unsigned {
   kNearBlob = 1u,   // an unlike blob's light reaches the spot's window (glint, lid margin): centre may be pulled
   kSaturated = 2u,  // a window pixel at full scale (left out by kWeightedPsfFit)
   kTruncated = 4u,  // the window is cut by the image border: centre biased towards the inside
+  kFluxOutlier = 8u,  // its light differs from its ring neighbours' (a lash's shadow, the lid margin, a dry patch of
+                      // tear film, a merged glint): part of the spot is lost or added, the centre pulled
+                      // (set by DetectAndIndexSpots, which knows the neighbours)
+  kUnevenBackground = 16u,  // the background about the spot is not a plane (a lid margin, a lash's edge): the
+                            // centre may be pulled
 };
-// "near_blob|saturated|truncated" (empty for 0).
+// "near_blob|saturated|truncated|flux_outlier|uneven_background" (empty for 0).
 std::string SpotFlagsText(unsigned flags);
 
 struct SpotDetectionOptions {
