@@ -76,6 +76,72 @@ CaptureQuality AssessCapture(const correct::DetectAndIndexResult& located, const
   return q;
 }
 
+namespace {
+
+// The spots whose slope residual stands out of their neighbours' (RejectSurfaceOutliers); empty when none does or
+// too many do. A shape the surface model smooths over leaves residuals that neighbouring spots share; a centre a
+// lash pulled, or a wrong identity, leaves one of its own. So each residual is compared with the component-wise
+// median of its kNeighbours nearest spots' residuals.
+std::set<model::SpotId> SlopeOutliers(const topo::Reconstruction& r) {
+  constexpr size_t kNeighbours = 6;
+  const size_t n = r.points.size();
+  if (n < 20) return {};
+  std::vector<Eigen::Vector2d> residual(n), xy(n);
+  for (size_t i = 0; i < n; ++i) {
+    const auto& p = r.points[i];
+    model::SurfaceDerivatives d;
+    r.Derivatives(p.point_mm.x(), p.point_mm.y(), &d);
+    residual[i] = Eigen::Vector2d(-p.normal.x() / p.normal.z(), -p.normal.y() / p.normal.z()) -
+                  Eigen::Vector2d(d.zx, d.zy);
+    xy[i] = p.point_mm.head<2>();
+  }
+  std::vector<double> departure(n);
+  std::vector<std::pair<double, size_t>> near;
+  std::vector<double> cx, cy;
+  for (size_t i = 0; i < n; ++i) {
+    near.clear();
+    for (size_t j = 0; j < n; ++j) {
+      if (j != i) near.emplace_back((xy[j] - xy[i]).squaredNorm(), j);
+    }
+    std::partial_sort(near.begin(), near.begin() + kNeighbours, near.end());
+    cx.clear();
+    cy.clear();
+    for (size_t k = 0; k < kNeighbours; ++k) {
+      cx.push_back(residual[near[k].second].x());
+      cy.push_back(residual[near[k].second].y());
+    }
+    departure[i] = (residual[i] - Eigen::Vector2d(Median(cx), Median(cy))).norm();
+  }
+  // The magnitude of a 2-D Gaussian departure of sd s per component has median 1.1774 s.
+  const double scale = std::max(Median(departure) / 1.1774, r.expected_slope_noise);
+  if (!(scale > 0)) return {};
+  std::set<model::SpotId> out;
+  for (size_t i = 0; i < n; ++i) {
+    if (departure[i] > kSurfaceOutlierSigmas * scale) out.insert(r.points[i].id);
+  }
+  if (out.size() > kMaxSurfaceOutlierShare * n) return {};
+  return out;
+}
+
+}  // namespace
+
+topo::Analysis RejectSurfaceOutliers(
+    std::vector<topo::MeasuredSpot> spots,
+    const std::function<topo::Analysis(const std::vector<topo::MeasuredSpot>&)>& analyze, CaptureQuality* capture) {
+  topo::Analysis analysis = analyze(spots);
+  for (int pass = 0; pass < kSurfaceOutlierPasses && analysis.reconstruction.ok; ++pass) {
+    const auto outliers = SlopeOutliers(analysis.reconstruction);
+    if (outliers.empty()) break;
+    std::erase_if(spots, [&](const topo::MeasuredSpot& s) { return outliers.count(s.id) > 0; });
+    if (capture) {
+      capture->surface_outliers += static_cast<int>(outliers.size());
+      capture->usable -= static_cast<int>(outliers.size());
+    }
+    analysis = analyze(spots);
+  }
+  return analysis;
+}
+
 std::string CaptureQuality::Line() const {
   std::string gap = largest_gap_deg >= 30
                         ? fmt::format("outer rings missing over {:.0f} deg{}", largest_gap_deg,
@@ -83,8 +149,9 @@ std::string CaptureQuality::Line() const {
                                                                             (gap_side == "top" ? " (upper lid?)" : ""))
                         : std::string("no sector missing");
   return fmt::format("capture: {} of {} spots identified ({:.0f} % visible), {} usable; {}; {} unidentified blobs "
-                     "(glints, lashes, skin); {} identities refused as ambiguous; median spot area {:.0f} px",
-                     identified, designed, 100 * visible_fraction, usable, gap, unassigned, refused,
+                     "(glints, lashes, skin); {} identities refused as ambiguous; {} spots rejected by the "
+                     "reconstructed surface; median spot area {:.0f} px",
+                     identified, designed, 100 * visible_fraction, usable, gap, unassigned, refused, surface_outliers,
                      median_spot_area_px);
 }
 

@@ -2,6 +2,7 @@
 // What a capture shows and whether it can support a measurement: the capture-quality line printed with every
 // measurement from an image, and the verdict that refuses one the data cannot support (wrong is worse than absent:
 // a refused measurement prints its reasons and no clinical number).
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,9 @@ struct CaptureQuality {
   double largest_gap_deg = 0;
   std::string gap_side;
   double median_spot_area_px = 0;  // of the identified spots: grows with defocus and motion blur
+  // Usable spots the reconstructed surface rejected (RejectSurfaceOutliers): their slope residual stands out of
+  // the others' — a centre pulled by a lash's shadow or the lid margin, or a wrong identity.
+  int surface_outliers = 0;
   std::string Line() const;        // "capture: ..." one line
 };
 
@@ -37,6 +41,20 @@ struct MeasurementVerdict {
   bool valid = true;
   std::vector<std::string> reasons;  // why not, one line each
 };
+
+// The reconstructed surface's check of every usable spot (capture issue, items 1-2: each identity and centre
+// against the surface the others give): `analyze` is run on `spots`; a spot whose slope residual (measured slope
+// minus the surface's, at its incidence point) departs from the median residual of its 6 nearest spots by more than
+// kSurfaceOutlierSigmas times the departures' robust scale (their median over that of a 2-D Gaussian's magnitude, at
+// least the expected slope noise) is left out and `analyze` run again, up to kSurfaceOutlierPasses times. A shape
+// the model smooths over leaves residuals neighbours share, and no spot of it is left out. More than kMaxSurfaceOutlierShare of the spots standing out means the
+// model, not the spots, misses (JudgeMeasurement refuses that); none is then left out. `capture`, if given, counts
+// the spots left out. Throws what `analyze` throws.
+inline constexpr double kSurfaceOutlierSigmas = 6.0, kMaxSurfaceOutlierShare = 0.10;
+inline constexpr int kSurfaceOutlierPasses = 3;
+topo::Analysis RejectSurfaceOutliers(
+    std::vector<topo::MeasuredSpot> spots,
+    const std::function<topo::Analysis(const std::vector<topo::MeasuredSpot>&)>& analyze, CaptureQuality* capture);
 
 // A measurement from an image is refused when too few spots are identified, the clinical indices cannot be computed
 // from the data (the sim-K zone not covered in every direction) or the surface model does not represent the

@@ -79,7 +79,8 @@ nlohmann::json CaptureJson(const pipeline::CaptureQuality& q) {
           {"visible_fraction", q.visible_fraction},
           {"largest_gap_deg", q.largest_gap_deg},
           {"gap_side", q.gap_side},
-          {"median_spot_area_px", q.median_spot_area_px}};
+          {"median_spot_area_px", q.median_spot_area_px},
+          {"surface_outliers", q.surface_outliers}};
 }
 
 cv::Mat ReadSpotImage(const std::string& path, const model::TopographerCamera& camera, const std::string& camera_file) {

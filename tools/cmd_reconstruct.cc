@@ -221,8 +221,12 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
     RefuseMeasurement(in.image, {false, {e.what()}}, info, json_out, /*print=*/false);
   }
   const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
-  const auto analysis = device ? pipeline::AnalyzeThroughDevice(measured, *device, cfg, truth ? &cfg.cornea : nullptr)
-                               : topo::AnalyzeSpots(measured, design.targets, cfg, truth ? &cfg.cornea : nullptr);
+  const auto analyze = [&](const std::vector<topo::MeasuredSpot>& spots) {
+    return device ? pipeline::AnalyzeThroughDevice(spots, *device, cfg, truth ? &cfg.cornea : nullptr)
+                  : topo::AnalyzeSpots(spots, design.targets, cfg, truth ? &cfg.cornea : nullptr);
+  };
+  // From an image, every spot is checked against the surface the others give (capture-quality line: rejected).
+  const auto analysis = capture ? pipeline::RejectSurfaceOutliers(measured, analyze, &*capture) : analyze(measured);
   if (capture) {
     fmt::print("{}\n", capture->Line());
     info["capture"] = CaptureJson(*capture);
