@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <type_traits>
 
@@ -12,8 +13,16 @@
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
+#include "correct/spot_fit.h"
+
 namespace topocal::correct {
 namespace {
+
+using detail::At;
+using detail::Component;
+using detail::RefineByGaussianFit;
+using detail::RefineByPsfFit;
+using detail::Saturates;
 
 struct Stats {
   double median = 0, sigma = 0, bright = 0;
@@ -178,29 +187,6 @@ cv::Rect ForegroundBox(const cv::Mat& mask, int margin) {
   return box & cv::Rect(0, 0, mask.cols, mask.rows);
 }
 
-double At(const cv::Mat& img, int r, int c) {
-  switch (img.depth()) {
-    case CV_8U: return img.at<uint8_t>(r, c);
-    case CV_16U: return img.at<uint16_t>(r, c);
-    default: return img.at<float>(r, c);
-  }
-}
-
-// Elliptical Gaussian with constant background; the inverse covariance parametrised by its Cholesky factor
-// (l0, l1, l2 with L = [[l0, 0], [l1, l2]]) so it stays positive definite without bounds.
-struct GaussianResidual {
-  double u, v, value;
-  template <typename T>
-  bool operator()(const T* p, T* residual) const {
-    // p: amplitude, cx, cy, l0, l1, l2, background
-    const T dx = T(u) - p[1], dy = T(v) - p[2];
-    const T a = p[3] * dx + p[4] * dy;  // L^T d
-    const T b = p[5] * dy;
-    residual[0] = p[0] * exp(T(-0.5) * (a * a + b * b)) + p[6] - T(value);
-    return true;
-  }
-};
-
 const cv::Mat& Disc(int radius) {
   static thread_local std::vector<cv::Mat> cache;
   if (static_cast<int>(cache.size()) <= radius) cache.resize(radius + 1);
@@ -209,85 +195,6 @@ const cv::Mat& Disc(int radius) {
   }
   return cache[radius];
 }
-
-// A window's pixels for the PSF fit: position relative to the window origin, value (DN, background included) and
-// the noise standard deviation assigned to it.
-struct FitPixel {
-  int u, v;  // relative to (u0, v0)
-  double value_dn;
-  double sd_dn;
-};
-
-// Pixel-integrated isotropic Gaussian PSF + constant background, residuals weighted by 1 / sd. Parameters:
-// flux / flux0, centre u and v relative to the window origin (px), sigma (px), background (DN). The pixel integral
-// is separable, E_u(c) = Phi((c + 1/2 - u) / s) - Phi((c - 1/2 - u) / s), so the erf terms are computed once per
-// column and per row. Analytic Jacobian: TinySolver (Ceres' small dense LM without a Problem's per-call set-up
-// cost) needs one, and the model is simple enough to write it exactly.
-struct PsfCost {
-  using Scalar = double;
-  enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = 5 };
-  const std::vector<FitPixel>* pixels;
-  int cols, rows;
-  double flux0;
-  double bg0, bg_scale;  // background = bg0 + p[4] bg_scale: all parameters O(1), so that the solver's relative
-                         // step tolerance means the same on 8- and 16-bit images
-  int NumResiduals() const { return static_cast<int>(pixels->size()); }
-  bool operator()(const double* p, double* residuals, double* jacobian) const {
-    const double sigma = p[3];
-    if (!(sigma > 0.05)) return false;
-    thread_local std::vector<double> eu, du, su, ev, dv, sv;
-    const auto profile = [sigma](int n, double centre, std::vector<double>& e, std::vector<double>& d,
-                                 std::vector<double>& s) {
-      e.resize(n);
-      d.resize(n);
-      s.resize(n);
-      constexpr double kInvSqrt2Pi = 0.3989422804014327;
-      for (int c = 0; c < n; ++c) {
-        const double a = (c + 0.5 - centre) / sigma, b = (c - 0.5 - centre) / sigma;
-        const double pa = kInvSqrt2Pi * std::exp(-0.5 * a * a), pb = kInvSqrt2Pi * std::exp(-0.5 * b * b);
-        e[c] = 0.5 * (std::erfc(-a * M_SQRT1_2) - std::erfc(-b * M_SQRT1_2));
-        d[c] = -(pa - pb) / sigma;          // dE / dcentre
-        s[c] = -(pa * a - pb * b) / sigma;  // dE / dsigma
-      }
-    };
-    profile(cols, p[1], eu, du, su);
-    profile(rows, p[2], ev, dv, sv);
-    const double flux = p[0] * flux0;
-    const int n = NumResiduals();
-    for (int i = 0; i < n; ++i) {
-      const FitPixel& px = (*pixels)[i];
-      const double w = 1.0 / px.sd_dn;
-      const double e = eu[px.u] * ev[px.v];
-      residuals[i] = w * (flux * e + bg0 + p[4] * bg_scale - px.value_dn);
-      if (jacobian) {
-        jacobian[i] = w * flux0 * e;
-        jacobian[n + i] = w * flux * du[px.u] * ev[px.v];
-        jacobian[2 * n + i] = w * flux * eu[px.u] * dv[px.v];
-        jacobian[3 * n + i] = w * flux * (su[px.u] * ev[px.v] + eu[px.u] * sv[px.v]);
-        jacobian[4 * n + i] = w * bg_scale;
-      }
-    }
-    return true;
-  }
-  // The model's signal above background at pixel i (DN).
-  double Signal(const double* p, const FitPixel& px) const {
-    const auto e = [&](int c, double centre) {
-      const double a = (c + 0.5 - centre) / p[3], b = (c - 0.5 - centre) / p[3];
-      return 0.5 * (std::erfc(-a * M_SQRT1_2) - std::erfc(-b * M_SQRT1_2));
-    };
-    return p[0] * flux0 * e(px.u, p[1]) * e(px.v, p[2]);
-  }
-};
-
-// One component: what segmentation found, and the window its centre is estimated in.
-struct Component {
-  int label = 0;
-  cv::Rect roi;      // window bounding box, box coordinates
-  cv::Mat window;    // CV_8U mask over roi: the component grown by the margin
-  DetectedSpot spot; // centroid, flux, peak, area, flags (box coordinates)
-  std::vector<double> values;  // the component's own pixels above background (for the profile test)
-  std::vector<int> neighbours; // labels of the other components within near_blob_gap_px of the window
-};
 
 // Restricts comp's window to the pixels nearer to its own component than to any other. Close neighbours then share
 // the gap between them along the line of equal distance: each window holds its spot's light less the tail that
@@ -322,56 +229,55 @@ void KeepNearestPixels(const cv::Mat& labels, int margin, Component* comp) {
   }
 }
 
-// Is the spot's profile that of the PSF (a Gaussian) or flat-topped (the image of a screen disc several PSF widths
-// across)? A Gaussian of peak p covers 2 pi s^2 ln(p / L) pixels above level L, so the share of the thresholded
-// pixels above half the peak is ln 2 / ln(p / t) (t: threshold above background); a flat top has nearly all of
-// them above half its plateau. The spot is taken as PSF-like when the share is nearer the Gaussian's value than 1.
-// On flat-topped spots the PSF model does not hold and its fit is worse than the centroid (docs/spot-noise.md).
-bool PsfLike(const std::vector<double>& values, double peak_dn, double threshold_above_bg_dn) {
-  if (values.empty() || !(peak_dn > 1.01 * threshold_above_bg_dn) || !(threshold_above_bg_dn > 0)) return true;
-  const double gaussian_share = std::log(2.0) / std::log(peak_dn / threshold_above_bg_dn);
-  const auto above_half = std::count_if(values.begin(), values.end(), [&](double w) { return w > 0.5 * peak_dn; });
-  const double share = static_cast<double>(above_half) / values.size();
-  return share <= 0.5 * (gaussian_share + 1.0);
-}
-
-bool Saturates(const cv::Mat& img, double value) {
-  return (img.depth() == CV_8U && value >= 255.0) || (img.depth() == CV_16U && value >= 65535.0);
-}
-
-// The weighted PSF fit of one component. `read_var` and `inv_gain` make the noise model; `first`: weights from the
-// read noise only (the model signal is not known yet). Returns false (centre untouched) if the fit fails.
-bool FitPsf(const cv::Mat& image_box, const cv::Mat& labels, const Component& comp, double bg, double read_var,
-            double inv_gain, double* params, std::vector<FitPixel>* pixels) {
-  pixels->clear();
-  const int c0 = comp.roi.x, r0 = comp.roi.y;
-  for (int r = r0; r < r0 + comp.roi.height; ++r) {
-    const int* lab = labels.ptr<int>(r);
-    const uint8_t* win = comp.window.ptr<uint8_t>(r - r0) - c0;
-    for (int c = c0; c < c0 + comp.roi.width; ++c) {
-      if (!win[c] || (lab[c] != 0 && lab[c] != comp.label)) continue;
-      const double value = At(image_box, r, c);
-      if (Saturates(image_box, value)) continue;  // clipped: carries no information on the spot's shape
-      pixels->push_back({c - c0, r - r0, value, std::sqrt(read_var)});
+// Component k (bounding box `rect`) split at its cores (labels in `pieces`, 0..piece_count - 1): the first core keeps label k, the others
+// take new labels appended to `stats`; every other pixel of k goes to the nearest core (distance-transform labels).
+void SplitIntoCores(const cv::Mat& pieces, int piece_count, const std::vector<int>& cores, int k, const cv::Rect& rect,
+                    cv::Mat* labels, cv::Mat* stats) {
+  // Core p keeps label k (the first) or takes a new one; the other pixels go to the nearest core.
+  std::vector<int> core_label(piece_count, 0);
+  for (size_t i = 0; i < cores.size(); ++i) core_label[cores[i]] = i == 0 ? k : stats->rows + static_cast<int>(i) - 1;
+  cv::Mat not_core(rect.size(), CV_8UC1, cv::Scalar(255));
+  for (int r = 0; r < rect.height; ++r) {
+    for (int c = 0; c < rect.width; ++c) {
+      if (core_label[pieces.at<int>(r, c)] != 0) not_core.at<uint8_t>(r, c) = 0;
     }
   }
-  if (pixels->size() < 8) return false;
-  PsfCost cost{pixels, comp.roi.width, comp.roi.height, comp.spot.flux_dn, bg, std::sqrt(read_var)};
-  if (inv_gain > 0) {
-    for (auto& px : *pixels) px.sd_dn = std::sqrt(read_var + std::max(0.0, cost.Signal(params, px)) * inv_gain);
+  cv::Mat distance, nearest;
+  cv::distanceTransform(not_core, distance, nearest, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
+  std::vector<int> owner;
+  for (int r = 0; r < rect.height; ++r) {
+    for (int c = 0; c < rect.width; ++c) {
+      const int l = core_label[pieces.at<int>(r, c)];
+      if (l == 0) continue;
+      const int idx = nearest.at<int>(r, c);
+      if (idx >= static_cast<int>(owner.size())) owner.resize(idx + 1, 0);
+      owner[idx] = l;
+    }
   }
-  ceres::TinySolver<PsfCost> solver;
-  // Parameters are O(1) (flux ratio, centre and width in px, background in noise sigmas): a relative step of 1e-7
-  // is < 1e-6 px, far below the centre's noise (>= 1e-3 px).
-  solver.options.max_num_iterations = 30;
-  solver.options.parameter_tolerance = 1e-7;
-  solver.options.function_tolerance = 1e-10;
-  solver.options.gradient_tolerance = 1e-10;
-  Eigen::Matrix<double, 5, 1> x = Eigen::Map<Eigen::Matrix<double, 5, 1>>(params);
-  const auto summary = solver.Solve(cost, &x);
-  if (summary.status == decltype(solver)::HIT_MAX_ITERATIONS || !x.allFinite() || !(x[3] > 0.05)) return false;
-  std::copy(x.data(), x.data() + 5, params);
-  return true;
+  std::vector<cv::Rect> boxes(cores.size() + 1);
+  std::vector<int> areas(cores.size() + 1, 0);
+  const int first_new = stats->rows;
+  for (int r = 0; r < rect.height; ++r) {
+    int* lab = labels->ptr<int>(r + rect.y) + rect.x;
+    for (int c = 0; c < rect.width; ++c) {
+      if (lab[c] != k) continue;
+      const int idx = nearest.at<int>(r, c);
+      const int l = idx < static_cast<int>(owner.size()) && owner[idx] != 0 ? owner[idx] : k;
+      lab[c] = l;
+      const size_t slot = l == k ? 0 : static_cast<size_t>(l - first_new + 1);
+      boxes[slot] |= cv::Rect(c + rect.x, r + rect.y, 1, 1);
+      ++areas[slot];
+    }
+  }
+  for (size_t slot = 0; slot < boxes.size(); ++slot) {
+    const cv::Mat row = (cv::Mat_<int>(1, 5) << boxes[slot].x, boxes[slot].y, boxes[slot].width,
+                         boxes[slot].height, areas[slot]);
+    if (slot == 0) {
+      row.copyTo(stats->row(k));
+    } else {
+      stats->push_back(row);
+    }
+  }
 }
 
 // Splits the components that hold several spots merged above the threshold (defocus, a small sensor, a glint on a
@@ -421,51 +327,7 @@ void DeblendMerged(const cv::Mat& image_box, double threshold_dn, double noise_d
         if (a >= options.min_area_px && 5 * a >= largest && rise[p] >= clear) cores.push_back(p);
       }
       if (cores.size() < 2) continue;
-      // Core p keeps label k (the first) or takes a new one; the other pixels go to the nearest core.
-      std::vector<int> core_label(count, 0);
-      for (size_t i = 0; i < cores.size(); ++i) core_label[cores[i]] = i == 0 ? k : stats->rows + static_cast<int>(i) - 1;
-      cv::Mat not_core(rect.size(), CV_8UC1, cv::Scalar(255));
-      for (int r = 0; r < rect.height; ++r) {
-        for (int c = 0; c < rect.width; ++c) {
-          if (core_label[pieces.at<int>(r, c)] != 0) not_core.at<uint8_t>(r, c) = 0;
-        }
-      }
-      cv::Mat distance, nearest;
-      cv::distanceTransform(not_core, distance, nearest, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
-      std::vector<int> owner;
-      for (int r = 0; r < rect.height; ++r) {
-        for (int c = 0; c < rect.width; ++c) {
-          const int l = core_label[pieces.at<int>(r, c)];
-          if (l == 0) continue;
-          const int idx = nearest.at<int>(r, c);
-          if (idx >= static_cast<int>(owner.size())) owner.resize(idx + 1, 0);
-          owner[idx] = l;
-        }
-      }
-      std::vector<cv::Rect> boxes(cores.size() + 1);
-      std::vector<int> areas(cores.size() + 1, 0);
-      const int first_new = stats->rows;
-      for (int r = 0; r < rect.height; ++r) {
-        int* lab = labels->ptr<int>(r + rect.y) + rect.x;
-        for (int c = 0; c < rect.width; ++c) {
-          if (lab[c] != k) continue;
-          const int idx = nearest.at<int>(r, c);
-          const int l = idx < static_cast<int>(owner.size()) && owner[idx] != 0 ? owner[idx] : k;
-          lab[c] = l;
-          const size_t slot = l == k ? 0 : static_cast<size_t>(l - first_new + 1);
-          boxes[slot] |= cv::Rect(c + rect.x, r + rect.y, 1, 1);
-          ++areas[slot];
-        }
-      }
-      for (size_t slot = 0; slot < boxes.size(); ++slot) {
-        const cv::Mat row = (cv::Mat_<int>(1, 5) << boxes[slot].x, boxes[slot].y, boxes[slot].width,
-                             boxes[slot].height, areas[slot]);
-        if (slot == 0) {
-          row.copyTo(stats->row(k));
-        } else {
-          stats->push_back(row);
-        }
-      }
+      SplitIntoCores(pieces, count, cores, k, rect, labels, stats);
       --k;  // this component again, now one piece
       break;
     }
@@ -523,6 +385,125 @@ LocalBackground WindowBackground(const cv::Mat& image_box, const cv::Mat& labels
   for (const auto& p : px) ss += std::pow(p.z() - out.At(p.x(), p.y()), 2);
   out.residual_dn = std::sqrt(ss / px.size());
   return out;
+}
+
+// What the per-component work needs of the segmentation (box coordinates).
+struct Segmentation {
+  const cv::Mat& image_box;
+  const cv::Mat& labels;
+  const cv::Mat& stats;
+  cv::Rect box;           // the box in the image
+  cv::Size image_size;
+  double bg = 0, threshold_sigma = 0;
+  bool uneven_frame = false;
+};
+
+// The labels of the other components (of at least min_area px) within `reach` of component k: the component grown
+// by `reach` (a disc) and looked through. Sorted.
+std::vector<int> NeighboursWithinGap(const cv::Mat& labels, const cv::Mat& stats, int k, int reach, int min_area) {
+  const int left = stats.at<int>(k, cv::CC_STAT_LEFT), top = stats.at<int>(k, cv::CC_STAT_TOP);
+  const int width = stats.at<int>(k, cv::CC_STAT_WIDTH), height = stats.at<int>(k, cv::CC_STAT_HEIGHT);
+  const cv::Rect wide = cv::Rect(left - reach, top - reach, width + 2 * reach, height + 2 * reach) &
+                        cv::Rect(0, 0, labels.cols, labels.rows);
+  cv::Mat grown = labels(wide) == k;
+  if (reach > 0) cv::dilate(grown, grown, Disc(reach));
+  std::vector<int> out;
+  for (int r = 0; r < wide.height; ++r) {
+    const int* lab = labels.ptr<int>(r + wide.y) + wide.x;
+    const uint8_t* gr = grown.ptr<uint8_t>(r);
+    for (int c = 0; c < wide.width; ++c) {
+      if (gr[c] && lab[c] != 0 && lab[c] != k && stats.at<int>(lab[c], cv::CC_STAT_AREA) >= min_area &&
+          std::find(out.begin(), out.end(), lab[c]) == out.end()) {
+        out.push_back(lab[c]);
+      }
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// Component k (of an accepted area): its window, neighbours, flags and centroid (steps 4-5 of spot_detect.h).
+// nullopt when the window holds no light above its background.
+std::optional<Component> MakeComponent(const Segmentation& seg, int k, const SpotDetectionOptions& options) {
+  const cv::Mat& image_box = seg.image_box;
+  const cv::Mat& labels = seg.labels;
+  const cv::Mat& stats = seg.stats;
+  const cv::Rect& box = seg.box;
+  const double bg = seg.bg, threshold_sigma = seg.threshold_sigma;
+  const bool uneven_frame = seg.uneven_frame;
+  const int m = options.window_margin_px;
+  const int area = stats.at<int>(k, cv::CC_STAT_AREA);
+  const int left = stats.at<int>(k, cv::CC_STAT_LEFT), top = stats.at<int>(k, cv::CC_STAT_TOP);
+  const int right = left + stats.at<int>(k, cv::CC_STAT_WIDTH) - 1, bottom = top + stats.at<int>(k, cv::CC_STAT_HEIGHT) - 1;
+  const int c0 = std::max(0, left - m);
+  const int r0 = std::max(0, top - m);
+  const int c1 = std::min(image_box.cols - 1, right + m);
+  const int r1 = std::min(image_box.rows - 1, bottom + m);
+  Component comp;
+  comp.label = k;
+  // The window: the component grown by `m` pixels (a disc kernel), other components excluded. Following the
+  // spot's own outline rather than its bounding box keeps the far window corners — pure noise with the largest
+  // lever arm — out of the centroid.
+  comp.roi = cv::Rect(c0, r0, c1 - c0 + 1, r1 - r0 + 1);
+  comp.window = labels(comp.roi) == k;
+  if (m > 0) cv::dilate(comp.window, comp.window, Disc(m));
+  unsigned flags = 0;
+  // Cut by the image's border (the box never cuts a window that the image does not: it is grown by m + 1).
+  if (left + box.x - m < 0 || top + box.y - m < 0 || right + box.x + m > seg.image_size.width - 1 ||
+      bottom + box.y + m > seg.image_size.height - 1) {
+    flags |= kTruncated;
+  }
+  // The other components within the gap of the window; the window then keeps only the pixels nearer to this spot.
+  comp.neighbours = NeighboursWithinGap(labels, stats, k, m + options.near_blob_gap_px, options.min_area_px);
+  const cv::Mat uncut = comp.window.clone();
+  if (!comp.neighbours.empty()) KeepNearestPixels(labels, m, &comp);
+  double peak = 0;
+  std::vector<double>& values = comp.values;
+  for (int r = r0; r <= r1; ++r) {
+    const int* lab = labels.ptr<int>(r);
+    const uint8_t* win = comp.window.ptr<uint8_t>(r - r0) - c0;
+    for (int c = c0; c <= c1; ++c) {
+      if (!win[c] || (lab[c] != 0 && lab[c] != k)) continue;
+      const double value = At(image_box, r, c);
+      if (Saturates(image_box, value)) flags |= kSaturated;
+      const double w = value - bg;
+      peak = std::max(peak, w);
+      if (lab[c] == k) values.push_back(w);
+    }
+  }
+  const LocalBackground local = WindowBackground(image_box, labels, comp, uncut, bg);
+  // The window's own background where its level departs from the global one by more than the spot's own tails
+  // can lift the window's edge (kOwnBackgroundPeakShare of its peak: 0.7 % at the edge of a spot blurred by 2 px)
+  // and by more than kOwnBackgroundSigmas pixel noise sigmas — an iris, skin — or where the whole frame's
+  // background is uneven. Elsewhere the edge is the spot's own tail, and a plane fitted to it would bias the
+  // centroid (measured: 4x the error on 2 px PSF spots).
+  const bool own_background = uneven_frame || std::abs(local.b0 - bg) > std::max(kOwnBackgroundSigmas * threshold_sigma,
+                                                                                kOwnBackgroundPeakShare * peak);
+  if (local.residual_dn > kUnevenPeakShare * peak + kUnevenNoiseSigmas * threshold_sigma) flags |= kUnevenBackground;
+  // The centroid above the window's own background (or the global one); the flux above the global background
+  // (the PSF fit's scale, which fits its own background level).
+  double sw = 0, su = 0, sv = 0, flux = 0;
+  for (int r = r0; r <= r1; ++r) {
+    const int* lab = labels.ptr<int>(r);
+    const uint8_t* win = comp.window.ptr<uint8_t>(r - r0) - c0;
+    for (int c = c0; c <= c1; ++c) {
+      if (!win[c] || (lab[c] != 0 && lab[c] != k)) continue;
+      const double value = At(image_box, r, c);
+      const double w = value - (own_background ? local.At(c, r) : bg);
+      flux += value - bg;
+      sw += w;
+      su += w * c;
+      sv += w * r;
+    }
+  }
+  if (!(sw > 0) || !(flux > 0)) return std::nullopt;
+  DetectedSpot& s = comp.spot;
+  s.centre_px = {su / sw, sv / sw};
+  s.flux_dn = flux;
+  s.peak_dn = peak;
+  s.area_px = area;
+  s.flags = flags;
+  return comp;
 }
 
 // kNearBlob on the spots whose window was split with a neighbour that is not a like spot: a blob left out (too
@@ -633,7 +614,7 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
   const double bg = out.background_dn;
   DeblendMerged(image_box, out.threshold_dn, threshold_sigma, options, &labels, &stats);
   const int n = stats.rows;
-  const int m = options.window_margin_px;
+  const Segmentation seg{image_box, labels, stats, box, image.size(), bg, threshold_sigma, uneven_frame};
   std::vector<Component> comps;
   comps.reserve(n);
   for (int k = 1; k < n; ++k) {
@@ -646,173 +627,19 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
       ++out.rejected_large;
       continue;
     }
-    const int left = stats.at<int>(k, cv::CC_STAT_LEFT), top = stats.at<int>(k, cv::CC_STAT_TOP);
-    const int right = left + stats.at<int>(k, cv::CC_STAT_WIDTH) - 1, bottom = top + stats.at<int>(k, cv::CC_STAT_HEIGHT) - 1;
-    const int c0 = std::max(0, left - m);
-    const int r0 = std::max(0, top - m);
-    const int c1 = std::min(image_box.cols - 1, right + m);
-    const int r1 = std::min(image_box.rows - 1, bottom + m);
-    Component comp;
-    comp.label = k;
-    // The window: the component grown by `m` pixels (a disc kernel), other components excluded. Following the
-    // spot's own outline rather than its bounding box keeps the far window corners — pure noise with the largest
-    // lever arm — out of the centroid.
-    comp.roi = cv::Rect(c0, r0, c1 - c0 + 1, r1 - r0 + 1);
-    comp.window = labels(comp.roi) == k;
-    if (m > 0) cv::dilate(comp.window, comp.window, Disc(m));
-    unsigned flags = 0;
-    // Cut by the image's border (the box never cuts a window that the image does not: it is grown by m + 1).
-    if (left + box.x - m < 0 || top + box.y - m < 0 || right + box.x + m > image.cols - 1 ||
-        bottom + box.y + m > image.rows - 1) {
-      flags |= kTruncated;
-    }
-    // The other components (of at least min_area_px) within the gap of the window: grow the component by
-    // margin + gap and look. The window then keeps only the pixels nearer to this spot than to them.
-    {
-      const int g = m + options.near_blob_gap_px;
-      const cv::Rect wide = cv::Rect(left - g, top - g, right - left + 1 + 2 * g, bottom - top + 1 + 2 * g) &
-                            cv::Rect(0, 0, labels.cols, labels.rows);
-      cv::Mat grown = labels(wide) == k;
-      if (g > 0) cv::dilate(grown, grown, Disc(g));
-      for (int r = 0; r < wide.height; ++r) {
-        const int* lab = labels.ptr<int>(r + wide.y) + wide.x;
-        const uint8_t* gr = grown.ptr<uint8_t>(r);
-        for (int c = 0; c < wide.width; ++c) {
-          if (gr[c] && lab[c] != 0 && lab[c] != k && stats.at<int>(lab[c], cv::CC_STAT_AREA) >= options.min_area_px &&
-              std::find(comp.neighbours.begin(), comp.neighbours.end(), lab[c]) == comp.neighbours.end()) {
-            comp.neighbours.push_back(lab[c]);
-          }
-        }
-      }
-      std::sort(comp.neighbours.begin(), comp.neighbours.end());
-    }
-    const cv::Mat uncut = comp.window.clone();
-    if (!comp.neighbours.empty()) KeepNearestPixels(labels, m, &comp);
-    double peak = 0;
-    std::vector<double>& values = comp.values;
-    for (int r = r0; r <= r1; ++r) {
-      const int* lab = labels.ptr<int>(r);
-      const uint8_t* win = comp.window.ptr<uint8_t>(r - r0) - c0;
-      for (int c = c0; c <= c1; ++c) {
-        if (!win[c] || (lab[c] != 0 && lab[c] != k)) continue;
-        const double value = At(image_box, r, c);
-        if (Saturates(image_box, value)) flags |= kSaturated;
-        const double w = value - bg;
-        peak = std::max(peak, w);
-        if (lab[c] == k) values.push_back(w);
-      }
-    }
-    const LocalBackground local = WindowBackground(image_box, labels, comp, uncut, bg);
-    // The window's own background where its level departs from the global one by more than the spot's own tails
-    // can lift the window's edge (kOwnBackgroundPeakShare of its peak: 0.7 % at the edge of a spot blurred by 2 px)
-    // and by more than kOwnBackgroundSigmas pixel noise sigmas — an iris, skin — or where the whole frame's
-    // background is uneven. Elsewhere the edge is the spot's own tail, and a plane fitted to it would bias the
-    // centroid (measured: 4x the error on 2 px PSF spots).
-    const bool own_background = uneven_frame || std::abs(local.b0 - bg) > std::max(kOwnBackgroundSigmas * threshold_sigma,
-                                                                                  kOwnBackgroundPeakShare * peak);
-    if (local.residual_dn > kUnevenPeakShare * peak + kUnevenNoiseSigmas * threshold_sigma) flags |= kUnevenBackground;
-    // The centroid above the window's own background (or the global one); the flux above the global background
-    // (the PSF fit's scale, which fits its own background level).
-    double sw = 0, su = 0, sv = 0, flux = 0;
-    for (int r = r0; r <= r1; ++r) {
-      const int* lab = labels.ptr<int>(r);
-      const uint8_t* win = comp.window.ptr<uint8_t>(r - r0) - c0;
-      for (int c = c0; c <= c1; ++c) {
-        if (!win[c] || (lab[c] != 0 && lab[c] != k)) continue;
-        const double value = At(image_box, r, c);
-        const double w = value - (own_background ? local.At(c, r) : bg);
-        flux += value - bg;
-        sw += w;
-        su += w * c;
-        sv += w * r;
-      }
-    }
-    if (!(sw > 0) || !(flux > 0)) continue;
-    DetectedSpot& s = comp.spot;
-    s.centre_px = {su / sw, sv / sw};
-    s.flux_dn = flux;
-    s.peak_dn = peak;
-    s.area_px = area;
-    s.flags = flags;
-    comps.push_back(std::move(comp));
+    if (auto comp = MakeComponent(seg, k, options)) comps.push_back(std::move(*comp));
   }
   FlagUnlikeNeighbours(n, &comps);
 
   if (options.method == CentroidMethod::kGaussianFit) {
-    for (auto& comp : comps) {
-      DetectedSpot& s = comp.spot;
-      const int c0 = comp.roi.x, r0 = comp.roi.y, c1 = c0 + comp.roi.width - 1, r1 = r0 + comp.roi.height - 1;
-      const cv::Mat& window = comp.window;
-      const int k = comp.label;
-      const int area = s.area_px;
-      const double peak = s.peak_dn;
-      // Initial shape from the thresholded area: a Gaussian whose half-maximum disc has that area.
-      const double sigma0 = std::max(0.7, std::sqrt(area / M_PI) / 1.1774);
-      double p[7] = {peak, s.centre_px.x(), s.centre_px.y(), 1.0 / sigma0, 0.0, 1.0 / sigma0, 0.0};
-      ceres::Problem problem;
-      for (int r = r0; r <= r1; ++r) {
-        const int* lab = labels.ptr<int>(r);
-        const uint8_t* win = window.ptr<uint8_t>(r - r0) - c0;
-        for (int c = c0; c <= c1; ++c) {
-          if (!win[c] || (lab[c] != 0 && lab[c] != k)) continue;
-          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<GaussianResidual, 1, 7>(
-                                       new GaussianResidual{double(c), double(r), At(image_box, r, c) - bg}),
-                                   nullptr, p);
-        }
-      }
-      ceres::Solver::Options so;
-      so.linear_solver_type = ceres::DENSE_QR;
-      so.max_num_iterations = 50;
-      so.function_tolerance = 1e-12;
-      so.parameter_tolerance = 1e-12;
-      ceres::Solver::Summary summary;
-      ceres::Solve(so, &problem, &summary);
-      const Eigen::Vector2d fit(p[1], p[2]);
-      s.fit_converged = summary.termination_type == ceres::CONVERGENCE && std::isfinite(p[1]) && std::isfinite(p[2]) &&
-                        (fit - s.centre_px).norm() < 2.0;  // a fit that wanders off the blob is not a centre
-      if (s.fit_converged) s.centre_px = fit;
-    }
+    RefineByGaussianFit(image_box, labels, bg, &comps);
   } else if (options.method == CentroidMethod::kWeightedPsfFit) {
-    const double read_noise = options.read_noise_dn > 0 ? options.read_noise_dn : out.noise_dn;
     // Quantisation adds 1/12 DN^2 of uniform noise to every pixel (the background's MAD of an integer image does
     // not resolve it when the read noise is ~1 DN).
+    const double read_noise = options.read_noise_dn > 0 ? options.read_noise_dn : out.noise_dn;
     const double read_var = read_noise * read_noise + (image.depth() == CV_32F ? 0.0 : 1.0 / 12.0);
-    std::vector<std::array<double, 5>> params(comps.size(), {0, 0, 0, 0, 0});
-    std::vector<char> ok(comps.size(), 0);
-    std::vector<FitPixel> pixels;
-    // Pass 1: read-noise weights. Its residuals against the model signal give the gain: E[r^2] = read + s / gain,
-    // so 1 / gain = sum((r^2 - read) s) / sum(s^2) over the spots' pixels (least squares through the origin).
-    double num = 0, den = 0;
-    for (size_t i = 0; i < comps.size(); ++i) {
-      const auto& comp = comps[i];
-      const DetectedSpot& s = comp.spot;
-      if (!PsfLike(comp.values, s.peak_dn, out.threshold_dn - bg)) continue;  // flat-topped: keeps its centroid
-      const double sigma0 = std::max(0.7, std::sqrt(s.area_px / M_PI) / 1.1774);
-      params[i] = {1.0, s.centre_px.x() - comp.roi.x, s.centre_px.y() - comp.roi.y, sigma0, 0.0};
-      ok[i] = FitPsf(image_box, labels, comp, bg, read_var, 0.0, params[i].data(), &pixels);
-      if (!ok[i] || options.gain_e_per_dn > 0 || (comp.spot.flags & (kNearBlob | kTruncated))) continue;
-      PsfCost cost{&pixels, comp.roi.width, comp.roi.height, comp.spot.flux_dn, bg, std::sqrt(read_var)};
-      for (const auto& px : pixels) {
-        const double sig = cost.Signal(params[i].data(), px);
-        const double res = px.value_dn - (bg + params[i][4] * cost.bg_scale) - sig;
-        num += (res * res - read_var) * sig;
-        den += sig * sig;
-      }
-    }
-    double inv_gain = options.gain_e_per_dn > 0 ? 1.0 / options.gain_e_per_dn : (den > 0 ? std::max(0.0, num / den) : 0.0);
     out.read_noise_dn = std::sqrt(read_var);
-    out.gain_e_per_dn = inv_gain > 0 ? 1.0 / inv_gain : 0.0;
-    // Pass 2: the noise model's weights from pass 1's model signal (a pure read-noise model needs no second pass).
-    for (size_t i = 0; i < comps.size(); ++i) {
-      DetectedSpot& s = comps[i].spot;
-      if (ok[i] && inv_gain > 0) {
-        ok[i] = FitPsf(image_box, labels, comps[i], bg, read_var, inv_gain, params[i].data(), &pixels);
-      }
-      if (!ok[i] && params[i][3] == 0) continue;  // not fitted (flat-topped): the centroid stands
-      const Eigen::Vector2d fit(params[i][1] + comps[i].roi.x, params[i][2] + comps[i].roi.y);
-      s.fit_converged = ok[i] && (fit - s.centre_px).norm() < 2.0;  // a fit that wanders off the blob is no centre
-      if (s.fit_converged) s.centre_px = fit;
-    }
+    out.gain_e_per_dn = RefineByPsfFit(image_box, labels, bg, out.threshold_dn, read_var, options.gain_e_per_dn, &comps);
   }
   for (auto& comp : comps) {
     comp.spot.centre_px += Eigen::Vector2d(box.x, box.y);

@@ -60,8 +60,8 @@ void Run(const DetectArgs& a) {
   j["capture"] = CaptureJson(capture);
   util::WriteFileAtomic(a.out, correct::DetectedSpotsCsv(r));
   if (!a.json.empty()) util::WriteFileAtomic(a.json, j.dump(2) + "\n");
-  fmt::print("detect ({}): {} spots indexed ({} flagged near a blob or at the border, left out of a measurement), "
-             "{} unassigned blobs, {} designed spots missing -> {}\n",
+  fmt::print("detect ({}): {} spots indexed ({} flagged and left out of a measurement: near a blob, at the border, "
+             "on an uneven background or a flux outlier), {} unassigned blobs, {} designed spots missing -> {}\n",
              j["estimator"].get<std::string>(), r.spots.size() + r.excluded.size(), r.excluded.size(),
              r.unassigned.size(), r.missing.size(), a.out);
   fmt::print("{}\n", r.orientation.message);

@@ -1,0 +1,44 @@
+#pragma once
+// Internal to correct/ (spot_detect.cc, spot_fit.cc): a segmented component and the window its centre is estimated
+// in, and the two model fits that refine its centroid (docs/spot-noise.md). Not installed.
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "correct/spot_detect.h"
+
+namespace topocal::correct::detail {
+
+inline double At(const cv::Mat& img, int r, int c) {
+  switch (img.depth()) {
+    case CV_8U: return img.at<uint8_t>(r, c);
+    case CV_16U: return img.at<uint16_t>(r, c);
+    default: return img.at<float>(r, c);
+  }
+}
+
+inline bool Saturates(const cv::Mat& img, double value) {
+  return (img.depth() == CV_8U && value >= 255.0) || (img.depth() == CV_16U && value >= 65535.0);
+}
+
+// One component: what segmentation found, and the window its centre is estimated in.
+struct Component {
+  int label = 0;
+  cv::Rect roi;      // window bounding box, box coordinates
+  cv::Mat window;    // CV_8U mask over roi: the component grown by the margin
+  DetectedSpot spot; // centroid, flux, peak, area, flags (box coordinates)
+  std::vector<double> values;  // the component's own pixels above background (for the profile test)
+  std::vector<int> neighbours; // labels of the other components within near_blob_gap_px of the window
+};
+
+// kGaussianFit: each component's centroid replaced by an elliptical 2-D Gaussian's centre fitted to its window
+// (unweighted; kept for comparison). A fit that fails or wanders > 2 px off keeps the centroid (fit_converged false).
+void RefineByGaussianFit(const cv::Mat& image_box, const cv::Mat& labels, double bg, std::vector<Component>* comps);
+
+// kWeightedPsfFit: the pixel-integrated PSF fit of every PSF-like component (flat-topped ones keep their centroid),
+// weighted by the noise model read_var + signal / gain. gain_e_per_dn 0: estimated from the first pass' residuals.
+// Returns the gain used (0: read noise only).
+double RefineByPsfFit(const cv::Mat& image_box, const cv::Mat& labels, double bg, double threshold_dn, double read_var,
+                      double gain_e_per_dn, std::vector<Component>* comps);
+
+}  // namespace topocal::correct::detail
