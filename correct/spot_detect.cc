@@ -229,6 +229,64 @@ void KeepNearestPixels(const cv::Mat& labels, int margin, Component* comp) {
   }
 }
 
+// A core of a merged blob rises this far above the level it is cut at: 6 noise sigmas and 15 % of the blob's height
+// above the threshold (a noise ripple on a plateau does not).
+constexpr double kCoreRiseNoiseSigmas = 6.0, kCoreRiseShare = 0.15;
+
+// Whether component k holds two peaks that each rise `clear` above the saddle between them: its pixels flooded from
+// the brightest down (union-find; a merge of two regions happens at their saddle's value); *peak its brightest. Cheap (one sort of the
+// component's pixels), and never false where DeblendMerged's level test would split: two pieces that rise `clear`
+// above a level are two regions whose saddle is below it. Only components for which it is true take the level test.
+bool HasTwoPeaks(const cv::Mat& image_box, const cv::Mat& labels, const cv::Rect& rect, int k, double threshold_dn,
+                 double noise_dn, double* peak) {
+  const int w = rect.width, n = rect.width * rect.height;
+  thread_local std::vector<std::pair<float, int>> order;
+  thread_local std::vector<int> parent;
+  thread_local std::vector<float> top;
+  double brightest = -std::numeric_limits<double>::infinity();
+  for (int r = rect.y; r < rect.y + rect.height; ++r) {
+    const int* lab = labels.ptr<int>(r);
+    for (int c = rect.x; c < rect.x + w; ++c) {
+      if (lab[c] == k) brightest = std::max(brightest, At(image_box, r, c));
+    }
+  }
+  *peak = brightest;
+  const double clear = std::max(kCoreRiseNoiseSigmas * noise_dn, kCoreRiseShare * (brightest - threshold_dn));
+  order.clear();
+  for (int r = 0; r < rect.height; ++r) {
+    const int* lab = labels.ptr<int>(r + rect.y) + rect.x;
+    for (int c = 0; c < w; ++c) {
+      if (lab[c] == k) order.emplace_back(static_cast<float>(At(image_box, r + rect.y, c + rect.x)), r * w + c);
+    }
+  }
+  std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  parent.assign(n, -1);
+  top.assign(n, 0.0f);
+  const auto find = [&](int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (const auto& [value, i] : order) {
+    parent[i] = i;
+    top[i] = value;
+    const int r = i / w, c = i % w;
+    for (int dr = -1; dr <= 1; ++dr) {
+      for (int dc = -1; dc <= 1; ++dc) {
+        const int rr = r + dr, cc = c + dc;
+        if ((dr == 0 && dc == 0) || rr < 0 || cc < 0 || rr >= rect.height || cc >= w) continue;
+        const int q = rr * w + cc;
+        if (parent[q] < 0) continue;  // not flooded yet, or not this component's
+        const int a = find(i), b = find(q);
+        if (a == b) continue;
+        if (std::min(top[a], top[b]) - value >= clear) return true;
+        const int hi = top[a] >= top[b] ? a : b, lo = hi == a ? b : a;
+        parent[lo] = hi;
+      }
+    }
+  }
+  return false;
+}
+
 // Component k (bounding box `rect`) split at its cores (labels in `pieces`, 0..piece_count - 1): the first core keeps label k, the others
 // take new labels appended to `stats`; every other pixel of k goes to the nearest core (distance-transform labels).
 void SplitIntoCores(const cv::Mat& pieces, int piece_count, const std::vector<int>& cores, int k, const cv::Rect& rect,
@@ -290,7 +348,6 @@ void SplitIntoCores(const cv::Mat& pieces, int piece_count, const std::vector<in
 void DeblendMerged(const cv::Mat& image_box, double threshold_dn, double noise_dn, const SpotDetectionOptions& options,
                    cv::Mat* labels, cv::Mat* stats) {
   constexpr int kLevels = 7, kHighestLevel = 5;
-  constexpr double kCoreRiseNoiseSigmas = 6.0, kCoreRiseShare = 0.15;
   constexpr int kMaxMergedSpots = 20;  // a whole defocused ring can merge: up to 20 spots' largest area
   // The pieces are examined again in turn (a defocused ring first splits into chains of spots): every split shrinks
   // the components, so the loop ends.
@@ -299,11 +356,12 @@ void DeblendMerged(const cv::Mat& image_box, double threshold_dn, double noise_d
     if (area < 4 * options.min_area_px || area > kMaxMergedSpots * options.max_area_px) continue;
     const cv::Rect rect(stats->at<int>(k, cv::CC_STAT_LEFT), stats->at<int>(k, cv::CC_STAT_TOP),
                         stats->at<int>(k, cv::CC_STAT_WIDTH), stats->at<int>(k, cv::CC_STAT_HEIGHT));
+    double peak = 0;
+    if (!HasTwoPeaks(image_box, *labels, rect, k, threshold_dn, noise_dn, &peak)) continue;  // the common case
+    const double clear = std::max(kCoreRiseNoiseSigmas * noise_dn, kCoreRiseShare * (peak - threshold_dn));
     const cv::Mat own = (*labels)(rect) == k;
     cv::Mat values;
     image_box(rect).convertTo(values, CV_32F);
-    double peak = 0;
-    cv::minMaxLoc(values, nullptr, &peak, nullptr, nullptr, own);
     for (int j = 1; j <= kHighestLevel; ++j) {
       const double level = threshold_dn + (peak - threshold_dn) * j / kLevels;
       cv::Mat above = (values > level) & own;
@@ -320,7 +378,6 @@ void DeblendMerged(const cv::Mat& image_box, double threshold_dn, double noise_d
           if (pc[c] > 0) rise[pc[c]] = std::max(rise[pc[c]], v[c] - level);
         }
       }
-      const double clear = std::max(kCoreRiseNoiseSigmas * noise_dn, kCoreRiseShare * (peak - threshold_dn));
       std::vector<int> cores;
       for (int p = 1; p < count; ++p) {
         const int a = piece_stats.at<int>(p, cv::CC_STAT_AREA);
