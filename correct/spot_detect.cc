@@ -196,6 +196,28 @@ const cv::Mat& Disc(int radius) {
   return cache[radius];
 }
 
+// For every pixel of `seeds` (CV_32S: a label > 0 on seed pixels, 0 elsewhere), the label of the nearest seed pixel
+// (0 where there is none): cv::distanceTransform's pixel labels (DIST_LABEL_PIXEL), mapped back to the seeds' labels.
+cv::Mat NearestSeed(const cv::Mat& seeds) {
+  cv::Mat distance, nearest;
+  cv::distanceTransform(seeds == 0, distance, nearest, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
+  std::vector<int> owner;  // OpenCV's label of a seed pixel -> the seed's label
+  for (int r = 0; r < seeds.rows; ++r) {
+    const int* l = seeds.ptr<int>(r);
+    const int* n = nearest.ptr<int>(r);
+    for (int c = 0; c < seeds.cols; ++c) {
+      if (l[c] == 0) continue;
+      if (n[c] >= static_cast<int>(owner.size())) owner.resize(n[c] + 1, 0);
+      owner[n[c]] = l[c];
+    }
+  }
+  for (int r = 0; r < nearest.rows; ++r) {
+    int* n = nearest.ptr<int>(r);
+    for (int c = 0; c < nearest.cols; ++c) n[c] = n[c] >= 0 && n[c] < static_cast<int>(owner.size()) ? owner[n[c]] : 0;
+  }
+  return nearest;
+}
+
 // Restricts comp's window to the pixels nearer to its own component than to any other. Close neighbours then share
 // the gap between them along the line of equal distance: each window holds its spot's light less the tail that
 // crosses the line, plus the neighbour's tail that crosses it the other way — for neighbours of like brightness and
@@ -206,25 +228,13 @@ void KeepNearestPixels(const cv::Mat& labels, int margin, Component* comp) {
   const cv::Rect region = cv::Rect(comp->roi.x - margin, comp->roi.y - margin, comp->roi.width + 2 * margin,
                                    comp->roi.height + 2 * margin) &
                           cv::Rect(0, 0, labels.cols, labels.rows);
-  const cv::Mat lab = labels(region);
-  cv::Mat distance, nearest;
-  cv::distanceTransform(lab == 0, distance, nearest, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
-  std::vector<int> owner;  // OpenCV's label of a component pixel -> the component's label
-  for (int r = 0; r < lab.rows; ++r) {
-    const int* l = lab.ptr<int>(r);
-    const int* n = nearest.ptr<int>(r);
-    for (int c = 0; c < lab.cols; ++c) {
-      if (l[c] == 0) continue;
-      if (n[c] >= static_cast<int>(owner.size())) owner.resize(n[c] + 1, 0);
-      owner[n[c]] = l[c];
-    }
-  }
+  const cv::Mat owner = NearestSeed(labels(region));
   const int du = comp->roi.x - region.x, dv = comp->roi.y - region.y;
   for (int r = 0; r < comp->window.rows; ++r) {
     uint8_t* w = comp->window.ptr<uint8_t>(r);
-    const int* n = nearest.ptr<int>(r + dv) + du;
+    const int* o = owner.ptr<int>(r + dv) + du;
     for (int c = 0; c < comp->window.cols; ++c) {
-      if (w[c] && (n[c] >= static_cast<int>(owner.size()) || owner[n[c]] != comp->label)) w[c] = 0;
+      if (w[c] && o[c] != comp->label) w[c] = 0;
     }
   }
 }
@@ -294,24 +304,11 @@ void SplitIntoCores(const cv::Mat& pieces, int piece_count, const std::vector<in
   // Core p keeps label k (the first) or takes a new one; the other pixels go to the nearest core.
   std::vector<int> core_label(piece_count, 0);
   for (size_t i = 0; i < cores.size(); ++i) core_label[cores[i]] = i == 0 ? k : stats->rows + static_cast<int>(i) - 1;
-  cv::Mat not_core(rect.size(), CV_8UC1, cv::Scalar(255));
+  cv::Mat seeds(rect.size(), CV_32SC1, cv::Scalar(0));
   for (int r = 0; r < rect.height; ++r) {
-    for (int c = 0; c < rect.width; ++c) {
-      if (core_label[pieces.at<int>(r, c)] != 0) not_core.at<uint8_t>(r, c) = 0;
-    }
+    for (int c = 0; c < rect.width; ++c) seeds.at<int>(r, c) = core_label[pieces.at<int>(r, c)];
   }
-  cv::Mat distance, nearest;
-  cv::distanceTransform(not_core, distance, nearest, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
-  std::vector<int> owner;
-  for (int r = 0; r < rect.height; ++r) {
-    for (int c = 0; c < rect.width; ++c) {
-      const int l = core_label[pieces.at<int>(r, c)];
-      if (l == 0) continue;
-      const int idx = nearest.at<int>(r, c);
-      if (idx >= static_cast<int>(owner.size())) owner.resize(idx + 1, 0);
-      owner[idx] = l;
-    }
-  }
+  const cv::Mat owner = NearestSeed(seeds);
   std::vector<cv::Rect> boxes(cores.size() + 1);
   std::vector<int> areas(cores.size() + 1, 0);
   const int first_new = stats->rows;
@@ -319,8 +316,7 @@ void SplitIntoCores(const cv::Mat& pieces, int piece_count, const std::vector<in
     int* lab = labels->ptr<int>(r + rect.y) + rect.x;
     for (int c = 0; c < rect.width; ++c) {
       if (lab[c] != k) continue;
-      const int idx = nearest.at<int>(r, c);
-      const int l = idx < static_cast<int>(owner.size()) && owner[idx] != 0 ? owner[idx] : k;
+      const int l = owner.at<int>(r, c) != 0 ? owner.at<int>(r, c) : k;
       lab[c] = l;
       const size_t slot = l == k ? 0 : static_cast<size_t>(l - first_new + 1);
       boxes[slot] |= cv::Rect(c + rect.x, r + rect.y, 1, 1);
