@@ -1,4 +1,4 @@
-#include "correct/spot_fit.h"
+#include "correct/spot_detail.h"
 
 #include <algorithm>
 #include <array>

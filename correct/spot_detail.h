@@ -1,6 +1,7 @@
 #pragma once
-// Internal to correct/ (spot_detect.cc, spot_fit.cc): a segmented component and the window its centre is estimated
-// in, and the two model fits that refine its centroid (docs/spot-noise.md). Not installed.
+// Internal to correct/ (spot_detect.cc, spot_deblend.cc, spot_fit.cc): a segmented component and the window its
+// centre is estimated in, the deblending of merged and close spots, and the two model fits that refine a centroid
+// (docs/spot-noise.md). Not part of the library's interface.
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -30,6 +31,14 @@ struct Component {
   std::vector<double> values;  // the component's own pixels above background (for the profile test)
   std::vector<int> neighbours; // labels of the other components within near_blob_gap_px of the window
 };
+
+// Splits the components of `labels` (box coordinates; `stats` as cv::connectedComponentsWithStats gives them) that
+// hold several spots merged above the threshold; the new components are appended (spot_deblend.cc).
+void DeblendMerged(const cv::Mat& image_box, double threshold_dn, double noise_dn, const SpotDetectionOptions& options,
+                   cv::Mat* labels, cv::Mat* stats);
+
+// Cuts comp's window down to the pixels nearer to its own component than to any other (spot_deblend.cc).
+void KeepNearestPixels(const cv::Mat& labels, int margin, Component* comp);
 
 // kGaussianFit: each component's centroid replaced by an elliptical 2-D Gaussian's centre fitted to its window
 // (unweighted; kept for comparison). A fit that fails or wanders > 2 px off keeps the centroid (fit_converged false).
