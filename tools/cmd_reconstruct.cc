@@ -95,7 +95,9 @@ pipeline::SpotMeasurement MeasureImage(const cv::Mat& image, const model::Topogr
   }
   fmt::print("{}\n", m.orientation_message);
   if (m.excluded > 0)
-    fmt::print("{} identified spots flagged near another blob or at the border: left out\n", m.excluded);
+    fmt::print("{} identified spots flagged (near another blob, at the border, on an uneven background or a flux "
+               "outlier): left out\n",
+               m.excluded);
   return m;
 }
 

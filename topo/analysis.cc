@@ -56,13 +56,24 @@ double SupportedRadiusMm(const std::vector<ReconstructedPoint>& points) {
     const int sector = std::clamp(static_cast<int>(std::floor((angle + M_PI) / (2.0 * M_PI) * kSectors)), 0, kSectors - 1);
     reach[sector] = std::max(reach[sector], p.point_mm.head<2>().norm());
   }
-  // A sector without any point (the innermost rings hold too few spots to put one in every 10 deg sector, and a lid
-  // can hide the outer ones) is covered as far as the nearer of its two neighbours reach: a lid-hidden sector then
-  // reads as the lid's edge, not as no data at all. Sectors with points keep their own reach.
+  // A sector without any point (the innermost rings hold too few spots to put one in every 10 deg sector, a lid can
+  // hide the outer ones, a lash's shadow takes a narrow wedge of spots out of the measurement) is covered as far as
+  // the nearer of the two sectors with points on either side of its empty run reach, when that run is at most
+  // kBridgedSectors wide (30 deg: a lash's wedge, the gaps of the inner rings); a wider empty wedge is not covered.
+  // Sectors with points keep their own reach.
+  constexpr int kBridgedSectors = 3;
   double supported = std::numeric_limits<double>::infinity();
   for (int s = 0; s < kSectors; ++s) {
-    const double own = reach[s] > 0 ? reach[s]
-                                    : std::min(reach[(s + kSectors - 1) % kSectors], reach[(s + 1) % kSectors]);
+    double own = reach[s];
+    if (!(own > 0)) {
+      int before = 1, after = 1;
+      while (before < kSectors && !(reach[(s - before + kSectors) % kSectors] > 0)) ++before;
+      while (after < kSectors && !(reach[(s + after) % kSectors] > 0)) ++after;
+      const int run = before + after - 1;
+      own = run <= kBridgedSectors && before < kSectors
+                ? std::min(reach[(s - before + kSectors) % kSectors], reach[(s + after) % kSectors])
+                : 0.0;
+    }
     supported = std::min(supported, own);
   }
   return supported;

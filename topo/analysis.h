@@ -24,8 +24,9 @@ struct Analysis {
   PowerMaps power;                       // of Psi with piston and tilts removed (Sec. 4.2)
   double covered_radius_mm = 0;          // radius the reconstructed points reach (farthest point)
   // Radius to which the data reach in EVERY direction: the smallest, over 36 sectors of 10 deg about the axis, of
-  // the farthest point in the sector (an empty sector: the nearer reach of its two neighbours). Maps beyond it extrapolate in some direction; the clinical indices and the
-  // truth comparisons use only the disc of this radius.
+  // the farthest point in the sector (an empty run of at most 3 sectors: the nearer reach of the sectors on either
+  // side; a wider one: 0). Maps beyond it extrapolate in some direction; the clinical indices and the truth
+  // comparisons use only the disc of this radius.
   double supported_radius_mm = 0;
   std::optional<SurfaceErrors> errors;   // when the truth is given
   ClinicalIndices clinical;              // within the covered radius (topo/clinical_indices.h)

@@ -238,5 +238,28 @@ TEST(TaylorPolynomial, PreconditionedRefitEqualsAFreshQrSolve) {
   EXPECT_LT((a.coefficients() - b.coefficients()).norm(), kSameSolutionTol * b.coefficients().norm());
   EXPECT_LT((c.coefficients() - b.coefficients()).norm(), kSameSolutionTol * b.coefficients().norm());
 }
+
+// The supported radius bridges a narrow empty wedge (a lash's shadow takes its spots out of the measurement: two
+// 10-deg sectors without a point) with the reach on either side, and does not bridge a wide one (60 deg).
+TEST(SupportedRadius, BridgesANarrowEmptyWedgeNotAWideOne) {
+  const auto ring = [](double gap_from_deg, double gap_to_deg) {
+    std::vector<ReconstructedPoint> points;
+    for (double r : {0.5, 1.0, 2.0, 3.0}) {
+      for (int k = 0; k < 72; ++k) {
+        const double deg = 2.5 + 5.0 * k;
+        if (deg > gap_from_deg && deg < gap_to_deg) continue;
+        ReconstructedPoint p;
+        p.point_mm = {r * std::cos(deg * M_PI / 180), r * std::sin(deg * M_PI / 180), 0.0};
+        p.normal = {0.0, 0.0, -1.0};
+        points.push_back(p);
+      }
+    }
+    return points;
+  };
+  EXPECT_NEAR(SupportedRadiusMm(ring(-1, -1)), 3.0, 1e-12);
+  EXPECT_NEAR(SupportedRadiusMm(ring(80, 100)), 3.0, 1e-12);  // 20 deg empty: bridged
+  EXPECT_EQ(SupportedRadiusMm(ring(60, 120)), 0.0);           // 60 deg empty: not
+}
+
 }  // namespace
 }  // namespace topocal::topo
