@@ -323,6 +323,8 @@ std::optional<Component> MakeComponent(const Segmentation& seg, int k, const Spo
   if (!comp.neighbours.empty()) KeepNearestPixels(labels, m, &comp);
   double peak = 0;
   std::vector<double>& values = comp.values;
+  thread_local std::vector<Eigen::Vector3d> window;  // u, v, value of the window's pixels
+  window.clear();
   for (int r = r0; r <= r1; ++r) {
     const int* lab = labels.ptr<int>(r);
     const uint8_t* win = comp.window.ptr<uint8_t>(r - r0) - c0;
@@ -333,6 +335,7 @@ std::optional<Component> MakeComponent(const Segmentation& seg, int k, const Spo
       const double w = value - bg;
       peak = std::max(peak, w);
       if (lab[c] == k) values.push_back(w);
+      window.emplace_back(c, r, value);
     }
   }
   const LocalBackground local = WindowBackground(image_box, labels, comp, uncut, bg);
@@ -347,18 +350,12 @@ std::optional<Component> MakeComponent(const Segmentation& seg, int k, const Spo
   // The centroid above the window's own background (or the global one); the flux above the global background
   // (the PSF fit's scale, which fits its own background level).
   double sw = 0, su = 0, sv = 0, flux = 0;
-  for (int r = r0; r <= r1; ++r) {
-    const int* lab = labels.ptr<int>(r);
-    const uint8_t* win = comp.window.ptr<uint8_t>(r - r0) - c0;
-    for (int c = c0; c <= c1; ++c) {
-      if (!win[c] || (lab[c] != 0 && lab[c] != k)) continue;
-      const double value = At(image_box, r, c);
-      const double w = value - (own_background ? local.At(c, r) : bg);
-      flux += value - bg;
-      sw += w;
-      su += w * c;
-      sv += w * r;
-    }
+  for (const auto& p : window) {
+    const double w = p.z() - (own_background ? local.At(p.x(), p.y()) : bg);
+    flux += p.z() - bg;
+    sw += w;
+    su += w * p.x();
+    sv += w * p.y();
   }
   if (!(sw > 0) || !(flux > 0)) return std::nullopt;
   DetectedSpot& s = comp.spot;
