@@ -245,11 +245,21 @@ struct Range {
   double Y(double v, double top, double h) const { return top + h * (1 - (v - lo) / (hi - lo)); }
 };
 
-// Nice ticks covering [lo, hi].
+// Nice ticks covering [lo, hi]: at most kMaxTicks, counted rather than stepped (a step below the values' rounding —
+// identical values a few ulps apart, or 1e308 beside ordinary ones — would never advance). A range whose nice step
+// is not finite, not positive or below the rounding of its ends gets its two ends as ticks.
 std::vector<double> AxisTicks(double lo, double hi) {
+  constexpr int kMaxTicks = 12;
   const double step = NiceFloor((hi - lo) / 4);
+  const double start = std::ceil(lo / step - 1e-9) * step;
+  if (!std::isfinite(step) || !(step > 0) || !std::isfinite(start) || start + step == start ||
+      !(hi >= lo) || !std::isfinite(hi - lo)) {
+    return std::isfinite(lo) && std::isfinite(hi) ? std::vector<double>{lo, hi} : std::vector<double>{};
+  }
   std::vector<double> t;
-  for (double v = std::ceil(lo / step - 1e-9) * step; v <= hi + 1e-9 * step; v += step) {
+  for (int i = 0; i < kMaxTicks; ++i) {
+    const double v = start + i * step;
+    if (v > hi + 1e-9 * step) break;
     t.push_back(std::abs(v) < 1e-12 * step ? 0.0 : v);
   }
   return t;

@@ -325,5 +325,24 @@ TEST(HtmlReport, FailingRecordSaysFailAndWhy) {
   EXPECT_NE(h.find("4 of 7 checks passed"), std::string::npos);
 }
 
+
+// A control chart of values the line can produce — identical to the last ulp, a 1e308 among ordinary ones, one NaN —
+// draws in bounded time and memory with finite coordinates (its tick loop once never advanced: 16.8 GB, then
+// std::bad_alloc in `fleet report`).
+TEST(SvgControlChart, DegenerateValuesDrawABoundedChart) {
+  for (const std::vector<double>& values :
+       {std::vector<double>(8, 2.208e-06), std::vector<double>{2.208e-06, std::nextafter(2.208e-06, 1.0), 2.208e-06},
+        std::vector<double>{0.3, 0.31, 1e308, 0.29}, std::vector<double>{0.3, std::nan(""), 0.31}}) {
+    plot::ControlChartPlot p;
+    p.title = "calibration rms";
+    p.value_label = "px";
+    p.values = values;
+    const std::string svg = plot::SvgControlChart(p);
+    EXPECT_LT(svg.size(), 200000u);
+    EXPECT_EQ(svg.find("nan"), std::string::npos);
+    EXPECT_EQ(svg.find("inf"), std::string::npos);
+  }
+}
+
 }  // namespace
 }  // namespace topocal::report
