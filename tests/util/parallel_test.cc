@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -29,10 +30,13 @@ TEST(ParallelFor, RunsEveryIndexOnceWhateverTheThreadCount) {
 TEST(ParallelFor, TheFirstExceptionReachesTheCaller) {
   std::atomic<int> started{0};
   try {
+    // The other items take 1 ms each: the second thread would need a second for all of them, far longer than the
+    // failing one takes to stop the loop even on a loaded machine (with a bare yield, a CI run under load once saw
+    // the second thread start all 1000 before the stop landed).
     util::ParallelFor(1000, 2, [&](size_t i) {
       ++started;
       if (i == 3) throw std::runtime_error("item 3 failed");
-      std::this_thread::yield();
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
     });
     FAIL() << "no exception";
   } catch (const std::runtime_error& e) {
