@@ -13,11 +13,13 @@
 #include <fmt/format.h>
 
 #include "correct/spot_lattice.h"
+#include "util/median.h"
 
 namespace topocal::correct {
 namespace {
 
 using lattice::DetectionGrid;
+using lattice::InnerSpots;
 using lattice::LocalAffine;
 using lattice::DistanceField;
 using lattice::Template;
@@ -28,12 +30,7 @@ constexpr double kMinSpreadSpacings = 0.3;
 constexpr int kMinDetections = 8;  // fewer than one ring: nothing to anchor the pattern on
 constexpr size_t kStartCandidatesTried = 5;
 
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const size_t k = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
-}
+using util::Median;
 
 // The assignment between designed spots (j) and detections (i), and the pairings the checks refused.
 struct State {
@@ -64,14 +61,6 @@ struct Hypothesis {
   Eigen::Vector2d centre;
   double scale = 1, score = 0;
 };
-
-std::vector<int> InnerSpots(const Template& tpl, int rings) {
-  std::vector<int> ids;
-  for (int r = 0; r < std::min<int>(rings, tpl.rings.size()); ++r) {
-    ids.insert(ids.end(), tpl.rings[r].begin(), tpl.rings[r].end());
-  }
-  return ids;
-}
 
 // Coarse search over centres and isotropic scales, scored on rings 1-2 by sum min(d, gate)^2 / gate^2 (0 for a
 // perfect match, ~0.75 per spot for points that only land somewhere on the lattice). The gate and the grid are set

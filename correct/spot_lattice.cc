@@ -63,6 +63,14 @@ DetectionGrid::DetectionGrid(const std::vector<Eigen::Vector2d>& points, double 
   for (size_t i = 0; i < points.size(); ++i) items_[fill[cell_of[i]]++] = static_cast<int>(i);
 }
 
+std::vector<int> InnerSpots(const Template& tpl, int rings) {
+  std::vector<int> ids;
+  for (int r = 0; r < std::min<int>(rings, tpl.rings.size()); ++r) {
+    ids.insert(ids.end(), tpl.rings[r].begin(), tpl.rings[r].end());
+  }
+  return ids;
+}
+
 DistanceField::DistanceField(const std::vector<Eigen::Vector2d>& points, const Eigen::Vector2d& centre,
                              double half_width, double cell)
     : origin_(centre - Eigen::Vector2d::Constant(half_width)),

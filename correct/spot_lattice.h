@@ -24,6 +24,8 @@ struct Template {
 };
 inline constexpr double kNeighbourSpacings = 2.6;
 Template MakeTemplate(const model::IdealImageParams& ideal);
+// The indices of the spots of the first `rings` rings.
+std::vector<int> InnerSpots(const Template& tpl, int rings);
 
 // Detections in square buckets. Written here because the queries are tiny and many (OpenCV's FLANN builds a tree
 // per call and returns through matrices; a grid is the whole job in a few lines and exact).

@@ -7,16 +7,12 @@
 #include <fmt/format.h>
 
 #include "model/null_screen_layout.h"
+#include "util/median.h"
 
 namespace topocal::pipeline {
 namespace {
 
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const size_t k = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
-}
+using util::Median;
 
 // The side of the image a detection-plane direction points to.
 std::string SideOf(const Eigen::Vector2d& direction_mm, const model::TopographerCamera& camera) {
