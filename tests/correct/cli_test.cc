@@ -277,8 +277,7 @@ TEST_F(CorrectCli, ALidIsMeasuredOverWhatIsVisibleAndOneHidingTheSimKZoneIsRefus
 // Item 3 of the capture issue: a smaller sensor of the same size (the phone's 6 and 3 MP modes: 1.6 and 2.24 um
 // pixels, spots 14 and 10 px apart, 3 px of background between the elliptical spot images at 3 MP; a binned video
 // frame at 3.8 um with point-like spots, PSF 1.2 px, 6 px apart) measures every spot — neighbours share the gap between them rather than being left out — and the paper cornea comes back within
-// the issue's clean-image limits (|dr| <= 0.005 mm, |dk| <= 0.005). Before: 624 of 624 spots flagged "near a blob"
-// and reconstruct failed. Regression bounds near today's errors (2026-12-03, 2.24 um: rx +0.0001 mm, ry -0.0003 mm,
+// the issue's clean-image limits (|dr| <= 0.005 mm, |dk| <= 0.005). Regression bounds near today's errors (2026-12-03, 2.24 um: rx +0.0001 mm, ry -0.0003 mm,
 // kx +0.0001, ky -0.0003; 1.6 um: below 0.00004 everywhere; 3.8 um: rx -0.0001 mm, ry -0.0003 mm, kx -0.0001,
 // ky -0.0002).
 TEST_F(CorrectCli, SmallerPixelsMeasureEverySpot) {

@@ -186,7 +186,7 @@ TEST(ClinicalCapture, EveryIdentityRightAndEveryMeasurementWithinTwiceTheCleanLi
   fmt::print("refused {}, worst axial rms {:.3f} D, worst |dKmax| {:.3f} D, lowest share {:.3f}\n", refused,
              worst_axial, worst_kmax, worst_share);
   // Regression bounds near today's figures (2026-12-03: none refused; worst axial rms 0.078 D, worst |dKmax|
-  // 0.078 D, lowest identified share 0.984). Before this work the lid alone mislabelled every spot.
+  // 0.078 D, lowest identified share 0.984).
   EXPECT_EQ(refused, 0);
   EXPECT_LE(worst_axial, 0.12);
   EXPECT_LE(worst_kmax, 0.15);

@@ -327,8 +327,8 @@ TEST(HtmlReport, FailingRecordSaysFailAndWhy) {
 
 
 // A control chart of values the line can produce — identical to the last ulp, a 1e308 among ordinary ones, one NaN —
-// draws in bounded time and memory with finite coordinates (its tick loop once never advanced: 16.8 GB, then
-// std::bad_alloc in `fleet report`).
+// draws in bounded time and memory with finite coordinates (a tick loop stepping below the values' rounding would
+// never advance, and allocate until std::bad_alloc).
 TEST(SvgControlChart, DegenerateValuesDrawABoundedChart) {
   for (const std::vector<double>& values :
        {std::vector<double>(8, 2.208e-06), std::vector<double>{2.208e-06, std::nextafter(2.208e-06, 1.0), 2.208e-06},

@@ -31,8 +31,8 @@ TEST(ParallelFor, TheFirstExceptionReachesTheCaller) {
   std::atomic<int> started{0};
   try {
     // The other items take 1 ms each: the second thread would need a second for all of them, far longer than the
-    // failing one takes to stop the loop even on a loaded machine (with a bare yield, a CI run under load once saw
-    // the second thread start all 1000 before the stop landed).
+    // failing one takes to stop the loop even on a loaded machine (with a bare yield, a loaded machine can let the
+    // second thread start all 1000 before the stop lands).
     util::ParallelFor(1000, 2, [&](size_t i) {
       ++started;
       if (i == 3) throw std::runtime_error("item 3 failed");
