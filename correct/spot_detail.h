@@ -44,10 +44,19 @@ void KeepNearestPixels(const cv::Mat& labels, int margin, Component* comp);
 // (unweighted; kept for comparison). A fit that fails or wanders > 2 px off keeps the centroid (fit_converged false).
 void RefineByGaussianFit(const cv::Mat& image_box, const cv::Mat& labels, double bg, std::vector<Component>* comps);
 
+// The gain is measured only from at least this many spots: one spot's estimate carries its own misfit.
+inline constexpr int kMinGainEvidenceSpots = 10;
+
+struct NoiseModelFit {
+  double gain_e_per_dn = 0;  // the gain used: given, measured, or 0 (read noise only)
+  bool gain_measured = false;
+  int evidence_spots = 0;    // spots whose residuals or plateau gave evidence on the gain
+};
+
 // kWeightedPsfFit: the pixel-integrated PSF fit of every PSF-like component (flat-topped ones keep their centroid),
-// weighted by the noise model read_var + signal / gain. gain_e_per_dn 0: estimated from the first pass' residuals.
-// Returns the gain used (0: read noise only).
-double RefineByPsfFit(const cv::Mat& image_box, const cv::Mat& labels, double bg, double threshold_dn, double read_var,
+// weighted by the noise model read_var + signal / gain. gain_e_per_dn 0: measured from the first pass' residuals
+// and the flat-topped spots' plateaus (docs/spot-noise.md), when kMinGainEvidenceSpots spots give evidence.
+NoiseModelFit RefineByPsfFit(const cv::Mat& image_box, const cv::Mat& labels, double bg, double threshold_dn, double read_var,
                       double gain_e_per_dn, std::vector<Component>* comps);
 
 }  // namespace topocal::correct::detail

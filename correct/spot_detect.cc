@@ -13,6 +13,7 @@
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
+#include "correct/background_stats.h"
 #include "correct/spot_detail.h"
 
 namespace topocal::correct {
@@ -25,103 +26,6 @@ using detail::Component;
 using detail::RefineByGaussianFit;
 using detail::RefineByPsfFit;
 using detail::Saturates;
-
-struct Stats {
-  double median = 0, sigma = 0, bright = 0;
-  // The noise from differences of horizontally adjacent pixels (1.4826 MAD / sqrt 2): blind to a background that
-  // changes smoothly (a lid's skin over part of the frame), which widens the histogram's own MAD (sigma) by the
-  // difference of the levels.
-  double sigma_diff = 0;
-};
-
-// sigma_diff of `img` from disjoint pairs of horizontally adjacent pixels on every 4th row (a histogram for integer
-// images: one pass, no sort).
-template <typename T>
-double DifferenceSigma(const cv::Mat& img) {
-  constexpr bool kInteger = std::is_integral_v<T>;
-  std::vector<uint32_t> hist(kInteger ? (sizeof(T) == 1 ? 256 : 65536) : 0, 0);
-  std::vector<float> d;
-  size_t n = 0;
-  for (int r = 0; r < img.rows; r += 4) {
-    const T* p = img.ptr<T>(r);
-    for (int c = 0; c + 1 < img.cols; c += 2, ++n) {
-      if constexpr (kInteger) {
-        ++hist[std::abs(static_cast<int>(p[c + 1]) - static_cast<int>(p[c]))];
-      } else {
-        d.push_back(std::abs(p[c + 1] - p[c]));
-      }
-    }
-  }
-  if (n == 0) return 0;
-  double mad = 0;
-  if constexpr (kInteger) {
-    size_t acc = 0;
-    for (size_t b = 0; b < hist.size(); ++b) {
-      acc += hist[b];
-      if (acc > (n - 1) / 2) {
-        mad = static_cast<double>(b);
-        break;
-      }
-    }
-  } else {
-    std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
-    mad = d[d.size() / 2];
-  }
-  return 1.4826 * mad / std::sqrt(2.0);
-}
-
-// Robust statistics from every 2nd pixel of every 2nd row (a quarter of the image: enough samples, a quarter of
-// the cost). Integer images go through a histogram (one pass, no sort); float images through nth_element.
-Stats RobustStats(const cv::Mat& img) {
-  Stats s;
-  if (img.depth() == CV_8U || img.depth() == CV_16U) {
-    const int bins = img.depth() == CV_8U ? 256 : 65536;
-    std::vector<uint32_t> hist(bins, 0);
-    size_t n = 0;
-    for (int r = 0; r < img.rows; r += 2) {
-      if (img.depth() == CV_8U) {
-        const auto* p = img.ptr<uint8_t>(r);
-        for (int c = 0; c < img.cols; c += 2) ++hist[p[c]];
-      } else {
-        const auto* p = img.ptr<uint16_t>(r);
-        for (int c = 0; c < img.cols; c += 2) ++hist[p[c]];
-      }
-      n += (img.cols + 1) / 2;
-    }
-    const auto quantile = [&](const std::vector<uint32_t>& h, double q) {
-      const auto target = static_cast<size_t>(q * (n - 1));
-      size_t acc = 0;
-      for (int b = 0; b < static_cast<int>(h.size()); ++b) {
-        acc += h[b];
-        if (acc > target) return b;
-      }
-      return static_cast<int>(h.size()) - 1;
-    };
-    const int median = quantile(hist, 0.5);
-    s.median = median;
-    s.bright = quantile(hist, 0.9999);
-    std::vector<uint32_t> dev(bins, 0);
-    for (int b = 0; b < bins; ++b) dev[std::abs(b - median)] += hist[b];
-    s.sigma = 1.4826 * quantile(dev, 0.5);
-    return s;
-  }
-  std::vector<float> v;
-  v.reserve(static_cast<size_t>(img.rows / 2 + 1) * (img.cols / 2 + 1));
-  for (int r = 0; r < img.rows; r += 2) {
-    const auto* p = img.ptr<float>(r);
-    for (int c = 0; c < img.cols; c += 2) v.push_back(p[c]);
-  }
-  const auto pct = [&v](double q) {
-    const auto k = static_cast<size_t>(std::clamp(q, 0.0, 1.0) * (v.size() - 1));
-    std::nth_element(v.begin(), v.begin() + k, v.end());
-    return static_cast<double>(v[k]);
-  };
-  s.bright = pct(0.9999);
-  s.median = pct(0.5);
-  for (auto& x : v) x = std::abs(x - static_cast<float>(s.median));
-  s.sigma = 1.4826 * pct(0.5);
-  return s;
-}
 
 // The local background where it rises above the global one: skin of a lid, the lid's margin, a bright iris or
 // sclera behind the pattern. The floor of the image in 8 x 8 blocks (the darkest pixel of each), its minimum over
@@ -435,6 +339,34 @@ bool SpotDetectionOptions::IsValid(std::string* why) const {
   return true;
 }
 
+// The sensor's read noise (quantisation excluded) into *out: on a uniform frame the histogram's own, of the pixels
+// away from every component (`stats`, box coordinates); where a skin or an iris widens the histogram, the
+// adjacent-pixel differences' (less the quantisation they include: two roundings, and the spread of the
+// difference's own integer value).
+void MeasureReadNoise(const cv::Mat& image, const detail::BackgroundStats& st, bool uneven_frame, const cv::Mat& stats,
+                      const cv::Rect& box, const SpotDetectionOptions& options, SpotDetection* out) {
+  if (options.read_noise_dn > 0) {
+    out->read_noise_dn = options.read_noise_dn;
+    out->read_noise_source = "given";
+    return;
+  }
+  if (uneven_frame) {
+    out->read_noise_dn =
+        std::sqrt(std::max(0.0, st.sigma_diff * st.sigma_diff - 1.5 * detail::QuantisationVariance(image)));
+    out->read_noise_source =
+        "adjacent-pixel differences (the background is not uniform: a texture at the pixel scale, such as skin or "
+        "an iris, counts as noise, so this is an upper bound)";
+    return;
+  }
+  std::vector<cv::Rect> occupied;
+  for (int k = 1; k < stats.rows; ++k) {
+    occupied.emplace_back(stats.at<int>(k, cv::CC_STAT_LEFT) + box.x, stats.at<int>(k, cv::CC_STAT_TOP) + box.y,
+                          stats.at<int>(k, cv::CC_STAT_WIDTH), stats.at<int>(k, cv::CC_STAT_HEIGHT));
+  }
+  out->read_noise_dn = detail::ReadNoiseAwayFrom(image, occupied, options.window_margin_px, st.sigma);
+  out->read_noise_source = "the background's histogram away from the spots (uniform frame)";
+}
+
 SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& options) {
   std::string why;
   if (!options.IsValid(&why)) throw std::invalid_argument("DetectSpots: " + why);
@@ -442,16 +374,18 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
     throw std::invalid_argument("DetectSpots: the image must be one channel of 8-bit, 16-bit or float pixels");
   }
   SpotDetection out;
+  out.gain_source = options.method == CentroidMethod::kWeightedPsfFit
+                        ? "not measured: no spot"
+                        : "not measured: only the psf estimator uses a noise model";
   if (image.empty()) return out;
-  Stats st = RobustStats(image);
-  st.sigma_diff = image.depth() == CV_8U    ? DifferenceSigma<uint8_t>(image)
-                  : image.depth() == CV_16U ? DifferenceSigma<uint16_t>(image)
-                                            : DifferenceSigma<float>(image);
+  const detail::BackgroundStats st = detail::MeasureBackground(image);
   // The threshold's noise: the smaller estimate (equal on a uniform frame; the difference-based one where a
   // smooth background change widens the histogram). An integer image's difference MAD can be 0 at < 1 DN noise.
   const double threshold_sigma = st.sigma_diff > 0 ? std::min(st.sigma, st.sigma_diff) : st.sigma;
   out.background_dn = st.median;
   out.noise_dn = st.sigma;
+  const bool uneven_frame = st.sigma > 1.5 * threshold_sigma;
+  const double q = detail::QuantisationVariance(image);
   out.threshold_dn = st.median + std::max(options.threshold_sigmas * threshold_sigma,
                                           options.threshold_fraction * (st.bright - st.median));
   cv::Mat full_mask;
@@ -461,7 +395,6 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
   // A background that is not uniform shows as a histogram wider than the pixel-to-pixel noise; only then is the
   // local background worth its pass over the frame, and each window's own background subtracted in the centroid
   // (on a uniform frame its estimate would only add noise).
-  const bool uneven_frame = st.sigma > 1.5 * threshold_sigma;
   if (options.local_background && uneven_frame &&
       ApplyLocalBackground(image, st.median, threshold_sigma, out.threshold_dn - st.median,
                            box & cv::Rect(0, 0, image.cols, image.rows), &full_mask)) {
@@ -472,6 +405,7 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
   const cv::Mat image_box = image(box);
   cv::Mat labels, stats, centroids;
   cv::connectedComponentsWithStats(full_mask(box), labels, stats, centroids, 8, CV_32S);
+  MeasureReadNoise(image, st, uneven_frame, stats, box, options, &out);
   const double bg = out.background_dn;
   DeblendMerged(image_box, out.threshold_dn, threshold_sigma, options, &labels, &stats);
   const int n = stats.rows;
@@ -495,12 +429,17 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
   if (options.method == CentroidMethod::kGaussianFit) {
     RefineByGaussianFit(image_box, labels, bg, &comps);
   } else if (options.method == CentroidMethod::kWeightedPsfFit) {
-    // Quantisation adds 1/12 DN^2 of uniform noise to every pixel (the background's MAD of an integer image does
-    // not resolve it when the read noise is ~1 DN).
-    const double read_noise = options.read_noise_dn > 0 ? options.read_noise_dn : out.noise_dn;
-    const double read_var = read_noise * read_noise + (image.depth() == CV_32F ? 0.0 : 1.0 / 12.0);
-    out.read_noise_dn = std::sqrt(read_var);
-    out.gain_e_per_dn = RefineByPsfFit(image_box, labels, bg, out.threshold_dn, read_var, options.gain_e_per_dn, &comps);
+    const double read_var = out.read_noise_dn * out.read_noise_dn + q;
+    const detail::NoiseModelFit fit =
+        RefineByPsfFit(image_box, labels, bg, out.threshold_dn, read_var, options.gain_e_per_dn, &comps);
+    out.gain_e_per_dn = fit.gain_e_per_dn;
+    out.gain_measured = fit.gain_measured;
+    out.gain_evidence_spots = fit.evidence_spots;
+    out.gain_source = options.gain_e_per_dn > 0 ? "given"
+                      : fit.gain_measured
+                          ? fmt::format("measured from {} spots", fit.evidence_spots)
+                          : fmt::format("not measured: {} spots gave clean evidence, {} needed; read noise only",
+                                        fit.evidence_spots, detail::kMinGainEvidenceSpots);
   }
   for (auto& comp : comps) {
     comp.spot.centre_px += Eigen::Vector2d(box.x, box.y);

@@ -9,7 +9,8 @@
 //     (a skin over part of the frame widens the first). Where the histogram is wider than the pixel noise and the
 //     local background (the image's floor over 24 px windows) rises above the global one by more than 4 noise
 //     sigmas — a lid's skin, its margin, a bright iris — a pixel must also clear that local background by the same
-//     margin (local_background). noise_dn stays the histogram's MAD (the PSF fit's read noise when not given).
+//     margin (local_background). noise_dn stays the histogram's MAD; the read noise is measured apart
+//     (SpotDetection::read_noise_dn).
 //  3. Connected components (cv::connectedComponentsWithStats, 8-connected); components outside
 //     [min_area_px, max_area_px] are dropped and counted.
 //  4. Sub-pixel centre per component in a window = its bounding box grown by window_margin_px, ignoring the
@@ -64,8 +65,9 @@ std::string SpotFlagsText(unsigned flags);
 
 struct SpotDetectionOptions {
   CentroidMethod method = CentroidMethod::kWeightedPsfFit;
-  // Noise model of kWeightedPsfFit (docs/spot-noise.md). gain_e_per_dn 0: estimated from the image (the spots' fit
-  // residuals against their model signal); read_noise_dn 0: the background's robust sigma.
+  // Noise model of kWeightedPsfFit (docs/spot-noise.md). gain_e_per_dn 0: measured from the image (the spots' fit
+  // residuals against their expectation, the flat-topped spots' plateaus); read_noise_dn 0: measured from the
+  // background (maximum likelihood of its histogram's core as rounded Gaussian samples).
   double gain_e_per_dn = 0;
   double read_noise_dn = 0;
   // Another blob's pixels within near_blob_gap_px of this spot's window (the spot grown by window_margin_px): the
@@ -93,8 +95,14 @@ struct SpotDetection {
   std::vector<DetectedSpot> spots;
   double background_dn = 0, noise_dn = 0, threshold_dn = 0;
   int rejected_small = 0, rejected_large = 0;
-  // The noise model used by kWeightedPsfFit (given or estimated); 0 for the other methods.
+  // The noise model (docs/spot-noise.md): the read noise (DN, quantisation excluded; given or measured for every
+  // method) and, for kWeightedPsfFit, the gain (e-/DN; given, measured from gain_evidence_spots spots, or 0 when
+  // fewer than 10 gave evidence: the fit's weights are then the read noise's alone).
   double read_noise_dn = 0, gain_e_per_dn = 0;
+  bool gain_measured = false;
+  int gain_evidence_spots = 0;
+  std::string gain_source;        // one phrase: "given", "measured from N spots", or why it was not measured
+  std::string read_noise_source;  // one phrase: given, or which statistic of the background measured it
 };
 
 // `image`: CV_8UC1, CV_16UC1 or CV_32FC1. Throws std::invalid_argument for other types or invalid options.

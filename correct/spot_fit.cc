@@ -6,6 +6,7 @@
 
 #include <ceres/ceres.h>
 #include <ceres/tiny_solver.h>
+#include <opencv2/imgproc.hpp>
 
 namespace topocal::correct::detail {
 namespace {
@@ -142,6 +143,129 @@ bool FitPsf(const cv::Mat& image_box, const cv::Mat& labels, const Component& co
   return true;
 }
 
+// A spot whose level comes within 3 noise sigmas of full scale has its upper tail clipped, and leaving the clipped
+// pixels out would shrink its variance: it gives no evidence on the gain. The level decides, not the pixels' noise
+// (which would select the spots whose noise happened to stay low); the sigma assumes >= 1 e-/DN (an upper bound).
+bool ClearOfFullScale(const cv::Mat& image, double level_dn, double read_var, double bg) {
+  const double full = image.depth() == CV_8U ? 255.0 : image.depth() == CV_16U ? 65535.0 : HUGE_VAL;
+  return level_dn + 3.0 * std::sqrt(read_var + std::max(0.0, level_dn - bg)) < full;
+}
+
+// Is a fit's residual noise, or the model's misfit (an elliptical spot that passed for PSF-like, a neighbour's
+// tail)? A misfit is smooth across the window, so adjacent residuals are alike; noise's are independent (the fit's
+// leverage makes them slightly anti-correlated). The residuals of horizontally and vertically adjacent pixels are
+// taken as structured when their correlation exceeds 3 standard errors of a zero one (1 / sqrt(pairs)).
+bool ResidualIsStructured(const std::vector<FitPixel>& pixels, const std::vector<double>& residuals, int cols,
+                          int rows) {
+  std::vector<int> at(static_cast<size_t>(cols) * rows, -1);
+  for (size_t i = 0; i < pixels.size(); ++i) at[static_cast<size_t>(pixels[i].v) * cols + pixels[i].u] = static_cast<int>(i);
+  double cross = 0, square = 0;
+  int pairs = 0;
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    const FitPixel& p = pixels[i];
+    for (const auto& [du, dv] : {std::pair{1, 0}, std::pair{0, 1}}) {
+      if (p.u + du >= cols || p.v + dv >= rows) continue;
+      const int j = at[static_cast<size_t>(p.v + dv) * cols + p.u + du];
+      if (j < 0) continue;
+      cross += residuals[i] * residuals[j];
+      square += 0.5 * (residuals[i] * residuals[i] + residuals[j] * residuals[j]);
+      ++pairs;
+    }
+  }
+  return pairs == 0 || !(square > 0) || cross / square > 3.0 / std::sqrt(static_cast<double>(pairs));
+}
+
+// The spots' evidence on 1 / gain: least squares through the origin, num / den, from `spots` spots.
+struct GainEvidence {
+  double num = 0, den = 0;
+  int spots = 0;
+};
+
+// Pass 1's evidence on the gain from one spot's read-noise-weighted fit: the fit absorbs part of each pixel's noise
+// (its leverage), most at the bright pixels that carry the shot noise, so the squared residuals are compared with
+// their expectation under the noise model rather than with the pixel variance itself. With M = I - H the residual
+// maker of the (uniformly weighted) linearised fit and var_j = read_var + s_j / gain,
+//   E[r_i^2] = sum_j M_ij^2 var_j = read_var (1 - h_ii) + a_i / gain,   a_i = s_i (1 - 2 h_ii) + q_i' S q_i,
+// q_i = (J'J)^-1 j_i, S = J' diag(s) J — O(n) per spot, not O(n^2). Adds sum (r_i^2 - read_var (1 - h_ii)) a_i and
+// sum a_i^2 to the evidence; false (nothing added) when the spot gives none.
+bool AccumulateGainEvidence(const cv::Mat& image_box, const Component& comp, const std::vector<FitPixel>& pixels,
+                            const double* params, double bg, double read_var, GainEvidence* evidence) {
+  PsfCost cost{&pixels, comp.roi.width, comp.roi.height, comp.spot.flux_dn, bg, std::sqrt(read_var)};
+  const int n = cost.NumResiduals();
+  std::vector<double> residuals(n), jac(static_cast<size_t>(n) * 5);
+  if (!cost(params, residuals.data(), jac.data())) return false;
+  if (ResidualIsStructured(pixels, residuals, comp.roi.width, comp.roi.height)) return false;
+  const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 5>> J(jac.data(), n, 5);
+  Eigen::VectorXd s(n);
+  for (int i = 0; i < n; ++i) s[i] = std::max(0.0, cost.Signal(params, pixels[i]));
+  const double background = bg + params[4] * cost.bg_scale;
+  if (n == 0 || !ClearOfFullScale(image_box, background + s.maxCoeff(), read_var, bg)) return false;
+  const Eigen::Matrix<double, 5, 5> JtJ = J.transpose() * J;
+  const Eigen::LDLT<Eigen::Matrix<double, 5, 5>> ldlt(JtJ);
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0)) return false;
+  const Eigen::Matrix<double, 5, 5> S = J.transpose() * s.asDiagonal() * J;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Matrix<double, 5, 1> j = J.row(i).transpose();
+    const Eigen::Matrix<double, 5, 1> q = ldlt.solve(j);
+    const double h = j.dot(q);
+    const double a = s[i] * (1.0 - 2.0 * h) + q.dot(S * q);
+    const double r = residuals[i] * pixels[i].sd_dn;  // in DN
+    evidence->num += (r * r - read_var * (1.0 - h)) * a;
+    evidence->den += a * a;
+  }
+  return true;
+}
+
+// The same evidence from a flat-topped spot (the image of a screen disc several PSF widths across), which no model
+// here fits: on its plateau the signal is constant, so two horizontally adjacent plateau pixels differ by noise
+// alone, E[(I2 - I1)^2] / 2 = read_var + s / gain. The plateau must be flat to well below the noise — two pixels in
+// from the half-level edge the PSF's slope is still ~5 % of the level per pixel, 15x a 16-bit spot's noise — so it
+// is the pixels at least 4 PSF sigmas + 1 px inside the half-level contour, the PSF's sigma measured from the
+// spot's own edge: the radii of the areas above 10 % and 90 % of the level differ by 2.563 sigma. The level is the
+// median of the pixels above half the peak. Adds sum (d^2 / 2 - read_var) s and
+// sum s^2 over disjoint pairs; false when there are none.
+bool AccumulatePlateauGainEvidence(const cv::Mat& image_box, const cv::Mat& labels, const Component& comp, double bg,
+                                   double read_var, GainEvidence* evidence) {
+  std::vector<double> upper;
+  for (double v : comp.values) {
+    if (v > 0.5 * comp.spot.peak_dn) upper.push_back(v);
+  }
+  if (upper.size() < 8) return false;
+  std::nth_element(upper.begin(), upper.begin() + upper.size() / 2, upper.end());
+  const double level = upper[upper.size() / 2];
+  if (!ClearOfFullScale(image_box, bg + level, read_var, bg)) return false;
+  const auto area_above = [&](double share) {
+    return std::count_if(comp.values.begin(), comp.values.end(), [&](double v) { return v > share * level; });
+  };
+  const double psf_sigma =
+      (std::sqrt(area_above(0.1) / M_PI) - std::sqrt(area_above(0.9) / M_PI)) / 2.563;
+  const float inside = static_cast<float>(4.0 * std::max(psf_sigma, 0.5) + 1.0);
+  if (std::sqrt(area_above(0.5) / M_PI) <= inside) return false;  // no pixel that deep: spare the transform
+  const cv::Rect& roi = comp.roi;
+  cv::Mat half(roi.size(), CV_8U, cv::Scalar(0));
+  for (int r = 0; r < roi.height; ++r) {
+    for (int c = 0; c < roi.width; ++c) {
+      half.at<uint8_t>(r, c) = labels.at<int>(r + roi.y, c + roi.x) == comp.label &&
+                               At(image_box, r + roi.y, c + roi.x) - bg > 0.5 * level;
+    }
+  }
+  cv::Mat depth;
+  cv::distanceTransform(half, depth, cv::DIST_L2, cv::DIST_MASK_5);  // chamfer: within 2 % of Euclidean
+  bool any = false;
+  for (int r = 0; r < roi.height; ++r) {
+    const float* d = depth.ptr<float>(r);
+    for (int c = 0; c + 1 < roi.width; c += 2) {  // disjoint pairs: independent differences
+      if (d[c] < inside || d[c + 1] < inside) continue;
+      const double a = At(image_box, r + roi.y, c + roi.x), b = At(image_box, r + roi.y, c + 1 + roi.x);
+      const double signal = 0.5 * (a + b) - bg;
+      evidence->num += (0.5 * (b - a) * (b - a) - read_var) * signal;
+      evidence->den += signal * signal;
+      any = true;
+    }
+  }
+  return any;
+}
+
 }  // namespace
 
 void RefineByGaussianFit(const cv::Mat& image_box, const cv::Mat& labels, double bg, std::vector<Component>* comps) {
@@ -180,32 +304,35 @@ void RefineByGaussianFit(const cv::Mat& image_box, const cv::Mat& labels, double
   }
 }
 
-double RefineByPsfFit(const cv::Mat& image_box, const cv::Mat& labels, double bg, double threshold_dn, double read_var,
+NoiseModelFit RefineByPsfFit(const cv::Mat& image_box, const cv::Mat& labels, double bg, double threshold_dn, double read_var,
                       double gain_e_per_dn, std::vector<Component>* comps) {
   std::vector<Component>& c = *comps;
   std::vector<std::array<double, 5>> params(c.size(), {0, 0, 0, 0, 0});
   std::vector<char> ok(c.size(), 0);
   std::vector<FitPixel> pixels;
-  // Pass 1: read-noise weights. Its residuals against the model signal give the gain: E[r^2] = read + s / gain,
-  // so 1 / gain = sum((r^2 - read) s) / sum(s^2) over the spots' pixels (least squares through the origin).
-  double num = 0, den = 0;
+  // Pass 1: read-noise weights. The residuals of its fits against their expectation under the noise model, and the
+  // plateau differences of flat-topped spots, give the gain (least squares through the origin for 1 / gain) from
+  // the spots that no other blob's light reaches.
+  GainEvidence evidence;
   for (size_t i = 0; i < c.size(); ++i) {
     const auto& comp = c[i];
     const DetectedSpot& s = comp.spot;
-    if (!PsfLike(comp.values, s.peak_dn, threshold_dn - bg)) continue;  // flat-topped: keeps its centroid
+    const bool clean = gain_e_per_dn <= 0 && !(s.flags & (kNearBlob | kTruncated)) && comp.neighbours.empty();
+    if (!PsfLike(comp.values, s.peak_dn, threshold_dn - bg)) {  // flat-topped: keeps its centroid
+      if (clean) evidence.spots += AccumulatePlateauGainEvidence(image_box, labels, comp, bg, read_var, &evidence);
+      continue;
+    }
     const double sigma0 = std::max(0.7, std::sqrt(s.area_px / M_PI) / 1.1774);
     params[i] = {1.0, s.centre_px.x() - comp.roi.x, s.centre_px.y() - comp.roi.y, sigma0, 0.0};
     ok[i] = FitPsf(image_box, labels, comp, bg, read_var, 0.0, params[i].data(), &pixels);
-    if (!ok[i] || gain_e_per_dn > 0 || (comp.spot.flags & (kNearBlob | kTruncated))) continue;
-    PsfCost cost{&pixels, comp.roi.width, comp.roi.height, comp.spot.flux_dn, bg, std::sqrt(read_var)};
-    for (const auto& px : pixels) {
-      const double sig = cost.Signal(params[i].data(), px);
-      const double res = px.value_dn - (bg + params[i][4] * cost.bg_scale) - sig;
-      num += (res * res - read_var) * sig;
-      den += sig * sig;
-    }
+    if (ok[i] && clean) evidence.spots += AccumulateGainEvidence(image_box, comp, pixels, params[i].data(), bg, read_var, &evidence);
   }
-  double inv_gain = gain_e_per_dn > 0 ? 1.0 / gain_e_per_dn : (den > 0 ? std::max(0.0, num / den) : 0.0);
+  NoiseModelFit noise;
+  noise.evidence_spots = evidence.spots;
+  noise.gain_measured = gain_e_per_dn <= 0 && evidence.spots >= kMinGainEvidenceSpots && evidence.den > 0;
+  const double inv_gain = gain_e_per_dn > 0 ? 1.0 / gain_e_per_dn
+                          : noise.gain_measured ? std::max(0.0, evidence.num / evidence.den)
+                                              : 0.0;
   // Pass 2: the noise model's weights from pass 1's model signal (a pure read-noise model needs no second pass).
   for (size_t i = 0; i < c.size(); ++i) {
     DetectedSpot& s = c[i].spot;
@@ -217,7 +344,8 @@ double RefineByPsfFit(const cv::Mat& image_box, const cv::Mat& labels, double bg
     s.fit_converged = ok[i] && (fit - s.centre_px).norm() < 2.0;  // a fit that wanders off the blob is no centre
     if (s.fit_converged) s.centre_px = fit;
   }
-  return inv_gain > 0 ? 1.0 / inv_gain : 0.0;
+  noise.gain_e_per_dn = inv_gain > 0 ? 1.0 / inv_gain : 0.0;
+  return noise;
 }
 
 }  // namespace topocal::correct::detail

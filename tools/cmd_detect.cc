@@ -55,7 +55,9 @@ void Run(const DetectArgs& a) {
   for (const auto& m : r.missing) j["missing"].push_back({m.ring, m.index});
   j["noise_model"] = {{"background_dn", r.detection.background_dn},
                       {"read_noise_dn", r.detection.read_noise_dn},
-                      {"gain_e_per_dn", r.detection.gain_e_per_dn}};
+                      {"read_noise", r.detection.read_noise_source},
+                      {"gain_e_per_dn", r.detection.gain_e_per_dn},
+                      {"gain", r.detection.gain_source}};
   j["orientation"] = r.orientation.message;
   j["capture"] = CaptureJson(capture);
   util::WriteFileAtomic(a.out, correct::DetectedSpotsCsv(r));

@@ -12,7 +12,6 @@
 
 #include <cmath>
 #include <limits>
-#include <limits>
 #include <map>
 #include <random>
 #include <set>
