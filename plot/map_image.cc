@@ -48,11 +48,21 @@ double NiceStep(double range, double target_count) {
   return 10.0 * mag;
 }
 
+// At most this many ticks or band boundaries on a colour bar: the loops below are counted, not stepped, so that a
+// step below the values' rounding (1e16 + 1 over a step of 0.2) or a huge range cannot make them run or allocate
+// without bound; the two ends stand in where no such scale exists.
+constexpr double kMaxTicks = 1000;
+
 std::vector<double> Ticks(double lo, double hi, double step) {
-  std::vector<double> t;
   const double eps = 1e-9 * step;
-  for (double k = std::ceil((lo - eps) / step); k * step <= hi + eps; k += 1.0) {
-    const double v = k * step;
+  const double first = std::ceil((lo - eps) / step);
+  const double count = std::floor((hi + eps) / step) - first + 1;
+  if (!std::isfinite(first) || !std::isfinite(count) || count > kMaxTicks || std::abs(first) > 1e15) {
+    return {lo, hi};
+  }
+  std::vector<double> t;
+  for (int i = 0; i < static_cast<int>(count); ++i) {
+    const double v = (first + i) * step;
     t.push_back(std::abs(v) < eps ? 0.0 : v);
   }
   return t;
@@ -61,8 +71,10 @@ std::vector<double> Ticks(double lo, double hi, double step) {
 // Decimals that print every multiple of `step` exactly (1.5 -> 1, 0.25 -> 2, 5 -> 0).
 // value_min + k step up to value_max: the band boundaries of a stepped scale.
 std::vector<double> StepTicks(double lo, double hi, double step) {
+  const double count = std::floor((hi - lo) / step + 1e-9) + 1;
+  if (!std::isfinite(count) || count > kMaxTicks || !(count >= 1)) return {lo, hi};
   std::vector<double> t;
-  for (int k = 0; lo + k * step <= hi + 1e-9 * step; ++k) t.push_back(lo + k * step);
+  for (int k = 0; k < static_cast<int>(count); ++k) t.push_back(lo + k * step);
   return t;
 }
 

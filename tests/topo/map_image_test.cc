@@ -100,6 +100,22 @@ TEST(MapImage, AutomaticRangeIsTheDataRangeRoundedOutToTicks) {
   EXPECT_DOUBLE_EQ(f.contour_step, 0.25);
 }
 
+// Values whose spread is below their own rounding (1e16 + a ramp of 1: a tick step of 0.2 that 1e16 cannot tell
+// apart) and identical values: the tick loops are counted, so the map is drawn — with its ends as the bar's labels —
+// instead of the loop running for ever.
+TEST(MapImage, DegenerateValuesDrawABoundedMap) {
+  GridMap g = Ramp(11, 0, 1, true);
+  for (auto& v : g.values) v = 1e16 + v;
+  const MapImage huge = RenderMap(g);
+  EXPECT_FALSE(huge.bgr.empty());
+  EXPECT_LE(huge.value_min, 1e16);
+  EXPECT_GE(huge.value_max, 1e16 + 1);
+  for (auto& v : g.values) v = 43.0;
+  const MapImage flat = RenderMap(g);
+  EXPECT_FALSE(flat.bgr.empty());
+  EXPECT_LT(flat.value_min, flat.value_max);
+}
+
 TEST(MapImage, LinearRampMapsMonotonicallyOntoTheScale) {
   MapImageOptions o;
   o.contour_step = -1;  // no contour lines over the colours
