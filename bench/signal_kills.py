@@ -2,7 +2,7 @@
 """Kills `topocal unit calibrate` at random moments and counts how each run ended (docs/robustness.md, "Signals").
 
 Each run calibrates the test suite's unit (build/test-data/unit-inputs-v2, written by the first `ctest` run) into a
-fresh directory, waits until its staging directory SN.tmp-PID appears (the record is being written) or, with
+fresh directory, waits until its staging directory SN.tmp-PID-TOKEN appears (the record is being written) or, with
 --anytime, for a random moment of the whole run, sleeps a further random 0..MAX ms and sends the signal. A run must
 end either by the signal (nothing left in the directory) or normally with exit code 0 (the whole record left). Any
 other ending or anything else left behind is printed and counted as a failure; the exit code is 1 if there was one.
@@ -53,8 +53,8 @@ def main():
             if a.anytime:
                 time.sleep(rng.uniform(0, 2.0))
             else:
-                staging = os.path.join(work, f"SN.tmp-{p.pid}")
-                while not os.path.exists(staging) and p.poll() is None:
+                staging = f"SN.tmp-{p.pid}-"  # then an unpredictable token
+                while not any(n.startswith(staging) for n in os.listdir(work)) and p.poll() is None:
                     time.sleep(0.0002)
                 time.sleep(rng.uniform(0, a.max_delay_ms) / 1000)
             p.send_signal(sig)

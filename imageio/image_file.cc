@@ -204,6 +204,7 @@ ImageBytes ReadImageBytes(const std::string& path, const ImageLimits& limits) {
     return util::InputError(
         fmt::format("{}: over the {} MiB an image file may have", path, limits.max_file_bytes >> 20));
   };
+  util::NoteInput(path);  // an output of this run may not be written over it
   // A regular file of known size is refused before reading and otherwise mapped whole (ImageBytes).
   {
     const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);

@@ -12,6 +12,7 @@
 #include "model/distortion.h"
 #include "model/null_screen.h"
 #include "model/surface.h"
+#include "util/io.h"
 #include "util/json_section.h"
 
 namespace topocal::model {
@@ -238,6 +239,7 @@ Config ParseConfig(const std::string& json_text, const std::string& origin) {
 Config LoadConfig(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw util::ConfigError(fmt::format("{}: (file): cannot be opened for reading", path));
+  util::NoteInput(path);
   std::ostringstream ss;
   ss << in.rdbuf();
   if (in.bad()) throw util::ConfigError(fmt::format("{}: (file): read error", path));

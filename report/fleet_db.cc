@@ -146,6 +146,7 @@ FleetDb::FleetDb(const std::string& path, bool create) : path_(path) {
   const bool exists = fs::exists(path, ec);
   if (!exists && !create) throw util::InputError(fmt::format("{}: no such fleet database", path));
   if (exists && !fs::is_regular_file(path, ec)) throw util::InputError(fmt::format("{}: not a file", path));
+  if (exists) util::NoteInput(path);  // `fleet report --out` naming the database would replace it
   const int flags = create ? (SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE) : SQLITE_OPEN_READONLY;
   if (sqlite3_open_v2(path.c_str(), &db_, flags, nullptr) != SQLITE_OK) {
     const std::string message = db_ ? sqlite3_errmsg(db_) : "out of memory";

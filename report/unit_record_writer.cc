@@ -1,10 +1,16 @@
 #include "report/unit_record_writer.h"
 
+#include <fcntl.h>
 #include <fmt/format.h>
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
 #include <vector>
 
@@ -78,7 +84,7 @@ void RequireFiniteNumbers(const json& j) { CheckFinite(j, ""); }
 
 namespace {
 // "units/SN/" and "units/SN" are the same record: without the trailing separator, so that the staging directory
-// ("units/SN.tmp-PID") is a sibling of the record and not inside it (which made every such run fail).
+// ("units/SN.tmp-PID-TOKEN") is a sibling of the record and not inside it (which made every such run fail).
 fs::path RecordPath(fs::path out) {
   out = out.lexically_normal();
   if (out.filename().empty() && out.has_parent_path()) out = out.parent_path();
@@ -86,11 +92,108 @@ fs::path RecordPath(fs::path out) {
 }
 }  // namespace
 
-UnitRecordWriter::UnitRecordWriter(fs::path out)
-    : out_(RecordPath(std::move(out))), staging_(out_.string() + fmt::format(".tmp-{}", ::getpid())) {
+namespace {
+
+// A staging folder (NAME.tmp-PID[-TOKEN]) or a record set aside (NAME.old-PID) that a run killed by SIGKILL left
+// beside the record NAME. Only the writer holding the record's lock may judge them: any other writer would hold it.
+bool IsLeftoverOf(const std::string& entry, const std::string& record) {
+  for (const char* kind : {".tmp-", ".old-"}) {
+    const std::string prefix = record + kind;
+    if (entry.rfind(prefix, 0) == 0 && entry.size() > prefix.size() &&
+        std::isdigit(static_cast<unsigned char>(entry[prefix.size()]))) {
+      return true;
+    }
+  }
+  return false;
+}
+
+// Removes what killed runs left beside `out`; a record set aside (NAME.old-PID) whose replacement never arrived is
+// put back instead (the run died between the two renames of CommitDirectory).
+void CleanLeftovers(const fs::path& out) {
   std::error_code ec;
-  fs::remove_all(staging_, ec);
-  util::RegisterCleanupPath(staging_.string());  // SIGINT/SIGTERM remove it (issue 16: 8 of 8 kills left it)
+  const fs::path parent = out.has_parent_path() ? out.parent_path() : fs::path(".");
+  const std::string name = out.filename().string();
+  std::vector<fs::path> leftovers;
+  for (const auto& e : fs::directory_iterator(parent, ec)) {
+    if (IsLeftoverOf(e.path().filename().string(), name)) leftovers.push_back(e.path());
+  }
+  std::sort(leftovers.begin(), leftovers.end());
+  for (const auto& p : leftovers) {
+    const bool set_aside = p.filename().string().rfind(name + ".old-", 0) == 0;
+    if (set_aside && !fs::exists(out, ec) && !fs::is_symlink(p, ec)) {
+      fs::rename(p, out, ec);
+    } else {
+      fs::remove_all(p, ec);  // a link is removed, not followed
+    }
+  }
+}
+
+fs::path LockPath(const fs::path& out) {
+  const fs::path parent = out.has_parent_path() ? out.parent_path() : fs::path(".");
+  return parent / fmt::format(".{}.lock", out.filename().string());
+}
+
+// The record's lock: flock on a hidden file beside it, held for the writer's life and released by the kernel
+// however the process ends. The writer removes the file when it is done (and a signal's cleanup does), so nothing
+// is left behind; a taker that opened the file before its removal finds, after locking, that the path no longer
+// names its file, and starts again (the usual protocol for lock files that are removed).
+int LockRecord(const fs::path& out) {
+  const fs::path lock = LockPath(out);
+  for (int attempt = 0; attempt < 16; ++attempt) {
+    const int fd = ::open(lock.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0666);
+    if (fd < 0) {
+      throw util::InputError(fmt::format("{}: cannot create the record's lock {}: {}", out.string(), lock.string(),
+                                         std::strerror(errno)));
+    }
+    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+      const int e = errno;
+      ::close(fd);
+      if (e == EWOULDBLOCK) {
+        throw util::InputError(fmt::format(
+            "{}: another topocal run is writing this record now; nothing written (run again when it is done)",
+            out.string()));
+      }
+      throw util::InputError(fmt::format("{}: cannot lock the record: {}", out.string(), std::strerror(e)));
+    }
+    struct stat held {}, named {};
+    if (::fstat(fd, &held) == 0 && ::lstat(lock.c_str(), &named) == 0 && held.st_dev == named.st_dev &&
+        held.st_ino == named.st_ino) {
+      return fd;
+    }
+    ::close(fd);  // removed (or replaced) between our open and our lock: take the new one
+  }
+  throw util::InputError(fmt::format("{}: cannot lock the record: its lock file keeps changing", out.string()));
+}
+
+}  // namespace
+
+bool IsRecordLeftover(const fs::path& path) {
+  const std::string name = RecordPath(path).filename().string();
+  for (const char* kind : {".tmp-", ".old-"}) {
+    const size_t at = name.rfind(kind);
+    if (at != std::string::npos && at > 0 && IsLeftoverOf(name, name.substr(0, at))) return true;
+  }
+  return false;
+}
+
+UnitRecordWriter::UnitRecordWriter(fs::path out) : out_(RecordPath(std::move(out))) {
+  std::error_code ec;
+  const fs::path parent = out_.has_parent_path() ? out_.parent_path() : fs::path(".");
+  fs::create_directories(parent, ec);
+  if (ec) throw util::InputError(fmt::format("{}: cannot create {}: {}", out_.string(), parent.string(), ec.message()));
+  lock_fd_ = LockRecord(out_);
+  util::RegisterCleanupPath(LockPath(out_).string());
+  CleanLeftovers(out_);
+  // An unpredictable name, created exclusively: a link planted there cannot redirect the record.
+  staging_ = out_.string() + fmt::format(".tmp-{}-{}", ::getpid(), util::UnpredictableToken());
+  util::RegisterCleanupPath(staging_.string());  // SIGINT/SIGTERM remove it
+  if (::mkdir(staging_.c_str(), 0777) != 0) {
+    const int e = errno;
+    util::UnregisterCleanupPath(staging_.string());
+    Unlock();
+    throw util::InputError(
+        fmt::format("{}: cannot create the record directory: {}", out_.string(), std::strerror(e)));
+  }
   fs::create_directories(staging_ / "maps", ec);
   if (ec)
     throw util::InputError(fmt::format("{}: cannot create the record directory: {}", out_.string(), ec.message()));
@@ -98,8 +201,18 @@ UnitRecordWriter::UnitRecordWriter(fs::path out)
 
 UnitRecordWriter::~UnitRecordWriter() {
   std::error_code ec;
-  if (!committed_) fs::remove_all(staging_, ec);
+  if (!committed_ && !staging_.empty()) fs::remove_all(staging_, ec);
   util::UnregisterCleanupPath(staging_.string());
+  Unlock();
+}
+
+void UnitRecordWriter::Unlock() {
+  if (lock_fd_ < 0) return;
+  const std::string lock = LockPath(out_).string();
+  ::unlink(lock.c_str());  // while still held: the next taker re-checks the path after locking
+  util::UnregisterCleanupPath(lock);
+  ::close(lock_fd_);
+  lock_fd_ = -1;
 }
 
 void UnitRecordWriter::WriteFile(const std::string& name, std::string_view bytes) const {

@@ -4,7 +4,7 @@
 // (pipeline/unit_workflow.h) with WriteUnitRecord; the report and fleet tests and the fleet generator fill
 // UnitRecordWriter with generated values, through the same staging and commit.
 //
-// The record is staged in a temporary sibling directory (`<out>.tmp-<pid>`) and renamed into place only when
+// The record is staged in a temporary sibling directory (`<out>.tmp-<pid>-<token>`) and renamed into place only when
 // complete: a failed write leaves no record, and an earlier record at `out` untouched until the new one is whole.
 // Commit() adds `format`, `format_version`, `tool_version` and `files` (every staged file except unit.json, sorted,
 // with its SHA-256) to the body, refuses a non-finite number (nlohmann writes it as null, which a reader would take
@@ -22,9 +22,17 @@ namespace topocal::report {
 // Throws std::runtime_error "KEY: not a finite number" for the first NaN or infinity in `j` (dotted key path).
 void RequireFiniteNumbers(const nlohmann::json& j);
 
+// Is `path` (a directory given as a record) what a killed writer left: a staging folder "NAME.tmp-PID-TOKEN" or a
+// record set aside "NAME.old-PID"? `fleet ingest units/*/` skips them with a line; the next writer of NAME removes
+// them.
+bool IsRecordLeftover(const std::filesystem::path& path);
+
 class UnitRecordWriter {
  public:
-  // Creates the staging directory (with `maps/`). Throws util::InputError naming `out` when it cannot.
+  // Takes the record's lock (another run writing the same record now: util::InputError, nothing written), clears
+  // what killed runs left beside the record (their staging folders; a record set aside is put back), and creates
+  // the staging directory (with `maps/`) under an unpredictable name. Throws util::InputError naming `out` when it
+  // cannot.
   explicit UnitRecordWriter(std::filesystem::path out);
   ~UnitRecordWriter();  // removes the staging directory unless committed
   UnitRecordWriter(const UnitRecordWriter&) = delete;
@@ -39,7 +47,10 @@ class UnitRecordWriter {
   void Commit(nlohmann::json body);
 
  private:
+  void Unlock();  // removes the lock file and releases the lock
+
   std::filesystem::path out_, staging_;
+  int lock_fd_ = -1;
   bool committed_ = false;
 };
 

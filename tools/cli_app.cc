@@ -19,6 +19,7 @@ namespace topocal::tools {
 void SetUpApp(CLI::App& app) {
   // Before any thread starts: SIGINT/SIGTERM/SIGHUP remove staged outputs, then end the process (util/io.h).
   util::InstallSignalCleanup();
+  util::GuardInputs();  // an output naming one of the run's inputs is refused (docs/robustness.md)
   // Ceres logs through glog (failed steps, rank-deficient covariances); every failure reaches the user as one line
   // from the library's own result, so glog's lines would only be noise on stderr.
   FLAGS_minloglevel = google::GLOG_FATAL;

@@ -10,6 +10,7 @@
 #include "report/fleet_db.h"
 #include "report/fleet_report.h"
 #include "report/unit_record_reader.h"
+#include "report/unit_record_writer.h"
 #include "tools/commands.h"
 #include "util/io.h"
 
@@ -29,7 +30,15 @@ void Ingest(const IngestArgs& a) {
   if (a.station.empty()) throw util::InputError("--station: must not be empty");
   // Every record is read and verified before the database is touched: one bad record refuses the batch.
   std::vector<report::UnitRecord> records;
-  for (const std::string& dir : a.records) records.push_back(report::ReadUnitRecord(dir));
+  for (const std::string& dir : a.records) {
+    if (report::IsRecordLeftover(dir)) {
+      fmt::print(stderr, "{}: skipped: a staging folder a killed run left (the next run for that unit removes it)\n",
+                 dir);
+      continue;
+    }
+    records.push_back(report::ReadUnitRecord(dir));
+  }
+  if (records.empty()) throw util::InputError("no unit record to ingest (every directory given was a leftover)");
   report::FleetDb db(a.db, /*create=*/true);
   const report::IngestResult r = db.Ingest(records, a.station);
   fmt::print("{}: {} record(s) added, {} already present; {} record(s) in the database\n", a.db, r.added, r.present,

@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <random>
 #include <sstream>
 #include <thread>
 
@@ -77,10 +78,33 @@ fs::path ResolveLinks(const std::string& path) {
   throw InputError(fmt::format("{}: cannot be written: {}", path, std::strerror(ELOOP)));
 }
 
-std::atomic<unsigned> g_staging_counter{0};
-
+// ".NAME.KIND-PID-TOKEN": the PID says which run it belongs to (a stale one is recognised by it), the token makes
+// the name unpredictable, so nobody can plant a link where a staging directory will be.
 std::string StagingName(const fs::path& final_path, const char* kind) {
-  return fmt::format(".{}.{}-{}-{}", final_path.filename().string(), kind, ::getpid(), g_staging_counter++);
+  return fmt::format(".{}.{}-{}-{}", final_path.filename().string(), kind, ::getpid(), UnpredictableToken());
+}
+
+// (device, inode) of every file this run has read: an output that is one of them is refused. Off unless the
+// program asks (GuardInputs): a library user may well rewrite a file it read.
+std::atomic<bool> g_guard_inputs{false};
+std::mutex& InputsMutex() {
+  static auto* m = new std::mutex;
+  return *m;
+}
+std::vector<std::pair<dev_t, ino_t>>& Inputs() {
+  static auto* inputs = new std::vector<std::pair<dev_t, ino_t>>;
+  return *inputs;
+}
+
+// Throws when `path` exists and is a file this run read.
+void RefuseInputAsOutput(const std::string& path, const struct stat& st) {
+  if (!g_guard_inputs.load()) return;
+  std::lock_guard lock(InputsMutex());
+  for (const auto& [dev, ino] : Inputs()) {
+    if (dev == st.st_dev && ino == st.st_ino) {
+      throw InputError(fmt::format("{}: is also an input of this run; refusing to overwrite it", path));
+    }
+  }
 }
 
 }  // namespace
@@ -175,6 +199,7 @@ void StagedOutputs::AddFile(const std::string& path, std::string_view content) {
     if (!S_ISREG(st.st_mode)) {
       throw InputError(fmt::format("{}: cannot be written: not a regular file, FIFO or character device", path));
     }
+    RefuseInputAsOutput(path, st);
     exists = true;
     mode = st.st_mode & 07777;
   } else if (errno != ENOENT) {
@@ -215,8 +240,11 @@ std::string StagedOutputs::AddDirectory(const std::string& path) {
     state_->Track(d.staging);
     state_->directories.push_back(d);
   }
-  fs::create_directory(d.staging, ec);
-  if (ec) throw InputError(fmt::format("{}: cannot create {}: {}", path, d.staging.string(), ec.message()));
+  // Created exclusively: mkdir fails on anything already there, a planted link included (its name was
+  // unpredictable, so this is a second line).
+  if (::mkdir(d.staging.c_str(), 0777) != 0) {
+    throw InputError(fmt::format("{}: cannot create {}: {}", path, d.staging.string(), ErrnoText(errno)));
+  }
   return d.staging.string();
 }
 
@@ -269,9 +297,25 @@ void WriteFileAtomic(const std::string& path, std::string_view content) {
   out.Commit();
 }
 
+std::string UnpredictableToken() {
+  std::random_device device;  // the kernel's getrandom
+  return fmt::format("{:08x}{:08x}", device(), device());
+}
+
+void GuardInputs() { g_guard_inputs.store(true); }
+
+void NoteInput(const std::string& path) {
+  if (!g_guard_inputs.load()) return;
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return;
+  std::lock_guard lock(InputsMutex());
+  Inputs().emplace_back(st.st_dev, st.st_ino);
+}
+
 std::string ReadFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(fmt::format("{}: cannot be opened for reading: {}", path, ErrnoText(errno)));
+  NoteInput(path);
   // A regular file is read in one piece into a string of its size: streaming it through an ostringstream copied
   // every byte two to three times as the buffer grew (issue 15: 10 % of `unit calibrate`, which reads ~21 MB of
   // images to hash them). Anything whose size is unknown (a pipe) still streams.
@@ -401,6 +445,10 @@ void InstallSignalCleanup() {
     park.sa_handler = ParkThisThread;
     sigfillset(&park.sa_mask);  // nothing else runs in a parked thread
     ::sigaction(ParkSignal(), &park, nullptr);
+    // A file-size limit (ulimit -f, as batch schedulers set): the write fails with EFBIG ("File too large") and the
+    // run ends like any other failed write — one line, exit 2, nothing staged left — instead of the default
+    // SIGXFSZ ending the process with its staging behind.
+    ::signal(SIGXFSZ, SIG_IGN);
     sigset_t set;
     sigemptyset(&set);
     for (const int sig : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&set, sig);

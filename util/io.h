@@ -33,8 +33,9 @@ class MeasurementRefused : public std::runtime_error {
 };
 
 // The outputs of one run, published all or nothing. What an output path is decides how it is written:
-//  - a regular file or a new name: a staging file ".NAME.tmp-PID-N" in the same directory, renamed over it at
-//    Commit (atomic; a failed or interrupted run leaves the old file);
+//  - a regular file or a new name: a staging file ".NAME.tmp-PID-TOKEN" (TOKEN unpredictable, the file created
+//    exclusively) in the same directory, renamed over it at Commit (atomic; a failed or interrupted run leaves the
+//    old file); a file this run read (NoteInput, with GuardInputs on) is refused;
 //  - a symbolic link: written through — the file the link points to is replaced as above, the link stays;
 //  - a FIFO, a character device (/dev/null, a terminal) or any path under /dev or /proc (/dev/stdout): written
 //    directly at Commit (after every staged file is in place), never replaced by a regular file;
@@ -65,8 +66,17 @@ class StagedOutputs {
 
 // One output, published at once (a StagedOutputs of one file).
 void WriteFileAtomic(const std::string& path, std::string_view content);
-// Reads a whole file; throws InputError naming the path if it cannot be read.
+// Reads a whole file; throws InputError naming the path if it cannot be read. The file is noted as an input.
 std::string ReadFile(const std::string& path);
+// From now on, every file read is an input of this run that no output may be written over (the command line calls
+// it once in main(); a program linking the library decides for itself).
+void GuardInputs();
+// Notes `path` (an existing regular file) as an input of this run: with GuardInputs on, StagedOutputs refuses to
+// write over it, whatever name the output gives it (compared by device and inode). ReadFile notes its files;
+// readers that open files themselves (images, the fleet database) call this.
+void NoteInput(const std::string& path);
+// 64 random bits as 16 hex digits (the kernel's generator): a name nobody can predict.
+std::string UnpredictableToken();
 
 // SIGINT, SIGTERM and SIGHUP remove every path registered here (staging files and directories), then end the
 // process with the same signal. Call InstallSignalCleanup() once at the start of main(), before any thread starts:
