@@ -136,9 +136,11 @@ void Run(const CalibrateArgs& a) {
   // All texts are complete before any file is written, so a failure leaves none behind.
   const std::string cal_text = calib::CalibrationFileText(result, provenance);
   const std::string json_text = a.json.empty() ? std::string() : calib::CalibrationReportJson(result, provenance);
-  util::WriteFileAtomic(a.out, cal_text);
-  if (!a.json.empty()) util::WriteFileAtomic(a.json, json_text);
-  if (cross) util::WriteFileAtomic(a.cross_validate_svg, cross_svg);
+  util::StagedOutputs outputs;  // published together or not at all
+  outputs.AddFile(a.out, cal_text);
+  if (!a.json.empty()) outputs.AddFile(a.json, json_text);
+  if (cross) outputs.AddFile(a.cross_validate_svg, cross_svg);
+  outputs.Commit();
   const auto& c = result.camera;
   fmt::print("{} {} calibration from {} view(s), {} corners: rms {:.4f} px, {} outlier(s)\n", calib::ToString(result.model),
              result.single_view ? "single-view" : "multi-view", result.views_used.size(), result.corners_used,

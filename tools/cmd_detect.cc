@@ -60,8 +60,10 @@ void Run(const DetectArgs& a) {
                       {"gain", r.detection.gain_source}};
   j["orientation"] = r.orientation.message;
   j["capture"] = CaptureJson(capture);
-  util::WriteFileAtomic(a.out, correct::DetectedSpotsCsv(r));
-  if (!a.json.empty()) util::WriteFileAtomic(a.json, j.dump(2) + "\n");
+  util::StagedOutputs outputs;  // published together or not at all
+  outputs.AddFile(a.out, correct::DetectedSpotsCsv(r));
+  if (!a.json.empty()) outputs.AddFile(a.json, j.dump(2) + "\n");
+  outputs.Commit();
   fmt::print("detect ({}): {} spots indexed ({} flagged and left out of a measurement: near a blob, at the border, "
              "on an uneven background or a flux outlier), {} unassigned blobs, {} designed spots missing -> {}\n",
              j["estimator"].get<std::string>(), r.spots.size() + r.excluded.size(), r.excluded.size(),

@@ -53,9 +53,11 @@ void Report(const FleetReportArgs& a) {
   const std::string html = report::RenderFleetHtml(analysis);
   const std::string csv = a.csv.empty() ? "" : report::FleetCsv(analysis);
   const std::string json = a.json.empty() ? "" : report::FleetJson(analysis).dump(2) + "\n";
-  util::WriteFileAtomic(a.out, html);
-  if (!a.csv.empty()) util::WriteFileAtomic(a.csv, csv);
-  if (!a.json.empty()) util::WriteFileAtomic(a.json, json);
+  util::StagedOutputs outputs;  // published together or not at all
+  outputs.AddFile(a.out, html);
+  if (!a.csv.empty()) outputs.AddFile(a.csv, csv);
+  if (!a.json.empty()) outputs.AddFile(a.json, json);
+  outputs.Commit();
   int passed = 0;
   for (const auto& v : analysis.verdicts) passed += v.pass ? 1 : 0;
   fmt::print("{}: {} records, {} PASS, {} FAIL, {} out-of-control signal(s)\n", a.out, analysis.units.size(), passed,

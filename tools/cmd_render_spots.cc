@@ -104,8 +104,10 @@ void Run(const RenderSpotsArgs& a) {
   const cv::Mat image = correct::RenderSpotImage(spots, camera.width_px, camera.height_px, o);
   const auto png = imageio::EncodePng(image, a.out);
   const std::string csv = a.truth.empty() ? std::string() : correct::SpotTruthCsv(spots, camera);
-  util::WriteFileAtomic(a.out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
-  if (!a.truth.empty()) util::WriteFileAtomic(a.truth, csv);
+  util::StagedOutputs outputs;  // published together or not at all
+  outputs.AddFile(a.out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  if (!a.truth.empty()) outputs.AddFile(a.truth, csv);
+  outputs.Commit();
   const int glints = static_cast<int>(std::count_if(spots.begin(), spots.end(), [](const auto& s) { return s.id.ring == 0; }));
   fmt::print("rendered {} spots ({} dropped or under a lid, {} not imaged) and {} glints, {}-bit {}x{} -> {}\n",
              spots.size() - glints, truth.spots.size() - (spots.size() - glints), truth.failures.size(), glints, a.bits,

@@ -185,8 +185,10 @@ void AddRenderTargetCommand(CLI::App& app) {
     const auto png = imageio::EncodePng(view->image, a->out);
     // Both files are written only once everything has been computed; each atomically.
     const std::string truth = calib::CornerTruthCsv(*view);
-    util::WriteFileAtomic(a->out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
-    if (!a->truth.empty()) util::WriteFileAtomic(a->truth, truth);
+    util::StagedOutputs outputs;  // published together or not at all
+    outputs.AddFile(a->out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+    if (!a->truth.empty()) outputs.AddFile(a->truth, truth);
+    outputs.Commit();
     fmt::print("{} seen at {}x{} px: {}/{} corners in view -> {}{}\n", target.Describe(), camera.width_px,
                camera.height_px, view->corners.size(), target.CornerIds().size(), a->out,
                a->truth.empty() ? "" : ", truth -> " + a->truth);

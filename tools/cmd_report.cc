@@ -37,8 +37,10 @@ void Run(const ReportArgs& a) {
   in.Validate(record);
   const std::string html = report::RenderHtmlReport(record, in);
   const nlohmann::json verdict_json = report::ReportJson(record, in);
-  util::WriteFileAtomic(a.out, html);
-  if (!a.json.empty()) util::WriteFileAtomic(a.json, verdict_json.dump(2) + "\n");
+  util::StagedOutputs outputs;  // published together or not at all
+  outputs.AddFile(a.out, html);
+  if (!a.json.empty()) outputs.AddFile(a.json, verdict_json.dump(2) + "\n");
+  outputs.Commit();
   const report::Verdict verdict = report::Evaluate(record, in.limits, in.budget);
   fmt::print("{}: report {} for unit {}: {}\n", a.out, report::ReportId(record, in), record.serial,
              verdict.pass ? "PASS" : "FAIL");

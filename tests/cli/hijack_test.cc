@@ -1,5 +1,6 @@
 // Outputs that cannot be hijacked or aimed at the run's own inputs (docs/robustness.md): staging under unpredictable
-// names created exclusively, an output naming one of the run's inputs refused with nothing written, a unit record
+// names created exclusively, an output naming one of the run's inputs refused with nothing written, a verb's outputs
+// published together, a unit record
 // written by one run at a time, what a killed writer left cleared by the next writer and skipped by `fleet ingest`,
 // and a file-size limit ending the run with one line instead of SIGXFSZ.
 #include <gtest/gtest.h>
@@ -80,6 +81,25 @@ TEST_F(Hijack, AnOutputThatIsOneOfTheRunsInputsIsRefused) {
   EXPECT_EQ(d.exit_code, 2) << d.output;
   EXPECT_NE(d.output.find("eye.png: is also an input of this run"), std::string::npos) << d.output;
   EXPECT_EQ(Bytes("eye.png"), image);
+  EXPECT_EQ(Leftovers(), 0);
+}
+
+TEST_F(Hijack, AVerbsOutputsArePublishedTogetherOrNotAtAll) {
+  // The second output cannot be written (its directory is missing): the first, written on its own before, is absent.
+  const std::string data = std::string(TOPOCAL_SOURCE_DIR) + "/data/";
+  const auto render = RunTopocal("render-spots --config " + paper_ + " --camera " + data + "camera.json --bits 8 " +
+                                 "--out " + Path("eye.png") + " --truth " + Path("missing/truth.csv"));
+  EXPECT_EQ(render.exit_code, 2) << render.output;
+  EXPECT_FALSE(fs::exists(Path("eye.png")));
+  ASSERT_EQ(RunTopocal("render-spots --config " + paper_ + " --camera " + data + "camera.json --bits 8 --out " +
+                       Path("eye.png"))
+                .exit_code,
+            0);
+  const auto detect = RunTopocal("detect --config " + paper_ + " --camera " + data + "camera.json --image " +
+                                 Path("eye.png") + " --out " + Path("d.csv") + " --json " + Path("missing/d.json"));
+  EXPECT_EQ(detect.exit_code, 2) << detect.output;
+  EXPECT_NE(detect.output.find("missing/d.json"), std::string::npos) << detect.output;
+  EXPECT_FALSE(fs::exists(Path("d.csv")));
   EXPECT_EQ(Leftovers(), 0);
 }
 
