@@ -16,6 +16,23 @@
 
 namespace topocal::tools {
 
+namespace {
+
+// An option given an empty value (`--sigma ''`, a shell variable that was never set) is refused, naming the option:
+// CLI11 reads '' as 0 for a number, and no option here means anything by an empty string.
+void RefuseEmptyValues(const CLI::App& app) {
+  for (const CLI::Option* option : app.get_options()) {
+    for (const std::string& value : option->results()) {
+      if (option->get_expected_min() > 0 && value.find_first_not_of(" \t\n") == std::string::npos) {
+        throw util::InputError(fmt::format("{}: an empty value", option->get_name()));
+      }
+    }
+  }
+  for (const CLI::App* sub : app.get_subcommands()) RefuseEmptyValues(*sub);
+}
+
+}  // namespace
+
 void SetUpApp(CLI::App& app) {
   // Before any thread starts: SIGINT/SIGTERM/SIGHUP remove staged outputs, then end the process (util/io.h).
   util::InstallSignalCleanup();
@@ -32,7 +49,10 @@ void SetUpApp(CLI::App& app) {
   auto quiet = std::make_shared<bool>(false);
   app.add_flag("--quiet", *quiet, "No progress lines on stderr (they are off anyway when stderr is not a terminal)");
   app.fallthrough();
-  app.parse_complete_callback([quiet] { SetQuiet(*quiet); });
+  app.parse_complete_callback([quiet, &app] {
+    RefuseEmptyValues(app);
+    SetQuiet(*quiet);
+  });
 }
 
 int RunApp(CLI::App& app, int argc, char** argv) {

@@ -38,6 +38,18 @@ void ExpectBadInput(const Run& r, const std::string& needle) {
   EXPECT_LT(r.output.size(), 400u) << r.output.substr(0, 300);
 }
 
+// An empty value (a shell variable never set) was read as 0 for a number: `--sigma ''` simulated sigma = 0. Refused
+// before any work, naming the option, for numbers and paths alike.
+TEST_F(Robustness, AnEmptyOptionValueIsRefusedNamingTheOption) {
+  const auto sigma = RunTopocal("simulate --config " + paper_ + " --sigma '' --out " + Path("s.csv"));
+  EXPECT_EQ(sigma.exit_code, 2) << sigma.output;
+  EXPECT_NE(sigma.output.find("--sigma: an empty value"), std::string::npos) << sigma.output;
+  EXPECT_FALSE(fs::exists(Path("s.csv")));
+  const auto config = RunTopocal("design --config ' ' --out " + Path("t.csv"));
+  EXPECT_EQ(config.exit_code, 2) << config.output;
+  EXPECT_NE(config.output.find("--config: an empty value"), std::string::npos) << config.output;
+}
+
 TEST_F(Robustness, ConfigIntegerBeyondIntIsRefusedNotWrapped) {
   const auto cfg = PaperWith("c.json", "\"rings_N\": 11", "\"rings_N\": 4294967297");
   ExpectBadInput(RunTopocal("design --config " + cfg + " --out " + Path("t.csv")), "ideal_image.rings_N: must be in");
