@@ -5,7 +5,6 @@
 
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 #include <string>
 
 #include "tests/cli_harness.h"
@@ -17,12 +16,6 @@ using topocal::testing_cli::RunTopocal;
 
 class Determinism : public topocal::testing_cli::TempDirTest {
  protected:
-  std::string Bytes(const std::string& name) const {
-    std::ifstream in(Path(name), std::ios::binary);
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-  }
   const std::string data_ = std::string(TOPOCAL_SOURCE_DIR) + "/data/";
 };
 

@@ -10,7 +10,6 @@
 #include <fstream>
 #include <regex>
 #include <set>
-#include <sstream>
 #include <string>
 
 #include "report/unit_record_writer.h"
@@ -24,12 +23,6 @@ using topocal::testing_cli::RunTopocal;
 
 class Hijack : public topocal::testing_cli::TempDirTest {
  protected:
-  std::string Bytes(const std::string& name) const {
-    std::ifstream in(Path(name), std::ios::binary);
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-  }
   // Entries of the test directory whose names say they are staging or leftovers.
   int Leftovers() const {
     int n = 0;
