@@ -32,13 +32,13 @@ std::vector<SpotRow> ReadSpotsCsv(const std::string& path) {
     SpotRow r;
     char c1 = 0, c2 = 0, c3 = 0;
     std::istringstream ls(line);
-    ls >> r.id.ring >> c1 >> r.id.index >> c2 >> r.x_mm >> c3 >> r.y_mm;
+    // Judged before the rest is read: a number out of range (1e309) sets failbit and reads as the largest double,
+    // and reaching the line's end must not excuse it.
+    const bool numbers = !(ls >> r.id.ring >> c1 >> r.id.index >> c2 >> r.x_mm >> c3 >> r.y_mm).fail();
     std::string rest;
     ls >> rest;
-    if (ls.fail() && !ls.eof()) {
-      throw util::InputError(fmt::format("{}:{}: expected 'ring,index,x_mm,y_mm' numbers", path, line_no));
-    }
-    if (c1 != ',' || c2 != ',' || c3 != ',' || !rest.empty() || !std::isfinite(r.x_mm) || !std::isfinite(r.y_mm)) {
+    if (!numbers || c1 != ',' || c2 != ',' || c3 != ',' || !rest.empty() || !std::isfinite(r.x_mm) ||
+        !std::isfinite(r.y_mm)) {
       throw util::InputError(fmt::format("{}:{}: expected 'ring,index,x_mm,y_mm' numbers", path, line_no));
     }
     if (r.id.ring < 1 || r.id.index < 0) {

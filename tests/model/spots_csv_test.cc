@@ -36,5 +36,24 @@ TEST(SpotsCsv, ASimulatedImageIsReadBackExactly) {
   }
 }
 
+// Rows a reader must refuse, naming the file and line: a number beyond a double's range (read as 1.797e308 before),
+// a missing field, text where a number goes, a value after the last column.
+TEST(SpotsCsv, MalformedRowsAreRefusedNamingTheLine) {
+  const auto path =
+      (std::filesystem::temp_directory_path() / fmt::format("topocal_spots_bad_{}.csv", ::getpid())).string();
+  for (const char* row : {"1,0,0.1,1e309", "1,0,-1e400,0.2", "1,0,0.1", "1,0,abc,0.2", "1,0,0.1,0.2,7"}) {
+    util::WriteFileAtomic(path, std::string("ring,index,x_mm,y_mm\n1,1,0.1,0.2\n") + row + "\n");
+    try {
+      ReadSpotsCsv(path);
+      ADD_FAILURE() << row << " was accepted";
+    } catch (const util::InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(path + ":3:"), std::string::npos) << row << ": " << e.what();
+    }
+  }
+  util::WriteFileAtomic(path, "ring,index,x_mm,y_mm\n1,1,0.1,1e300\n");  // large but a double: read
+  EXPECT_EQ(ReadSpotsCsv(path).at(0).y_mm, 1e300);
+  std::filesystem::remove(path);
+}
+
 }  // namespace
 }  // namespace topocal::model
