@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <limits>
 #include <string_view>
+#include <vector>
 
 #include "util/io.h"
 
@@ -218,6 +219,33 @@ std::string FileStorageYamlLineProblem(const std::string& text) {
   return "";
 }
 
+namespace {
+
+// The first key that a mapping holds twice, as a dotted path ("" if none). OpenCV keeps both entries and reads the
+// first, so a second value written further down a file would be silently ignored.
+std::string FirstDuplicateKey(const cv::FileNode& node, const std::string& path) {
+  if (node.isMap()) {
+    std::vector<std::string> keys = node.keys();
+    std::vector<std::string> sorted = keys;
+    std::sort(sorted.begin(), sorted.end());
+    if (const auto dup = std::adjacent_find(sorted.begin(), sorted.end()); dup != sorted.end()) {
+      return path.empty() ? *dup : path + "." + *dup;
+    }
+    for (const std::string& k : keys) {
+      if (std::string d = FirstDuplicateKey(node[k], path.empty() ? k : path + "." + k); !d.empty()) return d;
+    }
+  } else if (node.isSeq()) {
+    for (size_t i = 0; i < node.size(); ++i) {
+      if (std::string d = FirstDuplicateKey(node[static_cast<int>(i)], fmt::format("{}[{}]", path, i)); !d.empty()) {
+        return d;
+      }
+    }
+  }
+  return "";
+}
+
+}  // namespace
+
 cv::FileStorage OpenFileStorage(const std::string& text, const std::string& origin) {
   if (text.size() > kMaxFileStorageBytes) {
     throw util::InputError(fmt::format("{}: {} bytes: larger than the {} MiB a calibration or target file may have",
@@ -266,6 +294,9 @@ cv::FileStorage OpenFileStorage(const std::string& text, const std::string& orig
     fs.open(body, cv::FileStorage::READ | cv::FileStorage::MEMORY | format);
   });
   if (!fs.isOpened()) throw util::InputError(fmt::format("{}: cannot be read as YAML, XML or JSON", origin));
+  if (const std::string key = FirstDuplicateKey(fs.root(), ""); !key.empty()) {
+    throw util::InputError(fmt::format("{}: {}: the key appears twice (which one is meant?)", origin, key));
+  }
   return fs;
 }
 

@@ -129,6 +129,15 @@ TEST_F(Robustness, TargetLengthsAreCheckedAfterTheConversionToMm) {
                  "w.yaml: line 2: 4294967298: an integer beyond the range of int");
 }
 
+// A key given twice: OpenCV keeps both and reads the first, so the second value (a later edit) was silently ignored.
+TEST_F(Robustness, AYamlKeyGivenTwiceIsRefused) {
+  Write("twice.yaml", "target_type: checkerboard\ntargetCols: 6\ntargetRows: 5\nrowSpacingMeters: 0.01\n"
+                      "colSpacingMeters: 0.01\ntargetCols: 8\n");
+  ExpectBadInput(RunTopocal("target --target " + Path("twice.yaml") + " --out " + Path("t.svg")),
+                 "twice.yaml: targetCols: the key appears twice");
+  EXPECT_FALSE(fs::exists(Path("t.svg")));
+}
+
 TEST_F(Robustness, DeeplyNestedYamlDoesNotCrashOpenCv) {
   // cv::FileStorage's parsers recurse: 1e5 nested '[' overflowed the stack (SIGSEGV).
   Write("deep.yaml", "target_type: " + std::string(100000, '[') + "\n");
