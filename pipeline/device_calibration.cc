@@ -6,6 +6,7 @@
 
 #include "correct/detect_and_index.h"
 #include "model/null_screen.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 
@@ -21,8 +22,29 @@ BallDetection DetectBall(const BallImage& ball, const model::Device& nominal, co
   return d;
 }
 
+namespace {
+
+// The same capture given twice (one file under two names, or a copy) is no new information, yet each copy would
+// shrink the reported standard deviations by another sqrt(2): refused. Compared by pixels, whatever the encoding.
+void RequireDistinctImages(const std::vector<BallImage>& balls) {
+  for (size_t i = 0; i < balls.size(); ++i) {
+    for (size_t j = 0; j < i; ++j) {
+      const cv::Mat& a = balls[i].image;
+      const cv::Mat& b = balls[j].image;
+      if (a.size() == b.size() && a.type() == b.type() && !a.empty() && cv::norm(a, b, cv::NORM_INF) == 0) {
+        throw util::InputError(fmt::format("{}: the same image as {} (identical pixels): each ball must be its own "
+                                           "capture",
+                                           balls[i].name, balls[j].name));
+      }
+    }
+  }
+}
+
+}  // namespace
+
 DeviceCalibration CalibrateDevice(const std::vector<BallImage>& balls, const model::Device& nominal,
                                   const model::Config& config, const calib::DeviceFitOptions& options) {
+  RequireDistinctImages(balls);
   DeviceCalibration out;
   std::vector<calib::BallView> views;
   for (const auto& b : balls) {

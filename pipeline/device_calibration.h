@@ -34,7 +34,9 @@ struct DeviceCalibration {
   calib::DeviceFit fit;
 };
 
-// Detects every ball and fits the device. Throws like DetectBall; a fit that fails comes back with fit.ok = false.
+// Detects every ball and fits the device. Throws util::InputError when two balls are the same image (identical
+// pixels: no new information, yet it would shrink the standard deviations), like DetectBall otherwise; a fit that
+// fails comes back with fit.ok = false.
 DeviceCalibration CalibrateDevice(const std::vector<BallImage>& balls, const model::Device& nominal,
                                   const model::Config& config, const calib::DeviceFitOptions& options);
 

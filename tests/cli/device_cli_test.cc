@@ -165,6 +165,12 @@ TEST_F(DeviceCli, RefusesBadInputWithOneLineAndNoOutput) {
   r = run("--device " + nominal_ + " --balls " + Path("b6.5.png") + " --radii-mm 0.5");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("is not a reference-ball radius"), std::string::npos) << r.output;
+  // The same capture twice (a copy under another name): no new information, yet it shrank the reported sd by sqrt 2.
+  fs::copy_file(Path("b7.8.png"), Path("copy.png"));
+  r = run("--device " + nominal_ + " --balls " + Path("b6.5.png") + " " + Path("b7.8.png") + " " +
+          Path("copy.png") + " --radii-mm 6.5 7.8 7.8");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("copy.png: the same image as"), std::string::npos) << r.output;
   std::ofstream(Path("bad-device.json")) << R"({"format": "topocal-device", "format_version": 1, "camera": {"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120, "principal_point_px": [559.5, 559.5], "a_mm": 5.2}, "screen_pose": {"tilt_deg": 1}})";
   r = run("--device " + Path("bad-device.json") + " " + Balls());
   EXPECT_EQ(r.exit_code, 2);
