@@ -187,16 +187,16 @@ UnitRecordWriter::UnitRecordWriter(fs::path out) : out_(RecordPath(std::move(out
   // An unpredictable name, created exclusively: a link planted there cannot redirect the record.
   staging_ = out_.string() + fmt::format(".tmp-{}-{}", ::getpid(), util::UnpredictableToken());
   util::RegisterCleanupPath(staging_.string());  // SIGINT/SIGTERM remove it
-  if (::mkdir(staging_.c_str(), 0777) != 0) {
-    const int e = errno;
+  // A constructor that throws runs no destructor: whatever it made is undone here, the lock released.
+  const auto fail = [&](int e, bool staging_is_ours) {
+    if (staging_is_ours) fs::remove_all(staging_, ec);
     util::UnregisterCleanupPath(staging_.string());
     Unlock();
-    throw util::InputError(
+    return util::InputError(
         fmt::format("{}: cannot create the record directory: {}", out_.string(), std::strerror(e)));
-  }
-  fs::create_directories(staging_ / "maps", ec);
-  if (ec)
-    throw util::InputError(fmt::format("{}: cannot create the record directory: {}", out_.string(), ec.message()));
+  };
+  if (::mkdir(staging_.c_str(), 0777) != 0) throw fail(errno, false);
+  if (::mkdir((staging_ / "maps").c_str(), 0777) != 0) throw fail(errno, true);
 }
 
 UnitRecordWriter::~UnitRecordWriter() {
