@@ -9,10 +9,15 @@
 // coordinates; flags: SpotFlagsText (empty when clean). Rows: identified spots (usable and excluded) by id, then the
 // unassigned blobs. Missing identities are not rows: they are listed in the JSON summary.
 #include <string>
+#include <vector>
 
 #include "correct/detect_and_index.h"
 
 namespace topocal::correct {
+
+// The file's rows in its order: identified spots (usable and excluded) by id, then the unassigned blobs. The CSV and
+// the Python module's structured array (python/) are both made from them.
+std::vector<LocatedSpot> DetectedSpotRows(const DetectAndIndexResult& result);
 
 std::string DetectedSpotsCsv(const DetectAndIndexResult& result);
 

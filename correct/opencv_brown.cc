@@ -37,4 +37,20 @@ BrownOnDetectionPlane BrownFromOpenCv(const model::CameraModel& k, const model::
   return out;
 }
 
+model::CameraModel OpenCvFromBrown(const model::BrownParams& brown, const model::TopographerCamera& camera) {
+  model::CameraModel k;
+  k.width_px = camera.width_px;
+  k.height_px = camera.height_px;
+  const Eigen::Matrix2d m = camera.Orientation();
+  const double p = camera.PitchMm();
+  k.fx_px = k.fy_px = brown.focal_mm / p;
+  const Eigen::Vector2d c = camera.principal_point_px + m * Eigen::Vector2d(brown.centre_x_mm, brown.centre_y_mm) / p;
+  k.cx_px = c.x();
+  k.cy_px = c.y();
+  // BrownFromOpenCv's q_mm = M^T q_cv with q = (p2, p1), turned back.
+  const Eigen::Vector2d q_cv = m * Eigen::Vector2d(brown.k[3], brown.k[2]);
+  k.dist = {brown.k[0], brown.k[1], q_cv.y(), q_cv.x(), brown.k[4]};
+  return k;
+}
+
 }  // namespace topocal::correct

@@ -29,4 +29,8 @@ struct BrownOnDetectionPlane {
 // is not finite (the camera file's content: the caller names the file and turns it into bad input).
 BrownOnDetectionPlane BrownFromOpenCv(const model::CameraModel& cv_camera, const model::TopographerCamera& camera);
 
+// The inverse view: a Brown distortion on the detection plane as the OpenCV camera (K with fx = fy, distCoeffs k1,
+// k2, p1, p2, k3, no distortion centre) that maps the same undistorted rays to the same pixels. Exact.
+model::CameraModel OpenCvFromBrown(const model::BrownParams& brown, const model::TopographerCamera& camera);
+
 }  // namespace topocal::correct

@@ -44,6 +44,12 @@ void RequireDistinctImages(const std::vector<BallImage>& balls) {
 
 DeviceCalibration CalibrateDevice(const std::vector<BallImage>& balls, const model::Device& nominal,
                                   const model::Config& config, const calib::DeviceFitOptions& options) {
+  for (const auto& b : balls) {
+    if (!(b.radius_mm >= kMinBallRadiusMm && b.radius_mm <= kMaxBallRadiusMm)) {
+      throw util::InputError(fmt::format("{}: radius {} mm is not a reference-ball radius ({}-{} mm)", b.name,
+                                         b.radius_mm, kMinBallRadiusMm, kMaxBallRadiusMm));
+    }
+  }
   RequireDistinctImages(balls);
   DeviceCalibration out;
   std::vector<calib::BallView> views;

@@ -34,7 +34,11 @@ struct DeviceCalibration {
   calib::DeviceFit fit;
 };
 
-// Detects every ball and fits the device. Throws util::InputError when two balls are the same image (identical
+// Reference balls for a topographer: radii of human corneas and a little beyond.
+inline constexpr double kMinBallRadiusMm = 3.0, kMaxBallRadiusMm = 20.0;
+
+// Detects every ball and fits the device. Throws util::InputError when a radius is not a reference ball's
+// (kMinBallRadiusMm to kMaxBallRadiusMm), when two balls are the same image (identical
 // pixels: no new information, yet it would shrink the standard deviations), like DetectBall otherwise; a fit that
 // fails comes back with fit.ok = false.
 DeviceCalibration CalibrateDevice(const std::vector<BallImage>& balls, const model::Device& nominal,

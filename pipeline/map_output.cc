@@ -62,6 +62,46 @@ std::string SupportLegend(double supported_radius_mm) {
                      supported_radius_mm);
 }
 
+}  // namespace
+
+AnalysisGrids AnalysisGridsOf(const topo::Analysis& a) {
+  AnalysisGrids g;
+  const auto& pm = a.power;
+  g.axial_D = PowerGrid(pm, pm.axial_D, "Axial power");
+  g.tangential_D = PowerGrid(pm, pm.tangential_D, "Tangential power");
+  // The recovered surface: Psi plus the spline residual in spline mode (topo/reconstruction.h).
+  const auto& rec = a.reconstruction;
+  const plot::GridMap sag =
+      CartesianGrid(a.covered_radius_mm, "", "\u00b5m", [&](double x, double y) { return rec.Height(x, y) * 1e3; });
+  // Elevation above the clinical indices' best-fit sphere (one fit, topo/clinical_indices.h); without the indices
+  // (data short of the sim-K ring) the same sag fit (topo/sphere_fit.h) over the whole map.
+  if (a.clinical_ok) {
+    g.best_fit_sphere.ok = true;
+    g.best_fit_sphere.centre_mm = a.clinical.bfs_centre_mm;
+    g.best_fit_sphere.radius_mm = a.clinical.bfs_radius_mm;
+  } else {
+    std::vector<Eigen::Vector3d> points;
+    for (int j = 0; j < sag.ny; ++j) {
+      for (int i = 0; i < sag.nx; ++i) {
+        const double x = sag.x_min_mm + i * (sag.x_max_mm - sag.x_min_mm) / (sag.nx - 1);
+        const double y = sag.y_min_mm + j * (sag.y_max_mm - sag.y_min_mm) / (sag.ny - 1);
+        if (std::isfinite(sag.At(i, j))) points.emplace_back(x, y, sag.At(i, j) * 1e-3);
+      }
+    }
+    topo::SphereFitOptions so;
+    so.residual = topo::SphereResidual::kSag;
+    so.stddev = false;
+    g.best_fit_sphere = topo::FitSphere(points, so);
+  }
+  if (g.best_fit_sphere.ok) {
+    g.elevation_um = topo::ElevationAboveSphere(sag, g.best_fit_sphere.AsSurface());
+    g.elevation_um->title = "Elevation above the best-fit sphere";
+  }
+  return g;
+}
+
+namespace {
+
 struct PendingMap {
   PendingMap() = default;
   PendingMap(std::string file_in, plot::GridMap grid_in, std::vector<std::string> annotations_in = {})
@@ -115,7 +155,6 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
   EntryMaps out;
   const std::string base = (std::filesystem::path(dir) / e.prefix).string();
   const topo::Analysis& a = *e.analysis;
-  const auto& pm = a.power;
   // The clinical summary under the power maps' titles (topo/clinical_indices.h), unless the caller gave its own.
   std::vector<std::string> notes = e.power_annotations;
   if (notes.empty() && a.clinical_ok) {
@@ -136,9 +175,11 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
     axes_legend = fmt::format("solid line: steep sim-K axis {:.0f}\u00b0 ({:.2f} D); dashed: flat {:.0f}\u00b0 ({:.2f} D)",
                               c.steep_axis_deg, c.steep_k_D, c.flat_axis_deg, c.flat_k_D);
   }
-  PendingMap axial_map{base + "axial_power", PowerGrid(pm, pm.axial_D, fmt::format("Axial power{}", e.label)), notes};
-  PendingMap tangential_map{base + "tangential_power",
-                            PowerGrid(pm, pm.tangential_D, fmt::format("Tangential power{}", e.label)), notes};
+  AnalysisGrids grids = AnalysisGridsOf(a);
+  grids.axial_D.title = fmt::format("Axial power{}", e.label);
+  grids.tangential_D.title = fmt::format("Tangential power{}", e.label);
+  PendingMap axial_map{base + "axial_power", std::move(grids.axial_D), notes};
+  PendingMap tangential_map{base + "tangential_power", std::move(grids.tangential_D), notes};
   for (PendingMap* m : {&axial_map, &tangential_map}) {
     m->axes = sim_k_axes;
     m->supported_radius_mm = supported;
@@ -155,34 +196,10 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
   out.axial = std::move(axial_map);
   out.tangential = std::move(tangential_map);
   const double r = a.covered_radius_mm;
-  // The recovered surface: Psi plus the spline residual in spline mode (topo/reconstruction.h).
   const auto& rec = a.reconstruction;
-  const plot::GridMap sag = CartesianGrid(r, "", "\u00b5m", [&](double x, double y) { return rec.Height(x, y) * 1e3; });
-  // Elevation above the clinical indices' best-fit sphere (one fit, topo/clinical_indices.h); without the indices
-  // (data short of the sim-K ring) the same sag fit (topo/sphere_fit.h) over the whole map.
-  std::optional<topo::SphereFit> bfs;
-  if (a.clinical_ok) {
-    bfs.emplace();
-    bfs->ok = true;
-    bfs->centre_mm = a.clinical.bfs_centre_mm;
-    bfs->radius_mm = a.clinical.bfs_radius_mm;
-  } else {
-    std::vector<Eigen::Vector3d> points;
-    for (int j = 0; j < sag.ny; ++j) {
-      for (int i = 0; i < sag.nx; ++i) {
-        const double x = sag.x_min_mm + i * (sag.x_max_mm - sag.x_min_mm) / (sag.nx - 1);
-        const double y = sag.y_min_mm + j * (sag.y_max_mm - sag.y_min_mm) / (sag.ny - 1);
-        if (std::isfinite(sag.At(i, j))) points.emplace_back(x, y, sag.At(i, j) * 1e-3);
-      }
-    }
-    topo::SphereFitOptions so;
-    so.residual = topo::SphereResidual::kSag;
-    so.stddev = false;
-    bfs = topo::FitSphere(points, so);
-  }
-  if (bfs->ok) {
-    PendingMap elev{base + "elevation", topo::ElevationAboveSphere(sag, bfs->AsSurface()),
-                    {BestFitSphereLine(bfs->radius_mm, bfs->centre_mm)}};
+  if (grids.elevation_um) {
+    PendingMap elev{base + "elevation", std::move(*grids.elevation_um),
+                    {BestFitSphereLine(grids.best_fit_sphere.radius_mm, grids.best_fit_sphere.centre_mm)}};
     elev.grid.title = fmt::format("Elevation above the best-fit sphere{}", e.label);
     elev.supported_radius_mm = supported;
     if (a.clinical_ok) {

@@ -1,12 +1,14 @@
 #pragma once
 // Writes the maps of analyses into a directory: CSV grids and PNG images (plot/map_image.h), every map of one kind
 // in a set on one shared colour scale.
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "model/config.h"
 #include "plot/map_image.h"
 #include "topo/analysis.h"
+#include "topo/sphere_fit.h"
 
 namespace topocal::pipeline {
 
@@ -38,6 +40,17 @@ struct MapSetOptions {
 // path when a file cannot be written.
 void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEntry>& entries,
                          const MapSetOptions& options = {});
+
+// The data of an analysis's maps, as the CSVs hold them: axial and tangential power (D) resampled from the polar
+// power maps, and the elevation (µm) above the best-fit sphere of the clinical indices (or, without them, of the
+// recovered sag over the covered disc) — absent when no sphere fits. 241 x 241 samples over the map's disc; NaN
+// outside it.
+struct AnalysisGrids {
+  plot::GridMap axial_D, tangential_D;
+  std::optional<plot::GridMap> elevation_um;
+  topo::SphereFit best_fit_sphere;
+};
+AnalysisGrids AnalysisGridsOf(const topo::Analysis& analysis);
 
 // One analysis (a set of one): the power maps on the standard absolute scale, the others normalised.
 void WriteAnalysisMaps(const std::string& dir, const std::string& prefix, const std::string& label,

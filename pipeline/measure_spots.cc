@@ -25,19 +25,30 @@ std::vector<topo::MeasuredSpot> UndistortSpots(const std::vector<MeasuredImageSp
   return spots;
 }
 
-SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,
-                             const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion,
-                             const correct::DetectAndIndexOptions& options) {
-  const auto located = correct::DetectAndIndexSpots(image, camera, ideal, options);
+IdentifiedSpots IdentifySpots(const cv::Mat& image, const model::TopographerCamera& camera,
+                              const model::IdealImageParams& ideal, const correct::DetectAndIndexOptions& options) {
+  IdentifiedSpots out;
+  out.located = correct::DetectAndIndexSpots(image, camera, ideal, options);
+  const correct::DetectAndIndexResult& located = out.located;
   if (located.orientation.status == correct::OrientationCheck::Status::kMismatch) {
     throw util::InputError(located.orientation.message);
   }
-  SpotMeasurement m;
-  m.capture = AssessCapture(located, camera, ideal);
-  if (!located.ok || m.capture.visible_fraction < kMinVisibleFraction) {
-    throw util::MeasurementRefused(fmt::format("measurement refused: spot identification: {}; {}", located.message,
-                                               m.capture.Line()));
+  out.capture = AssessCapture(located, camera, ideal);
+  if (!located.ok || out.capture.visible_fraction < kMinVisibleFraction) {
+    throw util::MeasurementRefused(fmt::format(
+        "measurement refused: spot identification: {} ({:.0f} % of the designed spots identified, need {:.0f} %); {}",
+        located.message, 100 * out.capture.visible_fraction, 100 * kMinVisibleFraction, out.capture.Line()));
   }
+  return out;
+}
+
+SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,
+                             const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion,
+                             const correct::DetectAndIndexOptions& options) {
+  auto identified = IdentifySpots(image, camera, ideal, options);
+  const correct::DetectAndIndexResult& located = identified.located;
+  SpotMeasurement m;
+  m.capture = std::move(identified.capture);
   m.excluded = static_cast<int>(located.excluded.size());
   m.orientation_message = located.orientation.message;
   m.indexed = static_cast<int>(located.spots.size());
@@ -52,8 +63,21 @@ SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamer
   return m;
 }
 
-SpotMeasurement MeasureSpots(const cv::Mat& image, const model::Device& device, const model::IdealImageParams& ideal) {
-  return MeasureSpots(image, device.camera, ideal, device.distortion);
+SpotMeasurement MeasureSpots(const cv::Mat& image, const model::Device& device, const model::IdealImageParams& ideal,
+                             const correct::DetectAndIndexOptions& options) {
+  return MeasureSpots(image, device.camera, ideal, device.distortion, options);
+}
+
+EyeMeasurement MeasureEye(const cv::Mat& image, const model::Device& device, const model::Config& config,
+                          const correct::DetectAndIndexOptions& options, const model::BiconicParams* truth) {
+  EyeMeasurement m;
+  m.spots = MeasureSpots(image, device, config.ideal_image, options);
+  const auto analyze = [&](const std::vector<topo::MeasuredSpot>& spots) {
+    return AnalyzeThroughDevice(spots, device, config, truth);
+  };
+  m.analysis = RejectSurfaceOutliers(m.spots.spots, analyze, &m.spots.capture);
+  m.verdict = JudgeMeasurement(m.spots.capture, m.analysis);
+  return m;
 }
 
 topo::Analysis AnalyzeThroughDevice(const std::vector<topo::MeasuredSpot>& spots, const model::Device& device,

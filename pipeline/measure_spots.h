@@ -36,21 +36,31 @@ struct SpotMeasurement {
   CaptureQuality capture;
 };
 
+// Detection and identification as `topocal detect` does it: the spots located and identified, the capture assessed.
+// Throws util::InputError when the image's orientation contradicts the camera's (the orientation key says so: a
+// camera file that does not describe this camera), util::MeasurementRefused (one line: why, the share of the designed
+// spots identified, the capture-quality line) when the pattern cannot be identified or fewer than
+// kMinVisibleFraction of its spots are, std::invalid_argument for an image type the detector cannot use.
+struct IdentifiedSpots {
+  correct::DetectAndIndexResult located;
+  CaptureQuality capture;
+};
+IdentifiedSpots IdentifySpots(const cv::Mat& image, const model::TopographerCamera& camera,
+                              const model::IdealImageParams& ideal, const correct::DetectAndIndexOptions& options = {});
+
 // The detected (distorted) spots undistorted with `distortion`. Spots outside its invertible domain are left out;
 // *failures (if given) counts them.
 std::vector<topo::MeasuredSpot> UndistortSpots(const std::vector<MeasuredImageSpot>& detected,
                                                const model::Distortion& distortion, int* failures = nullptr);
 
-// Throws util::InputError when the image's orientation contradicts the camera's (the orientation key says so: a
-// camera file that does not describe this camera), util::MeasurementRefused (one line, with the capture-quality
-// line) when the pattern cannot be identified or too few of its spots are,
-// std::invalid_argument for an image type the detector cannot use.
+// IdentifySpots, then the identified spots on the detection plane. Throws what IdentifySpots throws.
 SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,
                              const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion,
                              const correct::DetectAndIndexOptions& options = {});
 
 // Through an as-built device: its camera maps pixels to the detection plane and its distortion is undone.
-SpotMeasurement MeasureSpots(const cv::Mat& image, const model::Device& device, const model::IdealImageParams& ideal);
+SpotMeasurement MeasureSpots(const cv::Mat& image, const model::Device& device, const model::IdealImageParams& ideal,
+                             const correct::DetectAndIndexOptions& options = {});
 
 // Reconstruction, biconic fit and maps of undistorted spots measured through a device: the design's targets placed
 // where the device's screen puts them, rays traced with the device's a, the vertex reference of the configuration
@@ -58,5 +68,19 @@ SpotMeasurement MeasureSpots(const cv::Mat& image, const model::Device& device, 
 topo::Analysis AnalyzeThroughDevice(const std::vector<topo::MeasuredSpot>& spots, const model::Device& device,
                                     const model::Config& config, const model::BiconicParams* truth,
                                     const topo::AnalysisOptions& options = {});
+
+// A raw image of an eye measured through a device as `topocal reconstruct --image --device` measures it: the spots
+// detected, identified and undistorted (MeasureSpots), every spot checked against the surface the others give
+// (RejectSurfaceOutliers, counted in spots.capture) and the verdict (JudgeMeasurement). An invalid verdict comes
+// back with its reasons: the caller must not report the analysis's clinical numbers. Throws what MeasureSpots and
+// AnalyzeThroughDevice throw.
+struct EyeMeasurement {
+  SpotMeasurement spots;
+  topo::Analysis analysis;
+  MeasurementVerdict verdict;
+};
+EyeMeasurement MeasureEye(const cv::Mat& image, const model::Device& device, const model::Config& config,
+                          const correct::DetectAndIndexOptions& options = {},
+                          const model::BiconicParams* truth = nullptr);
 
 }  // namespace topocal::pipeline

@@ -141,4 +141,49 @@ std::string SweepJson(const topo::SweepResult& r, const std::vector<pipeline::Cl
   return j.dump(2) + "\n";
 }
 
+nlohmann::json CaptureJson(const pipeline::CaptureQuality& q) {
+  return {{"designed", q.designed},
+          {"identified", q.identified},
+          {"usable", q.usable},
+          {"refused_identities", q.refused},
+          {"unidentified_blobs", q.unassigned},
+          {"visible_fraction", q.visible_fraction},
+          {"largest_gap_deg", q.largest_gap_deg},
+          {"gap_side", q.gap_side},
+          {"median_spot_area_px", q.median_spot_area_px},
+          {"surface_outliers", q.surface_outliers}};
+}
+
+nlohmann::json DetectionJson(const correct::DetectAndIndexResult& r, correct::CentroidMethod estimator,
+                             const pipeline::CaptureQuality& capture) {
+  nlohmann::json j;
+  j["estimator"] = correct::CentroidMethodName(estimator);
+  j["indexed"] = r.spots.size() + r.excluded.size();
+  j["excluded"] = r.excluded.size();
+  j["unassigned"] = r.unassigned.size();
+  j["missing"] = nlohmann::json::array();
+  for (const auto& m : r.missing) j["missing"].push_back({m.ring, m.index});
+  j["noise_model"] = {{"background_dn", r.detection.background_dn},
+                      {"read_noise_dn", r.detection.read_noise_dn},
+                      {"read_noise", r.detection.read_noise_source},
+                      {"gain_e_per_dn", r.detection.gain_e_per_dn},
+                      {"gain", r.detection.gain_source}};
+  j["orientation"] = r.orientation.message;
+  j["capture"] = CaptureJson(capture);
+  return j;
+}
+
+nlohmann::json MeasurementJson(const topo::Analysis& a, bool truth) {
+  nlohmann::json j;
+  j["reconstruction"] = ReconstructionJson(a.reconstruction);
+  j["polynomial"] = PolynomialJson(a.reconstruction.surface);
+  j["surface_fit"] = SurfaceFitJson(a.surface_fit);
+  j["power"] = {{"pv_tangential_D", a.power.pv_tangential_D}, {"pv_axial_D", a.power.pv_axial_D},
+                {"map_radius_mm", a.power.radius_mm}, {"covered_radius_mm", a.covered_radius_mm}};
+  if (truth) j["errors"] = ErrorsJson(a);
+  j["clinical"] = ClinicalJson(a);
+  j["adequacy"] = AdequacyJson(a);
+  return j;
+}
+
 }  // namespace topocal::report

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "correct/detect_and_index.h"
+#include "pipeline/capture_quality.h"
 #include "pipeline/closed_loop.h"
 #include "topo/analysis.h"
 #include "topo/sweep.h"
@@ -21,6 +23,16 @@ nlohmann::json PolynomialJson(const topo::TaylorPolynomial& p);
 nlohmann::json ClinicalJson(const topo::Analysis& a);
 // Model adequacy (slope residual against the expected spot noise), map coverage and the warnings.
 nlohmann::json AdequacyJson(const topo::Analysis& a);
+
+// The capture-quality block of `detect --json` and `reconstruct --json` (pipeline/capture_quality.h).
+nlohmann::json CaptureJson(const pipeline::CaptureQuality& q);
+// `topocal detect --json` (without "image", which the caller adds): counts, missing identities, the noise model and
+// where its figures came from, the orientation check, the capture quality.
+nlohmann::json DetectionJson(const correct::DetectAndIndexResult& r, correct::CentroidMethod estimator,
+                             const pipeline::CaptureQuality& capture);
+// The measurement part of `topocal reconstruct --json`: reconstruction, polynomial, surface fit, power, clinical,
+// adequacy, and with `truth` the errors against it.
+nlohmann::json MeasurementJson(const topo::Analysis& a, bool truth);
 
 // `topocal sweep --json`: every sigma's row (image ellipse, fit, reconstruction, errors, clinical, adequacy) and,
 // with --correct, `corrected[i]` beside row i (corrected may be shorter than the rows, or empty); ideal power and

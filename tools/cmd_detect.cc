@@ -11,6 +11,8 @@
 #include "model/device.h"
 #include "model/topographer_camera.h"
 #include "pipeline/capture_quality.h"
+#include "pipeline/measure_spots.h"
+#include "report/analysis_json.h"
 #include "tools/commands.h"
 #include "util/io.h"
 
@@ -29,37 +31,20 @@ void Run(const DetectArgs& a) {
   correct::DetectAndIndexOptions options;
   options.detection.method = correct::CentroidMethodFromName(a.estimator);
   const cv::Mat image = ReadSpotImage(a.image, camera, camera_file);
-  correct::DetectAndIndexResult r;
+  pipeline::IdentifiedSpots identified;
   try {
-    r = correct::DetectAndIndexSpots(image, camera, cfg.ideal_image, options);
+    identified = pipeline::IdentifySpots(image, camera, cfg.ideal_image, options);
   } catch (const std::invalid_argument& e) {
     throw util::InputError(fmt::format("{}: {}", a.image, e.what()));
+  } catch (const util::InputError& e) {
+    throw util::InputError(fmt::format("{}: {}", a.image, e.what()));
+  } catch (const util::MeasurementRefused& e) {
+    throw util::MeasurementRefused(fmt::format("{}: {}", a.image, e.what()));
   }
-  if (r.orientation.status == correct::OrientationCheck::Status::kMismatch) {
-    throw util::InputError(fmt::format("{}: {}", a.image, r.orientation.message));
-  }
-  const auto capture = pipeline::AssessCapture(r, camera, cfg.ideal_image);
-  if (!r.ok || capture.visible_fraction < pipeline::kMinVisibleFraction) {
-    fmt::print("{}\n", capture.Line());
-    throw util::MeasurementRefused(
-        fmt::format("{}: spot identification refused: {} ({:.0f} % of the designed spots identified, need {:.0f} %)",
-                    a.image, r.message, 100 * capture.visible_fraction, 100 * pipeline::kMinVisibleFraction));
-  }
-  nlohmann::json j;
+  const correct::DetectAndIndexResult& r = identified.located;
+  const pipeline::CaptureQuality& capture = identified.capture;
+  nlohmann::json j = report::DetectionJson(r, options.detection.method, capture);
   j["image"] = a.image;
-  j["estimator"] = correct::CentroidMethodName(options.detection.method);
-  j["indexed"] = r.spots.size() + r.excluded.size();
-  j["excluded"] = r.excluded.size();
-  j["unassigned"] = r.unassigned.size();
-  j["missing"] = nlohmann::json::array();
-  for (const auto& m : r.missing) j["missing"].push_back({m.ring, m.index});
-  j["noise_model"] = {{"background_dn", r.detection.background_dn},
-                      {"read_noise_dn", r.detection.read_noise_dn},
-                      {"read_noise", r.detection.read_noise_source},
-                      {"gain_e_per_dn", r.detection.gain_e_per_dn},
-                      {"gain", r.detection.gain_source}};
-  j["orientation"] = r.orientation.message;
-  j["capture"] = CaptureJson(capture);
   util::StagedOutputs outputs;  // published together or not at all
   outputs.AddFile(a.out, correct::DetectedSpotsCsv(r));
   if (!a.json.empty()) outputs.AddFile(a.json, j.dump(2) + "\n");
@@ -73,19 +58,6 @@ void Run(const DetectArgs& a) {
 }
 
 }  // namespace
-
-nlohmann::json CaptureJson(const pipeline::CaptureQuality& q) {
-  return {{"designed", q.designed},
-          {"identified", q.identified},
-          {"usable", q.usable},
-          {"refused_identities", q.refused},
-          {"unidentified_blobs", q.unassigned},
-          {"visible_fraction", q.visible_fraction},
-          {"largest_gap_deg", q.largest_gap_deg},
-          {"gap_side", q.gap_side},
-          {"median_spot_area_px", q.median_spot_area_px},
-          {"surface_outliers", q.surface_outliers}};
-}
 
 cv::Mat ReadSpotImage(const std::string& path, const model::TopographerCamera& camera, const std::string& camera_file) {
   cv::Mat image = imageio::ReadImage(path, imageio::Channels::kAsStored);

@@ -33,10 +33,11 @@ void Calibrate(DeviceArgs a) {
                     a.radii_mm.size(), a.balls.size()));
   }
   for (size_t i = 0; i < a.radii_mm.size(); ++i) {
-    // Reference balls for a topographer: radii of human corneas and a little beyond (5-12 mm).
-    if (!(a.radii_mm[i] >= 3.0 && a.radii_mm[i] <= 20.0)) {
-      throw util::InputError(
-          fmt::format("--radii-mm: {} for {} is not a reference-ball radius (3-20 mm)", a.radii_mm[i], a.balls[i]));
+    // Checked before any image is read (pipeline::CalibrateDevice checks it too).
+    if (!(a.radii_mm[i] >= pipeline::kMinBallRadiusMm && a.radii_mm[i] <= pipeline::kMaxBallRadiusMm)) {
+      throw util::InputError(fmt::format("--radii-mm: {} for {} is not a reference-ball radius ({}-{} mm)",
+                                         a.radii_mm[i], a.balls[i], pipeline::kMinBallRadiusMm,
+                                         pipeline::kMaxBallRadiusMm));
     }
   }
   if (a.datum < 1 || a.datum > static_cast<int>(a.balls.size())) {

@@ -231,7 +231,7 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
   const auto analysis = capture ? pipeline::RejectSurfaceOutliers(measured, analyze, &*capture) : analyze(measured);
   if (capture) {
     fmt::print("{}\n", capture->Line());
-    info["capture"] = CaptureJson(*capture);
+    info["capture"] = report::CaptureJson(*capture);
     const auto verdict = pipeline::JudgeMeasurement(*capture, analysis);
     info["valid"] = verdict.valid;
     if (!verdict.valid) RefuseMeasurement(in.image, verdict, info, json_out);
@@ -261,14 +261,7 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
   util::StagedOutputs outputs;  // the JSON and the maps are published together or not at all
   if (!json_out.empty()) {
     nlohmann::json j = info;
-    j["reconstruction"] = report::ReconstructionJson(analysis.reconstruction);
-    j["polynomial"] = report::PolynomialJson(analysis.reconstruction.surface);
-    j["surface_fit"] = report::SurfaceFitJson(analysis.surface_fit);
-    j["power"] = {{"pv_tangential_D", analysis.power.pv_tangential_D}, {"pv_axial_D", analysis.power.pv_axial_D},
-                  {"map_radius_mm", analysis.power.radius_mm}, {"covered_radius_mm", analysis.covered_radius_mm}};
-    if (truth) j["errors"] = report::ErrorsJson(analysis);
-    j["clinical"] = report::ClinicalJson(analysis);
-    j["adequacy"] = report::AdequacyJson(analysis);
+    j.update(report::MeasurementJson(analysis, truth));
     outputs.AddFile(json_out, j.dump(2) + "\n");
   }
   if (!maps.empty()) pipeline::WriteAnalysisMaps(outputs.AddDirectory(maps), "", "", analysis, truth ? &cfg.cornea : nullptr);

@@ -56,7 +56,5 @@ void FinishHelp(CLI::App& app);
 
 // A raw spot image (cmd_detect.cc), checked against the camera's sensor size; InputError naming the file otherwise.
 cv::Mat ReadSpotImage(const std::string& path, const model::TopographerCamera& camera, const std::string& camera_file);
-// The capture-quality figures as `detect --json` and `reconstruct --json` write them (cmd_detect.cc).
-nlohmann::json CaptureJson(const pipeline::CaptureQuality& capture);
 
 }  // namespace topocal::tools
