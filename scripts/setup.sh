@@ -10,9 +10,10 @@ case "$mode" in run|test|build) ;; *) echo "usage: scripts/setup.sh run|test|bui
 
 pkgs=(cmake g++ make pkg-config libopencv-dev libceres-dev libeigen3-dev libapriltag-dev libcli11-dev
       nlohmann-json3-dev libfmt-dev libssl-dev libsqlite3-dev libgtest-dev libgmock-dev libbenchmark-dev
-      fonts-dejavu-core libopencv-contrib-dev liblapack-dev)
+      fonts-dejavu-core libopencv-contrib-dev liblapack-dev pybind11-dev python3-dev python3-numpy)
 # fonts-dejavu-core: the maps' text (µm, mm², °) is drawn in DejaVu Sans through OpenCV's FreeType module.
 # libopencv-contrib-dev: OpenCV aruco (Kalibr AprilGrids: calib/kalibr_grid_detector.cc).
+# pybind11-dev, python3-dev, python3-numpy: the Python package (python/, docs/python.md).
 # liblapack-dev: the spline fit's band Cholesky (topo/band_cholesky.h; Ceres' own dependencies bring it too).
 # The real chessboard photographs the calibration tests compare against cv::calibrateCamera.
 [ "$mode" = test ] && pkgs+=(opencv-doc)
@@ -25,6 +26,8 @@ pkgs=(cmake g++ make pkg-config libopencv-dev libceres-dev libeigen3-dev libapri
 # The consumers' own libraries check topocal's exports and imports (tests/exchange): PyYAML reads ROS camera_info and
 # Kalibr camchains, cv2 OpenCV calibration files, mrcal its .cameramodel.
 [ "$mode" = test ] && pkgs+=(python3-yaml python3-opencv python3-mrcal)
+# The Python package's tests (tests/python) run under pytest; docs/python.md's example draws with Matplotlib.
+[ "$mode" = test ] && pkgs+=(python3-pytest python3-matplotlib)
 
 missing=()
 for p in "${pkgs[@]}"; do

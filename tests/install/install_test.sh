@@ -66,6 +66,20 @@ case "$code:$msg" in 1:*"cannot run"*"libexec/topocal-full"*) ;; *) echo "withou
 test "$(wc -l <<< "$msg")" -eq 1
 test ! -e nofull.csv
 mv "$work/full" "$prefix/libexec/topocal-full"
+# The Python package (when built): importable from the install prefix, from a directory outside the source and build
+# trees, by Debian's interpreter; it reads the installed data.
+if [ -f "$build/python/topocal/__init__.py" ]; then
+  pydir=$(echo "$prefix"/lib/python3*/dist-packages)
+  test -f "$pydir/topocal/__init__.py"
+  test -f "$pydir/topocal/__init__.pyi"
+  (cd "$work" && PYTHONPATH="$pydir" /usr/bin/python3 -c "
+import topocal, sys
+assert topocal.__file__.startswith('$pydir'), topocal.__file__
+d = topocal.Device.load('$data/demo-unit-device.json')
+c = topocal.Config.load('$data/paper.json')
+print('installed python module', topocal.__version__, d.width_px, d.height_px)
+")
+fi
 # The Debian package, with Debian 12's runtime dependencies.
 (cd "$build" && cpack -G DEB -B "$work/deb" >/dev/null)
 # (captured first: grep -q would close the pipe early and pipefail would report dpkg-deb's SIGPIPE)
@@ -75,4 +89,8 @@ contents=$(dpkg-deb -c "$work"/deb/topocal_*_amd64.deb)
 grep "usr/share/topocal/data/paper.json" <<< "$contents" >/dev/null
 grep "usr/lib/topocal/libtopocal_imgcodecs.so" <<< "$contents" >/dev/null
 grep "usr/libexec/topocal-full" <<< "$contents" >/dev/null
+if [ -f "$build/python/topocal/__init__.py" ]; then
+  grep "usr/lib/python3.*/dist-packages/topocal/_topocal.*\.so" <<< "$contents" >/dev/null
+  grep "usr/lib/python3.*/dist-packages/topocal/__init__.py" <<< "$contents" >/dev/null
+fi
 echo "install test passed"
