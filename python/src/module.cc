@@ -1,6 +1,9 @@
 // topocal._topocal: the compiled part of the Python package `topocal` (python/topocal/__init__.py re-exports it).
 #include <fmt/format.h>
 
+#include <glog/logging.h>
+#include <opencv2/core/utility.hpp>
+
 #include <stdexcept>
 
 #include "python/src/py_common.h"
@@ -132,6 +135,14 @@ PYBIND11_MODULE(_topocal, m) {
   using namespace topocal::python;
   m.doc() = "topocal: calibrate, correct and verify cone (null-screen) corneal topographers (docs/python.md).";
   m.attr("__version__") = topocal::kVersion;
+  // Ceres logs through glog (failed steps, rank-deficient covariances); every failure reaches Python as an exception
+  // or a result field, and the module prints nothing (as the CLI's tools/cli_app.cc).
+  FLAGS_minloglevel = google::GLOG_FATAL;
+  m.def(
+      "set_num_threads", [](int n) { cv::setNumThreads(n); }, py::arg("n"),
+      "Threads OpenCV may use inside detection and image work (0: one, as OpenCV's setNumThreads; negative: "
+      "OpenCV's default). The results do not depend on it.");
+  m.def("get_num_threads", [] { return cv::getNumThreads(); }, "OpenCV's thread count (set_num_threads).");
   RegisterErrors(m);
   RegisterModel(m);
   RegisterMeasure(m);

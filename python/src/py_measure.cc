@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <optional>
 
 #include "correct/detected_spots_csv.h"
@@ -43,6 +44,8 @@ cv::Mat SensorImage(const py::array& image, const model::TopographerCamera& came
 py::array SpotTable(const correct::DetectAndIndexResult& r) {
   const auto rows = correct::DetectedSpotRows(r);
   py::array_t<SpotRow> out(static_cast<py::ssize_t>(rows.size()));
+  // The row's padding (4 bytes after flags) zeroed too: the same spots give the same bytes.
+  std::memset(out.mutable_data(), 0, rows.size() * sizeof(SpotRow));
   auto v = out.mutable_unchecked<1>();
   for (size_t i = 0; i < rows.size(); ++i) {
     const auto& s = rows[i];

@@ -29,7 +29,9 @@ from ._topocal import (  # noqa: F401  (re-exported)
     __version__,
     calibrate_device,
     detect,
+    get_num_threads,
     read_unit_record,
+    set_num_threads,
 )
 from . import _topocal
 
@@ -37,8 +39,8 @@ PathLike = Union[str, os.PathLike]
 
 __all__ = [
     "Calibration", "Config", "Device", "Error", "FleetDb", "InputError", "Map", "Measurement", "MeasurementRefused",
-    "SPOT_DTYPE", "SPOT_FLAGS", "__version__", "calibrate", "calibrate_device", "detect", "read_unit_record",
-    "reconstruct",
+    "SPOT_DTYPE", "SPOT_FLAGS", "__version__", "calibrate", "calibrate_device", "detect", "get_num_threads",
+    "read_unit_record", "reconstruct", "set_num_threads",
 ]
 
 

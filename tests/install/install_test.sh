@@ -92,5 +92,9 @@ grep "usr/libexec/topocal-full" <<< "$contents" >/dev/null
 if [ -f "$build/python/topocal/__init__.py" ]; then
   grep "usr/lib/python3.*/dist-packages/topocal/_topocal.*\.so" <<< "$contents" >/dev/null
   grep "usr/lib/python3.*/dist-packages/topocal/__init__.py" <<< "$contents" >/dev/null
+  # ... and imports from the package's own files (extracted, as dpkg would place them under /usr).
+  dpkg-deb -x "$work"/deb/topocal_*_amd64.deb "$work/deb-root"
+  (cd "$work" && PYTHONPATH=$(echo "$work"/deb-root/usr/lib/python3*/dist-packages) /usr/bin/python3 -c \
+    "import topocal; assert '/deb-root/usr/lib/' in topocal.__file__; print('.deb python module', topocal.__version__)")
 fi
 echo "install test passed"

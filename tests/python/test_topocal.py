@@ -159,8 +159,21 @@ def test_reconstruct_gives_the_cli_numbers_and_maps(work, eye):
     assert m.polar["axial_D"].shape == (len(m.polar["theta_deg"]), len(m.polar["rho_mm"]))
 
 
+def test_the_thread_count_does_not_change_the_spots(eye):
+    image = read_image(eye)
+    before = topocal.get_num_threads()
+    try:
+        topocal.set_num_threads(1)
+        one = topocal.detect(image, DEMO_DEVICE, PAPER)
+        topocal.set_num_threads(4)
+        four = topocal.detect(image, DEMO_DEVICE, PAPER)
+    finally:
+        topocal.set_num_threads(before)
+    assert one.tobytes() == four.tobytes()
+
+
 def test_reconstruct_from_spots_of_detect(work, eye):
-    spots = topocal.detect(read_image(eye), NOMINAL_DEVICE, PAPER)
+    spots = topocal.detect(read_image(eye), DEMO_DEVICE, PAPER)
     m = topocal.reconstruct(PAPER, spots=spots)
     assert m.result["spots_read"] == int(np.count_nonzero(spots["ring"] > 0))
     assert "surface_fit" in m.result
