@@ -103,9 +103,7 @@ void AddDeviceCommand(CLI::App& app) {
   device->require_subcommand(1);
   auto* cmd = device->add_subcommand(
       "calibrate",
-      "Fit the null screen's pose, the principal point, a and the distortion from reference-ball images\n"
-      "Example: topocal device calibrate --config data/paper.json --device data/device.json \\\n"
-      "           --balls b65.png b78.png b90.png --radii-mm 6.5 7.8 9.0 --out unit-device.json");
+      "Fit the null screen's pose, the principal point, a and the distortion from reference-ball images");
   auto a = std::make_shared<DeviceArgs>();
   cmd->add_option("--config", a->config, "Topographer design (JSON)")->required();
   cmd->add_option("--device", a->device, "Nominal device file (JSON, docs/device.md): the starting point and priors' centre")

@@ -291,7 +291,8 @@ void AddReconstructCommand(CLI::App& app) {
   cmd->add_option("--uncertainty", in->uncertainty_samples,
                   "Monte Carlo draws of the calibration's parameters carried to the clinical numbers (with "
                   "--image and --calibration); reports mean +- U (k = 2)")
-      ->check(CLI::Range(2, 100000));
+      ->check(CLI::Range(2, 100000))
+      ->default_str("");  // not given: no draws (0 is not a value a user types)
   cmd->add_option("--seed", in->seed, "Seed of the --uncertainty draws")->capture_default_str();
   cmd->add_option("--estimator", in->estimator, "Spot centre estimator for --image: psf (default), centroid, gaussian")
       ->check(CLI::IsMember({"psf", "centroid", "gaussian"}))

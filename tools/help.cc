@@ -47,7 +47,7 @@ const std::map<std::string, std::string>& Examples() {
       {"fleet ingest", "topocal fleet ingest --db fleet.sqlite --station LINE-1 units/*/"},
       {"fleet report", "topocal fleet report --db fleet.sqlite --out fleet.html"},
       {"export", "topocal export --calibration cal.yaml --to mrcal --out cam.cameramodel"},
-      {"import", "topocal import --from kalibr camchain.yaml --out cal.yaml"},
+      {"import", "topocal import --from mrcal cam.cameramodel --out cal.yaml"},
   };
   return examples;
 }
@@ -64,6 +64,9 @@ void Finish(CLI::App& cmd, const std::string& path) {
   for (CLI::Option* o : cmd.get_options()) {
     if (o->get_items_expected_max() > 1 && !IsFileList(*o)) o->delimiter(',');
     if (o->get_default_str() == "[]") o->default_str("");  // an empty list: nothing to show
+    // NaN marks "not given" (the default then depends on other options, as the description says): nothing a user
+    // would type.
+    if (o->get_default_str() == "nan") o->default_str("");
   }
   for (CLI::App* sub : cmd.get_subcommands([](CLI::App*) { return true; })) {
     const std::string sub_path = path.empty() ? sub->get_name() : path + " " + sub->get_name();

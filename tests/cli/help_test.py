@@ -49,6 +49,13 @@ check(re.search(r"--jobs INT:.*=\d+", help_of("unit", "calibrate-batch")) is not
 check("--model TEXT=brown5" in help_of("calibrate"), "calibrate --model shows brown5")
 check("=[]" not in help_of("unit", "calibrate"), "an empty list shows no default")
 check("Example:" in help_of(), "topocal --help has an example")
+# Defaults read as a user types them: no NaN sentinel, no value outside the option's own range, one example each.
+for verb in verbs:
+    text = help_of(*verb)
+    check("=nan" not in text, f"{' '.join(verb)}: a default shown as nan")
+    for low, high, value in re.findall(r"in \[(-?[\d.e+-]+) - (-?[\d.e+-]+)\]=(-?[\d.e+-]+)", text):
+        check(float(low) <= float(value) <= float(high), f"{' '.join(verb)}: default {value} outside [{low}, {high}]")
+    check(text.count("Example:") == 1, f"{' '.join(verb)}: {text.count('Example:')} examples")
 
 # One syntax for lists: spaces or commas, both for calibrate --fix and unit --fix (the trap).
 # The runs stop at a missing file, after parsing: the list itself is not what they refuse.
