@@ -11,7 +11,6 @@
 #include <vector>
 
 #include "calib/distortion_valid_region.h"
-#include "calib/file_storage.h"
 #include "util/io.h"
 
 namespace topocal::calib {
@@ -43,71 +42,6 @@ void RequireOpenCvModel(const model::CameraModel& c) {
   if (!c.distortion_centre.isZero(0)) {
     throw std::invalid_argument("export needs OpenCV's model (distortion centre 0): use CalibrationFile::opencv_camera");
   }
-}
-
-[[noreturn]] void Bad(const std::string& path, const std::string& key, const std::string& problem) {
-  throw util::InputError(fmt::format("{}: {}: {}", path, key, problem));
-}
-
-std::vector<double> ReadNumbers(const cv::FileNode& map, const std::string& path, const std::string& key, size_t n) {
-  const cv::FileNode node = map[key];
-  if (node.empty()) Bad(path, key, "missing");
-  if (!node.isSeq() || node.size() != n) Bad(path, key, fmt::format("expected a list of {} numbers", n));
-  std::vector<double> out;
-  for (const auto& v : node) {
-    if (!v.isReal() && !v.isInt()) Bad(path, key, "not a number");
-    out.push_back(static_cast<double>(v));
-    if (!std::isfinite(out.back())) Bad(path, key, "non-finite value");
-  }
-  return out;
-}
-
-std::string ReadString(const cv::FileNode& map, const std::string& path, const std::string& key) {
-  const cv::FileNode node = map[key];
-  if (node.empty()) Bad(path, key, "missing");
-  if (!node.isString()) Bad(path, key, "not a string");
-  return static_cast<std::string>(node);
-}
-
-// PyYAML (which writes Kalibr's camchains) puts a block sequence at the indentation of its key:
-//   T_cn_cnm1:
-//   - [1.0, 0.0, 0.0, 0.1]
-// YAML allows it; cv::FileStorage's parser does not. Such a sequence (its items and their continuation lines) is
-// indented by two more spaces, which means the same to YAML and reads in cv::FileStorage.
-std::string IndentCompactSequences(const std::string& text) {
-  std::vector<std::string> lines;
-  for (size_t start = 0; start <= text.size();) {
-    const size_t end = text.find('\n', start);
-    lines.push_back(text.substr(start, end == std::string::npos ? std::string::npos : end - start));
-    if (end == std::string::npos) break;
-    start = end + 1;
-  }
-  const auto indent = [](const std::string& l) { return l.find_first_not_of(' '); };
-  const auto is_item = [&](const std::string& l) {
-    const size_t i = indent(l);
-    return i != std::string::npos && l[i] == '-' && (i + 1 == l.size() || l[i + 1] == ' ');
-  };
-  std::string out;
-  for (size_t i = 0; i < lines.size(); ++i) {
-    out += lines[i] + (i + 1 < lines.size() ? "\n" : "");
-    const size_t key_indent = indent(lines[i]);
-    const auto trimmed_end = lines[i].find_last_not_of(" \t\r");
-    if (key_indent == std::string::npos || is_item(lines[i]) || trimmed_end == std::string::npos ||
-        lines[i][trimmed_end] != ':' || i + 1 >= lines.size() || !is_item(lines[i + 1]) ||
-        indent(lines[i + 1]) != key_indent) {
-      continue;
-    }
-    // The sequence: items at the key's indentation and anything indented deeper, up to the next line at or left of
-    // the key that is not an item.
-    size_t j = i + 1;
-    for (; j < lines.size(); ++j) {
-      const size_t n = indent(lines[j]);
-      if (n == std::string::npos) continue;  // blank
-      if (n < key_indent || (n == key_indent && !is_item(lines[j]))) break;
-      lines[j] = "  " + lines[j];
-    }
-  }
-  return out;
 }
 
 }  // namespace
@@ -234,52 +168,6 @@ std::string ExportCalibration(const CalibrationFile& calibration, ExportFormat f
       return OpenCvCalibrationText(c, source);
   }
   throw std::invalid_argument("unknown export format");
-}
-
-model::CameraModel ReadKalibrCamchain(const std::string& path, const std::string& camera_key) {
-  // cv::FileStorage only reads YAML that starts with a "%YAML" directive; Kalibr writes none (as calib/target.cc).
-  std::string text = util::ReadFile(path);
-  const auto first = text.find_first_not_of(" \t\r\n");
-  if (first == std::string::npos) Bad(path, "file", "empty");
-  if (text.compare(first, 5, "%YAML") != 0) text = "%YAML:1.0\n---\n" + text;
-  text = IndentCompactSequences(text);
-  const cv::FileStorage fs = OpenFileStorage(text, path);  // the one door: size and nesting checked first
-  return ReadFileStorage(path, "a Kalibr camchain", [&]() -> model::CameraModel {
-    if (!fs.isOpened() || !fs.root().isMap()) Bad(path, "file", "not a YAML mapping (a Kalibr camchain has cam0: ...)");
-    const cv::FileNode cam = fs[camera_key];
-    if (cam.empty()) Bad(path, camera_key, "missing: not a Kalibr camchain, or no such camera");
-    if (!cam.isMap()) Bad(path, camera_key, "not a mapping");
-    const std::string where = camera_key + ".";
-    const std::string model_name = ReadString(cam, path, "camera_model");
-    if (model_name != "pinhole") {
-      Bad(path, where + "camera_model", fmt::format("'{}': only pinhole is supported (OpenCV's model)", model_name));
-    }
-    const std::string distortion = ReadString(cam, path, "distortion_model");
-    if (distortion != "radtan") {
-      Bad(path, where + "distortion_model",
-          fmt::format("'{}': only radtan is supported (equidistant is a fisheye model topocal does not fit)",
-                      distortion));
-    }
-    const auto intrinsics = ReadNumbers(cam, path, "intrinsics", 4);
-    const auto coeffs = ReadNumbers(cam, path, "distortion_coeffs", 4);
-    const auto resolution = ReadNumbers(cam, path, "resolution", 2);
-    model::CameraModel c;
-    for (int i = 0; i < 2; ++i) {
-      const double v = resolution[static_cast<size_t>(i)];
-      if (!(v >= 1) || v != std::floor(v) || v > std::numeric_limits<int>::max()) {
-        Bad(path, where + "resolution", "must be two positive integers [width, height]");
-      }
-    }
-    c.width_px = static_cast<int>(resolution[0]);
-    c.height_px = static_cast<int>(resolution[1]);
-    if (!(intrinsics[0] > 0 && intrinsics[1] > 0)) Bad(path, where + "intrinsics", "focal lengths fu, fv must be > 0");
-    c.fx_px = intrinsics[0];
-    c.fy_px = intrinsics[1];
-    c.cx_px = intrinsics[2];
-    c.cy_px = intrinsics[3];
-    c.dist = {coeffs[0], coeffs[1], coeffs[2], coeffs[3], 0.0};
-    return c;
-  });
 }
 
 }  // namespace topocal::calib

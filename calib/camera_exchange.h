@@ -1,8 +1,9 @@
 #pragma once
 // Calibrations exchanged with other tools: the writers of ROS camera_info YAML, Kalibr camchain YAML, mrcal
-// .cameramodel and a plain OpenCV calibration YAML, and the reader of a Kalibr camchain. topocal's own file is read
-// and written by calib/calibration_file.h only (also for plain OpenCV files from other tools); this module starts
-// from what that reader returns. Formats, key by key, in docs/exchange.md.
+// .cameramodel and a plain OpenCV calibration YAML (calib/camera_exchange.cc), and the readers of a Kalibr camchain,
+// a ROS camera_info and an mrcal .cameramodel (calib/camera_import.cc). topocal's own file is read and written by
+// calib/calibration_file.h only (also for plain OpenCV files from other tools); the writers start from what that
+// reader returns. Formats, key by key, in docs/exchange.md.
 //
 // Every format here holds OpenCV's Brown model (fx, fy, cx, cy, k1, k2, p1, p2, k3, no distortion centre): the
 // export writes CalibrationFile::opencv_camera, the closest OpenCV model when the topocal model has a centre
@@ -51,5 +52,23 @@ double DropK3ShiftPx(const model::CameraModel& camera);
 // radtan, intrinsics [fu fv pu pv], distortion_coeffs [k1 k2 r1 r2], resolution [w h]. Other models, missing or
 // wrongly sized keys throw util::InputError "PATH: KEY: problem".
 model::CameraModel ReadKalibrCamchain(const std::string& path, const std::string& camera_key = "cam0");
+
+// The readers below refuse, with util::InputError "PATH: KEY: problem" (one line), a missing file or key, a wrongly
+// sized list, a non-finite number, a focal length <= 0, an image size < 1 and a principal point outside the image
+// (-0.5 ... size - 0.5 px, OpenCV's pixel convention); the camera they return is OpenCV's model (no distortion
+// centre), what OpenCvCalibrationText writes.
+
+// Reads a ROS camera_info YAML (camera_calibration_parsers, or PyYAML): image_width, image_height,
+// camera_matrix {rows 3, cols 3, data [fx 0 cx 0 fy cy 0 0 1]}, distortion_model plumb_bob (5 coefficients) or
+// rational_polynomial (8, k4..k6 must be 0), distortion_coefficients {rows 1, cols n, data}. The rectification and
+// projection matrices are ignored: they describe a rectified stereo image, not the raw camera topocal undistorts.
+model::CameraModel ReadRosCameraInfo(const std::string& path);
+
+// Reads an mrcal .cameramodel (the Python dict literal mrcal writes and reads with ast.literal_eval): lensmodel
+// LENSMODEL_OPENCV4, LENSMODEL_OPENCV5, LENSMODEL_OPENCV8 with k4..k6 = 0, or LENSMODEL_PINHOLE (no distortion);
+// intrinsics [fx, fy, cx, cy, distortion...]; imagersize [w, h]. Other lens models are refused naming the model;
+// extrinsics, valid_intrinsics_region and optimization_inputs are read over and ignored (topocal computes its own
+// valid region).
+model::CameraModel ReadMrcalCameraModel(const std::string& path);
 
 }  // namespace topocal::calib
