@@ -40,8 +40,12 @@ void RunImport(const ImportArgs& a) {
     camera = calib::ReadKalibrCamchain(a.file, a.camera);
   } else if (a.from == "opencv") {
     camera = calib::LoadCalibrationFile(a.file).opencv_camera;
+  } else if (a.from == "mrcal") {
+    camera = calib::ReadMrcalCameraModel(a.file);
+  } else if (a.from == "ros") {
+    camera = calib::ReadRosCameraInfo(a.file);
   } else {
-    throw util::InputError(fmt::format("--from: '{}' is not kalibr or opencv", a.from));
+    throw util::InputError(fmt::format("--from: '{}' is not kalibr, opencv, mrcal or ros", a.from));
   }
   util::WriteFileAtomic(a.out, calib::OpenCvCalibrationText(camera, a.from + ": " + a.file));
   fmt::print("{} ({}) -> {}\n", a.file, a.from, a.out);
@@ -60,14 +64,15 @@ void AddExportCommands(CLI::App& app) {
   ex->footer("Example: topocal export --calibration cal.yaml --to mrcal --out cam.cameramodel");
   ex->callback([e] { RunExport(*e); });
 
-  auto* im = app.add_subcommand("import", "Read a Kalibr camchain or an OpenCV calibration YAML into a calibration "
-                                          "file every topocal verb reads (docs/exchange.md)");
+  auto* im = app.add_subcommand("import", "Read a Kalibr camchain, an OpenCV calibration YAML, an mrcal .cameramodel "
+                                          "or a ROS camera_info into a calibration file every topocal verb reads "
+                                          "(docs/exchange.md)");
   auto i = std::make_shared<ImportArgs>();
-  im->add_option("--from", i->from, "Format: kalibr | opencv")->required();
+  im->add_option("--from", i->from, "Format: kalibr | opencv | mrcal | ros")->required();
   im->add_option("file", i->file, "The file to import")->required();
   im->add_option("--camera", i->camera, "Kalibr: the camera of the camchain")->capture_default_str();
   im->add_option("--out", i->out, "Calibration file to write (OpenCV FileStorage YAML)")->required();
-  im->footer("Example: topocal import --from kalibr camchain.yaml --out cal.yaml");
+  im->footer("Example: topocal import --from mrcal cam.cameramodel --out cal.yaml");
   im->callback([i] { RunImport(*i); });
 }
 

@@ -3,8 +3,11 @@
 
   OpenCV (cv2)     writes the OpenCV calibration that `topocal import --from opencv` reads, and reads every
                    calibration file topocal writes;
-  PyYAML           reads the ROS camera_info and the Kalibr camchain (what ROS' and Kalibr's loaders use);
-  mrcal            loads the .cameramodel and projects through it: mrcal.project must equal cv2.projectPoints.
+  PyYAML           reads the ROS camera_info and the Kalibr camchain (what ROS' and Kalibr's loaders use), and
+                   writes the camera_info files that `topocal import --from ros` reads;
+  mrcal            loads the .cameramodel and projects through it: mrcal.project must equal cv2.projectPoints;
+                   and writes the models (also one from a solve, with its optimization_inputs) that
+                   `topocal import --from mrcal` reads.
 
 usage: exchange_test.py TOPOCAL_EXE WORK_DIR
 """
@@ -175,6 +178,133 @@ close(intrinsics, [K[0, 0], K[1, 1], K[0, 2], K[1, 2], *D5.ravel()], "mrcal: int
 check(list(model.imagersize()) == [W, H], "mrcal: imagersize")
 # Same formula evaluated by two libraries: agreement to rounding (1e-9 px is far above double rounding at 1000 px).
 close(mrcal.project(points, lensmodel, intrinsics), cv_project(K, D5), "mrcal.project vs cv2.projectPoints", rel=1e-12)
+
+# ---- mrcal in: mrcal.cameramodel(...).write writes the model, topocal imports it ----------------------------------
+def mrcal_write(name, lensmodel, intrinsics, **kwargs):
+    mrcal.cameramodel(intrinsics=(lensmodel, np.asarray(intrinsics, dtype=float)), imagersize=(W, H),
+                      **kwargs).write(os.path.join(WORK, name))
+
+
+def five(distortion):
+    return np.concatenate([np.ravel(distortion), np.zeros(5)])[:5]
+
+
+# mrcal writes 10 significant digits; K and D5 have fewer, so every number comes back exactly.
+CORE = [K[0, 0], K[1, 1], K[0, 2], K[1, 2]]
+for lensmodel, distortion in [("LENSMODEL_OPENCV5", D5.ravel()), ("LENSMODEL_OPENCV4", D4.ravel()),
+                              ("LENSMODEL_OPENCV8", [*D5.ravel(), 0, 0, 0]), ("LENSMODEL_PINHOLE", [])]:
+    name = lensmodel.split("_")[1].lower()
+    mrcal_write(f"mrcal-{name}.cameramodel", lensmodel, [*CORE, *distortion])
+    topocal("import", "--from", "mrcal", f"mrcal-{name}.cameramodel", "--out", f"from-mrcal-{name}.yaml")
+    k, d, w, h = read_opencv(f"from-mrcal-{name}.yaml")
+    close(k, K, f"import mrcal {lensmodel}: camera_matrix")
+    close(d, five(distortion), f"import mrcal {lensmodel}: distortion_coefficients")
+    check((w, h) == (W, H), f"import mrcal {lensmodel}: image size")
+# The imported camera projects as mrcal projects the source model (two libraries, the same formula).
+k, d, _, _ = read_opencv("from-mrcal-opencv5.yaml")
+source = mrcal.cameramodel(os.path.join(WORK, "mrcal-opencv5.cameramodel"))
+close(cv_project(k, d), mrcal.project(points, *source.intrinsics()), "import mrcal: cv2 projects as mrcal", rel=1e-12)
+# A model with extrinsics and a valid-intrinsics contour (read over, ignored).
+mrcal_write("mrcal-region.cameramodel", "LENSMODEL_OPENCV5", [*CORE, *D5.ravel()],
+            extrinsics_rt_fromref=np.array([0.01, -0.02, 0.03, 0.1, 0.2, 0.3]),
+            valid_intrinsics_region=np.array([[10.0, 20.0], [1500.0, 20.0], [1500.0, 1100.0], [10.0, 20.0]]))
+topocal("import", "--from", "mrcal", "mrcal-region.cameramodel", "--out", "from-mrcal-region.yaml")
+close(read_opencv("from-mrcal-region.yaml")[1], D5, "import mrcal (extrinsics, region): distortion_coefficients")
+
+
+# A model as mrcal-calibrate-cameras writes it: from a solve, with its optimization_inputs (a bytes literal of
+# ~30 kB) and icam_intrinsics. A small synthetic, noise-free chessboard solve.
+def mrcal_solved_model():
+    truth = mrcal.cameramodel(intrinsics=("LENSMODEL_OPENCV5", np.array([*CORE, *D5.ravel()])), imagersize=(W, H))
+    np.random.seed(0)
+    q, rt_ref_board = mrcal.synthesize_board_observations(
+        [truth], object_width_n=10, object_height_n=9, object_spacing=0.1, calobject_warp=None,
+        rt_ref_boardcenter=np.array([0, 0, 0, 0, 0, 3.0]),
+        rt_ref_boardcenter__noiseradius=np.array([0.3, 0.3, 0.3, 0.5, 0.5, 0.5]), Nframes=12)
+    n = q.shape[0]
+    inputs = dict(
+        intrinsics=truth.intrinsics()[1][None, :].copy(), extrinsics_rt_fromref=np.zeros((0, 6)),
+        frames_rt_toref=mrcal.rt_from_Rt(rt_ref_board), points=None,
+        observations_board=np.concatenate([q[:, 0], np.ones(q[:, 0].shape[:-1] + (1,))], axis=-1),
+        indices_frame_camintrinsics_camextrinsics=np.column_stack(
+            [np.arange(n), np.zeros(n), -np.ones(n)]).astype(np.int32),
+        observations_point=None, indices_point_camintrinsics_camextrinsics=None, lensmodel="LENSMODEL_OPENCV5",
+        imagersizes=np.array([[W, H]], dtype=np.int32), calobject_warp=None, do_optimize_intrinsics_core=True,
+        do_optimize_intrinsics_distortions=True, do_optimize_extrinsics=True, do_optimize_frames=True,
+        do_optimize_calobject_warp=False, calibration_object_spacing=0.1, verbose=False,
+        do_apply_regularization=True, do_apply_outlier_rejection=False)
+    mrcal.optimize(**inputs)
+    return mrcal.cameramodel(optimization_inputs=inputs, icam_intrinsics=0)
+
+
+mrcal_solved_model().write(os.path.join(WORK, "mrcal-solved.cameramodel"))
+with open(os.path.join(WORK, "mrcal-solved.cameramodel")) as f:
+    check("'optimization_inputs': b'" in f.read(), "mrcal wrote the solve's optimization_inputs")
+solved = mrcal.cameramodel(os.path.join(WORK, "mrcal-solved.cameramodel")).intrinsics()[1]  # as mrcal reads it
+topocal("import", "--from", "mrcal", "mrcal-solved.cameramodel", "--out", "from-mrcal-solved.yaml")
+k, d, w, h = read_opencv("from-mrcal-solved.yaml")
+close([k[0, 0], k[1, 1], k[0, 2], k[1, 2], *d.ravel()], solved, "import mrcal (a solve): intrinsics")
+check((w, h) == (W, H), "import mrcal (a solve): image size")
+# Lens models topocal's model cannot hold: refused naming the model (or the coefficient), no file written.
+mrcal_write("mrcal-rational.cameramodel", "LENSMODEL_OPENCV8", [*CORE, *D5.ravel(), 0, 0.004, 0])
+splined = "LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=16_Ny=12_fov_x_deg=100"
+mrcal_write("mrcal-splined.cameramodel", splined, [*CORE, *np.zeros(mrcal.lensmodel_num_params(splined) - 4)])
+mrcal_write("mrcal-stereographic.cameramodel", "LENSMODEL_STEREOGRAPHIC", CORE)
+for name, words in [("rational", ["intrinsics", "k5 = 0.004"]), ("splined", ["lensmodel", splined]),
+                    ("stereographic", ["lensmodel", "LENSMODEL_STEREOGRAPHIC"])]:
+    r = topocal("import", "--from", "mrcal", f"mrcal-{name}.cameramodel", "--out", f"from-mrcal-{name}.yaml", expect=2)
+    check(all(word in r.stderr for word in [f"mrcal-{name}.cameramodel", *words]) and r.stderr.count("\n") == 1,
+          f"import mrcal {name}: one line naming the file, key and model: {r.stderr}")
+    check(not os.path.exists(os.path.join(WORK, f"from-mrcal-{name}.yaml")), f"import mrcal {name}: no file written")
+# topocal's own export comes back to the last bit (17 significant digits, read correctly rounded).
+topocal("import", "--from", "mrcal", "cam.cameramodel", "--out", "cal5-via-mrcal.yaml")
+k, d, w, h = read_opencv("cal5-via-mrcal.yaml")
+close(k, K, "mrcal round trip: camera_matrix", rel=1e-12)
+close(d, D5, "mrcal round trip: distortion_coefficients", rel=1e-12)
+
+
+# ---- ROS in: PyYAML writes the camera_info, topocal imports it ----------------------------------------------------
+def camera_info(k, distortion_model, distortion):
+    return {"image_width": W, "image_height": H, "camera_name": "pyyaml_cam",
+            "camera_matrix": {"rows": 3, "cols": 3, "data": np.ravel(k).tolist()},
+            "distortion_model": distortion_model,
+            "distortion_coefficients": {"rows": 1, "cols": len(distortion), "data": [float(v) for v in distortion]},
+            "rectification_matrix": {"rows": 3, "cols": 3, "data": np.eye(3).ravel().tolist()},
+            "projection_matrix": {"rows": 3, "cols": 4, "data": np.hstack([k, np.zeros((3, 1))]).ravel().tolist()}}
+
+
+def yaml_write(name, info, **kwargs):
+    with open(os.path.join(WORK, name), "w") as f:
+        yaml.safe_dump(info, f, **kwargs)
+
+
+# Block style (PyYAML's default: a list at its key's indentation) and flow style for the lists, as ROS writes them.
+for name, distortion_model, distortion, style in [("plumb-bob", "plumb_bob", D5.ravel(), {}),
+                                                  ("rational", "rational_polynomial", [*D5.ravel(), 0, 0, 0], {}),
+                                                  ("flow", "plumb_bob", D5.ravel(), {"default_flow_style": None})]:
+    yaml_write(f"ros-{name}.yaml", camera_info(K, distortion_model, distortion), **style)
+    topocal("import", "--from", "ros", f"ros-{name}.yaml", "--out", f"from-ros-{name}.yaml")
+    k, d, w, h = read_opencv(f"from-ros-{name}.yaml")
+    close(k, K, f"import ros {name}: camera_matrix")
+    close(d, D5, f"import ros {name}: distortion_coefficients")
+    check((w, h) == (W, H), f"import ros {name}: image size")
+for name, info, words in [
+        ("equidistant", camera_info(K, "equidistant", [0.1, 0.01, 0.001, 0.0001]), ["distortion_model", "equidistant"]),
+        ("rational-k4", camera_info(K, "rational_polynomial", [*D5.ravel(), 0.3, 0, 0]),
+         ["distortion_coefficients", "k4 = 0.3"]),
+        ("nan", camera_info(K, "plumb_bob", [*D5.ravel()[:4], float("nan")]), ["distortion_coefficients.data"]),
+        ("cx-outside", camera_info(K + [[0, 0, 900], [0, 0, 0], [0, 0, 0]], "plumb_bob", D5.ravel()),
+         ["camera_matrix", "principal point"])]:
+    yaml_write(f"ros-{name}.yaml", info)
+    r = topocal("import", "--from", "ros", f"ros-{name}.yaml", "--out", f"from-ros-{name}.yaml", expect=2)
+    check(all(word in r.stderr for word in [f"ros-{name}.yaml", *words]) and r.stderr.count("\n") == 1,
+          f"import ros {name}: one line naming the file and key: {r.stderr}")
+    check(not os.path.exists(os.path.join(WORK, f"from-ros-{name}.yaml")), f"import ros {name}: no file written")
+# topocal's own export comes back to the last bit.
+topocal("import", "--from", "ros", "camera.yaml", "--out", "cal5-via-ros.yaml")
+k, d, w, h = read_opencv("cal5-via-ros.yaml")
+close(k, K, "ros round trip: camera_matrix", rel=1e-12)
+close(d, D5, "ros round trip: distortion_coefficients", rel=1e-12)
 
 # ---- a calibration topocal fitted itself (topocal's own keys, not a plain OpenCV file) --------------------------
 with open(os.path.join(WORK, "board.yaml"), "w") as f:
