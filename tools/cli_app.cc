@@ -55,6 +55,40 @@ void SetUpApp(CLI::App& app) {
   });
 }
 
+// A command-line mistake as one line like every other error (CLI11's own is two, without the verb): the verb it
+// belongs to, CLI11's message, where to look. An unknown verb is named as such (CLI11 says "A subcommand is
+// required").
+namespace {
+
+std::string UsageErrorLine(const CLI::App& app, const CLI::ParseError& e, int argc, char** argv) {
+  std::string message = e.what();
+  for (char& c : message) {
+    if (c == '\n') c = ' ';
+  }
+  std::string path;
+  const CLI::App* at = &app;
+  for (bool deeper = true; deeper;) {
+    deeper = false;
+    for (const CLI::App* sub : at->get_subcommands()) {  // the parsed ones
+      path += (path.empty() ? "" : " ") + sub->get_name();
+      at = sub;
+      deeper = true;
+      break;
+    }
+  }
+  if (path.empty() && argc > 1 && argv[1][0] != '-') {
+    bool known = false;
+    for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; })) {
+      known = known || sub->get_name() == argv[1];
+    }
+    if (!known) return fmt::format("'{}' is not a verb (topocal --help lists them)", argv[1]);
+  }
+  return path.empty() ? fmt::format("{} (topocal --help)", message)
+                      : fmt::format("{}: {} (topocal {} --help)", path, message, path);
+}
+
+}  // namespace
+
 int RunApp(CLI::App& app, int argc, char** argv) {
   try {
     app.parse(argc, argv);
@@ -65,7 +99,7 @@ int RunApp(CLI::App& app, int argc, char** argv) {
   } catch (const CLI::CallForVersion& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    app.exit(e);
+    fmt::print(stderr, "topocal: {}\n", UsageErrorLine(app, e, argc, argv));
     return 2;
   } catch (const util::ConfigError& e) {
     fmt::print(stderr, "topocal: {}\n", e.what());

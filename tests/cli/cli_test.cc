@@ -1,6 +1,7 @@
 // The command line end to end: outputs, exit codes and one-line messages for bad input, no partial files.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -170,6 +171,18 @@ TEST_F(Cli, UnwritableOutputLeavesNothing) {
 TEST_F(Cli, UsageErrorsExitTwoAndHelpExitsZero) {
   EXPECT_EQ(RunTopocal("sweep").exit_code, 2);
   EXPECT_EQ(RunTopocal("frobnicate").exit_code, 2);
+  // A command-line mistake is one line like every other error: the verb, CLI11's reason, where to look.
+  for (const auto& [args, expected] :
+       {std::pair{"sweep", "topocal: sweep: --config is required (topocal sweep --help)"},
+        {"frobnicate", "topocal: 'frobnicate' is not a verb (topocal --help lists them)"},
+        {"device calibrate --config x", "topocal: device calibrate: --device is required (topocal device calibrate "
+                                        "--help)"},
+        {"detect --imagee x.png", "topocal: detect: "}}) {
+    const auto r = RunTopocal(args);
+    EXPECT_EQ(r.exit_code, 2) << args;
+    EXPECT_EQ(r.output.rfind(expected, 0), 0u) << args << ": " << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << args << ": " << r.output;
+  }
   for (const char* verb : {"design", "simulate", "sweep", "reconstruct"}) {
     const auto r = RunTopocal(std::string(verb) + " --help");
     EXPECT_EQ(r.exit_code, 0) << verb;
