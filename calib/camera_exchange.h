@@ -71,4 +71,11 @@ model::CameraModel ReadRosCameraInfo(const std::string& path);
 // valid region).
 model::CameraModel ReadMrcalCameraModel(const std::string& path);
 
+// `topocal import`: the camera of another tool's file — `from` is "kalibr" (camera `camera_key` of a camchain),
+// "opencv" (an OpenCV calibration YAML), "mrcal" or "ros" — as a plain OpenCV calibration file's text
+// (OpenCvCalibrationText) that every --calibration reads. util::InputError for another `from` and what the
+// readers refuse.
+std::string ImportCalibrationText(const std::string& from, const std::string& path,
+                                  const std::string& camera_key = "cam0");
+
 }  // namespace topocal::calib

@@ -554,4 +554,20 @@ model::CameraModel ReadMrcalCameraModel(const std::string& path) {
   return c;
 }
 
+std::string ImportCalibrationText(const std::string& from, const std::string& path, const std::string& camera_key) {
+  model::CameraModel camera;
+  if (from == "kalibr") {
+    camera = ReadKalibrCamchain(path, camera_key);
+  } else if (from == "opencv") {
+    camera = LoadCalibrationFile(path).opencv_camera;
+  } else if (from == "mrcal") {
+    camera = ReadMrcalCameraModel(path);
+  } else if (from == "ros") {
+    camera = ReadRosCameraInfo(path);
+  } else {
+    throw util::InputError(fmt::format("--from: '{}' is not kalibr, opencv, mrcal or ros", from));
+  }
+  return OpenCvCalibrationText(camera, from + ": " + path);
+}
+
 }  // namespace topocal::calib

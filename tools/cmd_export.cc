@@ -35,19 +35,7 @@ void RunExport(const ExportArgs& a) {
 }
 
 void RunImport(const ImportArgs& a) {
-  model::CameraModel camera;
-  if (a.from == "kalibr") {
-    camera = calib::ReadKalibrCamchain(a.file, a.camera);
-  } else if (a.from == "opencv") {
-    camera = calib::LoadCalibrationFile(a.file).opencv_camera;
-  } else if (a.from == "mrcal") {
-    camera = calib::ReadMrcalCameraModel(a.file);
-  } else if (a.from == "ros") {
-    camera = calib::ReadRosCameraInfo(a.file);
-  } else {
-    throw util::InputError(fmt::format("--from: '{}' is not kalibr, opencv, mrcal or ros", a.from));
-  }
-  util::WriteFileAtomic(a.out, calib::OpenCvCalibrationText(camera, a.from + ": " + a.file));
+  util::WriteFileAtomic(a.out, calib::ImportCalibrationText(a.from, a.file, a.camera));
   fmt::print("{} ({}) -> {}\n", a.file, a.from, a.out);
 }
 

@@ -6,6 +6,7 @@
 
 #include "calib/calibrate.h"
 #include "calib/calibration_file.h"
+#include "calib/camera_exchange.h"
 #include "calib/detect.h"
 #include "calib/target.h"
 #include "imageio/image_file.h"
@@ -160,9 +161,30 @@ model::DeviceFile CalibrateDevice(const py::object& config, const py::object& no
   return {fit.device, report};
 }
 
+std::string ExportText(const py::object& calibration, const std::string& to, const std::string& camera_name) {
+  const auto format = calib::ParseExportFormat(to);
+  if (!format) throw util::InputError(fmt::format("to: '{}' is not ros, kalibr, mrcal or opencv", to));
+  const std::string path = PathArg(calibration, "calibration");
+  calib::ExportOptions options;
+  options.camera_name = camera_name;
+  return calib::ExportCalibration(calib::LoadCalibrationFile(path), *format, path, options);
+}
+
 }  // namespace
 
 void RegisterCalibration(py::module_& m) {
+  m.def(
+      "import_calibration",
+      [](const py::object& path, const std::string& from, const std::string& camera) {
+        return calib::ImportCalibrationText(from, PathArg(path, "path"), camera);
+      },
+      py::arg("path"), py::arg("from_format"), py::arg("camera") = "cam0",
+      "Another tool's calibration (from_format: kalibr, opencv, mrcal or ros; camera: the camchain key for kalibr) "
+      "as the text of a calibration file every --calibration reads, as `topocal import` writes it.");
+  m.def("export_calibration", &ExportText, py::arg("calibration"), py::arg("to_format"),
+        py::arg("camera_name") = "topocal",
+        "A calibration file (topocal or OpenCV YAML) as another tool's file text (to_format: ros, kalibr, mrcal or "
+        "opencv), as `topocal export` writes it.");
   m.def("_calibrate", &Calibrate, py::arg("target"), py::arg("images") = py::none(), py::arg("corners") = py::none(),
         py::arg("image_size") = py::none(), py::arg("model") = "brown5", py::arg("fix") = std::vector<std::string>{},
         py::arg("fix_aspect") = 0.0, py::arg("board_warp") = false, "See topocal.calibrate.");

@@ -29,7 +29,9 @@ from ._topocal import (  # noqa: F401  (re-exported)
     __version__,
     calibrate_device,
     detect,
+    export_calibration,
     get_num_threads,
+    import_calibration,
     read_unit_record,
     set_num_threads,
 )
@@ -39,7 +41,7 @@ PathLike = Union[str, os.PathLike]
 
 __all__ = [
     "Calibration", "Config", "Device", "Error", "FleetDb", "InputError", "Map", "Measurement", "MeasurementRefused",
-    "SPOT_DTYPE", "SPOT_FLAGS", "__version__", "calibrate", "calibrate_device", "detect", "get_num_threads",
+    "SPOT_DTYPE", "SPOT_FLAGS", "__version__", "calibrate", "calibrate_device", "detect", "export_calibration", "get_num_threads", "import_calibration",
     "read_unit_record", "reconstruct", "set_num_threads",
 ]
 

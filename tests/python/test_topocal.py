@@ -234,6 +234,17 @@ def test_calibrate_from_corners_agrees_with_opencv(tmp_path):
     assert np.allclose(fs.getNode("camera_matrix").mat(), cal.camera_matrix)
     with pytest.raises(topocal.Error, match="calibration failed"):
         topocal.calibrate(board, corners=views[:1], image_size=(640, 480))
+    # Other tools' files, as `topocal export` and `topocal import` write them: the same bytes.
+    for to in ("mrcal", "ros", "opencv"):
+        out = tmp_path / f"cal.{to}"
+        run("export", "--calibration", str(path), "--to", to, "--out", str(out))
+        assert topocal.export_calibration(path, to) == out.read_text(), to
+        if to != "opencv":
+            back = tmp_path / f"back-{to}.yaml"
+            run("import", "--from", to, str(out), "--out", str(back))
+            assert topocal.import_calibration(out, to) == back.read_text(), to
+    with pytest.raises(topocal.InputError, match="not kalibr"):
+        topocal.import_calibration(path, "matlab")
 
 
 def test_long_calls_release_the_gil(eye):
