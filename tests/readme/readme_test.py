@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """README.md is the contract: every ```sh block runs as written, in order, in one shell (as a newcomer pastes them),
-in a fresh directory that looks like the checkout (data/, scripts/ and build/ linked in), with the built topocal on
-PATH. A block is left out only when the line before its fence says so:
+in a fresh directory that looks like the checkout (data/, scripts/ and build/ linked in), in a clean environment
+(the README itself puts the built topocal on PATH). A block is left out only when the line before its fence says so:
 
     <!-- readme-test: skip: REASON -->
 
@@ -44,8 +44,11 @@ os.makedirs(os.path.join(WORK, "home"))
 for name in ("data", "scripts"):
     os.symlink(os.path.join(SOURCE, name), os.path.join(WORK, name))
 os.symlink(BINARY, os.path.join(WORK, "build"))
-env = dict(os.environ, PATH=os.path.join(BINARY, "tools") + os.pathsep + os.environ["PATH"],
-           DESTDIR=os.path.join(WORK, "destdir"), HOME=os.path.join(WORK, "home"))
+# A clean environment, as a new root shell on a fresh Debian machine has it: nothing of the developer's or of this
+# test's own (the README must put the built CLI on PATH itself), save DESTDIR, which keeps `cmake --install` out of
+# the machine, and HOME, a fresh one.
+env = {"PATH": "/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin", "LANG": "C.UTF-8",
+       "DESTDIR": os.path.join(WORK, "destdir"), "HOME": os.path.join(WORK, "home")}
 
 for line, _, reason in skipped:
     print(f"README line {line}: skipped ({reason})")
