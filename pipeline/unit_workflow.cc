@@ -72,6 +72,22 @@ void CheckImageSize(const cv::Mat& image, const std::string& path, const LoadedI
   imageio::RequireSize(image, path, in.camera.width_px, in.camera.height_px, r.camera);
 }
 
+// The record's folder is named after the unit (a record of SN-0111 in units/SN-9999/ would be filed under another
+// unit), and a record already there is replaced only when asked, its predecessor kept.
+void RequireRecordPlace(const UnitRequest& r) {
+  fs::path out = fs::path(r.out).lexically_normal();
+  if (out.filename().empty() && out.has_parent_path()) out = out.parent_path();
+  if (out.filename().string() != r.serial) {
+    throw util::InputError(fmt::format("--out {}: the record's folder must be named after the unit: .../{}/", r.out,
+                                       r.serial));
+  }
+  if (!r.keep_history && fs::exists(out / "unit.json")) {
+    throw util::InputError(fmt::format("--out {}: unit {} already has a record there; --force keeps it under {} and "
+                                       "writes the new one",
+                                       r.out, r.serial, RecordHistoryDir(out).string()));
+  }
+}
+
 LoadedInputs LoadInputs(const UnitRequest& r) {
   if (!IsValidSerial(r.serial)) {
     throw util::InputError(fmt::format("--serial '{}': use 1-{} characters of A-Z a-z 0-9 . _ - (not starting with .)",
@@ -94,6 +110,7 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   if (fs::exists(r.out) && !fs::exists(fs::path(r.out) / "unit.json")) {
     throw util::InputError(fmt::format("--out {}: exists and is not a unit record; not overwriting it", r.out));
   }
+  RequireRecordPlace(r);
   LoadedInputs in;
   in.config = model::LoadConfig(r.config);
   in.camera = model::LoadTopographerCamera(r.camera);
@@ -287,6 +304,11 @@ DistortionField MeasureDistortionField(const model::CameraModel& calibrated, con
 }
 
 }  // namespace
+
+std::filesystem::path RecordHistoryDir(const std::filesystem::path& record) {
+  const fs::path parent = record.has_parent_path() ? record.parent_path() : fs::path(".");
+  return parent / ".history" / record.filename();
+}
 
 std::vector<std::string> UnitSummary(const UnitResult& unit) {
   const auto& r = unit.request;

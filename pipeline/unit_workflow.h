@@ -4,6 +4,7 @@
 // reference balls, calibrate the whole device. The result is written as a unit record (docs/unit-record.md) by
 // report::WriteUnitRecord (report/unit_record_writer.h), beside the record's reader: the computation is owned here,
 // the file format by report/ (report links pipeline, never the other way).
+#include <filesystem>
 #include <functional>
 #include <optional>
 #include <string>
@@ -43,8 +44,15 @@ struct UnitRequest {
   int uncertainty_samples = 200;      // Monte Carlo draws; 0 = none, else 2 to kMaxUncertaintySamples
   unsigned seed = 1;
   int jobs = 0;                       // threads for the Monte Carlo draws (0 = every core; same record either way)
-  std::string out;                    // the record directory
+  std::string out;                    // the record directory, named after the serial (units/SN/)
+  // A record already at `out` is refused (nothing computed); with keep_history (--force) it is moved to
+  // <parent>/.history/<serial>/<its created_utc>/ when the new one is in place (docs/unit-record.md).
+  bool keep_history = false;
 };
+
+// Where --force keeps the records a unit's new record replaces: <parent>/.history/<serial>/ (hidden, so that a glob
+// of records, `units/*/`, does not take it for one).
+std::filesystem::path RecordHistoryDir(const std::filesystem::path& record);
 
 // One input file of the unit and its SHA-256 (the record's provenance).
 struct UnitInputDigest {

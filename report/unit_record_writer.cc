@@ -11,6 +11,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <stdexcept>
 #include <vector>
 
@@ -21,6 +22,7 @@
 #include "model/topographer_camera.h"
 #include "pipeline/map_output.h"
 #include "pipeline/uncertainty.h"
+#include "pipeline/unit_workflow.h"
 #include "report/unit_record_reader.h"
 #include "topo/biconic_fit.h"
 #include "topo/power_map.h"
@@ -58,13 +60,42 @@ json FileDigests(const fs::path& dir) {
   return files;
 }
 
-// Replaces `out` by the complete directory `staged`: the old record (if any) is moved aside first and removed
-// only after the new one is in place, so every moment either the old or the new record is whole.
-void CommitDirectory(const fs::path& staged, const fs::path& out) {
+// The record set aside, into its unit's history (pipeline::RecordHistoryDir), under its creation time.
+void KeepInHistory(const fs::path& aside, const fs::path& out) {
+  std::string created = "undated";
+  try {
+    std::ifstream in(aside / "unit.json");
+    created = json::parse(in).at("created_utc").get<std::string>();
+  } catch (const std::exception&) {
+  }
+  for (char& c : created) {
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-') c = '-';  // 2026-12-03T18-40-00Z
+  }
+  const fs::path history = pipeline::RecordHistoryDir(out);
+  std::error_code ec;
+  fs::create_directories(history, ec);
+  fs::path kept = history / created;
+  for (int n = 2; fs::exists(kept, ec); ++n) kept = history / fmt::format("{}-{}", created, n);
+  fs::rename(aside, kept, ec);
+  if (ec) {
+    throw util::InputError(fmt::format("{}: the new record is in place but the old one could not be kept in {}: {} "
+                                       "(it is at {})",
+                                       out.string(), history.string(), ec.message(), aside.string()));
+  }
+}
+
+// Replaces `out` by the complete directory `staged`: the old record (if any) is moved aside first and, only after
+// the new one is in place, kept in the history (keep_history) — refused otherwise — so every moment either the old
+// or the new record is whole.
+void CommitDirectory(const fs::path& staged, const fs::path& out, bool keep_history) {
   const util::DeferSignalCleanup defer;  // a signal between the two renames would lose both records
   std::error_code ec;
   const fs::path aside = out.string() + fmt::format(".old-{}", ::getpid());
   const bool had_old = fs::exists(out);
+  if (had_old && !keep_history) {
+    throw util::InputError(fmt::format("{}: a record is already there; --force keeps it under {} and writes this one",
+                                       out.string(), pipeline::RecordHistoryDir(out).string()));
+  }
   if (had_old) {
     fs::rename(out, aside, ec);
     if (ec)
@@ -75,7 +106,7 @@ void CommitDirectory(const fs::path& staged, const fs::path& out) {
     if (had_old) fs::rename(aside, out, ec);
     throw util::InputError(fmt::format("{}: cannot write the record: {}", out.string(), ec.message()));
   }
-  if (had_old) fs::remove_all(aside, ec);
+  if (had_old) KeepInHistory(aside, out);
 }
 
 }  // namespace
@@ -176,7 +207,8 @@ bool IsRecordLeftover(const fs::path& path) {
   return false;
 }
 
-UnitRecordWriter::UnitRecordWriter(fs::path out) : out_(RecordPath(std::move(out))) {
+UnitRecordWriter::UnitRecordWriter(fs::path out, bool keep_history)
+    : out_(RecordPath(std::move(out))), keep_history_(keep_history) {
   std::error_code ec;
   const fs::path parent = out_.has_parent_path() ? out_.parent_path() : fs::path(".");
   fs::create_directories(parent, ec);
@@ -231,7 +263,7 @@ void UnitRecordWriter::Commit(json body) {
   body["files"] = FileDigests(staging_);
   CheckFinite(body, "");
   util::WriteFileAtomic((staging_ / "unit.json").string(), body.dump(2) + "\n");
-  CommitDirectory(staging_, out_);
+  CommitDirectory(staging_, out_, keep_history_);
   committed_ = true;
 }
 
@@ -411,7 +443,7 @@ void WriteUnitRecord(const pipeline::UnitResult& u) {
   const auto& r = u.request;
   const auto& c = u.calibration;
   // The record, staged and committed whole.
-  UnitRecordWriter writer(r.out);
+  UnitRecordWriter writer(r.out, r.keep_history);
   const fs::path& dir = writer.staging_dir();
   util::WriteFileAtomic((dir / "calibration.yaml").string(),
                         calib::CalibrationFileText(c.result, {r.target, c.view_paths, u.created_utc}));

@@ -32,8 +32,9 @@ class UnitRecordWriter {
   // Takes the record's lock (another run writing the same record now: util::InputError, nothing written), clears
   // what killed runs left beside the record (their staging folders; a record set aside is put back), and creates
   // the staging directory (with `maps/`) under an unpredictable name. Throws util::InputError naming `out` when it
-  // cannot.
-  explicit UnitRecordWriter(std::filesystem::path out);
+  // cannot. A record already at `out` is refused at the commit, or with keep_history moved to its unit's history
+  // (pipeline::RecordHistoryDir) once the new one is in place.
+  explicit UnitRecordWriter(std::filesystem::path out, bool keep_history = false);
   ~UnitRecordWriter();  // removes the staging directory unless committed
   UnitRecordWriter(const UnitRecordWriter&) = delete;
   UnitRecordWriter& operator=(const UnitRecordWriter&) = delete;
@@ -51,6 +52,7 @@ class UnitRecordWriter {
 
   std::filesystem::path out_, staging_;
   int lock_fd_ = -1;
+  bool keep_history_ = false;
   bool committed_ = false;
 };
 

@@ -52,7 +52,7 @@ fails_without_folder(["reconstruct", "--config", f"{data}/paper.json", "--spots"
                       "new/out/"], 2)
 for _ in range(2):  # the rerun meets the same error, not "exists and is not a unit record"
     r = fails_without_folder(["unit", "calibrate", "--serial", "SN-0001", "--target",
-                              f"{data}/target-topographer.yaml", "--images", "blank.png", "--out", "new/out/"], 1)
+                              f"{data}/target-topographer.yaml", "--images", "blank.png", "--out", "new/SN-0001/"], 1)
     check("not a unit record" not in r.stderr, f"unit calibrate rerun refused: {r.stderr}")
 os.makedirs(os.path.join(WORK, "inputs", "SN-0002"))
 with open(os.path.join(WORK, "inputs", "SN-0002", "unit-inputs.json"), "w") as f:

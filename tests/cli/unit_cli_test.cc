@@ -197,7 +197,7 @@ TEST_F(UnitCli, SeveralImagesAreAMultiViewCalibrationThatAlsoPasses) {
 }
 
 TEST_F(UnitCli, ARerunWithTheSameInputsAndDateGivesTheSameRecord) {
-  const auto a = (dir_ / "a").string(), b = (dir_ / "b").string();
+  const auto a = (dir_ / "a" / "SN-0002").string(), b = (dir_ / "b" / "SN-0002").string();
   // SOURCE_DATE_EPOCH fixes the record's date (the reproducible-builds convention); the rest must follow from the
   // inputs alone.
   const auto run = [&](const std::string& out) {
@@ -285,11 +285,36 @@ TEST_F(UnitCli, AFailedRerunLeavesTheEarlierRecordWhole) {
   ASSERT_EQ(RunTopocal(Calibrate("SN-0004", out)).exit_code, 0);
   const std::string before = util::ReadFile(out + "/unit.json");
   const auto r = RunTopocal(fmt::format("unit calibrate --serial SN-0004 --target {0}/target.yaml --images {0}/blank.png "
-                                        "--camera {0}/camera.json --out {1}",
+                                        "--camera {0}/camera.json --force --out {1}",
                                         in_, out));
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_EQ(util::ReadFile(out + "/unit.json"), before);
-  EXPECT_EQ(Entries(dir_), std::vector<std::string>{"SN-0004"});
+  EXPECT_EQ(Entries(dir_), std::vector<std::string>{"SN-0004"});  // no history either: nothing was replaced
+}
+
+// A unit's record is never replaced silently: a rerun is refused before anything is computed, --force writes the
+// new record and keeps the old one, whole, in the unit's history; a record is filed under its own serial only.
+TEST_F(UnitCli, ARecordIsNeverReplacedSilently) {
+  const auto units = dir_ / "units";
+  const auto out = (units / "SN-0005").string();
+  ASSERT_EQ(RunTopocal(Calibrate("SN-0005", out)).exit_code, 0);
+  const std::string first = util::ReadFile(out + "/unit.json");
+  auto r = RunTopocal(Calibrate("SN-0005", out));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("already has a record there; --force keeps it"), std::string::npos) << r.output;
+  EXPECT_EQ(util::ReadFile(out + "/unit.json"), first);
+  r = RunTopocal(Calibrate("SN-0005", out, "--force --seed 9"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(util::ReadFile(out + "/unit.json"), first);
+  const auto history = units / ".history" / "SN-0005";
+  ASSERT_EQ(Entries(history).size(), 1u);
+  EXPECT_EQ(util::ReadFile((history / Entries(history)[0] / "unit.json").string()), first);
+  EXPECT_EQ(Entries(units), (std::vector<std::string>{".history", "SN-0005"}));
+  // The folder must be the unit's: SN-0006's record under units/SN-9999/ is refused, nothing made.
+  r = RunTopocal(Calibrate("SN-0006", (units / "SN-9999").string() + "/"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("must be named after the unit: .../SN-0006/"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(units / "SN-9999"));
 }
 
 // Issue 16: SIGTERM or SIGINT during `unit calibrate` left units/SN.tmp-PID/ (8 of 8 kills). Killed as soon as its
@@ -363,12 +388,25 @@ TEST_F(UnitCli, BatchSeedIsTheSeedOfEveryUnitsDraws) {
     return radius_u((dir_ / out / "SN-S").string());
   };
   const double batch5 = run_batch("seed5", 5), batch6 = run_batch("seed6", 6);
-  const auto alone = (dir_ / "alone").string();
+  const auto alone = (dir_ / "alone" / "SN-S").string();
   const auto r = RunTopocal(Calibrate("SN-S", alone, "--seed 5"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(batch5, radius_u(alone));
   EXPECT_NE(batch5, batch6);
   EXPECT_GT(batch6, 0.0);
+  // The batch again into the same records: refused (the unit's bad input, exit 2), and with --force done, the
+  // earlier record kept in the history.
+  const auto again = [&](const std::string& extra) {
+    return RunTopocal(fmt::format("unit calibrate-batch {} --out {} --jobs 1 --uncertainty {} --seed 6 {}",
+                                  batch.string(), (dir_ / "seed5").string(), kDraws, extra));
+  };
+  auto r2 = again("");
+  EXPECT_EQ(r2.exit_code, 2) << r2.output;
+  EXPECT_EQ(radius_u((dir_ / "seed5" / "SN-S").string()), batch5);
+  r2 = again("--force");
+  EXPECT_EQ(r2.exit_code, 0) << r2.output;
+  EXPECT_EQ(radius_u((dir_ / "seed5" / "SN-S").string()), batch6);
+  EXPECT_EQ(Entries(dir_ / "seed5" / ".history" / "SN-S").size(), 1u);
 }
 
 }  // namespace
