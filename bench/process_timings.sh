@@ -71,6 +71,6 @@ figure "topocal --help" topocal --help
 figure "topocal sweep --config data/paper.json" topocal sweep --config data/paper.json
 figure "topocal unit calibrate (demo unit, 200 draws)" topocal unit calibrate --serial SN-DEMO-0001 \
   --target data/target-topographer.yaml --images "$demo/target.png" --reference-sphere "$demo/sphere.png" \
-  --sphere-radius-mm 7.8 --out "$work/out"
+  --sphere-radius-mm 7.8 --out "$work/out/SN-DEMO-0001"
 echo
 echo "load after: $(cut -d' ' -f1-3 /proc/loadavg)"

@@ -32,7 +32,8 @@ for u in "${units[@]}"; do
 JSON
 done
 
-"$topocal" unit calibrate-batch "$out/line" --out "$out/units"
+# --force: a rerun replaces the demo records and keeps the earlier ones in $out/units/.history/ (docs/unit-record.md)
+"$topocal" unit calibrate-batch "$out/line" --out "$out/units" --force
 for u in "${units[@]}"; do
   set -- $u
   "$topocal" report --unit "$out/units/$1" --out "$out/reports/$1.html"
