@@ -263,12 +263,4 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
   });
 }
 
-void WriteAnalysisMaps(const std::string& dir, const std::string& prefix, const std::string& label,
-                       const topo::Analysis& a, const model::BiconicParams* truth, bool csv, int size_px) {
-  MapSetOptions o;
-  o.csv = csv;
-  o.size_px = size_px;
-  WriteAnalysisMapSet(dir, {{prefix, label, &a, truth, {}}}, o);
-}
-
 }  // namespace topocal::pipeline

@@ -52,9 +52,4 @@ struct AnalysisGrids {
 };
 AnalysisGrids AnalysisGridsOf(const topo::Analysis& analysis);
 
-// One analysis (a set of one): the power maps on the standard absolute scale, the others normalised.
-void WriteAnalysisMaps(const std::string& dir, const std::string& prefix, const std::string& label,
-                       const topo::Analysis& analysis, const model::BiconicParams* truth, bool csv = true,
-                       int size_px = plot::MapImageOptions{}.size_px);
-
 }  // namespace topocal::pipeline

@@ -243,6 +243,7 @@ bool MapImageOptions::IsValid(std::string* why) const {
   if (value_max && !std::isfinite(*value_max)) return fail("value_max must be finite");
   if (value_min && value_max && !(*value_max > *value_min)) return fail("value_max must exceed value_min");
   if (!std::isfinite(contour_step)) return fail("contour_step must be finite");
+  if (!eye.empty() && eye != "OD" && eye != "OS") return fail("eye must be OD, OS or empty");
   return true;
 }
 
@@ -255,6 +256,28 @@ std::array<std::uint8_t, 3> ScaleColour(ColourScale scale, double t) {
 }
 
 std::array<std::uint8_t, 3> NoDataColour() { return {kNoDataGrey, kNoDataGrey, kNoDataGrey}; }
+
+// The eye's sides at the middle of the plot's edges, in the examiner's view (docs/maps.md, "Eye"): superior at
+// the top, inferior at the bottom; for OD nasal on the right, for OS on the left. Each letter in a white box with a
+// black rim, so that it reads on every colour.
+void DrawEyeSides(cv::Mat& img, const cv::Rect& plot, const std::string& eye, const Font& f) {
+  if (eye != "OD" && eye != "OS") return;
+  const bool od = eye == "OD";
+  const int pad = std::max(2, f.height_px / 5);
+  const cv::Size box(f.height_px + 2 * pad, f.height_px + 2 * pad);
+  const int cx = plot.x + plot.width / 2, cy = plot.y + plot.height / 2;
+  const std::pair<const char*, cv::Point> sides[] = {
+      {"S", {cx - box.width / 2, plot.y + pad}},
+      {"I", {cx - box.width / 2, plot.y + plot.height - box.height - pad}},
+      {od ? "T" : "N", {plot.x + pad, cy - box.height / 2}},
+      {od ? "N" : "T", {plot.x + plot.width - box.width - pad, cy - box.height / 2}}};
+  for (const auto& [letter, corner] : sides) {
+    const cv::Rect r(corner, box);
+    img(r).setTo(kWhite);
+    cv::rectangle(img, r, kBlack, 1);
+    PutCentred(img, letter, {r.x + r.width / 2, r.y + pad + f.height_px * 85 / 100}, f);
+  }
+}
 
 MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   std::string why;
@@ -325,8 +348,13 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   if (!options.scale_label.empty()) footer.push_back(options.scale_label);
   if (contour_step > 0)
     footer.push_back(fmt::format("contours every {:.{}f} {}", contour_step, Decimals(contour_step), map.unit));
-  footer.push_back((options.eye.empty() ? std::string("test surface (no eye)") : "eye " + options.eye) + "; " +
-                   options.orientation);
+  if (options.eye.empty()) {
+    footer.push_back("test surface (no eye); " + options.orientation);
+  } else {
+    footer.push_back(fmt::format("eye {} ({}): N nasal, T temporal, S superior, I inferior", options.eye,
+                                 options.eye == "OD" ? "right" : "left"));
+    footer.push_back("examiner's view; " + options.orientation);
+  }
   // Legend lines wrap at word boundaries to the image's width (a long number list must not run off the page).
   for (const std::string& line : options.legend) {
     std::string current;
@@ -534,6 +562,8 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
     // The core without anti-aliasing: its pixels are exactly the marker colour.
     cv::circle(plot_roi, at, marker_px * 16, marker_colour, cv::FILLED, cv::LINE_8, kShift);
   }
+
+  DrawEyeSides(img, plot, options.eye, label_font);
 
   // Title and the caller's annotation lines (sim-K etc.) above the plot.
   for (std::size_t k = 0; k < title_lines.size(); ++k) {

@@ -70,7 +70,7 @@ void PrintAnalysis(const topo::Analysis& a) {
 }
 
 struct Inputs {
-  std::string spots, image, camera, calibration, device, estimator = "psf";
+  std::string spots, image, camera, calibration, device, estimator = "psf", eye;
   int uncertainty_samples = 0;
   unsigned seed = 1;
 };
@@ -212,6 +212,7 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
     throw util::InputError("--uncertainty needs --image and --calibration");
   }
   nlohmann::json info;
+  if (!in.eye.empty()) info["eye"] = in.eye;
   std::optional<pipeline::ClinicalUncertainty> uncertainty;
   std::optional<model::Device> device;
   if (!in.device.empty()) device = model::LoadDevice(in.device).device;
@@ -264,7 +265,12 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
     j.update(report::MeasurementJson(analysis, truth));
     outputs.AddFile(json_out, j.dump(2) + "\n");
   }
-  if (!maps.empty()) pipeline::WriteAnalysisMaps(outputs.AddDirectory(maps), "", "", analysis, truth ? &cfg.cornea : nullptr);
+  if (!maps.empty()) {
+    pipeline::MapSetOptions map_options;
+    map_options.eye = in.eye;  // N/T/S/I on the maps, in the examiner's view
+    pipeline::WriteAnalysisMapSet(outputs.AddDirectory(maps), {{"", "", &analysis, truth ? &cfg.cornea : nullptr, {}}},
+                                  map_options);
+  }
   outputs.Commit();
 }
 
@@ -297,6 +303,9 @@ void AddReconstructCommand(CLI::App& app) {
   cmd->add_option("--estimator", in->estimator, "Spot centre estimator for --image: psf (default), centroid, gaussian")
       ->check(CLI::IsMember({"psf", "centroid", "gaussian"}))
       ->capture_default_str();
+  cmd->add_option("--eye", in->eye, "The eye measured: OD (right) or OS (left); its maps are labelled N/T/S/I in "
+                                     "the examiner's view, the JSON records it")
+      ->check(CLI::IsMember({"OD", "OS"}));
   cmd->add_option("--json", *json_out, "Write the result as JSON");
   cmd->add_option("--maps", *maps, "Write power and height maps (CSV + PNG) into this directory");
   auto overrides = std::make_shared<ReconstructionOverrides>();

@@ -165,7 +165,8 @@ py::dict ReconstructImage(const py::array& image, const model::DeviceFile& dev, 
 }
 
 py::dict Reconstruct(const py::object& config, const py::object& device, const py::object& image,
-                     const py::object& spots, const std::string& estimator, bool truth) {
+                     const py::object& spots, const std::string& estimator, bool truth, const std::string& eye) {
+  if (!eye.empty() && eye != "OD" && eye != "OS") throw util::InputError("eye: must be OD, OS or empty");
   model::Config cfg = ConfigArg(config);
   // As `topocal reconstruct`: unless the configuration names a surface model, the spline joins where the
   // polynomial does not fit the data (docs/reconstruction.md).
@@ -173,7 +174,9 @@ py::dict Reconstruct(const py::object& config, const py::object& device, const p
   if (image.is_none() == spots.is_none()) throw util::InputError("reconstruct: give one of image or spots");
   if (!image.is_none()) {
     if (device.is_none()) throw util::InputError("reconstruct: image needs device (the calibrated device)");
-    return ReconstructImage(image.cast<py::array>(), DeviceArg(device), cfg, estimator, truth);
+    py::dict out = ReconstructImage(image.cast<py::array>(), DeviceArg(device), cfg, estimator, truth);
+    if (!eye.empty()) out["result"]["eye"] = eye;
+    return out;
   }
   const std::vector<topo::MeasuredSpot> measured = SpotsFrom(spots.cast<py::array>());
   std::optional<model::DeviceFile> dev;
@@ -187,6 +190,7 @@ py::dict Reconstruct(const py::object& config, const py::object& device, const p
                                  cornea);
   }
   nlohmann::json info;
+  if (!eye.empty()) info["eye"] = eye;
   info["spots_read"] = measured.size();
   info.update(report::MeasurementJson(a, truth));
   return MeasurementDict(info, a);
@@ -213,7 +217,7 @@ void RegisterMeasure(py::module_& m) {
         "pattern cannot be identified.");
   m.def("_reconstruct", &Reconstruct, py::arg("config"), py::arg("device") = py::none(),
         py::arg("image") = py::none(), py::arg("spots") = py::none(), py::arg("estimator") = "psf",
-        py::arg("truth") = false, "See topocal.reconstruct.");
+        py::arg("truth") = false, py::arg("eye") = "", "See topocal.reconstruct.");
 }
 
 }  // namespace topocal::python

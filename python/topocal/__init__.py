@@ -84,7 +84,7 @@ class Measurement:
 
 def reconstruct(config: Union[Config, PathLike], device: Union[Device, PathLike, None] = None,
                 image: Optional[np.ndarray] = None, spots: Optional[np.ndarray] = None, estimator: str = "psf",
-                truth: bool = False) -> Measurement:
+                truth: bool = False, eye: str = "") -> Measurement:
     """Measure a cornea, as `topocal reconstruct` does.
 
     Give `image` (a raw sensor image, 2-D uint8/uint16, with the calibrated `device`), or `spots` (a structured
@@ -92,9 +92,11 @@ def reconstruct(config: Union[Config, PathLike], device: Union[Device, PathLike,
     image; measured through `device` when given, else through the configuration's design). From an image, every
     spot is checked against the surface the others give and the measurement is judged: MeasurementRefused (with
     its reasons) when the capture cannot support it. truth=True compares with the configuration's cornea.
+    eye: "OD" or "OS" (recorded in result["eye"], as `reconstruct --eye`).
     The configuration's surface model defaults to "auto" (the spline joins where the polynomial does not fit).
     """
-    out = _topocal._reconstruct(config, device=device, image=image, spots=spots, estimator=estimator, truth=truth)
+    out = _topocal._reconstruct(config, device=device, image=image, spots=spots, estimator=estimator, truth=truth,
+                                eye=eye)
     maps = dict(out["maps"])
     polar = maps.pop("polar")
     return Measurement(result=out["result"], maps={name: Map(**m) for name, m in maps.items()}, polar=polar)

@@ -98,7 +98,7 @@ class Measurement:
 
 def reconstruct(config: Union[Config, PathLike], device: Union[Device, PathLike, None] = ...,
                 image: Optional[npt.NDArray[Any]] = ..., spots: Optional[npt.NDArray[Any]] = ...,
-                estimator: str = ..., truth: bool = ...) -> Measurement: ...
+                estimator: str = ..., truth: bool = ..., eye: str = ...) -> Measurement: ...
 
 @dataclass(frozen=True)
 class Calibration:

@@ -194,6 +194,20 @@ TEST_F(Cli, UsageErrorsExitTwoAndHelpExitsZero) {
 
 nlohmann::json ReadJson(const std::string& path) { return nlohmann::json::parse(std::ifstream(path)); }
 
+// --eye names the eye measured: the JSON records it and the maps carry its sides (the drawing's own test,
+// tests/topo/map_image_test.cc, checks the labels' pixels); anything but OD or OS is refused.
+TEST_F(Cli, ReconstructEyeIsRecordedAndLabelsTheMaps) {
+  ASSERT_EQ(RunTopocal("simulate --config " + paper_ + " --sigma 0 --out " + Path("s.csv")).exit_code, 0);
+  auto r = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("s.csv") + " --eye OS --json " +
+                      Path("os.json") + " --maps " + Path("os-maps"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(ReadJson(Path("os.json"))["eye"], "OS");
+  EXPECT_TRUE(fs::exists(Path("os-maps") + "/axial_power.png"));
+  r = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("s.csv") + " --eye OU");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--eye"), std::string::npos) << r.output;
+}
+
 TEST_F(Cli, ReconstructBiconicFitAndSurfaceModelOverrideTheConfig) {
   ASSERT_EQ(RunTopocal("simulate --config " + paper_ + " --sigma 0 --out " + Path("s.csv")).exit_code, 0);
   const auto reconstruct = [&](const std::string& name, const std::string& extra) {

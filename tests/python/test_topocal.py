@@ -136,9 +136,9 @@ def test_detect_gives_the_cli_rows_and_summary(work, eye):
 
 def test_reconstruct_gives_the_cli_numbers_and_maps(work, eye):
     out, maps = work / "eye.json", work / "eye-maps"
-    run("reconstruct", "--config", PAPER, "--image", str(eye), "--device", DEMO_DEVICE, "--truth", "--json", str(out),
-        "--maps", str(maps))
-    m = topocal.reconstruct(PAPER, device=DEMO_DEVICE, image=read_image(eye), truth=True)
+    run("reconstruct", "--config", PAPER, "--image", str(eye), "--device", DEMO_DEVICE, "--truth", "--eye", "OD",
+        "--json", str(out), "--maps", str(maps))
+    m = topocal.reconstruct(PAPER, device=DEMO_DEVICE, image=read_image(eye), truth=True, eye="OD")
     cli = json.loads(out.read_text())
     cli["image"].pop("device")
     assert m.result == cli  # bit for bit: every double the same

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -141,6 +142,63 @@ TEST(MapImage, YPointsUpAndXToTheRight) {
   const int cx = img.plot.x + img.plot.width / 2;
   EXPECT_GT(ScaleIndex(o.scale, img.Bgr(cx, img.plot.y + 2)), 250);
   EXPECT_LT(ScaleIndex(o.scale, img.Bgr(cx, img.plot.y + img.plot.height - 3)), 5);
+}
+
+// The bounding box of the plot pixels that differ between two renders, within a part of the plot (x and y as
+// fractions of its width and height).
+struct Box {
+  int x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
+  bool Empty() const { return x1 < 0; }
+};
+Box DiffBox(const MapImage& a, const MapImage& b, double fx0, double fx1, double fy0, double fy1) {
+  Box box;
+  const auto& p = a.plot;
+  for (int y = p.y + static_cast<int>(fy0 * p.height); y < p.y + static_cast<int>(fy1 * p.height); ++y) {
+    for (int x = p.x + static_cast<int>(fx0 * p.width); x < p.x + static_cast<int>(fx1 * p.width); ++x) {
+      if (a.Bgr(x, y) == b.Bgr(x, y)) continue;
+      box = {std::min(box.x0, x), std::min(box.y0, y), std::max(box.x1, x), std::max(box.y1, y)};
+    }
+  }
+  return box;
+}
+
+// An eye's map says which side is which, in the examiner's view (docs/maps.md): S at the top and I at the bottom
+// for both eyes; T on the left and N on the right for OD, mirrored for OS. Checked on the pixels: the labels sit at
+// the middles of the plot's edges and nowhere else, OD and OS differ only left and right, and OD's left label is
+// pixel for pixel OS's right one (the same letter, T) and the other way round.
+TEST(MapImage, AnEyesMapIsLabelledNasalTemporalSuperiorInferior) {
+  MapImageOptions o;
+  const GridMap g = Ramp(41, -4, 4, true);
+  const MapImage none = RenderMap(g, o);
+  o.eye = "OD";
+  const MapImage od = RenderMap(g, o);
+  o.eye = "OS";
+  const MapImage os = RenderMap(g, o);
+  // Nothing inside the plot changes away from the four edge middles.
+  EXPECT_TRUE(DiffBox(none, od, 0.15, 0.85, 0.15, 0.85).Empty());
+  for (const auto& [fx0, fx1, fy0, fy1] : {std::array{0.0, 0.15, 0.0, 0.4}, std::array{0.0, 0.15, 0.6, 1.0},
+                                           std::array{0.85, 1.0, 0.0, 0.4}, std::array{0.85, 1.0, 0.6, 1.0}}) {
+    EXPECT_TRUE(DiffBox(none, od, fx0, fx1, fy0, fy1).Empty()) << fx0 << " " << fy0;  // the corners
+  }
+  const Box top = DiffBox(none, od, 0.4, 0.6, 0.0, 0.15), bottom = DiffBox(none, od, 0.4, 0.6, 0.85, 1.0);
+  const Box left = DiffBox(none, od, 0.0, 0.15, 0.4, 0.6), right = DiffBox(none, od, 0.85, 1.0, 0.4, 0.6);
+  for (const Box& b : {top, bottom, left, right}) EXPECT_FALSE(b.Empty());
+  // S and I are the same for both eyes; T and N trade places.
+  EXPECT_TRUE(DiffBox(od, os, 0.0, 1.0, 0.0, 0.15).Empty());
+  EXPECT_TRUE(DiffBox(od, os, 0.0, 1.0, 0.85, 1.0).Empty());
+  EXPECT_FALSE(DiffBox(od, os, 0.0, 0.15, 0.4, 0.6).Empty());
+  const Box os_right = DiffBox(none, os, 0.85, 1.0, 0.4, 0.6);
+  ASSERT_EQ(left.x1 - left.x0, os_right.x1 - os_right.x0);
+  ASSERT_EQ(left.y1 - left.y0, os_right.y1 - os_right.y0);
+  for (int dy = 0; dy <= left.y1 - left.y0; ++dy) {
+    for (int dx = 0; dx <= left.x1 - left.x0; ++dx) {
+      ASSERT_EQ(od.Bgr(left.x0 + dx, left.y0 + dy), os.Bgr(os_right.x0 + dx, os_right.y0 + dy)) << dx << " " << dy;
+    }
+  }
+  o.eye = "OU";
+  std::string why;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("OD, OS"), std::string::npos);
 }
 
 TEST(MapImage, NoDataIsLightGreyAndDistinctFromThePage) {
