@@ -1,6 +1,7 @@
 #include "pipeline/map_output.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <cmath>
 #include <filesystem>
@@ -17,7 +18,9 @@
 namespace topocal::pipeline {
 namespace {
 
-constexpr int kGridSide = 241;  // samples per side of the Cartesian grids (0.05 mm steps over +-6 mm)
+constexpr int kGridSide = 241;
+// The sim-K axes are drawn when the cylinder shows at the printed resolution (0.01 D).
+constexpr double kMinDrawnCylinderD = 0.005;  // samples per side of the Cartesian grids (0.05 mm steps over +-6 mm)
 
 plot::GridMap PowerGrid(const topo::PowerMaps& pm, const std::vector<double>& values, const std::string& title) {
   topo::PolarField field;
@@ -140,7 +143,13 @@ void AddKind(const std::vector<PendingMap>& maps, const plot::MapScaleRequest& r
     mo.supported_radius_mm = m.supported_radius_mm;
     mo.legend = m.legend;
     mo.eye = o.eye;
-    if (rings) mo.ring_radii_mm = o.power_ring_radii_mm;
+    if (rings) {
+      mo.ring_radii_mm = o.power_ring_radii_mm;
+      std::vector<std::string> radii;
+      for (const double r : o.power_ring_radii_mm) radii.push_back(fmt::format("{:g}", r));
+      mo.legend.push_back(fmt::format("dashed rings at {} mm{}", fmt::join(radii, " and "),
+                                      o.rings_are_sim_k_zone ? ": the sim-K zone" : ""));
+    }
     jobs->push_back({&m, std::move(mo), o.csv});
   }
 }
@@ -159,8 +168,11 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
   std::vector<std::string> notes = e.power_annotations;
   if (notes.empty() && a.clinical_ok) {
     const auto& c = a.clinical;
-    notes.push_back(fmt::format("sim-K {:.2f} D @ {:.0f}\u00b0 / {:.2f} D @ {:.0f}\u00b0 (cyl {:.2f} D)", c.steep_k_D,
-                                c.steep_axis_deg, c.flat_k_D, c.flat_axis_deg, c.CylinderD()));
+    notes.push_back(c.CylinderD() >= kMinDrawnCylinderD
+                        ? fmt::format("sim-K {:.2f} D @ {:.0f}\u00b0 / {:.2f} D @ {:.0f}\u00b0 (cyl {:.2f} D)", c.steep_k_D,
+                                      c.steep_axis_deg, c.flat_k_D, c.flat_axis_deg, c.CylinderD())
+                        : fmt::format("sim-K {:.2f} D / {:.2f} D (cyl {:.2f} D: no axis)", c.steep_k_D, c.flat_k_D,
+                                      c.CylinderD()));
     notes.push_back(fmt::format("Kmax {:.2f} D at ({:+.2f}, {:+.2f}) mm", c.kmax_D, c.kmax_at_mm.x(), c.kmax_at_mm.y()));
   }
   // Overlays from the clinical indices (issue 18, item 6): the sim-K axes across the supported disc on both
@@ -169,11 +181,13 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
   const double supported = a.supported_radius_mm;
   std::vector<plot::MapAxis> sim_k_axes;
   std::string axes_legend;
-  if (a.clinical_ok) {
+  if (a.clinical_ok && a.clinical.CylinderD() >= kMinDrawnCylinderD) {
     const auto& c = a.clinical;
     sim_k_axes = {{c.steep_axis_deg, supported, false}, {c.flat_axis_deg, supported, true}};
     axes_legend = fmt::format("solid line: steep sim-K axis {:.0f}\u00b0 ({:.2f} D); dashed: flat {:.0f}\u00b0 ({:.2f} D)",
                               c.steep_axis_deg, c.steep_k_D, c.flat_axis_deg, c.flat_k_D);
+  } else if (a.clinical_ok) {  // a sphere's axes are noise: none drawn, and the legend says why
+    axes_legend = fmt::format("no sim-K axes: cylinder {:.2f} D", a.clinical.CylinderD());
   }
   AnalysisGrids grids = AnalysisGridsOf(a);
   grids.axial_D.title = fmt::format("Axial power{}", e.label);
@@ -250,6 +264,7 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
   if (power_options.power_ring_radii_mm.empty()) {
     const topo::ClinicalOptions clinical;
     power_options.power_ring_radii_mm = {clinical.sim_k_inner_mm, clinical.sim_k_outer_mm};
+    power_options.rings_are_sim_k_zone = true;
   }
   std::vector<MapJob> jobs;
   AddKind(axial, o.power, power_options, true, &jobs);

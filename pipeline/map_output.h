@@ -29,6 +29,7 @@ struct MapSetOptions {
   plot::MapScaleRequest elevation = plot::NormalisedScale(plot::kMinNormalisedSpanUm);  // elevation, height error
   std::string eye;                                  // "OD", "OS" or empty (test surface)
   std::vector<double> power_ring_radii_mm;          // rings on the power maps; empty: the sim-K zone (0.5, 1.5 mm)
+  bool rings_are_sim_k_zone = false;                // set when the rings are the default (the legend says so)
   // Threads computing and writing the maps (0: every core); the files are the same whatever the number.
   int jobs = 1;
 };

@@ -5,6 +5,10 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -50,6 +54,61 @@ TEST(MapOutput, TheFilesAreTheSameWhateverTheThreadCount) {
   // 2 entries x 4 kinds (axial, tangential, elevation, height difference) x CSV and PNG.
   EXPECT_EQ(files, 16);
   EXPECT_EQ(std::distance(fs::directory_iterator(dirs[1]), fs::directory_iterator{}), files);
+  fs::remove_all(root);
+}
+
+// Dark pixels (all channels below 60: black lines, not the scale's colours) in the annulus 2.2-3.8 mm of a power
+// map, away from the sim-K rings (0.5, 1.5 mm), the supported circle and the labels: only the sim-K axes draw there.
+int AxisPixels(const std::string& png) {
+  const cv::Mat img = cv::imread(png);
+  // The plot's square: the bounding box of the no-data grey, which fills its corners outside the data's disc.
+  // Runs of at least 20 grey pixels (anti-aliased text has single ones).
+  int x0 = img.cols, x1 = -1, y0 = img.rows, y1 = -1;
+  for (int y = 0; y < img.rows; ++y) {
+    int run = 0;
+    for (int x = 0; x < img.cols; ++x) {
+      const cv::Vec3b p = img.at<cv::Vec3b>(y, x);
+      run = (p[0] == 205 && p[1] == 205 && p[2] == 205) ? run + 1 : 0;
+      if (run >= 20) x0 = std::min(x0, x - 19), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+    }
+  }
+  const double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1), half = 0.5 * (x1 - x0);
+  int dark = 0;
+  for (int y = y0; y <= y1; ++y) {
+    for (int x = x0; x <= x1; ++x) {
+      const double r = std::hypot(x - cx, y - cy) / half;  // 1 = the plot's half width
+      const cv::Vec3b p = img.at<cv::Vec3b>(y, x);
+      if (r > 0.42 && r < 0.72 && p[0] < 60 && p[1] < 60 && p[2] < 60) ++dark;
+    }
+  }
+  return dark;
+}
+
+// The sim-K axes are drawn where the cornea has a cylinder to show, and not on a sphere (0.00 D: its axes would be
+// noise drawn as fact).
+TEST(MapOutput, SimKAxesOnlyWhereThereIsACylinder) {
+  model::Config config = model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json");
+  const fs::path root = fs::temp_directory_path() / ("topocal-map-axes-" + std::to_string(::getpid()));
+  fs::remove_all(root);
+  std::vector<int> dark;
+  for (const bool sphere : {false, true}) {
+    if (sphere) config.cornea = {7.8, 7.8, 0.0, 0.0, 0.0};
+    const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
+    std::vector<topo::MeasuredSpot> spots;
+    for (const auto& s : topo::SimulateSpots(config, 0.0).spots) spots.push_back({s.id, s.position_mm});
+    const topo::Analysis a = topo::AnalyzeSpots(spots, design.targets, config, nullptr);
+    ASSERT_TRUE(a.clinical_ok);
+    EXPECT_EQ(a.clinical.CylinderD() < 0.005, sphere) << a.clinical.CylinderD();
+    MapSetOptions o;
+    o.size_px = 400;
+    const fs::path dir = root / (sphere ? "sphere" : "paper");
+    WriteAnalysisMapSet(dir.string(), {{"", "", &a, nullptr, {}}}, o);
+    dark.push_back(AxisPixels((dir / "axial_power.png").string()));
+  }
+  // The paper cornea (3.8 D of cylinder): two axes cross the annulus, each 4 x 1.6 mm of line 2-4 px wide at about
+  // 37 px/mm (and its contour lines); the sphere: not one dark pixel.
+  EXPECT_GT(dark[0], 100);
+  EXPECT_EQ(dark[1], 0);
   fs::remove_all(root);
 }
 
