@@ -245,14 +245,16 @@ Verdict Evaluate(const UnitRecord& rec, const Limits& limits, const BudgetOption
   const PaperCornea& p = rec.paper;
   for (const char* key : {"rx_mm", "ry_mm"}) {
     const std::string name = key[1] == 'x' ? "r_x" : "r_y";
-    v.checks.push_back(Judge(PaperCheck("paper_radius_error_mm", fmt::format("paper cornea: {} error, corrected", name),
+    // One id per check (the JSON's key for it); the limit they share is paper_radius_error_mm.
+    v.checks.push_back(Judge(PaperCheck(fmt::format("paper_{}_error_mm", key[1] == 'x' ? "rx" : "ry"),
+                                        fmt::format("paper cornea: {} error, corrected", name),
                                         "mm", std::abs(p.corrected.at(key) - p.truth.at(key)),
                                         QuantityU(p.uncertainty, key), limits.paper_radius_error_mm.max),
                              limits.rule));
   }
   for (const char* key : {"kx", "ky"}) {
     const std::string name = key[1] == 'x' ? "k_x" : "k_y";
-    v.checks.push_back(Judge(PaperCheck("paper_conic_error", fmt::format("paper cornea: {} error, corrected", name), "",
+    v.checks.push_back(Judge(PaperCheck(fmt::format("paper_{}_error", key), fmt::format("paper cornea: {} error, corrected", name), "",
                                         std::abs(p.corrected.at(key) - p.truth.at(key)), QuantityU(p.uncertainty, key),
                                         limits.paper_conic_error.max),
                              limits.rule));

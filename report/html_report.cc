@@ -370,20 +370,30 @@ const Check* FindCheck(const Verdict& v, const std::string& id, int nth = 0) {
   return nullptr;
 }
 
-// The unit's previous calibration beside this one: the numbers a service engineer compares, their change, and
-// whether the change exceeds the U of a difference, sqrt(U_prev^2 + U_now^2) (k = 2, independent calibrations).
-std::string PreviousComparison(const UnitRecord& now, const UnitRecord& prev, const ReportInputs& in) {
+// One quantity of the unit's previous calibration beside this one (the report's table and its JSON).
+struct ComparisonRow {
+  std::string id, label, unit;  // label and unit as HTML
+  std::string plain_unit;       // the unit in the JSON
+  std::optional<double> prev, now, U_prev, U_now;
+  int digits;
+  // The change, and the U of a difference, sqrt(U_prev^2 + U_now^2) (k = 2, independent calibrations).
+  std::optional<double> Change() const { return prev && now ? std::optional(*now - *prev) : std::nullopt; }
+  std::optional<double> ChangeU() const {
+    return U_prev && U_now ? std::optional(std::hypot(*U_prev, *U_now)) : std::nullopt;
+  }
+};
+
+// The numbers a service engineer compares between the unit's previous calibration and this one.
+std::vector<ComparisonRow> ComparisonRows(const UnitRecord& now, const UnitRecord& prev, const ReportInputs& in) {
   const Verdict vn = Evaluate(now, in.limits, in.budget), vp = Evaluate(prev, in.limits, in.budget);
-  struct Row {
-    std::string label, unit;
-    std::optional<double> prev, now, U_prev, U_now;
-    int digits;
-  };
+  using Row = ComparisonRow;
   std::vector<Row> rows;
-  rows.push_back({"calibration RMS", "px", prev.calibration_rms_px, now.calibration_rms_px, {}, {}, 4});
+  rows.push_back({"calibration_rms_px", "calibration RMS", "px", "px", prev.calibration_rms_px, now.calibration_rms_px,
+                  {}, {}, 4});
   if (prev.seidel_sigma_per_mm2 && now.seidel_sigma_per_mm2) {
-    rows.push_back({"Seidel \u03c3", "mm<sup>\u22122</sup>", prev.seidel_sigma_per_mm2, now.seidel_sigma_per_mm2,
-                    2 * prev.seidel_sigma_stddev_per_mm2.value_or(0), 2 * now.seidel_sigma_stddev_per_mm2.value_or(0), 5});
+    rows.push_back({"seidel_sigma_per_mm2", "Seidel \u03c3", "mm<sup>\u22122</sup>", "mm^-2", prev.seidel_sigma_per_mm2,
+                    now.seidel_sigma_per_mm2, 2 * prev.seidel_sigma_stddev_per_mm2.value_or(0),
+                    2 * now.seidel_sigma_stddev_per_mm2.value_or(0), 5});
   }
   const auto sphere = [](const UnitRecord& r, const char* key) -> std::optional<double> {
     if (!r.verification) return std::nullopt;
@@ -393,19 +403,30 @@ std::string PreviousComparison(const UnitRecord& now, const UnitRecord& prev, co
     const Check* c = FindCheck(v, id);
     return c ? c->U : std::nullopt;
   };
-  rows.push_back({"sphere radius error, corrected", "mm", sphere(prev, "radius_error_mm"), sphere(now, "radius_error_mm"),
-                  checkU(vp, "sphere_radius_error_mm"), checkU(vn, "sphere_radius_error_mm"), 4});
-  rows.push_back({"sphere power error, corrected", "D", sphere(prev, "power_error_D"), sphere(now, "power_error_D"),
-                  checkU(vp, "sphere_power_error_D"), checkU(vn, "sphere_power_error_D"), 4});
+  rows.push_back({"sphere_radius_error_mm", "sphere radius error, corrected", "mm", "mm", sphere(prev, "radius_error_mm"),
+                  sphere(now, "radius_error_mm"), checkU(vp, "sphere_radius_error_mm"),
+                  checkU(vn, "sphere_radius_error_mm"), 4});
+  rows.push_back({"sphere_power_error_D", "sphere power error, corrected", "D", "D", sphere(prev, "power_error_D"),
+                  sphere(now, "power_error_D"), checkU(vp, "sphere_power_error_D"), checkU(vn, "sphere_power_error_D"),
+                  4});
   for (const char* key : {"kx", "ky"}) {
     const auto err = [&](const UnitRecord& r) { return r.paper.corrected.at(key) - r.paper.truth.at(key); };
     const auto u = [&](const UnitRecord& r) -> std::optional<double> {
       if (!r.paper.uncertainty || !r.paper.uncertainty->quantities.count(key)) return std::nullopt;
       return r.paper.uncertainty->quantities.at(key).U;
     };
-    rows.push_back({fmt::format("paper cornea k<sub>{}</sub> \u2212 truth, corrected", key + 1), "", err(prev), err(now),
-                    u(prev), u(now), 4});
+    rows.push_back({fmt::format("paper_{}_error", key),
+                    fmt::format("paper cornea k<sub>{}</sub> \u2212 truth, corrected", key + 1), "", "", err(prev),
+                    err(now), u(prev), u(now), 4});
   }
+  return rows;
+}
+
+// The unit's previous calibration beside this one: the numbers, their change, and whether the change exceeds the U
+// of the difference.
+std::string PreviousComparison(const UnitRecord& now, const UnitRecord& prev, const ReportInputs& in) {
+  const Verdict vn = Evaluate(now, in.limits, in.budget), vp = Evaluate(prev, in.limits, in.budget);
+  const std::vector<ComparisonRow> rows = ComparisonRows(now, prev, in);
   std::string s = "<section id=\"previous\" class=\"keep\"><h2>Comparison with the previous calibration</h2>\n";
   s += fmt::format("<p>Previous record {} (created {}, verdict under these limits: <strong>{}</strong>); this record "
                    "created {} (<strong>{}</strong>).</p>\n",
@@ -413,7 +434,7 @@ std::string PreviousComparison(const UnitRecord& now, const UnitRecord& prev, co
                    vn.pass ? "PASS" : "FAIL");
   s += "<table class=\"data\" id=\"previous-table\"><tr><th>quantity</th><th>previous</th><th>now</th><th>change</th>"
        "<th>U of the change (k = 2)</th><th></th></tr>\n";
-  for (const Row& r : rows) {
+  for (const ComparisonRow& r : rows) {
     const std::string unit = r.unit.empty() ? "" : " " + r.unit;
     if (!r.prev || !r.now) {
       s += fmt::format("<tr><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td colspan=\"3\" "
@@ -422,12 +443,11 @@ std::string PreviousComparison(const UnitRecord& now, const UnitRecord& prev, co
                        r.now ? Sig(*r.now, r.digits) + unit : "\u2014");
       continue;
     }
-    const double change = *r.now - *r.prev;
+    const double change = *r.Change();
     std::string u_text = "\u2014", flag;
-    if (r.U_prev && r.U_now) {
-      const double U = std::hypot(*r.U_prev, *r.U_now);
-      u_text = Sig(U, 2) + unit;
-      flag = std::abs(change) > U ? "changed beyond U" : "within U";
+    if (const auto U = r.ChangeU()) {
+      u_text = Sig(*U, 2) + unit;
+      flag = std::abs(change) > *U ? "changed beyond U" : "within U";
     }
     s += fmt::format("<tr><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td>"
                      "<td class=\"num\">{}</td><td class=\"flag\">{}</td></tr>\n",
@@ -870,10 +890,25 @@ nlohmann::json ReportJson(const UnitRecord& rec, const ReportInputs& inputs) {
               {"verdict", verdict.pass ? "PASS" : "FAIL"}};
   if (inputs.previous) {
     const Verdict vp = Evaluate(*inputs.previous, l, inputs.budget);
+    json comparison = json::array();
+    for (const ComparisonRow& r : ComparisonRows(rec, *inputs.previous, inputs)) {
+      const auto number = [](const std::optional<double>& v) { return v ? json(*v) : json(nullptr); };
+      const auto change = r.Change();
+      const auto U = r.ChangeU();
+      comparison.push_back({{"id", r.id},
+                            {"unit", r.plain_unit},
+                            {"previous", number(r.prev)},
+                            {"now", number(r.now)},
+                            {"change", number(change)},
+                            {"U_change", number(U)},
+                            {"coverage_factor", 2},
+                            {"within_U", change && U ? json(std::abs(*change) <= *U) : json(nullptr)}});
+    }
     out["previous"] = {{"record", inputs.previous->directory},
                        {"unit_json_sha256", inputs.previous->unit_json_sha256},
                        {"record_created_utc", inputs.previous->created_utc},
-                       {"verdict", vp.pass ? "PASS" : "FAIL"}};
+                       {"verdict", vp.pass ? "PASS" : "FAIL"},
+                       {"comparison", comparison}};
   }
   return out;
 }

@@ -2,6 +2,7 @@
 // outside, no NaN, the same bytes for the same record.
 #include "report/html_report.h"
 
+#include <algorithm>
 #include <cctype>
 #include <regex>
 #include <set>
@@ -303,6 +304,20 @@ TEST(HtmlReport, SignOffAndPreviousCalibrationAreShown) {
   const std::size_t row = h.find("<td>sphere radius error, corrected</td>", h.find("id=\"previous-table\""));
   ASSERT_NE(row, std::string::npos);
   EXPECT_NE(h.substr(row, h.find("</tr>", row) - row).find("changed beyond U"), std::string::npos);
+  // The JSON holds the same comparison, by id, and every check's id is its own.
+  const nlohmann::json j = ReportJson(rec, in);
+  const auto& comparison = j["previous"]["comparison"];
+  const auto sphere = std::find_if(comparison.begin(), comparison.end(),
+                                   [](const nlohmann::json& r) { return r["id"] == "sphere_radius_error_mm"; });
+  ASSERT_NE(sphere, comparison.end()) << comparison.dump();
+  EXPECT_DOUBLE_EQ((*sphere)["previous"].get<double>(), 0.03);
+  EXPECT_DOUBLE_EQ((*sphere)["change"].get<double>(),
+                   (*sphere)["now"].get<double>() - (*sphere)["previous"].get<double>());
+  EXPECT_FALSE((*sphere)["within_U"].get<bool>());
+  EXPECT_EQ(comparison.size(), 6u) << comparison.dump();  // RMS, Seidel sigma, sphere radius and power, paper k_x, k_y
+  std::set<std::string> ids;
+  for (const auto& c : j["checks"]) EXPECT_TRUE(ids.insert(c["id"].get<std::string>()).second) << c["id"];
+  EXPECT_EQ(ids.size(), j["checks"].size());
   // Another unit's record is not a previous calibration of this one.
   auto other = MakeHandRecord(FreshDir("other"));
   other.unit["serial"] = "SN-OTHER";
