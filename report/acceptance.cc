@@ -264,4 +264,24 @@ Verdict Evaluate(const UnitRecord& rec, const Limits& limits, const BudgetOption
   return v;
 }
 
+std::vector<std::string> FailedChecks(const Verdict& verdict) {
+  std::vector<std::string> out;
+  for (const Check& c : verdict.checks) {
+    if (c.pass) continue;
+    const std::string unit = c.unit.empty() ? "" : " " + c.unit;
+    // Why: the error beyond the limit, or (guarded acceptance) the error with its U beyond it, or no U to decide.
+    if (!c.error) {
+      out.push_back(fmt::format("{} ({})", c.what, c.note));
+    } else if (*c.error > c.limit) {
+      out.push_back(fmt::format("{} |error| {:.3g}{} > limit {:.3g}{}", c.what, *c.error, unit, c.limit, unit));
+    } else if (c.U) {
+      out.push_back(fmt::format("{} |error| {:.3g}{} + U {:.2g}{} > limit {:.3g}{} (guarded acceptance)", c.what,
+                                *c.error, unit, *c.U, unit, c.limit, unit));
+    } else {
+      out.push_back(fmt::format("{} |error| {:.3g}{} ({})", c.what, *c.error, unit, c.note));
+    }
+  }
+  return out;
+}
+
 }  // namespace topocal::report

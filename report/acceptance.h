@@ -113,6 +113,11 @@ struct Verdict {
 
 Verdict Evaluate(const UnitRecord& record, const Limits& limits, const BudgetOptions& budget = {});
 
+// The failed checks in words, one each, for the report's first page and the CLI's last line, with the reason:
+// "reference sphere: radius error, corrected |error| 0.062 mm > limit 0.05 mm", "... |error| 0.041 mm + U 0.012 mm
+// > limit 0.05 mm (guarded acceptance)", or the check's note when it could not be decided. Empty on PASS.
+std::vector<std::string> FailedChecks(const Verdict& verdict);
+
 // The limits as canonical text (rule and every max, shortest round-trip form; the sources are prose and left out):
 // hashed into the report id, so that the same record judged against other limits gets another id.
 std::string CanonicalLimits(const Limits& limits);

@@ -324,6 +324,7 @@ td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: now
 .banner.pass { background: var(--pass); }
 .banner.fail { background: var(--fail); }
 .banner small { display: block; font-size: 10pt; font-weight: normal; }
+ul.failed { color: var(--fail); font-weight: bold; margin: 0 0 3mm 0; }
 td.pass { color: var(--pass); font-weight: bold; }
 td.fail { color: var(--fail); font-weight: bold; }
 .report-id { font-family: "DejaVu Sans Mono", monospace; }
@@ -575,6 +576,11 @@ std::string RenderHtmlReport(const UnitRecord& rec, const ReportInputs& inputs) 
                    "against {} ({} acceptance)</small></div>\n",
                    verdict.pass ? "pass" : "fail", verdict_word, verdict_word, verdict.checks.size() - failed,
                    verdict.checks.size(), H(limits.origin), ToString(limits.rule));
+  if (!verdict.pass) {  // which checks failed, on the first page
+    s += "<ul id=\"failed-checks\" class=\"failed\">\n";
+    for (const std::string& f : FailedChecks(verdict)) s += fmt::format("<li>FAILED: {}</li>\n", H(f));
+    s += "</ul>\n";
+  }
 
   // Identity.
   s += "<section id=\"identity\" class=\"keep\"><h2>Device identity</h2>\n<table class=\"data\">\n";

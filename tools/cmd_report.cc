@@ -1,6 +1,7 @@
 // topocal report: the QA report of one unit record (report/html_report.h), one self-contained HTML file, and the
 // same verdict as JSON.
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <memory>
 #include <optional>
@@ -45,10 +46,7 @@ void Run(const ReportArgs& a) {
   fmt::print("{}: report {} for unit {}: {}\n", a.out, report::ReportId(record, in), record.serial,
              verdict.pass ? "PASS" : "FAIL");
   if (!verdict.pass) {
-    int failed = 0;
-    for (const auto& c : verdict.checks) failed += c.pass ? 0 : 1;
-    throw VerdictFailed(fmt::format("unit {}: FAIL ({} check(s) outside the limits; the report says which)",
-                                    record.serial, failed));
+    throw VerdictFailed(fmt::format("unit {}: FAIL: {}", record.serial, fmt::join(report::FailedChecks(verdict), "; ")));
   }
 }
 

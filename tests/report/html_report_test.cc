@@ -338,6 +338,14 @@ TEST(HtmlReport, FailingRecordSaysFailAndWhy) {
   EXPECT_NE(h.find("not verified: the record has no reference-sphere verification"), std::string::npos);
   EXPECT_NE(h.find("paper cornea: k_x error, corrected</td><td class=\"num\">0.18</td>"), std::string::npos);
   EXPECT_NE(h.find("4 of 7 checks passed"), std::string::npos);
+  // The first page names the failed checks, right under the banner (before the identity section).
+  const std::size_t failed = h.find("<ul id=\"failed-checks\"");
+  ASSERT_NE(failed, std::string::npos);
+  EXPECT_LT(failed, h.find("id=\"identity\""));
+  const std::string list = h.substr(failed, h.find("</ul>", failed) - failed);
+  EXPECT_NE(list.find("FAILED: paper cornea: k_x error, corrected |error| 0.18 &gt; limit 0.05"), std::string::npos) << list;
+  EXPECT_NE(list.find("FAILED: reference sphere: radius error, corrected (not verified"), std::string::npos) << list;
+  EXPECT_EQ(std::count(list.begin(), list.end(), '\n'), 4) << list;  // the <ul> line and three failed checks
 }
 
 

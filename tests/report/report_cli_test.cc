@@ -185,6 +185,11 @@ TEST(ReportCli, ReportsARecordWithoutUncertainty) {
   const auto guarded = RunTopocal("report --unit " + c.record.dir + " --out " + c.out);
   EXPECT_EQ(guarded.exit_code, 3) << guarded.output;
   EXPECT_NE(guarded.output.find("for unit SN-TEST-0001: FAIL"), std::string::npos) << guarded.output;
+  // The last line names the failed checks and why.
+  EXPECT_NE(guarded.output.find("topocal: unit SN-TEST-0001: FAIL: reference sphere: radius error, corrected |error| "
+                                "1.57e-06 mm (no U in the record"),
+            std::string::npos)
+      << guarded.output;
   EXPECT_NE(util::ReadFile(c.out).find("no U in the record: guarded acceptance cannot decide"), std::string::npos);
   const std::string simple = fs::path(c.out).parent_path() / "simple.json";
   std::string limits = util::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json");
