@@ -700,6 +700,20 @@ MapScaleRequest StandardPowerScale() {
   return r;
 }
 
+MapScaleRequest ExtendedPowerScale() {
+  MapScaleRequest r;
+  r.kind = MapScaleKind::kAbsolute;
+  r.step = kExtendedPowerStepD;
+  r.low = kExtendedPowerLowD;
+  r.high = kExtendedPowerHighD;
+  return r;
+}
+MapScaleRequest FittedStepScale(double step) {
+  MapScaleRequest r;
+  r.kind = MapScaleKind::kAbsolute;
+  r.step = step;
+  return r;
+}
 MapScaleRequest NormalisedScale(double min_span) {
   MapScaleRequest r;
   r.kind = MapScaleKind::kNormalised;

@@ -99,7 +99,15 @@ inline constexpr int kMinAbsoluteSteps = 10;
 // micrometre; a 20 nm residual of a corrected sphere must not fill the palette.
 inline constexpr double kMinNormalisedSpanD = 1.0, kMinNormalisedSpanUm = 1.0;
 
+// The extended absolute power scale for ectasia (keratoconus apices at 55-65 D, which the standard scale draws in
+// its top colour): 2.5 D steps over 30-67.5 D, fixed like the standard one.
+inline constexpr double kExtendedPowerStepD = 2.5, kExtendedPowerLowD = 30.0, kExtendedPowerHighD = 67.5;
+
 MapScaleRequest StandardPowerScale();
+MapScaleRequest ExtendedPowerScale();
+// Absolute steps of `step` fitted to the set's data (at least kMinAbsoluteSteps steps): e.g. 0.5 D to see a
+// cornea's detail on a scale whose colours still mean fixed powers within the set.
+MapScaleRequest FittedStepScale(double step);
 MapScaleRequest NormalisedScale(double min_span);
 
 struct MapScale {

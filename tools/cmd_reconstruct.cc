@@ -11,6 +11,7 @@
 #include "model/topographer_camera.h"
 #include "pipeline/detection_plane.h"
 #include "pipeline/map_output.h"
+#include "plot/map_image.h"
 #include "pipeline/measure_spots.h"
 #include "pipeline/uncertainty.h"
 #include "report/analysis_json.h"
@@ -70,7 +71,8 @@ void PrintAnalysis(const topo::Analysis& a) {
 }
 
 struct Inputs {
-  std::string spots, image, camera, calibration, device, estimator = "psf", eye;
+  std::string spots, image, camera, calibration, device, estimator = "psf", eye, power_scale = "standard";
+  double power_step_D = 0;  // with --power-scale fit
   int uncertainty_samples = 0;
   unsigned seed = 1;
 };
@@ -198,10 +200,25 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
       fmt::format("{}: measurement refused: {}", image, fmt::join(verdict.reasons, "; ")));
 }
 
+// --power-scale and --power-step as the maps' power scale (docs/maps.md, "Scales").
+plot::MapScaleRequest PowerScaleOf(const Inputs& in) {
+  if (in.power_step_D != 0 && in.power_scale != "fit") {
+    throw util::InputError("--power-step: goes with --power-scale fit (the standard and extended scales have their own)");
+  }
+  if (in.power_scale == "extended") return plot::ExtendedPowerScale();
+  if (in.power_scale == "fit") {
+    const double step = in.power_step_D == 0 ? 0.5 : in.power_step_D;
+    if (!(step >= 0.05 && step <= 5.0)) throw util::InputError("--power-step: must be 0.05 to 5 D");
+    return plot::FittedStepScale(step);
+  }
+  return plot::StandardPowerScale();
+}
+
 // The verb's work, once its options are parsed.
 void Run(const std::string& config, const Inputs& in, const std::string& json_out, const std::string& maps, bool truth,
          const ReconstructionOverrides& overrides) {
   const NewDirectoryGuard maps_guard(maps);  // a failed run leaves no empty --maps folder
+  const plot::MapScaleRequest power_scale = PowerScaleOf(in);  // bad options refused before any work
   auto cfg = model::LoadConfig(config);
   overrides.ApplyTo(&cfg);
   // The verb that measures eyes: unless the configuration or --surface-model names a model, the spline joins
@@ -268,6 +285,7 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
   if (!maps.empty()) {
     pipeline::MapSetOptions map_options;
     map_options.eye = in.eye;  // N/T/S/I on the maps, in the examiner's view
+    map_options.power = power_scale;
     pipeline::WriteAnalysisMapSet(outputs.AddDirectory(maps), {{"", "", &analysis, truth ? &cfg.cornea : nullptr, {}}},
                                   map_options);
   }
@@ -306,6 +324,12 @@ void AddReconstructCommand(CLI::App& app) {
   cmd->add_option("--eye", in->eye, "The eye measured: OD (right) or OS (left); its maps are labelled N/T/S/I in "
                                      "the examiner's view, the JSON records it")
       ->check(CLI::IsMember({"OD", "OS"}));
+  cmd->add_option("--power-scale", in->power_scale,
+                  "Power maps' scale: standard (35.5-50.5 D, 1.5 D steps), extended (30-67.5 D, 2.5 D steps: "
+                  "ectasia) or fit (steps of --power-step around the data)")
+      ->check(CLI::IsMember({"standard", "extended", "fit"}))
+      ->capture_default_str();
+  cmd->add_option("--power-step", in->power_step_D, "Step of --power-scale fit, D [0.5]")->default_str("");
   cmd->add_option("--json", *json_out, "Write the result as JSON");
   cmd->add_option("--maps", *maps, "Write power and height maps (CSV + PNG) into this directory");
   auto overrides = std::make_shared<ReconstructionOverrides>();

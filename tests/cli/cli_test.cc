@@ -8,11 +8,13 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <utility>
 
 #include "tests/cli_harness.h"
+#include "util/io.h"
 
 namespace {
 
@@ -206,6 +208,29 @@ TEST_F(Cli, ReconstructEyeIsRecordedAndLabelsTheMaps) {
   r = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("s.csv") + " --eye OU");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("--eye"), std::string::npos) << r.output;
+}
+
+// --power-scale: the power maps on the extended scale (ectasia) or on steps fitted to the data; the maps differ
+// from the standard scale's, and a step without the fitted scale, or out of range, is refused before any work.
+TEST_F(Cli, ReconstructPowerScaleIsSelectable) {
+  ASSERT_EQ(RunTopocal("simulate --config " + paper_ + " --sigma 0 --out " + Path("s.csv")).exit_code, 0);
+  std::map<std::string, std::string> png;
+  for (const std::string scale : {"standard", "extended", "fit --power-step 0.25"}) {
+    const std::string dir = Path("maps-" + scale.substr(0, 3));
+    const auto r = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("s.csv") + " --power-scale " +
+                              scale + " --maps " + dir);
+    ASSERT_EQ(r.exit_code, 0) << scale << ": " << r.output;
+    png[scale] = topocal::util::ReadFile(dir + "/axial_power.png");
+  }
+  EXPECT_NE(png["standard"], png["extended"]);
+  EXPECT_NE(png["standard"], png["fit --power-step 0.25"]);
+  for (const std::string bad : {"--power-scale extended --power-step 0.5", "--power-scale fit --power-step 9"}) {
+    const auto r = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("s.csv") + " " + bad + " --maps " +
+                              Path("bad-maps"));
+    EXPECT_EQ(r.exit_code, 2) << bad << ": " << r.output;
+    EXPECT_NE(r.output.find("--power-step"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(Path("bad-maps")));
+  }
 }
 
 TEST_F(Cli, ReconstructBiconicFitAndSurfaceModelOverrideTheConfig) {

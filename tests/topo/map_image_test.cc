@@ -201,6 +201,24 @@ TEST(MapImage, AnEyesMapIsLabelledNasalTemporalSuperiorInferior) {
   EXPECT_NE(why.find("OD, OS"), std::string::npos);
 }
 
+// A keratoconus apex at 62 D: the standard scale draws it in its top colour (50.5 D and up); the extended scale
+// holds it (30-67.5 D in 2.5 D steps), and a fitted 0.5 D scale rounds the data out to whole steps.
+TEST(MapImage, TheExtendedScaleHoldsAnEctaticApex) {
+  GridMap g = Ramp(41, -4, 4, true);
+  for (double& v : g.values) v = 51.0 + 2.75 * v;  // 40 to 62 D
+  const MapScale standard = SelectMapScale({&g}, StandardPowerScale());
+  EXPECT_EQ(standard.value_max, kStandardPowerHighD);
+  const MapScale extended = SelectMapScale({&g}, ExtendedPowerScale());
+  EXPECT_EQ(extended.value_min, 30.0);
+  EXPECT_EQ(extended.value_max, 67.5);
+  EXPECT_EQ(extended.contour_step, 2.5);
+  EXPECT_GE(extended.value_max, 65.0);  // the reach for ectasia
+  const MapScale fitted = SelectMapScale({&g}, FittedStepScale(0.5));
+  EXPECT_EQ(fitted.value_min, 40.0);
+  EXPECT_EQ(fitted.value_max, 62.0);
+  EXPECT_EQ(fitted.contour_step, 0.5);
+}
+
 TEST(MapImage, NoDataIsLightGreyAndDistinctFromThePage) {
   GridMap g = Ramp(41, -4, 4, true);
   for (int j = 0; j < g.ny; ++j) {
