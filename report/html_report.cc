@@ -591,7 +591,8 @@ std::string RenderHtmlReport(const UnitRecord& rec, const ReportInputs& inputs) 
   row("Report id", "<span class=\"report-id\">" + H(id) + "</span>");
   row("Record created (UTC)", H(rec.created_utc));
   row("Calibration date", H(rec.calibration.date.empty() ? "not in calibration.yaml" : rec.calibration.date));
-  row("Tool version", "topocal " + H(rec.tool_version));
+  row("Tool version", "topocal " + H(rec.tool_version) +
+                          (rec.tool_commit.empty() ? std::string() : " (commit " + H(rec.tool_commit) + ")"));
   row("Record", H(rec.directory));
   row("Record digests", "Appendix A (every file verified against its SHA-256 when this report was made)");
   row("Camera", fmt::format("{} \u00d7 {} px, pixel pitch {} \u00b5m, a = {} mm", rec.camera_width_px,

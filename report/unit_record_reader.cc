@@ -207,6 +207,7 @@ UnitRecord ReadUnitRecord(const std::string& directory) {
                                        "with `topocal unit calibrate`",
                                        rec.tool_version, kVersion));
   }
+  if (r.Has("tool_commit")) rec.tool_commit = r.NonEmptyString("tool_commit");  // absent in older records
   rec.serial = r.NonEmptyString("serial");
   rec.created_utc = r.NonEmptyString("created_utc");
 

@@ -129,6 +129,7 @@ struct UnitRecord {
   std::string unit_json_sha256;
 
   std::string serial, tool_version, created_utc;
+  std::string tool_commit;  // the git commit of the topocal that wrote it (util/build_info.h); empty in older records
   int format_version = 0;
 
   // settings

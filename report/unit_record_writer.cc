@@ -27,6 +27,7 @@
 #include "topo/biconic_fit.h"
 #include "topo/power_map.h"
 #include "util/io.h"
+#include "util/build_info.h"
 #include "util/sha256.h"
 #include "util/version.h"
 
@@ -260,6 +261,7 @@ void UnitRecordWriter::Commit(json body) {
   body["format"] = kUnitRecordFormat;
   body["format_version"] = kUnitRecordFormatVersion;
   body["tool_version"] = kVersion;
+  body["tool_commit"] = BuildCommit();  // the exact code (util/build_info.h)
   body["files"] = FileDigests(staging_);
   CheckFinite(body, "");
   util::WriteFileAtomic((staging_ / "unit.json").string(), body.dump(2) + "\n");

@@ -11,6 +11,7 @@
 #include "tools/commands.h"
 #include "tools/progress.h"
 #include "util/allocator.h"
+#include "util/build_info.h"
 #include "util/io.h"
 #include "util/version.h"
 
@@ -41,7 +42,7 @@ void SetUpApp(CLI::App& app) {
   // from the library's own result, so glog's lines would only be noise on stderr.
   FLAGS_minloglevel = google::GLOG_FATAL;
   util::KeepAnalysisBuffersInTheHeap();  // analyses reuse their buffers instead of faulting in fresh pages
-  app.set_version_flag("--version", std::string("topocal ") + kVersion);
+  app.set_version_flag("--version", fmt::format("topocal {} (commit {})", kVersion, BuildCommit()));
   app.require_subcommand(1);
   // Every option shows its default in --help (subcommands inherit this when they are created).
   app.option_defaults()->always_capture_default();

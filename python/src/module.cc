@@ -8,6 +8,7 @@
 
 #include "python/src/py_common.h"
 #include "util/io.h"
+#include "util/build_info.h"
 #include "util/version.h"
 
 namespace topocal::python {
@@ -135,6 +136,7 @@ PYBIND11_MODULE(_topocal, m) {
   using namespace topocal::python;
   m.doc() = "topocal: calibrate, correct and verify cone (null-screen) corneal topographers (docs/python.md).";
   m.attr("__version__") = topocal::kVersion;
+  m.attr("__commit__") = topocal::BuildCommit();  // the git commit it was built from (util/build_info.h)
   // Ceres logs through glog (failed steps, rank-deficient covariances); every failure reaches Python as an exception
   // or a result field, and the module prints nothing (as the CLI's tools/cli_app.cc).
   FLAGS_minloglevel = google::GLOG_FATAL;

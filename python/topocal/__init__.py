@@ -26,6 +26,7 @@ from ._topocal import (  # noqa: F401  (re-exported)
     FleetDb,
     InputError,
     MeasurementRefused,
+    __commit__,
     __version__,
     calibrate_device,
     detect,
@@ -41,7 +42,8 @@ PathLike = Union[str, os.PathLike]
 
 __all__ = [
     "Calibration", "Config", "Device", "Error", "FleetDb", "InputError", "Map", "Measurement", "MeasurementRefused",
-    "SPOT_DTYPE", "SPOT_FLAGS", "__version__", "calibrate", "calibrate_device", "detect", "export_calibration", "get_num_threads", "import_calibration",
+    "SPOT_DTYPE", "SPOT_FLAGS", "__commit__", "__version__", "calibrate", "calibrate_device", "detect",
+    "export_calibration", "get_num_threads", "import_calibration",
     "read_unit_record", "reconstruct", "set_num_threads",
 ]
 

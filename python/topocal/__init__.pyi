@@ -10,6 +10,7 @@ import numpy.typing as npt
 PathLike = Union[str, os.PathLike[str]]
 
 __version__: str
+__commit__: str
 SPOT_DTYPE: np.dtype[Any]
 SPOT_FLAGS: Dict[str, int]
 

@@ -69,6 +69,11 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
   const json j = json::parse(util::ReadFile(out + "/unit.json"));
   EXPECT_EQ(j["format"], "topocal-unit-record");
   EXPECT_EQ(j["serial"], "SN-0001");
+  // The exact code that wrote it: the commit `topocal --version` names (a hash, or "unknown" outside git).
+  const std::string version = RunTopocal("--version").output;
+  const std::string commit = j["tool_commit"].get<std::string>();
+  EXPECT_FALSE(commit.empty());
+  EXPECT_NE(version.find("(commit " + commit + ")"), std::string::npos) << version << " vs " << commit;
   // Provenance: every input with its digest, every record file with its digest.
   int images = 0;
   for (const auto& input : j["inputs"]) {

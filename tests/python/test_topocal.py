@@ -65,7 +65,7 @@ def balls(work):
 
 def test_version_is_the_cli_version():
     out = run("--version").stdout
-    assert topocal.__version__ in out
+    assert out.strip() == f"topocal {topocal.__version__} (commit {topocal.__commit__})"
 
 
 def test_errors_are_python_errors_naming_the_input(tmp_path):
