@@ -88,7 +88,8 @@ void RequireRecordPlace(const UnitRequest& r) {
   }
 }
 
-LoadedInputs LoadInputs(const UnitRequest& r) {
+// The request's own consistency, before any file is read.
+void ValidateRequest(const UnitRequest& r) {
   if (!IsValidSerial(r.serial)) {
     throw util::InputError(fmt::format("--serial '{}': use 1-{} characters of A-Z a-z 0-9 . _ - (not starting with .)",
                                        r.serial, kMaxSerialLength));
@@ -111,22 +112,11 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
     throw util::InputError(fmt::format("--out {}: exists and is not a unit record; not overwriting it", r.out));
   }
   RequireRecordPlace(r);
-  LoadedInputs in;
-  in.config = model::LoadConfig(r.config);
-  in.camera = model::LoadTopographerCamera(r.camera);
-  if (!r.device.empty()) {
-    in.nominal_device = model::LoadDevice(r.device).device;
-    if (in.nominal_device.camera.width_px != in.camera.width_px ||
-        in.nominal_device.camera.height_px != in.camera.height_px) {
-      throw util::InputError(fmt::format("{}: the device's sensor is {} x {} px but {} says {} x {} px", r.device,
-                                         in.nominal_device.camera.width_px, in.nominal_device.camera.height_px,
-                                         r.camera, in.camera.width_px, in.camera.height_px));
-    }
-  } else {
-    in.nominal_device = model::NominalDevice(in.camera);
-  }
-  in.target = calib::LoadTargetDescription(r.target);
+}
 
+// The calibration's options from the request and the topographer it calibrates.
+void SetCalibrationOptions(const UnitRequest& r, LoadedInputs* loaded) {
+  LoadedInputs& in = *loaded;
   const auto model_kind = calib::ParseDistortionModel(r.model);
   if (!model_kind) throw util::InputError(fmt::format("--model: '{}' is not seidel or brown5", r.model));
   auto& o = in.options;
@@ -151,6 +141,26 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   if (r.fixed_aspect_ratio > 0 && r.images.size() == 1) {
     throw util::InputError("--fix-aspect: applies to multi-view fits; a single view already holds fx = fy");
   }
+}
+
+LoadedInputs LoadInputs(const UnitRequest& r) {
+  ValidateRequest(r);
+  LoadedInputs in;
+  in.config = model::LoadConfig(r.config);
+  in.camera = model::LoadTopographerCamera(r.camera);
+  if (!r.device.empty()) {
+    in.nominal_device = model::LoadDevice(r.device).device;
+    if (in.nominal_device.camera.width_px != in.camera.width_px ||
+        in.nominal_device.camera.height_px != in.camera.height_px) {
+      throw util::InputError(fmt::format("{}: the device's sensor is {} x {} px but {} says {} x {} px", r.device,
+                                         in.nominal_device.camera.width_px, in.nominal_device.camera.height_px,
+                                         r.camera, in.camera.width_px, in.camera.height_px));
+    }
+  } else {
+    in.nominal_device = model::NominalDevice(in.camera);
+  }
+  in.target = calib::LoadTargetDescription(r.target);
+  SetCalibrationOptions(r, &in);
 
   const auto add = [&](const std::string& role, const std::string& path) {
     in.provenance.push_back({role, path, util::Sha256HexOfFile(path)});
@@ -177,10 +187,10 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   }
   if (!r.device.empty()) add("device", r.device);
   for (size_t i = 0; i < r.balls.size(); ++i) {
-    // Reference balls for a topographer: radii of human corneas and a little beyond.
-    if (!(r.ball_radii_mm[i] >= 3.0 && r.ball_radii_mm[i] <= 20.0)) {
-      throw util::InputError(fmt::format("--radii-mm: {} for {} is not a reference-ball radius (3-20 mm)",
-                                         r.ball_radii_mm[i], r.balls[i]));
+    // Checked before the image is read (pipeline::CalibrateDevice checks it too).
+    if (!(r.ball_radii_mm[i] >= kMinBallRadiusMm && r.ball_radii_mm[i] <= kMaxBallRadiusMm)) {
+      throw util::InputError(fmt::format("--radii-mm: {} for {} is not a reference-ball radius ({}-{} mm)",
+                                         r.ball_radii_mm[i], r.balls[i], kMinBallRadiusMm, kMaxBallRadiusMm));
     }
     pipeline::BallImage b{r.balls[i], add_image("ball", r.balls[i]), r.ball_radii_mm[i]};
     CheckImageSize(b.image, r.balls[i], in, r);

@@ -691,29 +691,27 @@ bool MapScaleRequest::IsValid(std::string* why) const {
   return true;
 }
 
-MapScaleRequest StandardPowerScale() {
-  MapScaleRequest r;
-  r.kind = MapScaleKind::kAbsolute;
-  r.step = kStandardPowerStepD;
-  r.low = kStandardPowerLowD;
-  r.high = kStandardPowerHighD;
-  return r;
-}
-
-MapScaleRequest ExtendedPowerScale() {
-  MapScaleRequest r;
-  r.kind = MapScaleKind::kAbsolute;
-  r.step = kExtendedPowerStepD;
-  r.low = kExtendedPowerLowD;
-  r.high = kExtendedPowerHighD;
-  return r;
-}
 MapScaleRequest FittedStepScale(double step) {
   MapScaleRequest r;
   r.kind = MapScaleKind::kAbsolute;
   r.step = step;
   return r;
 }
+
+MapScaleRequest StandardPowerScale() {
+  MapScaleRequest r = FittedStepScale(kStandardPowerStepD);
+  r.low = kStandardPowerLowD;
+  r.high = kStandardPowerHighD;
+  return r;
+}
+
+MapScaleRequest ExtendedPowerScale() {
+  MapScaleRequest r = FittedStepScale(kExtendedPowerStepD);
+  r.low = kExtendedPowerLowD;
+  r.high = kExtendedPowerHighD;
+  return r;
+}
+
 MapScaleRequest NormalisedScale(double min_span) {
   MapScaleRequest r;
   r.kind = MapScaleKind::kNormalised;
