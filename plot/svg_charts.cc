@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include <fmt/format.h>
@@ -22,6 +23,7 @@ constexpr double kArrowHeadFraction = 0.3;   // head length / arrow length
 constexpr double kArrowHeadMaxUnits = 6;     // head length cap, user units
 constexpr const char* kArrowColour = "#1f4e9e";
 constexpr const char* kHighlightColour = "#c62828";
+constexpr const char* kNoDataColour = "#dcdcdc";  // background cells without data
 constexpr const char* kFont = "font-family=\"DejaVu Sans, Arial, sans-serif\"";
 
 std::string Num(double v, int decimals = 2) {
@@ -156,21 +158,27 @@ std::string SvgQuiver(const std::vector<Arrow>& arrows, const QuiverOptions& o) 
     if (f.cols <= 0 || f.rows <= 0 || f.values.size() != static_cast<std::size_t>(f.cols) * f.rows) {
       throw std::invalid_argument("quiver: background grid size does not match its values");
     }
-    double lo = f.values.front(), hi = f.values.front();
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
     for (double v : f.values) {
-      if (!std::isfinite(v)) throw std::invalid_argument("quiver: non-finite background value");
+      if (std::isinf(v)) throw std::invalid_argument("quiver: infinite background value");
+      if (std::isnan(v)) continue;  // no data
       lo = std::min(lo, v);
       hi = std::max(hi, v);
     }
+    if (!std::isfinite(lo)) lo = 0, hi = 1;  // no cell with data
+    lo = f.value_min.value_or(lo);
+    hi = f.value_max.value_or(hi);
+    if (!std::isfinite(lo) || !std::isfinite(hi)) throw std::invalid_argument("quiver: non-finite colour range");
     const double span = hi > lo ? hi - lo : 1;
     const double cw = inner_w / f.cols, ch = inner_h / f.rows;
     s += "<g class=\"field\" shape-rendering=\"crispEdges\">\n";
     for (int r = 0; r < f.rows; ++r) {
       for (int c = 0; c < f.cols; ++c) {
         // Cells overlap by a hair so no background seam shows between them.
+        const double v = f.values[r * f.cols + c];
         s += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\"/>", Num(x0 + c * cw),
                          Num(y0 + r * ch), Num(cw + 0.3), Num(ch + 0.3),
-                         Colour((f.values[r * f.cols + c] - lo) / span));
+                         std::isnan(v) ? std::string(kNoDataColour) : Colour((v - lo) / span));
       }
       s += "\n";
     }

@@ -40,8 +40,10 @@ struct Arrow {
 // coloured cells under the arrows with a colour bar.
 struct CellField {
   int cols = 0, rows = 0;
-  std::vector<double> values;
+  std::vector<double> values;  // NaN: no data (drawn light grey)
   std::string label;  // colour-bar label with unit
+  // The colour bar's range; default: the finite values' range. A value beyond it takes the end colour.
+  std::optional<double> value_min, value_max;
 };
 
 // A part of the image, pixels (x right, y down).

@@ -253,11 +253,14 @@ DistortionPlot DistortionField(const model::CameraModel& cam, const PixelRegion&
   field.cols = kFieldCellsAcross;
   field.rows = std::max(1, static_cast<int>(std::lround(kFieldCellsAcross * region.height_px / region.width_px)));
   field.label = "|displacement| (px)";
+  // With the measurement field given, cells beyond its disc have no data: the colour bar and the caption's largest
+  // displacement then speak of the same region.
   for (int r = 0; r < field.rows; ++r) {
     for (int c = 0; c < field.cols; ++c) {
-      field.values.push_back(displacement(region.x_px + (c + 0.5) * region.width_px / field.cols,
-                                          region.y_px + (r + 0.5) * region.height_px / field.rows)
-                                 .norm());
+      const double x = region.x_px + (c + 0.5) * region.width_px / field.cols;
+      const double y = region.y_px + (r + 0.5) * region.height_px / field.rows;
+      const bool outside = field_radius_px && std::hypot(x - cam.cx_px, y - cam.cy_px) > *field_radius_px;
+      field.values.push_back(outside ? std::numeric_limits<double>::quiet_NaN() : displacement(x, y).norm());
     }
   }
   // The largest displacement where it matters: within the measurement field's disc when the record gives it
@@ -291,10 +294,12 @@ DistortionPlot DistortionField(const model::CameraModel& cam, const PixelRegion&
     for (int c = 0; c < kFieldArrowsAcross; ++c) {
       const double x = region.x_px + (c + 0.5) * region.width_px / kFieldArrowsAcross;
       const double y = region.y_px + (r + 0.5) * region.height_px / arrows_down;
+      if (field_radius_px && std::hypot(x - cam.cx_px, y - cam.cy_px) > *field_radius_px) continue;  // not measured
       const Eigen::Vector2d d = displacement(x, y);
       arrows.push_back({x, y, d.x(), d.y(), false});
     }
   }
+  field.value_max = plot.max_displacement_px;  // the caption's number is the bar's top
   QuiverOptions o;
   o.image_width_px = cam.width_px;
   o.image_height_px = cam.height_px;

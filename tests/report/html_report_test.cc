@@ -186,6 +186,27 @@ TEST_F(HtmlReportTest, IdInTitleHeaderFooterAndBody) {
   EXPECT_NE(h.find("record created 2026-11-25T19:00:00Z"), std::string::npos);
 }
 
+// The distortion plot's colour bar, its arrows' legend and the caption speak of one region: the measurement field
+// when the record gives it (cells beyond its disc have no data, arrows there are not drawn). The bar's top label
+// (3 significant digits), the longest arrow and the caption's largest displacement are the same number (the bar
+// reached 83.2 px where the caption said 12.69 px).
+TEST_F(HtmlReportTest, DistortionPlotColourBarArrowsAndCaptionAgree) {
+  ASSERT_TRUE(record_->field_radius_px);
+  const std::string& h = *html_;
+  const std::size_t at = h.find("Distortion field of the calibrated model");
+  ASSERT_NE(at, std::string::npos);
+  const std::string svg = h.substr(at, h.find("</svg>", at) - at);
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(h, m, std::regex("largest displacement ([0-9.e+-]+) px")));
+  const double caption = std::stod(m[1]);
+  ASSERT_TRUE(std::regex_search(svg, m, std::regex("font-size=\"10\"[^>]*>([0-9.e+-]+)</text>")));
+  const double bar_top = std::stod(m[1]);
+  EXPECT_NEAR(bar_top, caption, 0.005 * caption) << bar_top << " vs " << caption;
+  ASSERT_TRUE(std::regex_search(svg, m, std::regex("longest ([0-9.e+-]+) px")));
+  EXPECT_LE(std::stod(m[1]), caption * 1.005) << m[1];
+  EXPECT_NE(svg.find("#dcdcdc"), std::string::npos);  // the corners beyond the field: no data
+}
+
 TEST_F(HtmlReportTest, HasEverySection) {
   const std::string& h = *html_;
   for (const char* id : {"id=\"verdict\"", "id=\"identity\"", "id=\"sign-off\"", "id=\"method\"", "id=\"inputs\"",
