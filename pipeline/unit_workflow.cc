@@ -163,7 +163,8 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   SetCalibrationOptions(r, &in);
 
   const auto add = [&](const std::string& role, const std::string& path) {
-    in.provenance.push_back({role, path, util::Sha256HexOfFile(path)});
+    const auto name = r.input_names.find(path);
+    in.provenance.push_back({role, name == r.input_names.end() ? path : name->second, util::Sha256HexOfFile(path)});
   };
   // An image is read once: its digest and its decoding come from the same bytes, on two threads (issue 15).
   const auto add_image = [&](const std::string& role, const std::string& path) -> cv::Mat {

@@ -6,6 +6,7 @@
 // the file format by report/ (report links pipeline, never the other way).
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -48,6 +49,9 @@ struct UnitRequest {
   // A record already at `out` is refused (nothing computed); with keep_history (--force) it is moved to
   // <parent>/.history/<serial>/<its created_utc>/ when the new one is in place (docs/unit-record.md).
   bool keep_history = false;
+  // How the record names an input file instead of its path: the data bundled with topocal as "bundled:NAME", so that
+  // a record does not carry the build or install tree's location (the digest still pins the content).
+  std::map<std::string, std::string> input_names;
 };
 
 // Where --force keeps the records a unit's new record replaces: <parent>/.history/<serial>/ (hidden, so that a glob

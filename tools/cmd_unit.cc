@@ -28,8 +28,11 @@ using pipeline::UnitRequest;
 // The bundled design and camera (tools/data_dir.h), the defaults of --config and --camera, filled in when the
 // command runs (so that other verbs never depend on finding the data).
 void FillDefaults(UnitRequest* r) {
-  if (r->config.empty()) r->config = DataDir() + "/paper.json";
-  if (r->camera.empty()) r->camera = DataDir() + "/camera.json";
+  for (auto [path, name] : {std::pair{&r->config, "paper.json"}, std::pair{&r->camera, "camera.json"}}) {
+    if (!path->empty()) continue;
+    *path = DataDir() + "/" + name;
+    r->input_names[*path] = std::string("bundled:") + name;  // the record names it, not the tree it lies in
+  }
 }
 constexpr int kProgressBarWidth = 30;
 

@@ -74,13 +74,21 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
   const std::string commit = j["tool_commit"].get<std::string>();
   EXPECT_FALSE(commit.empty());
   EXPECT_NE(version.find("(commit " + commit + ")"), std::string::npos) << version << " vs " << commit;
-  // Provenance: every input with its digest, every record file with its digest.
-  int images = 0;
+  // Provenance: every input with its digest, every record file with its digest; the bundled design (--config not
+  // given) by its logical name, not by the build tree's path.
+  int images = 0, bundled = 0;
   for (const auto& input : j["inputs"]) {
-    EXPECT_EQ(input["sha256"], util::Sha256HexOfFile(input["path"])) << input["path"];
+    std::string path = input["path"];
+    EXPECT_EQ(path.find("share/topocal/data"), std::string::npos) << path;  // the bundled data's location
+    if (path.rfind("bundled:", 0) == 0) {
+      path = std::string(TOPOCAL_SOURCE_DIR) + "/data/" + path.substr(8);
+      ++bundled;
+    }
+    EXPECT_EQ(input["sha256"], util::Sha256HexOfFile(path)) << input["path"];
     images += input["role"] == "image";
   }
   EXPECT_EQ(images, 1);
+  EXPECT_EQ(bundled, 1);  // the design; the camera was given
   // The design and camera as read, so the record stands on its own.
   EXPECT_EQ(j["configuration"]["camera"]["width_px"], 1120);
   EXPECT_EQ(j["configuration"]["design"]["topographer"]["b_mm"], 70.0);
