@@ -250,20 +250,27 @@ def test_calibrate_from_corners_agrees_with_opencv(tmp_path):
 def test_long_calls_release_the_gil(eye):
     """While one thread measures an eye, another runs Python: with the GIL held it could not."""
     image = read_image(eye)
+    calls = []
+
+    def measure():
+        for _ in range(2):
+            t0 = time.perf_counter()
+            topocal.reconstruct(PAPER, device=DEMO_DEVICE, image=image)
+            calls.append(time.perf_counter() - t0)
+
     times = []
-    worker = threading.Thread(target=lambda: topocal.reconstruct(PAPER, device=DEMO_DEVICE, image=image))
+    worker = threading.Thread(target=measure)
     start = time.perf_counter()
     worker.start()
     while worker.is_alive():
         times.append(time.perf_counter())
-    duration = time.perf_counter() - start
     worker.join()
     gaps = np.diff([start] + times)
-    # Held, the main thread would stop for the whole measurement (one gap of most of the call); released, it only
-    # waits for Python's switch interval (5 ms) and the scheduler. Measured 2026-12-03: the largest gap 5-12 ms of a
-    # 160-280 ms call.
-    assert duration > 0.05
-    assert gaps.max() < 0.25 * duration, (gaps.max(), duration)
+    # Held, the main thread would stop for a whole call (a gap as long as the call); released, it waits only for
+    # Python's switch interval (5 ms) and the scheduler, even on a loaded machine. Measured 2026-12-03: the largest
+    # gap 5-12 ms beside calls of 160-280 ms.
+    assert min(calls) > 0.05
+    assert gaps.max() < 0.5 * min(calls), (gaps.max(), calls)
 
 
 @pytest.fixture(scope="session")
