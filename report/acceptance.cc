@@ -158,30 +158,28 @@ std::string CanonicalLimits(const Limits& l) {
                      l.sphere_power_error_D.max, l.paper_radius_error_mm.max, l.paper_conic_error.max);
 }
 
-namespace {
-
-// The simulated paper cornea's corrected errors against their limits, one check each.
-void AddPaperChecks(const PaperCornea& p, const Limits& limits, Verdict* v) {
+std::vector<Check> PaperCorneaRows(const UnitRecord& rec, const Limits& limits) {
+  std::vector<Check> rows;
+  const PaperCornea& p = rec.paper;
   for (const char* key : {"rx_mm", "ry_mm"}) {
     const std::string name = key[1] == 'x' ? "r_x" : "r_y";
-    // One id per check (the JSON's key for it); the limit they share is paper_radius_error_mm.
+    // One id per row (the JSON's key for it); the threshold they share is paper_radius_error_mm.
     const std::string id = fmt::format("paper_{}_error_mm", key[1] == 'x' ? "rx" : "ry");
-    v->checks.push_back(Judge(PaperCheck(id, fmt::format("paper cornea: {} error, corrected", name), "mm",
+    rows.push_back(Judge(PaperCheck(id, fmt::format("paper cornea: {} error, corrected", name), "mm",
                                          std::abs(p.corrected.at(key) - p.truth.at(key)),
                                          QuantityU(p.uncertainty, key), limits.paper_radius_error_mm.max),
                               limits.rule));
   }
   for (const char* key : {"kx", "ky"}) {
     const std::string name = key[1] == 'x' ? "k_x" : "k_y";
-    v->checks.push_back(Judge(PaperCheck(fmt::format("paper_{}_error", key),
+    rows.push_back(Judge(PaperCheck(fmt::format("paper_{}_error", key),
                                          fmt::format("paper cornea: {} error, corrected", name), "",
                                          std::abs(p.corrected.at(key) - p.truth.at(key)),
                                          QuantityU(p.uncertainty, key), limits.paper_conic_error.max),
                               limits.rule));
   }
+  return rows;
 }
-
-}  // namespace
 
 Verdict Evaluate(const UnitRecord& rec, const Limits& limits, const BudgetOptions& budget) {
   std::string why;
@@ -267,7 +265,6 @@ Verdict Evaluate(const UnitRecord& rec, const Limits& limits, const BudgetOption
                           "not verified: the record has no reference-sphere verification"});
     }
   }
-  AddPaperChecks(rec.paper, limits, &v);
   v.pass = true;
   for (const Check& c : v.checks) v.pass = v.pass && c.pass;
   return v;

@@ -111,7 +111,16 @@ struct Verdict {
   bool pass = false;  // every check passes
 };
 
+// The verdict rests on evidence the fit did not use: the calibration's RMS and the reference sphere measured
+// through the unit against its certificate. The simulated paper cornea is not among the checks: simulated through
+// the unit's own fitted calibration and corrected by the same calibration, its error is the same rounding noise
+// for a good unit and a broken one (docs/report.md).
 Verdict Evaluate(const UnitRecord& record, const Limits& limits, const BudgetOptions& budget = {});
+
+// The simulated paper cornea's corrected errors, an informative row each ("what this unit's calibration does to a
+// typical eye"): compared with the informative thresholds paper_radius_error_mm and paper_conic_error, never part
+// of the verdict.
+std::vector<Check> PaperCorneaRows(const UnitRecord& record, const Limits& limits);
 
 // The failed checks in words, one each, for the report's first page and the CLI's last line, with the reason:
 // "reference sphere: radius error, corrected |error| 0.062 mm > limit 0.05 mm", "... |error| 0.041 mm + U 0.012 mm

@@ -35,10 +35,6 @@ std::vector<FleetParameter> Parameters(const std::vector<FleetUnit>& units, cons
       {"calibration_rms_px", "calibration RMS", "px", l.calibration_rms_px.max, false},
       {"sphere_radius_error_mm", "reference sphere radius error, corrected", "mm", l.sphere_radius_error_mm.max, true},
       {"sphere_power_error_D", "reference sphere power error, corrected", "D", l.sphere_power_error_D.max, true},
-      {"paper_rx_error_mm", "paper cornea r_x \u2212 truth, corrected", "mm", l.paper_radius_error_mm.max, true},
-      {"paper_ry_error_mm", "paper cornea r_y \u2212 truth, corrected", "mm", l.paper_radius_error_mm.max, true},
-      {"paper_kx_error", "paper cornea k_x \u2212 truth, corrected", "", l.paper_conic_error.max, true},
-      {"paper_ky_error", "paper cornea k_y \u2212 truth, corrected", "", l.paper_conic_error.max, true},
       {"seidel_sigma_per_mm2", "Seidel \u03c3", "mm\u207b\u00b2", std::nullopt, false},
   };
   std::set<std::string> calib;

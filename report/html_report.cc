@@ -799,6 +799,22 @@ std::string RenderHtmlReport(const UnitRecord& rec, const ReportInputs& inputs) 
                      c.pass ? "PASS" : "FAIL", H(c.note));
   }
   s += "</table>\n";
+  // The simulated paper cornea, informative: what this calibration does to a typical eye, not evidence of it.
+  s += "<h3>Informative, not a check: the paper cornea through this calibration</h3>\n<p class=\"note\">Simulated "
+       "through the unit's own fitted calibration and corrected by the same calibration: its error shows what the "
+       "calibration does to a typical eye, not whether the calibration is right (a broken unit shows the same "
+       "numbers), so it is not part of the verdict.</p>\n";
+  s += "<table class=\"data\" id=\"informative\"><tr><th>quantity</th><th>|error|</th><th>U (k = 2)</th>"
+       "<th>informative threshold</th><th></th></tr>\n";
+  for (const Check& c : PaperCorneaRows(rec, limits)) {
+    const std::string unit = c.unit.empty() ? "" : " " + c.unit;
+    s += fmt::format("<tr data-informative=\"{}\"><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td>"
+                     "<td class=\"num\">{}</td><td>{}</td></tr>\n",
+                     H(c.id), H(c.what), c.error ? Sig(*c.error, 4) + unit : "\u2014",
+                     c.U ? Sig(*c.U, 3) + unit : "\u2014", Sig(c.limit, 4) + unit,
+                     c.pass ? "within" : "beyond");
+  }
+  s += "</table>\n";
   s += BudgetTables(verdict);
   s += fmt::format("<h3>Limits ({})</h3>\n<table class=\"data\"><tr><th>limit</th><th>value</th><th>source</th>"
                    "</tr>\n",
@@ -868,6 +884,17 @@ nlohmann::json ReportJson(const UnitRecord& rec, const ReportInputs& inputs) {
     if (!c.budget.empty()) j["combined_standard_uncertainty"] = CombinedStandardUncertainty(c.budget);
     checks.push_back(j);
   }
+  json informative = json::array();  // the paper cornea: not part of the verdict
+  for (const Check& c : PaperCorneaRows(rec, l)) {
+    informative.push_back({{"id", c.id},
+                           {"what", c.what},
+                           {"unit", c.unit},
+                           {"value", c.error ? json(*c.error) : json(nullptr)},
+                           {"U", c.U ? json(*c.U) : json(nullptr)},
+                           {"coverage_factor", 2},
+                           {"threshold", c.limit},
+                           {"within", c.pass}});
+  }
   json limits = json::object();
   for (const auto& [name, limit] : {std::pair{"calibration_rms_px", &l.calibration_rms_px},
                                     std::pair{"sphere_radius_error_mm", &l.sphere_radius_error_mm},
@@ -897,6 +924,7 @@ nlohmann::json ReportJson(const UnitRecord& rec, const ReportInputs& inputs) {
                 {"ball_certificate_id", so.ball_certificate_id},
                 {"target_certificate_id", so.target_certificate_id}}},
               {"checks", checks},
+              {"informative", informative},
               {"checks_passed", std::count_if(verdict.checks.begin(), verdict.checks.end(),
                                               [](const Check& c) { return c.pass; })},
               {"verdict", verdict.pass ? "PASS" : "FAIL"}};

@@ -93,28 +93,38 @@ TEST(Acceptance, TheFixturePassesTheDefaults) {
   const auto f = MakeHandRecord(FreshDir("pass"));
   const Verdict v = Evaluate(ReadUnitRecord(f.dir), DefaultLimits());
   EXPECT_TRUE(v.pass);
-  EXPECT_EQ(v.checks.size(), 7u);  // rms, sphere radius, sphere power, paper r_x, r_y, k_x, k_y
+  EXPECT_EQ(v.checks.size(), 3u);  // rms, sphere radius, sphere power: evidence the fit did not use
   for (const Check& c : v.checks) EXPECT_TRUE(c.pass) << c.what << ": " << c.note;
+  // The paper cornea: four informative rows, never checks, whatever their thresholds say.
+  const auto rows = PaperCorneaRows(ReadUnitRecord(f.dir), DefaultLimits());
+  ASSERT_EQ(rows.size(), 4u);
+  for (const Check& c : rows) EXPECT_TRUE(c.pass) << c.what;
+  Limits strict = DefaultLimits();
+  strict.paper_conic_error.max = 1e-6;
+  EXPECT_FALSE(PaperCorneaRows(ReadUnitRecord(f.dir), strict)[2].pass);
+  EXPECT_TRUE(Evaluate(ReadUnitRecord(f.dir), strict).pass);
 }
 
 TEST(Acceptance, GuardedAddsUAndSimpleDoesNot) {
-  // Paper k_x: |error| = 0.0002, U = 0.003. A limit between the two separates the rules.
+  // The sphere's radius: |error| = 0.0005 mm and a U of several micrometres. A limit between the error and the
+  // error + U separates the rules.
   const auto f = MakeHandRecord(FreshDir("rules"));
   const UnitRecord rec = ReadUnitRecord(f.dir);
   Limits l = DefaultLimits();
-  l.paper_conic_error.max = 0.002;
-  auto conic = [&](const Verdict& v) {
+  const auto radius = [&](const Verdict& v) {
     for (const Check& c : v.checks) {
-      if (c.what.find("k_x") != std::string::npos) return c;
+      if (c.id == "sphere_radius_error_mm") return c;
     }
     return Check{};
   };
-  const Check guarded = conic(Evaluate(rec, l));
-  EXPECT_NEAR(*guarded.error, 0.0002, 1e-12);
-  EXPECT_DOUBLE_EQ(*guarded.U, 0.003);
+  const Check at_default = radius(Evaluate(rec, l));
+  ASSERT_TRUE(at_default.error && at_default.U);
+  EXPECT_NEAR(*at_default.error, 0.0005, 1e-9);
+  l.sphere_radius_error_mm.max = *at_default.error + 0.5 * *at_default.U;
+  const Check guarded = radius(Evaluate(rec, l));
   EXPECT_FALSE(guarded.pass);
   l.rule = DecisionRule::kSimple;
-  EXPECT_TRUE(conic(Evaluate(rec, l)).pass);
+  EXPECT_TRUE(radius(Evaluate(rec, l)).pass);
   EXPECT_TRUE(Evaluate(rec, DefaultLimits()).pass);
 }
 
@@ -218,11 +228,13 @@ TEST(Acceptance, WithoutVerificationOrUncertaintyTheGuardedRuleFails) {
   EXPECT_TRUE(v.checks[0].pass);  // the calibration RMS needs no U
   EXPECT_FALSE(v.checks[1].error.has_value());
   EXPECT_NE(v.checks[1].note.find("no reference-sphere verification"), std::string::npos);
-  EXPECT_NE(v.checks[3].note.find("no U in the record"), std::string::npos);
+  ASSERT_EQ(v.checks.size(), 3u);
+  // The paper cornea's rows without U: the guarded rule cannot decide them, the simple one judges |error| alone.
+  EXPECT_NE(PaperCorneaRows(rec, DefaultLimits())[0].note.find("no U in the record"), std::string::npos);
   Limits simple = DefaultLimits();
   simple.rule = DecisionRule::kSimple;
   const Verdict vs = Evaluate(rec, simple);
-  EXPECT_TRUE(vs.checks[3].pass);   // paper checks judged on |error| alone
+  EXPECT_TRUE(PaperCorneaRows(rec, simple)[0].pass);
   EXPECT_FALSE(vs.checks[1].pass);  // still not verified
 }
 

@@ -160,7 +160,7 @@ TEST(HtmlReport, APassAndAFailReportOfOneRecordHaveDifferentIds) {
   const auto f = MakeHandRecord(FreshDir("passfail"));
   const UnitRecord rec = ReadUnitRecord(f.dir);
   ReportInputs strict;
-  strict.limits.paper_conic_error.max = 1e-4;  // |k_x error| = 2e-4: FAIL
+  strict.limits.sphere_radius_error_mm.max = 1e-4;  // |radius error| = 5e-4 mm: FAIL
   const std::string pass = RenderHtmlReport(rec, ReportInputs{}), fail = RenderHtmlReport(rec, strict);
   EXPECT_NE(pass.find("data-verdict=\"PASS\""), std::string::npos);
   EXPECT_NE(fail.find("data-verdict=\"FAIL\""), std::string::npos);
@@ -217,7 +217,8 @@ TEST_F(HtmlReportTest, HasEverySection) {
   }
   EXPECT_NE(h.find("data-verdict=\"PASS\">PASS"), std::string::npos);
   EXPECT_NE(h.find("Guarded acceptance (ILAC-G8:09/2019"), std::string::npos);
-  EXPECT_EQ(Count(h, "<tr data-check="), 7u);
+  EXPECT_EQ(Count(h, "<tr data-check="), 3u);        // calibration RMS, the sphere's radius and power
+  EXPECT_EQ(Count(h, "<tr data-informative="), 4u);  // the paper cornea's r_x, r_y, k_x, k_y: not checks
   EXPECT_EQ(Count(h, "<svg class=\"plot\""), 3u);  // per-view RMS, residual vectors, distortion field
   EXPECT_EQ(Count(h, "<rect class=\"bar\""), 1u);  // one view
   // The hashes are in the appendix, after the acceptance section, not on the first pages.
@@ -357,16 +358,22 @@ TEST(HtmlReport, FailingRecordSaysFailAndWhy) {
   EXPECT_NE(h.find("data-verdict=\"FAIL\">FAIL"), std::string::npos);
   EXPECT_NE(h.find("No reference sphere was given"), std::string::npos);
   EXPECT_NE(h.find("not verified: the record has no reference-sphere verification"), std::string::npos);
-  EXPECT_NE(h.find("paper cornea: k_x error, corrected</td><td class=\"num\">0.18</td>"), std::string::npos);
-  EXPECT_NE(h.find("4 of 7 checks passed"), std::string::npos);
+  // The paper cornea's k_x off by 0.18: shown, beyond its informative threshold, but not a check.
+  const std::size_t kx = h.find("<tr data-informative=\"paper_kx_error\">");
+  ASSERT_NE(kx, std::string::npos);
+  const std::string kx_row = h.substr(kx, h.find("</tr>", kx) - kx);
+  EXPECT_NE(kx_row.find("<td class=\"num\">0.18</td>"), std::string::npos) << kx_row;
+  EXPECT_NE(kx_row.find("beyond"), std::string::npos) << kx_row;
+  EXPECT_NE(h.find("1 of 3 checks passed"), std::string::npos);
   // The first page names the failed checks, right under the banner (before the identity section).
   const std::size_t failed = h.find("<ul id=\"failed-checks\"");
   ASSERT_NE(failed, std::string::npos);
   EXPECT_LT(failed, h.find("id=\"identity\""));
   const std::string list = h.substr(failed, h.find("</ul>", failed) - failed);
-  EXPECT_NE(list.find("FAILED: paper cornea: k_x error, corrected |error| 0.18 &gt; limit 0.05"), std::string::npos) << list;
   EXPECT_NE(list.find("FAILED: reference sphere: radius error, corrected (not verified"), std::string::npos) << list;
-  EXPECT_EQ(std::count(list.begin(), list.end(), '\n'), 4) << list;  // the <ul> line and three failed checks
+  EXPECT_NE(list.find("FAILED: reference sphere: power error, corrected (not verified"), std::string::npos) << list;
+  EXPECT_EQ(list.find("paper cornea"), std::string::npos) << list;
+  EXPECT_EQ(std::count(list.begin(), list.end(), '\n'), 3) << list;  // the <ul> line and two failed checks
 }
 
 

@@ -81,9 +81,9 @@ TEST(ReportCli, JsonVerdictEqualsTheHtmlVerdict) {
   const Case c = MakeCase("json");
   const std::string dir = fs::path(c.out).parent_path().string();
   std::string strict = util::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json");
-  const std::string key = "\"paper_conic_error\": {\n      \"max\": 0.05";
+  const std::string key = "\"sphere_radius_error_mm\": {\n      \"max\": 0.05";
   ASSERT_NE(strict.find(key), std::string::npos);
-  strict.replace(strict.find(key), key.size(), "\"paper_conic_error\": {\n      \"max\": 0.0001");
+  strict.replace(strict.find(key), key.size(), "\"sphere_radius_error_mm\": {\n      \"max\": 0.00001");
   util::WriteFileAtomic(dir + "/strict.json", strict);
   for (const auto& [limits, expected_exit, expected] :
        {std::tuple{std::string(), 0, "PASS"}, std::tuple{" --limits " + dir + "/strict.json", 3, "FAIL"}}) {
