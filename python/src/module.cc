@@ -34,11 +34,6 @@ py::object ToPython(const nlohmann::json& j) {
   return loads(j.dump());
 }
 
-nlohmann::json FromPython(const py::handle& object) {
-  static const py::handle dumps = py::object(py::module_::import("json").attr("dumps")).release();
-  return nlohmann::json::parse(dumps(object, py::arg("allow_nan") = false).cast<std::string>());
-}
-
 cv::Mat ImageView(const py::array& image, const std::string& what) {
   const bool u8 = py::isinstance<py::array_t<std::uint8_t>>(image);
   const bool u16 = py::isinstance<py::array_t<std::uint16_t>>(image);

@@ -23,9 +23,8 @@ namespace topocal::python {
 
 namespace py = pybind11;
 
-// JSON <-> Python through the json module: the same text the CLI writes, decoded by Python.
+// JSON -> Python through the json module: the same text the CLI writes, decoded by Python.
 py::object ToPython(const nlohmann::json& j);
-nlohmann::json FromPython(const py::handle& object);
 
 // A 2-D C-contiguous uint8 or uint16 array as a cv::Mat sharing its memory. topocal.InputError naming `what`
 // for any other array.
