@@ -320,7 +320,7 @@ h1 { font-size: 17pt; margin: 0 0 2mm 0; }
 h2 { font-size: 13pt; border-bottom: 1.5px solid var(--ink); padding-bottom: 1mm; margin: 7mm 0 3mm 0; }
 h3 { font-size: 11pt; margin: 5mm 0 2mm 0; }
 table.data { border-collapse: collapse; width: 100%; margin: 2mm 0; }
-table.data td { overflow-wrap: anywhere; }
+table.data td { overflow-wrap: break-word; }  /* a token breaks only when it cannot fit a line of its own */
 table.data th, table.data td { border-bottom: 1px solid var(--rule); padding: 1mm 2mm; text-align: left; vertical-align: top; }
 table.data th { background: #f0f0f0; }
 td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }

@@ -108,6 +108,12 @@ TEST(ReportInBrowser, ChromiumRendersPrintsAndShowsTheReport) {
     EXPECT_NE(one_page.find(fmt::format("Page {} of {}", n, pages)), std::string::npos) << "page " << n;
     page_start = page_end + 1;
   }
+  // Tables never break inside a token that fits a line: the limits' keys print whole (they printed "sphere_rad" /
+  // "ius_error_" / "mm" on three lines).
+  for (const char* key : {"calibration_rms_px", "sphere_radius_error_mm", "sphere_power_error_D",
+                          "paper_radius_error_mm", "paper_conic_error"}) {
+    EXPECT_NE(text.output.find(key), std::string::npos) << key;
+  }
   EXPECT_NE(text.output.find("Sign-off"), std::string::npos);
   EXPECT_NE(text.output.find("Appendix A: provenance"), std::string::npos);
 
