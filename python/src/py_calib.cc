@@ -181,6 +181,10 @@ void RegisterCalibration(py::module_& m) {
       py::arg("path"), py::arg("from_format"), py::arg("camera") = "cam0",
       "Another tool's calibration (from_format: kalibr, opencv, mrcal or ros; camera: the camchain key for kalibr) "
       "as the text of a calibration file every --calibration reads, as `topocal import` writes it.");
+  m.def(
+      "_write_file",
+      [](const py::object& path, const std::string& text) { util::WriteFileAtomic(PathArg(path, "path"), text); },
+      py::arg("path"), py::arg("text"), "Write a file as every topocal output is written (util::WriteFileAtomic).");
   m.def("export_calibration", &ExportText, py::arg("calibration"), py::arg("to_format"),
         py::arg("camera_name") = "topocal",
         "A calibration file (topocal or OpenCV YAML) as another tool's file text (to_format: ros, kalibr, mrcal or "

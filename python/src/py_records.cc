@@ -2,9 +2,7 @@
 // and the production line's database (as `topocal fleet` ingests and reports it).
 #include <fmt/format.h>
 
-#include <fstream>
 #include <limits>
-#include <sstream>
 
 #include "python/src/py_common.h"
 #include "report/fleet_db.h"
@@ -20,15 +18,12 @@ py::dict UnitRecordDict(const std::string& directory) {
     py::gil_scoped_release release;
     record = report::ReadUnitRecord(directory);  // verifies every listed file's SHA-256
   }
-  std::ifstream in(record.unit_json_path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
   py::list files;
   for (const auto& f : record.files) files.append(py::make_tuple(f.name, f.sha256));
   return py::dict(py::arg("directory") = record.directory, py::arg("serial") = record.serial,
                   py::arg("created_utc") = record.created_utc, py::arg("tool_version") = record.tool_version,
                   py::arg("unit_json_sha256") = record.unit_json_sha256, py::arg("files") = files,
-                  py::arg("unit") = ToPython(nlohmann::json::parse(text.str())));
+                  py::arg("unit") = ToPython(nlohmann::json::parse(util::ReadFile(record.unit_json_path))));
 }
 
 py::dict UnitDict(const report::FleetUnit& u) {

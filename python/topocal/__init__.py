@@ -125,12 +125,8 @@ class Calibration:
         return np.asarray(self.report["dist_coeffs"], dtype=np.float64)
 
     def save(self, path: PathLike) -> None:
-        """Write the calibration file (YAML) atomically."""
-        path = os.fspath(path)
-        tmp = f"{path}.tmp-{os.getpid()}"
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(self.yaml)
-        os.replace(tmp, path)
+        """Write the calibration file (YAML) atomically, as the CLI writes its outputs."""
+        _topocal._write_file(path, self.yaml)
 
 
 def calibrate(target: PathLike, images: Optional[Sequence[Union[np.ndarray, PathLike]]] = None,
