@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <set>
+#include <stdexcept>
+#include <variant>
 
 #include "util/io.h"
 #include "util/json_section.h"
@@ -208,6 +210,108 @@ std::string DeviceToJson(const Device& device, const json& calibration) {
                       {"radial_scale", p.radial_scale}};
   if (!calibration.is_null()) j["calibration"] = calibration;
   return j.dump(2) + "\n";
+}
+
+namespace {
+
+// The device parameter a covariance name stands for; nullptr when the name is not one (or not of this distortion).
+double* DeviceParameter(Device* d, const std::string& name) {
+  ScreenPose& p = d->screen;
+  if (name == "rx_deg") return &p.rx_deg;
+  if (name == "ry_deg") return &p.ry_deg;
+  if (name == "rz_deg") return &p.rz_deg;
+  if (name == "tx_mm") return &p.tx_mm;
+  if (name == "ty_mm") return &p.ty_mm;
+  if (name == "tz_mm") return &p.tz_mm;
+  if (name == "radial_scale") return &p.radial_scale;
+  if (name == "principal_point_u_px") return &d->camera.principal_point_px.x();
+  if (name == "principal_point_v_px") return &d->camera.principal_point_px.y();
+  if (name == "a_mm") return &d->camera.a_mm;
+  if (auto* s = std::get_if<SeidelParams>(&d->distortion)) return name == "sigma_per_mm2" ? &s->sigma_per_mm2 : nullptr;
+  auto& b = std::get<BrownParams>(d->distortion);
+  if (name == "k1") return &b.k[0];
+  if (name == "k2") return &b.k[1];
+  if (name == "p1") return &b.k[2];
+  if (name == "p2") return &b.k[3];
+  if (name == "k3") return &b.k[4];
+  return nullptr;
+}
+
+}  // namespace
+
+void ShiftDeviceParameter(Device* device, const std::string& name, double delta) {
+  double* p = DeviceParameter(device, name);
+  if (!p) throw std::invalid_argument(fmt::format("'{}' is not a parameter of this device", name));
+  *p += delta;
+  if (name == "a_mm") {
+    if (auto* b = std::get_if<BrownParams>(&device->distortion)) b->focal_mm = device->camera.a_mm;
+  }
+}
+
+double DeviceParameterOf(const Device& device, const std::string& name) {
+  Device copy = device;
+  const double* p = DeviceParameter(&copy, name);
+  if (!p) throw std::invalid_argument(fmt::format("'{}' is not a parameter of this device", name));
+  return *p;
+}
+
+std::optional<DeviceCovariance> DeviceCovarianceOf(const json& calibration, const std::string& origin) {
+  if (calibration.is_null()) return std::nullopt;
+  const std::string key = "calibration.covariance";
+  const auto fail = [&](const std::string& what, const std::string& problem) -> void {
+    throw util::ConfigError(fmt::format("{}: {}{}: {}", origin, key, what, problem));
+  };
+  if (!calibration.is_object() || !calibration.contains("covariance")) fail("", "missing");
+  const json& c = calibration.at("covariance");
+  if (!c.is_object() || !c.contains("parameters") || !c.contains("matrix")) {
+    fail("", "must be an object with \"parameters\" and \"matrix\"");
+  }
+  const json& names = c.at("parameters");
+  const json& matrix = c.at("matrix");
+  if (!names.is_array() || names.empty()) fail(".parameters", "must be a non-empty array of names");
+  DeviceCovariance out;
+  Device probe;
+  probe.distortion = SeidelParams{};
+  Device brown_probe;
+  brown_probe.distortion = BrownParams{};
+  std::set<std::string> seen;
+  for (const auto& n : names) {
+    if (!n.is_string()) fail(".parameters", fmt::format("{} is not a name", util::QuoteJsonValue(n)));
+    const std::string name = n.get<std::string>();
+    if (!DeviceParameter(&probe, name) && !DeviceParameter(&brown_probe, name)) {
+      fail(".parameters", fmt::format("'{}' is not a device parameter", name));
+    }
+    if (!seen.insert(name).second) fail(".parameters", fmt::format("'{}' is given twice", name));
+    out.names.push_back(name);
+  }
+  const auto n = static_cast<Eigen::Index>(out.names.size());
+  if (!matrix.is_array() || static_cast<Eigen::Index>(matrix.size()) != n) {
+    fail(".matrix", fmt::format("must be {} rows (one per parameter)", n));
+  }
+  out.matrix.resize(n, n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const json& row = matrix.at(static_cast<size_t>(i));
+    if (!row.is_array() || static_cast<Eigen::Index>(row.size()) != n) {
+      fail(fmt::format(".matrix[{}]", i), fmt::format("must be {} numbers", n));
+    }
+    for (Eigen::Index k = 0; k < n; ++k) {
+      const json& v = row.at(static_cast<size_t>(k));
+      if (!v.is_number() || !std::isfinite(v.get<double>())) {
+        fail(fmt::format(".matrix[{}][{}]", i, k), "must be a finite number");
+      }
+      out.matrix(i, k) = v.get<double>();
+    }
+  }
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (out.matrix(i, i) < 0) fail(fmt::format(".matrix[{}][{}]", i, i), "a variance cannot be negative");
+    for (Eigen::Index k = 0; k < i; ++k) {
+      const double scale = std::sqrt(out.matrix(i, i) * out.matrix(k, k));
+      if (std::abs(out.matrix(i, k) - out.matrix(k, i)) > 1e-9 * scale + 1e-300) {
+        fail(fmt::format(".matrix[{}][{}]", i, k), "the matrix is not symmetric");
+      }
+    }
+  }
+  return out;
 }
 
 }  // namespace topocal::model

@@ -131,6 +131,24 @@ struct DeviceFile {
   nlohmann::json calibration;  // null for a hand-written (nominal or as-designed) device
 };
 DeviceFile LoadDevice(const std::string& path);
+// The covariance of a calibrated device's parameters, as `device calibrate` stores it (calibration.covariance): the
+// fit's names (rx_deg, ry_deg, rz_deg, tx_mm, ty_mm, tz_mm, radial_scale, principal_point_u_px,
+// principal_point_v_px, a_mm, sigma_per_mm2 or k1, k2) and the matrix in their order and units.
+struct DeviceCovariance {
+  std::vector<std::string> names;
+  Eigen::MatrixXd matrix;
+};
+// nullopt for a device without a calibration block (a hand-written nominal or as-designed device). Throws
+// ConfigError "ORIGIN: calibration.covariance...: problem" when the block is malformed: names unknown or repeated,
+// the matrix not square over the names, not finite, not symmetric, or a negative variance.
+std::optional<DeviceCovariance> DeviceCovarianceOf(const nlohmann::json& calibration, const std::string& origin);
+// Adds `delta` to the named parameter of `device` (the names above; a_mm moves Brown's focal length with it: they
+// are one distance). Throws std::invalid_argument for a name that is not a device parameter, or a Brown name on a
+// Seidel device and the reverse.
+void ShiftDeviceParameter(Device* device, const std::string& name, double delta);
+// The named parameter's value (the same names). Throws std::invalid_argument like ShiftDeviceParameter.
+double DeviceParameterOf(const Device& device, const std::string& name);
+
 DeviceFile ParseDevice(const std::string& json_text, const std::string& origin);
 std::string DeviceToJson(const Device& device, const nlohmann::json& calibration = nullptr);
 
