@@ -16,6 +16,7 @@
 #include <string>
 
 #include <Eigen/Core>
+#include <cmath>
 
 #include "topo/power_map.h"
 
@@ -29,17 +30,26 @@ struct ClinicalOptions {
   double is_radius_mm = 1.5;    // 3 mm zone
 };
 
+// The grid on which the elevation peak's location is refined (its reading's resolution).
+inline constexpr double kElevationPeakStepMm = 0.01;
+// A second peak: the highest value this far or farther from a peak's location (ClinicalIndices::*_runner_up_*).
+inline constexpr double kPeakSeparationMm = 1.0;
+
 struct ClinicalIndices {
   double supported_radius_mm = 0;  // indices use data within this radius only
   double steep_k_D = 0, steep_axis_deg = 0, flat_k_D = 0, flat_axis_deg = 0;
   double CylinderD() const { return steep_k_D - flat_k_D; }
   double kmax_D = 0;
   Eigen::Vector2d kmax_at_mm = Eigen::Vector2d::Zero();
+  // The highest axial power kPeakSeparationMm or farther from Kmax's location (-inf: none): when it lies within
+  // Kmax's uncertainty, another place could be the maximum and the location is not determined.
+  double kmax_runner_up_D = -INFINITY;
   double bfs_radius_mm = 0;
   Eigen::Vector3d bfs_centre_mm = Eigen::Vector3d::Zero();
   double bfs_zone_radius_mm = 0;   // the zone the sphere was fitted over
   double elevation_peak_um = 0;    // largest elevation above the BFS within the zone
   Eigen::Vector2d elevation_peak_at_mm = Eigen::Vector2d::Zero();
+  double elevation_runner_up_um = -INFINITY;  // as kmax_runner_up_D, for the elevation peak
   double elevation_rms_um = 0;     // rms elevation over the zone (0 for a sphere)
   double inferior_superior_D = 0;
   bool is_available = false;       // false when is_radius_mm lies beyond the supported radius
