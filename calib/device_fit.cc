@@ -117,6 +117,13 @@ bool DeviceFitOptions::IsValid(std::string* why) const {
   return true;
 }
 
+model::DeviceCovariance DeviceFit::Covariance() const {
+  model::DeviceCovariance c;
+  for (const auto& p : parameters) c.names.push_back(p.name);
+  c.matrix = covariance;
+  return c;
+}
+
 std::optional<DeviceParameterEstimate> DeviceFit::Parameter(const std::string& name) const {
   for (const auto& p : parameters) {
     if (p.name == name) return p;

@@ -93,6 +93,8 @@ struct DeviceFit {
   int iterations = 0;
   // The value and standard deviation of a named parameter (nullopt if not fitted).
   std::optional<DeviceParameterEstimate> Parameter(const std::string& name) const;
+  // `covariance` with its parameters' names: what a measurement through the device propagates.
+  model::DeviceCovariance Covariance() const;
 };
 
 // Fits the device. Never throws for data: too few balls or spots, or a solver failure give ok = false and a message.

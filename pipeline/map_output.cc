@@ -157,8 +157,20 @@ void AddKind(const std::vector<PendingMap>& maps, const plot::MapScaleRequest& r
 // An entry's maps, one of each kind (elevation and difference may be missing).
 struct EntryMaps {
   PendingMap axial, tangential;
-  std::optional<PendingMap> elevation, difference;
+  std::optional<PendingMap> elevation, difference, axial_uncertainty;
 };
+
+// The axial-power uncertainty maps' scale: fixed colours (a colour is the same U on every unit and eye), 0.05 D
+// steps to 0.5 D — a fifth of the 0.25 D step a clinician acts on, to twice it — widened by whole steps to hold more.
+plot::MapScaleRequest UncertaintyScale() {
+  plot::MapScaleRequest r;
+  r.kind = plot::MapScaleKind::kAbsolute;
+  r.step = 0.05;
+  r.low = 0.0;
+  r.high = 0.5;
+  r.widen_to_data = true;
+  return r;
+}
 
 EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
   EntryMaps out;
@@ -226,6 +238,15 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
     elev.legend.push_back(SupportLegend(supported));
     out.elevation = std::move(elev);
   }
+  if (e.axial_expanded_D && e.axial_expanded_D->size() == a.power.axial_D.size()) {
+    PendingMap u(base + "axial_uncertainty",
+                 PowerGrid(a.power, *e.axial_expanded_D, fmt::format("U of the axial power (k = 2){}", e.label)));
+    u.supported_radius_mm = supported;
+    u.legend.push_back("expanded uncertainty U (k = 2) of the axial map at each point: device covariance and the "
+                       "image's spot noise");
+    u.legend.push_back(SupportLegend(supported));
+    out.axial_uncertainty = std::move(u);
+  }
   if (e.truth) {
     const model::Surface truth = model::Biconic{*e.truth};
     PendingMap diff(
@@ -252,8 +273,9 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
   // files, and the scales are selected in between over the whole set, so the files do not depend on the threads.
   std::vector<EntryMaps> computed(entries.size());
   util::ParallelFor(entries.size(), o.jobs, [&](size_t k) { computed[k] = ComputeEntryMaps(dir, entries[k]); });
-  std::vector<PendingMap> axial, tangential, elevation, difference;
+  std::vector<PendingMap> axial, tangential, elevation, difference, axial_uncertainty;
   for (EntryMaps& m : computed) {
+    if (m.axial_uncertainty) axial_uncertainty.push_back(std::move(*m.axial_uncertainty));
     axial.push_back(std::move(m.axial));
     tangential.push_back(std::move(m.tangential));
     if (m.elevation) elevation.push_back(std::move(*m.elevation));
@@ -271,6 +293,7 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
   AddKind(tangential, o.power, power_options, true, &jobs);
   AddKind(elevation, o.elevation, o, false, &jobs);
   AddKind(difference, o.elevation, o, false, &jobs);
+  AddKind(axial_uncertainty, UncertaintyScale(), o, false, &jobs);
   util::ParallelFor(jobs.size(), o.jobs, [&](size_t k) {
     const MapJob& job = jobs[k];
     if (job.csv) plot::WriteMapCsv(job.map->file + ".csv", job.map->grid);

@@ -20,6 +20,9 @@ struct AnalysisMapEntry {
   const model::BiconicParams* truth = nullptr;  // the known surface: adds the height-difference map
   // Printed under the power maps' titles; empty: the analysis's clinical summary (sim-K with axes, cylinder, Kmax).
   std::vector<std::string> power_annotations;
+  // U (k = 2) of the axial power at each sample of the analysis's polar map (MeasurementUncertainty::
+  // axial_expanded_D): adds <prefix>axial_uncertainty.{csv,png}, beside the axial map it qualifies.
+  const std::vector<double>* axial_expanded_D = nullptr;
 };
 
 struct MapSetOptions {
@@ -36,7 +39,8 @@ struct MapSetOptions {
 
 // Files per entry: <prefix>axial_power.{csv,png}, <prefix>tangential_power.{csv,png}, <prefix>elevation.{csv,png}
 // (elevation above the best-fit sphere, um, its radius in the title) and, with `truth`,
-// <prefix>height_difference.{csv,png} (Eq. 26, ideal - recovered, um). Each kind of map is drawn on one scale
+// <prefix>height_difference.{csv,png} (Eq. 26, ideal - recovered, um); with `axial_expanded_D`,
+// <prefix>axial_uncertainty.{csv,png} on a fixed scale (0-0.5 D in 0.05 D steps, widened by whole steps to hold the data). Each kind of map is drawn on one scale
 // selected over the whole set (plot::SelectMapScale). Creates `dir` if needed. Throws util::InputError naming the
 // path when a file cannot be written.
 void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEntry>& entries,

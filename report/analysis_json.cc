@@ -1,5 +1,11 @@
 #include "report/analysis_json.h"
 
+#include <algorithm>
+#include <cmath>
+
+#include "pipeline/uncertainty.h"
+#include "topo/power_map.h"
+
 namespace topocal::report {
 
 nlohmann::json SurfaceFitJson(const topo::BiconicFit& f) {
@@ -178,12 +184,42 @@ nlohmann::json MeasurementJson(const topo::Analysis& a, bool truth) {
   j["reconstruction"] = ReconstructionJson(a.reconstruction);
   j["polynomial"] = PolynomialJson(a.reconstruction.surface);
   j["surface_fit"] = SurfaceFitJson(a.surface_fit);
+  const double central = topo::MeanAxialPowerD(a.power, pipeline::kCentralPowerRadiusMm);
   j["power"] = {{"pv_tangential_D", a.power.pv_tangential_D}, {"pv_axial_D", a.power.pv_axial_D},
+                {"central_axial_D", std::isfinite(central) ? nlohmann::json(central) : nlohmann::json(nullptr)},
+                {"central_radius_mm", pipeline::kCentralPowerRadiusMm},
                 {"map_radius_mm", a.power.radius_mm}, {"covered_radius_mm", a.covered_radius_mm}};
   if (truth) j["errors"] = ErrorsJson(a);
   j["clinical"] = ClinicalJson(a);
   j["adequacy"] = AdequacyJson(a);
   return j;
+}
+
+nlohmann::json MeasurementUncertaintyJson(const pipeline::MeasurementUncertainty& u) {
+  nlohmann::json quantities = nlohmann::json::object();
+  for (const auto& q : u.quantities) {
+    quantities[q.name] = {{"value", q.value},
+                          {"expanded", q.determined ? nlohmann::json(q.expanded) : nlohmann::json(nullptr)},
+                          {"determined", q.determined},
+                          {"lower_bound", q.lower_bound},
+                          {"unit", q.unit},
+                          {"u_device", q.u_device}, {"u_spots", q.u_spots},   {"u_bias", q.u_bias},
+                          {"u_resolution", q.u_resolution}};
+  }
+  double max_axial_u = 0;
+  for (const double x : u.axial_expanded_D) max_axial_u = std::max(max_axial_u, x);
+  return {{"coverage_factor", 2},
+          {"method", u.device_monte_carlo ? "device: Monte Carlo; spots: Monte Carlo" : "device: linear; spots: Monte Carlo"},
+          {"device_covariance", u.device_covariance},
+          {"device_parameters", u.device_parameters},
+          {"device_directions", u.device_directions},
+          {"device_analyses", u.device_analyses},
+          {"configured_spot_sigma_um", u.configured_spot_sigma_um},
+          {"measured_spot_sigma_um", u.spot_sigma_um},
+          {"spot_draws", u.spot_draws},
+          {"failed_analyses", u.failed_draws},
+          {"axial_map_max_expanded_D", max_axial_u},
+          {"quantities", quantities}};
 }
 
 }  // namespace topocal::report

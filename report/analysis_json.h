@@ -9,6 +9,7 @@
 #include "correct/detect_and_index.h"
 #include "pipeline/capture_quality.h"
 #include "pipeline/closed_loop.h"
+#include "pipeline/measurement_uncertainty.h"
 #include "topo/analysis.h"
 #include "topo/sweep.h"
 
@@ -33,6 +34,9 @@ nlohmann::json DetectionJson(const correct::DetectAndIndexResult& r, correct::Ce
 // The measurement part of `topocal reconstruct --json`: reconstruction, polynomial, surface fit, power, clinical,
 // adequacy, and with `truth` the errors against it.
 nlohmann::json MeasurementJson(const topo::Analysis& a, bool truth);
+// The "uncertainty" block of `reconstruct --json` through a device: coverage factor, sources, and per quantity (by
+// its place in the JSON, e.g. "clinical.kmax.power_D") the value, U (k = 2) and each source's standard uncertainty.
+nlohmann::json MeasurementUncertaintyJson(const pipeline::MeasurementUncertainty& u);
 
 // `topocal sweep --json`: every sigma's row (image ellipse, fit, reconstruction, errors, clinical, adequacy) and,
 // with --correct, `corrected[i]` beside row i (corrected may be shorter than the rows, or empty); ideal power and

@@ -13,6 +13,7 @@
 #include "pipeline/map_output.h"
 #include "plot/map_image.h"
 #include "pipeline/measure_spots.h"
+#include "pipeline/measurement_uncertainty.h"
 #include "pipeline/uncertainty.h"
 #include "report/analysis_json.h"
 #include "tools/commands.h"
@@ -25,30 +26,84 @@
 namespace topocal::tools {
 namespace {
 
-void PrintAnalysis(const topo::Analysis& a) {
+// "value +- U" of a reported quantity (GUM: U to two digits, k = 2 stated once) when `u` has it, otherwise
+// "value +- sd" with the fit's standard deviation as before (no device: the fit's own figure).
+class Printer {
+ public:
+  explicit Printer(const pipeline::MeasurementUncertainty* u) : u_(u) {}
+  std::string operator()(const std::string& name, double value, double sd, int decimals) const {
+    if (u_) return (*this)(name, value, decimals);
+    return fmt::format("{:.{}f} +- {:.{}f}", value, decimals, sd, decimals);
+  }
+  std::string operator()(const std::string& name, double value, int decimals) const {
+    if (const auto* q = u_ ? u_->Find(name) : nullptr) {
+      return pipeline::FormatWithUncertainty(value, q->expanded, decimals) + (q->lower_bound ? "*" : "");
+    }
+    return fmt::format("{:.{}f}", value, decimals);
+  }
+  // "at (x, y) mm" of a peak whose location is read as <prefix>x_mm, <prefix>y_mm; a location the data do not
+  // determine (a second peak within the value's U) is said so, without numbers.
+  std::string At(const std::string& prefix, const Eigen::Vector2d& at) const {
+    if (const auto* q = u_ ? u_->Find(prefix + "x_mm") : nullptr; q && !q->determined) {
+      return "at a location not determined (a second peak 1 mm or more away lies within U)";
+    }
+    return fmt::format("at ({}, {}) mm", (*this)(prefix + "x_mm", at.x(), 2), (*this)(prefix + "y_mm", at.y(), 2));
+  }
+
+ private:
+  const pipeline::MeasurementUncertainty* u_;
+};
+
+void PrintUncertaintySources(const pipeline::MeasurementUncertainty& u) {
+  fmt::print("uncertainties below are U (k = 2) from: ");
+  if (!u.device_covariance) {
+    fmt::print("NOT the device (its file has no calibration covariance: a hand-written device), ");
+  } else if (u.device_monte_carlo) {
+    fmt::print("the device's covariance ({} Monte Carlo draws of {} parameters), ", u.device_analyses,
+               u.device_parameters.size());
+  } else {
+    fmt::print("the device's covariance ({} parameters, linear along {} directions), ", u.device_parameters.size(),
+               u.device_directions);
+  }
+  fmt::print("the spot-centre noise measured in this image ({:.3g} um = {:.2f} x the configured {:.3g} um, what the "
+             "surface model leaves unexplained included; {} draws){}; the map's sampling\n",
+             u.spot_sigma_um, u.spot_sigma_um / u.configured_spot_sigma_um, u.configured_spot_sigma_um, u.spot_draws,
+             u.failed_draws > 0 ? fmt::format("; {} analyses failed", u.failed_draws) : std::string());
+  const bool lower_bounds = std::any_of(u.quantities.begin(), u.quantities.end(), [](const auto& q) { return q.lower_bound; });
+  if (lower_bounds) {
+    fmt::print("  * U a lower bound: the spline surface smooths a map's peaks and ranges by an amount the noise "
+               "draws do not reveal (docs/uncertainty.md)\n");
+  }
+}
+
+void PrintAnalysis(const topo::Analysis& a, const pipeline::MeasurementUncertainty* u = nullptr) {
   const auto& r = a.reconstruction;
   const auto& f = a.surface_fit;
   const auto& p = f.params;
+  const Printer v(u);
   fmt::print("reconstruction: {}\n", r.message);
   if (!r.unmatched.empty()) fmt::print("spots not in the design (ignored): {}\n", r.unmatched.size());
+  if (u) PrintUncertaintySources(*u);
   fmt::print("biconic fit ({}, {} points, rms {:.4f} um):\n", topo::BiconicFitModeName(f.mode), f.points,
              f.rms_residual_um);
   const auto& sd = f.stddev;
-  fmt::print("  rx = {:.4f} +- {:.4f} mm   ry = {:.4f} +- {:.4f} mm\n", p.rx_mm, sd.rx_mm, p.ry_mm, sd.ry_mm);
-  fmt::print("  kx = {:.4f} +- {:.4f}      ky = {:.4f} +- {:.4f}\n", p.kx, sd.kx, p.ky, sd.ky);
-  fmt::print("  alpha = {:.4f} +- {:.4f} deg   vertex = {:.4f} +- {:.4f} um\n", p.alpha_deg, sd.alpha_deg,
-             p.z0_mm * 1e3, sd.z0_mm * 1e3);
+  fmt::print("  rx = {} mm   ry = {} mm\n", v("surface_fit.rx_mm", p.rx_mm, sd.rx_mm, 4),
+             v("surface_fit.ry_mm", p.ry_mm, sd.ry_mm, 4));
+  fmt::print("  kx = {}      ky = {}\n", v("surface_fit.kx", p.kx, sd.kx, 4), v("surface_fit.ky", p.ky, sd.ky, 4));
+  fmt::print("  alpha = {} deg   vertex = {} um\n", v("surface_fit.alpha_deg", p.alpha_deg, sd.alpha_deg, 4),
+             v("surface_fit.vertex_um", p.z0_mm * 1e3, sd.z0_mm * 1e3, 4));
   if (f.mode != topo::BiconicFitMode::kPaper) {
-    fmt::print("  apex at ({:.4f} +- {:.4f}, {:.4f} +- {:.4f}) mm: decentration {:.4f} mm\n", f.apex_mm.x(),
-               sd.apex_x_mm, f.apex_mm.y(), sd.apex_y_mm, f.DecentrationMm());
+    fmt::print("  apex at ({}, {}) mm: decentration {} mm\n", v("surface_fit.apex_x_mm", f.apex_mm.x(), sd.apex_x_mm, 4),
+               v("surface_fit.apex_y_mm", f.apex_mm.y(), sd.apex_y_mm, 4),
+               v("surface_fit.decentration_mm", f.DecentrationMm(), 4));
   }
   if (f.mode == topo::BiconicFitMode::kFreeApex) {
-    fmt::print("  tilt x = {:.3f} +- {:.3f} deg, y = {:.3f} +- {:.3f} deg: {:.3f} deg off the axis\n", p.tilt_x_deg,
-               sd.tilt_x_deg, p.tilt_y_deg, sd.tilt_y_deg, f.TiltDeg());
+    fmt::print("  tilt x = {} deg, y = {} deg: {} deg off the axis\n", v("surface_fit.tilt_x_deg", p.tilt_x_deg, sd.tilt_x_deg, 3),
+               v("surface_fit.tilt_y_deg", p.tilt_y_deg, sd.tilt_y_deg, 3), v("surface_fit.tilt_deg", f.TiltDeg(), 3));
   }
-  fmt::print("power maps (R = {:.2f} mm, points reach {:.2f} mm, every direction {:.2f} mm): pv tangential {:.3f} D, "
-             "pv axial {:.3f} D\n", a.power.radius_mm, a.covered_radius_mm, a.supported_radius_mm,
-             a.power.pv_tangential_D, a.power.pv_axial_D);
+  fmt::print("power maps (R = {:.2f} mm, points reach {:.2f} mm, every direction {:.2f} mm): pv tangential {} D, "
+             "pv axial {} D\n", a.power.radius_mm, a.covered_radius_mm, a.supported_radius_mm,
+             v("power.pv_tangential_D", a.power.pv_tangential_D, 3), v("power.pv_axial_D", a.power.pv_axial_D, 3));
   if (a.errors) fmt::print("against the configured cornea: pv {:.4f} um, rms {:.4f} um\n", a.errors->pv_um, a.errors->rms_um);
   fmt::print("model adequacy: slope residual {:.3g} = {:.2f} x the {:.3g} expected from spot-centre noise; "
              "neighbour correlation {:.2f}, shared part {:.2f} x\n",
@@ -58,12 +113,17 @@ void PrintAnalysis(const topo::Analysis& a) {
              r.surface_model_reason.empty() ? "" : " (" + r.surface_model_reason + ")");
   if (a.clinical_ok) {
     const auto& c = a.clinical;
-    fmt::print("clinical (data to {:.2f} mm): sim-K {:.2f} D @ {:.0f} deg / {:.2f} D @ {:.0f} deg; Kmax {:.2f} D at "
-               "({:.2f}, {:.2f}) mm\n", c.supported_radius_mm, c.steep_k_D, c.steep_axis_deg, c.flat_k_D,
-               c.flat_axis_deg, c.kmax_D, c.kmax_at_mm.x(), c.kmax_at_mm.y());
-    fmt::print("  BFS {:.3f} mm over {:.2f} mm: elevation peak {:.2f} um at ({:.2f}, {:.2f}) mm{}\n", c.bfs_radius_mm,
-               c.bfs_zone_radius_mm, c.elevation_peak_um, c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y(),
-               c.is_available ? fmt::format("; I-S {:.2f} D", c.inferior_superior_D) : std::string());
+    fmt::print("clinical (data to {:.2f} mm): sim-K {} D @ {} deg / {} D @ {} deg; Kmax {} D {}\n",
+               c.supported_radius_mm, v("clinical.sim_k.steep_D", c.steep_k_D, 2),
+               v("clinical.sim_k.steep_axis_deg", c.steep_axis_deg, 0), v("clinical.sim_k.flat_D", c.flat_k_D, 2),
+               v("clinical.sim_k.flat_axis_deg", c.flat_axis_deg, 0), v("clinical.kmax.power_D", c.kmax_D, 2),
+               v.At("clinical.kmax.", c.kmax_at_mm));
+    fmt::print("  BFS {} mm over {:.2f} mm: elevation peak {} um {}{}\n",
+               v("clinical.best_fit_sphere.radius_mm", c.bfs_radius_mm, 3), c.bfs_zone_radius_mm,
+               v("clinical.best_fit_sphere.elevation_peak_um", c.elevation_peak_um, 2),
+               v.At("clinical.best_fit_sphere.elevation_peak_", c.elevation_peak_at_mm),
+               c.is_available ? fmt::format("; I-S {} D", v("clinical.inferior_superior_D", c.inferior_superior_D, 2))
+                              : std::string());
   } else {
     fmt::print("clinical indices: {}\n", a.clinical_message);
   }
@@ -107,7 +167,8 @@ pipeline::SpotMeasurement MeasureImage(const cv::Mat& image, const model::Topogr
 std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::Config& cfg,
                                                 const std::optional<model::Device>& device, nlohmann::json* info,
                                                 std::optional<pipeline::ClinicalUncertainty>* uncertainty,
-                                                std::optional<pipeline::CaptureQuality>* capture) {
+                                                std::optional<pipeline::CaptureQuality>* capture,
+                                                std::vector<pipeline::MeasuredImageSpot>* detected) {
   std::vector<topo::MeasuredSpot> measured;
   if (!in.spots.empty()) {
     if (!in.camera.empty() || !in.calibration.empty() || !in.device.empty()) {
@@ -135,6 +196,7 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
                         {"device", in.device},
                         {"undistort_failures", m.undistort_failures}};
     *capture = m.capture;
+    *detected = m.detected;
     return m.spots;
   }
   std::optional<model::Distortion> distortion;
@@ -225,18 +287,24 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
   // where the polynomial does not fit the data (keratoconus, ablations; docs/reconstruction.md).
   if (!cfg.reconstruction.surface_model_given) cfg.reconstruction.surface_model = "auto";
   if (in.spots.empty() == in.image.empty()) throw util::InputError("reconstruct: give one of --spots or --image");
-  if (in.uncertainty_samples > 0 && (in.image.empty() || in.calibration.empty())) {
-    throw util::InputError("--uncertainty needs --image and --calibration");
+  if (in.uncertainty_samples > 0 && (in.image.empty() || (in.calibration.empty() && in.device.empty()))) {
+    throw util::InputError("--uncertainty needs --image and --calibration or --device");
   }
   nlohmann::json info;
   if (!in.eye.empty()) info["eye"] = in.eye;
   std::optional<pipeline::ClinicalUncertainty> uncertainty;
   std::optional<model::Device> device;
-  if (!in.device.empty()) device = model::LoadDevice(in.device).device;
+  std::optional<model::DeviceCovariance> device_covariance;
+  if (!in.device.empty()) {
+    const auto file = model::LoadDevice(in.device);
+    device = file.device;
+    device_covariance = model::DeviceCovarianceOf(file.calibration, in.device);
+  }
+  std::vector<pipeline::MeasuredImageSpot> detected;
   std::optional<pipeline::CaptureQuality> capture;
   std::vector<topo::MeasuredSpot> measured;
   try {
-    measured = ReadMeasurement(in, cfg, device, &info, &uncertainty, &capture);
+    measured = ReadMeasurement(in, cfg, device, &info, &uncertainty, &capture, &detected);
   } catch (const util::MeasurementRefused& e) {  // the spots could not be identified: the JSON says so too
     RefuseMeasurement(in.image, {false, {e.what()}}, info, json_out, /*print=*/false);
   }
@@ -254,7 +322,23 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
     info["valid"] = verdict.valid;
     if (!verdict.valid) RefuseMeasurement(in.image, verdict, info, json_out);
   }
-  PrintAnalysis(analysis);
+  // Through a device, every reported number carries its U: the device's covariance, this image's spot noise, the
+  // fit's residual (pipeline/measurement_uncertainty.h).
+  std::optional<pipeline::MeasurementUncertainty> measurement_u;
+  if (device && capture) {
+    pipeline::UncertaintyOptions u_options;
+    u_options.device_draws = in.uncertainty_samples;
+    u_options.seed = in.seed;
+    try {
+      measurement_u = pipeline::PropagateMeasurementUncertainty(detected, *device, device_covariance, cfg, analysis,
+                                                                u_options);
+    } catch (const std::runtime_error& e) {
+      RefuseMeasurement(in.image, {false, {fmt::format("its uncertainty cannot be evaluated: {}", e.what())}}, info,
+                        json_out);
+    }
+    info["uncertainty"] = report::MeasurementUncertaintyJson(*measurement_u);
+  }
+  PrintAnalysis(analysis, measurement_u ? &*measurement_u : nullptr);
   if (uncertainty) {
     fmt::print("calibration uncertainty carried through ({} draws of {}, {}; {} failed; {} spot(s) not undistorted "
                "in {} draw(s)), mean +- U (k = 2):\n",
@@ -286,7 +370,8 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
     pipeline::MapSetOptions map_options;
     map_options.eye = in.eye;  // N/T/S/I on the maps, in the examiner's view
     map_options.power = power_scale;
-    pipeline::WriteAnalysisMapSet(outputs.AddDirectory(maps), {{"", "", &analysis, truth ? &cfg.cornea : nullptr, {}}},
+    pipeline::WriteAnalysisMapSet(outputs.AddDirectory(maps), {{"", "", &analysis, truth ? &cfg.cornea : nullptr, {},
+                                                                 measurement_u ? &measurement_u->axial_expanded_D : nullptr}},
                                   map_options);
   }
   outputs.Commit();
@@ -314,7 +399,8 @@ void AddReconstructCommand(CLI::App& app) {
   device_opt->excludes(calibration_opt);
   cmd->add_option("--uncertainty", in->uncertainty_samples,
                   "Monte Carlo draws of the calibration's parameters carried to the clinical numbers (with "
-                  "--image and --calibration); reports mean +- U (k = 2)")
+                  "--image and --calibration: mean +- U, k = 2; with --device: the device's part of every U by "
+                  "draws instead of linear propagation, a cross-check)")
       ->check(CLI::Range(2, 100000))
       ->default_str("");  // not given: no draws (0 is not a value a user types)
   cmd->add_option("--seed", in->seed, "Seed of the --uncertainty draws")->capture_default_str();

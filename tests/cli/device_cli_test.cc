@@ -113,6 +113,41 @@ TEST_F(DeviceCli, CalibratesTheDeviceFromBallsAndMeasuresThroughIt) {
   EXPECT_NEAR(p["rx_mm"].get<double>(), 8.35, kRadiusTolMm) << m.output;
   EXPECT_NEAR(p["ry_mm"].get<double>(), 7.63, kRadiusTolMm) << m.output;
   EXPECT_EQ(j["image"]["indexed"].get<int>(), 624);
+
+  // Every number carries its U (k = 2; issue 32): the device's covariance, the image's spot noise. The truth lies
+  // within it, the output never prints "+- 0.0000", and the axial map has its U map beside it.
+  const auto& u = j["uncertainty"];
+  EXPECT_EQ(u["coverage_factor"].get<int>(), 2);
+  EXPECT_TRUE(u["device_covariance"].get<bool>());
+  EXPECT_EQ(u["device_directions"].get<int>(), 10);
+  EXPECT_EQ(u["method"].get<std::string>(), "device: linear; spots: Monte Carlo");
+  const std::pair<const char*, double> truth[] = {
+      {"surface_fit.rx_mm", 8.35}, {"surface_fit.ry_mm", 7.63}, {"surface_fit.kx", -0.43}, {"surface_fit.ky", -0.25}};
+  for (const auto& [name, value] : truth) {
+    const auto& q = u["quantities"][name];
+    EXPECT_GT(q["expanded"].get<double>(), 0.0) << name;
+    EXPECT_LE(std::abs(q["value"].get<double>() - value), q["expanded"].get<double>()) << name;
+  }
+  EXPECT_GT(u["quantities"]["clinical.kmax.power_D"]["expanded"].get<double>(), 0.0);
+  EXPECT_NE(m.output.find("uncertainties below are U (k = 2) from: the device's covariance"), std::string::npos)
+      << m.output;
+  EXPECT_EQ(m.output.find("+- 0.0000"), std::string::npos) << m.output;
+  // The device's part by Monte Carlo (a cross-check of the linear propagation) and the U map.
+  const auto mc = RunTopocal("reconstruct --config " + paper_ + " --image " + Path("cornea.png") + " --device " +
+                             Path("calibrated.json") + " --uncertainty 30 --seed 5 --json " + Path("mc.json") +
+                             " --maps " + Path("maps"));
+  ASSERT_EQ(mc.exit_code, 0) << mc.output;
+  const auto jm = nlohmann::json::parse(std::ifstream(Path("mc.json")));
+  EXPECT_EQ(jm["uncertainty"]["method"].get<std::string>(), "device: Monte Carlo; spots: Monte Carlo");
+  EXPECT_EQ(jm["uncertainty"]["device_analyses"].get<int>(), 30);
+  EXPECT_TRUE(fs::exists(Path("maps/axial_uncertainty.png")));
+  EXPECT_TRUE(fs::exists(Path("maps/axial_uncertainty.csv")));
+  // A hand-written device has no covariance: said so, not taken as zero.
+  const auto plain = RunTopocal("reconstruct --config " + paper_ + " --image " + Path("cornea.png") + " --device " +
+                                Path("unit.json"));
+  ASSERT_EQ(plain.exit_code, 0) << plain.output;
+  EXPECT_NE(plain.output.find("NOT the device (its file has no calibration covariance"), std::string::npos)
+      << plain.output;
 }
 
 TEST_F(DeviceCli, SimulateThroughTheNominalDeviceIsThePapersImage) {
