@@ -12,6 +12,7 @@
 #include "imageio/image_file.h"
 #include "model/null_screen.h"
 #include "pipeline/map_output.h"
+#include "pipeline/measurement_uncertainty.h"
 #include "pipeline/measure_spots.h"
 #include "python/src/py_common.h"
 #include "report/analysis_json.h"
@@ -129,18 +130,26 @@ py::dict MapsDict(const pipeline::AnalysisGrids& grids, const topo::PowerMaps& p
   return maps;
 }
 
-// The result document and the maps of an analysis; the maps are computed without the GIL.
-py::dict MeasurementDict(const nlohmann::json& result, const topo::Analysis& a) {
+// The result document and the maps of an analysis (with the U of its axial map when measured through a device);
+// the maps are computed without the GIL.
+py::dict MeasurementDict(const nlohmann::json& result, const topo::Analysis& a,
+                         const std::vector<double>* axial_expanded_D = nullptr) {
   pipeline::AnalysisGrids grids;
   {
     py::gil_scoped_release release;
     grids = pipeline::AnalysisGridsOf(a);
   }
-  return py::dict(py::arg("result") = ToPython(result), py::arg("maps") = MapsDict(grids, a.power));
+  py::dict maps = MapsDict(grids, a.power);
+  if (axial_expanded_D) {
+    py::array_t<double> u({static_cast<py::ssize_t>(a.power.meridians), static_cast<py::ssize_t>(a.power.radial_samples)});
+    std::copy(axial_expanded_D->begin(), axial_expanded_D->end(), u.mutable_data());
+    maps["polar"].cast<py::dict>()["axial_expanded_D"] = u;
+  }
+  return py::dict(py::arg("result") = ToPython(result), py::arg("maps") = maps);
 }
 
 py::dict ReconstructImage(const py::array& image, const model::DeviceFile& dev, const model::Config& cfg,
-                          const std::string& estimator, bool truth) {
+                          const std::string& estimator, bool truth, const pipeline::UncertaintyOptions& u_options) {
   const cv::Mat view = SensorImage(image, dev.device.camera);
   pipeline::EyeMeasurement m;
   try {
@@ -160,12 +169,27 @@ py::dict ReconstructImage(const py::array& image, const model::DeviceFile& dev, 
     info["refused"] = m.verdict.reasons;
     RaiseRefused(fmt::format("measurement refused: {}", fmt::join(m.verdict.reasons, "; ")), m.verdict.reasons, info);
   }
+  // Every number with its U, as `reconstruct --device` reports it (pipeline/measurement_uncertainty.h).
+  const auto covariance = model::DeviceCovarianceOf(dev.calibration, "device");
+  pipeline::MeasurementUncertainty u;
+  try {
+    py::gil_scoped_release release;
+    u = pipeline::PropagateMeasurementUncertainty(m.spots.detected, dev.device, covariance, cfg, m.analysis, u_options);
+  } catch (const std::runtime_error& e) {
+    const std::string reason = fmt::format("its uncertainty cannot be evaluated: {}", e.what());
+    info["valid"] = false;
+    info["refused"] = {reason};
+    RaiseRefused(fmt::format("measurement refused: {}", reason), {reason}, info);
+  }
+  info["uncertainty"] = report::MeasurementUncertaintyJson(u);
   info.update(report::MeasurementJson(m.analysis, truth));
-  return MeasurementDict(info, m.analysis);
+  return MeasurementDict(info, m.analysis, &u.axial_expanded_D);
 }
 
 py::dict Reconstruct(const py::object& config, const py::object& device, const py::object& image,
-                     const py::object& spots, const std::string& estimator, bool truth, const std::string& eye) {
+                     const py::object& spots, const std::string& estimator, bool truth, const std::string& eye,
+                     int uncertainty, unsigned seed) {
+  if (uncertainty < 0) throw util::InputError("uncertainty: must be >= 0 (0: linear propagation)");
   if (!eye.empty() && eye != "OD" && eye != "OS") throw util::InputError("eye: must be OD, OS or empty");
   model::Config cfg = ConfigArg(config);
   // As `topocal reconstruct`: unless the configuration names a surface model, the spline joins where the
@@ -174,7 +198,10 @@ py::dict Reconstruct(const py::object& config, const py::object& device, const p
   if (image.is_none() == spots.is_none()) throw util::InputError("reconstruct: give one of image or spots");
   if (!image.is_none()) {
     if (device.is_none()) throw util::InputError("reconstruct: image needs device (the calibrated device)");
-    py::dict out = ReconstructImage(image.cast<py::array>(), DeviceArg(device), cfg, estimator, truth);
+    pipeline::UncertaintyOptions u_options;
+    u_options.device_draws = uncertainty;
+    u_options.seed = seed;
+    py::dict out = ReconstructImage(image.cast<py::array>(), DeviceArg(device), cfg, estimator, truth, u_options);
     if (!eye.empty()) out["result"]["eye"] = eye;
     return out;
   }
@@ -217,7 +244,8 @@ void RegisterMeasure(py::module_& m) {
         "pattern cannot be identified.");
   m.def("_reconstruct", &Reconstruct, py::arg("config"), py::arg("device") = py::none(),
         py::arg("image") = py::none(), py::arg("spots") = py::none(), py::arg("estimator") = "psf",
-        py::arg("truth") = false, py::arg("eye") = "", "See topocal.reconstruct.");
+        py::arg("truth") = false, py::arg("eye") = "", py::arg("uncertainty") = 0, py::arg("seed") = 1u,
+        "See topocal.reconstruct.");
 }
 
 }  // namespace topocal::python

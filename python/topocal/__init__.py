@@ -86,7 +86,7 @@ class Measurement:
 
 def reconstruct(config: Union[Config, PathLike], device: Union[Device, PathLike, None] = None,
                 image: Optional[np.ndarray] = None, spots: Optional[np.ndarray] = None, estimator: str = "psf",
-                truth: bool = False, eye: str = "") -> Measurement:
+                truth: bool = False, eye: str = "", uncertainty: int = 0, seed: int = 1) -> Measurement:
     """Measure a cornea, as `topocal reconstruct` does.
 
     Give `image` (a raw sensor image, 2-D uint8/uint16, with the calibrated `device`), or `spots` (a structured
@@ -96,9 +96,12 @@ def reconstruct(config: Union[Config, PathLike], device: Union[Device, PathLike,
     its reasons) when the capture cannot support it. truth=True compares with the configuration's cornea.
     eye: "OD" or "OS" (recorded in result["eye"], as `reconstruct --eye`).
     The configuration's surface model defaults to "auto" (the spline joins where the polynomial does not fit).
+    From an image, every number carries its U (k = 2) as `reconstruct --device` reports it: result["uncertainty"]
+    (per quantity: value, expanded, its sources) and polar["axial_expanded_D"] (U of the axial map at each sample);
+    the device's part by linear propagation, or by `uncertainty` seeded Monte Carlo draws (`--uncertainty N`).
     """
     out = _topocal._reconstruct(config, device=device, image=image, spots=spots, estimator=estimator, truth=truth,
-                                eye=eye)
+                                eye=eye, uncertainty=uncertainty, seed=seed)
     maps = dict(out["maps"])
     polar = maps.pop("polar")
     return Measurement(result=out["result"], maps={name: Map(**m) for name, m in maps.items()}, polar=polar)

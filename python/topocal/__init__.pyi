@@ -99,7 +99,8 @@ class Measurement:
 
 def reconstruct(config: Union[Config, PathLike], device: Union[Device, PathLike, None] = ...,
                 image: Optional[npt.NDArray[Any]] = ..., spots: Optional[npt.NDArray[Any]] = ...,
-                estimator: str = ..., truth: bool = ..., eye: str = ...) -> Measurement: ...
+                estimator: str = ..., truth: bool = ..., eye: str = ..., uncertainty: int = ...,
+                seed: int = ...) -> Measurement: ...
 
 @dataclass(frozen=True)
 class Calibration:

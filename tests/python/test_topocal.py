@@ -157,6 +157,13 @@ def test_reconstruct_gives_the_cli_numbers_and_maps(work, eye):
     assert np.array_equal(grid[:241, 0], axial.x_mm)
     assert set(m.maps) == {"axial_power", "tangential_power", "elevation"}
     assert m.polar["axial_D"].shape == (len(m.polar["theta_deg"]), len(m.polar["rho_mm"]))
+    # Every number with its U, as the CLI reports it (the equality above covers the JSON): the U map beside the
+    # axial map, positive wherever the axial map is measured.
+    assert m.result["uncertainty"]["coverage_factor"] == 2
+    u_map = m.polar["axial_expanded_D"]
+    assert u_map.shape == m.polar["axial_D"].shape
+    measured = np.isfinite(m.polar["axial_D"])
+    assert np.all(u_map[measured] > 0)
 
 
 def test_the_thread_count_does_not_change_the_spots(eye):
