@@ -2,6 +2,9 @@
 // images in memory: detect + index each ball, then the bundle adjustment), on one core. Target <= 1 s.
 // The peer in the same run: OpenCV's cv::calibrateCamera on the same number of points (three views of a 624-point
 // planar pattern), the closest thing a general camera-calibration library does with comparable data.
+// Issue 32, item 6: a measurement of an eye through the calibrated device (detect, index, reconstruct, reject
+// outliers, judge) without and with the U of every number (linear propagation of the device's covariance + 16 draws
+// of the spot noise), on one core and on every core: process CPU time, the figure the issue bounds (+50 %).
 // Run: build/bench/bench_device --benchmark_min_time=1
 #include <benchmark/benchmark.h>
 
@@ -12,6 +15,8 @@
 #include "model/config.h"
 #include "model/device.h"
 #include "pipeline/device_calibration.h"
+#include "pipeline/measurement_uncertainty.h"
+#include "pipeline/measure_spots.h"
 
 namespace {
 
@@ -21,6 +26,9 @@ struct Scene {
   model::Config config;
   model::Device nominal, unit;
   std::vector<pipeline::BallImage> balls;
+  pipeline::DeviceCalibration calibrated;  // the unit calibrated from its balls
+  cv::Mat eye;                              // the paper cornea through the unit, on the full sensor
+  model::Config measure;                    // as reconstruct measures eyes: surface model "auto"
 };
 
 const Scene& GetScene() {
@@ -38,6 +46,12 @@ const Scene& GetScene() {
                                                          s.unit.camera.height_px, {}),
                          radii[i]});
     }
+    s.calibrated = pipeline::CalibrateDevice(s.balls, s.nominal, s.config, {});
+    const auto eye = correct::SpotsOnSensor(model::Biconic{s.config.cornea}, s.config.ideal_image,
+                                            s.config.topographer, s.unit);
+    s.eye = correct::RenderSpotImage(eye.spots, s.unit.camera.width_px, s.unit.camera.height_px, {});
+    s.measure = s.config;
+    s.measure.reconstruction.surface_model = "auto";
     return s;
   }();
   return scene;
@@ -89,6 +103,31 @@ void BM_OpenCvCalibrateCameraThreeViews(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_OpenCvCalibrateCameraThreeViews)->Unit(benchmark::kMillisecond);
+
+// Arg: threads of the propagation (1: one core; 0: every core). The measurement itself as reconstruct runs it.
+void BM_MeasureEyeThroughDevice(benchmark::State& state) {
+  const auto& s = GetScene();
+  if (!s.calibrated.fit.ok) state.SkipWithError(s.calibrated.fit.message.c_str());
+  for (auto _ : state) {
+    const auto m = pipeline::MeasureEye(s.eye, s.calibrated.fit.device, s.measure);
+    benchmark::DoNotOptimize(m.analysis.power.axial_D.data());
+  }
+}
+BENCHMARK(BM_MeasureEyeThroughDevice)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
+
+void BM_MeasureEyeWithUncertainty(benchmark::State& state) {
+  const auto& s = GetScene();
+  if (!s.calibrated.fit.ok) state.SkipWithError(s.calibrated.fit.message.c_str());
+  pipeline::UncertaintyOptions o;
+  o.jobs = static_cast<int>(state.range(0));
+  for (auto _ : state) {
+    const auto m = pipeline::MeasureEye(s.eye, s.calibrated.fit.device, s.measure);
+    const auto u = pipeline::PropagateMeasurementUncertainty(m.spots.detected, s.calibrated.fit.device,
+                                                             s.calibrated.fit.Covariance(), s.measure, m.analysis, o);
+    benchmark::DoNotOptimize(u.quantities.data());
+  }
+}
+BENCHMARK(BM_MeasureEyeWithUncertainty)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
 
 }  // namespace
 
