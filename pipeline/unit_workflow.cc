@@ -1,5 +1,7 @@
 #include "pipeline/unit_workflow.h"
 
+#include "pipeline/measurement_uncertainty.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -23,6 +25,7 @@
 #include "pipeline/detection_plane.h"
 #include "pipeline/device_calibration.h"
 #include "pipeline/device_verification.h"
+#include "pipeline/measurement_uncertainty.h"
 #include "pipeline/unit_verification.h"
 #include "util/file_glob.h"
 #include "util/io.h"
@@ -333,32 +336,36 @@ std::vector<std::string> UnitSummary(const UnitResult& unit) {
   lines.push_back(fmt::format("{}: {} {} calibration, {} view(s), {} corners, rms {:.4f} px{}", r.serial,
                               calib::ToString(result.model), c.single_view ? "single-view" : "multi-view",
                               result.views_used.size(), result.corners_used, result.rms_px,
-                              result.seidel ? fmt::format(", sigma {:.6g} +- {:.2g} mm^-2 (k=1)",
+                              result.seidel ? fmt::format(", sigma {:.6g} mm^-2 +- {:.2g} (U, k = 2)",
                                                           result.seidel->sigma_per_mm2,
-                                                          result.seidel->sigma_stddev_per_mm2)
+                                                          2.0 * result.seidel->sigma_stddev_per_mm2)
                                             : std::string()));
   lines.push_back(fmt::format("  distortion: up to {:.2f} um ({:.1f} px) over the spot field", field.max_um, field.max_px));
+  // A corrected number with the U (k = 2) the calibration's covariance gives it (GUM's rounding), or alone.
+  const auto with_u = [](const std::optional<ClinicalUncertainty>& u, const char* q, double value, int decimals) {
+    const double expanded = u && u->quantities.count(q) ? u->quantities.at(q).expanded_k2 : 0.0;
+    return FormatWithUncertainty(value, expanded, decimals);
+  };
   if (sphere) {
     const auto& s = *sphere;
     lines.push_back(fmt::format(
-        "  reference sphere R {} mm: radius error {:+.4f} -> {:+.4f} mm, central power error {:+.3f} -> {:+.3f} D",
-        s.radius_true_mm, s.RadiusErrorMm(s.uncorrected), s.RadiusErrorMm(s.corrected), s.PowerErrorD(s.uncorrected),
-        s.PowerErrorD(s.corrected)));
+        "  reference sphere R {} mm: radius error {:+.4f} -> {} mm, central power error {:+.3f} -> {} D{}",
+        s.radius_true_mm, s.RadiusErrorMm(s.uncorrected), with_u(s.uncertainty, "radius_mm", s.RadiusErrorMm(s.corrected), 4),
+        s.PowerErrorD(s.uncorrected), with_u(s.uncertainty, "central_axial_power_D", s.PowerErrorD(s.corrected), 3),
+        s.uncertainty ? " (U, k = 2: the calibration's covariance; the ball's certificate joins it in the QA report)"
+                      : ""));
   }
-  const auto u = [&](const char* q) {
-    if (!paper.uncertainty || !paper.uncertainty->quantities.count(q)) return std::string();
-    return fmt::format(" +- {:.2g}", paper.uncertainty->quantities.at(q).expanded_k2);
-  };
-  lines.push_back(fmt::format("  paper cornea (simulated): kx {:.4f} -> {:.4f}{}, ky {:.4f} -> {:.4f}{} (truth {}, {})",
-                              paper.uncorrected.numbers.kx, paper.corrected.numbers.kx, u("kx"),
-                              paper.uncorrected.numbers.ky, paper.corrected.numbers.ky, u("ky"), paper.truth.kx,
-                              paper.truth.ky));
+  lines.push_back(fmt::format("  paper cornea (simulated, informative): kx {:.4f} -> {}, ky {:.4f} -> {} (truth {}, {}{})",
+                              paper.uncorrected.numbers.kx, with_u(paper.uncertainty, "kx", paper.corrected.numbers.kx, 4),
+                              paper.uncorrected.numbers.ky, with_u(paper.uncertainty, "ky", paper.corrected.numbers.ky, 4),
+                              paper.truth.kx, paper.truth.ky, paper.uncertainty ? "; U, k = 2" : ""));
   if (device) {
     const auto& f = device->calibration.fit;
-    lines.push_back(fmt::format("  device from {} balls: {}", device->calibration.detections.size(), f.message));
+    lines.push_back(fmt::format("  device from {} balls: {} (parameters +- U, k = 2)", device->calibration.detections.size(),
+                                f.message));
     for (const char* name : {"rx_deg", "ry_deg", "principal_point_u_px", "principal_point_v_px", "a_mm"}) {
       if (const auto p = f.Parameter(name)) {
-        lines.push_back(fmt::format("    {:<22} {:>12.6g} +- {:.2g}", p->name, p->value, p->stddev));
+        lines.push_back(fmt::format("    {:<22} {}", p->name, FormatWithUncertainty(p->value, 2.0 * p->stddev, 6)));
       }
     }
     if (device->held_out) {

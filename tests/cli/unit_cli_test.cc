@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -64,6 +65,9 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
   const auto r = RunTopocal(Calibrate("SN-0001", out));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("reference sphere R 7.8 mm"), std::string::npos) << r.output;
+  // The verification's corrected errors with their U (k = 2, GUM's rounding), never "+- 0.0000".
+  EXPECT_NE(r.output.find("(U, k = 2: the calibration's covariance"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::regex_search(r.output, std::regex(R"(\+- 0\.?0*( |$))"))) << r.output;
   EXPECT_EQ(Entries(dir_ / "units"), std::vector<std::string>{"SN-0001"});
 
   const json j = json::parse(util::ReadFile(out + "/unit.json"));
