@@ -50,7 +50,14 @@ struct PsfCost {
   int NumResiduals() const { return static_cast<int>(pixels->size()); }
   bool operator()(const double* p, double* residuals, double* jacobian) const {
     const double sigma = p[3];
-    if (!(sigma > 0.05)) return false;
+    if (!(sigma > 0.05)) {
+      // A step to a non-physical width. Ceres' TinySolver (2.1) ignores a false return at a trial point and goes
+      // on with residuals never written (uninitialised memory: the same image gave different centres run to run),
+      // so the step is made unattractive instead: a huge, finite cost that the solver rejects.
+      for (int i = 0; i < NumResiduals(); ++i) residuals[i] = 1e10;
+      if (jacobian) std::fill(jacobian, jacobian + 5 * NumResiduals(), 0.0);
+      return true;
+    }
     thread_local std::vector<double> eu, du, su, ev, dv, sv;
     const auto profile = [sigma](int n, double centre, std::vector<double>& e, std::vector<double>& d,
                                  std::vector<double>& s) {
