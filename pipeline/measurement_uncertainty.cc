@@ -9,6 +9,8 @@
 #include <random>
 #include <set>
 #include <stdexcept>
+#include <tuple>
+#include <utility>
 
 #include "pipeline/uncertainty.h"
 #include "topo/clinical_indices.h"
@@ -174,6 +176,24 @@ void Combine(const Departures& s, const std::vector<NamedQuantity>& reference, b
   }
 }
 
+// The area-weighted rms and the largest value of a polar map (topo::PowerMaps layout) over the disc of `radius_mm`;
+// non-finite samples (outside the data) are left out.
+std::pair<double, double> DiscRmsAndMax(const std::vector<double>& map, const topo::PowerMaps& layout,
+                                        double radius_mm) {
+  double sum = 0, weight = 0, largest = 0;
+  for (int j = 0; j < layout.meridians; ++j) {
+    for (int k = 0; k < layout.radial_samples; ++k) {
+      const double rho = layout.RhoMm(k);
+      const double v = map[static_cast<size_t>(j) * layout.radial_samples + k];
+      if (rho > radius_mm || !std::isfinite(v)) continue;
+      sum += rho * v * v;
+      weight += rho;
+      largest = std::max(largest, v);
+    }
+  }
+  return {weight > 0 ? std::sqrt(sum / weight) : 0.0, largest};
+}
+
 // The spline's smoothing bias of a map's peaks and ranges (QuantityUncertainty::lower_bound).
 void MarkSmoothingBias(MeasurementUncertainty* u) {
   static const std::set<std::string> kPeaksAndRanges = {
@@ -325,9 +345,20 @@ MeasurementUncertainty PropagateMeasurementUncertainty(const std::vector<Measure
     throw std::runtime_error(fmt::format("uncertainty: {} of {} analyses failed", u.failed_draws, readings.size()));
   }
   Combine(sums, reference, options.device_draws > 0, &u);
+  std::tie(u.axial_rms_expanded_D, u.axial_max_expanded_D) =
+      DiscRmsAndMax(u.axial_expanded_D, nominal.power, nominal.supported_radius_mm);
   MarkAmbiguousPeaks(&u);
   if (nominal.reconstruction.surface_model == "spline") MarkSmoothingBias(&u);
   return u;
+}
+
+std::optional<std::string> UncertaintyRefusal(const MeasurementUncertainty& u) {
+  if (!(u.axial_max_expanded_D > kMaxAxialExpandedD)) return std::nullopt;
+  return fmt::format("its axial map is too uncertain for a clinical reading: U (k = 2) up to {:.2f} D ({:.2f} D "
+                     "rms) over the supported disc, above {:.2f} D (the spots' noise measured in this image is {:.2f} "
+                     "x the configured; docs/uncertainty.md)",
+                     u.axial_max_expanded_D, u.axial_rms_expanded_D, kMaxAxialExpandedD,
+                     u.configured_spot_sigma_um > 0 ? u.spot_sigma_um / u.configured_spot_sigma_um : 0.0);
 }
 
 std::string FormatWithUncertainty(double value, double expanded, int fallback_decimals) {

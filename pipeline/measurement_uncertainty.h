@@ -64,6 +64,9 @@ struct MeasurementUncertainty {
   std::vector<QuantityUncertainty> quantities;
   // U (k = 2) of the axial power at each sample of the analysis's polar map (topo::PowerMaps layout), D.
   std::vector<double> axial_expanded_D;
+  // Its rms (area-weighted) and its largest value over the disc the data support, D; the largest is what a clinical
+  // reading is refused on (UncertaintyRefusal).
+  double axial_rms_expanded_D = 0, axial_max_expanded_D = 0;
   const QuantityUncertainty* Find(const std::string& name) const;
 };
 
@@ -93,6 +96,15 @@ MeasurementUncertainty PropagateMeasurementUncertainty(const std::vector<Measure
                                                        const std::optional<model::DeviceCovariance>& covariance,
                                                        const model::Config& config, const topo::Analysis& nominal,
                                                        const UncertaintyOptions& options = {});
+
+// The largest U (k = 2) of the axial map anywhere over the supported disc that a clinical reading can use. Kmax is
+// read wherever the map peaks, so the map must be certain everywhere to the clinical-capture limit of |dKmax|
+// (0.50 D, the capture issue's gate): a standard uncertainty U / 2 at that limit. A capture whose noise, identities
+// or surface model leave the map less certain is refused (docs/uncertainty.md, "Refusal").
+inline constexpr double kMaxAxialExpandedD = 1.0;
+
+// Why the measurement's uncertainty leaves no clinical reading (nullopt: it does not).
+std::optional<std::string> UncertaintyRefusal(const MeasurementUncertainty& u);
 
 // A value and its expanded uncertainty as GUM prints them: U to two significant digits, the value rounded to the
 // same decimal place ("8.3501 +- 0.0012"). U <= 0 or not finite: the value alone to `fallback_decimals`.

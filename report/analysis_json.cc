@@ -219,6 +219,8 @@ nlohmann::json MeasurementUncertaintyJson(const pipeline::MeasurementUncertainty
           {"spot_draws", u.spot_draws},
           {"failed_analyses", u.failed_draws},
           {"axial_map_max_expanded_D", max_axial_u},
+          {"supported_disc_rms_expanded_D", u.axial_rms_expanded_D},
+          {"supported_disc_max_expanded_D", u.axial_max_expanded_D},
           {"quantities", quantities}};
 }
 

@@ -337,6 +337,9 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
                         json_out);
     }
     info["uncertainty"] = report::MeasurementUncertaintyJson(*measurement_u);
+    if (const auto reason = pipeline::UncertaintyRefusal(*measurement_u)) {
+      RefuseMeasurement(in.image, {false, {*reason}}, info, json_out);
+    }
   }
   PrintAnalysis(analysis, measurement_u ? &*measurement_u : nullptr);
   if (uncertainty) {

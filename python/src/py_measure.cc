@@ -182,6 +182,11 @@ py::dict ReconstructImage(const py::array& image, const model::DeviceFile& dev, 
     RaiseRefused(fmt::format("measurement refused: {}", reason), {reason}, info);
   }
   info["uncertainty"] = report::MeasurementUncertaintyJson(u);
+  if (const auto reason = pipeline::UncertaintyRefusal(u)) {
+    info["valid"] = false;
+    info["refused"] = {*reason};
+    RaiseRefused(fmt::format("measurement refused: {}", *reason), {*reason}, info);
+  }
   info.update(report::MeasurementJson(m.analysis, truth));
   return MeasurementDict(info, m.analysis, &u.axial_expanded_D);
 }

@@ -5,9 +5,8 @@
 // JudgeMeasurement) and compared with the truth. Gates: zero wrong identities; >= 90 % of the visible spots
 // identified; every measurement either refused with its reason or within twice the clean-image map limits (axial
 // rms 0.20 D and |dKmax| 0.50 D over the supported disc).
-// Not here, because it fails: a post-LASIK eye under every artefact at once (lid, lashes, iris, defocus to 3 px,
-// motion blur, glints, tear film) — of 7 seeds, 5 are refused by the model-adequacy check and 2 are accepted with
-// axial rms 0.83 and 1.50 D (docs/spot-identification.md, "Open").
+// A post-LASIK eye under every artefact at once (lid, lashes, iris, defocus to 3 px, motion blur, glints, tear
+// film) is measured as reconstruct measures it through a device, its U included: a map too uncertain is refused.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -26,6 +25,7 @@
 #include "model/freeform_test_set.h"
 #include "pipeline/capture_quality.h"
 #include "pipeline/measure_spots.h"
+#include "pipeline/measurement_uncertainty.h"
 #include "topo/truth_comparison.h"
 #include "util/io.h"
 
@@ -84,7 +84,19 @@ struct Outcome {
   topo::TruthComparison comparison;
 };
 
-Outcome Measure(const Capture& cap, uint32_t seed) {
+// The post-LASIK eye under every artefact at once.
+Capture PostLasikEverything() {
+  correct::Artefacts all;
+  all.lashes = 4;
+  all.iris_dn = 2500;
+  all.motion_blur_px = 1.5;
+  all.motion_blur_deg = 30;
+  return {"lasik-myopic-6D, everything", Freeform("lasik-myopic-6D"), 0.2, 0.05, 8000, all, 3.0, 2, 2};
+}
+
+// with_uncertainty: also the U of the measurement (the spots' measured noise; the drawn device is exact here, so it
+// has no covariance) and the refusal of a map too uncertain for a clinical reading (UncertaintyRefusal).
+Outcome Measure(const Capture& cap, uint32_t seed, bool with_uncertainty = false) {
   const auto cfg = testing::PaperConfig();
   std::mt19937 rng(seed);
   const model::Device device = testing::DrawDevice(rng);
@@ -142,7 +154,11 @@ Outcome Measure(const Capture& cap, uint32_t seed) {
   const topo::Analysis analysis = RejectSurfaceOutliers(
       m.spots, [&](const auto& s) { return AnalyzeThroughDevice(s, device, config, nullptr); }, &m.capture);
   out.surface_outliers = m.capture.surface_outliers;
-  const MeasurementVerdict verdict = JudgeMeasurement(m.capture, analysis);
+  MeasurementVerdict verdict = JudgeMeasurement(m.capture, analysis);
+  if (verdict.valid && with_uncertainty) {
+    const auto u = PropagateMeasurementUncertainty(m.detected, device, std::nullopt, config, analysis);
+    if (const auto reason = UncertaintyRefusal(u)) verdict = {false, {*reason}};
+  }
   if (!verdict.valid) {
     out.refused = true;
     out.reason = verdict.reasons.front();
@@ -160,7 +176,7 @@ TEST(ClinicalCapture, EveryIdentityRightAndEveryMeasurementWithinTwiceTheCleanLi
   uint32_t seed = 11;
   for (const auto& cap : Captures()) {
     SCOPED_TRACE(cap.name);
-    const Outcome r = Measure(cap, seed++);
+    const Outcome r = Measure(cap, seed++, /*with_uncertainty=*/true);
     EXPECT_EQ(r.wrong, 0);
     EXPECT_EQ(r.duplicates, 0);
     if (r.refused) {
@@ -184,12 +200,47 @@ TEST(ClinicalCapture, EveryIdentityRightAndEveryMeasurementWithinTwiceTheCleanLi
   }
   fmt::print("refused {}, worst axial rms {:.3f} D, worst |dKmax| {:.3f} D, lowest share {:.3f}\n", refused,
              worst_axial, worst_kmax, worst_share);
-  // Regression bounds near today's figures (2026-12-03: none refused; worst axial rms 0.078 D, worst |dKmax|
-  // 0.078 D, lowest identified share 0.984).
-  EXPECT_EQ(refused, 0);
-  EXPECT_LE(worst_axial, 0.12);
-  EXPECT_LE(worst_kmax, 0.15);
+  // Regression bounds near today's figures (2026-12-05, their U included): the two post-LASIK captures refused, their
+  // axial maps' U reaching 1.02 and 1.92 D at the blend zone (U of Kmax 0.30 and 1.8 D), where their errors were
+  // small (axial rms 0.061 and 0.078 D, |dKmax| 0.08 and 0.05 D): the price of refusing the 3 wrong ones of the test
+  // below (docs/uncertainty.md, "Refusal"). Of the others: worst axial rms 0.028 D, worst |dKmax| 0.034 D, lowest
+  // identified share 0.984.
+  EXPECT_EQ(refused, 2);
+  EXPECT_LE(worst_axial, 0.05);
+  EXPECT_LE(worst_kmax, 0.06);
   EXPECT_GE(worst_share, 0.97);
+}
+
+// Before the measurement's U, 3 of these 7 seeds were accepted with axial rms 0.39, 0.31 and 0.84 D (|dKmax| 1.3,
+// 0.9 and 1.8 D): under the adequacy check's 3x, because the spline smooths the blend zone to the noise it sees.
+// Their axial maps' U reaches 3.7, 2.9 and 5.3 D: refused now. Measured 2026-12-05: 3 refused by the adequacy check,
+// 3 by their U, seed 13 accepted with axial rms 0.116 D and dKmax +0.33 D.
+TEST(ClinicalCapture, APostLasikEyeUnderEveryArtefactIsWithinTwiceTheCleanLimitsOrRefused) {
+  int refused = 0, refused_for_u = 0, wrong_in_refused = 0;
+  for (uint32_t seed = 11; seed < 18; ++seed) {
+    SCOPED_TRACE(seed);
+    const Outcome r = Measure(PostLasikEverything(), seed, /*with_uncertainty=*/true);
+    EXPECT_EQ(r.duplicates, 0);
+    if (r.refused) {
+      ++refused;
+      refused_for_u += r.reason.find("too uncertain") != std::string::npos;
+      wrong_in_refused += r.wrong;
+      fmt::print("seed {}: refused ({} wrong identities): {}\n", seed, r.wrong, r.reason);
+      continue;
+    }
+    const auto& c = r.comparison;
+    fmt::print("seed {}: accepted, axial rms {:.3f} D, dKmax {:+.3f} D\n", seed, c.axial_rms_D, c.kmax_error_D);
+    // Acceptance: no wrong identity in a measurement given, and the clinical-capture limits (twice the clean ones).
+    EXPECT_EQ(r.wrong, 0);
+    EXPECT_LE(c.axial_rms_D, kAxialRmsD);
+    EXPECT_LE(std::abs(c.kmax_error_D), kKmaxD);
+  }
+  // Regression near today's figures: 6 of 7 refused, 3 of them for their U. The refused ones hold 4 wrong
+  // identities (seeds 11 and 15): the capture issue's "zero wrong labels on every image" is not met under every
+  // artefact at once (docs/spot-identification.md, "Limits"); no number is given from them.
+  EXPECT_EQ(refused, 6);
+  EXPECT_EQ(refused_for_u, 3);
+  EXPECT_LE(wrong_in_refused, 6);
 }
 
 }  // namespace
