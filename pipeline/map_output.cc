@@ -172,6 +172,35 @@ plot::MapScaleRequest UncertaintyScale() {
   return r;
 }
 
+// The elevation above the best-fit sphere, its peak marked.
+PendingMap ElevationMap(const std::string& base, const AnalysisMapEntry& e, AnalysisGrids* grids) {
+  const topo::Analysis& a = *e.analysis;
+  PendingMap elev{base + "elevation", std::move(*grids->elevation_um),
+                  {BestFitSphereLine(grids->best_fit_sphere.radius_mm, grids->best_fit_sphere.centre_mm)}};
+  elev.grid.title = fmt::format("Elevation above the best-fit sphere{}", e.label);
+  elev.supported_radius_mm = a.supported_radius_mm;
+  if (a.clinical_ok) {
+    const auto& c = a.clinical;
+    elev.markers.push_back({c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y()});
+    elev.legend.push_back(fmt::format(
+        "magenta dot: elevation peak {:.2f} \u00b5m at ({:+.2f}, {:+.2f}) mm (sphere fitted within {:.2f} mm)",
+        c.elevation_peak_um, c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y(), c.bfs_zone_radius_mm));
+  }
+  elev.legend.push_back(SupportLegend(a.supported_radius_mm));
+  return elev;
+}
+
+// The U (k = 2) of the axial map, beside it.
+PendingMap UncertaintyMap(const std::string& base, const AnalysisMapEntry& e, double supported_radius_mm) {
+  PendingMap u(base + "axial_uncertainty",
+               PowerGrid(e.analysis->power, *e.axial_expanded_D, fmt::format("U of the axial power (k = 2){}", e.label)));
+  u.supported_radius_mm = supported_radius_mm;
+  u.legend.push_back("expanded uncertainty U (k = 2) of the axial map at each point: device covariance and the "
+                     "image's spot noise");
+  u.legend.push_back(SupportLegend(supported_radius_mm));
+  return u;
+}
+
 EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
   EntryMaps out;
   const std::string base = (std::filesystem::path(dir) / e.prefix).string();
@@ -223,29 +252,9 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
   out.tangential = std::move(tangential_map);
   const double r = a.covered_radius_mm;
   const auto& rec = a.reconstruction;
-  if (grids.elevation_um) {
-    PendingMap elev{base + "elevation", std::move(*grids.elevation_um),
-                    {BestFitSphereLine(grids.best_fit_sphere.radius_mm, grids.best_fit_sphere.centre_mm)}};
-    elev.grid.title = fmt::format("Elevation above the best-fit sphere{}", e.label);
-    elev.supported_radius_mm = supported;
-    if (a.clinical_ok) {
-      const auto& c = a.clinical;
-      elev.markers.push_back({c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y()});
-      elev.legend.push_back(fmt::format(
-          "magenta dot: elevation peak {:.2f} \u00b5m at ({:+.2f}, {:+.2f}) mm (sphere fitted within {:.2f} mm)",
-          c.elevation_peak_um, c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y(), c.bfs_zone_radius_mm));
-    }
-    elev.legend.push_back(SupportLegend(supported));
-    out.elevation = std::move(elev);
-  }
+  if (grids.elevation_um) out.elevation = ElevationMap(base, e, &grids);
   if (e.axial_expanded_D && e.axial_expanded_D->size() == a.power.axial_D.size()) {
-    PendingMap u(base + "axial_uncertainty",
-                 PowerGrid(a.power, *e.axial_expanded_D, fmt::format("U of the axial power (k = 2){}", e.label)));
-    u.supported_radius_mm = supported;
-    u.legend.push_back("expanded uncertainty U (k = 2) of the axial map at each point: device covariance and the "
-                       "image's spot noise");
-    u.legend.push_back(SupportLegend(supported));
-    out.axial_uncertainty = std::move(u);
+    out.axial_uncertainty = UncertaintyMap(base, e, supported);
   }
   if (e.truth) {
     const model::Surface truth = model::Biconic{*e.truth};

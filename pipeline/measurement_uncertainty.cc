@@ -101,6 +101,36 @@ void MarkAmbiguousPeaks(MeasurementUncertainty* u) {
        {"clinical.best_fit_sphere.elevation_peak_x_mm", "clinical.best_fit_sphere.elevation_peak_y_mm"});
 }
 
+// `device` moved by `shift` (in the covariance's parameters and units).
+model::Device ShiftedDevice(const model::Device& device, const std::vector<std::string>& names,
+                            const Eigen::VectorXd& shift) {
+  model::Device d = device;
+  for (size_t k = 0; k < names.size(); ++k) {
+    model::ShiftDeviceParameter(&d, names[k], shift(static_cast<Eigen::Index>(k)));
+  }
+  return d;
+}
+
+// The spots as `moved` sees them: each keeps its pixel on the sensor, the device moves under it.
+std::vector<MeasuredImageSpot> SpotsUnder(const model::Device& moved, const model::Device& device,
+                                          std::vector<MeasuredImageSpot> spots) {
+  for (auto& s : spots) s.distorted_mm = moved.camera.DetectionPlaneFromPixel(device.camera.PixelFromDetectionPlane(s.distorted_mm));
+  return spots;
+}
+
+// Spot draw `i`: the spots with normal noise of `sigma_um` per axis, seeded by (seed, i).
+std::vector<MeasuredImageSpot> NoisySpots(std::vector<MeasuredImageSpot> spots, double sigma_um, std::uint32_t seed,
+                                          std::uint32_t i) {
+  std::seed_seq seq{seed, i};
+  std::mt19937 rng(seq);
+  std::normal_distribution<double> normal(0.0, sigma_um * 1e-3);
+  for (auto& s : spots) {
+    s.distorted_mm.x() += normal(rng);
+    s.distorted_mm.y() += normal(rng);
+  }
+  return spots;
+}
+
 // Monte Carlo draws of the device: draw i = sum_j z_ij sqrt(l_j) v_j, z ~ N(0, 1) seeded by (seed, i).
 std::vector<Eigen::VectorXd> DeviceDraws(const std::vector<Eigen::VectorXd>& scaled_directions,
                                          const UncertaintyOptions& options) {
@@ -318,24 +348,11 @@ MeasurementUncertainty PropagateMeasurementUncertainty(const std::vector<Measure
   std::vector<std::optional<Reading>> readings(n_dir + n_spot);
   util::ParallelFor(n_dir + n_spot, std::max(0, options.jobs), [&](size_t i) {
     if (i < n_dir) {
-      model::Device d = device;
-      for (size_t k = 0; k < covariance->names.size(); ++k) {
-        model::ShiftDeviceParameter(&d, covariance->names[k], directions[i](static_cast<Eigen::Index>(k)));
-      }
-      std::vector<MeasuredImageSpot> moved = used;
-      for (auto& s : moved) s.distorted_mm = d.camera.DetectionPlaneFromPixel(device.camera.PixelFromDetectionPlane(s.distorted_mm));
-      readings[i] = analyze(d, moved);
-      return;
+      const model::Device d = ShiftedDevice(device, covariance->names, directions[i]);
+      readings[i] = analyze(d, SpotsUnder(d, device, used));
+    } else {
+      readings[i] = analyze(device, NoisySpots(used, u.spot_sigma_um, options.seed, static_cast<std::uint32_t>(i - n_dir)));
     }
-    std::seed_seq seq{options.seed, static_cast<std::uint32_t>(i - n_dir)};
-    std::mt19937 rng(seq);
-    std::normal_distribution<double> normal(0.0, u.spot_sigma_um * 1e-3);
-    std::vector<MeasuredImageSpot> noisy = used;
-    for (auto& s : noisy) {
-      s.distorted_mm.x() += normal(rng);
-      s.distorted_mm.y() += normal(rng);
-    }
-    readings[i] = analyze(device, noisy);
   });
 
   const Departures sums = Accumulate(readings, n_dir, *centre, reference, &u);

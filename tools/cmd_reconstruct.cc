@@ -277,6 +277,51 @@ plot::MapScaleRequest PowerScaleOf(const Inputs& in) {
 }
 
 // The verb's work, once its options are parsed.
+// The lens calibration's uncertainty carried by Monte Carlo (--calibration --uncertainty N): printed, and its JSON.
+nlohmann::json PrintCalibrationUncertainty(const pipeline::ClinicalUncertainty& uncertainty) {
+  fmt::print("calibration uncertainty carried through ({} draws of {}, {}; {} failed; {} spot(s) not undistorted "
+             "in {} draw(s)), mean +- U (k = 2):\n",
+             uncertainty.samples, fmt::join(uncertainty.drawn, ", "),
+             uncertainty.correlated ? "with their covariance" : "independent (the file has no covariance)",
+             uncertainty.failed_samples, uncertainty.undistort_failures, uncertainty.draws_with_undistort_failures);
+  for (const auto& [name, q] : uncertainty.quantities) {
+    fmt::print("  {:<16} {:>12.6f} +- {:.3g}\n", name, q.mean, q.expanded_k2);
+  }
+  nlohmann::json u;
+  u["samples"] = uncertainty.samples;
+  u["failed_samples"] = uncertainty.failed_samples;
+  u["undistort_failures"] = uncertainty.undistort_failures;
+  u["draws_with_undistort_failures"] = uncertainty.draws_with_undistort_failures;
+  u["drawn"] = uncertainty.drawn;
+  u["correlated"] = uncertainty.correlated;
+  u["coverage_factor"] = 2;
+  for (const auto& [name, q] : uncertainty.quantities) u[name] = {{"mean", q.mean}, {"expanded", q.expanded_k2}};
+  return u;
+}
+
+// The U of every number measured through a device (its "uncertainty" JSON block in `info`); the measurement is
+// refused when the U cannot be evaluated or leaves no clinical reading (pipeline::UncertaintyRefusal).
+pipeline::MeasurementUncertainty UncertaintyOrRefusal(const Inputs& in,
+                                                      const std::vector<pipeline::MeasuredImageSpot>& detected,
+                                                      const model::Device& device,
+                                                      const std::optional<model::DeviceCovariance>& covariance,
+                                                      const model::Config& cfg, const topo::Analysis& analysis,
+                                                      nlohmann::json* info, const std::string& json_out) {
+  pipeline::UncertaintyOptions u_options;
+  u_options.device_draws = in.uncertainty_samples;
+  u_options.seed = in.seed;
+  pipeline::MeasurementUncertainty u;
+  try {
+    u = pipeline::PropagateMeasurementUncertainty(detected, device, covariance, cfg, analysis, u_options);
+  } catch (const std::runtime_error& e) {
+    RefuseMeasurement(in.image, {false, {fmt::format("its uncertainty cannot be evaluated: {}", e.what())}}, *info,
+                      json_out);
+  }
+  (*info)["uncertainty"] = report::MeasurementUncertaintyJson(u);
+  if (const auto reason = pipeline::UncertaintyRefusal(u)) RefuseMeasurement(in.image, {false, {*reason}}, *info, json_out);
+  return u;
+}
+
 void Run(const std::string& config, const Inputs& in, const std::string& json_out, const std::string& maps, bool truth,
          const ReconstructionOverrides& overrides) {
   const NewDirectoryGuard maps_guard(maps);  // a failed run leaves no empty --maps folder
@@ -326,43 +371,10 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
   // fit's residual (pipeline/measurement_uncertainty.h).
   std::optional<pipeline::MeasurementUncertainty> measurement_u;
   if (device && capture) {
-    pipeline::UncertaintyOptions u_options;
-    u_options.device_draws = in.uncertainty_samples;
-    u_options.seed = in.seed;
-    try {
-      measurement_u = pipeline::PropagateMeasurementUncertainty(detected, *device, device_covariance, cfg, analysis,
-                                                                u_options);
-    } catch (const std::runtime_error& e) {
-      RefuseMeasurement(in.image, {false, {fmt::format("its uncertainty cannot be evaluated: {}", e.what())}}, info,
-                        json_out);
-    }
-    info["uncertainty"] = report::MeasurementUncertaintyJson(*measurement_u);
-    if (const auto reason = pipeline::UncertaintyRefusal(*measurement_u)) {
-      RefuseMeasurement(in.image, {false, {*reason}}, info, json_out);
-    }
+    measurement_u = UncertaintyOrRefusal(in, detected, *device, device_covariance, cfg, analysis, &info, json_out);
   }
   PrintAnalysis(analysis, measurement_u ? &*measurement_u : nullptr);
-  if (uncertainty) {
-    fmt::print("calibration uncertainty carried through ({} draws of {}, {}; {} failed; {} spot(s) not undistorted "
-               "in {} draw(s)), mean +- U (k = 2):\n",
-               uncertainty->samples, fmt::join(uncertainty->drawn, ", "),
-               uncertainty->correlated ? "with their covariance" : "independent (the file has no covariance)",
-               uncertainty->failed_samples, uncertainty->undistort_failures,
-               uncertainty->draws_with_undistort_failures);
-    for (const auto& [name, q] : uncertainty->quantities) {
-      fmt::print("  {:<16} {:>12.6f} +- {:.3g}\n", name, q.mean, q.expanded_k2);
-    }
-    nlohmann::json u;
-    u["samples"] = uncertainty->samples;
-    u["failed_samples"] = uncertainty->failed_samples;
-    u["undistort_failures"] = uncertainty->undistort_failures;
-    u["draws_with_undistort_failures"] = uncertainty->draws_with_undistort_failures;
-    u["drawn"] = uncertainty->drawn;
-    u["correlated"] = uncertainty->correlated;
-    u["coverage_factor"] = 2;
-    for (const auto& [name, q] : uncertainty->quantities) u[name] = {{"mean", q.mean}, {"expanded", q.expanded_k2}};
-    info["uncertainty"] = u;
-  }
+  if (uncertainty) info["uncertainty"] = PrintCalibrationUncertainty(*uncertainty);
   util::StagedOutputs outputs;  // the JSON and the maps are published together or not at all
   if (!json_out.empty()) {
     nlohmann::json j = info;
