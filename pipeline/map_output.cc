@@ -172,6 +172,9 @@ plot::MapScaleRequest UncertaintyScale() {
   return r;
 }
 
+// A peak whose twin lies within U (MarkAmbiguousPeaks): named, not placed.
+constexpr const char* kUndeterminedLocation = "a location not determined (a second peak lies within U)";
+
 // The elevation above the best-fit sphere, its peak marked.
 PendingMap ElevationMap(const std::string& base, const AnalysisMapEntry& e, AnalysisGrids* grids) {
   const topo::Analysis& a = *e.analysis;
@@ -181,10 +184,15 @@ PendingMap ElevationMap(const std::string& base, const AnalysisMapEntry& e, Anal
   elev.supported_radius_mm = a.supported_radius_mm;
   if (a.clinical_ok) {
     const auto& c = a.clinical;
-    elev.markers.push_back({c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y()});
-    elev.legend.push_back(fmt::format(
-        "magenta dot: elevation peak {:.2f} \u00b5m at ({:+.2f}, {:+.2f}) mm (sphere fitted within {:.2f} mm)",
-        c.elevation_peak_um, c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y(), c.bfs_zone_radius_mm));
+    if (e.elevation_peak_location_determined) {
+      elev.markers.push_back({c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y()});
+      elev.legend.push_back(fmt::format(
+          "magenta dot: elevation peak {:.2f} \u00b5m at ({:+.2f}, {:+.2f}) mm (sphere fitted within {:.2f} mm)",
+          c.elevation_peak_um, c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y(), c.bfs_zone_radius_mm));
+    } else {
+      elev.legend.push_back(fmt::format("elevation peak {:.2f} \u00b5m at {} (sphere fitted within {:.2f} mm)",
+                                        c.elevation_peak_um, kUndeterminedLocation, c.bfs_zone_radius_mm));
+    }
   }
   elev.legend.push_back(SupportLegend(a.supported_radius_mm));
   return elev;
@@ -214,7 +222,9 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
                                       c.steep_axis_deg, c.flat_k_D, c.flat_axis_deg, c.CylinderD())
                         : fmt::format("sim-K {:.2f} D / {:.2f} D (cyl {:.2f} D: no axis)", c.steep_k_D, c.flat_k_D,
                                       c.CylinderD()));
-    notes.push_back(fmt::format("Kmax {:.2f} D at ({:+.2f}, {:+.2f}) mm", c.kmax_D, c.kmax_at_mm.x(), c.kmax_at_mm.y()));
+    notes.push_back(e.kmax_location_determined
+                        ? fmt::format("Kmax {:.2f} D at ({:+.2f}, {:+.2f}) mm", c.kmax_D, c.kmax_at_mm.x(), c.kmax_at_mm.y())
+                        : fmt::format("Kmax {:.2f} D at {}", c.kmax_D, kUndeterminedLocation));
   }
   // Overlays from the clinical indices (issue 18, item 6): the sim-K axes across the supported disc on both
   // power maps, Kmax (an axial quantity) on the axial map, the elevation peak on the elevation map, and on every
@@ -241,7 +251,7 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
     if (!axes_legend.empty()) m->legend.push_back(axes_legend);
     m->legend.push_back(SupportLegend(supported));
   }
-  if (a.clinical_ok) {
+  if (a.clinical_ok && e.kmax_location_determined) {
     const auto& c = a.clinical;
     axial_map.markers.push_back({c.kmax_at_mm.x(), c.kmax_at_mm.y()});
     axial_map.legend.insert(axial_map.legend.begin(),

@@ -23,6 +23,9 @@ struct AnalysisMapEntry {
   // U (k = 2) of the axial power at each sample of the analysis's polar map (MeasurementUncertainty::
   // axial_expanded_D): adds <prefix>axial_uncertainty.{csv,png}, beside the axial map it qualifies.
   const std::vector<double>* axial_expanded_D = nullptr;
+  // false: the data do not determine the peak's location (QuantityUncertainty::determined): no dot, and the legend
+  // says so.
+  bool kmax_location_determined = true, elevation_peak_location_determined = true;
 };
 
 struct MapSetOptions {

@@ -195,6 +195,16 @@ nlohmann::json MeasurementJson(const topo::Analysis& a, bool truth) {
   return j;
 }
 
+void WithdrawUndetermined(const pipeline::MeasurementUncertainty& u, nlohmann::json* measurement) {
+  for (const auto& q : u.quantities) {
+    if (q.determined) continue;
+    std::string pointer = "/" + q.name;
+    std::replace(pointer.begin(), pointer.end(), '.', '/');
+    const nlohmann::json::json_pointer at(pointer);
+    if (measurement->contains(at)) (*measurement)[at] = nullptr;
+  }
+}
+
 nlohmann::json MeasurementUncertaintyJson(const pipeline::MeasurementUncertainty& u) {
   nlohmann::json quantities = nlohmann::json::object();
   for (const auto& q : u.quantities) {

@@ -37,6 +37,9 @@ nlohmann::json MeasurementJson(const topo::Analysis& a, bool truth);
 // The "uncertainty" block of `reconstruct --json` through a device: coverage factor, sources, and per quantity (by
 // its place in the JSON, e.g. "clinical.kmax.power_D") the value, U (k = 2) and each source's standard uncertainty.
 nlohmann::json MeasurementUncertaintyJson(const pipeline::MeasurementUncertainty& u);
+// A measurement's JSON (MeasurementJson) with every value the data do not determine (QuantityUncertainty::
+// determined false: a peak's location with a twin within U) set to null, at the path its name gives.
+void WithdrawUndetermined(const pipeline::MeasurementUncertainty& u, nlohmann::json* measurement);
 
 // `topocal sweep --json`: every sigma's row (image ellipse, fit, reconstruction, errors, clinical, adequacy) and,
 // with --correct, `corrected[i]` beside row i (corrected may be shorter than the rows, or empty); ideal power and

@@ -379,15 +379,24 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
   if (!json_out.empty()) {
     nlohmann::json j = info;
     j.update(report::MeasurementJson(analysis, truth));
+    if (measurement_u) report::WithdrawUndetermined(*measurement_u, &j);
     outputs.AddFile(json_out, j.dump(2) + "\n");
   }
   if (!maps.empty()) {
     pipeline::MapSetOptions map_options;
     map_options.eye = in.eye;  // N/T/S/I on the maps, in the examiner's view
     map_options.power = power_scale;
-    pipeline::WriteAnalysisMapSet(outputs.AddDirectory(maps), {{"", "", &analysis, truth ? &cfg.cornea : nullptr, {},
-                                                                 measurement_u ? &measurement_u->axial_expanded_D : nullptr}},
-                                  map_options);
+    pipeline::AnalysisMapEntry entry{"", "", &analysis, truth ? &cfg.cornea : nullptr, {}};
+    if (measurement_u) {
+      entry.axial_expanded_D = &measurement_u->axial_expanded_D;
+      const auto determined = [&](const char* name) {
+        const auto* q = measurement_u->Find(name);
+        return !q || q->determined;
+      };
+      entry.kmax_location_determined = determined("clinical.kmax.x_mm");
+      entry.elevation_peak_location_determined = determined("clinical.best_fit_sphere.elevation_peak_x_mm");
+    }
+    pipeline::WriteAnalysisMapSet(outputs.AddDirectory(maps), {entry}, map_options);
   }
   outputs.Commit();
 }

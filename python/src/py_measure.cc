@@ -188,6 +188,7 @@ py::dict ReconstructImage(const py::array& image, const model::DeviceFile& dev, 
     RaiseRefused(fmt::format("measurement refused: {}", *reason), {*reason}, info);
   }
   info.update(report::MeasurementJson(m.analysis, truth));
+  report::WithdrawUndetermined(u, &info);
   return MeasurementDict(info, m.analysis, &u.axial_expanded_D);
 }
 
