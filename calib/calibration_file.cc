@@ -305,6 +305,7 @@ CalibrationFile ReadCalibration(const cv::FileStorage& fs, const std::string& pa
       out.covariance = m;
     }
     out.sigma_per_mm2 = ReadOptionalReal(fs, path, "seidel_sigma_per_mm2");
+    out.sigma_stddev_per_mm2 = ReadOptionalReal(fs, path, "seidel_sigma_stddev_per_mm2");
     out.magnification = ReadOptionalReal(fs, path, "magnification");
     out.focal_mm = ReadOptionalReal(fs, path, "focal_mm");
     out.pixel_pitch_um = ReadOptionalReal(fs, path, "pixel_pitch_um");

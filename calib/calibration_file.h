@@ -56,7 +56,7 @@ struct CalibrationFile {
   std::map<std::string, double> stddev;  // by parameter name
   std::vector<std::string> parameter_names;
   std::optional<Eigen::MatrixXd> covariance;  // parameter_names order; absent in older files
-  std::optional<double> sigma_per_mm2, magnification, focal_mm, pixel_pitch_um;
+  std::optional<double> sigma_per_mm2, sigma_stddev_per_mm2, magnification, focal_mm, pixel_pitch_um;
   std::string target, date, tool_version;
   // Of `camera`: as stored (topocal files since 0.1.0), else computed when the file is read.
   DistortionValidRegion valid_region;

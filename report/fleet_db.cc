@@ -8,39 +8,63 @@
 #include <stdexcept>
 
 #include "report/acceptance.h"
+#include "report/record_check.h"
+#include "util/json_section.h"
 #include "util/io.h"
 #include "util/utc_date.h"
 
 namespace topocal::report {
 namespace {
 
+// STRICT tables and CHECK constraints: a value that is not a finite REAL, a negative U, an empty name or a malformed
+// date cannot be stored by anyone writing through SQLite (a writer that switches the checks off is caught on
+// reading, ValidUnit / ValidMeasurement).
 constexpr const char* kSchema = R"sql(
 CREATE TABLE units (
   id               INTEGER PRIMARY KEY,
-  serial           TEXT NOT NULL,
-  unit_json_sha256 TEXT NOT NULL UNIQUE,
-  created_utc      TEXT NOT NULL,
-  station          TEXT NOT NULL,
+  serial           TEXT NOT NULL CHECK (length(serial) > 0),
+  content_sha256   TEXT NOT NULL UNIQUE CHECK (length(content_sha256) = 64),
+  unit_json_sha256 TEXT NOT NULL CHECK (length(unit_json_sha256) = 64),
+  created_utc      TEXT NOT NULL CHECK (created_utc GLOB '????-??-??T??:??:??Z'),
+  station          TEXT NOT NULL CHECK (length(station) > 0),
   tool_version     TEXT NOT NULL,
   model            TEXT NOT NULL,
   source           TEXT NOT NULL,
-  ingested_utc     TEXT NOT NULL
-);
+  ingested_utc     TEXT NOT NULL CHECK (ingested_utc GLOB '????-??-??T??:??:??Z')
+) STRICT;
 CREATE INDEX units_by_time ON units(created_utc, id);
 CREATE TABLE measurements (
   unit_id   INTEGER NOT NULL REFERENCES units(id),
-  parameter TEXT NOT NULL,
-  value     REAL NOT NULL,
-  U         REAL,
+  parameter TEXT NOT NULL CHECK (length(parameter) > 0),
+  value     REAL NOT NULL CHECK (abs(value) <= 1.7976931348623157e308),
+  U         REAL CHECK (U IS NULL OR (U >= 0 AND U <= 1.7976931348623157e308)),
   PRIMARY KEY (unit_id, parameter)
-);
+) STRICT;
+CREATE INDEX measurements_by_parameter ON measurements(parameter, unit_id);
 )sql";
+
+// What the line is told when SQLite finds the file damaged: the database is the line's ledger, so it is never
+// written into or reported from, and a backup (`topocal fleet backup`) is where it comes back from.
+std::string CorruptMessage(const std::string& path, const std::string& what) {
+  return fmt::format("{}: corrupt: {}; restore it from a backup (topocal fleet backup)", path, what);
+}
+
+// A failed SQLite call: a damaged or foreign file is bad input (exit 2, util::InputError), anything else (a lock held
+// beyond the timeout, a full disk) a failed computation.
+[[noreturn]] void FailSqlite(sqlite3* db, const std::string& path, const std::string& what) {
+  const int code = sqlite3_errcode(db) & 0xff;
+  if (code == SQLITE_CORRUPT) throw util::InputError(CorruptMessage(path, sqlite3_errmsg(db)));
+  if (code == SQLITE_NOTADB) {
+    throw util::InputError(fmt::format("{}: not a topocal fleet database ({})", path, sqlite3_errmsg(db)));
+  }
+  throw std::runtime_error(fmt::format("{}: SQLite {} failed: {}", path, what, sqlite3_errmsg(db)));
+}
 
 // A prepared statement, finalized on scope exit.
 class Statement {
  public:
   Statement(sqlite3* db, const std::string& path, const char* sql) : db_(db), path_(path) {
-    if (sqlite3_prepare_v2(db, sql, -1, &stmt_, nullptr) != SQLITE_OK) Fail("prepare");
+    if (sqlite3_prepare_v2(db, sql, -1, &stmt_, nullptr) != SQLITE_OK) FailSqlite(db_, path_, "prepare");
   }
   ~Statement() { sqlite3_finalize(stmt_); }
   Statement(const Statement&) = delete;
@@ -54,7 +78,7 @@ class Statement {
     const int rc = sqlite3_step(stmt_);
     if (rc == SQLITE_ROW) return true;
     if (rc == SQLITE_DONE) return false;
-    Fail("step");
+    FailSqlite(db_, path_, "step");
   }
   void Reset() {
     sqlite3_reset(stmt_);
@@ -66,24 +90,17 @@ class Statement {
   }
   double ColumnDouble(int i) const { return sqlite3_column_double(stmt_, i); }
   std::int64_t ColumnInt(int i) const { return sqlite3_column_int64(stmt_, i); }
-  bool ColumnNull(int i) const { return sqlite3_column_type(stmt_, i) == SQLITE_NULL; }
+  int ColumnType(int i) const { return sqlite3_column_type(stmt_, i); }
+  bool ColumnNull(int i) const { return ColumnType(i) == SQLITE_NULL; }
 
  private:
-  [[noreturn]] void Fail(const char* what) const {
-    throw std::runtime_error(fmt::format("{}: SQLite {} failed: {}", path_, what, sqlite3_errmsg(db_)));
-  }
   sqlite3* db_;
   const std::string& path_;
   sqlite3_stmt* stmt_ = nullptr;
 };
 
 void Exec(sqlite3* db, const std::string& path, const char* sql) {
-  char* err = nullptr;
-  if (sqlite3_exec(db, sql, nullptr, nullptr, &err) != SQLITE_OK) {
-    const std::string message = err ? err : sqlite3_errmsg(db);
-    sqlite3_free(err);
-    throw std::runtime_error(fmt::format("{}: {}", path, message));
-  }
+  if (sqlite3_exec(db, sql, nullptr, nullptr, nullptr) != SQLITE_OK) FailSqlite(db, path, "statement");
 }
 
 std::int64_t PragmaInt(sqlite3* db, const std::string& path, const char* pragma) {
@@ -108,6 +125,67 @@ class Transaction {
   const std::string& path_;
   bool done_ = false;
 };
+
+// The schema objects (tables, indexes) as SQLite lists them: the layout a fleet database must have exactly.
+std::vector<std::string> SchemaObjects(sqlite3* db, const std::string& path) {
+  std::vector<std::string> objects;
+  Statement s(db, path, "SELECT type, name, tbl_name, sql FROM sqlite_master ORDER BY type, name");
+  while (s.Step()) {
+    objects.push_back(fmt::format("{} {} on {}: {}", s.ColumnText(0), s.ColumnText(1), s.ColumnText(2),
+                                  s.ColumnText(3)));
+  }
+  return objects;
+}
+
+// The layout this topocal writes, read back from a scratch database in memory (so the comparison does not depend on
+// how SQLite stores the schema's text).
+const std::vector<std::string>& ExpectedSchemaObjects() {
+  static const std::vector<std::string> objects = [] {
+    sqlite3* db = nullptr;
+    const std::string name = "fleet schema";
+    if (sqlite3_open(":memory:", &db) != SQLITE_OK) throw std::runtime_error("SQLite: cannot open a memory database");
+    std::vector<std::string> out;
+    try {
+      Exec(db, name, kSchema);
+      out = SchemaObjects(db, name);
+    } catch (...) {
+      sqlite3_close(db);
+      throw;
+    }
+    sqlite3_close(db);
+    return out;
+  }();
+  return objects;
+}
+
+// PRAGMA quick_check or integrity_check: "ok", or SQLite's first finding on one line (its answer may start with a
+// "*** in database main ***" line and run over many).
+std::string IntegrityFinding(sqlite3* db, const std::string& path, const char* pragma) {
+  Statement s(db, path, pragma);
+  std::string text = s.Step() ? s.ColumnText(0) : "no answer";
+  constexpr std::string_view kHeader = "*** in database main ***\n";
+  if (text.rfind(kHeader, 0) == 0) text.erase(0, kHeader.size());
+  text = text.substr(0, text.find('\n'));
+  return text.size() > 200 ? text.substr(0, 200) + "..." : text;
+}
+
+// A record's row as the ledger accepts it: text in UTF-8, dates in ISO 8601, every number finite (and U >= 0).
+void CheckLedgerRow(const UnitRecord& rec, const std::vector<FleetMeasurement>& m) {
+  const std::string& at = rec.unit_json_path;
+  if (!util::IsValidUtf8(rec.directory)) {
+    throw util::InputError(fmt::format("{}: the record's directory name is not valid UTF-8", rec.directory));
+  }
+  if (!util::IsIsoUtcDate(rec.created_utc)) {
+    throw util::InputError(fmt::format("{}: created_utc: '{:.40}' is not an ISO 8601 UTC date (YYYY-MM-DDTHH:MM:SSZ)",
+                                       at, rec.created_utc));
+  }
+  for (const FleetMeasurement& x : m) {
+    if (!std::isfinite(x.value) || (x.U && (!std::isfinite(*x.U) || *x.U < 0))) {
+      throw util::InputError(fmt::format("{}: {}: {} (U {}) cannot be stored: not a finite number", at, x.parameter,
+                                         x.value, x.U ? fmt::format("{}", *x.U) : "none"));
+    }
+  }
+}
 
 }  // namespace
 
@@ -140,7 +218,10 @@ std::vector<FleetMeasurement> FleetMeasurements(const UnitRecord& rec) {
   return m;
 }
 
-FleetDb::FleetDb(const std::string& path, bool create) : path_(path) {
+namespace {
+
+// Opens `path` as SQLite, nothing more (FleetDb's constructor identifies it).
+sqlite3* OpenSqlite(const std::string& path, bool create) {
   namespace fs = std::filesystem;
   std::error_code ec;
   const bool exists = fs::exists(path, ec);
@@ -148,102 +229,179 @@ FleetDb::FleetDb(const std::string& path, bool create) : path_(path) {
   if (exists && !fs::is_regular_file(path, ec)) throw util::InputError(fmt::format("{}: not a file", path));
   if (exists) util::NoteInput(path);  // `fleet report --out` naming the database would replace it
   const int flags = create ? (SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE) : SQLITE_OPEN_READONLY;
-  if (sqlite3_open_v2(path.c_str(), &db_, flags, nullptr) != SQLITE_OK) {
-    const std::string message = db_ ? sqlite3_errmsg(db_) : "out of memory";
-    sqlite3_close(db_);
-    db_ = nullptr;
+  sqlite3* db = nullptr;
+  if (sqlite3_open_v2(path.c_str(), &db, flags, nullptr) != SQLITE_OK) {
+    const std::string message = db ? sqlite3_errmsg(db) : "out of memory";
+    sqlite3_close(db);
     throw util::InputError(fmt::format("{}: cannot open the fleet database: {}", path, message));
   }
-  sqlite3_busy_timeout(db_, kFleetBusyTimeoutMs);
-  // Until the database is known to be a fleet database, any exception closes it (and passes on unchanged).
-  struct CloseUnlessKept {
-    sqlite3** db;
-    bool keep = false;
-    ~CloseUnlessKept() {
-      if (keep) return;
-      sqlite3_close(*db);
-      *db = nullptr;
-    }
-  } guard{&db_};
-  {
-    if (create && sqlite3_db_readonly(db_, "main") == 1) {
-      throw util::InputError(fmt::format("{}: the fleet database is read-only", path));
-    }
-    // Identify before anything else: a file that is not SQLite, or another application's database, or another
-    // schema version is refused without being changed.
-    std::int64_t app = 0, version = 0, tables = 0;
+  sqlite3_busy_timeout(db, kFleetBusyTimeoutMs);
+  return db;
+}
+
+struct Identity {
+  std::int64_t application_id = 0, version = 0, objects = 0;
+};
+
+Identity ReadIdentity(sqlite3* db, const std::string& path) {
+  // One read transaction, so one snapshot: a process creating the schema meanwhile is seen whole or not at all
+  // (read one statement at a time, its tables could be seen before its application_id: "application_id 0").
+  Identity id;
+  try {
+    Exec(db, path, "BEGIN");
+    id.application_id = PragmaInt(db, path, "PRAGMA application_id");
+    id.version = PragmaInt(db, path, "PRAGMA user_version");
+    id.objects = PragmaInt(db, path, "SELECT count(*) FROM sqlite_master");
+    Exec(db, path, "COMMIT");
+  } catch (const std::runtime_error&) {
+    throw util::InputError(fmt::format("{}: not a topocal fleet database ({})", path, sqlite3_errmsg(db)));
+  }
+  return id;
+}
+
+void CreateSchema(sqlite3* db, const std::string& path) {
+  Transaction t(db, path);
+  // Another process may have created the schema while this one waited for the lock.
+  if (PragmaInt(db, path, "SELECT count(*) FROM sqlite_master") == 0) {
     try {
-      // One read transaction, so one snapshot: a process creating the schema meanwhile is seen whole or not at all
-      // (read one statement at a time, its tables could be seen before its application_id: "application_id 0").
-      Exec(db_, path, "BEGIN");
-      app = PragmaInt(db_, path, "PRAGMA application_id");
-      version = PragmaInt(db_, path, "PRAGMA user_version");
-      tables = PragmaInt(db_, path, "SELECT count(*) FROM sqlite_master");
-      Exec(db_, path, "COMMIT");
+      Exec(db, path, kSchema);
+      Exec(db, path, fmt::format("PRAGMA application_id = {}; PRAGMA user_version = {}", kFleetApplicationId,
+                                 kFleetSchemaVersion).c_str());
     } catch (const std::runtime_error& e) {
-      throw util::InputError(fmt::format("{}: not a topocal fleet database ({})", path, sqlite3_errmsg(db_)));
-    }
-    if (app == 0 && version == 0 && tables == 0) {
-      if (!create) throw util::InputError(fmt::format("{}: empty, not a topocal fleet database", path));
-      Transaction t(db_, path);
-      // Another process may have created the schema while this one waited for the lock.
-      if (PragmaInt(db_, path, "SELECT count(*) FROM sqlite_master") == 0) {
-        try {
-          Exec(db_, path, kSchema);
-          Exec(db_, path, fmt::format("PRAGMA application_id = {}; PRAGMA user_version = {}", kFleetApplicationId,
-                                      kFleetSchemaVersion).c_str());
-        } catch (const std::runtime_error& e) {
-          throw util::InputError(fmt::format("{}: cannot create the fleet database: {}", path, sqlite3_errmsg(db_)));
-        }
-      }
-      t.Commit();
-      app = PragmaInt(db_, path, "PRAGMA application_id");
-      version = PragmaInt(db_, path, "PRAGMA user_version");
-    }
-    if (app != kFleetApplicationId) {
-      throw util::InputError(fmt::format("{}: not a topocal fleet database (application_id {})", path, app));
-    }
-    if (version != kFleetSchemaVersion) {
-      throw util::InputError(
-          fmt::format("{}: fleet database schema version {} is not supported (this topocal reads "
-                      "version {})",
-                      path, version, kFleetSchemaVersion));
+      throw util::InputError(fmt::format("{}: cannot create the fleet database: {}", path, sqlite3_errmsg(db)));
     }
   }
-  guard.keep = true;
+  t.Commit();
+}
+
+// Refuses, before anything is written or read from it, a file that is not this topocal's fleet database: another
+// application's (application_id), another schema version, another layout (tables or indexes changed), a damaged
+// one (SQLite's quick check).
+void Identify(sqlite3* db, const std::string& path, bool create) {
+  if (create && sqlite3_db_readonly(db, "main") == 1) {
+    throw util::InputError(fmt::format("{}: the fleet database is read-only", path));
+  }
+  Identity id = ReadIdentity(db, path);
+  if (id.application_id == 0 && id.version == 0 && id.objects == 0) {
+    if (!create) throw util::InputError(fmt::format("{}: empty, not a topocal fleet database", path));
+    CreateSchema(db, path);
+    id = ReadIdentity(db, path);
+  }
+  if (id.application_id != kFleetApplicationId) {
+    throw util::InputError(
+        fmt::format("{}: not a topocal fleet database (application_id {})", path, id.application_id));
+  }
+  if (id.version != kFleetSchemaVersion) {
+    throw util::InputError(fmt::format("{}: fleet database schema version {} is not supported (this topocal reads "
+                                       "version {}{})",
+                                       path, id.version, kFleetSchemaVersion,
+                                       id.version < kFleetSchemaVersion
+                                           ? "; ingest the unit records into a new database" : ""));
+  }
+  const std::string finding = IntegrityFinding(db, path, "PRAGMA quick_check");
+  if (finding != "ok") throw util::InputError(CorruptMessage(path, "SQLite's quick check: " + finding));
+  if (SchemaObjects(db, path) != ExpectedSchemaObjects()) {
+    throw util::InputError(
+        fmt::format("{}: not a topocal fleet database: its tables or indexes differ from schema version {}", path,
+                    kFleetSchemaVersion));
+  }
+}
+
+// Values as the ledger stores them, checked again on reading (a writer can switch SQLite's checks off):
+// otherwise the database is corrupt.
+void RequireStoredText(const std::string& path, std::int64_t id, const char* column, const std::string& value) {
+  if (value.empty() || !util::IsValidUtf8(value)) {
+    throw util::InputError(CorruptMessage(path, fmt::format("unit {}: {} is empty or not UTF-8 text", id, column)));
+  }
+}
+
+FleetUnit ReadUnitRow(const Statement& s, const std::string& path) {
+  FleetUnit u;
+  u.id = s.ColumnInt(0);
+  std::string* fields[] = {&u.serial, &u.unit_json_sha256, &u.created_utc, &u.station, &u.tool_version,
+                           &u.model,  &u.source,           &u.ingested_utc};
+  static constexpr const char* kNames[] = {"serial", "unit_json_sha256", "created_utc", "station", "tool_version",
+                                           "model",  "source",           "ingested_utc"};
+  for (int i = 0; i < 8; ++i) {
+    if (s.ColumnType(i + 1) != SQLITE_TEXT) {
+      throw util::InputError(CorruptMessage(path, fmt::format("unit {}: {} is not text", u.id, kNames[i])));
+    }
+    *fields[i] = s.ColumnText(i + 1);
+    RequireStoredText(path, u.id, kNames[i], *fields[i]);
+  }
+  if (!util::IsIsoUtcDate(u.created_utc) || !util::IsIsoUtcDate(u.ingested_utc)) {
+    throw util::InputError(CorruptMessage(path, fmt::format("unit {}: a date is not ISO 8601", u.id)));
+  }
+  return u;
+}
+
+FleetMeasurement ReadMeasurementRow(const Statement& s, const std::string& path) {
+  FleetMeasurement m{s.ColumnText(1), s.ColumnDouble(2), std::nullopt};
+  const bool value_ok = s.ColumnType(2) == SQLITE_FLOAT && std::isfinite(m.value);
+  const bool u_ok = s.ColumnNull(3) ||
+                    (s.ColumnType(3) == SQLITE_FLOAT && std::isfinite(s.ColumnDouble(3)) && s.ColumnDouble(3) >= 0);
+  if (!value_ok || !u_ok || m.parameter.empty() || !util::IsValidUtf8(m.parameter)) {
+    throw util::InputError(CorruptMessage(
+        path, fmt::format("unit {}: measurement '{:.40}' is not a finite number with a U >= 0", s.ColumnInt(0),
+                          util::IsValidUtf8(m.parameter) ? m.parameter : std::string("?"))));
+  }
+  if (!s.ColumnNull(3)) m.U = s.ColumnDouble(3);
+  return m;
+}
+
+}  // namespace
+
+FleetDb::FleetDb(const std::string& path, bool create) : path_(path) {
+  db_ = OpenSqlite(path, create);
+  try {
+    Identify(db_, path, create);
+  } catch (...) {
+    sqlite3_close(db_);
+    db_ = nullptr;
+    throw;
+  }
 }
 
 FleetDb::~FleetDb() { sqlite3_close(db_); }
 
 IngestResult FleetDb::Ingest(const std::vector<UnitRecord>& records, const std::string& station) {
+  // Every record is checked before the transaction begins: one that the ledger cannot hold refuses the batch.
+  if (station.empty() || !util::IsValidUtf8(station)) {
+    throw util::InputError("--station: must be non-empty UTF-8 text");
+  }
+  std::vector<std::vector<FleetMeasurement>> measurements;
+  for (const UnitRecord& rec : records) {
+    CheckRecordedCalibration(rec);
+    measurements.push_back(FleetMeasurements(rec));
+    CheckLedgerRow(rec, measurements.back());
+  }
   IngestResult result;
   const std::string now = util::FileDateUtc();
   Transaction t(db_, path_);
-  Statement find(db_, path_, "SELECT id FROM units WHERE unit_json_sha256 = ?1");
+  Statement find(db_, path_, "SELECT id FROM units WHERE content_sha256 = ?1");
   Statement unit(db_, path_,
-                 "INSERT INTO units (serial, unit_json_sha256, created_utc, station, tool_version, model, source, "
-                 "ingested_utc) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
+                 "INSERT INTO units (serial, content_sha256, unit_json_sha256, created_utc, station, tool_version, "
+                 "model, source, ingested_utc) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)");
   Statement meas(db_, path_, "INSERT INTO measurements (unit_id, parameter, value, U) VALUES (?1, ?2, ?3, ?4)");
-  for (const UnitRecord& rec : records) {
-    find.Text(1, rec.unit_json_sha256);
+  for (std::size_t r = 0; r < records.size(); ++r) {
+    const UnitRecord& rec = records[r];
+    find.Text(1, rec.unit_json_content_sha256);
     const bool present = find.Step();
     find.Reset();
     if (present) {
       ++result.present;
       continue;
     }
-    unit.Text(1, rec.serial);
-    unit.Text(2, rec.unit_json_sha256);
-    unit.Text(3, rec.created_utc);
-    unit.Text(4, station);
-    unit.Text(5, rec.tool_version);
-    unit.Text(6, rec.settings_model);
-    unit.Text(7, rec.directory);
-    unit.Text(8, now);
+    int column = 1;
+    for (const std::string* v : {&rec.serial, &rec.unit_json_content_sha256, &rec.unit_json_sha256,
+                                 &rec.created_utc, &station, &rec.tool_version, &rec.settings_model, &rec.directory,
+                                 &now}) {
+      unit.Text(column++, *v);
+    }
     unit.Step();
     unit.Reset();
     const std::int64_t id = sqlite3_last_insert_rowid(db_);
-    for (const FleetMeasurement& m : FleetMeasurements(rec)) {
+    for (const FleetMeasurement& m : measurements[r]) {
       meas.Int(1, id);
       meas.Text(2, m.parameter);
       meas.Double(3, m.value);
@@ -266,16 +424,7 @@ std::vector<FleetUnit> FleetDb::Units() const {
                 "SELECT id, serial, unit_json_sha256, created_utc, station, tool_version, model, source, ingested_utc "
                 "FROM units ORDER BY created_utc, id");
     while (s.Step()) {
-      FleetUnit u;
-      u.id = s.ColumnInt(0);
-      u.serial = s.ColumnText(1);
-      u.unit_json_sha256 = s.ColumnText(2);
-      u.created_utc = s.ColumnText(3);
-      u.station = s.ColumnText(4);
-      u.tool_version = s.ColumnText(5);
-      u.model = s.ColumnText(6);
-      u.source = s.ColumnText(7);
-      u.ingested_utc = s.ColumnText(8);
+      FleetUnit u = ReadUnitRow(s, path_);
       index[u.id] = units.size();
       units.push_back(std::move(u));
     }
@@ -283,12 +432,55 @@ std::vector<FleetUnit> FleetDb::Units() const {
   Statement s(db_, path_, "SELECT unit_id, parameter, value, U FROM measurements");
   while (s.Step()) {
     const auto it = index.find(s.ColumnInt(0));
-    if (it == index.end()) continue;
-    FleetMeasurement m{s.ColumnText(1), s.ColumnDouble(2), std::nullopt};
-    if (!s.ColumnNull(3)) m.U = s.ColumnDouble(3);
+    if (it == index.end()) {
+      throw util::InputError(CorruptMessage(path_, fmt::format("a measurement of unit {}, which is not in the "
+                                                               "database", s.ColumnInt(0))));
+    }
+    FleetMeasurement m = ReadMeasurementRow(s, path_);
     units[it->second].measurements[m.parameter] = m;
   }
   return units;
+}
+
+FleetCheck FleetDb::Check() const {
+  const std::string finding = IntegrityFinding(db_, path_, "PRAGMA integrity_check");
+  if (finding != "ok") throw util::InputError(CorruptMessage(path_, "SQLite's integrity check: " + finding));
+  {
+    Statement fk(db_, path_, "PRAGMA foreign_key_check");
+    if (fk.Step()) {
+      throw util::InputError(CorruptMessage(path_, fmt::format("table {} row {} refers to a unit that is not there",
+                                                               fk.ColumnText(0), fk.ColumnInt(1))));
+    }
+  }
+  FleetCheck check;
+  const std::vector<FleetUnit> units = Units();  // every stored value valid
+  check.units = static_cast<int>(units.size());
+  for (const FleetUnit& u : units) check.measurements += static_cast<int>(u.measurements.size());
+  return check;
+}
+
+std::string FleetDb::Backup() const {
+  // SQLite's online backup into a database in memory (a consistent snapshot, taken under a read lock, whatever
+  // other processes write meanwhile), checked, then serialised: the caller publishes the bytes as one file.
+  sqlite3* copy = nullptr;
+  if (sqlite3_open(":memory:", &copy) != SQLITE_OK) throw std::runtime_error("SQLite: cannot open a memory database");
+  struct Close {
+    sqlite3* db;
+    ~Close() { sqlite3_close(db); }
+  } close{copy};
+  sqlite3_backup* b = sqlite3_backup_init(copy, "main", db_, "main");
+  if (b == nullptr) FailSqlite(copy, path_, "backup");
+  const int rc = sqlite3_backup_step(b, -1);
+  sqlite3_backup_finish(b);
+  if (rc != SQLITE_DONE) FailSqlite(copy, path_, "backup");
+  const std::string finding = IntegrityFinding(copy, path_, "PRAGMA integrity_check");
+  if (finding != "ok") throw util::InputError(CorruptMessage(path_, "SQLite's integrity check: " + finding));
+  sqlite3_int64 size = 0;
+  unsigned char* bytes = sqlite3_serialize(copy, "main", &size, 0);
+  if (bytes == nullptr) throw std::runtime_error(fmt::format("{}: SQLite could not serialise the backup", path_));
+  std::string out(reinterpret_cast<const char*>(bytes), static_cast<std::size_t>(size));
+  sqlite3_free(bytes);
+  return out;
 }
 
 }  // namespace topocal::report

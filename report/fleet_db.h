@@ -1,12 +1,19 @@
 #pragma once
 // The production line's fleet database (docs/fleet.md): unit records ingested into SQLite, the embedded default.
 //
-// Schema version 1 (PRAGMA user_version = 1, PRAGMA application_id = kFleetApplicationId):
-//   units(id INTEGER PRIMARY KEY, serial, unit_json_sha256 UNIQUE, created_utc, station, tool_version, model,
-//         source, ingested_utc)
+// Schema version 2 (PRAGMA user_version = 2, PRAGMA application_id = kFleetApplicationId), STRICT tables:
+//   units(id INTEGER PRIMARY KEY, serial, content_sha256 UNIQUE, unit_json_sha256, created_utc, station,
+//         tool_version, model, source, ingested_utc)
 //   measurements(unit_id REFERENCES units(id), parameter, value, U, PRIMARY KEY(unit_id, parameter))
-// One row in `units` per record (its unit.json digest is the key: ingestion is idempotent, and a unit calibrated
-// again is a new row with the same serial); one row per charted number in `measurements` (FleetMeasurements).
+// One row in `units` per record, identified by the digest of unit.json's content (UnitRecord::
+// unit_json_content_sha256: the same record re-indented is the same record; ingestion is idempotent, and a unit
+// calibrated again is a new row with the same serial); one row per charted number in `measurements`
+// (FleetMeasurements).
+//
+// A ledger: every stored value is valid by construction — checked against the record's digested files
+// (report/record_check.h CheckRecordedCalibration), finite, UTF-8, ISO 8601 dates; CHECK constraints hold the same
+// in SQLite, and reading checks them again. A file that is damaged (SQLite's quick check), of another application,
+// version or layout is refused before anything is written or read (util::InputError, exit 2).
 //
 // Concurrency: every write is one transaction begun with BEGIN IMMEDIATE (the write lock taken up front, so two
 // writers never deadlock upgrading a read lock) under a busy timeout: processes ingesting at the same time queue,
@@ -23,7 +30,7 @@ struct sqlite3;
 
 namespace topocal::report {
 
-inline constexpr int kFleetSchemaVersion = 1;
+inline constexpr int kFleetSchemaVersion = 2;  // 1: records identified by bytes, no CHECK constraints
 inline constexpr std::int32_t kFleetApplicationId = 0x54504346;  // "TPCF"
 // How long a writer waits for another process's transaction before giving up (exit 1, nothing written).
 inline constexpr int kFleetBusyTimeoutMs = 60000;
@@ -45,6 +52,10 @@ struct FleetUnit {
   std::map<std::string, FleetMeasurement> measurements;  // by parameter
 };
 
+struct FleetCheck {
+  int units = 0, measurements = 0;
+};
+
 struct IngestResult {
   int added = 0;    // new records
   int present = 0;  // already in the database (same unit.json digest): left as they were
@@ -60,10 +71,19 @@ class FleetDb {
   FleetDb(const FleetDb&) = delete;
   FleetDb& operator=(const FleetDb&) = delete;
 
-  // Adds the records in one transaction: all or none. `station` is stored with each new record.
+  // Adds the records in one transaction: all or none. `station` is stored with each new record. Every record is
+  // checked first (its calibration numbers against its calibration files, finite numbers, UTF-8 text, an ISO 8601
+  // date): one that fails refuses the batch (util::InputError naming the record and key), nothing written.
   IngestResult Ingest(const std::vector<UnitRecord>& records, const std::string& station);
-  // Every unit with its measurements, in order of created_utc, then id.
+  // Every unit with its measurements, in order of created_utc, then id. A stored value that is not what the
+  // schema allows (written by something else with SQLite's checks off) throws util::InputError "corrupt".
   std::vector<FleetUnit> Units() const;
+  // SQLite's full integrity check, the foreign keys and every stored value; throws util::InputError "PATH:
+  // corrupt: ..." at the first finding.
+  FleetCheck Check() const;
+  // A consistent copy of the database (SQLite's online backup API: other processes may write meanwhile), checked
+  // whole, as the bytes of a database file.
+  std::string Backup() const;
 
   const std::string& path() const { return path_; }
 

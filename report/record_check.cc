@@ -81,10 +81,34 @@ void CheckCalibrationRms(const UnitRecord& rec) {
   }
 }
 
+void CheckAgainstCalibrationFile(const UnitRecord& rec, const std::string& key, double recorded, double in_file) {
+  if (!Agree(recorded, in_file, kRelativeTolerance)) {
+    throw util::InputError(fmt::format("{}: {}: recorded {:.12g}, calibration.yaml says {:.12g}", rec.unit_json_path,
+                                       key, recorded, in_file));
+  }
+}
+
 }  // namespace
 
-void RecomputeRecordNumbers(const UnitRecord& rec, const RecordCheckOptions& options) {
+void CheckRecordedCalibration(const UnitRecord& rec) {
   CheckCalibrationRms(rec);
+  for (const CalibrationParameter& p : rec.parameters) {
+    const auto it = rec.calibration.stddev.find(p.name);
+    if (it == rec.calibration.stddev.end()) continue;  // not a lens parameter (the device's alignment)
+    CheckAgainstCalibrationFile(rec, fmt::format("calibration.parameters[{}].stddev", p.name), p.stddev, it->second);
+  }
+  if (rec.seidel_sigma_per_mm2 && rec.calibration.sigma_per_mm2) {
+    CheckAgainstCalibrationFile(rec, "calibration.seidel.sigma_per_mm2", *rec.seidel_sigma_per_mm2,
+                                *rec.calibration.sigma_per_mm2);
+  }
+  if (rec.seidel_sigma_stddev_per_mm2 && rec.calibration.sigma_stddev_per_mm2) {
+    CheckAgainstCalibrationFile(rec, "calibration.seidel.sigma_stddev_per_mm2", *rec.seidel_sigma_stddev_per_mm2,
+                                *rec.calibration.sigma_stddev_per_mm2);
+  }
+}
+
+void RecomputeRecordNumbers(const UnitRecord& rec, const RecordCheckOptions& options) {
+  CheckRecordedCalibration(rec);
   if (!rec.config || !rec.topographer_camera) {
     throw util::InputError(
         fmt::format("{}: configuration: missing: the record's checks cannot be recomputed", rec.unit_json_path));

@@ -20,8 +20,14 @@ struct RecordCheckOptions {
   int jobs = 0;  // threads for the Monte Carlo draws (0 = every core); the result does not depend on it
 };
 
+// The cheap part, without any Monte Carlo (what `fleet ingest` checks of every record): calibration.rms_px
+// recomputed from residuals.csv, and rms_px, every parameter's stddev and the Seidel sigma with its stddev against
+// calibration.yaml (the record's digested calibration file). Throws util::InputError naming the key.
+void CheckRecordedCalibration(const UnitRecord& record);
+
 // Throws util::InputError "unit.json: KEY: recorded V, recomputed W from FILES" for the first number that does not
-// match, and for a record that lacks what the recomputation needs (configuration, sphere_spots.csv).
+// match, and for a record that lacks what the recomputation needs (configuration, sphere_spots.csv). Includes
+// CheckRecordedCalibration.
 void RecomputeRecordNumbers(const UnitRecord& record, const RecordCheckOptions& options = {});
 
 }  // namespace topocal::report

@@ -191,6 +191,7 @@ UnitRecord ReadUnitRecord(const std::string& directory) {
   const std::string text = util::ReadFile(rec.unit_json_path);
   rec.unit_json_sha256 = util::Sha256Hex(text);
   const json root = util::ParseJsonStrict(text, rec.unit_json_path);
+  rec.unit_json_content_sha256 = util::Sha256Hex(root.dump());  // nlohmann's objects keep their keys sorted
   JsonSection r(root, rec.unit_json_path, "");
 
   // Identity and compatibility first: nothing else is read from a record of another format or version.

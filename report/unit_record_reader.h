@@ -127,6 +127,9 @@ struct UnitRecord {
   std::string directory;
   std::string unit_json_path;
   std::string unit_json_sha256;
+  // SHA-256 of unit.json's content: the parsed document written back compactly with its keys sorted, so that the
+  // same record re-indented or with its keys reordered has the same content digest (the fleet database's identity).
+  std::string unit_json_content_sha256;
 
   std::string serial, tool_version, created_utc;
   std::string tool_commit;  // the git commit of the topocal that wrote it (util/build_info.h); empty in older records

@@ -9,6 +9,7 @@
 #include "report/acceptance.h"
 #include "report/fleet_db.h"
 #include "report/fleet_report.h"
+#include "report/record_check.h"
 #include "report/unit_record_reader.h"
 #include "report/unit_record_writer.h"
 #include "tools/commands.h"
@@ -20,6 +21,11 @@ namespace {
 struct IngestArgs {
   std::string db, station = "unassigned";
   std::vector<std::string> records;
+  bool recompute = false;
+};
+
+struct BackupArgs {
+  std::string db, out;
 };
 
 struct FleetReportArgs {
@@ -37,6 +43,7 @@ void Ingest(const IngestArgs& a) {
       continue;
     }
     records.push_back(report::ReadUnitRecord(dir));
+    if (a.recompute) report::RecomputeRecordNumbers(records.back());
   }
   if (records.empty()) throw util::InputError("no unit record to ingest (every directory given was a leftover)");
   report::FleetDb db(a.db, /*create=*/true);
@@ -64,6 +71,20 @@ void Report(const FleetReportArgs& a) {
              static_cast<int>(analysis.units.size()) - passed, analysis.out_of_control.size());
 }
 
+void Check(const std::string& path) {
+  const report::FleetDb db(path, /*create=*/false);
+  const report::FleetCheck c = db.Check();
+  fmt::print("{}: ok: schema version {}, {} record(s), {} measurement(s); SQLite's integrity check passed\n", path,
+             report::kFleetSchemaVersion, c.units, c.measurements);
+}
+
+void Backup(const BackupArgs& a) {
+  const report::FleetDb db(a.db, /*create=*/false);
+  const std::string bytes = db.Backup();
+  util::WriteFileAtomic(a.out, bytes);
+  fmt::print("{}: backup of {} ({} bytes)\n", a.out, a.db, bytes.size());
+}
+
 }  // namespace
 
 void AddFleetCommand(CLI::App& app) {
@@ -77,6 +98,9 @@ void AddFleetCommand(CLI::App& app) {
   ingest->add_option("--station", ia->station, "Calibration station stored with the new records")
       ->capture_default_str();
   ingest->add_option("records", ia->records, "Unit record directories (units/*/)")->required();
+  ingest->add_flag("--recompute", ia->recompute,
+                   "Also recompute every check of each record from its files, as `topocal report` does (its Monte "
+                   "Carlo again: seconds a record)");
   ingest->callback([ia] { Ingest(*ia); });
 
   auto ra = std::make_shared<FleetReportArgs>();
@@ -87,6 +111,19 @@ void AddFleetCommand(CLI::App& app) {
   rep->add_option("--json", ra->json, "Also write the analysis as JSON");
   rep->add_option("--limits", ra->limits, "Acceptance limits (JSON, see data/limits.json); default: built in");
   rep->callback([ra] { Report(*ra); });
+
+  auto check_db = std::make_shared<std::string>();
+  auto* check = fleet->add_subcommand("check", "Check the fleet database: SQLite's integrity check, its layout and "
+                                               "every stored value");
+  check->add_option("--db", *check_db, "Fleet database")->required();
+  check->callback([check_db] { Check(*check_db); });
+
+  auto ba = std::make_shared<BackupArgs>();
+  auto* backup = fleet->add_subcommand("backup", "Copy the fleet database consistently while it is in use (SQLite's "
+                                                 "online backup), checked before it is written");
+  backup->add_option("--db", ba->db, "Fleet database")->required();
+  backup->add_option("--out", ba->out, "The copy (a new fleet database file)")->required();
+  backup->callback([ba] { Backup(*ba); });
 }
 
 }  // namespace topocal::tools

@@ -46,6 +46,8 @@ const std::map<std::string, std::string>& Examples() {
       {"fleet", "topocal fleet ingest --db fleet.sqlite --station LINE-1 units/*/"},
       {"fleet ingest", "topocal fleet ingest --db fleet.sqlite --station LINE-1 units/*/"},
       {"fleet report", "topocal fleet report --db fleet.sqlite --out fleet.html"},
+      {"fleet check", "topocal fleet check --db fleet.sqlite"},
+      {"fleet backup", "topocal fleet backup --db fleet.sqlite --out backups/fleet-2026-12-05.sqlite"},
       {"export", "topocal export --calibration cal.yaml --to mrcal --out cam.cameramodel"},
       {"import", "topocal import --from mrcal cam.cameramodel --out cal.yaml"},
   };

@@ -24,6 +24,17 @@ inline std::string QuoteJsonValue(const nlohmann::json& v) {
   return s;
 }
 
+// Whether `s` is valid UTF-8 as the JSON writer judges it (nlohmann's dump() refuses ill-formed UTF-8 with
+// type_error 316): text that passes can always be written to a JSON file.
+inline bool IsValidUtf8(const std::string& s) {
+  try {
+    (void)nlohmann::json(s).dump();
+    return true;
+  } catch (const nlohmann::json::type_error&) {
+    return false;
+  }
+}
+
 // Whether an integer JSON value lies in [lo, hi], without the truncation of get<int>() (an unsigned value above
 // LLONG_MAX is out of every int range).
 inline bool JsonIntegerWithin(const nlohmann::json& v, long long lo, long long hi) {

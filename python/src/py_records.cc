@@ -110,6 +110,26 @@ void RegisterRecords(py::module_& m) {
       .def("table", &ParameterTable, py::arg("parameter"),
            "One parameter over the fleet as NumPy columns: serial, created_utc, station (object arrays), value and "
            "U (float64, NaN where unknown; expanded, k = 2).")
+      .def(
+          "check",
+          [](const report::FleetDb& db) {
+            report::FleetCheck c;
+            {
+              py::gil_scoped_release release;
+              c = db.Check();
+            }
+            return py::make_tuple(c.units, c.measurements);
+          },
+          "SQLite's integrity check, the layout and every stored value (`topocal fleet check`). Returns (units, "
+          "measurements); raises InputError naming the first finding.")
+      .def(
+          "backup",
+          [](const report::FleetDb& db, const std::string& out) {
+            py::gil_scoped_release release;
+            util::WriteFileAtomic(out, db.Backup());
+          },
+          py::arg("out"),
+          "A consistent, checked copy of the database written to `out` as one file (`topocal fleet backup`).")
       .def_property_readonly("path", &report::FleetDb::path);
 }
 

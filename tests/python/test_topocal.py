@@ -324,6 +324,10 @@ def test_fleet_database_from_python_and_cli_agree(work, unit_record, tmp_path):
     assert table["value"][0] == theirs["measurements"]["sphere_radius_error_mm"][0]
     with pytest.raises(topocal.InputError):
         topocal.FleetDb(str(tmp_path / "none.sqlite"))
+    # `fleet check` and `fleet backup` from Python: the copy holds the same units.
+    assert db.check() == (1, len(mine["measurements"]))
+    db.backup(str(tmp_path / "copy.sqlite"))
+    assert topocal.FleetDb(str(tmp_path / "copy.sqlite")).units() == db.units()
 
 
 def test_the_worked_example_of_the_docs_runs(work, unit_record, tmp_path):

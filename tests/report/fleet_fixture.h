@@ -64,6 +64,16 @@ inline void WriteLineUnit(const std::string& out, const calib::CalibrationResult
   for (auto& p : r.parameters) {
     if (p.name == "k1") p.value *= u.sigma_scale;
   }
+  // The residuals scaled to the unit's RMS: a record's RMS is recomputed from its residuals.csv on ingestion.
+  double sum2 = 0;
+  int inliers = 0;
+  for (const auto& c : r.residuals) {
+    if (c.outlier) continue;
+    sum2 += c.residual_px.squaredNorm();
+    ++inliers;
+  }
+  const double scale = u.rms_px / std::sqrt(sum2 / inliers);
+  for (auto& c : r.residuals) c.residual_px *= scale;
   r.rms_px = u.rms_px;
   r.per_view_rms_px.at(0) = u.rms_px;
   json body = RecordBody(r, u.serial, u.created_utc);

@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <set>
 
@@ -177,13 +178,13 @@ TEST_F(FleetTest, BadInputIsRefusedAndTheDatabaseKeepsEverything) {
   const std::string v2 = Db("v2");
   sqlite3* h = nullptr;
   ASSERT_EQ(sqlite3_open(v2.c_str(), &h), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(h, fmt::format("CREATE TABLE units(x); PRAGMA application_id = {}; PRAGMA user_version = 2",
+  ASSERT_EQ(sqlite3_exec(h, fmt::format("CREATE TABLE units(x); PRAGMA application_id = {}; PRAGMA user_version = 3",
                                         kFleetApplicationId).c_str(),
                          nullptr, nullptr, nullptr),
             SQLITE_OK);
   sqlite3_close(h);
-  ExpectRefused(Ingest(v2, "A"), "schema version 2 is not supported (this topocal reads version 1)", v2);
-  ExpectRefused("fleet report --db " + v2 + " --out " + *work_ + "/v2.html", "schema version 2", v2);
+  ExpectRefused(Ingest(v2, "A"), "schema version 3 is not supported (this topocal reads version 2)", v2);
+  ExpectRefused("fleet report --db " + v2 + " --out " + *work_ + "/v2.html", "schema version 3", v2);
   EXPECT_FALSE(fs::exists(*work_ + "/v2.html"));
   // Not a database at all; an unwritable path; a directory.
   const std::string text = *work_ + "/not-a-db.sqlite";
@@ -193,6 +194,109 @@ TEST_F(FleetTest, BadInputIsRefusedAndTheDatabaseKeepsEverything) {
   ExpectRefused(Ingest(*work_, "A"), "not a file", "");
   ExpectRefused("fleet report --db " + *work_ + "/absent.sqlite --out " + *work_ + "/x.html", "no such fleet database",
                 "");
+}
+
+// Runs SQL on a database as another program would (SQLite's own checks switched off when asked).
+void ExecSql(const std::string& db, const std::string& sql) {
+  sqlite3* h = nullptr;
+  ASSERT_EQ(sqlite3_open(db.c_str(), &h), SQLITE_OK);
+  char* err = nullptr;
+  EXPECT_EQ(sqlite3_exec(h, sql.c_str(), nullptr, nullptr, &err), SQLITE_OK) << (err ? err : "");
+  sqlite3_free(err);
+  sqlite3_close(h);
+}
+
+// A record copied to `dir` with `edit` applied to its unit.json (which no digest covers: the ledger's own checks
+// must catch what the edit does).
+std::string EditedRecord(const std::string& from, const std::string& dir,
+                         const std::function<void(nlohmann::json&)>& edit, int indent = -1) {
+  fs::remove_all(dir);
+  fs::create_directories(fs::path(dir).parent_path());
+  fs::copy(from, dir, fs::copy_options::recursive);
+  auto j = nlohmann::json::parse(util::ReadFile(dir + "/unit.json"));
+  edit(j);
+  util::WriteFileAtomic(dir + "/unit.json", j.dump(indent) + "\n");
+  return dir;
+}
+
+TEST_F(FleetTest, TheLedgerHoldsOnlyValuesItCanStand) {
+  const std::string db = Db("ledger");
+  ASSERT_EQ(RunTopocal(Ingest(db, "A")).exit_code, 0);
+  const std::string rec = Dir("B") + "/SN-B-0001", edits = *work_ + "/edits";
+  // A standard deviation of 1e308 in unit.json (was stored as U = inf, then written as `inf` in the CSV).
+  const std::string huge = EditedRecord(rec, edits + "/huge", [](nlohmann::json& j) {
+    for (auto& p : j["calibration"]["parameters"]) {
+      if (p["name"] == "k1") p["stddev"] = 1e308;
+    }
+  });
+  ExpectRefused("fleet ingest --db " + db + " " + huge,
+                "calibration.parameters[k1].stddev: recorded 1e+308, calibration.yaml says", db);
+  // A recorded RMS that residuals.csv does not give.
+  const std::string rms = EditedRecord(rec, edits + "/rms", [](nlohmann::json& j) {
+    j["calibration"]["rms_px"] = 1e308;
+  });
+  ExpectRefused("fleet ingest --db " + db + " " + rms, "calibration.rms_px: recorded", db);
+  // A date that is not one (month 13).
+  const std::string date = EditedRecord(rec, edits + "/date", [](nlohmann::json& j) {
+    j["created_utc"] = "2026-13-01T08:00:00Z";
+  });
+  ExpectRefused("fleet ingest --db " + db + " " + date, "created_utc: '2026-13-01T08:00:00Z' is not an ISO 8601", db);
+  // A station name with an invalid UTF-8 byte (was stored, after which every `fleet report --json` failed).
+  ExpectRefused("fleet ingest --db " + db + " --station \"$(printf 'LINE-\\377')\" " + rec, "--station: must be non-empty UTF-8",
+                db);
+  // The same record re-indented and with its keys reordered is the same record (was a new row).
+  const std::string same = EditedRecord(
+      Dir("A") + "/SN-A-0003", edits + "/same", [](nlohmann::json&) {}, 7);
+  ASSERT_NE(util::Sha256HexOfFile(same + "/unit.json"), util::Sha256HexOfFile(Dir("A") + "/SN-A-0003/unit.json"));
+  const auto again = RunTopocal("fleet ingest --db " + db + " --station LINE-A " + same);
+  ASSERT_EQ(again.exit_code, 0) << again.output;
+  EXPECT_NE(again.output.find("0 record(s) added, 1 already present"), std::string::npos) << again.output;
+  EXPECT_EQ(CountUnits(db), kUnitsPerStation);
+}
+
+TEST_F(FleetTest, ADamagedOrForeignDatabaseIsRefusedBeforeAnyWrite) {
+  const std::string db = Db("ledger-damage");
+  ASSERT_EQ(RunTopocal(Ingest(db, "A")).exit_code, 0);
+  // `fleet check` passes a sound database; `fleet backup` copies it, and the copy reports the same line.
+  const auto ok = RunTopocal("fleet check --db " + db);
+  ASSERT_EQ(ok.exit_code, 0) << ok.output;
+  EXPECT_NE(ok.output.find(fmt::format("ok: schema version 2, {} record(s)", kUnitsPerStation)), std::string::npos)
+      << ok.output;
+  const std::string copy = *work_ + "/ledger-backup.sqlite";
+  ASSERT_EQ(RunTopocal("fleet backup --db " + db + " --out " + copy).exit_code, 0);
+  ASSERT_EQ(RunTopocal("fleet check --db " + copy).exit_code, 0);
+  EXPECT_EQ(FleetDb(copy, false).Units().size(), FleetDb(db, false).Units().size());
+  ExpectRefused("fleet backup --db " + db + " --out " + db, "is also an input of this run", db);
+
+  // A stored U of infinity, written by another program with SQLite's checks switched off: refused on reading
+  // (was charted as inf).
+  const std::string inf = Db("ledger-inf");
+  fs::copy_file(copy, inf);
+  ExecSql(inf, "PRAGMA ignore_check_constraints = ON; UPDATE measurements SET U = 9e999 WHERE rowid = 3");
+  ExpectRefused("fleet report --db " + inf + " --out " + *work_ + "/inf.html", "corrupt: unit", inf);
+  ExpectRefused("fleet check --db " + inf, "corrupt: unit", inf);
+  EXPECT_FALSE(fs::exists(*work_ + "/inf.html"));
+
+  // Damaged pages (a disk's bit rot, a copy cut short and patched): nothing ingested into it, nothing reported
+  // from it (ingestion added the record and then exited 1).
+  const std::string damaged = Db("ledger-damaged");
+  fs::copy_file(copy, damaged);
+  {
+    std::fstream f(damaged, std::ios::in | std::ios::out | std::ios::binary);
+    const std::size_t page = 4096;
+    f.seekp(static_cast<std::streamoff>(2 * page + 8));  // inside the units table's first leaf page
+    const std::string junk(600, '\xa5');
+    f.write(junk.data(), static_cast<std::streamsize>(junk.size()));
+  }
+  ExpectRefused(Ingest(damaged, "B"), "corrupt:", damaged);
+  ExpectRefused("fleet check --db " + damaged, "restore it from a backup", damaged);
+  ExpectRefused("fleet report --db " + damaged + " --out " + *work_ + "/damaged.html", "corrupt:", damaged);
+
+  // Another layout under the fleet's identity and version: not a fleet database.
+  const std::string foreign = Db("ledger-foreign");
+  ExecSql(foreign, fmt::format("CREATE TABLE units(x); PRAGMA application_id = {}; PRAGMA user_version = {}",
+                               kFleetApplicationId, kFleetSchemaVersion));
+  ExpectRefused(Ingest(foreign, "A"), "tables or indexes differ from schema version 2", foreign);
 }
 
 TEST_F(FleetTest, ChromiumRendersTheFleetReport) {
