@@ -56,6 +56,6 @@ set(CPACK_PACKAGE_DESCRIPTION_SUMMARY "${PROJECT_DESCRIPTION}")
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
 set(CPACK_DEBIAN_PACKAGE_SECTION science)
 set(CPACK_DEBIAN_PACKAGE_DEPENDS
-    "libopencv-dev (>= 4.6), libceres-dev (>= 2.1), libeigen3-dev (>= 3.4), libapriltag-dev, nlohmann-json3-dev, libfmt-dev, libssl-dev, libsqlite3-dev")
+    "libopencv-dev (>= 4.6), libceres-dev (>= 2.1), libeigen3-dev (>= 3.4), libapriltag-dev, nlohmann-json3-dev, libfmt-dev, libssl-dev, libsqlite3-dev, zlib1g-dev")
 set(CPACK_GENERATOR DEB)
 include(CPack)

@@ -21,6 +21,7 @@
 #include <utility>
 #include <vector>
 
+#include "imageio/container_check.h"
 #include "imageio/imgcodecs_abi.h"
 #include "util/io.h"
 
@@ -161,6 +162,7 @@ cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string
         fmt::format("{}: over the {} MiB an image file may have", name, limits.max_file_bytes >> 20));
   }
   if (const auto stored = ProbeStoredSize(bytes)) CheckPixels(stored->width_px, stored->height_px, name, limits);
+  CheckContainer(bytes, name);
   const ImgcodecsApi& codecs = Codecs();
   cv::Mat image;
   char error[512] = "";
@@ -170,8 +172,8 @@ cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string
     throw util::InputError(fmt::format("{}: cannot be read as an image ({})", name, error));
   }
   if (image.empty()) {
-    throw util::InputError(
-        fmt::format("{}: cannot be read as an image (not a format OpenCV decodes, or truncated)", name));
+    throw util::InputError(fmt::format("{}: cannot be read as an image ({})", name,
+                                       *error ? error : "not a format OpenCV decodes, or truncated"));
   }
   CheckPixels(image.cols, image.rows, name, limits);
   return image;

@@ -17,13 +17,14 @@
 namespace topocal::imageio {
 
 // Raised whenever a field or a function's meaning changes.
-inline constexpr int kImgcodecsAbiVersion = 1;
+inline constexpr int kImgcodecsAbiVersion = 2;
 inline constexpr const char* kImgcodecsEntryPoint = "topocal_imgcodecs_api";
 
 struct ImgcodecsApi {
   int abi_version;             // kImgcodecsAbiVersion of the plugin's build
   const char* opencv_version;  // CV_VERSION of the plugin's build
-  // cv::imdecode(bytes, imread_flags) into *out (empty when OpenCV cannot decode the bytes: returns true).
+  // cv::imdecode(bytes, imread_flags) into *out (empty when OpenCV cannot decode the bytes: returns true, with the
+  // decoder's message in `error` when it gave one; nothing is printed).
   bool (*decode)(const unsigned char* bytes, std::size_t size, int imread_flags, cv::Mat* out, char* error,
                  std::size_t error_size);
   // cv::imencode(extension, *image, *out, params[0..param_count)); false when OpenCV refuses or fails.

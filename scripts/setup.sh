@@ -9,7 +9,7 @@ mode=${1:-run}
 case "$mode" in run|test|build) ;; *) echo "usage: scripts/setup.sh run|test|build" >&2; exit 2 ;; esac
 
 pkgs=(cmake g++ make pkg-config libopencv-dev libceres-dev libeigen3-dev libapriltag-dev libcli11-dev
-      nlohmann-json3-dev libfmt-dev libssl-dev libsqlite3-dev libgtest-dev libgmock-dev libbenchmark-dev
+      nlohmann-json3-dev libfmt-dev libssl-dev libsqlite3-dev zlib1g-dev libgtest-dev libgmock-dev libbenchmark-dev
       fonts-dejavu-core libopencv-contrib-dev liblapack-dev pybind11-dev python3-dev python3-numpy)
 # fonts-dejavu-core: the maps' text (µm, mm², °) is drawn in DejaVu Sans through OpenCV's FreeType module.
 # libopencv-contrib-dev: OpenCV aruco (Kalibr AprilGrids: calib/kalibr_grid_detector.cc).

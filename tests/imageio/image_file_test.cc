@@ -109,7 +109,7 @@ TEST(ImageFile, EveryBadFileIsOneLineNamingIt) {
   expect("missing.png", "cannot be opened for reading: No such file");
   expect("text.png", "cannot be read as an image");
   expect("empty.jpg", "empty file");
-  expect("truncated.jpg", "cannot be read as an image");
+  expect("truncated.jpg", "truncated JPEG");
   ImageLimits tiny;
   tiny.max_file_bytes = 1000;
   expect("good.jpg", "over the 0 MiB", tiny);
@@ -122,6 +122,41 @@ TEST(ImageFile, EveryBadFileIsOneLineNamingIt) {
             std::string::npos);
   EXPECT_EQ(ErrorOf([&] { RequireSize(good, path("good.jpg"), 200, 100, "camera.json"); }), "");
   std::filesystem::remove_all(dir);
+}
+
+// Truncated or damaged files: refused with one line naming the file, and nothing else printed (libpng wrote
+// "libpng error: ..." and OpenCV "imdecode_(''): can't read data: ..." to stderr before topocal's line; a JPEG cut
+// short decoded into a whole image with grey rows).
+TEST(ImageFile, TruncatedOrDamagedFilesAreRefusedAndNothingElseIsPrinted) {
+  const std::string png = Encode(Gradient(300, 200), ".png");
+  const std::string jpeg = Encode(Gradient(300, 200, CV_8UC3), ".jpg");
+  const std::string progressive = Encode(Gradient(300, 200, CV_8UC3), ".jpg", {cv::IMWRITE_JPEG_PROGRESSIVE, 1});
+  const std::string pgm = Encode(Gradient(300, 200), ".pgm");
+  std::vector<std::pair<std::string, std::string>> bad;  // (name, bytes)
+  for (std::size_t cut = 33; cut < png.size(); cut += 1009) bad.push_back({fmt::format("cut{}.png", cut), png.substr(0, cut)});
+  for (std::size_t cut = 200; cut < jpeg.size(); cut += 2003) bad.push_back({fmt::format("cut{}.jpg", cut), jpeg.substr(0, cut)});
+  for (std::size_t cut = 400; cut < progressive.size(); cut += 3001) {
+    bad.push_back({fmt::format("cut{}.progressive.jpg", cut), progressive.substr(0, cut)});
+  }
+  for (const std::size_t at : {std::size_t{18}, png.size() / 2, png.size() - 10}) {  // IHDR, IDAT, IEND's CRC
+    std::string flipped = png;
+    flipped[at] = static_cast<char>(flipped[at] ^ 0x20);
+    bad.push_back({fmt::format("flip{}.png", at), flipped});
+  }
+  bad.push_back({"cut.pgm", pgm.substr(0, pgm.size() / 2)});
+  for (const auto& [name, bytes] : bad) {
+    SCOPED_TRACE(name);
+    ::testing::internal::CaptureStderr();
+    const std::string why = ErrorOf([&] { DecodeImage(bytes, Channels::kGrey, name); });
+    const std::string printed = ::testing::internal::GetCapturedStderr();
+    EXPECT_EQ(why.rfind(name + ": ", 0), 0u) << why;
+    EXPECT_EQ(why.find('\n'), std::string::npos) << why;
+    EXPECT_EQ(printed, "");
+  }
+  // Whole files still decode, progressive JPEGs (several scans) included.
+  for (const std::string* whole : {&png, &jpeg, &progressive, &pgm}) {
+    EXPECT_EQ(DecodeImage(*whole, Channels::kGrey, "whole").cols, 300);
+  }
 }
 
 // Encoding goes through the codec plugin: the bytes are OpenCV's own (what cv::imencode writes in this process,

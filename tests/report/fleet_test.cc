@@ -236,6 +236,8 @@ TEST_F(FleetTest, TheLedgerHoldsOnlyValuesItCanStand) {
     j["calibration"]["rms_px"] = 1e308;
   });
   ExpectRefused("fleet ingest --db " + db + " " + rms, "calibration.rms_px: recorded", db);
+  // --recompute: a record whose checks cannot be recomputed (these generated ones hold no sphere spots) is refused.
+  ExpectRefused("fleet ingest --recompute --db " + db + " " + rec, "cannot be recomputed", db);
   // A date that is not one (month 13).
   const std::string date = EditedRecord(rec, edits + "/date", [](nlohmann::json& j) {
     j["created_utc"] = "2026-13-01T08:00:00Z";
