@@ -96,6 +96,12 @@ constexpr const char* kFormat = "topocal-device";
 Eigen::Vector2d CentreMm(util::JsonSection& s) {
   if (!s.Has("centre_mm")) return Eigen::Vector2d::Zero();
   const auto c = s.Numbers("centre_mm", 2);
+  // On the detection plane, whose sensor is a few mm across: a centre beyond the pose's translation bound is a unit
+  // error (a centre of -1e308 rendered 624 spots at NaN).
+  if (std::abs(c[0]) > kMaxTranslationMm || std::abs(c[1]) > kMaxTranslationMm) {
+    s.Fail(s.Key("centre_mm"),
+           fmt::format("must lie within {} mm of the axis in x and y (got [{:g}, {:g}])", kMaxTranslationMm, c[0], c[1]));
+  }
   return {c[0], c[1]};
 }
 

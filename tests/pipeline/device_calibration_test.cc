@@ -136,6 +136,10 @@ TEST(DeviceFile, RoundTripsAndRefusesBadInput) {
   bad["screen_pose"]["rx_deg"] = 45.0;
   EXPECT_EQ(error_of(bad.dump()), "dev.json: screen_pose.rx_deg: must be in [-10, 10] (got 45)");
   bad = j;
+  bad["distortion"]["centre_mm"] = {-1e308, 0.0};  // rendered 624 spots at NaN, exit 0
+  EXPECT_EQ(error_of(bad.dump()),
+            "dev.json: distortion.centre_mm: must lie within 10 mm of the axis in x and y (got [-1e+308, 0])");
+  bad = j;
   bad["screen_pose"]["tilt"] = 1.0;
   EXPECT_EQ(error_of(bad.dump()), "dev.json: screen_pose.tilt: unknown key");
   bad = j;
