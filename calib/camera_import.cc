@@ -567,7 +567,15 @@ std::string ImportCalibrationText(const std::string& from, const std::string& pa
   } else {
     throw util::InputError(fmt::format("--from: '{}' is not kalibr, opencv, mrcal or ros", from));
   }
-  return OpenCvCalibrationText(camera, from + ": " + path);
+  std::string text = OpenCvCalibrationText(camera, from + ": " + path);
+  // Read back by the reader every --calibration goes through: a file the other verbs would refuse (k1 = 1e308 has no
+  // valid region) is not written.
+  try {
+    (void)ParseCalibrationFile(text, path);
+  } catch (const util::InputError& e) {
+    throw util::InputError(fmt::format("{} (the camera imported from it: nothing written)", e.what()));
+  }
+  return text;
 }
 
 }  // namespace topocal::calib

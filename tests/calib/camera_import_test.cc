@@ -355,4 +355,26 @@ TEST_F(CameraImportTest, KalibrMessagesNameTheCamerasKey) {
 }
 
 }  // namespace
+// A camera every reader accepts on its own but that no other verb could use (k1 = 1e308: no region where the
+// distortion is invertible) is refused by import, naming the file, instead of being written (it was written, exit 0,
+// and every verb then refused the result).
+TEST_F(CameraImportTest, AnImportedCameraOtherVerbsWouldRefuseIsNotWritten) {
+  const std::string path = Write("camchain.yaml",
+                                 "cam0:\n  camera_model: pinhole\n  intrinsics: [500.0, 500.0, 320.0, 240.0]\n"
+                                 "  distortion_model: radtan\n  distortion_coeffs: [1e308, 0.0, 0.0, 0.0]\n"
+                                 "  resolution: [640, 480]\n");
+  try {
+    (void)ImportCalibrationText("kalibr", path);
+    ADD_FAILURE() << "accepted";
+  } catch (const util::InputError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind(path + ": ", 0), 0u) << what;
+    EXPECT_NE(what.find("nothing written"), std::string::npos) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  }
+  // The same camera with an ordinary k1 imports.
+  const std::string fine = Write("fine.yaml", Replaced(util::ReadFile(path), "1e308", "-0.2"));
+  EXPECT_NO_THROW((void)ImportCalibrationText("kalibr", fine));
+}
+
 }  // namespace topocal::calib
