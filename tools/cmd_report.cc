@@ -33,6 +33,9 @@ void Run(const ReportArgs& a) {
   std::optional<report::UnitRecord> previous;
   if (!a.previous.empty()) {
     previous = report::ReadUnitRecord(a.previous);
+    // Its numbers go on the signed comparison: recomputed from its own files like the record's (an edited previous
+    // unit.json was shown as it stood).
+    report::RecomputeRecordNumbers(*previous);
     in.previous = &*previous;
   }
   in.Validate(record);

@@ -118,6 +118,12 @@ TEST(ReportCli, RefusesAPreviousRecordOfAnotherUnitAndABadCertificateU) {
   other.unit["serial"] = "SN-OTHER";
   other.WriteUnitJson();
   ExpectRefused(c, " --previous " + other.dir, "the previous record is of unit SN-OTHER, not SN-TEST-0001");
+  // The unit's own previous record with a number edited in its unit.json: refused like the record itself (its
+  // numbers were put on the signed comparison as they stood).
+  auto edited = MakeRecord(fs::path(c.out).parent_path().string() + "/units/SN-TEST-0001.previous");
+  edited.unit["paper_cornea"]["corrected"]["kx"] = -0.5;
+  edited.WriteUnitJson();
+  ExpectRefused(c, " --previous " + edited.dir, "paper_cornea.corrected.kx: recorded -0.5, recomputed");
   ExpectRefused(c, " --ball-radius-U-mm -0.1", "--ball-radius-U-mm");
 }
 
