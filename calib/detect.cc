@@ -6,6 +6,7 @@
 #include <cmath>
 #include <map>
 #include <mutex>
+#include <string_view>
 #include <opencv2/imgproc.hpp>
 
 #include "calib/apriltag_detector.h"
@@ -15,6 +16,7 @@
 #include "imageio/image_file.h"
 #include "util/io.h"
 #include "util/parallel.h"
+#include "util/sha256.h"
 
 namespace topocal::calib {
 
@@ -111,9 +113,34 @@ std::optional<ViewObservations> DetectTargetInFile(const TargetDescription& targ
   return view;
 }
 
+namespace {
+
+// The pixels' digest with the image's size: one capture under two names (a copy, or a JPEG and its PNG) has the same.
+std::string PixelDigest(const cv::Mat& grey) {
+  const cv::Mat flat = grey.isContinuous() ? grey : grey.clone();
+  const std::string_view bytes(reinterpret_cast<const char*>(flat.data), flat.total() * flat.elemSize());
+  return fmt::format("{}x{}:{}", flat.cols, flat.rows, util::Sha256Hex(bytes));
+}
+
+// The same capture given twice is no new view, yet each copy would shrink the reported standard deviations by
+// another sqrt(2): every repeat after the first is skipped with a reason naming the first (as ball images are).
+void SkipRepeatedImages(const std::vector<std::string>& pixel_digests, std::vector<FileDetection>& out) {
+  std::map<std::string, size_t> first;
+  for (size_t i = 0; i < out.size(); ++i) {
+    if (pixel_digests[i].empty()) continue;
+    const auto [it, inserted] = first.try_emplace(pixel_digests[i], i);
+    if (inserted) continue;
+    out[i].skipped = fmt::format("the same image as {} (identical pixels): no new view", out[it->second].path);
+    out[i].detection.view.reset();
+  }
+}
+
+}  // namespace
+
 std::vector<FileDetection> DetectTargetInFiles(const TargetDescription& target, const std::vector<std::string>& paths,
                                                const FileSetOptions& options) {
   std::vector<FileDetection> out(paths.size());
+  std::vector<std::string> pixel_digests(paths.size());
   std::mutex callback_mutex;
   // Each image is read, detected and released inside its own task: at most `jobs` images are in memory at once.
   util::ParallelFor(paths.size(), options.jobs, [&](size_t i) {
@@ -128,6 +155,7 @@ std::vector<FileDetection> DetectTargetInFiles(const TargetDescription& target, 
       f.skipped = what.rfind(f.path + ": ", 0) == 0 ? what.substr(f.path.size() + 2) : what;
     }
     if (!image.empty()) {
+      pixel_digests[i] = PixelDigest(image);
       f.width_px = image.cols;
       f.height_px = image.rows;
       f.detection = DetectTargetDetailed(target, image, options.detection);
@@ -138,6 +166,7 @@ std::vector<FileDetection> DetectTargetInFiles(const TargetDescription& target, 
       options.on_done(i, f);
     }
   });
+  SkipRepeatedImages(pixel_digests, out);
   if (options.require_same_size) {
     // The camera's size is the one most views with a target share (ties: the earliest such view). Taking the first
     // readable image instead let one stray picture (another camera, a screenshot, an image without the target)

@@ -71,7 +71,7 @@ std::optional<ViewObservations> DetectTargetInFile(const TargetDescription& targ
 struct FileDetection {
   std::string path;
   DetectionResult detection;  // detection.view is set (with image_path) when the target was found
-  std::string skipped;        // non-empty when the image was not used: unreadable, or not the set's size
+  std::string skipped;  // non-empty when the image was not used: unreadable, a repeat of an earlier one, not the set's size
   int width_px = 0, height_px = 0;
 };
 

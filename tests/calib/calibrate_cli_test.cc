@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -187,15 +188,43 @@ TEST_F(CalibrateCli, TooFewViewsIsOneLineExitOneAndNoOutput) {
 }
 
 TEST_F(CalibrateCli, DegenerateSetIsOneLineExitOneAndNoOutput) {
-  // The same photograph three times: one target orientation, which cannot determine the intrinsics.
-  for (const char* name : {"a.jpg", "b.jpg", "c.jpg"}) fs::copy_file(kDataDir + "left03.jpg", Path(name));
-  const auto r = RunTopocal("calibrate --target " + Path("board.yaml") + " --images '" + Path("*.jpg") + "' --out " +
+  // One photograph three times, each with other sensor noise (one grey level on a different pixel): one target
+  // orientation, which cannot determine the intrinsics.
+  const cv::Mat photo = cv::imread(kDataDir + "left03.jpg", cv::IMREAD_GRAYSCALE);
+  ASSERT_FALSE(photo.empty());
+  for (int k = 0; k < 3; ++k) {
+    cv::Mat noisy = photo.clone();
+    noisy.at<uint8_t>(k, 0) ^= 1;
+    ASSERT_TRUE(cv::imwrite(Path(fmt::format("{}.png", k)), noisy));
+  }
+  const auto r = RunTopocal("calibrate --target " + Path("board.yaml") + " --images '" + Path("*.png") + "' --out " +
                             Path("cal.yaml") + " --json " + Path("report.json"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(CountLines(r.output), 1) << r.output;
   EXPECT_NE(r.output.find("degenerate"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(Path("cal.yaml")));
   EXPECT_FALSE(fs::exists(Path("report.json")));
+}
+
+// Issue 37: the same photograph under three names was calibrated as three views, each copy shrinking the reported
+// standard deviations by another sqrt(2) for no new information. Each repeat is skipped naming the first; what is
+// left is one view.
+TEST_F(CalibrateCli, ARepeatedPhotographIsOneView) {
+  for (const char* name : {"a.jpg", "b.jpg", "c.jpg"}) fs::copy_file(kDataDir + "left03.jpg", Path(name));
+  const cv::Mat png = cv::imread(kDataDir + "left04.jpg", cv::IMREAD_GRAYSCALE);
+  ASSERT_TRUE(cv::imwrite(Path("d.png"), png));
+  fs::copy_file(kDataDir + "left04.jpg", Path("e.jpg"));  // the same pixels in another file format
+  const auto r = RunTopocal("calibrate --target " + Path("board.yaml") + " --images '" + Path("*.*g") + "' --out " +
+                            Path("cal.yaml") + " --json " + Path("report.json"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("skipping " + Path("b.jpg") + ": the same image as " + Path("a.jpg") +
+                          " (identical pixels): no new view"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("skipping " + Path("c.jpg") + ": the same image as " + Path("a.jpg")), std::string::npos);
+  EXPECT_NE(r.output.find("skipping " + Path("e.jpg") + ": the same image as " + Path("d.png")), std::string::npos);
+  EXPECT_NE(r.output.find("too few views"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(Path("cal.yaml")));
 }
 
 TEST_F(CalibrateCli, BadInputIsExitTwo) {
