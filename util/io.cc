@@ -3,6 +3,7 @@
 #include <dirent.h>
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <poll.h>
 #include <pthread.h>
 #include <signal.h>
 #include <sys/stat.h>
@@ -11,7 +12,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
@@ -61,6 +64,59 @@ bool WriteAll(int fd, std::string_view content) {
     left -= static_cast<size_t>(n);
   }
   return true;
+}
+
+// How long a stream output (a FIFO, /dev/stdout on a pipe) may make no progress: its open waits for a reader and its
+// writes for the reader to read, and a reader that never comes must not hang a batch job for ever.
+// TOPOCAL_STREAM_TIMEOUT_S overrides the 60 s.
+int StreamTimeoutMs() {
+  constexpr double kDefaultS = 60.0;
+  const char* env = std::getenv("TOPOCAL_STREAM_TIMEOUT_S");
+  if (env == nullptr || *env == '\0') return static_cast<int>(kDefaultS * 1000);
+  char* end = nullptr;
+  const double s = std::strtod(env, &end);
+  if (*end != '\0' || !(s > 0 && s <= 86400)) {
+    throw InputError(fmt::format("TOPOCAL_STREAM_TIMEOUT_S: '{}' is not a number of seconds in (0, 86400]", env));
+  }
+  return std::max(1, static_cast<int>(s * 1000));
+}
+
+// Opens a FIFO for writing without blocking: while no reader has it open (ENXIO) it is tried again until the
+// timeout. The descriptor stays non-blocking; WriteStream waits for each write with poll().
+int OpenFifoForWriting(const std::string& path, int timeout_ms) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+  for (;;) {
+    const int fd = ::open(path.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd >= 0 || errno != ENXIO) return fd;
+    if (std::chrono::steady_clock::now() >= deadline) {
+      throw InputError(fmt::format("{}: cannot be written: no reader opened the FIFO within {} s", path,
+                                   timeout_ms / 1000.0));
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+}
+
+// Writes everything to a non-blocking descriptor, waiting at most `timeout_ms` for each step of progress.
+void WriteStream(int fd, const std::string& path, std::string_view content, int timeout_ms) {
+  const char* p = content.data();
+  size_t left = content.size();
+  while (left > 0) {
+    const ssize_t n = ::write(fd, p, left);
+    if (n >= 0) {
+      p += n;
+      left -= static_cast<size_t>(n);
+      continue;
+    }
+    if (errno == EINTR) continue;
+    if (errno != EAGAIN) throw InputError(fmt::format("{}: cannot be written: {}", path, ErrnoText(errno)));
+    pollfd pfd{fd, POLLOUT, 0};
+    const int ready = ::poll(&pfd, 1, timeout_ms);
+    if (ready == 0) {
+      throw InputError(fmt::format("{}: cannot be written: the reader took nothing for {} s ({} of {} bytes written)",
+                                   path, timeout_ms / 1000.0, content.size() - left, content.size()));
+    }
+    if (ready < 0 && errno != EINTR) throw InputError(fmt::format("{}: cannot be written: {}", path, ErrnoText(errno)));
+  }
 }
 
 // The file a chain of symbolic links ends at (the path itself when it is no link; a dangling link's target).
@@ -249,6 +305,7 @@ std::string StagedOutputs::AddDirectory(const std::string& path) {
 }
 
 void StagedOutputs::Commit() {
+  const int stream_timeout_ms = state_->streams.empty() ? 0 : StreamTimeoutMs();  // a bad setting before any output
   {
     // Held while publishing: a signal arriving now waits until every rename is done.
     std::lock_guard lock(CleanupMutex());
@@ -282,6 +339,19 @@ void StagedOutputs::Commit() {
   for (const auto& s : state_->streams) {
     struct stat st {};
     const bool regular = ::stat(s.path.c_str(), &st) == 0 && S_ISREG(st.st_mode);  // /dev/stdout redirected to a file
+    if (::stat(s.path.c_str(), &st) == 0 && S_ISFIFO(st.st_mode)) {
+      const int timeout_ms = stream_timeout_ms;
+      const int fd = OpenFifoForWriting(s.path, timeout_ms);
+      if (fd < 0) throw InputError(fmt::format("{}: cannot be written: {}", s.path, ErrnoText(errno)));
+      try {
+        WriteStream(fd, s.path, s.content, timeout_ms);
+      } catch (...) {
+        ::close(fd);
+        throw;
+      }
+      ::close(fd);
+      continue;
+    }
     const int fd = ::open(s.path.c_str(), O_WRONLY | O_CLOEXEC | (regular ? O_TRUNC : 0));
     if (fd < 0) throw InputError(fmt::format("{}: cannot be written: {}", s.path, ErrnoText(errno)));
     const bool ok = WriteAll(fd, s.content);

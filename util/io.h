@@ -38,7 +38,8 @@ class MeasurementRefused : public std::runtime_error {
 //    old file); a file this run read (NoteInput, with GuardInputs on) is refused;
 //  - a symbolic link: written through — the file the link points to is replaced as above, the link stays;
 //  - a FIFO, a character device (/dev/null, a terminal) or any path under /dev or /proc (/dev/stdout): written
-//    directly at Commit (after every staged file is in place), never replaced by a regular file;
+//    directly at Commit (after every staged file is in place), never replaced by a regular file; a FIFO waits
+//    for its reader at most 60 s without progress (TOPOCAL_STREAM_TIMEOUT_S), then the run fails naming it;
 //  - "-", a directory, a block device or a socket: refused (InputError); "-" because every verb prints its summary
 //    on standard output, which would mix with the file (/dev/stdout asks for exactly that).
 // A file's directory must exist; a directory output is created with its parents (removed again if the run fails).

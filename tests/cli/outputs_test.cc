@@ -64,6 +64,24 @@ TEST_F(Outputs, AFifoIsWrittenIntoNotReplaced) {
   EXPECT_TRUE(Leftovers().empty());
 }
 
+// Issue 37: a FIFO nobody reads blocked the run for ever in open(2). It now waits at most the stream timeout, then
+// fails naming the FIFO; other outputs of the run are published before the streams, as documented.
+TEST_F(Outputs, AFifoWithoutAReaderTimesOutWithALine) {
+  ASSERT_EQ(::mkfifo(Path("pipe").c_str(), 0600), 0);
+  const auto start = std::chrono::steady_clock::now();
+  const auto r = RunTopocal(Design(Path("pipe")), "TOPOCAL_STREAM_TIMEOUT_S=0.5");
+  const double waited_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_EQ(r.output, "topocal: " + Path("pipe") + ": cannot be written: no reader opened the FIFO within 0.5 s\n");
+  EXPECT_GE(waited_s, 0.5);
+  EXPECT_TRUE(fs::is_fifo(Path("pipe")));
+  const auto bad = RunTopocal(Design(Path("pipe")), "TOPOCAL_STREAM_TIMEOUT_S=forever");
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("TOPOCAL_STREAM_TIMEOUT_S: 'forever' is not a number of seconds"), std::string::npos)
+      << bad.output;
+  EXPECT_TRUE(Leftovers().empty());
+}
+
 TEST_F(Outputs, DevNullStaysADevice) {
   // As root the atomic rename replaced /dev/null with a regular file (issue 16).
   ASSERT_EQ(RunTopocal(Design("/dev/null")).exit_code, 0);
