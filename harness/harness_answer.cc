@@ -183,8 +183,9 @@ InverseAnswer ComputeInverseAnswer(const HarnessRun& run) {
     const int family = std::get<1>(key);
     family_max_um[family] = std::max(family_max_um[family], members.back().x);
     if (c.failing_case >= 0 && (best.failing_case < 0 || Better(c, best))) best = c;
+    if (c.failing_case < 0) continue;  // within the limits throughout: no crossing (operator[] made one at +inf)
     auto& f = by_family[family];
-    if (c.failing_case >= 0 && (f.failing_case < 0 || Better(c, f))) f = c;
+    if (f.failing_case < 0 || Better(c, f)) f = c;
   }
   // A zero-residual case outside the limits whose cornea and noise level have no group (only zero coefficients
   // or e = 0 swept).

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "plot/scatter_plot.h"
+#include "util/json_section.h"
 #include "util/version.h"
 
 namespace topocal::harness {
@@ -137,6 +138,7 @@ std::string SummaryJson(const HarnessRun& run, const InverseAnswer& a) {
   }
   j["truth"] = truth;
   if (a.limiting_case >= 0) j["limiting_case"] = CaseJson(run, a.limiting_case);
+  util::RequireFiniteNumbers(j);
   return j.dump(2) + "\n";
 }
 

@@ -27,6 +27,7 @@
 #include "topo/biconic_fit.h"
 #include "topo/power_map.h"
 #include "util/io.h"
+#include "util/json_section.h"
 #include "util/build_info.h"
 #include "util/sha256.h"
 #include "util/version.h"
@@ -36,16 +37,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-void CheckFinite(const json& j, const std::string& where) {
-  if (j.is_object()) {
-    for (const auto& [k, v] : j.items()) CheckFinite(v, where.empty() ? k : where + "." + k);
-  } else if (j.is_array()) {
-    for (size_t i = 0; i < j.size(); ++i) CheckFinite(j[i], fmt::format("{}[{}]", where, i));
-  } else if (j.is_number_float() && !std::isfinite(j.get<double>())) {
-    throw std::runtime_error(fmt::format("{}: not a finite number", where));
-  }
-}
 
 // Every file under `dir` but unit.json, sorted, with its digest.
 json FileDigests(const fs::path& dir) {
@@ -111,8 +102,6 @@ void CommitDirectory(const fs::path& staged, const fs::path& out, bool keep_hist
 }
 
 }  // namespace
-
-void RequireFiniteNumbers(const json& j) { CheckFinite(j, ""); }
 
 namespace {
 // "units/SN/" and "units/SN" are the same record: without the trailing separator, so that the staging directory
@@ -263,7 +252,7 @@ void UnitRecordWriter::Commit(json body) {
   body["tool_version"] = kVersion;
   body["tool_commit"] = BuildCommit();  // the exact code (util/build_info.h)
   body["files"] = FileDigests(staging_);
-  CheckFinite(body, "");
+  util::RequireFiniteNumbers(body);
   util::WriteFileAtomic((staging_ / "unit.json").string(), body.dump(2) + "\n");
   CommitDirectory(staging_, out_, keep_history_);
   committed_ = true;
@@ -489,7 +478,7 @@ void WriteUnitRecord(const pipeline::UnitResult& u) {
   record["paper_cornea"] = PaperCorneaJson(u.paper, u.check);
   if (u.device) record["device"] = DeviceJson(*u.device);
   try {
-    RequireFiniteNumbers(record);
+    util::RequireFiniteNumbers(record);
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(fmt::format("{}: the result is not usable: {}", r.serial, e.what()));
   }

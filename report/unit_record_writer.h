@@ -19,9 +19,6 @@
 
 namespace topocal::report {
 
-// Throws std::runtime_error "KEY: not a finite number" for the first NaN or infinity in `j` (dotted key path).
-void RequireFiniteNumbers(const nlohmann::json& j);
-
 // Is `path` (a directory given as a record) what a killed writer left: a staging folder "NAME.tmp-PID-TOKEN" or a
 // record set aside "NAME.old-PID"? `fleet ingest units/*/` skips them with a line; the next writer of NAME removes
 // them.

@@ -1,5 +1,6 @@
 #include "util/json_section.h"
 
+#include <stdexcept>
 #include <vector>
 
 namespace topocal::util {
@@ -98,5 +99,19 @@ nlohmann::json ParseJsonStrict(const std::string& text, const std::string& origi
   if (!duplicate.empty()) throw ConfigError(fmt::format("{}: {}: given twice in one object", origin, duplicate));
   return j;
 }
+
+namespace {
+void CheckFinite(const nlohmann::json& j, const std::string& where) {
+  if (j.is_object()) {
+    for (const auto& [k, v] : j.items()) CheckFinite(v, where.empty() ? k : where + "." + k);
+  } else if (j.is_array()) {
+    for (size_t i = 0; i < j.size(); ++i) CheckFinite(j[i], fmt::format("{}[{}]", where, i));
+  } else if (j.is_number_float() && !std::isfinite(j.get<double>())) {
+    throw std::runtime_error(fmt::format("{}: not a finite number", where));
+  }
+}
+}  // namespace
+
+void RequireFiniteNumbers(const nlohmann::json& j) { CheckFinite(j, ""); }
 
 }  // namespace topocal::util

@@ -56,6 +56,11 @@ inline constexpr size_t kMaxJsonBytes = 64u << 20;
 inline constexpr int kMaxJsonDepth = 64;
 nlohmann::json ParseJsonStrict(const std::string& text, const std::string& origin);
 
+// Throws std::runtime_error "KEY: not a finite number" for the first NaN or infinity in `j` (dotted key path,
+// "[i]" for array elements): nlohmann writes both as null, which a reader would take for a missing value. Every
+// JSON file topocal writes goes through this before dump().
+void RequireFiniteNumbers(const nlohmann::json& j);
+
 class JsonSection {
  public:
   using json = nlohmann::json;

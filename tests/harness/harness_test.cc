@@ -403,6 +403,21 @@ TEST(HarnessAnswer, InterpolatesTheFirstCrossingOfEachGroupAndTakesTheSmallest) 
   EXPECT_NEAR(a.sigma_equivalent_per_mm2, a.residual_max_um * 1e-3 * std::pow(0.065, 3) / std::pow(0.4, 3), 1e-15);
   EXPECT_EQ(a.cases_outside, 2);
 
+  // One family within the limits throughout while another crosses: no crossing for it, and its answer is the
+  // largest residual tested (8 um), finite. Before, the per-family lookup created a crossing at +infinity,
+  // reported found = true and wrote residual_max_um null to summary.json ("inf" in table.md).
+  run.cases[4].dP_axial_max_D = 0;
+  const auto one = harness::ComputeInverseAnswer(run);
+  ASSERT_EQ(one.families.size(), 2u);
+  EXPECT_TRUE(one.families[0].found);
+  EXPECT_FALSE(one.families[1].found);
+  EXPECT_EQ(one.families[1].residual_max_um, 8);
+  for (const auto& [name, text] : harness::RenderHarnessOutputs(run, one)) {
+    EXPECT_EQ(text.find("null"), std::string::npos) << name;
+    EXPECT_EQ(text.find("inf "), std::string::npos) << name;
+  }
+  run.cases[4].dP_axial_max_D = 0.5;
+
   // Noise alone outside the limits: the answer is 0.
   run.cases[0].dk_x = 0.1;
   const auto none = harness::ComputeInverseAnswer(run);
