@@ -57,6 +57,31 @@ class UnitCli : public topocal::testing_cli::TempDirTest {
     std::sort(names.begin(), names.end());
     return names;
   }
+  // The device stage's inputs: a unit whose cone is tilted and decentred (its lens as the fixture's), written to
+  // DIR/unit-device.json, and four balls rendered through it (6.5, 7.8 and 9.0 mm placed by hand, and a held-out
+  // 7.8 mm ball at DIR/ball-7.8-0.10.png). Returns the three calibration balls and their radii, space-led.
+  std::pair<std::string, std::string> RenderBalls() const {
+    const std::string device = (dir_ / "unit-device.json").string();
+    util::WriteFileAtomic(device, R"({"format": "topocal-device", "format_version": 1,
+    "camera": {"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120, "principal_point_px": [559.5, 559.5],
+               "a_mm": 5.2},
+    "distortion": {"model": "seidel", "sigma_per_mm2": 6.3e-5},
+    "screen_pose": {"rx_deg": 0.8, "ry_deg": -0.5, "rz_deg": 0.3, "tx_mm": 0.1, "ty_mm": -0.05, "tz_mm": 0.3}})");
+    std::string balls, radii;
+    for (const auto& [r, x, y, z] : {std::tuple{"6.5", "0.12", "-0.20", "0.00"}, std::tuple{"7.8", "-0.25", "0.10", "-0.15"},
+                                     std::tuple{"9.0", "0.20", "0.22", "0.10"}, std::tuple{"7.8", "0.10", "0.05", "0.00"}}) {
+      const std::string png = (dir_ / fmt::format("ball-{}-{}.png", r, x)).string();
+      const auto b = RunTopocal(fmt::format("render-spots --config {}/data/paper.json --device {} --sphere-radius-mm {} "
+                                            "--ball-at {} {} {} --out {}",
+                                            TOPOCAL_SOURCE_DIR, device, r, x, y, z, png));
+      EXPECT_EQ(b.exit_code, 0) << b.output;
+      if (std::string(x) != "0.10") {
+        balls += " " + png;
+        radii += std::string(" ") + r;
+      }
+    }
+    return {balls, radii};
+  }
   std::string in_;
 };
 
@@ -139,25 +164,7 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
 // position. The record gains device.json and the three-way comparison; the device recovers the assembly, and the
 // held-out ball and the paper cornea come out right only through it. With the trailing slash in --out.
 TEST_F(UnitCli, TheDeviceStageFromBallsFixesWhatTheLensCalibrationCannot) {
-  const std::string device = (dir_ / "unit-device.json").string();
-  util::WriteFileAtomic(device, R"({"format": "topocal-device", "format_version": 1,
-    "camera": {"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120, "principal_point_px": [559.5, 559.5],
-               "a_mm": 5.2},
-    "distortion": {"model": "seidel", "sigma_per_mm2": 6.3e-5},
-    "screen_pose": {"rx_deg": 0.8, "ry_deg": -0.5, "rz_deg": 0.3, "tx_mm": 0.1, "ty_mm": -0.05, "tz_mm": 0.3}})");
-  std::string balls, radii;
-  for (const auto& [r, x, y, z] : {std::tuple{"6.5", "0.12", "-0.20", "0.00"}, std::tuple{"7.8", "-0.25", "0.10", "-0.15"},
-                                   std::tuple{"9.0", "0.20", "0.22", "0.10"}, std::tuple{"7.8", "0.10", "0.05", "0.00"}}) {
-    const std::string png = (dir_ / fmt::format("ball-{}-{}.png", r, x)).string();
-    const auto b = RunTopocal(fmt::format("render-spots --config {}/data/paper.json --device {} --sphere-radius-mm {} "
-                                          "--ball-at {} {} {} --out {}",
-                                          TOPOCAL_SOURCE_DIR, device, r, x, y, z, png));
-    ASSERT_EQ(b.exit_code, 0) << b.output;
-    if (std::string(x) != "0.10") {
-      balls += " " + png;
-      radii += std::string(" ") + r;
-    }
-  }
+  const auto [balls, radii] = RenderBalls();
   const std::string held_out = (dir_ / "ball-7.8-0.10.png").string();
   const auto out = (dir_ / "D-1").string() + "/";
   const auto r = RunTopocal(fmt::format(
@@ -424,6 +431,71 @@ TEST_F(UnitCli, BatchSeedIsTheSeedOfEveryUnitsDraws) {
   EXPECT_EQ(r2.exit_code, 0) << r2.output;
   EXPECT_EQ(radius_u((dir_ / "seed5" / "SN-S").string()), batch6);
   EXPECT_EQ(Entries(dir_ / "seed5" / ".history" / "SN-S").size(), 1u);
+}
+
+// Issue 37: `unit calibrate --balls` writes the same record, device.json included, byte for byte, whether OpenCV
+// runs on one thread or four (the connected components of ball detection, the undistortion maps).
+TEST_F(UnitCli, TheDeviceStageIsByteIdenticalWhateverTheThreads) {
+  const auto [balls, radii] = RenderBalls();
+  std::vector<std::pair<std::string, std::string>> files[2];  // relative path, bytes
+  const char* threads[2] = {"1", "4"};
+  for (int i = 0; i < 2; ++i) {
+    const auto out = dir_ / fmt::format("threads-{}", threads[i]) / "T";
+    fs::create_directories(out.parent_path());
+    const auto r = RunTopocal(
+        fmt::format("unit calibrate --serial T --target {0}/target.yaml --images {0}/view.png --camera {0}/camera.json "
+                    "--reference-sphere {1} --sphere-radius-mm 7.8 --balls{2} --radii-mm{3} --uncertainty {4} "
+                    "--out {5}",
+                    in_, (dir_ / "ball-7.8-0.10.png").string(), balls, radii, kDraws, out.string()),
+        fmt::format("SOURCE_DATE_EPOCH=1796000000 OPENCV_FOR_THREADS_NUM={}", threads[i]));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    for (const auto& e : fs::recursive_directory_iterator(out)) {
+      if (e.is_regular_file()) files[i].emplace_back(fs::relative(e.path(), out).string(), util::ReadFile(e.path().string()));
+    }
+    std::sort(files[i].begin(), files[i].end());
+  }
+  ASSERT_TRUE(std::any_of(files[0].begin(), files[0].end(), [](const auto& f) { return f.first == "device.json"; }));
+  ASSERT_EQ(files[0].size(), files[1].size());
+  for (size_t i = 0; i < files[0].size(); ++i) {
+    EXPECT_EQ(files[0][i].first, files[1][i].first);
+    EXPECT_TRUE(files[0][i].second == files[1][i].second) << files[0][i].first << " differs between 1 and 4 threads";
+  }
+}
+
+// Issue 37: the records of a batch do not depend on how many units run at once (and so how many threads each
+// unit's Monte Carlo draws get): --jobs 1 and --jobs 3 write the same files, byte for byte (the record's date fixed
+// by SOURCE_DATE_EPOCH, the only field that may differ between runs).
+TEST_F(UnitCli, BatchRecordsAreByteIdenticalWhateverTheJobs) {
+  const auto batch = dir_ / "line";
+  for (const char* serial : {"SN-J1", "SN-J2", "SN-J3"}) {
+    fs::create_directories(batch / serial);
+    util::WriteFileAtomic((batch / serial / "unit-inputs.json").string(),
+                          fmt::format(R"({{"serial": "{0}", "target": "{1}/target.yaml", "images": "{1}/view.png",)"
+                                      R"( "reference_sphere": "{1}/sphere.png", "sphere_radius_mm": {2},)"
+                                      R"( "camera": "{1}/camera.json"}})",
+                                      serial, in_, kUnitSphereRadiusMm));
+  }
+  const auto files_of = [&](const std::string& out, int jobs) {
+    const auto r = RunTopocal(fmt::format("unit calibrate-batch {} --out {} --jobs {} --uncertainty {} --seed 3",
+                                          batch.string(), (dir_ / out).string(), jobs, kDraws),
+                              "SOURCE_DATE_EPOCH=1796000000");
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    std::vector<std::pair<std::string, std::string>> files;  // relative path, bytes
+    for (const auto& e : fs::recursive_directory_iterator(dir_ / out)) {
+      if (e.is_regular_file()) {
+        files.emplace_back(fs::relative(e.path(), dir_ / out).string(), util::ReadFile(e.path().string()));
+      }
+    }
+    std::sort(files.begin(), files.end());
+    return files;
+  };
+  const auto one = files_of("jobs1", 1), three = files_of("jobs3", 3);
+  ASSERT_GE(one.size(), 3u * 10u);  // three records of >= 10 files each
+  ASSERT_EQ(one.size(), three.size());
+  for (size_t i = 0; i < one.size(); ++i) {
+    EXPECT_EQ(one[i].first, three[i].first);
+    EXPECT_TRUE(one[i].second == three[i].second) << one[i].first << " differs between --jobs 1 and --jobs 3";
+  }
 }
 
 }  // namespace
