@@ -26,9 +26,14 @@ void AddDesignCommand(CLI::App& app) {
       fmt::print(stderr, "topocal design: spot ({}, {}): {}\n", f.id.ring, f.id.index, f.reason);
     }
     if (design.targets.empty()) throw std::runtime_error(fmt::format("{}: no target point could be designed", *config));
+    // The points to print: the orientation key's gaps are left out, as in the SVG (a screen built from a CSV that
+    // listed them would be silently unkeyed).
     std::string csv = "ring,index,x_mm,y_mm,z_mm\n";
+    int printed = 0;
     for (const auto& t : design.targets) {
+      if (model::IsOrientationKeySpot(cfg.ideal_image, t.id)) continue;
       csv += fmt::format("{},{},{},{},{}\n", t.id.ring, t.id.index, t.on_cone_mm.x(), t.on_cone_mm.y(), t.on_cone_mm.z());
+      ++printed;
     }
     std::string svg_text;
     if (!svg->empty()) {
@@ -47,7 +52,9 @@ void AddDesignCommand(CLI::App& app) {
     outputs.AddFile(*out, csv);
     if (!svg->empty()) outputs.AddFile(*svg, svg_text);
     outputs.Commit();
-    fmt::print("designed {} target points ({} failed) -> {}\n", design.targets.size(), design.failures.size(), *out);
+    const int key = static_cast<int>(design.targets.size()) - printed;
+    fmt::print("designed {} target points ({} failed{}) -> {}\n", printed, design.failures.size(),
+               key > 0 ? fmt::format(", {} left out as the orientation key", key) : "", *out);
     if (!svg->empty()) {
       fmt::print("printable null screen (unrolled cone, 1:1, print at 100 %) -> {}\n", *svg);
     }

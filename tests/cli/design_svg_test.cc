@@ -121,6 +121,36 @@ TEST_F(DesignSvg, WritesAWellFormedOneToOneSheetWithEverySpot) {
   EXPECT_EQ(files, 2);
 }
 
+// A keyed screen (ideal_image.orientation_key): the target CSV leaves the key's three gaps out, as the SVG does (it
+// listed all 624, so a screen built from the CSV was silently unkeyed), and says so.
+TEST_F(DesignSvg, TheTargetCsvLeavesTheOrientationKeysGapsOutAsTheSheetDoes) {
+  std::string config = Slurp(paper_);
+  const size_t at = config.find("\"ideal_image\": {");
+  ASSERT_NE(at, std::string::npos);
+  config.insert(at + std::string("\"ideal_image\": {").size(), "\"orientation_key\": true, ");
+  std::ofstream(Path("keyed.json")) << config;
+  const auto r = RunTopocal("design --config " + Path("keyed.json") + " --out " + Path("t.csv") + " --svg " +
+                            Path("ns.svg"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("designed 621 target points (0 failed, 3 left out as the orientation key)"),
+            std::string::npos)
+      << r.output;
+  const std::string csv = Slurp(Path("t.csv"));
+  EXPECT_EQ(Count(csv, "\n"), 1 + 621);  // header + the printed spots
+  const std::string svg = Slurp(Path("ns.svg"));
+  EXPECT_EQ(Count(svg, "<path id=\"spot-"), 621 + Count(svg, "-seam\" d="));
+  // The same spots in both: every CSV row's id is drawn.
+  std::istringstream rows(csv);
+  std::string row;
+  std::getline(rows, row);  // header
+  while (std::getline(rows, row)) {
+    const auto comma = row.find(',', row.find(',') + 1);
+    const std::string id = row.substr(0, comma);
+    const std::string path_id = "<path id=\"spot-" + id.substr(0, id.find(',')) + "-" + id.substr(id.find(',') + 1) + "\"";
+    EXPECT_NE(svg.find(path_id), std::string::npos) << row;
+  }
+}
+
 TEST_F(DesignSvg, UnwritableSvgPathIsBadInputWithoutPartialFile) {
   const std::string bad = Path("no-such-dir/ns.svg");
   const auto r = RunTopocal("design --config " + paper_ + " --out " + Path("t.csv") + " --svg " + bad);
