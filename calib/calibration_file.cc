@@ -11,6 +11,7 @@
 
 #include "calib/file_storage.h"
 #include "calib/opencv_equivalent.h"
+#include "calib/parameter_range.h"
 #include "util/io.h"
 #include "util/utc_date.h"
 #include "util/version.h"
@@ -373,6 +374,14 @@ std::string CalibrationReportJson(const CalibrationResult& result, const Calibra
   for (const auto& p : result.parameters) {
     j["stddev"][p.name] = p.stddev;
     if (p.fixed) j["fixed"].push_back(p.name);
+  }
+  // Free parameters the views do not determine (calib/parameter_range.h): empty when all are.
+  j["undetermined"] = json::array();
+  for (const auto& u : UndeterminedParameters(result)) {
+    j["undetermined"].push_back({{"name", u.name},
+                                 {"value", u.value},
+                                 {"stddev", u.stddev},
+                                 {"plausible_half_range", u.plausible_half_range}});
   }
   if (result.covariance.size() > 0) {
     j["covariance"] = json::array();

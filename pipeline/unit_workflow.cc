@@ -17,6 +17,7 @@
 
 #include "calib/calibrate.h"
 #include "calib/detect.h"
+#include "calib/parameter_range.h"
 #include "calib/target.h"
 #include "imageio/image_file.h"
 #include "model/config.h"
@@ -299,6 +300,14 @@ UnitCameraCalibration CalibrateViews(const UnitRequest& r, LoadedInputs& in,
     throw std::runtime_error(fmt::format("{}: calibration failed ({}): {}", r.serial,
                                          calib::ToString(c.result.status), c.result.message));
   }
+  // A parameter the views do not bound would ship as a number that means nothing: refused unless asked for.
+  if (const auto undetermined = calib::UndeterminedParameters(c.result); !undetermined.empty()) {
+    if (!r.allow_undetermined) {
+      throw util::InputError(fmt::format("{}: {} (or --allow-undetermined to record it as undetermined)", r.serial,
+                                         calib::UndeterminedMessage(undetermined)));
+    }
+    log(fmt::format("{}: recorded as undetermined: {}", r.serial, calib::UndeterminedMessage(undetermined)));
+  }
   return c;
 }
 
@@ -470,7 +479,7 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
   util::JsonSection s(j, path, "");
   // Unknown keys first: a misspelt key is the likelier cause of whatever would fail next.
   for (const char* key : {"serial", "target", "images", "reference_sphere", "sphere_radius_mm", "model", "fit_centre",
-                          "fix", "config", "camera", "uncertainty_samples", "seed"}) {
+                          "fix", "fix_aspect", "allow_undetermined", "config", "camera", "uncertainty_samples", "seed"}) {
     s.MarkSeen(key);
   }
   s.RejectUnknown();
@@ -512,6 +521,13 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
     }
   }
   if (s.Has("fix_aspect")) r.fixed_aspect_ratio = s.Number("fix_aspect");  // range checked with the options
+  if (s.Has("allow_undetermined")) {
+    const json& v = s.Get("allow_undetermined");
+    if (!v.is_boolean()) {
+      s.Fail("allow_undetermined", fmt::format("expected true or false (got {})", util::QuoteJsonValue(v)));
+    }
+    r.allow_undetermined = v.get<bool>();
+  }
   // The same range as --uncertainty: 0 (none) or 2 to kMaxUncertaintySamples draws.
   r.uncertainty_samples = s.IntegerInRange("uncertainty_samples", r.uncertainty_samples, 0, kMaxUncertaintySamples);
   if (s.Has("seed")) {

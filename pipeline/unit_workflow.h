@@ -42,6 +42,9 @@ struct UnitRequest {
   bool fit_centre = false;
   std::vector<std::string> fixed;     // parameters held at their initial value (calib::kParameterNames)
   double fixed_aspect_ratio = 0;      // fx / fy held during a multi-view fit (calib::CalibrationOptions); 0 = free
+  // A calibration with a parameter the views do not determine (calib/parameter_range.h) is refused unless this is
+  // set; the record then lists the parameter under calibration.undetermined.
+  bool allow_undetermined = false;
   int uncertainty_samples = 200;      // Monte Carlo draws; 0 = none, else 2 to kMaxUncertaintySamples
   unsigned seed = 1;
   int jobs = 0;                       // threads for the Monte Carlo draws (0 = every core; same record either way)

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "calib/calibration_file.h"
+#include "calib/parameter_range.h"
 #include "model/config.h"
 #include "model/device.h"
 #include "model/spots_csv.h"
@@ -326,6 +327,10 @@ json CalibrationJson(const pipeline::UnitCameraCalibration& c, const pipeline::D
   for (const auto& p : result.parameters) {
     cal["parameters"].push_back({{"name", p.name}, {"value", p.value}, {"stddev", p.stddev}, {"fixed", p.fixed}});
   }
+  // Parameters the views did not determine, recorded only when the unit was calibrated with --allow-undetermined
+  // (otherwise refused): their values are not to be used.
+  cal["undetermined"] = json::array();
+  for (const auto& u : calib::UndeterminedParameters(result)) cal["undetermined"].push_back(u.name);
   // The covariance of the free parameters only (the calibration file holds the full 11 x 11).
   std::vector<int> free_index;
   for (int i = 0; i < calib::kNumCameraParameters; ++i) {

@@ -12,6 +12,7 @@
 #include "calib/calibration_file.h"
 #include "calib/cross_validation.h"
 #include "calib/detect.h"
+#include "calib/parameter_range.h"
 #include "calib/target.h"
 #include "tools/commands.h"
 #include "util/file_glob.h"
@@ -148,6 +149,9 @@ void Run(const CalibrateArgs& a) {
   fmt::print("  fx {:.4f} fy {:.4f} cx {:.4f} cy {:.4f} px\n", c.fx_px, c.fy_px, c.cx_px, c.cy_px);
   for (const auto& p : result.parameters) {
     if (!p.fixed) fmt::print("  {:>2} = {:<14.8g} +- {:.3g}\n", p.name, p.value, p.stddev);
+  }
+  if (const auto undetermined = calib::UndeterminedParameters(result); !undetermined.empty()) {
+    fmt::print("  warning: undetermined: {}\n", calib::UndeterminedMessage(undetermined));
   }
   if (result.fixed_aspect_ratio > 0) fmt::print("  fx / fy held at {} (one focal degree of freedom)\n", result.fixed_aspect_ratio);
   if (result.seidel) {

@@ -54,6 +54,9 @@ void AddCommonOptions(CLI::App* cmd, UnitRequest* r) {
                   "Monte Carlo draws of the calibration covariance carried to the clinical numbers (0 = none)")
       ->check(CLI::Range(0, pipeline::kMaxUncertaintySamples));
   cmd->add_option("--seed", r->seed, "Seed of the Monte Carlo draws");
+  cmd->add_flag("--allow-undetermined", r->allow_undetermined,
+                "Record a calibration whose views leave a parameter undetermined (listed in the record) instead of "
+                "refusing it");
   cmd->add_flag("--force", r->keep_history,
                 "Replace a unit's existing record; the old one is kept under <units>/.history/<serial>/<its date>/");
 }

@@ -433,6 +433,58 @@ TEST_F(UnitCli, BatchSeedIsTheSeedOfEveryUnitsDraws) {
   EXPECT_EQ(Entries(dir_ / "seed5" / ".history" / "SN-S").size(), 1u);
 }
 
+// A single view of a board far away (a tenth of the image) leaves brown5's k3 undetermined (measured 2026-12-06:
+// 3.8e5 +- 8.0e5 against a plausible +-4.1e4 for this narrow camera): the unit is refused, nothing written; with
+// --allow-undetermined it is recorded and the record names the parameter. unit-inputs.json takes the same choice
+// (and fix_aspect, which docs/unit-record.md lists and the reader refused as an unknown key).
+TEST_F(UnitCli, AParameterTheViewsDoNotDetermineIsRefusedUnlessAllowed) {
+  const std::string far = (dir_ / "far.png").string();
+  ASSERT_EQ(RunTopocal(fmt::format("render-target --target {}/target.yaml --width 1120 --height 1120 --fx 4642.857 "
+                                   "--k1 -0.5 --distance-mm 300 --tilt-x-deg 10 --out {}",
+                                   in_, far))
+                .exit_code,
+            0);
+  const auto unit = [&](const std::string& extra) {
+    return RunTopocal(fmt::format("unit calibrate --serial F-1 --target {0}/target.yaml --images {1} --camera "
+                                  "{0}/camera.json --model brown5 --uncertainty 0 --out {2} {3}",
+                                  in_, far, (dir_ / "units" / "F-1").string(), extra));
+  };
+  fs::create_directories(dir_ / "units");
+  auto r = unit("");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("F-1: k3 = "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("hold it fixed (--fix k3) or add views covering the image (or --allow-undetermined"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(Entries(dir_ / "units"), std::vector<std::string>{});
+  r = unit("--allow-undetermined");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("recorded as undetermined: k3"), std::string::npos) << r.output;
+  const json j = json::parse(util::ReadFile((dir_ / "units" / "F-1" / "unit.json").string()));
+  EXPECT_EQ(j["calibration"]["undetermined"], json::array({"k3"}));
+  // The batch: the same unit from unit-inputs.json, refused, then allowed by its key.
+  const auto batch = dir_ / "line";
+  const auto write_inputs = [&](const std::string& extra_keys) {
+    fs::create_directories(batch / "f");
+    util::WriteFileAtomic((batch / "f" / "unit-inputs.json").string(),
+                          fmt::format(R"({{"serial": "F-2", "target": "{0}/target.yaml", "images": "{1}",)"
+                                      R"( "camera": "{0}/camera.json", "model": "brown5", "uncertainty_samples": 0,)"
+                                      R"( "fix_aspect": 0{2}}})",
+                                      in_, far, extra_keys));
+  };
+  const auto run_batch = [&] {
+    return RunTopocal(fmt::format("unit calibrate-batch {} --out {} --jobs 1", batch.string(), (dir_ / "b").string()));
+  };
+  write_inputs("");
+  r = run_batch();
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("F-2: k3 = "), std::string::npos) << r.output;
+  write_inputs(R"(, "allow_undetermined": true)");
+  r = run_batch();
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir_ / "b" / "F-2" / "unit.json"));
+}
+
 // Issue 37: `unit calibrate --balls` writes the same record, device.json included, byte for byte, whether OpenCV
 // runs on one thread or four (the connected components of ball detection, the undistortion maps).
 TEST_F(UnitCli, TheDeviceStageIsByteIdenticalWhateverTheThreads) {
