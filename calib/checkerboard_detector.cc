@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
+#include <utility>
 
 #include <fmt/format.h>
 #include <opencv2/calib3d.hpp>
@@ -27,6 +29,31 @@ constexpr double kMinEdgeWindowSigmaPx = 0.7;
 // The board search runs on the pyramid level whose longer side is at most this (squares of a board that fills a
 // tenth of the image stay >= ~10 px there, what the classic detector needs).
 constexpr int kSearchMaxSidePx = 1280;
+
+// The common mistake: a description one row or column off what the image shows (squares counted instead of inner
+// corners, or a miscount). Only tried once the board was not found, at the search level (each try is one bounded
+// classic search, FAST_CHECK first): " (hint: ...)" when the image shows a board of N +- 1 corners, else "".
+std::string BoardSizeHint(const cv::Mat& search, const CheckerboardLayout& board, int flags) {
+  const int c = board.cols, r = board.rows;
+  const std::pair<int, int> candidates[] = {{c - 1, r - 1}, {c - 1, r}, {c, r - 1}, {c + 1, r + 1},
+                                            {c + 1, r},     {c, r + 1}, {c - 1, r + 1}, {c + 1, r - 1}};
+  for (const auto& [cols, rows] : candidates) {
+    if (cols < 2 || rows < 2) continue;
+    std::vector<cv::Point2f> corners;
+    bool seen = false;
+    try {
+      seen = cv::findChessboardCorners(search, cv::Size(cols, rows), corners, flags);
+    } catch (const cv::Exception&) {
+      seen = false;
+    }
+    if (seen) {
+      return fmt::format(" (hint: the image shows a {}x{} board of inner corners where the description says {}x{}: "
+                         "targetCols/targetRows count INNER corners, one fewer than the squares along a side)",
+                         cols, rows, c, r);
+    }
+  }
+  return "";
+}
 
 double MeanGrey(const cv::Mat& gray, const Eigen::Vector2d& p) {
   const int x = static_cast<int>(std::lround(p.x())), y = static_cast<int>(std::lround(p.y()));
@@ -296,12 +323,12 @@ std::optional<CheckerboardCorners> DetectCheckerboardCorners(const cv::Mat& gray
   // for an absurd 200 x 150 board (issue 16). A board the quick test misses is still found by SB below, which does
   // not use it.
   constexpr int kClassicFlags = cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FAST_CHECK;
+  // The classic detector is 5-8x faster than the SB one and, refined by the saddle fit, gives the same corners. Its
+  // cost grows with the pixel count while the corners' accuracy comes from the saddle fit at full resolution, so
+  // large images are searched at a pyramid level (a 4000 x 3000 sensor at 1000 x 750). SB (a different board
+  // search) only rescues the images where the classic one fails at full resolution.
+  cv::Mat search = gray;
   try {
-    // The classic detector is 5-8x faster than the SB one (issue 11) and, refined by the saddle fit, gives the
-    // same corners. Its cost grows with the pixel count while the corners' accuracy comes from the saddle fit at
-    // full resolution, so large images are searched at a pyramid level (a 4000 x 3000 sensor at 1000 x 750). SB
-    // (a different board search) only rescues the images where the classic one fails at full resolution.
-    cv::Mat search = gray;
     int level = 0;
     while (std::max(search.cols, search.rows) > kSearchMaxSidePx) {
       cv::pyrDown(search, search);
@@ -382,14 +409,7 @@ std::optional<CheckerboardCorners> DetectCheckerboardCorners(const cv::Mat& gray
       if (why) {
         *why = fmt::format("no {}x{} checkerboard found", board.cols, board.rows);
         if (!partial_why.empty()) *why += " (" + partial_why + ")";
-        // The common mistake: squares counted instead of inner corners. Only tried once the board was not found.
-        std::vector<cv::Point2f> smaller;
-        if (board.cols > 2 && board.rows > 2 &&
-            cv::findChessboardCorners(gray, cv::Size(board.cols - 1, board.rows - 1), smaller, kClassicFlags)) {
-          *why += fmt::format(" (hint: the image shows a {}x{} board: targetCols/targetRows count INNER corners, one "
-                              "fewer than the squares)",
-                              board.cols - 1, board.rows - 1);
-        }
+        *why += BoardSizeHint(search, board, kClassicFlags);
       }
       return std::nullopt;
     }

@@ -289,7 +289,10 @@ UnitCameraCalibration CalibrateViews(const UnitRequest& r, LoadedInputs& in,
     views.back().image_path = path;
     c.view_paths.push_back(path);
   }
-  if (views.empty()) throw std::runtime_error(fmt::format("{}: no target found in any image", r.serial));
+  if (views.empty()) {
+    throw std::runtime_error(
+        fmt::format("{}: no target found in any image (target description {})", r.serial, r.target));
+  }
   c.single_view = r.images.size() == 1;
   c.result = c.single_view ? calib::CalibrateSingleView(views[0], in.options)
                            : calib::CalibrateMultiView(views, in.options);

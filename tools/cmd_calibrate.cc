@@ -108,7 +108,10 @@ void Run(const CalibrateArgs& a) {
 
   calib::CalibrationResult result;
   if (a.single_view) {
-    if (views.empty()) throw std::runtime_error(fmt::format("{}: no target found, nothing to calibrate", paths[0]));
+    if (views.empty()) {
+      throw std::runtime_error(
+          fmt::format("{}: no target found, nothing to calibrate (target description {})", paths[0], a.target));
+    }
     result = calib::CalibrateSingleView(views[0], options);
   } else {
     result = calib::CalibrateMultiView(views, options);

@@ -184,6 +184,28 @@ TEST_F(CalibrateCli, SquaresCountedInsteadOfInnerCornersGetAHint) {
   EXPECT_NE(r.output.find("hint: the image shows a 9x6 board"), std::string::npos) << r.output;
 }
 
+// One column off on a phone-sized view (a 13 x 13 board described as 14 x 13): the run ends in seconds (it once ran
+// 17 minutes inside OpenCV's full-resolution search), says what the image shows and names the description.
+TEST_F(CalibrateCli, ABoardOneColumnOffIsNamedWithWhatTheImageShows) {
+  Write("t13.yaml", "target_type: checkerboard\ntargetCols: 13\ntargetRows: 13\nrowSpacingMeters: 0.0009\n"
+                    "colSpacingMeters: 0.0009\n");
+  Write("t14.yaml", "target_type: checkerboard\ntargetCols: 14\ntargetRows: 13\nrowSpacingMeters: 0.0009\n"
+                    "colSpacingMeters: 0.0009\n");
+  ASSERT_EQ(RunTopocal("render-target --target " + Path("t13.yaml") + " --width 4000 --height 3000 --fx 4642.857 "
+                       "--k1 -0.2 --distance-mm 40 --out " + Path("big.png"))
+                .exit_code,
+            0);
+  const auto r = RunTopocal("calibrate --target " + Path("t14.yaml") + " --images " + Path("big.png") +
+                            " --model seidel --single-view --focal-mm 5.2 --pixel-pitch-um 1.12 --distance-mm 40 --out " +
+                            Path("cal.yaml"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("the image shows a 13x13 board of inner corners where the description says 14x13"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("(target description " + Path("t14.yaml") + ")"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(Path("cal.yaml")));
+}
+
 TEST_F(CalibrateCli, CrossValidationWritesItsMapAndBoardWarpIsReported) {
   const auto r = RunTopocal("calibrate --target " + Path("board.yaml") + " --images '" + kDataDir +
                             "left[0-9][0-9].jpg' --out " + Path("cal.yaml") + " --json " + Path("report.json") +
