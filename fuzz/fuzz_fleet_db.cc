@@ -17,6 +17,7 @@
 
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include <fmt/format.h>
@@ -25,6 +26,7 @@
 #include "report/acceptance.h"
 #include "report/fleet_db.h"
 #include "report/fleet_report.h"
+#include "util/json_section.h"
 
 namespace {
 
@@ -121,15 +123,18 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   } else {
     WriteRecipe(path, data, size);
   }
+  std::optional<nlohmann::json> report;
   try {
     const topocal::report::FleetDb db(path, false);
     const auto analysis = topocal::report::AnalyseFleet(path, db.Units(), topocal::report::DefaultLimits());
     (void)topocal::report::RenderFleetHtml(analysis);
     (void)topocal::report::FleetCsv(analysis);
-    (void)topocal::report::FleetJson(analysis).dump(2);
+    report = topocal::report::FleetJson(analysis);
     (void)db.Check();
     (void)db.Backup();
   } catch (const topocal::util::InputError&) {
   }
+  // What `fleet report --json` writes: a NaN or an infinity (null in the JSON) is a defect, thrown uncaught.
+  if (report) topocal::util::RequireFiniteNumbers(*report);
   return 0;
 }

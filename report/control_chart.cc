@@ -15,20 +15,26 @@ std::string WesternElectricRuleText(int rule) {
   }
 }
 
-std::optional<ControlChart> IndividualsChart(const std::vector<double>& values) {
+std::optional<ControlChart> IndividualsChart(const std::vector<double>& values, const std::vector<bool>& in_limits) {
   const int n = static_cast<int>(values.size());
-  if (n < kMinControlChartPoints) return std::nullopt;
   for (double v : values) {
     if (!std::isfinite(v)) return std::nullopt;
   }
   ControlChart c;
   double sum = 0, mr = 0;
+  std::optional<double> previous;
   for (int i = 0; i < n; ++i) {
+    if (!in_limits.empty() && !in_limits[static_cast<size_t>(i)]) continue;
     sum += values[i];
-    if (i > 0) mr += std::abs(values[i] - values[i - 1]);
+    if (previous) mr += std::abs(values[i] - *previous);
+    previous = values[i];
+    ++c.limit_points;
   }
-  c.centre = sum / n;
-  c.sigma = mr / (n - 1) / kMovingRangeD2;
+  if (c.limit_points < kMinControlChartPoints) return std::nullopt;
+  c.centre = sum / c.limit_points;
+  c.sigma = mr / (c.limit_points - 1) / kMovingRangeD2;
+  // Values near the largest double (1e308 beside 0.1) overflow the sums: no limits can be drawn from them.
+  if (!std::isfinite(c.centre) || !std::isfinite(c.sigma)) return std::nullopt;
   c.flagged.assign(n, false);
   if (!(c.sigma > 0)) return c;
   // z-score of each point; side +1 above the centre, -1 below, 0 on it.
@@ -56,6 +62,20 @@ std::optional<ControlChart> IndividualsChart(const std::vector<double>& values) 
   }
   for (const ControlSignal& s : c.signals) c.flagged[s.index] = true;
   return c;
+}
+
+std::optional<Capability> CapabilityOf(const ControlChart& chart, std::optional<double> lsl, double usl) {
+  if (!(chart.sigma > 0)) return std::nullopt;
+  Capability k;
+  // (chart.centre and chart.sigma are finite: IndividualsChart gives no chart otherwise.)
+  k.cpk = (usl - chart.centre) / (3 * chart.sigma);
+  if (lsl) {
+    k.cp = (usl - *lsl) / (6 * chart.sigma);
+    k.cpk = std::min(k.cpk, (chart.centre - *lsl) / (3 * chart.sigma));
+  }
+  // A sigma of a few subnormals makes the ratios overflow: no capability is stated then.
+  if (!std::isfinite(k.cpk) || (k.cp && !std::isfinite(*k.cp))) return std::nullopt;
+  return k;
 }
 
 }  // namespace topocal::report

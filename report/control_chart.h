@@ -31,6 +31,7 @@ struct ControlSignal {
 
 struct ControlChart {
   double centre = 0, sigma = 0;
+  int limit_points = 0;  // the points the limits were estimated from (phase I)
   double Ucl() const { return centre + 3 * sigma; }
   double Lcl() const { return centre - 3 * sigma; }
   std::vector<ControlSignal> signals;  // by index, then rule
@@ -40,8 +41,20 @@ struct ControlChart {
 // One-line description of a rule, for the report.
 std::string WesternElectricRuleText(int rule);
 
-// The chart of `values` (in order of time). std::nullopt when there are fewer than kMinControlChartPoints values or
-// a value is not finite. sigma 0 (every moving range 0) gives a chart with no signals.
-std::optional<ControlChart> IndividualsChart(const std::vector<double>& values);
+// The chart of `values` (in order of time). The limits (phase I) come from the points with `in_limits` true (all
+// when it is empty): the fleet leaves out units that failed their acceptance limits, so that a broken unit does not
+// widen the limits every other unit is judged by; the moving ranges are those of consecutive included points. Every
+// point is then checked against those limits. std::nullopt when fewer than kMinControlChartPoints points are
+// included, or a value is not finite. sigma 0 (every moving range 0) gives a chart with no signals.
+std::optional<ControlChart> IndividualsChart(const std::vector<double>& values, const std::vector<bool>& in_limits = {});
+
+// Process capability of a chart's points against a specification (Montgomery, 6th ed., sec. 8.2), sigma the
+// chart's within (moving-range) sigma: Cp = (USL - LSL) / 6 sigma, Cpk = min(USL - centre, centre - LSL) / 3 sigma.
+// A one-sided specification (no LSL) has no Cp; Cpk = (USL - centre) / 3 sigma. std::nullopt when sigma is 0.
+struct Capability {
+  std::optional<double> cp;
+  double cpk = 0;
+};
+std::optional<Capability> CapabilityOf(const ControlChart& chart, std::optional<double> lsl, double usl);
 
 }  // namespace topocal::report

@@ -32,7 +32,7 @@ std::string Sig(double v, int digits = 4) {
 // The parameters judged by a limit, in the order shown, then the calibration's own (no limit).
 std::vector<FleetParameter> Parameters(const std::vector<FleetUnit>& units, const Limits& l) {
   std::vector<FleetParameter> p = {
-      {"calibration_rms_px", "calibration RMS", "px", l.calibration_rms_px.max, false},
+      {"calibration_rms_px", "calibration RMS", "px", l.calibration_rms_px.max, false, true},
       {"sphere_radius_error_mm", "reference sphere radius error, corrected", "mm", l.sphere_radius_error_mm.max, true},
       {"sphere_power_error_D", "reference sphere power error, corrected", "D", l.sphere_power_error_D.max, true},
       {"seidel_sigma_per_mm2", "Seidel \u03c3", "mm\u207b\u00b2", std::nullopt, false},
@@ -108,7 +108,13 @@ FleetAnalysis AnalyseFleet(const std::string& database, std::vector<FleetUnit> u
         s.values.push_back(it->second.value);
       }
       if (s.values.empty()) continue;
-      s.chart = IndividualsChart(s.values);
+      // Phase I: the limits from the units that passed (a broken unit would widen them for every other one).
+      std::vector<bool> passed;
+      for (const std::size_t i : s.units) passed.push_back(a.verdicts[i].pass);
+      s.chart = IndividualsChart(s.values, passed);
+      if (s.chart && p.limit) {
+        s.capability = CapabilityOf(*s.chart, p.one_sided ? std::nullopt : std::optional<double>(-*p.limit), *p.limit);
+      }
       if (s.chart) {
         std::map<std::size_t, std::vector<int>> by_point;
         for (const ControlSignal& sig : s.chart->signals) by_point[static_cast<std::size_t>(sig.index)].push_back(sig.rule);
@@ -168,6 +174,36 @@ ControlChartPlot ChartPlotOf(const ChartSeries& series, std::string title, std::
   return c;
 }
 
+std::string CapabilityText(const std::optional<Capability>& k) {
+  if (!k) return "";
+  return k->cp ? fmt::format(", Cp {}, Cpk {}", Sig(*k->cp, 3), Sig(k->cpk, 3)) : fmt::format(", Cpk {}", Sig(k->cpk, 3));
+}
+
+// Cpk (and Cp) of each judged parameter on the line's chart and each station's.
+std::string CapabilityTable(const FleetAnalysis& a) {
+  std::string rows;
+  for (const FleetParameter& p : a.parameters) {
+    if (!p.limit) continue;
+    std::vector<std::string> charts{""};  // the line's, then each station's (when there are several)
+    if (a.stations.size() > 1) charts.insert(charts.end(), a.stations.begin(), a.stations.end());
+    std::string cells;
+    for (const std::string& station : charts) {
+      const auto it = std::find_if(a.series.begin(), a.series.end(), [&](const ChartSeries& cs) {
+        return cs.parameter == p.key && cs.station == station;
+      });
+      const bool stated = it != a.series.end() && it->capability;
+      cells += fmt::format("<td class=\"num\">{}</td>", stated ? CapabilityText(it->capability).substr(2) : "\u2014");
+    }
+    rows += fmt::format("<tr data-parameter=\"{}\"><td>{}</td>{}</tr>\n", H(p.key), H(p.label), cells);
+  }
+  if (rows.empty()) return "";
+  std::string head = "<tr><th>capability</th><th>whole line</th>";
+  if (a.stations.size() > 1) {
+    for (const std::string& st : a.stations) head += "<th>" + H(st) + "</th>";
+  }
+  return "<table class=\"data\" id=\"capability\">" + head + "</tr>\n" + rows + "</table>\n";
+}
+
 std::string RulesText(const std::vector<int>& rules) {
   std::string s;
   for (int r : rules) s += (s.empty() ? "" : "; ") + fmt::format("rule {}: {}", r, WesternElectricRuleText(r));
@@ -195,15 +231,18 @@ std::string RenderFleetHtml(const FleetAnalysis& a) {
                    a.units.empty() ? "\u2014" : H(a.units.back().created_utc), a.stations.size(), H(kVersion));
   s += fmt::format("<p>Limits: {} ({} acceptance). {}</p>\n", H(a.limits.origin), ToString(a.limits.rule),
                    H(DecisionRuleText(a.limits.rule)));
-  s += "<p class=\"note\">Control charts: Shewhart individuals charts, limits from the data (centre = mean, "
-       "\u03c3 = mean moving range / 1.128, UCL/LCL = centre \u00b1 3\u03c3), Western Electric rules 1\u20134; points "
-       "flagged in red. Their in-control average run length is about 92 points: on a stable line of a few hundred "
-       "units some signals are false alarms. Charts need at least 8 units.</p>\n";
+  s += "<p class=\"note\">Control charts: Shewhart individuals charts, limits from the data of the units that "
+       "passed (phase I: centre = mean, \u03c3 = mean moving range / 1.128, UCL/LCL = centre \u00b1 3\u03c3; a FAIL unit "
+       "is charted and judged but does not set the limits), Western Electric rules 1\u20134; points flagged in red. "
+       "Their in-control average run length is about 92 points: on a stable line of a few hundred units some signals "
+       "are false alarms. Charts need at least 8 passing units. Capability: Cp = 2 limit / 6\u03c3, Cpk = (limit "
+       "\u2212 |centre|) / 3\u03c3 of the values against \u00b1limit (one-sided for the RMS), \u03c3 the chart's; "
+       "1.33 is the usual minimum of a capable process.</p>\n";
 
   // Summary per station.
   s += "<section id=\"summary\"><h2>Verdicts</h2>\n<table class=\"data\" id=\"stations\"><tr><th>station</th>"
-       "<th>units</th><th>PASS</th><th>FAIL</th><th>near a limit</th><th>points out of control on its own charts</th>"
-       "</tr>\n";
+       "<th>units</th><th>PASS</th><th>FAIL</th><th>yield</th><th>near a limit</th>"
+       "<th>points out of control on its own charts</th></tr>\n";
   for (const std::string& st : [&] {
          std::vector<std::string> v = a.stations;
          if (a.stations.size() > 1) v.push_back("");
@@ -218,10 +257,11 @@ std::string RenderFleetHtml(const FleetAnalysis& a) {
     }
     for (const OutOfControl& o : a.out_of_control) ooc += o.station == st ? 1 : 0;  // "" = the line's charts
     s += fmt::format("<tr><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td>"
-                     "<td class=\"num\">{}</td><td class=\"num\">{}</td></tr>\n",
-                     st.empty() ? "<strong>whole line</strong>" : H(st), n, pass, n - pass, near, ooc);
+                     "<td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td></tr>\n",
+                     st.empty() ? "<strong>whole line</strong>" : H(st), n, pass, n - pass,
+                     n > 0 ? fmt::format("{:.1f} %", 100.0 * pass / n) : std::string("\u2014"), near, ooc);
   }
-  s += "</table></section>\n";
+  s += "</table>\n" + CapabilityTable(a) + "</section>\n";
 
   // Units to look at.
   s += "<section id=\"attention\"><h2>Units out of control</h2>\n";
@@ -281,9 +321,11 @@ std::string RenderFleetHtml(const FleetAnalysis& a) {
     sd = line.values.size() > 1 ? std::sqrt(sd / (line.values.size() - 1)) : 0;
     s += fmt::format("<p class=\"note\">n = {}, mean {}, standard deviation {}{}{}</p>\n", line.values.size(), Sig(mean),
                      Sig(sd),
-                     line.chart ? fmt::format(", chart \u03c3 (moving range) {}, UCL {}, LCL {}", Sig(line.chart->sigma),
-                                              Sig(line.chart->Ucl()), Sig(line.chart->Lcl()))
-                                : std::string(", too few units for a chart"),
+                     line.chart ? fmt::format(", chart \u03c3 (moving range) {}, UCL {}, LCL {} (limits from {} passing "
+                                              "units){}",
+                                              Sig(line.chart->sigma), Sig(line.chart->Ucl()), Sig(line.chart->Lcl()),
+                                              line.chart->limit_points, CapabilityText(line.capability))
+                                : std::string(", too few passing units for a chart"),
                      p.limit ? fmt::format("; acceptance limit \u00b1{}", Sig(*p.limit)) : std::string());
     HistogramPlot hist{"Distribution", UnitLabel(p), line.values, p.limit};
     ControlChartPlot chart = ChartPlotOf(line, "Control chart, whole line", p.unit.empty() ? p.key : p.unit, p.limit);
@@ -379,6 +421,11 @@ json FleetJson(const FleetAnalysis& a) {
       }
       c["centre"] = s.chart->centre;
       c["sigma"] = s.chart->sigma;
+      c["limit_points"] = s.chart->limit_points;
+      if (s.capability) {
+        c["cpk"] = s.capability->cpk;
+        if (s.capability->cp) c["cp"] = *s.capability->cp;
+      }
       c["ucl"] = s.chart->Ucl();
       c["lcl"] = s.chart->Lcl();
       c["signals"] = signals;
@@ -393,6 +440,16 @@ json FleetJson(const FleetAnalysis& a) {
                    {"chart", o.station.empty() ? std::string("line") : "station " + o.station},
                    {"rules", o.rules}});
   }
+  json yield = json::array();
+  for (const std::string& st : a.stations) {
+    int n = 0, pass = 0;
+    for (std::size_t i = 0; i < a.units.size(); ++i) {
+      if (a.units[i].station != st) continue;
+      ++n;
+      pass += a.verdicts[i].pass ? 1 : 0;
+    }
+    yield.push_back({{"station", st}, {"units", n}, {"passed", pass}, {"yield", static_cast<double>(pass) / n}});
+  }
   return {{"format", kFleetReportFormat},
           {"format_version", kFleetReportFormatVersion},
           {"tool_version", kVersion},
@@ -402,6 +459,7 @@ json FleetJson(const FleetAnalysis& a) {
           {"limits_origin", a.limits.origin},
           {"near_limit_fraction", kNearLimitFraction},
           {"stations", a.stations},
+          {"yield", yield},
           {"units", units},
           {"charts", charts},
           {"out_of_control", ooc}};

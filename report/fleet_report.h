@@ -26,14 +26,16 @@ inline constexpr double kNearLimitFraction = 0.8;
 struct FleetParameter {
   std::string key, label, unit;
   std::optional<double> limit;
-  bool uses_U = false;  // judged with the guarded rule's U
+  bool uses_U = false;     // judged with the guarded rule's U
+  bool one_sided = false;  // the limit is a maximum of a non-negative value (RMS), not +-limit
 };
 
 struct ChartSeries {
   std::string parameter, station;  // station "" = the whole line
   std::vector<std::size_t> units;  // indices into FleetAnalysis::units, time order
   std::vector<double> values;
-  std::optional<ControlChart> chart;
+  std::optional<ControlChart> chart;  // limits from the passing units only (phase I)
+  std::optional<Capability> capability;  // of the values against the parameter's limit, when it has one
 };
 
 struct UnitVerdict {

@@ -27,6 +27,51 @@ TEST(ControlChart, LimitsFromTheMovingRangeByHand) {
   EXPECT_FALSE(IndividualsChart({1, 2, 3}).has_value());  // too few points
 }
 
+// Phase I: a broken unit (a FAIL) is charted and flagged, but does not set the limits. The same series with the
+// outlier included widens sigma from 1 / 1.128 to 1.9 / 1.128 and hides it (z 2.97: no rule-1 signal; 6.2 without).
+TEST(ControlChart, LimitsComeFromTheIncludedPointsOnly) {
+  const std::vector<double> v = {0, 1, 0, 1, 0, 1, 0, 1, 6, 0, 1};
+  std::vector<bool> in_limits(v.size(), true);
+  in_limits[8] = false;
+  const auto c = IndividualsChart(v, in_limits);
+  ASSERT_TRUE(c.has_value());
+  EXPECT_EQ(c->limit_points, 10);
+  EXPECT_DOUBLE_EQ(c->centre, 0.5);
+  EXPECT_DOUBLE_EQ(c->sigma, 1.0 / 1.128);  // moving ranges of consecutive included points: all 1
+  EXPECT_TRUE(c->flagged[8]);
+  const auto all = IndividualsChart(v);
+  ASSERT_TRUE(all.has_value());
+  EXPECT_EQ(all->limit_points, 11);
+  EXPECT_DOUBLE_EQ(all->sigma, 1.9 / 1.128);
+  EXPECT_FALSE(HasRule(*all, 1));
+  EXPECT_TRUE(HasRule(*c, 1));
+  // Too few included points: no chart.
+  std::vector<bool> few(v.size(), false);
+  for (int i = 0; i < 7; ++i) few[static_cast<size_t>(i)] = true;
+  EXPECT_FALSE(IndividualsChart(v, few).has_value());
+  // Values whose sums overflow (1e308 beside 0.1): no limits, rather than an infinite sigma.
+  EXPECT_FALSE(IndividualsChart({0.1, 1e308, 0.1, -1e308, 0.1, 1e308, 0.1, 0.1}).has_value());
+}
+
+TEST(ControlChart, CapabilityByHand) {
+  // centre 0.5, sigma 1 / 1.128: against +-4, Cp = 8 / (6 sigma), Cpk = (4 - 0.5) / (3 sigma).
+  const auto c = IndividualsChart({0, 1, 0, 1, 0, 1, 0, 1});
+  ASSERT_TRUE(c.has_value());
+  const double sigma = 1.0 / 1.128;
+  const auto two = CapabilityOf(*c, -4.0, 4.0);
+  ASSERT_TRUE(two.has_value());
+  ASSERT_TRUE(two->cp.has_value());
+  EXPECT_DOUBLE_EQ(*two->cp, 8.0 / (6 * sigma));
+  EXPECT_DOUBLE_EQ(two->cpk, 3.5 / (3 * sigma));
+  const auto one = CapabilityOf(*c, std::nullopt, 4.0);  // one-sided: no Cp
+  ASSERT_TRUE(one.has_value());
+  EXPECT_FALSE(one->cp.has_value());
+  EXPECT_DOUBLE_EQ(one->cpk, 3.5 / (3 * sigma));
+  const auto flat = IndividualsChart({1, 1, 1, 1, 1, 1, 1, 1});
+  ASSERT_TRUE(flat.has_value());
+  EXPECT_FALSE(CapabilityOf(*flat, -4.0, 4.0).has_value());  // sigma 0: no capability stated
+}
+
 TEST(ControlChart, EachRuleFiresOnItsPattern) {
   // A zig-zag of +-1 about 0 (sigma = 2 / 1.128 = 1.77) with one pattern added each time.
   std::vector<double> base;
