@@ -187,6 +187,30 @@ void CheckLedgerRow(const UnitRecord& rec, const std::vector<FleetMeasurement>& 
   }
 }
 
+// The device stage's evidence (docs/fleet.md): every fitted device parameter with U = 2 sd (device_<name>), the fit's
+// chi^2/dof, and the held-out ball measured through the device against its certified radius. Entries device.json
+// does not hold as numbers are left out (a nominal device has no calibration block).
+void AddDeviceMeasurements(const DeviceStageRecord& device, std::vector<FleetMeasurement>& m) {
+  const nlohmann::json& cal = device.file.calibration;
+  if (cal.is_object()) {
+    if (const auto p = cal.find("parameters"); p != cal.end() && p->is_object()) {
+      for (const auto& [name, e] : p->items()) {
+        const auto value = e.find("value"), sd = e.find("stddev");
+        if (!e.is_object() || value == e.end() || !value->is_number()) continue;
+        std::optional<double> U;
+        if (sd != e.end() && sd->is_number()) U = 2 * sd->get<double>();
+        m.push_back({"device_" + name, value->get<double>(), U});
+      }
+    }
+    if (const auto chi2 = cal.find("chi2_per_dof"); chi2 != cal.end() && chi2->is_number()) {
+      m.push_back({"device_chi2_per_dof", chi2->get<double>(), std::nullopt});
+    }
+  }
+  if (const auto h = device.held_out.find("device"); h != device.held_out.end() && h->second.count("radius_mm")) {
+    m.push_back({"held_out_radius_error_mm", h->second.at("radius_mm") - device.held_out_radius_true_mm, std::nullopt});
+  }
+}
+
 }  // namespace
 
 std::vector<FleetMeasurement> FleetMeasurements(const UnitRecord& rec) {
@@ -207,6 +231,7 @@ std::vector<FleetMeasurement> FleetMeasurements(const UnitRecord& rec) {
       if (c.id == "sphere_power_error_D") m.push_back({c.id, rec.verification->corrected.at("power_error_D"), c.U});
     }
   }
+  if (rec.device) AddDeviceMeasurements(*rec.device, m);
   for (const auto& [key, name] : {std::pair{"rx_mm", "paper_rx_error_mm"}, std::pair{"ry_mm", "paper_ry_error_mm"},
                                   std::pair{"kx", "paper_kx_error"}, std::pair{"ky", "paper_ky_error"}}) {
     std::optional<double> U;

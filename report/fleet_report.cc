@@ -37,11 +37,21 @@ std::vector<FleetParameter> Parameters(const std::vector<FleetUnit>& units, cons
       {"sphere_power_error_D", "reference sphere power error, corrected", "D", l.sphere_power_error_D.max, true},
       {"seidel_sigma_per_mm2", "Seidel \u03c3", "mm\u207b\u00b2", std::nullopt, false},
   };
-  std::set<std::string> calib;
+  std::set<std::string> calib, device;
+  bool held_out = false;
   for (const FleetUnit& u : units) {
     for (const auto& [key, m] : u.measurements) {
       if (key.rfind("calib_", 0) == 0) calib.insert(key);
+      if (key.rfind("device_", 0) == 0) device.insert(key);
+      held_out = held_out || key == "held_out_radius_error_mm";
     }
+  }
+  // The device stage's physical evidence first (a ball the fit did not use), then the fit's own numbers.
+  if (held_out) p.push_back({"held_out_radius_error_mm", "held-out ball radius error, through the device", "mm",
+                             std::nullopt, false});
+  for (const std::string& key : device) {
+    p.push_back({key, key == "device_chi2_per_dof" ? "device fit \u03c7\u00b2/dof" : "device parameter " + key.substr(7),
+                 "", std::nullopt, false});
   }
   for (const std::string& key : calib) {
     p.push_back({key, "calibration parameter " + key.substr(6), "", std::nullopt, false});

@@ -200,6 +200,18 @@ TEST_F(UnitCli, TheDeviceStageFromBallsFixesWhatTheLensCalibrationCannot) {
   EXPECT_NE(html.find("Held-out reference ball"), std::string::npos);
   EXPECT_NE(html.find("<td>rx_deg</td>"), std::string::npos);
   EXPECT_NE(html.find("axial gauge"), std::string::npos);
+  // The fleet keeps the device stage's evidence: each fitted parameter with U = 2 sd, the fit's chi^2/dof and the
+  // held-out ball's radius error through the device.
+  const std::string db = (dir_ / "fleet.sqlite").string();
+  ASSERT_EQ(RunTopocal(fmt::format("fleet ingest --db {} {}", db, out)).exit_code, 0);
+  const auto fleet = RunTopocal(fmt::format("fleet report --db {} --out {}/f.html --json {}/f.json", db, dir_.string(),
+                                            dir_.string()));
+  ASSERT_TRUE(fleet.exit_code == 0 || fleet.exit_code == 3) << fleet.output;
+  const auto m = json::parse(util::ReadFile((dir_ / "f.json").string()))["units"][0]["measurements"];
+  EXPECT_NEAR(m["device_rx_deg"]["value"].get<double>(), 0.8, 2e-3);
+  EXPECT_NEAR(m["device_rx_deg"]["U"].get<double>(), 2 * d["parameters"]["rx_deg"]["stddev"].get<double>(), 1e-12);
+  EXPECT_GT(m["device_chi2_per_dof"]["value"].get<double>(), 0.0);
+  EXPECT_NEAR(m["held_out_radius_error_mm"]["value"].get<double>(), device_error, 1e-12);
 }
 
 TEST_F(UnitCli, SeveralImagesAreAMultiViewCalibrationThatAlsoPasses) {
