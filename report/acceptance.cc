@@ -27,6 +27,10 @@ constexpr const char* kSourceConic =
     "0.05: engineering limit between what correction achieves (k within 0.0004, docs/closed-loop.md) and what the "
     "uncorrected distortion of paper Table IV does (k_x moved by up to 0.86); set it from the harness's |dk| budget "
     "for the design.";
+constexpr const char* kSourceChi2 =
+    "4: the adequacy threshold of device calibrate: ball-image residuals twice the spot noise the fit assumed say "
+    "the device model does not describe the unit (a ball moved between shots, a wrong certified radius, a changed "
+    "lens).";
 constexpr const char* kSourceRms =
     "0.5 px: sub-pixel corners of a sharp printed target reach 0.01-0.1 px RMS; above 0.5 px the corners are "
     "blurred or misdetected or the distortion model does not fit the lens.";
@@ -78,7 +82,32 @@ Check PaperCheck(std::string id, std::string what, std::string unit, double erro
   return c;
 }
 
+// The device fit's chi^2/dof from device.json (a fit statistic, compared with its limit directly); a device file
+// without it cannot show the model describes the unit: not passed.
+Check DeviceFitCheck(const DeviceStageRecord& device, const Limits& limits) {
+  Check c{"device_chi2_per_dof", "device fit: \u03c7\u00b2/dof of the ball images", "", std::nullopt, std::nullopt,
+          {}, limits.device_chi2_per_dof.max, false, "a fit statistic: compared with the limit directly"};
+  const json& cal = device.file.calibration;
+  const auto chi2 = cal.is_object() ? cal.find("chi2_per_dof") : cal.end();
+  if (!cal.is_object() || chi2 == cal.end() || !chi2->is_number()) {
+    c.note = "not judged: device.json has no fitted chi2/dof (a nominal device)";
+    return c;
+  }
+  c.error = chi2->get<double>();
+  c.pass = *c.error <= c.limit;
+  return c;
+}
+
 }  // namespace
+
+std::vector<NamedLimit> NamedLimits(const Limits& l) {
+  return {{"calibration_rms_px", &l.calibration_rms_px, "px"},
+          {"sphere_radius_error_mm", &l.sphere_radius_error_mm, "mm"},
+          {"sphere_power_error_D", &l.sphere_power_error_D, "D"},
+          {"paper_radius_error_mm", &l.paper_radius_error_mm, "mm"},
+          {"paper_conic_error", &l.paper_conic_error, ""},
+          {"device_chi2_per_dof", &l.device_chi2_per_dof, ""}};
+}
 
 Limits DefaultLimits() {
   Limits l;
@@ -88,6 +117,7 @@ Limits DefaultLimits() {
   l.sphere_power_error_D = {kDefaultSpherePowerErrorD, kSourcePower};
   l.paper_radius_error_mm = {kDefaultPaperRadiusErrorMm, kSourceRadius};
   l.paper_conic_error = {kDefaultPaperConicError, kSourceConic};
+  l.device_chi2_per_dof = {kDefaultDeviceChi2PerDof, kSourceChi2};
   l.origin = "built-in defaults (data/limits.json)";
   return l;
 }
@@ -117,6 +147,8 @@ Limits LoadLimits(const std::string& path) {
   l.sphere_power_error_D = ReadLimit(limits, "sphere_power_error_D");
   l.paper_radius_error_mm = ReadLimit(limits, "paper_radius_error_mm");
   l.paper_conic_error = ReadLimit(limits, "paper_conic_error");
+  l.device_chi2_per_dof = limits.Has("device_chi2_per_dof") ? ReadLimit(limits, "device_chi2_per_dof")
+                                                            : Limit{kDefaultDeviceChi2PerDof, kSourceChi2};
   limits.RejectUnknown();
   r.RejectUnknown();
   l.origin = path;
@@ -153,9 +185,10 @@ double CombinedStandardUncertainty(const std::vector<BudgetTerm>& terms) {
 
 std::string CanonicalLimits(const Limits& l) {
   return fmt::format("decision_rule={};calibration_rms_px={};sphere_radius_error_mm={};sphere_power_error_D={};"
-                     "paper_radius_error_mm={};paper_conic_error={}",
+                     "paper_radius_error_mm={};paper_conic_error={};device_chi2_per_dof={}",
                      ToString(l.rule), l.calibration_rms_px.max, l.sphere_radius_error_mm.max,
-                     l.sphere_power_error_D.max, l.paper_radius_error_mm.max, l.paper_conic_error.max);
+                     l.sphere_power_error_D.max, l.paper_radius_error_mm.max, l.paper_conic_error.max,
+                     l.device_chi2_per_dof.max);
 }
 
 std::vector<Check> PaperCorneaRows(const UnitRecord& rec, const Limits& limits) {
@@ -265,6 +298,7 @@ Verdict Evaluate(const UnitRecord& rec, const Limits& limits, const BudgetOption
                           "not verified: the record has no reference-sphere verification"});
     }
   }
+  if (rec.device) v.checks.push_back(DeviceFitCheck(*rec.device, limits));
   v.pass = true;
   for (const Check& c : v.checks) v.pass = v.pass && c.pass;
   return v;

@@ -38,6 +38,8 @@ struct Limit {
 struct Limits {
   DecisionRule rule = DecisionRule::kGuarded;
   Limit calibration_rms_px, sphere_radius_error_mm, sphere_power_error_D, paper_radius_error_mm, paper_conic_error;
+  // Judges records with a device stage only; optional in a limits file (the default when absent).
+  Limit device_chi2_per_dof;
   std::string origin;  // the limits file, or "built-in defaults"
 };
 
@@ -55,6 +57,18 @@ inline constexpr double kDefaultPaperConicError = 0.05;
 //  Calibration RMS: sub-pixel corners of a sharp printed target reach 0.01-0.1 px (docs/unit-record.md example:
 //  0.0125 px); above 0.5 px the corners are blurred or misdetected or the model does not fit.
 inline constexpr double kDefaultCalibrationRmsPx = 0.5;
+//  Device fit chi^2/dof (the ball images' residuals over the spot noise the fit assumed): 4, the adequacy threshold
+//  of `device calibrate` (calib::DeviceFitOptions::max_chi2_per_dof) - residuals twice the noise say the device model
+//  does not describe the unit (a ball moved between shots, a wrong certified radius, a lens changed).
+inline constexpr double kDefaultDeviceChi2PerDof = 4.0;
+
+// Every limit with its key and unit, in the order reports list them (one list for the HTML, the JSON and the tests).
+struct NamedLimit {
+  const char* name;
+  const Limit* limit;
+  const char* unit;  // "px", "mm", "D" or ""
+};
+std::vector<NamedLimit> NamedLimits(const Limits& limits);
 
 Limits DefaultLimits();
 // Reads a limits file. Throws util::InputError "PATH: KEY: problem".

@@ -819,14 +819,9 @@ std::string RenderHtmlReport(const UnitRecord& rec, const ReportInputs& inputs) 
   s += fmt::format("<h3>Limits ({})</h3>\n<table class=\"data\"><tr><th>limit</th><th>value</th><th>source</th>"
                    "</tr>\n",
                    H(limits.origin));
-  for (const auto& [name, limit, unit] :
-       {std::tuple{"calibration_rms_px", &limits.calibration_rms_px, " px"},
-        std::tuple{"sphere_radius_error_mm", &limits.sphere_radius_error_mm, " mm"},
-        std::tuple{"sphere_power_error_D", &limits.sphere_power_error_D, " D"},
-        std::tuple{"paper_radius_error_mm", &limits.paper_radius_error_mm, " mm"},
-        std::tuple{"paper_conic_error", &limits.paper_conic_error, ""}}) {
-    s += fmt::format("<tr><td>{}</td><td class=\"num\">{}{}</td><td class=\"note\">{}</td></tr>\n", name,
-                     Sig(limit->max, 4), unit, H(limit->source));
+  for (const NamedLimit& l : NamedLimits(limits)) {
+    s += fmt::format("<tr><td>{}</td><td class=\"num\">{}{}{}</td><td class=\"note\">{}</td></tr>\n", l.name,
+                     Sig(l.limit->max, 4), *l.unit ? " " : "", l.unit, H(l.limit->source));
   }
   s += "</table>\n";
   s += fmt::format("<p class=\"verdict-line\">Overall: <strong>{}</strong> (report <span class=\"report-id\">{}</span>)"
@@ -896,12 +891,8 @@ nlohmann::json ReportJson(const UnitRecord& rec, const ReportInputs& inputs) {
                            {"within", c.pass}});
   }
   json limits = json::object();
-  for (const auto& [name, limit] : {std::pair{"calibration_rms_px", &l.calibration_rms_px},
-                                    std::pair{"sphere_radius_error_mm", &l.sphere_radius_error_mm},
-                                    std::pair{"sphere_power_error_D", &l.sphere_power_error_D},
-                                    std::pair{"paper_radius_error_mm", &l.paper_radius_error_mm},
-                                    std::pair{"paper_conic_error", &l.paper_conic_error}}) {
-    limits[name] = {{"max", limit->max}, {"source", limit->source}};
+  for (const NamedLimit& named : NamedLimits(l)) {
+    limits[named.name] = {{"max", named.limit->max}, {"source", named.limit->source}};
   }
   const SignOff& so = inputs.sign_off;
   json out = {{"format", kReportJsonFormat},

@@ -200,6 +200,17 @@ TEST_F(UnitCli, TheDeviceStageFromBallsFixesWhatTheLensCalibrationCannot) {
   EXPECT_NE(html.find("Held-out reference ball"), std::string::npos);
   EXPECT_NE(html.find("<td>rx_deg</td>"), std::string::npos);
   EXPECT_NE(html.find("axial gauge"), std::string::npos);
+  // The device fit's chi^2/dof is a check of the verdict (default limit 4); a limit it exceeds fails the unit and
+  // the CLI's last line names it.
+  EXPECT_NE(html.find("device fit: \u03c7\u00b2/dof of the ball images"), std::string::npos);
+  auto strict = json::parse(util::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json"));
+  strict["limits"]["device_chi2_per_dof"]["max"] = 1e-9;
+  util::WriteFileAtomic((dir_ / "strict.json").string(), strict.dump());
+  const auto failed = RunTopocal(fmt::format("report --unit {} --limits {}/strict.json --out {}/strict.html", out,
+                                             dir_.string(), dir_.string()));
+  EXPECT_EQ(failed.exit_code, 3) << failed.output;
+  EXPECT_NE(failed.output.find("device fit: \u03c7\u00b2/dof of the ball images |error|"), std::string::npos)
+      << failed.output;
   // The fleet keeps the device stage's evidence: each fitted parameter with U = 2 sd, the fit's chi^2/dof and the
   // held-out ball's radius error through the device.
   const std::string db = (dir_ / "fleet.sqlite").string();

@@ -44,10 +44,22 @@ TEST(Limits, BundledFileIsTheBuiltInDefault) {
                              std::pair{&file.sphere_radius_error_mm, &def.sphere_radius_error_mm},
                              std::pair{&file.sphere_power_error_D, &def.sphere_power_error_D},
                              std::pair{&file.paper_radius_error_mm, &def.paper_radius_error_mm},
-                             std::pair{&file.paper_conic_error, &def.paper_conic_error}}) {
+                             std::pair{&file.paper_conic_error, &def.paper_conic_error},
+                             std::pair{&file.device_chi2_per_dof, &def.device_chi2_per_dof}}) {
     EXPECT_EQ(a->max, b->max);
     EXPECT_EQ(a->source, b->source);
   }
+}
+
+// device_chi2_per_dof came after the first limits files: a file without it judges device records by the default.
+TEST(Limits, AFileWithoutTheDeviceLimitTakesItsDefault) {
+  auto j = BundledLimits();
+  j["limits"].erase("device_chi2_per_dof");
+  const std::string path = ::testing::TempDir() + "/limits-no-device.json";
+  util::WriteFileAtomic(path, j.dump());
+  const Limits l = LoadLimits(path);
+  EXPECT_EQ(l.device_chi2_per_dof.max, kDefaultDeviceChi2PerDof);
+  EXPECT_EQ(l.device_chi2_per_dof.source, DefaultLimits().device_chi2_per_dof.source);
 }
 
 TEST(Limits, MalformedFilesAreRefusedNamingTheKey) {
