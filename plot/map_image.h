@@ -161,5 +161,8 @@ void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOpti
 std::string GridMapCsv(const GridMap& map);
 // Writes GridMapCsv atomically. Throws util::InputError naming the path if it cannot be written.
 void WriteMapCsv(const std::string& path, const GridMap& map);
+// Reads a map CSV back (plot/map_csv.cc): the grid, its values (NaN where empty) and its unit (title empty).
+// Throws util::InputError naming the path and line for anything GridMapCsv would not write.
+GridMap ReadMapCsv(const std::string& path);
 
 }  // namespace topocal::plot

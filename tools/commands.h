@@ -48,6 +48,7 @@ void AddHarnessCommand(CLI::App& app);
 void AddReportCommand(CLI::App& app);
 void AddDeviceCommand(CLI::App& app);
 void AddFleetCommand(CLI::App& app);
+void AddCompareCommand(CLI::App& app);  // cmd_compare.cc
 void AddDetectCommand(CLI::App& app);
 void AddExportCommands(CLI::App& app);  // export and import (cmd_export.cc)
 

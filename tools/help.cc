@@ -48,6 +48,8 @@ const std::map<std::string, std::string>& Examples() {
       {"fleet report", "topocal fleet report --db fleet.sqlite --out fleet.html"},
       {"fleet check", "topocal fleet check --db fleet.sqlite"},
       {"fleet backup", "topocal fleet backup --db fleet.sqlite --out backups/fleet-2026-12-05.sqlite"},
+      {"compare", "topocal compare visit1.json visit2.json --a-maps visit1-maps/ --b-maps visit2-maps/ "
+                  "--maps change/"},
       {"export", "topocal export --calibration cal.yaml --to mrcal --out cam.cameramodel"},
       {"import", "topocal import --from mrcal cam.cameramodel --out cal.yaml"},
   };

@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
   topocal::tools::AddReportCommand(app);
   topocal::tools::AddDeviceCommand(app);
   topocal::tools::AddFleetCommand(app);
+  topocal::tools::AddCompareCommand(app);
   topocal::tools::AddExportCommands(app);
   topocal::tools::FinishHelp(app);
   return topocal::tools::RunApp(app, argc, argv);
