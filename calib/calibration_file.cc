@@ -348,6 +348,20 @@ ParameterCovariance ParameterCovarianceOf(const CalibrationFile& file) {
   return c;
 }
 
+namespace {
+
+// Free parameters the views do not determine (calib/parameter_range.h): empty when all are.
+nlohmann::json UndeterminedJson(const CalibrationResult& result) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& u : UndeterminedParameters(result)) {
+    out.push_back({{"name", u.name}, {"value", u.value}, {"stddev", u.stddev},
+                   {"plausible_half_range", u.plausible_half_range}});
+  }
+  return out;
+}
+
+}  // namespace
+
 std::string CalibrationReportJson(const CalibrationResult& result, const CalibrationProvenance& provenance) {
   using nlohmann::json;
   const auto image = [&](int v) {
@@ -375,14 +389,7 @@ std::string CalibrationReportJson(const CalibrationResult& result, const Calibra
     j["stddev"][p.name] = p.stddev;
     if (p.fixed) j["fixed"].push_back(p.name);
   }
-  // Free parameters the views do not determine (calib/parameter_range.h): empty when all are.
-  j["undetermined"] = json::array();
-  for (const auto& u : UndeterminedParameters(result)) {
-    j["undetermined"].push_back({{"name", u.name},
-                                 {"value", u.value},
-                                 {"stddev", u.stddev},
-                                 {"plausible_half_range", u.plausible_half_range}});
-  }
+  j["undetermined"] = UndeterminedJson(result);
   if (result.covariance.size() > 0) {
     j["covariance"] = json::array();
     for (Eigen::Index r = 0; r < result.covariance.rows(); ++r) {

@@ -137,6 +137,26 @@ double LimitUtilisation(const HarnessCaseResult& c, const HarnessLimits& limits)
   return std::max(c.MaxAbsDk() / limits.dk, c.MaxAbsDP_D(limits) / limits.dP_D);
 }
 
+namespace {
+
+// Grid bounds, independent of any interpolation: the smallest residual of a distortion case outside the limits, and
+// the largest below it.
+void SetGridBounds(const HarnessRun& run, InverseAnswer* a) {
+  a->grid_first_failure_um = kInf;
+  for (const auto& c : run.cases) {
+    if (c.spec.kind == HarnessCaseKind::kDistortion && LimitUtilisation(c, run.config.limits) > 1) {
+      a->grid_first_failure_um = std::min(a->grid_first_failure_um, c.residual_max_um);
+    }
+  }
+  for (const auto& c : run.cases) {
+    if (c.spec.kind == HarnessCaseKind::kDistortion && c.residual_max_um < a->grid_first_failure_um) {
+      a->grid_all_pass_up_to_um = std::max(a->grid_all_pass_up_to_um, c.residual_max_um);
+    }
+  }
+}
+
+}  // namespace
+
 InverseAnswer ComputeInverseAnswer(const HarnessRun& run) {
   const HarnessLimits& limits = run.config.limits;
   InverseAnswer a;
@@ -157,18 +177,7 @@ InverseAnswer ComputeInverseAnswer(const HarnessRun& run) {
     groups[{c.spec.cornea, static_cast<int>(c.spec.family), orientation > 0 ? 1 : -1, c.spec.noise_px, c.spec.draw}]
         .push_back({c.residual_max_um, &c});
   }
-  // Grid bounds, independent of any interpolation.
-  a.grid_first_failure_um = kInf;
-  for (const auto& c : run.cases) {
-    if (c.spec.kind == HarnessCaseKind::kDistortion && LimitUtilisation(c, limits) > 1) {
-      a.grid_first_failure_um = std::min(a.grid_first_failure_um, c.residual_max_um);
-    }
-  }
-  for (const auto& c : run.cases) {
-    if (c.spec.kind == HarnessCaseKind::kDistortion && c.residual_max_um < a.grid_first_failure_um) {
-      a.grid_all_pass_up_to_um = std::max(a.grid_all_pass_up_to_um, c.residual_max_um);
-    }
-  }
+  SetGridBounds(run, &a);
   for (const auto& [key, w] : anchor) {
     if (w.u > 1) a.noise_alone_exceeds = true;
   }

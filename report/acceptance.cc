@@ -214,16 +214,12 @@ std::vector<Check> PaperCorneaRows(const UnitRecord& rec, const Limits& limits) 
   return rows;
 }
 
-Verdict Evaluate(const UnitRecord& rec, const Limits& limits, const BudgetOptions& budget) {
-  std::string why;
-  if (!budget.IsValid(&why)) throw std::invalid_argument("BudgetOptions: " + why);
-  Verdict v;
-  {
-    Check c{"calibration_rms_px", "calibration: reprojection RMS", "px", rec.calibration_rms_px, std::nullopt,
-            {}, limits.calibration_rms_px.max, false, "a fit statistic: compared with the limit directly"};
-    c.pass = rec.calibration_rms_px <= c.limit;
-    v.checks.push_back(c);
-  }
+namespace {
+
+// The reference sphere's radius and power errors with their budgets (calibration U from the record, repeatability
+// measured or defaulted, the ball's certificate), or "not verified" without a verification.
+std::vector<Check> SphereChecks(const UnitRecord& rec, const Limits& limits, const BudgetOptions& budget) {
+  std::vector<Check> out;
   if (rec.verification) {
     const SphereVerification& s = *rec.verification;
     // Calibration: the record's own U of the radius when it has one; else radius = (r_x + r_y) / 2 and the U of a
@@ -286,18 +282,34 @@ Verdict Evaluate(const UnitRecord& rec, const Limits& limits, const BudgetOption
       power.U = 2.0 * CombinedStandardUncertainty(power.budget);
       power.note += "; U = 2 \u221a(\u03a3 u\u00b2) over the budget";
     }
-    v.checks.push_back(Judge(radius, limits.rule));
-    v.checks.push_back(Judge(power, limits.rule));
+    out.push_back(Judge(radius, limits.rule));
+    out.push_back(Judge(power, limits.rule));
   } else {
     for (const auto& [id, what, unit, limit] :
          {std::tuple{"sphere_radius_error_mm", "reference sphere: radius error, corrected", "mm",
                      limits.sphere_radius_error_mm.max},
           std::tuple{"sphere_power_error_D", "reference sphere: power error, corrected", "D",
                      limits.sphere_power_error_D.max}}) {
-      v.checks.push_back({id, what, unit, std::nullopt, std::nullopt, {}, limit, false,
+      out.push_back({id, what, unit, std::nullopt, std::nullopt, {}, limit, false,
                           "not verified: the record has no reference-sphere verification"});
     }
   }
+  return out;
+}
+
+}  // namespace
+
+Verdict Evaluate(const UnitRecord& rec, const Limits& limits, const BudgetOptions& budget) {
+  std::string why;
+  if (!budget.IsValid(&why)) throw std::invalid_argument("BudgetOptions: " + why);
+  Verdict v;
+  {
+    Check c{"calibration_rms_px", "calibration: reprojection RMS", "px", rec.calibration_rms_px, std::nullopt,
+            {}, limits.calibration_rms_px.max, false, "a fit statistic: compared with the limit directly"};
+    c.pass = rec.calibration_rms_px <= c.limit;
+    v.checks.push_back(c);
+  }
+  for (Check& c : SphereChecks(rec, limits, budget)) v.checks.push_back(std::move(c));
   if (rec.device) v.checks.push_back(DeviceFitCheck(*rec.device, limits));
   v.pass = true;
   for (const Check& c : v.checks) v.pass = v.pass && c.pass;

@@ -220,36 +220,9 @@ std::string RulesText(const std::vector<int>& rules) {
   return s;
 }
 
-}  // namespace
-
-std::string RenderFleetHtml(const FleetAnalysis& a) {
-  const int passed = static_cast<int>(std::count_if(a.verdicts.begin(), a.verdicts.end(),
-                                                    [](const UnitVerdict& v) { return v.pass; }));
-  std::string s = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n";
-  s += fmt::format("<title>topocal fleet report \u2014 {} units</title>\n<style>{}</style>\n</head>\n", a.units.size(),
-                   kCss);
-  s += fmt::format("<body data-units=\"{}\" data-passed=\"{}\" data-out-of-control=\"{}\">\n<main>\n", a.units.size(),
-                   passed, a.out_of_control.size());
-  s += "<h1>Fleet report: the production line</h1>\n";
-  s += fmt::format("<p>Database {} \u00b7 {} units ({} records) from {} to {} \u00b7 {} station(s) \u00b7 topocal {}</p>\n",
-                   H(a.database), [&] {
-                     std::set<std::string> serials;
-                     for (const FleetUnit& u : a.units) serials.insert(u.serial);
-                     return serials.size();
-                   }(),
-                   a.units.size(), a.units.empty() ? "\u2014" : H(a.units.front().created_utc),
-                   a.units.empty() ? "\u2014" : H(a.units.back().created_utc), a.stations.size(), H(kVersion));
-  s += fmt::format("<p>Limits: {} ({} acceptance). {}</p>\n", H(a.limits.origin), ToString(a.limits.rule),
-                   H(DecisionRuleText(a.limits.rule)));
-  s += "<p class=\"note\">Control charts: Shewhart individuals charts, limits from the data of the units that "
-       "passed (phase I: centre = mean, \u03c3 = mean moving range / 1.128, UCL/LCL = centre \u00b1 3\u03c3; a FAIL unit "
-       "is charted and judged but does not set the limits), Western Electric rules 1\u20134; points flagged in red. "
-       "Their in-control average run length is about 92 points: on a stable line of a few hundred units some signals "
-       "are false alarms. Charts need at least 8 passing units. Capability: Cp = 2 limit / 6\u03c3, Cpk = (limit "
-       "\u2212 |centre|) / 3\u03c3 of the values against \u00b1limit (one-sided for the RMS), \u03c3 the chart's; "
-       "1.33 is the usual minimum of a capable process.</p>\n";
-
-  // Summary per station.
+// The verdicts per station and for the whole line, then each judged parameter's capability.
+std::string StationSummary(const FleetAnalysis& a) {
+  std::string s;
   s += "<section id=\"summary\"><h2>Verdicts</h2>\n<table class=\"data\" id=\"stations\"><tr><th>station</th>"
        "<th>units</th><th>PASS</th><th>FAIL</th><th>yield</th><th>near a limit</th>"
        "<th>points out of control on its own charts</th></tr>\n";
@@ -272,49 +245,12 @@ std::string RenderFleetHtml(const FleetAnalysis& a) {
                      n > 0 ? fmt::format("{:.1f} %", 100.0 * pass / n) : std::string("\u2014"), near, ooc);
   }
   s += "</table>\n" + CapabilityTable(a) + "</section>\n";
+  return s;
+}
 
-  // Units to look at.
-  s += "<section id=\"attention\"><h2>Units out of control</h2>\n";
-  if (a.out_of_control.empty()) {
-    s += "<p id=\"no-signals\">No point on any chart breaks a Western Electric rule.</p>\n";
-  } else {
-    s += "<table class=\"data\" id=\"out-of-control\"><tr><th>unit</th><th>calibrated</th><th>station</th>"
-         "<th>parameter</th><th>value</th><th>chart</th><th>rules</th></tr>\n";
-    for (const OutOfControl& o : a.out_of_control) {
-      const FleetUnit& u = a.units[o.unit];
-      s += fmt::format("<tr data-serial=\"{}\" data-parameter=\"{}\"><td>{}</td><td>{}</td><td>{}</td><td>{}</td>"
-                       "<td class=\"num\">{}</td><td>{}</td><td>{}</td></tr>\n",
-                       H(u.serial), H(o.parameter), H(u.serial), H(u.created_utc), H(u.station), H(o.parameter),
-                       Sig(u.measurements.at(o.parameter).value), o.station.empty() ? "line" : "station " + H(o.station),
-                       H(RulesText(o.rules)));
-    }
-    s += "</table>\n";
-  }
-  s += "<h2>Units beyond or near their acceptance limits</h2>\n";
-  std::string rows;
-  for (std::size_t i = 0; i < a.units.size(); ++i) {
-    const UnitVerdict& v = a.verdicts[i];
-    if (v.pass && v.near.empty()) continue;
-    std::string what;
-    for (const auto& f : v.failed) what += (what.empty() ? "" : ", ") + f;
-    for (const auto& f : v.near) what += (what.empty() ? "" : ", ") + f + " (near)";
-    rows += fmt::format("<tr data-serial=\"{}\"><td>{}</td><td>{}</td><td>{}</td><td class=\"{}\">{}</td><td>{}</td>"
-                        "</tr>\n",
-                        H(a.units[i].serial), H(a.units[i].serial), H(a.units[i].created_utc), H(a.units[i].station),
-                        v.pass ? "pass" : "fail", v.pass ? "PASS" : "FAIL", H(what));
-  }
-  if (rows.empty()) {
-    s += fmt::format("<p>Every unit passes with more than {:.0f} % of each limit to spare.</p>\n",
-                     100 * (1 - kNearLimitFraction));
-  } else {
-    s += fmt::format("<p class=\"note\">Near: a passing unit whose judged value uses \u2265 {:.0f} % of its limit.</p>\n",
-                     100 * kNearLimitFraction);
-    s += "<table class=\"data\" id=\"near-limits\"><tr><th>unit</th><th>calibrated</th><th>station</th><th>verdict</th>"
-         "<th>parameters</th></tr>\n" + rows + "</table>\n";
-  }
-  s += "</section>\n";
-
-  // Per parameter: distribution, the line's chart, each station's chart.
+// Per parameter: distribution, the line's chart, each station's chart.
+std::string ParameterSections(const FleetAnalysis& a) {
+  std::string s;
   s += "<section id=\"parameters\" class=\"page-break\"><h2>Parameters</h2>\n";
   for (const FleetParameter& p : a.parameters) {
     std::vector<const ChartSeries*> series;
@@ -358,7 +294,12 @@ std::string RenderFleetHtml(const FleetAnalysis& a) {
   }
   s += "</section>\n";
 
-  // Every unit.
+  return s;
+}
+
+// Every unit, in time order, with its verdict (the table is closed by the caller with the page).
+std::string UnitTable(const FleetAnalysis& a) {
+  std::string s;
   s += "<section id=\"units\" class=\"page-break\"><h2>Units</h2>\n<table class=\"data\" id=\"unit-table\"><tr><th>#</th>"
        "<th>serial</th><th>calibrated</th><th>station</th><th>RMS (px)</th><th>sphere radius error (mm)</th>"
        "<th>sphere power error (D)</th><th>verdict</th></tr>\n";
@@ -374,6 +315,82 @@ std::string RenderFleetHtml(const FleetAnalysis& a) {
                      value(u, "sphere_radius_error_mm"), value(u, "sphere_power_error_D"),
                      a.verdicts[i].pass ? "pass" : "fail", a.verdicts[i].pass ? "PASS" : "FAIL");
   }
+  return s;
+}
+
+}  // namespace
+
+std::string RenderFleetHtml(const FleetAnalysis& a) {
+  const int passed = static_cast<int>(std::count_if(a.verdicts.begin(), a.verdicts.end(),
+                                                    [](const UnitVerdict& v) { return v.pass; }));
+  std::string s = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n";
+  s += fmt::format("<title>topocal fleet report \u2014 {} units</title>\n<style>{}</style>\n</head>\n", a.units.size(),
+                   kCss);
+  s += fmt::format("<body data-units=\"{}\" data-passed=\"{}\" data-out-of-control=\"{}\">\n<main>\n", a.units.size(),
+                   passed, a.out_of_control.size());
+  s += "<h1>Fleet report: the production line</h1>\n";
+  s += fmt::format("<p>Database {} \u00b7 {} units ({} records) from {} to {} \u00b7 {} station(s) \u00b7 topocal {}</p>\n",
+                   H(a.database), [&] {
+                     std::set<std::string> serials;
+                     for (const FleetUnit& u : a.units) serials.insert(u.serial);
+                     return serials.size();
+                   }(),
+                   a.units.size(), a.units.empty() ? "\u2014" : H(a.units.front().created_utc),
+                   a.units.empty() ? "\u2014" : H(a.units.back().created_utc), a.stations.size(), H(kVersion));
+  s += fmt::format("<p>Limits: {} ({} acceptance). {}</p>\n", H(a.limits.origin), ToString(a.limits.rule),
+                   H(DecisionRuleText(a.limits.rule)));
+  s += "<p class=\"note\">Control charts: Shewhart individuals charts, limits from the data of the units that "
+       "passed (phase I: centre = mean, \u03c3 = mean moving range / 1.128, UCL/LCL = centre \u00b1 3\u03c3; a FAIL unit "
+       "is charted and judged but does not set the limits), Western Electric rules 1\u20134; points flagged in red. "
+       "Their in-control average run length is about 92 points: on a stable line of a few hundred units some signals "
+       "are false alarms. Charts need at least 8 passing units. Capability: Cp = 2 limit / 6\u03c3, Cpk = (limit "
+       "\u2212 |centre|) / 3\u03c3 of the values against \u00b1limit (one-sided for the RMS), \u03c3 the chart's; "
+       "1.33 is the usual minimum of a capable process.</p>\n";
+
+  s += StationSummary(a);
+  // Units to look at.
+  s += "<section id=\"attention\"><h2>Units out of control</h2>\n";
+  if (a.out_of_control.empty()) {
+    s += "<p id=\"no-signals\">No point on any chart breaks a Western Electric rule.</p>\n";
+  } else {
+    s += "<table class=\"data\" id=\"out-of-control\"><tr><th>unit</th><th>calibrated</th><th>station</th>"
+         "<th>parameter</th><th>value</th><th>chart</th><th>rules</th></tr>\n";
+    for (const OutOfControl& o : a.out_of_control) {
+      const FleetUnit& u = a.units[o.unit];
+      s += fmt::format("<tr data-serial=\"{}\" data-parameter=\"{}\"><td>{}</td><td>{}</td><td>{}</td><td>{}</td>"
+                       "<td class=\"num\">{}</td><td>{}</td><td>{}</td></tr>\n",
+                       H(u.serial), H(o.parameter), H(u.serial), H(u.created_utc), H(u.station), H(o.parameter),
+                       Sig(u.measurements.at(o.parameter).value), o.station.empty() ? "line" : "station " + H(o.station),
+                       H(RulesText(o.rules)));
+    }
+    s += "</table>\n";
+  }
+  s += "<h2>Units beyond or near their acceptance limits</h2>\n";
+  std::string rows;
+  for (std::size_t i = 0; i < a.units.size(); ++i) {
+    const UnitVerdict& v = a.verdicts[i];
+    if (v.pass && v.near.empty()) continue;
+    std::string what;
+    for (const auto& f : v.failed) what += (what.empty() ? "" : ", ") + f;
+    for (const auto& f : v.near) what += (what.empty() ? "" : ", ") + f + " (near)";
+    rows += fmt::format("<tr data-serial=\"{}\"><td>{}</td><td>{}</td><td>{}</td><td class=\"{}\">{}</td><td>{}</td>"
+                        "</tr>\n",
+                        H(a.units[i].serial), H(a.units[i].serial), H(a.units[i].created_utc), H(a.units[i].station),
+                        v.pass ? "pass" : "fail", v.pass ? "PASS" : "FAIL", H(what));
+  }
+  if (rows.empty()) {
+    s += fmt::format("<p>Every unit passes with more than {:.0f} % of each limit to spare.</p>\n",
+                     100 * (1 - kNearLimitFraction));
+  } else {
+    s += fmt::format("<p class=\"note\">Near: a passing unit whose judged value uses \u2265 {:.0f} % of its limit.</p>\n",
+                     100 * kNearLimitFraction);
+    s += "<table class=\"data\" id=\"near-limits\"><tr><th>unit</th><th>calibrated</th><th>station</th><th>verdict</th>"
+         "<th>parameters</th></tr>\n" + rows + "</table>\n";
+  }
+  s += "</section>\n";
+
+  s += ParameterSections(a);
+  s += UnitTable(a);
   s += "</table></section>\n</main>\n</body>\n</html>\n";
   return s;
 }

@@ -36,6 +36,40 @@ struct CalibrateArgs {
   int jobs = util::AvailableCores();
 };
 
+// The summary on standard output: the fit, every free parameter with its standard deviation, what is undetermined.
+void PrintCalibration(const calib::CalibrationResult& result, const CalibrateArgs& a,
+                      const std::optional<calib::CrossValidationResult>& cross) {
+  const auto& c = result.camera;
+  fmt::print("{} {} calibration from {} view(s), {} corners: rms {:.4f} px, {} outlier(s)\n", calib::ToString(result.model),
+             result.single_view ? "single-view" : "multi-view", result.views_used.size(), result.corners_used,
+             result.rms_px, result.outliers.size());
+  fmt::print("  fx {:.4f} fy {:.4f} cx {:.4f} cy {:.4f} px\n", c.fx_px, c.fy_px, c.cx_px, c.cy_px);
+  for (const auto& p : result.parameters) {
+    if (!p.fixed) fmt::print("  {:>2} = {:<14.8g} +- {:.3g}\n", p.name, p.value, p.stddev);
+  }
+  if (const auto undetermined = calib::UndeterminedParameters(result); !undetermined.empty()) {
+    fmt::print("  warning: undetermined: {}\n", calib::UndeterminedMessage(undetermined));
+  }
+  if (result.fixed_aspect_ratio > 0) fmt::print("  fx / fy held at {} (one focal degree of freedom)\n", result.fixed_aspect_ratio);
+  if (result.seidel) {
+    fmt::print("  Seidel sigma = {:.6g} +- {:.2g} mm^-2 (M_T = {}, f = {:.4g} mm)\n", result.seidel->sigma_per_mm2,
+               result.seidel->sigma_stddev_per_mm2, result.seidel->magnification, result.seidel->focal_mm);
+  }
+  if (result.board_warp) {
+    const auto& w = *result.board_warp;
+    fmt::print("  board warp: sag_x = {:.4f} +- {:.4f} mm, sag_y = {:.4f} +- {:.4f} mm (middle of the board vs its "
+               "edges, + = away from the camera)\n",
+               w.sag_x_mm, w.sag_x_stddev_mm, w.sag_y_mm, w.sag_y_stddev_mm);
+  }
+  fmt::print("  -> {}\n", a.out);
+  if (cross) {
+    fmt::print("cross-validation: halves of {} and {} views differ by RMS {:.4f} px, max {:.4f} px over the image "
+               "(homography removed) -> {}\n",
+               cross->half_views[0].size(), cross->half_views[1].size(), cross->rms_px, cross->max_px,
+               a.cross_validate_svg);
+  }
+}
+
 void Run(const CalibrateArgs& a) {
   // Ceres logs through glog (e.g. a rank-deficient covariance); the calibration's status already says it in one
   // line, so keep glog's lines off the terminal.
@@ -145,35 +179,7 @@ void Run(const CalibrateArgs& a) {
   if (!a.json.empty()) outputs.AddFile(a.json, json_text);
   if (cross) outputs.AddFile(a.cross_validate_svg, cross_svg);
   outputs.Commit();
-  const auto& c = result.camera;
-  fmt::print("{} {} calibration from {} view(s), {} corners: rms {:.4f} px, {} outlier(s)\n", calib::ToString(result.model),
-             result.single_view ? "single-view" : "multi-view", result.views_used.size(), result.corners_used,
-             result.rms_px, result.outliers.size());
-  fmt::print("  fx {:.4f} fy {:.4f} cx {:.4f} cy {:.4f} px\n", c.fx_px, c.fy_px, c.cx_px, c.cy_px);
-  for (const auto& p : result.parameters) {
-    if (!p.fixed) fmt::print("  {:>2} = {:<14.8g} +- {:.3g}\n", p.name, p.value, p.stddev);
-  }
-  if (const auto undetermined = calib::UndeterminedParameters(result); !undetermined.empty()) {
-    fmt::print("  warning: undetermined: {}\n", calib::UndeterminedMessage(undetermined));
-  }
-  if (result.fixed_aspect_ratio > 0) fmt::print("  fx / fy held at {} (one focal degree of freedom)\n", result.fixed_aspect_ratio);
-  if (result.seidel) {
-    fmt::print("  Seidel sigma = {:.6g} +- {:.2g} mm^-2 (M_T = {}, f = {:.4g} mm)\n", result.seidel->sigma_per_mm2,
-               result.seidel->sigma_stddev_per_mm2, result.seidel->magnification, result.seidel->focal_mm);
-  }
-  if (result.board_warp) {
-    const auto& w = *result.board_warp;
-    fmt::print("  board warp: sag_x = {:.4f} +- {:.4f} mm, sag_y = {:.4f} +- {:.4f} mm (middle of the board vs its "
-               "edges, + = away from the camera)\n",
-               w.sag_x_mm, w.sag_x_stddev_mm, w.sag_y_mm, w.sag_y_stddev_mm);
-  }
-  fmt::print("  -> {}\n", a.out);
-  if (cross) {
-    fmt::print("cross-validation: halves of {} and {} views differ by RMS {:.4f} px, max {:.4f} px over the image "
-               "(homography removed) -> {}\n",
-               cross->half_views[0].size(), cross->half_views[1].size(), cross->rms_px, cross->max_px,
-               a.cross_validate_svg);
-  }
+  PrintCalibration(result, a, cross);
 }
 
 }  // namespace
