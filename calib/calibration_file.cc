@@ -15,6 +15,7 @@
 #include "util/io.h"
 #include "util/utc_date.h"
 #include "util/version.h"
+#include "util/json_section.h"
 
 namespace topocal::calib {
 namespace {
@@ -375,7 +376,7 @@ std::string CalibrationReportJson(const CalibrationResult& result, const Calibra
   j["single_view"] = result.single_view;
   j["skipped_views"] = json::array();
   for (const auto& s : result.skipped_views) j["skipped_views"].push_back({{"image", image(s.view)}, {"reason", s.reason}});
-  if (!result.ok()) return j.dump(2) + "\n";
+  if (!result.ok()) return util::JsonFileText(j);
   const auto& c = result.camera;
   j["image_width"] = c.width_px;
   j["image_height"] = c.height_px;
@@ -436,7 +437,7 @@ std::string CalibrationReportJson(const CalibrationResult& result, const Calibra
                  {"final_cost", result.solver.final_cost},
                  {"outlier_rounds", result.outlier_rounds},
                  {"message", result.solver.message}};
-  return j.dump(2) + "\n";
+  return util::JsonFileText(j);
 }
 
 }  // namespace topocal::calib

@@ -138,8 +138,7 @@ std::string SummaryJson(const HarnessRun& run, const InverseAnswer& a) {
   }
   j["truth"] = truth;
   if (a.limiting_case >= 0) j["limiting_case"] = CaseJson(run, a.limiting_case);
-  util::RequireFiniteNumbers(j);
-  return j.dump(2) + "\n";
+  return util::JsonFileText(j);
 }
 
 std::string AnswerSentence(const HarnessRun& run, const InverseAnswer& a) {

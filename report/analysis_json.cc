@@ -5,6 +5,7 @@
 
 #include "pipeline/uncertainty.h"
 #include "topo/power_map.h"
+#include "util/json_section.h"
 
 namespace topocal::report {
 
@@ -144,7 +145,7 @@ std::string SweepJson(const topo::SweepResult& r, const std::vector<pipeline::Cl
                     {"synthesis", r.timing.synthesis_ms},
                     {"analysis", r.timing.analysis_ms},
                     {"total", r.timing.total_ms}};
-  return j.dump(2) + "\n";
+  return util::JsonFileText(j);
 }
 
 nlohmann::json CaptureJson(const pipeline::CaptureQuality& q) {

@@ -253,8 +253,7 @@ void UnitRecordWriter::Commit(json body) {
   body["tool_version"] = kVersion;
   body["tool_commit"] = BuildCommit();  // the exact code (util/build_info.h)
   body["files"] = FileDigests(staging_);
-  util::RequireFiniteNumbers(body);
-  util::WriteFileAtomic((staging_ / "unit.json").string(), body.dump(2) + "\n");
+  util::WriteFileAtomic((staging_ / "unit.json").string(), util::JsonFileText(body));
   CommitDirectory(staging_, out_, keep_history_);
   committed_ = true;
 }

@@ -30,8 +30,7 @@ void Run(const CompareArgs& args) {
   if (!args.maps.empty()) pipeline::WriteMapComparison(outputs.AddDirectory(args.maps), *maps, comparison.eye);
   if (!args.json.empty()) {
     const nlohmann::json j = pipeline::ComparisonJson(comparison, maps);
-    util::RequireFiniteNumbers(j);
-    outputs.AddFile(args.json, j.dump(2) + "\n");
+    outputs.AddFile(args.json, util::JsonFileText(j));
   }
   outputs.Commit();
   for (const auto& line : pipeline::ComparisonLines(comparison, maps)) fmt::print("{}\n", line);

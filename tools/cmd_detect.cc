@@ -15,6 +15,7 @@
 #include "report/analysis_json.h"
 #include "tools/commands.h"
 #include "util/io.h"
+#include "util/json_section.h"
 
 namespace topocal::tools {
 namespace {
@@ -47,7 +48,7 @@ void Run(const DetectArgs& a) {
   j["image"] = a.image;
   util::StagedOutputs outputs;  // published together or not at all
   outputs.AddFile(a.out, correct::DetectedSpotsCsv(r));
-  if (!a.json.empty()) outputs.AddFile(a.json, j.dump(2) + "\n");
+  if (!a.json.empty()) outputs.AddFile(a.json, util::JsonFileText(j));
   outputs.Commit();
   fmt::print("detect ({}): {} spots indexed ({} flagged and left out of a measurement: near a blob, at the border, "
              "on an uneven background or a flux outlier), {} unassigned blobs, {} designed spots missing -> {}\n",

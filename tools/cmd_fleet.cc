@@ -14,6 +14,7 @@
 #include "report/unit_record_writer.h"
 #include "tools/commands.h"
 #include "util/io.h"
+#include "util/json_section.h"
 
 namespace topocal::tools {
 namespace {
@@ -59,7 +60,7 @@ void Report(const FleetReportArgs& a) {
   if (analysis.units.empty()) throw util::InputError(fmt::format("{}: the fleet database holds no unit", a.db));
   const std::string html = report::RenderFleetHtml(analysis);
   const std::string csv = a.csv.empty() ? "" : report::FleetCsv(analysis);
-  const std::string json = a.json.empty() ? "" : report::FleetJson(analysis).dump(2) + "\n";
+  const std::string json = a.json.empty() ? "" : util::JsonFileText(report::FleetJson(analysis));
   util::StagedOutputs outputs;  // published together or not at all
   outputs.AddFile(a.out, html);
   if (!a.csv.empty()) outputs.AddFile(a.csv, csv);

@@ -22,6 +22,7 @@
 #include "tools/surface_option.h"
 #include "topo/analysis.h"
 #include "util/io.h"
+#include "util/json_section.h"
 
 namespace topocal::tools {
 namespace {
@@ -246,7 +247,7 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
   if (!print) {  // the reason is already a whole line naming the image
     if (!json_out.empty()) {
       util::StagedOutputs outputs;
-      outputs.AddFile(json_out, info.dump(2) + "\n");
+      outputs.AddFile(json_out, util::JsonFileText(info));
       outputs.Commit();
     }
     throw util::MeasurementRefused(verdict.reasons.front());
@@ -255,7 +256,7 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
   for (const auto& r : verdict.reasons) fmt::print("  - {}\n", r);
   if (!json_out.empty()) {
     util::StagedOutputs outputs;
-    outputs.AddFile(json_out, info.dump(2) + "\n");
+    outputs.AddFile(json_out, util::JsonFileText(info));
     outputs.Commit();
   }
   throw util::MeasurementRefused(
@@ -380,7 +381,7 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
     nlohmann::json j = info;
     j.update(report::MeasurementJson(analysis, truth));
     if (measurement_u) report::WithdrawUndetermined(*measurement_u, &j);
-    outputs.AddFile(json_out, j.dump(2) + "\n");
+    outputs.AddFile(json_out, util::JsonFileText(j));
   }
   if (!maps.empty()) {
     pipeline::MapSetOptions map_options;

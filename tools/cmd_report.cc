@@ -12,6 +12,7 @@
 #include "report/unit_record_reader.h"
 #include "tools/commands.h"
 #include "util/io.h"
+#include "util/json_section.h"
 
 namespace topocal::tools {
 namespace {
@@ -43,7 +44,7 @@ void Run(const ReportArgs& a) {
   const nlohmann::json verdict_json = report::ReportJson(record, in);
   util::StagedOutputs outputs;  // published together or not at all
   outputs.AddFile(a.out, html);
-  if (!a.json.empty()) outputs.AddFile(a.json, verdict_json.dump(2) + "\n");
+  if (!a.json.empty()) outputs.AddFile(a.json, util::JsonFileText(verdict_json));
   outputs.Commit();
   const report::Verdict verdict = report::Evaluate(record, in.limits, in.budget);
   fmt::print("{}: report {} for unit {}: {}\n", a.out, report::ReportId(record, in), record.serial,

@@ -114,4 +114,9 @@ void CheckFinite(const nlohmann::json& j, const std::string& where) {
 
 void RequireFiniteNumbers(const nlohmann::json& j) { CheckFinite(j, ""); }
 
+std::string JsonFileText(const nlohmann::json& j) {
+  RequireFiniteNumbers(j);
+  return j.dump(2) + "\n";
+}
+
 }  // namespace topocal::util

@@ -58,8 +58,10 @@ nlohmann::json ParseJsonStrict(const std::string& text, const std::string& origi
 
 // Throws std::runtime_error "KEY: not a finite number" for the first NaN or infinity in `j` (dotted key path,
 // "[i]" for array elements): nlohmann writes both as null, which a reader would take for a missing value. Every
-// JSON file topocal writes goes through this before dump().
+// JSON file topocal writes goes through it (JsonFileText).
 void RequireFiniteNumbers(const nlohmann::json& j);
+// The text of a JSON file topocal writes: RequireFiniteNumbers, then indented by 2 with a final newline.
+std::string JsonFileText(const nlohmann::json& j);
 
 class JsonSection {
  public:
