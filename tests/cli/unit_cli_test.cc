@@ -508,7 +508,7 @@ TEST_F(UnitCli, AParameterTheViewsDoNotDetermineIsRefusedUnlessAllowed) {
   EXPECT_TRUE(fs::exists(dir_ / "b" / "F-2" / "unit.json"));
 }
 
-// Issue 37: `unit calibrate --balls` writes the same record, device.json included, byte for byte, whether OpenCV
+// `unit calibrate --balls` writes the same record, device.json included, byte for byte, whether OpenCV
 // runs on one thread or four (the connected components of ball detection, the undistortion maps).
 TEST_F(UnitCli, TheDeviceStageIsByteIdenticalWhateverTheThreads) {
   const auto [balls, radii] = RenderBalls();
@@ -537,7 +537,7 @@ TEST_F(UnitCli, TheDeviceStageIsByteIdenticalWhateverTheThreads) {
   }
 }
 
-// Issue 37: the records of a batch do not depend on how many units run at once (and so how many threads each
+// The records of a batch do not depend on how many units run at once (and so how many threads each
 // unit's Monte Carlo draws get): --jobs 1 and --jobs 3 write the same files, byte for byte (the record's date fixed
 // by SOURCE_DATE_EPOCH, the only field that may differ between runs).
 TEST_F(UnitCli, BatchRecordsAreByteIdenticalWhateverTheJobs) {
