@@ -80,7 +80,14 @@ std::optional<Reading> ReadingOf(const json& quantities, const char* key, const 
     *why = fmt::format("{} holds no value with a U", name);
     return std::nullopt;
   }
-  Reading r{*value, *U, q->value("determined", true), q->value("lower_bound", false), q->value("unit", "")};
+  // Flags and unit as reconstruct writes them; anything else reads as the cautious default.
+  const auto flag = [&](const char* field, bool fallback) {
+    const auto f = q->find(field);
+    return f != q->end() && f->is_boolean() ? f->get<bool>() : fallback;
+  };
+  const auto unit = q->find("unit");
+  Reading r{*value, *U, flag("determined", false), flag("lower_bound", true),
+            unit != q->end() && unit->is_string() ? unit->get<std::string>() : ""};
   if (!r.determined) *why = fmt::format("not determined by the data of {}", name);
   if (r.lower_bound) *why = fmt::format("its U is only a lower bound in {}", name);
   return r;
@@ -112,7 +119,13 @@ MeasurementComparison CompareMeasurements(const json& a, const std::string& a_na
                                           const std::string& b_name) {
   const json& qa = QuantitiesOf(a, a_name);
   const json& qb = QuantitiesOf(b, b_name);
-  const std::string eye_a = a.value("eye", ""), eye_b = b.value("eye", "");
+  const auto eye = [](const json& doc, const std::string& name) {
+    const auto e = doc.find("eye");
+    if (e == doc.end()) return std::string();
+    if (!e->is_string()) throw util::InputError(fmt::format("{}: eye: not a string", name));
+    return e->get<std::string>();
+  };
+  const std::string eye_a = eye(a, a_name), eye_b = eye(b, b_name);
   if (!eye_a.empty() && !eye_b.empty() && eye_a != eye_b) {
     throw util::InputError(fmt::format("{}: eye {} and {}: eye {}: not the same eye", a_name, eye_a, b_name, eye_b));
   }
