@@ -146,9 +146,9 @@ std::string CaptureQuality::Line() const {
                         : std::string("no sector missing");
   return fmt::format("capture: {} of {} spots identified ({:.0f} % visible), {} usable; {}; {} unidentified blobs "
                      "(glints, lashes, skin); {} identities refused as ambiguous; {} spots rejected by the "
-                     "reconstructed surface; median spot area {:.0f} px",
+                     "reconstructed surface, {} identified through it; median spot area {:.0f} px",
                      identified, designed, 100 * visible_fraction, usable, gap, unassigned, refused, surface_outliers,
-                     median_spot_area_px);
+                     surface_labelled, median_spot_area_px);
 }
 
 MeasurementVerdict JudgeMeasurement(const CaptureQuality& capture, const topo::Analysis& analysis) {

@@ -28,6 +28,9 @@ struct CaptureQuality {
   // Usable spots the reconstructed surface rejected (RejectSurfaceOutliers): their slope residual stands out of
   // the others' — a centre pulled by a lash's shadow or the lid margin, or a wrong identity.
   int surface_outliers = 0;
+  // Free detections the reconstructed surface's prediction identified (pipeline/surface_labelling.h), counted in
+  // identified and usable too.
+  int surface_labelled = 0;
   std::string Line() const;        // "capture: ..." one line
 };
 

@@ -6,6 +6,7 @@
 
 #include "correct/detect_and_index.h"
 #include "correct/undistort_points.h"
+#include "pipeline/surface_labelling.h"
 #include "util/io.h"
 
 namespace topocal::pipeline {
@@ -54,6 +55,10 @@ SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamer
   m.indexed = static_cast<int>(located.spots.size());
   m.unassigned = static_cast<int>(located.unassigned.size());
   m.missing = static_cast<int>(located.missing.size());
+  m.missing_ids = located.missing;
+  for (const auto& s : located.unassigned) {
+    if (!(s.flags & options.exclude_flags)) m.free_mm.push_back(s.position_mm);
+  }
   for (const auto& s : located.spots) m.detected.push_back({s.id, s.position_mm});
   if (!distortion) {
     for (const auto& s : located.spots) m.spots.push_back({s.id, s.position_mm});
@@ -75,7 +80,7 @@ EyeMeasurement MeasureEye(const cv::Mat& image, const model::Device& device, con
   const auto analyze = [&](const std::vector<topo::MeasuredSpot>& spots) {
     return AnalyzeThroughDevice(spots, device, config, truth);
   };
-  m.analysis = RejectSurfaceOutliers(m.spots.spots, analyze, &m.spots.capture);
+  m.analysis = LabelThroughSurface(&m.spots, device, config, analyze);
   m.verdict = JudgeMeasurement(m.spots.capture, m.analysis);
   return m;
 }

@@ -30,6 +30,8 @@ struct SpotMeasurement {
   int indexed = 0;
   int unassigned = 0;                      // detections without identity (glints)
   int missing = 0;                         // designed spots not found
+  std::vector<model::SpotId> missing_ids;  // the same, by id
+  std::vector<Eigen::Vector2d> free_mm;    // unassigned detections not flagged, distorted detection-plane mm
   int undistort_failures = 0;              // identified spots outside the calibration's invertible domain
   int excluded = 0;                        // identified but flagged (near another blob, at the border): left out
   std::string orientation_message;         // the image-orientation check, one line for the measurement's output
@@ -70,8 +72,9 @@ topo::Analysis AnalyzeThroughDevice(const std::vector<topo::MeasuredSpot>& spots
                                     const topo::AnalysisOptions& options = {});
 
 // A raw image of an eye measured through a device as `topocal reconstruct --image --device` measures it: the spots
-// detected, identified and undistorted (MeasureSpots), every spot checked against the surface the others give
-// (RejectSurfaceOutliers, counted in spots.capture) and the verdict (JudgeMeasurement). An invalid verdict comes
+// detected, identified and undistorted (MeasureSpots), every spot checked against the surface the others give and
+// the free detections identified through it (LabelThroughSurface, counted in spots.capture) and the verdict
+// (JudgeMeasurement). An invalid verdict comes
 // back with its reasons: the caller must not report the analysis's clinical numbers. Throws what MeasureSpots and
 // AnalyzeThroughDevice throw.
 struct EyeMeasurement {

@@ -13,6 +13,7 @@
 #include "pipeline/map_output.h"
 #include "plot/map_image.h"
 #include "pipeline/measure_spots.h"
+#include "pipeline/surface_labelling.h"
 #include "pipeline/measurement_uncertainty.h"
 #include "pipeline/uncertainty.h"
 #include "report/analysis_json.h"
@@ -165,11 +166,13 @@ pipeline::SpotMeasurement MeasureImage(const cv::Mat& image, const model::Topogr
 }
 
 // Spots from a CSV, or detected, indexed and (with a calibration) undistorted in a raw image.
+// From an image, *from_image is the measurement and *imaging the device it was measured through (the calibrated
+// device, or the camera with the calibration's distortion, if any): the surface's labelling needs both.
 std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::Config& cfg,
                                                 const std::optional<model::Device>& device, nlohmann::json* info,
                                                 std::optional<pipeline::ClinicalUncertainty>* uncertainty,
-                                                std::optional<pipeline::CaptureQuality>* capture,
-                                                std::vector<pipeline::MeasuredImageSpot>* detected) {
+                                                std::optional<pipeline::SpotMeasurement>* from_image,
+                                                model::Device* imaging) {
   std::vector<topo::MeasuredSpot> measured;
   if (!in.spots.empty()) {
     if (!in.camera.empty() || !in.calibration.empty() || !in.device.empty()) {
@@ -196,8 +199,8 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
                         {"missing", m.missing},
                         {"device", in.device},
                         {"undistort_failures", m.undistort_failures}};
-    *capture = m.capture;
-    *detected = m.detected;
+    *from_image = m;
+    *imaging = *device;
     return m.spots;
   }
   std::optional<model::Distortion> distortion;
@@ -224,7 +227,9 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
                       {"missing", m.missing},
                       {"undistorted", distortion.has_value()},
                       {"undistort_failures", m.undistort_failures}};
-  *capture = m.capture;
+  *from_image = m;
+  *imaging = model::NominalDevice(camera);
+  if (distortion) imaging->distortion = *distortion;
   if (in.uncertainty_samples > 0) {
     try {
       const Progress progress(fmt::format("topocal reconstruct: {} uncertainty draws", in.uncertainty_samples));
@@ -346,11 +351,11 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
     device = file.device;
     device_covariance = model::DeviceCovarianceOf(file.calibration, in.device);
   }
-  std::vector<pipeline::MeasuredImageSpot> detected;
-  std::optional<pipeline::CaptureQuality> capture;
+  std::optional<pipeline::SpotMeasurement> from_image;
+  model::Device imaging;
   std::vector<topo::MeasuredSpot> measured;
   try {
-    measured = ReadMeasurement(in, cfg, device, &info, &uncertainty, &capture, &detected);
+    measured = ReadMeasurement(in, cfg, device, &info, &uncertainty, &from_image, &imaging);
   } catch (const util::MeasurementRefused& e) {  // the spots could not be identified: the JSON says so too
     RefuseMeasurement(in.image, {false, {e.what()}}, info, json_out, /*print=*/false);
   }
@@ -359,8 +364,12 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
     return device ? pipeline::AnalyzeThroughDevice(spots, *device, cfg, truth ? &cfg.cornea : nullptr)
                   : topo::AnalyzeSpots(spots, design.targets, cfg, truth ? &cfg.cornea : nullptr);
   };
-  // From an image, every spot is checked against the surface the others give (capture-quality line: rejected).
-  const auto analysis = capture ? pipeline::RejectSurfaceOutliers(measured, analyze, &*capture) : analyze(measured);
+  // From an image, every spot is checked against the surface the others give, and the surface identifies the
+  // detections the pattern's lattice left free (capture-quality line: rejected, identified through it).
+  const auto analysis =
+      from_image ? pipeline::LabelThroughSurface(&*from_image, imaging, cfg, analyze) : analyze(measured);
+  const std::optional<pipeline::CaptureQuality> capture =
+      from_image ? std::optional(from_image->capture) : std::nullopt;
   if (capture) {
     fmt::print("{}\n", capture->Line());
     info["capture"] = report::CaptureJson(*capture);
@@ -372,7 +381,7 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
   // fit's residual (pipeline/measurement_uncertainty.h).
   std::optional<pipeline::MeasurementUncertainty> measurement_u;
   if (device && capture) {
-    measurement_u = UncertaintyOrRefusal(in, detected, *device, device_covariance, cfg, analysis, &info, json_out);
+    measurement_u = UncertaintyOrRefusal(in, from_image->detected, *device, device_covariance, cfg, analysis, &info, json_out);
   }
   PrintAnalysis(analysis, measurement_u ? &*measurement_u : nullptr);
   if (uncertainty) info["uncertainty"] = PrintCalibrationUncertainty(*uncertainty);

@@ -26,6 +26,7 @@
 #include "pipeline/capture_quality.h"
 #include "pipeline/measure_spots.h"
 #include "pipeline/measurement_uncertainty.h"
+#include "pipeline/surface_labelling.h"
 #include "topo/truth_comparison.h"
 #include "util/io.h"
 
@@ -132,6 +133,10 @@ Outcome Measure(const Capture& cap, uint32_t seed, bool with_uncertainty = false
     out.reason = e.what();
     return out;
   }
+  auto config = cfg;
+  config.reconstruction.surface_model = "auto";  // as `reconstruct` without --surface-model
+  const topo::Analysis analysis = LabelThroughSurface(
+      &m, device, config, [&](const auto& s) { return AnalyzeThroughDevice(s, device, config, nullptr); });
   out.identified = m.capture.identified;
   // A wrong identity: the visible spot nearest to the detection is another (a right identity whose centre a lash
   // pulled by a few px is still nearest to its own spot, ~20 px from the next).
@@ -149,10 +154,6 @@ Outcome Measure(const Capture& cap, uint32_t seed, bool with_uncertainty = false
   std::set<model::SpotId> ids;
   for (const auto& d : m.detected) ids.insert(d.id);
   out.duplicates = static_cast<int>(m.detected.size() - ids.size());
-  auto config = cfg;
-  config.reconstruction.surface_model = "auto";  // as `reconstruct` without --surface-model
-  const topo::Analysis analysis = RejectSurfaceOutliers(
-      m.spots, [&](const auto& s) { return AnalyzeThroughDevice(s, device, config, nullptr); }, &m.capture);
   out.surface_outliers = m.capture.surface_outliers;
   MeasurementVerdict verdict = JudgeMeasurement(m.capture, analysis);
   if (verdict.valid && with_uncertainty) {
