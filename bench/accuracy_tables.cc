@@ -1,7 +1,8 @@
-// The accuracy tables of issue 18 (docs/reconstruction.md). Not timing benchmarks: they print tables; run by hand.
+// The accuracy tables of freeform corneas and eyes off the axis (docs/reconstruction.md). Not timing benchmarks:
+// they print tables; run by hand.
 //
 //  * freeform: every cornea of topocal's own test set (model/freeform_test_set.h) imaged through the configured
-//    design, reconstructed with the configured settings and compared with the truth against the item-4 targets.
+//    design, reconstructed with the configured settings and compared with the truth against the accuracy targets.
 //  * apex: the paper cornea and an oblique one with the apex off the axis (and tilted), exact spots, the biconic
 //    fitted in both modes (paper / free-apex): errors of r, k and the apex position.
 //

@@ -55,7 +55,7 @@ void BM_DetectCheckerboard(benchmark::State& state) {
 BENCHMARK(BM_DetectCheckerboard)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
 // A frame without a board (sensor noise, 640 x 480): topocal's whole search (OpenCV's classic detector behind its
-// quick test, then SB) against OpenCV's classic detector without the quick test, as topocal called it before issue 16.
+// quick test, then SB) against OpenCV's classic detector without the quick test, as topocal once called it.
 cv::Mat NoiseFrame() {
   cv::Mat noise(480, 640, CV_8UC1);
   cv::setRNGSeed(16);

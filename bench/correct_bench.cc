@@ -1,4 +1,4 @@
-// correct/ speed (issue 6 item 7): detect + index the 624 spots of a 4000 x 3000 raw image (goal <= 50 ms), and
+// correct/ speed: detect + index the 624 spots of a 4000 x 3000 raw image (goal <= 50 ms), and
 // undistort a 4000 x 3000 image with a precomputed map against cv::undistort in the same run.
 // Run: build/bench/bench_correct --benchmark_min_time=1
 #include <benchmark/benchmark.h>
@@ -64,7 +64,7 @@ void BM_DetectAndIndex624Spots(benchmark::State& state) {
 }
 BENCHMARK(BM_DetectAndIndex624Spots)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// Issue 17, item 5: detect + index + estimate at 4000 x 3000 with each estimator, on PSF spots (sigma 2 px, 16 bit,
+// Detect + index + estimate at 4000 x 3000 with each estimator, on PSF spots (sigma 2 px, 16 bit,
 // Poisson + read noise: where the default estimator fits every spot) — the default (psf) beside today's centroid.
 const cv::Mat& PsfImage() {
   static const cv::Mat image = [] {
@@ -181,7 +181,7 @@ void BM_UndistortOneShot(benchmark::State& state) {
 }
 BENCHMARK(BM_UndistortOneShot)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// The one-shot as it was before issue 15: two whole maps allocated and built, then one remap.
+// The earlier one-shot: two whole maps allocated and built, then one remap.
 void BM_UndistortOneShotWholeMaps(benchmark::State& state) {
   const auto& s = GetScene();
   for (auto _ : state) {

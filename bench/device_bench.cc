@@ -1,11 +1,11 @@
-// Issue 19, item 8: a three-ball device calibration on the full 4000 x 3000 sensor, detection included (decoded
+// A three-ball device calibration on the full 4000 x 3000 sensor, detection included (decoded
 // images in memory: detect + index each ball, then the bundle adjustment), on one core. Target <= 1 s.
 // The peer in the same run: OpenCV's cv::calibrateCamera on the same number of points (three views of a 624-point
 // planar pattern), the closest thing a general camera-calibration library does with comparable data.
-// Issue 32, item 6: a measurement of an eye through the calibrated device (detect, index, reconstruct, reject
+// A measurement of an eye through the calibrated device (detect, index, reconstruct, reject
 // outliers, judge) without and with the U of every number (linear propagation of the device's covariance + 16 draws
-// of the spot noise), on one core and on every core: process CPU time, the figure the issue bounds (+50 %).
-// Issue 30, item 6: a capture whose lattice leaves spots without identity (a +6 D hyperopic ablation under lids 30 %
+// of the spot noise), on one core and on every core: process CPU time, the figure bounded at +50 %.
+// A capture whose lattice leaves spots without identity (a +6 D hyperopic ablation under lids 30 %
 // and 15 %) measured with the surface's predict-and-label loop, and with the lattice's identities alone (today's
 // matcher without it) in the same run: process CPU time, bounded at 2x.
 // Run: build/bench/bench_device --benchmark_min_time=1

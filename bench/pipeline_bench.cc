@@ -1,4 +1,4 @@
-// pipeline/ speed: the checks of a unit record (issue 7) on the full 4000 x 3000 sensor with the paper's
+// pipeline/ speed: the checks of a unit record on the full 4000 x 3000 sensor with the paper's
 // sigma = 6.3e-5: the reference-sphere verification (detect, index, reconstruct uncorrected and corrected) and the
 // paper cornea simulated through the calibrated camera, each without and with the Monte Carlo of the calibration
 // covariance (per draw: undistort, reconstruct, fit, maps).

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Whole-process timings (issue 15): wall time, CPU time and peak RSS of `/bin/true` (the peer: what any process costs
+# Whole-process timings: wall time, CPU time and peak RSS of `/bin/true` (the peer: what any process costs
 # here), `topocal --version`, `--help`, `sweep` of the paper and `unit calibrate` of the demo unit (SN-DEMO-0001 of
 # scripts/demo-unit.sh: 4000 x 3000 target and reference sphere, 200 uncertainty draws), each the median of N runs by
 # /usr/bin/time -v: wall time (nanosecond clock), CPU time (user + system, in 10 ms steps; the figure that holds when

@@ -53,7 +53,7 @@ void BM_Reconstruct(benchmark::State& state) {
 BENCHMARK(BM_Reconstruct)->Unit(benchmark::kMillisecond);
 
 // One measurement of a keratoconic eye (off the axis, tilted; exact spots): the polynomial (paper) surface beside
-// the spline residual (issue 18), arg 0 = polynomial, 1 = spline.
+// the spline residual, arg 0 = polynomial, 1 = spline.
 struct Keratoconus {
   model::Config config = model::LoadConfig(TOPOCAL_PAPER_CONFIG);
   model::NullScreenDesign design = model::DesignNullScreen(config.ideal_image, config.topographer);

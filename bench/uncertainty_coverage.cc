@@ -1,4 +1,4 @@
-// Is the reported U honest? The coverage table of issue 32, item 2 (docs/uncertainty.md): seeded assembled
+// Is the reported U honest? The coverage table (docs/uncertainty.md): seeded assembled
 // devices calibrated from three noisy ball images, eyes of topocal's test set measured through them with their U
 // (pipeline/uncertainty_coverage.h). Not a timing benchmark: it prints the table; run by hand.
 //

@@ -320,7 +320,7 @@ std::optional<CheckerboardCorners> DetectCheckerboardCorners(const cv::Mat& gray
   bool ok = false;
   // CALIB_CB_FAST_CHECK (OpenCV's quick test for chessboard-like black and white quads, ~0.4 s on a 1000 x 750
   // noise frame) lets a frame without a board skip the classic search, which took 29 s on such a frame and 48 s
-  // for an absurd 200 x 150 board (issue 16). A board the quick test misses is still found by SB below, which does
+  // for an absurd 200 x 150 board. A board the quick test misses is still found by SB below, which does
   // not use it.
   constexpr int kClassicFlags = cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FAST_CHECK;
   // The classic detector is 5-8x faster than the SB one and, refined by the saddle fit, gives the same corners. Its

@@ -30,7 +30,7 @@ struct CheckerboardCorners {
 // window that fits (down to kMinEdgeWindowSigmaPx), else left out with its reason; the board is never dropped for
 // it. nullopt (with `why`, including a hint when the image shows a board one corner smaller in both directions, i.e.
 // squares were counted instead of inner corners) when the board is not found. `gray` is CV_8UC1.
-// A board cut by the frame (issue 11): the corners in the image are used when their place on the board is the only
+// A board cut by the frame: the corners in the image are used when their place on the board is the only
 // one consistent with the frame, the square colours and the handedness (up to the board's own symmetry); the
 // others are reported in `beyond_frame`. Ambiguous placements are refused with their count (see the .cc).
 std::optional<CheckerboardCorners> DetectCheckerboardCorners(const cv::Mat& gray, const CheckerboardLayout& board,

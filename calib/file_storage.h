@@ -1,6 +1,6 @@
 #pragma once
 // The one way topocal hands text to cv::FileStorage (calibration files, Kalibr target YAML): OpenCV's YAML, XML and
-// JSON parsers recurse once per nesting level and overflowed the stack (SIGSEGV) on ~1e5 nested '[' (issue 16), so
+// JSON parsers recurse once per nesting level and overflowed the stack (SIGSEGV) on ~1e5 nested '[', so
 // the size and the nesting depth are checked on the text first; cv::Exception from the parser becomes an
 // InputError naming the file. Everything read from the storage afterwards is still checked by the caller.
 #include <cstddef>

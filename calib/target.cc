@@ -15,7 +15,7 @@ namespace topocal::calib {
 namespace {
 
 constexpr double kMmPerMetre = 1000.0;
-// Physical sanity of a printed target (issue 16: colSpacingMeters 1e308 passed the finiteness check in metres and
+// Physical sanity of a printed target (colSpacingMeters 1e308 passed the finiteness check in metres and
 // overflowed to an SVG width="infmm" in mm): lengths up to 10 m, grids up to 1000 per side, ids up to 1e6.
 constexpr double kMaxTargetLengthMm = 10000.0;
 constexpr int kMaxGridSide = 1000;

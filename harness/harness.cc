@@ -242,10 +242,10 @@ namespace {
 
 // What Compare reads of a case's analysis: the biconic's parameters, the power maps and the covered radius. The
 // biconic's standard deviations, the adequacy check and the clinical indices change none of these and are not
-// computed (they were a fifth of a case; issue 15). The biconic fit starts from the cornea's truth fit
+// computed (they were a fifth of a case). The biconic fit starts from the cornea's truth fit
 // (AnalysisOptions::fit_start): 3-4 iterations instead of 5-21 (mean 9.3) over data/harness.json, the case
 // 2.0 -> 1.8 ms; the fits agree with cold ones to 1e-8 in k and mm where |dk| is within the harness' limits, and
-// to 4e-7 for the uncorrected cases 13 x beyond them (docs/performance.md, eighth round). Starting the slope fits
+// to 4e-7 for the uncorrected cases 13 x beyond them (docs/performance.md). Starting the slope fits
 // from the truth too (AnalysisOptions::start, as a unit's Monte Carlo draws do) was tried and dropped: no gain
 // measured in the same run (12.4-12.7 ms per case either way; the profile still showed a QR in the cases, so the
 // truth's factor did not serve them), while the results moved by up to 1e-11.

@@ -1,5 +1,5 @@
 #pragma once
-// The harness (issue 7 item 4, issue 19 item 5, docs/harness.md): how much residual distortion, and how large an
+// The harness (docs/harness.md): how much residual distortion, and how large an
 // assembly error of the device, a topographer design tolerates.
 //
 // A case is one cornea x one true distortion (one coefficient of one family) x one relative calibration error e x

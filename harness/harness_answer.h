@@ -16,7 +16,7 @@
 //    with a residual <= grid_all_pass_up_to_um is within the limits, and the smallest residual of a case outside
 //    them is grid_first_failure_um.
 //
-// Per assembly axis (issue 19 item 5) the same construction with the error itself in place of the residual: cases
+// Per assembly axis the same construction with the error itself in place of the residual: cases
 // of one axis are grouped by cornea, direction (azimuth on a directional axis, sign on the others), noise level and
 // draw, sorted by |error| and anchored at the worst zero-error case of the same cornea and noise level; the axis'
 // answer is its smallest crossing: the largest error that keeps |dk| and |dP| within the limits uncorrected.

@@ -28,7 +28,7 @@ enum class DistortionFamily {
 };
 const char* DistortionFamilyName(DistortionFamily family);  // "seidel_sigma_per_mm2", "brown_k1", "brown_k2"
 
-// One assembly axis of the sweep (issue 19 item 5): the device as built differs from the nominal one (model::Device)
+// One assembly axis of the sweep: the device as built differs from the nominal one (model::Device)
 // by one error; the spots are imaged exactly through it and measured through the nominal device, i.e. uncorrected.
 // Directional axes take magnitudes >= 0, each applied at every azimuth phi of `assembly.azimuths_deg`; the others
 // take signed values. Frames and signs: docs/device.md.

@@ -1,5 +1,5 @@
 #pragma once
-// The one image loader (issue 16). Every image file topocal reads — calibration views, spot images, reference
+// The one image loader. Every image file topocal reads — calibration views, spot images, reference
 // balls — goes through ReadImage, which
 //  - names the file in every error (util::InputError, one line): missing, unreadable, too large, not an image,
 //    truncated, or not the size the camera file says;
@@ -51,7 +51,7 @@ std::optional<StoredSize> ProbeStoredSize(std::string_view bytes) noexcept;
 cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string& name, const ImageLimits& limits = {});
 // An image file's bytes: a regular file mapped read-only, anything else (a pipe) read into memory. Mapping costs no
 // fresh memory: on the 2-core development VM, where every new page costs ~20 us, reading the 17 MB reference sphere
-// into a new buffer took ~90 ms and mapping it ~8 ms (issue 15). The price of a mapping: a file truncated by another
+// into a new buffer took ~90 ms and mapping it ~8 ms. The price of a mapping: a file truncated by another
 // process while it is being decoded ends the process with SIGBUS (as for any program that maps its input).
 class ImageBytes {
  public:

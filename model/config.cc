@@ -23,7 +23,8 @@ using nlohmann::json;
 using Section = util::JsonSection;
 
 // The largest null-screen design a configuration may ask for: 160 times the paper's 624 spots, far denser than a
-// sensor resolves (issue 18's denser screens stay well below it), small enough to design in well under a second.
+// sensor resolves (the denser screens of docs/reconstruction.md stay well below it), small enough to design in well
+// under a second.
 constexpr std::int64_t kMaxNullScreenSpots = 100'000;
 
 void ParseIdealImage(Section s, IdealImageParams& p) {

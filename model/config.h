@@ -115,7 +115,7 @@ struct Config {
 // The largest |sigma| (mm^-2) of Seidel distortion (paper Eq. 18) the configured image can take without folding:
 // the radial map r -> r (1 + c r^2), c = sigma / M_T^3, is monotonic while 1 + 3 c r^2 > 0, so for every r up to
 // r_max = 1.1 (rhoN_mm + |centre|) (10 % for corneas other than the design's) |sigma| < |M_T|^3 / (3 r_max^2).
-// Beyond it barrel distortion folds the image onto itself and sigma ~ 1e308 computes Inf positions (issue 16).
+// Beyond it barrel distortion folds the image onto itself and sigma ~ 1e308 computes Inf positions.
 // The paper's largest sigma, 2e-4, is 30 % of it.
 double MaxFoldFreeSigmaPerMm2(const IdealImageParams& image, const DistortionSweep& distortion);
 

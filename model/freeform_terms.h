@@ -1,5 +1,5 @@
 #pragma once
-// Local departures added to a base cornea to make the freeform truth surfaces of issue 18 (keratoconus cones,
+// Local departures added to a base cornea to make the freeform truth surfaces of topocal's test set (keratoconus cones,
 // refractive ablations, irregular astigmatism). Each is a sag term dz(x, y) in mm in the instrument frame, with its
 // gradient, templated so that Ceres jets (and therefore Newton solvers and exact Hessians) go through it.
 // All three are smooth (C-infinity, or C2 for the ablation's blend) and analytic; none returns false.

@@ -6,7 +6,7 @@ namespace topocal::model {
 namespace {
 
 // Normal eyes are never centred: every entry sits off the axis (0.2-0.45 mm) and tilted (1.5-3 deg), a different
-// direction each time (issue 18: "each also with its apex off the axis and tilted").
+// direction each time.
 BiconicParams Eye(double rx, double ry, double kx, double ky, double alpha_deg, int variant) {
   static constexpr double kOffsets[][4] = {{0.30, -0.20, 2.0, -1.0}, {-0.25, 0.35, -1.5, 2.0},
                                            {0.10, 0.40, 1.0, 2.5},   {-0.40, -0.15, -2.5, -1.5},

@@ -1,5 +1,5 @@
 #pragma once
-// topocal's own test set of corneas (issue 18, item 3): keratoconus cones, myopic and hyperopic ablations,
+// topocal's own test set of corneas: keratoconus cones, myopic and hyperopic ablations,
 // irregular astigmatism and biconics over the clinical range, each with its apex off the axis and the eye tilted.
 // Every entry is a model::Freeform; the forward model images any of them (model/null_screen.h). Each is focused
 // on the instrument axis (model::FocusOnAxis: z(0, 0) = 0), as the topographer positions an eye.

@@ -1,6 +1,6 @@
 #pragma once
 // The printable null screen: each ideal-image spot's small circle traced back to its outline on the cone, and the
-// cone unrolled flat at 1:1 scale (issue 3, item 6). Pure geometry; drawing it (SVG) is plot/null_screen_svg.h.
+// cone unrolled flat at 1:1 scale. Pure geometry; drawing it (SVG) is plot/null_screen_svg.h.
 //
 // Spot outline: the circle of radius `spot_radius_um` around an ideal spot centre on the detection plane is sampled
 // at `outline_points` points; each point is traced backwards exactly as DesignNullScreen traces the centre

@@ -44,7 +44,7 @@ bool Biconic::Evaluate(double x, double y, SurfaceDerivatives* d) const noexcept
   // Eq. 12-13 are written once, in BiconicKernel (templated). The tilted surface takes its Hessian from jets of the
   // kernel's gradient (its final Newton step makes z exact to first order). The untilted one — every truth of the
   // paper sweep, whose ideal power maps sample it at 36,000 points — differentiates the kernel's gradient in closed
-  // form below (issue 15: the jets were 8 % of the one-thread sweep); tests/model/surface_test.cc checks it against
+  // form below (the jets were 8 % of the one-thread sweep); tests/model/surface_test.cc checks it against
   // the jets and against central differences.
   if (Tilted()) return EvaluateByJets(*this, x, y, d);
   double q[BiconicKernel::kNumParams];

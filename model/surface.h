@@ -306,8 +306,8 @@ struct Biconic {
   Eigen::Vector3d ApexMm() const noexcept;
 };
 
-// A freeform cornea (issue 18's test set): a biconic base (possibly off the axis and tilted) plus local departures
-// added along z in the instrument frame — keratoconus cones, refractive ablations, Zernike irregularity
+// A freeform cornea (topocal's freeform test set): a biconic base (possibly off the axis and tilted) plus local
+// departures added along z in the instrument frame — keratoconus cones, refractive ablations, Zernike irregularity
 // (model/freeform_terms.h). Sag and gradient analytic (the base's Newton root when tilted); Hessian from jets.
 struct Freeform {
   Biconic base;

@@ -1,5 +1,5 @@
 #pragma once
-// The closed loop that proves what calibration is worth (issue 6): for a camera with distortion,
+// The closed loop that proves what calibration is worth: for a camera with distortion,
 //   (i)   render a calibration target placed at the cornea position through it and calibrate (single view, Seidel);
 //   (ii)  render the raw spot image of the cornea through the same camera;
 //   (iii) detect and index the spots, undistort them with the calibration, reconstruct;

@@ -1,5 +1,5 @@
 #pragma once
-// What the device calibration is worth on a unit (issue 19, item 4): a held-out reference ball and the paper cornea,
+// What the device calibration is worth on a unit: a held-out reference ball and the paper cornea,
 // each measured three ways —
 //   uncorrected: through the nominal device (the perfect instrument the design describes),
 //   lens only:   the lens distortion calibrated from target views, the geometry nominal (today's workflow),

@@ -226,7 +226,7 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
                         ? fmt::format("Kmax {:.2f} D at ({:+.2f}, {:+.2f}) mm", c.kmax_D, c.kmax_at_mm.x(), c.kmax_at_mm.y())
                         : fmt::format("Kmax {:.2f} D at {}", c.kmax_D, kUndeterminedLocation));
   }
-  // Overlays from the clinical indices (issue 18, item 6): the sim-K axes across the supported disc on both
+  // Overlays from the clinical indices: the sim-K axes across the supported disc on both
   // power maps, Kmax (an axial quantity) on the axial map, the elevation peak on the elevation map, and on every
   // map the supported circle with the extrapolated area hatched.
   const double supported = a.supported_radius_mm;

@@ -1,6 +1,6 @@
 #pragma once
-// Every number a measurement through a calibrated device reports, with its uncertainty (issue 32, item 1;
-// docs/uncertainty.md). Three sources, combined in quadrature (GUM, JCGM 100:2008 Sec. 5.1):
+// Every number a measurement through a calibrated device reports, with its uncertainty
+// (docs/uncertainty.md). Three sources, combined in quadrature (GUM, JCGM 100:2008 Sec. 5.1):
 //
 //   device   the device's full parameter covariance (device calibrate: screen pose, principal point, a,
 //            distortion; weak directions included), carried by linear propagation: u^2 = J S J' evaluated as the sum,

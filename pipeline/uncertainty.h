@@ -1,5 +1,5 @@
 #pragma once
-// Calibration uncertainty carried to the clinical numbers (issue 7, item 2), by seeded Monte Carlo: draw the
+// Calibration uncertainty carried to the clinical numbers, by seeded Monte Carlo: draw the
 // calibrated distortion parameters from their reported standard deviations, undistort the measured spots with each
 // draw, reconstruct, fit, map — and report each clinical number as mean +- expanded uncertainty U = 2 s (k = 2).
 //

@@ -1,5 +1,5 @@
 #pragma once
-// Is the reported U honest? (issue 32, item 2; docs/uncertainty.md). Seeded cases, each an assembled device drawn
+// Is the reported U honest? (docs/uncertainty.md). Seeded cases, each an assembled device drawn
 // within the assembly tolerances, calibrated from three reference balls placed at random (noisy spot centres), and
 // an eye from topocal's test set (keratoconus, ablations, irregular astigmatism, biconics; apex off the axis, eye
 // tilted) or the paper cornea, imaged through the true device with the same spot noise and measured through the

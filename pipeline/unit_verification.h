@@ -1,5 +1,5 @@
 #pragma once
-// What a unit's calibration is worth, in clinical numbers (issue 7): the two checks of a unit record
+// What a unit's calibration is worth, in clinical numbers: the two checks of a unit record
 // (docs/unit-record.md).
 //
 //  * Reference sphere: the raw image of a precision ball of known radius, measured by the unit, reconstructed

@@ -170,7 +170,7 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
     const auto name = r.input_names.find(path);
     in.provenance.push_back({role, name == r.input_names.end() ? path : name->second, util::Sha256HexOfFile(path)});
   };
-  // An image is read once: its digest and its decoding come from the same bytes, on two threads (issue 15).
+  // An image is read once: its digest and its decoding come from the same bytes, on two threads.
   const auto add_image = [&](const std::string& role, const std::string& path) -> cv::Mat {
     const imageio::ImageBytes bytes = imageio::ReadImageBytes(path);
     auto digest = std::async(std::launch::async, [&bytes] { return util::Sha256Hex(bytes); });
@@ -205,7 +205,7 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
 }
 
 // The reference sphere as the camera saw it: decoded, its size checked and its spots detected and identified. None of
-// it needs the calibration, so it runs on a thread of its own while the camera is calibrated (issue 15: the 17 MB
+// it needs the calibration, so it runs on a thread of its own while the camera is calibrated (the 17 MB
 // 16-bit PNG takes longer to decode than the target image takes to decode, detect and calibrate).
 struct SphereImage {
   cv::Mat image;
@@ -441,7 +441,7 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
   u.check = CheckOptions{r.uncertainty_samples, r.seed, r.jobs};
   // The two checks are independent: with more than one thread allowed, the paper cornea's runs beside the sphere's,
   // so that each one's serial parts (detection, nominal analyses, the draws' last stragglers) overlap the other's
-  // draws. It starts as soon as the camera is calibrated, before the sphere is decoded and detected (issue 15: the
+  // draws. It starts as soon as the camera is calibrated, before the sphere is decoded and detected (the
   // 17 MB 16-bit sphere takes longer than the target's calibration, and the core that calibrated would wait). It
   // reads only the calibration, the camera and the configuration, which the sphere's thread does not write. Each
   // check writes only its own result: the record is the same either way. (A sphere that cannot be read is still the

@@ -33,7 +33,7 @@ struct UnitRequest {
   std::string camera;                 // topographer camera (JSON)
   std::string reference_sphere;       // raw spot image of the reference sphere; empty = no verification
   double sphere_radius_mm = 0;
-  // The device stage (issue 19): reference-ball images and their certified radii; empty = lens-only calibration.
+  // The device stage: reference-ball images and their certified radii; empty = lens-only calibration.
   // The reference sphere, when given, is then a held-out ball measured through the calibrated device too.
   std::vector<std::string> balls;
   std::vector<double> ball_radii_mm;

@@ -147,7 +147,7 @@ int HersheyThickness(const Font& f) { return std::max(1, static_cast<int>(std::l
 cv::Size TextSize(const std::string& text, const Font& f) {
   int baseline = 0;
   if (auto* ft = TrueType()) {
-    // Measured once per text and size on each thread (issue 15: the legend's word wrapping measures each line once
+    // Measured once per text and size on each thread (the legend's word wrapping measures each line once
     // per word, the tick labels are measured for the layout and again to be placed, and a record's maps share their
     // legends; FreeType shapes and hints every glyph anew on each call: ~3 % of unit calibrate's CPU). A measure
     // depends only on the text, the size and the font, so the images are the same bytes.
@@ -501,7 +501,7 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
     }
   }
 
-  // Clinical overlays (issue 18, item 6), clipped to the plot. Map point (x, y) mm -> plot pixel, as the sampling
+  // Clinical overlays, clipped to the plot. Map point (x, y) mm -> plot pixel, as the sampling
   // above: column (x - x_min) px_per_mm - 0.5, row (y_max - y) px_per_mm - 0.5.
   cv::Mat plot_roi = img(plot);
   const auto to_px = [&](double x_mm, double y_mm) {
@@ -641,7 +641,7 @@ std::string GridMapCsv(const GridMap& map) {
   std::string csv = "x_mm,y_mm," + column + "\n";
   csv.reserve(csv.size() + map.values.size() * 32);
   // Each column's x is the same double in every row: formatted once (with its comma) rather than once per value,
-  // which was two thirds of the formatting (issue 15). The text is the same.
+  // which was two thirds of the formatting. The text is the same.
   std::vector<std::string> x_text(static_cast<size_t>(map.nx));
   for (int i = 0; i < map.nx; ++i) {
     const double x = map.x_min_mm + i * (map.x_max_mm - map.x_min_mm) / (map.nx - 1);

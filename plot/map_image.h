@@ -1,5 +1,5 @@
 #pragma once
-// Maps as files (issue 4, item 4), part of the plotting layer (plot/svg.h): a scalar field over the cornea (power in
+// Maps as files, part of the plotting layer (plot/svg.h): a scalar field over the cornea (power in
 // D, height in µm) as a CSV grid and as a PNG a clinician or QA engineer can read: colour scale with a labelled colour
 // bar, contour lines at round levels, axes in mm, title. Every PNG map topocal writes is drawn here; the grids are
 // computed by topo/ (topo/map_grid.h, topo/power_map.h) and written by pipeline/map_output.h. Drawn with OpenCV
@@ -60,7 +60,7 @@ struct MapImageOptions {
   std::vector<std::string> annotations;
   // Circles about the origin, mm (a hook for the sim-K meridian ring), drawn dashed in black and white.
   std::vector<double> ring_radii_mm;
-  // Clinical overlays (issue 18, item 6), in the map's mm; the caller computes, the map draws (docs/maps.md):
+  // Clinical overlays, in the map's mm; the caller computes, the map draws (docs/maps.md):
   std::vector<MapMarker> markers;  // peaks: Kmax, the elevation peak
   std::vector<MapAxis> axes;       // meridians through the origin: the sim-K steep (solid) and flat (dashed)
   // The radius the data support in every direction: a dashed circle, and the map beyond it hatched (white stripes

@@ -52,7 +52,7 @@ inline constexpr double kDefaultSphereRadiusErrorMm = 0.05;
 inline constexpr double kDefaultPaperRadiusErrorMm = 0.05;
 //  Conic constant: correction recovers k within 0.0004 (docs/closed-loop.md), the uncorrected distortion of paper
 //  Table IV moves k_x by up to 0.86; 0.05 sits between the two. An engineering limit: set it from the harness's
-//  |dk| budget for the design (issue 7, item 4).
+//  |dk| budget for the design.
 inline constexpr double kDefaultPaperConicError = 0.05;
 //  Calibration RMS: sub-pixel corners of a sharp printed target reach 0.01-0.1 px (docs/unit-record.md example:
 //  0.0125 px); above 0.5 px the corners are blurred or misdetected or the model does not fit.
@@ -77,7 +77,7 @@ std::string ToString(DecisionRule rule);
 // One sentence stating the rule, printed on the report.
 std::string DecisionRuleText(DecisionRule rule);
 
-// The measurement uncertainty of the reference-sphere checks beyond the calibration (issue 12). The error judged is
+// The measurement uncertainty of the reference-sphere checks beyond the calibration. The error judged is
 // measured - true, so u(error)^2 = u(calibration)^2 + u(repeatability)^2 + u(certificate)^2 (GUM, Eq. 10, the
 // three inputs independent, sensitivity 1 once converted to the quantity's unit).
 //

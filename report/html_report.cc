@@ -88,7 +88,7 @@ constexpr Quantity kPaperRows[] = {
     {"structured_residual_ratio", "model adequacy: structured part / expected noise", "", 2},
 };
 
-// Below the sphere's and the paper cornea's tables: how to read the two model-adequacy rows (issue 18).
+// Below the sphere's and the paper cornea's tables: how to read the two model-adequacy rows.
 std::string AdequacyNote(const UnitRecord& rec) {
   return fmt::format(
       "<p class=\"note adequacy\">Model adequacy: the surface model's slope residual over what {} \u00b5m of "
@@ -112,7 +112,7 @@ std::string Lookup(const StageValues& v, const char* key, int decimals) {
   return it == v.end() ? "" : Fixed(it->second, decimals);
 }
 
-// The device stage (issue 19): the calibrated device's parameters from device.json, and the held-out ball and the
+// The device stage: the calibrated device's parameters from device.json, and the held-out ball and the
 // paper cornea measured uncorrected, with the lens calibration only, and through the calibrated device.
 std::string DeviceSection(const UnitRecord& rec) {
   const auto& d = *rec.device;

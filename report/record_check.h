@@ -1,5 +1,5 @@
 #pragma once
-// The QA report does not take a unit record's numbers on trust (issue 16, item 4). The digests of unit.json's
+// The QA report does not take a unit record's numbers on trust. The digests of unit.json's
 // `files` prove that the record's files are the ones written with it, but unit.json itself is not digested by
 // anything it contains: an edited `rms_px` or radius error would flip a verdict. So every number the verdict uses
 // is recomputed from the record's own files before a report is written:

@@ -111,7 +111,7 @@ inline constexpr const char* kPaperStageKeys[] = {
     "height_pv_um", "height_rms_um", "adequacy_ratio", "structured_residual_ratio"};
 inline constexpr const char* kPaperTruthKeys[] = {"rx_mm", "ry_mm", "kx", "ky", "alpha_deg"};
 
-// The device stage of a record (issue 19; docs/unit-record.md): the calibrated device as device.json holds it (read
+// The device stage of a record (docs/unit-record.md): the calibrated device as device.json holds it (read
 // and checked like any record file), and the three-way measurements of the held-out ball and the paper cornea.
 inline constexpr const char* kDeviceStageKeys[] = {"rx_mm", "ry_mm", "kx", "ky", "radius_mm", "central_axial_power_D",
                                                    "pv_tangential_D", "pv_axial_D"};

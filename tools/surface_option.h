@@ -17,7 +17,7 @@ namespace topocal::tools {
 model::Surface SurfaceToImage(const model::Config& config, double sphere_radius_mm, const std::vector<double>& ball_at_mm);
 
 // --sigma of a simulation verb (simulate, render-spots): throws util::InputError when the Seidel sigma folds the
-// configuration's image (|sigma| at or beyond model::MaxFoldFreeSigmaPerMm2; issue 16: 1e308 wrote rows of -inf).
+// configuration's image (|sigma| at or beyond model::MaxFoldFreeSigmaPerMm2; 1e308 wrote rows of -inf).
 void RequireFoldFreeSigma(double sigma_per_mm2, const model::Config& config, const std::string& config_path);
 
 // --biconic-fit and --surface-model (reconstruct, sweep): each overrides its configuration key when given.

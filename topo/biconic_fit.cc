@@ -28,8 +28,7 @@ using K = model::BiconicKernel;
 // Newton root is found once per point and step, not twice. Reuse needs the parameters bit for bit equal, so the
 // values are the ones an evaluation at these parameters gave. (The solver runs on one thread:
 // SurfaceFitSolverOptions.) A new candidate's tilted roots start from the kept sags (BiconicSagJacobian::SagNear):
-// one or two Newton steps per point instead of five, the same roots to a few ulps (docs/performance.md, eighth
-// round).
+// one or two Newton steps per point instead of five, the same roots to a few ulps (docs/performance.md).
 // With keep_jacobian, the Jacobian of the last evaluation that computed one is kept too: Ceres' last one is at the
 // solution, where the covariance needs it (FitCovariance), so the covariance costs no evaluation of its own.
 class BiconicSagResiduals final : public ceres::CostFunction {
@@ -139,7 +138,7 @@ bool InitialGuess(const std::vector<Eigen::Vector3d>& pts, bool free_apex, doubl
 
 // The covariance (J^T J)^+ of the parameters from the Jacobian J at the solution, over the free parameters (the
 // ones a "paper" fit holds fixed get zero rows and columns), computed as ceres::Covariance's DENSE_SVD did it
-// (the algorithm the fit used before; docs/performance.md, sixth round): the SVD J = U S V^T, and directions whose
+// (the algorithm the fit used before; docs/performance.md): the SVD J = U S V^T, and directions whose
 // singular value is below sqrt(1e-14) of the largest dropped (a pseudo-inverse, as with null_space_rank = -1)
 // instead of failing. Without Ceres' covariance machinery (a second program, evaluator and sparse Jacobian) and
 // without U, which the covariance does not use. False if the Jacobian cannot be evaluated.

@@ -7,7 +7,7 @@
 // rotation alpha, the vertex offset z0 along the axis, and — in the default "free-apex" mode — the lateral apex
 // position (x0, y0) and the tilt of the eye about its apex (tilt_x, tilt_y: model/surface.h). A patient's fixation
 // leaves the apex 0.1-0.5 mm off the instrument axis and the eye tilted by a few degrees; the paper's 6-parameter
-// fit ("paper" mode: x0 = y0 = 0, no tilt) turns that into shape (issue 18: 0.42 mm off gives |dk| = 2.5).
+// fit ("paper" mode: x0 = y0 = 0, no tilt) turns that into shape (0.42 mm off gives |dk| = 2.5).
 // Residual: the sag difference z_i - S(x_i, y_i) at each point's (x, y).
 // The result is canonical: r_x >= r_y and alpha in [0, 180) deg — (r_x, r_y, k_x, k_y, alpha) and
 // (r_y, r_x, k_y, k_x, alpha + 90) are the same surface, so a fit cannot tell them apart.

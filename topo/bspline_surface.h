@@ -1,5 +1,5 @@
 #pragma once
-// A local surface representation for freeform corneas (issue 18, item 2; docs/reconstruction.md gives the
+// A local surface representation for freeform corneas (docs/reconstruction.md gives the
 // measurements that chose it): uniform bicubic B-splines on the square [-L, L]^2,
 //   B(x, y) = sum_{i,j} c_ij N_i(x) N_j(y),   knots every h mm,
 // fitted to slope residuals with a difference penalty on the coefficients (a "P-spline", Eilers & Marx 1996):

@@ -1,5 +1,5 @@
 #pragma once
-// The summary numbers a keratoconus or refractive-surgery clinic reads (issue 18, item 6), from a power map and a
+// The summary numbers a keratoconus or refractive-surgery clinic reads, from a power map and a
 // surface, limited to the radius the data support (never extrapolated).
 //
 // Definitions (docs/reconstruction.md, "Clinical indices"), angles counter-clockwise from +x in the instrument

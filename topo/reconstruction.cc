@@ -75,7 +75,7 @@ struct BatchScratch {
 
 // Intersections of the rays h + lambda dirs[i] with z = S(x, y), each by Newton on lambda from lambda0[i]; ok[i] = 0
 // where Newton fails (flat derivative, non-finite step, no convergence). The rays step in lockstep, the surface
-// evaluated at all rays still iterating in one ValueAndGradientMany call per step (issue 15: the interleaved
+// evaluated at all rays still iterating in one ValueAndGradientMany call per step (the interleaved
 // evaluation overlaps the rays' Horner chains); each ray takes the Newton steps it would take alone, bit for bit.
 void IntersectSurfaces(const RecoveredSurface& psi, const Eigen::Vector3d& h, const std::vector<Eigen::Vector3d>& dirs,
                        const std::vector<double>& lambda0, std::vector<Eigen::Vector3d>* hits, std::vector<char>* ok,

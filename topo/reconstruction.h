@@ -60,14 +60,14 @@ struct Reconstruction {
   double vertex_t_mm = 0;           // axial position of G / of Psi(0, 0)
   double consistency = 0;           // Delta: std of |U - n| over the spots at the chosen t
   double rms_slope_residual = 0;    // rms of the gradient fit
-  // Model adequacy (issue 18): the rms slope residual a perfect surface model would leave if the spot centres
+  // Model adequacy: the rms slope residual a perfect surface model would leave if the spot centres
   // carried settings.spot_uncertainty_um of noise (each spot's slope sensitivity to its image position, by finite
   // differences through the rays and Psi, times the uncertainty, reduced by the fit's 1 - p / (2n) degrees of
   // freedom). adequacy_ratio = rms_slope_residual / expected_slope_noise: ~1 or below when the model holds, >> 1
   // when the surface model cannot represent the data.
   double expected_slope_noise = 0;
   double adequacy_ratio = 0;
-  // The part of the slope residual that neighbouring spots share (issue 18): the mean product of the residuals of
+  // The part of the slope residual that neighbouring spots share: the mean product of the residuals of
   // neighbouring spots on the spot lattice (each spot with the next on its ring and with the nearest of the ring
   // inside it), per slope component — the lag-1 autocovariance, ~0 for spot-centre noise (independent per spot),
   // the residual's variance for a model error smooth over the spot spacing. residual_neighbour_correlation = that

@@ -89,7 +89,7 @@ bool AlgebraicStart(const std::vector<Eigen::Vector3d>& pts, double* q) {
   return true;
 }
 
-// The sag fit by Gauss-Newton steps on the 4 x 4 normal equations, in Eigen (issue 15): the clinical best-fit
+// The sag fit by Gauss-Newton steps on the 4 x 4 normal equations, in Eigen: the clinical best-fit
 // sphere of every analysis is ~2,900 points in 4 parameters started at Kasa's fit, well inside the quadratic region,
 // and Ceres' per-iteration machinery (program evaluator, jacobian writer, column scaling, array validation) cost more
 // than the arithmetic. Stops like SurfaceFitSolverOptions: when the cost changes by <= 1e-12 of itself or the step is

@@ -5,7 +5,7 @@
 //
 // Why not the biconic fit: a sphere has no axis, so the free-apex biconic's tilt and decentration describe the same
 // surface and its conic constants and rotation are undetermined; that fit is degenerate on a sphere and runs to its
-// iteration cap (issue 15: ~80 ms per analysis, 75 % of `unit calibrate`). The paper's 6-parameter fit (apex on the
+// iteration cap (~80 ms per analysis, 75 % of `unit calibrate`). The paper's 6-parameter fit (apex on the
 // axis) is well posed but wrong for a ball that sits off the axis or is seen through a tilted screen. Four
 // parameters with the centre free in 3-D are the sphere's own degrees of freedom: well conditioned, no degeneracy.
 //

@@ -14,7 +14,7 @@
 // computed to ~1e-16 mm, so the cost of the paper cornea's free-apex fit varies by ~1e-12 of itself between
 // parameter vectors closer than the optimum is determined. With 1e-16 the solver went on after convergence with
 // 3-9 such rounding-level steps, most of them rejected (each a cost evaluation and a factorisation: half of
-// every fit's time; docs/performance.md, sixth round). Now a fit stops when
+// every fit's time; docs/performance.md). Now a fit stops when
 //  - the cost changes by <= 1e-12 of itself: a Gauss-Newton step that lowers the cost by that little moves the
 //    parameters by <= sqrt(1e-12 n) of their own standard deviations (n points; 2.5e-5 sigma for 624), or
 //  - the step is <= 1e-13 of the parameter vector's norm (was 1e-14): this ends the fits whose cost is too small
@@ -44,7 +44,7 @@ inline ceres::Solver::Options SurfaceFitSolverOptions(int max_iterations) {
 // rounding (its cost change ~1e-18 against a cost of ~5e-6 mm^2 for the paper cornea, a relative 5e-13, of either
 // sign) but in the weakly determined directions it is ~1e-10 of the parameters, above the 1e-12 step tolerance, and
 // the solver rejected it again and again while the trust region shrank from 1e16 to the step's size: 20 iterations
-// instead of 3 (issue 15). A cost change of 1e-11 relative is a step of sqrt(1e-11 n) ~ 1e-4 of the fit's own
+// instead of 3. A cost change of 1e-11 relative is a step of sqrt(1e-11 n) ~ 1e-4 of the fit's own
 // standard deviations (n = 624 points), and Gauss-Newton's last real step is far below that.
 // Measured on the demo unit's draws (2026-12-02): 3 iterations for the paper cornea and 2-3 for the sphere; the
 // fits agree with a cold fit to ~1e-9 mm (tests/topo/sphere_fit_test.cc, tests/topo/reconstruction_test.cc).

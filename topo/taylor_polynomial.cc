@@ -69,7 +69,7 @@ void TaylorPolynomial::ValueAndGradientMany(int count, const double* x_mm, const
   // The scheme of ValueAndGradient, statement for statement, on W points at once (bit-identical to it): one point's
   // Horner chain is a sequence of dependent multiplies and adds (latency-bound); as Eigen fixed-size arrays, W = 8
   // points are four packed (two-double) chains per statement, which fill the pipeline, where scalar code of four
-  // chains left it half idle (issue 15).
+  // chains left it half idle.
   const double* c = coefficients_.data();
   const int n = degree_;
   const double radius = norm_radius_mm_;
@@ -190,7 +190,7 @@ void BuildDesign(const TaylorPolynomial& poly, const std::vector<Eigen::Vector2d
   }
 }
 
-// The gradient fit without its design matrix (issue 15). The rows of A are the gradients of the monomials, so
+// The gradient fit without its design matrix. The rows of A are the gradients of the monomials, so
 // every product CGLS needs is a product with the table T of the monomials of degree <= D - 1 at the points
 // (T(i, j) = u_i^p v_i^q, j the term index of u^p v^q): A x is the polynomial's gradient, (T gx, T gy) with gx, gy
 // the coefficients of d Psi / dx and d Psi / dy, and A^T r gathers (T^T r_x, T^T r_y) back onto the terms. T has
@@ -315,7 +315,7 @@ bool PreconditionedCgls(const GradientOperator& A, const Eigen::MatrixXd& b, con
                         Eigen::VectorXd* x, CglsWork* w) {
   // 1e-14: the normal residual of a QR solution in double on this problem is ~1e-15 relative; CGLS stops close
   // above. (1e-13 left a cold first fit from the Cholesky factor 4e-11 from the QR solution; 1e-14 took as many
-  // iterations over the paper sweep and 40 harness cases, 2-16, median 7, never the budget; issue 15.)
+  // iterations over the paper sweep and 40 harness cases, 2-16, median 7, never the budget.)
   constexpr double kTolerance = 1e-14;
   constexpr int kMaxIterations = 25;
   const auto Rt = R.triangularView<Eigen::Upper>();

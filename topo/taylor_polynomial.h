@@ -71,8 +71,8 @@ struct GradientTerm {
 // matrix is too ill-conditioned), and solves the least-squares problem by CGLS preconditioned with R,
 // warm-started from the previous coefficients: A R^-1 is orthonormal to ~1e-8, so CGLS lands on the QR solution
 // (to ~1e-13) in about 2 iterations. CGLS never forms A (1248 x 65 for the paper's 624 spots): its products are
-// products with the table of the gradient's monomials at the points (issue 15, taylor_polynomial.cc). Reusing the
-// first fit's R for the later fits (as before issue 15) took 7-8 iterations per fit, more than the new factor
+// products with the table of the gradient's monomials at the points (taylor_polynomial.cc). Reusing the
+// first fit's R for the later fits (as an earlier version did) took 7-8 iterations per fit, more than the new factor
 // costs. A fitter started from another fit's R (StartFrom: Monte Carlo draws of slightly moved spots) keeps using
 // that R while CGLS converges with it, and factors anew only when it does not. Written by hand because Eigen's
 // iterative solvers take sparse or square systems, not a matrix-free rectangular one with a triangular

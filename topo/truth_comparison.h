@@ -1,6 +1,6 @@
 #pragma once
-// How far a reconstruction is from a known cornea, in the terms of issue 18's targets (item 4), over the area the
-// data cover: axial and tangential map errors (RMS and max), height RMS, Kmax and its location, cone height
+// How far a reconstruction is from a known cornea, in the terms of topocal's freeform accuracy targets, over the
+// area the data cover: axial and tangential map errors (RMS and max), height RMS, Kmax and its location, cone height
 // (elevation peak above the best-fit sphere), sim-K. Both surfaces are compared as shapes: each with its own
 // tangent plane at the origin removed (what Sec. 4.2 does to Psi before its maps).
 #include "model/config.h"

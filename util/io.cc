@@ -387,7 +387,7 @@ std::string ReadFile(const std::string& path) {
   if (!in) throw InputError(fmt::format("{}: cannot be opened for reading: {}", path, ErrnoText(errno)));
   NoteInput(path);
   // A regular file is read in one piece into a string of its size: streaming it through an ostringstream copied
-  // every byte two to three times as the buffer grew (issue 15: 10 % of `unit calibrate`, which reads ~21 MB of
+  // every byte two to three times as the buffer grew (10 % of `unit calibrate`, which reads ~21 MB of
   // images to hash them). Anything whose size is unknown (a pipe) still streams.
   std::error_code ec;
   const auto size = std::filesystem::is_regular_file(path, ec) ? std::filesystem::file_size(path, ec) : 0;

@@ -275,7 +275,7 @@ struct Topographer {
   }
 };
 
-// Issue 5: single view at the topographer geometry recovers sigma within 0.2 %.
+// Acceptance: single view at the topographer geometry recovers sigma within 0.2 %.
 constexpr double kSigmaRelative = 2e-3;
 
 class SingleViewSigma : public ::testing::TestWithParam<double> {};
@@ -415,7 +415,7 @@ TEST(RealPhotographs, AgreesWithOpenCvCalibrateCamera) {
   const double cv_rms = cv::calibrateCamera(set.object, set.image, set.size, k, dist, rvecs, tvecs);
   const auto r = CalibrateMultiView(set.views, {});
   ASSERT_TRUE(r.ok()) << r.message;
-  // Issue 5: fx, fy within 0.05 px and RMS within 0.001 px of cv::calibrateCamera.
+  // Acceptance: fx, fy within 0.05 px and RMS within 0.001 px of cv::calibrateCamera.
   constexpr double kFocalAgreementPx = 0.05;
   constexpr double kRmsAgreementPx = 0.001;
   EXPECT_NEAR(r.camera.fx_px, k.at<double>(0, 0), kFocalAgreementPx);
@@ -500,7 +500,7 @@ TEST(RealPhotographs, FixedAspectRatioAgreesWithOpenCv) {
   EXPECT_GT(r.parameters[0].stddev, 0);
   EXPECT_NEAR(r.covariance(0, 1) / (r.parameters[0].stddev * r.parameters[1].stddev), 1.0, 1e-9);
   // A constrained fit cannot beat the free one, and it finds OpenCV's minimum: the same limits as the free fit's
-  // agreement (issue 5: focal within 0.05 px, RMS within 0.001 px).
+  // agreement (focal within 0.05 px, RMS within 0.001 px).
   EXPECT_GE(r.rms_px, free_fit.rms_px - 1e-12);
   EXPECT_NEAR(r.camera.fx_px, k.at<double>(0, 0), 0.05);
   EXPECT_NEAR(r.camera.fy_px, k.at<double>(1, 1), 0.05);

@@ -259,7 +259,7 @@ TEST_F(CalibrateCli, DegenerateSetIsOneLineExitOneAndNoOutput) {
   EXPECT_FALSE(fs::exists(Path("report.json")));
 }
 
-// Issue 37: the same photograph under three names was calibrated as three views, each copy shrinking the reported
+// The same photograph under three names was once calibrated as three views, each copy shrinking the reported
 // standard deviations by another sqrt(2) for no new information. Each repeat is skipped naming the first; what is
 // left is one view.
 TEST_F(CalibrateCli, ARepeatedPhotographIsOneView) {
@@ -318,7 +318,7 @@ TEST_F(CalibrateCli, SingleViewRuns) {
   EXPECT_LT(j["rms_px"].get<double>(), 0.5);
 }
 
-// Issue 16: the calibration file's date honours SOURCE_DATE_EPOCH (the reproducible-builds convention), as the unit
+// The calibration file's date honours SOURCE_DATE_EPOCH (the reproducible-builds convention), as the unit
 // record's does; a malformed value is bad input naming the variable, and nothing is written.
 TEST_F(CalibrateCli, SourceDateEpochSetsTheCalibrationDate) {
   const std::string args = "calibrate --target " + Path("board.yaml") + " --images '" + kDataDir +
@@ -341,7 +341,7 @@ TEST_F(CalibrateCli, SourceDateEpochSetsTheCalibrationDate) {
   EXPECT_FALSE(fs::exists(Path("cal.yaml.bad")));
 }
 
-// --- The robust fit's and the Seidel conversion's options (issue 14: a test for every option). ---
+// --- The robust fit's and the Seidel conversion's options (a test for every option). ---
 
 TEST_F(CalibrateCli, LossScaleAndOutlierThresholdReachTheRobustFit) {
   CopyImages({1, 2, 3, 4, 5, 6});

@@ -17,8 +17,8 @@
 namespace topocal::calib {
 namespace {
 
-// Issue 5: multi-view residual distortion over the area the target covers <= 0.02 px, taken as the RMS over that
-// area (the statistic the issue uses for corner accuracy; the maximum, at the hull's edges where the fit
+// Acceptance: multi-view residual distortion over the area the target covers <= 0.02 px, taken as the RMS over that
+// area (the statistic used for corner accuracy; the maximum, at the hull's edges where the fit
 // extrapolates, is recorded and reported in docs/calibration.md); single view at the topographer geometry recovers
 // sigma within 0.2 %.
 constexpr double kResidualDistortionPx = 0.02;

@@ -115,7 +115,7 @@ TEST(Checkerboard, NoBoardIsNotFoundWithoutCrashing) {
   const auto target = testing::Checkerboard9x6();
   cv::Mat blank(480, 640, CV_8UC1, cv::Scalar(128));
   // A noise frame of a real sensor's size: OpenCV's classic board search alone took 29 s on it (48 s for a 200 x 150
-  // board, issue 16); its quick test now turns it away (the speed is in bench_calib_detection, BM_DetectOnNoise).
+  // board); its quick test now turns it away (the speed is in bench_calib_detection, BM_DetectOnNoise).
   cv::Mat noise(750, 1000, CV_8UC1);
   cv::setRNGSeed(16);
   cv::randu(noise, 0, 255);
@@ -141,7 +141,7 @@ TEST(Checkerboard, NoBoardIsNotFoundWithoutCrashing) {
   EXPECT_FALSE(DetectTarget(target, grid_view->image, invalid).has_value());
 }
 
-// A board cut by the frame (issue 11): the corners in the image are used with their identities on the board, the
+// A board cut by the frame: the corners in the image are used with their identities on the board, the
 // ones beyond the frame are counted, and a cut that leaves the placement ambiguous is refused with the reason.
 TEST(Checkerboard, ABoardCutByTheFrameKeepsItsVisibleCornersWithTheirIdentities) {
   const auto target = testing::Checkerboard9x6();

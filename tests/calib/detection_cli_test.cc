@@ -139,7 +139,7 @@ TEST_F(DetectionCli, BadInputIsOneLineAndNoOutput) {
   EXPECT_FALSE(fs::exists(Path("x.png")));
 }
 
-// --- Every render-target option moves the truth or the image as it says (issue 14: a test for every option). ---
+// --- Every render-target option moves the truth or the image as it says (a test for every option). ---
 
 class RenderTargetOptions : public DetectionCli {
  protected:

@@ -22,7 +22,7 @@ model::CameraModel UnitCamera(const model::TopographerCamera& sensor, double fx_
   return c;
 }
 
-// The 13 opencv-doc photos calibrate to fx / fy = 0.999788 (issue 11), beyond the old 2e-4 limit.
+// The 13 opencv-doc photos calibrate to fx / fy = 0.999788, beyond the old 2e-4 limit.
 TEST(DetectionPlane, RealAspectRatioIsCarriedWithItsModelError) {
   const model::TopographerCamera sensor;
   const double k1 = -0.05;  // ~36 px of displacement at the sensor corners

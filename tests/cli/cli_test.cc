@@ -103,7 +103,8 @@ TEST_F(Cli, ReconstructFromSimulatedSpotsWritesJsonAndMaps) {
   for (const char* key : {"\"surface_fit\"", "\"stddev\"", "\"errors\"", "\"coefficients\"", "\"pv_um\""}) {
     EXPECT_NE(json.find(key), std::string::npos) << key;
   }
-  // The values, not only the keys: the paper cornea back from exact spots (issue 4's truth limits).
+  // The values, not only the keys: the paper cornea back from exact spots (the truth limits of
+  // tests/topo/reconstruction_test.cc).
   const auto j = nlohmann::json::parse(json);
   EXPECT_NEAR(j["surface_fit"]["rx_mm"].get<double>(), 8.35, 0.002);
   EXPECT_NEAR(j["surface_fit"]["kx"].get<double>(), -0.43, 0.002);
@@ -122,7 +123,7 @@ TEST_F(Cli, ReconstructFromARawImageDetectsIndexesAndReconstructs) {
                             camera + " --truth --json " + Path("r.json"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("624 spots indexed"), std::string::npos) << r.output;
-  // Centroids within ~0.02 px (issue 6) keep the undistorted camera's cornea within 0.001 mm / 0.005 in k.
+  // Centroids within ~0.02 px keep the undistorted camera's cornea within 0.001 mm / 0.005 in k.
   EXPECT_NE(r.output.find("rx = 8.350"), std::string::npos) << r.output;
   // --uncertainty needs a calibration to draw from.
   const auto no_cal = RunTopocal("reconstruct --config " + paper_ + " --image " + Path("spots.png") + " --camera " +
@@ -192,7 +193,7 @@ TEST_F(Cli, UsageErrorsExitTwoAndHelpExitsZero) {
   }
 }
 
-// --- Options that override the configuration (issue 14: a test for every option). ---
+// --- Options that override the configuration (a test for every option). ---
 
 nlohmann::json ReadJson(const std::string& path) { return nlohmann::json::parse(std::ifstream(path)); }
 

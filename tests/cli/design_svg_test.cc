@@ -1,4 +1,4 @@
-// `topocal design --svg`: the printable null screen end to end (issue 3, item 6).
+// `topocal design --svg`: the printable null screen end to end.
 #include <array>
 #include <cstdio>
 #include <filesystem>
@@ -156,7 +156,7 @@ TEST_F(DesignSvg, UnwritableSvgPathIsBadInputWithoutPartialFile) {
   const auto r = RunTopocal("design --config " + paper_ + " --out " + Path("t.csv") + " --svg " + bad);
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find(bad), std::string::npos) << r.output;
-  // Only the error line: the CSV is published with the SVG or not at all (issue 16).
+  // Only the error line: the CSV is published with the SVG or not at all.
   EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
   EXPECT_FALSE(fs::exists(Path("t.csv")));
   EXPECT_FALSE(fs::exists(bad));

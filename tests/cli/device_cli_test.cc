@@ -1,4 +1,4 @@
-// The device workflow on the command line (issue 19): render reference balls through an as-built device, calibrate
+// The device workflow on the command line: render reference balls through an as-built device, calibrate
 // the device from them, measure a cornea through it; the refusals of bad input and the flag of a model that does not
 // describe the images.
 #include <gtest/gtest.h>
@@ -77,7 +77,7 @@ class DeviceCli : public topocal::testing_cli::TempDirTest {
 constexpr double kTiltTolDeg = 0.002;
 constexpr double kPrincipalTolPx = 0.01;
 constexpr double kSigmaTol = 1e-8;
-// The paper cornea measured through the calibrated device against the truth; issue 19 acceptance |dk| 0.001,
+// The paper cornea measured through the calibrated device against the truth; acceptance |dk| 0.001,
 // |dr| 0.001 mm; measured |dk| 2.1e-5, |dr| 3.0e-5 mm.
 constexpr double kConicTol = 2e-4;
 constexpr double kRadiusTolMm = 3e-4;
@@ -115,7 +115,7 @@ TEST_F(DeviceCli, CalibratesTheDeviceFromBallsAndMeasuresThroughIt) {
   EXPECT_NEAR(p["ry_mm"].get<double>(), 7.63, kRadiusTolMm) << m.output;
   EXPECT_EQ(j["image"]["indexed"].get<int>(), 624);
 
-  // Every number carries its U (k = 2; issue 32): the device's covariance, the image's spot noise. The truth lies
+  // Every number carries its U (k = 2): the device's covariance, the image's spot noise. The truth lies
   // within it, the output never prints "+- 0.0000", and the axial map has its U map beside it.
   const auto& u = j["uncertainty"];
   EXPECT_EQ(u["coverage_factor"].get<int>(), 2);
@@ -235,7 +235,7 @@ TEST_F(DeviceCli, RefusesBadInputWithOneLineAndNoOutput) {
   EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
 }
 
-// The priors' tolerances, the spot noise and the chi2 limit (issue 14: a test for every option). Measured 2026-12-02
+// The priors' tolerances, the spot noise and the chi2 limit (a test for every option). Measured 2026-12-02
 // on these renders: with every tolerance at 1e-6 each parameter stays within 5e-5 of the nominal (rx 4.4e-5 deg,
 // principal point 0.42 px, a 7.7e-4 mm: the nominal's 559.5 px and 5.2 mm) at chi2/dof 12857; by default they come
 // to the truth (0.6 deg, 567.9 px, 5.23 mm) at chi2/dof 0.0017; a 10x larger spot noise gives 10x the standard

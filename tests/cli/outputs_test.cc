@@ -1,4 +1,4 @@
-// Issue 16: outputs are whole or absent, and an output path is handled for what it is — a symbolic link is written
+// Outputs are whole or absent, and an output path is handled for what it is — a symbolic link is written
 // through (the link stays), a FIFO or a device is written into (never replaced by a regular file), "-" is refused;
 // several outputs of one run are published together; a signal removes whatever is staged.
 #include <gtest/gtest.h>
@@ -64,7 +64,7 @@ TEST_F(Outputs, AFifoIsWrittenIntoNotReplaced) {
   EXPECT_TRUE(Leftovers().empty());
 }
 
-// Issue 37: a FIFO nobody reads blocked the run for ever in open(2). It now waits at most the stream timeout, then
+// A FIFO nobody reads once blocked the run for ever in open(2). It now waits at most the stream timeout, then
 // fails naming the FIFO; other outputs of the run are published before the streams, as documented.
 TEST_F(Outputs, AFifoWithoutAReaderTimesOutWithALine) {
   ASSERT_EQ(::mkfifo(Path("pipe").c_str(), 0600), 0);
@@ -83,7 +83,7 @@ TEST_F(Outputs, AFifoWithoutAReaderTimesOutWithALine) {
 }
 
 TEST_F(Outputs, DevNullStaysADevice) {
-  // As root the atomic rename replaced /dev/null with a regular file (issue 16).
+  // As root the atomic rename replaced /dev/null with a regular file.
   ASSERT_EQ(RunTopocal(Design("/dev/null")).exit_code, 0);
   EXPECT_TRUE(fs::is_character_file("/dev/null"));
   const auto r = RunTopocal(Design("-"));
@@ -96,7 +96,7 @@ TEST_F(Outputs, DevNullStaysADevice) {
 
 TEST_F(Outputs, SeveralOutputsArePublishedTogetherOrNotAtAll) {
   std::ofstream(Path("file")) << "x";
-  // The SVG cannot be written (its directory is a file): the CSV, written first before issue 16, is absent too.
+  // The SVG cannot be written (its directory is a file): the CSV, once written first, is absent too.
   const auto r = RunTopocal(Design(Path("t.csv")) + " --svg " + Path("file/screen.svg"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("file/screen.svg"), std::string::npos) << r.output;

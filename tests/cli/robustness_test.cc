@@ -1,5 +1,5 @@
-// Issue 16 end to end: hostile inputs are bad input (exit 2, one short line naming the file and key), never a crash,
-// a wrapped integer or a result computed to Inf. Each test is a reproducer from the issue's mutation campaign.
+// End to end: hostile inputs are bad input (exit 2, one short line naming the file and key), never a crash,
+// a wrapped integer or a result computed to Inf. Each test is a reproducer from a mutation campaign.
 #include <unistd.h>
 
 #include <algorithm>
@@ -157,7 +157,7 @@ TEST_F(Robustness, DeeplyNestedYamlDoesNotCrashOpenCv) {
                  "deep.xml: nested deeper than 64 levels");
 }
 
-// libFuzzer (issue 16): OpenCV 4.6's YAML parser loops forever on a non-ASCII byte where a key should start. Such a
+// Found by libFuzzer: OpenCV 4.6's YAML parser loops forever on a non-ASCII byte where a key should start. Such a
 // byte outside a quoted string or comment is refused before the parser sees it; quoted and in comments it is fine.
 TEST_F(Robustness, YamlThatHangsOpenCvsParserNeverReachesIt) {
   Write("hang.yaml", "%YAML:1.0\n s: 5\n\xd2 -\nx");
@@ -176,7 +176,7 @@ TEST_F(Robustness, YamlThatHangsOpenCvsParserNeverReachesIt) {
 }
 
 TEST_F(Robustness, ATwoRowCameraMatrixIsBadInput) {
-  // Data for 3 x 3 under rows: 2 — an OpenCV assertion, exit 1 with OpenCV's text before issue 16.
+  // Data for 3 x 3 under rows: 2 — an OpenCV assertion, once exit 1 with OpenCV's text.
   const std::string cal =
       "%YAML:1.0\n---\nimage_width: 320\nimage_height: 240\n"
       "camera_matrix: !!opencv-matrix\n   rows: 2\n   cols: 3\n   dt: d\n"

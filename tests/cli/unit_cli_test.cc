@@ -27,7 +27,7 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-// Acceptance bounds of the corrected measurement, from issue 6 (the closed loop): sigma recovered within 0.2 %,
+// Acceptance bounds of the corrected measurement, from the closed loop: sigma recovered within 0.2 %,
 // radius within 0.002 mm, power within 0.05 D.
 constexpr double kSigmaRelative = 2e-3;
 constexpr double kRadiusErrorMm = 2e-3;
@@ -148,7 +148,7 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
   const auto& p = j["paper_cornea"];
   EXPECT_NEAR(p["corrected"]["kx"].get<double>(), p["truth"]["kx"].get<double>(), 1e-3);
   EXPECT_GT(std::abs(p["uncorrected"]["kx"].get<double>() - p["truth"]["kx"].get<double>()), 0.1);
-  // Model adequacy in every stage (issue 18): corrected, the paper cornea's slopes fit the polynomial far below the
+  // Model adequacy in every stage: corrected, the paper cornea's slopes fit the polynomial far below the
   // warning ratio 3 (measured 2026-12-02: 0.0027); uncorrected, the distortion leaves a residual that neighbouring
   // spots share (structured ratio 1.01, above the 0.4 warning).
   const double adequacy = p["corrected"]["adequacy_ratio"], structured = p["uncorrected"]["structured_residual_ratio"];
@@ -159,7 +159,7 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
   EXPECT_LT(structured, 1.3);
 }
 
-// The device stage (issue 19): a unit whose cone is tilted and decentred (its lens as the fixture's: the target views
+// The device stage: a unit whose cone is tilted and decentred (its lens as the fixture's: the target views
 // calibrate sigma right), three reference balls placed by hand, and a held-out ball off the axis at the working
 // position. The record gains device.json and the three-way comparison; the device recovers the assembly, and the
 // held-out ball and the paper cornea come out right only through it. With the trailing slash in --out.
@@ -181,7 +181,8 @@ TEST_F(UnitCli, TheDeviceStageFromBallsFixesWhatTheLensCalibrationCannot) {
   EXPECT_NEAR(d["parameters"]["rx_deg"]["value"].get<double>(), 0.8, 2e-3);
   EXPECT_NEAR(d["parameters"]["ry_deg"]["value"].get<double>(), -0.5, 2e-3);
   EXPECT_TRUE(d["model_adequate"].get<bool>());
-  // The held-out ball: through the device within the issue-6 radius bound; the lens-only calibration cannot do it.
+  // The held-out ball: through the device within the closed loop's radius bound; the lens-only calibration cannot
+  // do it.
   const auto& h = d["held_out_ball"];
   const double device_error = h["device"]["radius_mm"].get<double>() - 7.8;
   const double lens_error = h["lens_only"]["radius_mm"].get<double>() - 7.8;
@@ -364,7 +365,7 @@ TEST_F(UnitCli, ARecordIsNeverReplacedSilently) {
   EXPECT_FALSE(fs::exists(units / "SN-9999"));
 }
 
-// Issue 16: SIGTERM or SIGINT during `unit calibrate` left units/SN.tmp-PID/ (8 of 8 kills). Killed as soon as its
+// SIGTERM or SIGINT during `unit calibrate` once left units/SN.tmp-PID/ (8 of 8 kills). Killed as soon as its
 // staging directory appears (the record is then being written), or a few milliseconds later while its maps are
 // written on other threads, it leaves nothing and ends by the signal. (Before the cleanup parked the other threads,
 // 1 kill in 150 left the staging directory, re-created by a map writer, and one CI run's kill ended in SIGSEGV:
@@ -404,7 +405,7 @@ TEST_F(UnitCli, BatchCalibratesEveryGoodUnitAndListsTheFailures) {
   write_unit("d", R"({"serial": "SN-D", "target": "t.yaml", "images": "v.png", "colour": "red"})");
   const auto r = RunTopocal(fmt::format("unit calibrate-batch {} --out {} --jobs 2 --uncertainty {}", batch.string(),
                                         (dir_ / "records").string(), kDraws));
-  EXPECT_EQ(r.exit_code, 2) << r.output;  // every failure is bad input (issue 16); 1 when a computation failed
+  EXPECT_EQ(r.exit_code, 2) << r.output;  // every failure is bad input; 1 when a computation failed
   EXPECT_NE(r.output.find("4 unit(s): 2 calibrated, 2 failed"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("no file matches"), std::string::npos) << r.output;   // unit b's reason
   EXPECT_NE(r.output.find("colour: unknown key"), std::string::npos) << r.output;  // unit d's reason
@@ -413,7 +414,7 @@ TEST_F(UnitCli, BatchCalibratesEveryGoodUnitAndListsTheFailures) {
   EXPECT_TRUE(fs::exists(dir_ / "records" / "SN-C" / "unit.json"));
 }
 
-// calibrate-batch --seed reaches every unit's Monte Carlo draws (issue 14: a test for every option): a unit of the
+// calibrate-batch --seed reaches every unit's Monte Carlo draws (a test for every option): a unit of the
 // batch gets the uncertainty `unit calibrate --seed` gives it alone; another seed draws other numbers.
 TEST_F(UnitCli, BatchSeedIsTheSeedOfEveryUnitsDraws) {
   const auto batch = dir_ / "line";

@@ -1,4 +1,4 @@
-// topocal detect (issue 17): the detected, indexed and flagged spots of a raw image, end to end through files;
+// topocal detect: the detected, indexed and flagged spots of a raw image, end to end through files;
 // the orientation key refusing an undeclared mirror; reconstruct --image with the same estimator option.
 #include <filesystem>
 #include <fstream>
@@ -64,7 +64,7 @@ std::map<std::pair<int, int>, Row> ReadRows(const std::string& path, std::vector
   return out;
 }
 
-// Issue 17, item 4: 100 % indexing with 5 % missing spots and 6 glints, no glint accepted; a mirrored image
+// Acceptance: 100 % indexing with 5 % missing spots and 6 glints, no glint accepted; a mirrored image
 // measured when declared, refused when not (keyed screen).
 TEST_F(DetectCli, IndexesEverySpotAcceptsNoGlintAndRefusesAnUndeclaredMirror) {
   const auto render = RunTopocal("render-spots --config " + Path("keyed.json") + " --camera " + Path("flip_v.json") +

@@ -1,4 +1,4 @@
-// Image orientation (issue 17): the null screen's orientation key makes a mirrored or rotated image visible. A
+// Image orientation: the null screen's orientation key makes a mirrored or rotated image visible. A
 // declared orientation is measured correctly (astigmatism axis included); an undeclared one is refused when the
 // screen is keyed, and goes through unnoticed when it is not (the documented risk). The key costs no accuracy.
 #include <cmath>
@@ -15,7 +15,7 @@
 namespace topocal::correct {
 namespace {
 
-// Issue 6/17: the astigmatism axis of the paper's cornea (17 deg) to within the biconic fit's noise on a
+// Acceptance: the astigmatism axis of the paper's cornea (17 deg) to within the biconic fit's noise on a
 // noise-free-distortion, realistically noisy render; measured |d alpha| < 0.05 deg on 2026-12-01.
 constexpr double kAxisTolDeg = 0.2;
 // Regression bound on the axis: measured 2026-12-02 at most 1.5e-4 deg off (16.9999 to 17.0001 printed for the four

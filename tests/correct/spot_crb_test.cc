@@ -1,4 +1,4 @@
-// Spot centres at the noise limit (issue 17): on the project's PSF renders with Poisson + read noise, 8 and 16 bit,
+// Spot centres at the noise limit: on the project's PSF renders with Poisson + read noise, 8 and 16 bit,
 // the default estimator's centre error is within 1.05x the Cramer-Rao bound of the very image (spot_crb.h); the
 // other estimators are measured beside it.
 #include <cmath>
@@ -15,7 +15,7 @@
 namespace topocal::correct {
 namespace {
 
-// Issue 17, item 4: centre error <= 1.05x the Cramer-Rao bound.
+// Acceptance: centre error <= 1.05x the Cramer-Rao bound.
 constexpr double kAcceptanceCrbRatio = 1.05;
 constexpr double kMatchPx = 3.0;  // far above any centre error, far below the ~16 px spot spacing
 

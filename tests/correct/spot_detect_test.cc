@@ -15,7 +15,7 @@
 namespace topocal::correct {
 namespace {
 
-// Issue 6, item 6: spot centroids within 0.02 px RMS of the truth at realistic noise.
+// Acceptance: spot centroids within 0.02 px RMS of the truth at realistic noise.
 constexpr double kCentroidRmsPx = 0.02;
 // Regression bounds per method, about 2x the worst rms over the four scenes measured 2026-12-02 (seeded renders):
 // intensity-weighted 0.0046 px, weighted PSF fit 0.0024 px. The Gaussian fit measures up to 0.019 px on the

@@ -13,7 +13,7 @@
 namespace topocal::correct {
 namespace {
 
-constexpr double kDropFraction = 0.10;  // issue 6: up to 10 % missing spots
+constexpr double kDropFraction = 0.10;  // up to 10 % missing spots
 constexpr int kGlints = 6;              // "a few" spurious blobs
 // Glints closer than a spot's radius plus a blur margin would merge with it into one blob (see DropAndAddGlints).
 constexpr double kGlintClearancePx = 12.0;
@@ -74,7 +74,7 @@ TEST(SpotIndex, AllCorrectWithDropsAndGlints) {
   }
 }
 
-// Misassembled devices (issue 19): the screen tilted up to 2 deg (twice the assembly tolerance) at any azimuth,
+// Misassembled devices: the screen tilted up to 2 deg (twice the assembly tolerance) at any azimuth,
 // rolled, decentred and shifted along the axis, the principal point off — the rings are then not concentric (the
 // inner rings' centre moves by ~0.8 ring spacings at 1.5 deg) — with drops and glints: every identity right.
 // Before the inner-rings centre search, 1.5 deg lost all but ring 1-6's neighbourhood (185 of 624 indexed).

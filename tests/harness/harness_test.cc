@@ -1,6 +1,6 @@
 // The harness: configuration parsing and its refusals, the physics of one case against the paper's sweep and of
-// assembly cases against the issue-19 table, deterministic sharding (merged shards == single run, byte for byte)
-// and the inverse answers (distortion, and per assembly axis).
+// assembly cases against an independent model's table, deterministic sharding (merged shards == single run, byte
+// for byte) and the inverse answers (distortion, and per assembly axis).
 #include "harness/harness.h"
 
 #include <fmt/format.h>
@@ -32,7 +32,7 @@ constexpr double kSameSpotsDP_D = 1e-4;  // the same convergence in power: ~1e-5
 constexpr double kSameComputation = 1e-12;
 // ... except the biconic fit, which a harness case starts from its cornea's truth fit (the sweep from the quadratic
 // guess): both stop within the fit's tolerances of the same optimum. Measured 5.8e-11 in k_x, 8.6e-12 in k_y
-// (2026-12-02, docs/performance.md eighth round); the bound leaves a factor 3.
+// (2026-12-02, docs/performance.md); the bound leaves a factor 3.
 constexpr double kSameFitDk = 2e-10;
 
 std::string SmallConfig(const std::string& extra = "") {

@@ -1,4 +1,4 @@
-// The one strict JSON reader (util/json_section.h) on the inputs that crashed or fooled the readers before issue 16:
+// The one strict JSON reader (util/json_section.h) on the inputs that crashed or fooled topocal's earlier readers:
 // nesting deep enough to overflow the parser's stack, numbers beyond double's range, integers beyond int's range
 // (they wrapped around silently), keys given twice, and megabyte-long values echoed whole in an error line.
 #include <gtest/gtest.h>
@@ -81,7 +81,7 @@ TEST(JsonStrict, DeepNestingIsRefusedBeforeParsing) {
 }
 
 TEST(JsonStrict, BadValuesAreEchoedShort) {
-  const std::string huge(6 << 20, 'x');  // one error line of 6 MB before issue 16
+  const std::string huge(6 << 20, 'x');  // once an error line of 6 MB
   const std::string e = ConfigErrorOf(Replaced(kPaper, "\"rings_N\": 11", "\"rings_N\": \"" + huge + "\""));
   EXPECT_NE(e.find("ideal_image.rings_N: must be an integer"), std::string::npos) << e.substr(0, 200);
   EXPECT_LT(e.size(), 200u);

@@ -59,7 +59,7 @@ TEST(Surface, BiconicDerivatives) {
   }
 }
 
-// The untilted biconic's Hessian is closed-form (issue 15; the tilted one comes from jets): against the jets of
+// The untilted biconic's Hessian is closed-form (the tilted one comes from jets): against the jets of
 // the kernel's gradient over the whole defined disc of two biconics, and its sag and gradient are the kernel's in
 // double bit for bit.
 TEST(Surface, UntiltedBiconicClosedFormHessianIsTheJetsToRounding) {

@@ -1,5 +1,6 @@
-// The closed loop of issue 6 for every sigma of Table IV: calibrate from a rendered target at the cornea position,
-// detect and index the spots of a rendered sensor image, undistort, reconstruct — and compare with sigma = 0.
+// The closed loop (pipeline/closed_loop.h) for every sigma of Table IV: calibrate from a rendered target at the
+// cornea position, detect and index the spots of a rendered sensor image, undistort, reconstruct — and compare
+// with sigma = 0.
 #include "pipeline/closed_loop.h"
 
 #include <gtest/gtest.h>
@@ -14,12 +15,12 @@
 namespace topocal::pipeline {
 namespace {
 
-// Issue 6 acceptance, after correction, against the sigma = 0 (uncorrected, exact spots) result.
+// Acceptance, after correction, against the sigma = 0 (uncorrected, exact spots) result.
 constexpr double kConicTol = 0.005;
 constexpr double kRadiusTolMm = 0.002;
 constexpr double kHeightPvTolUm = 0.5;
 constexpr double kPowerPvTolD = 0.05;
-// The single-view calibration recovers sigma within 0.2 % (issue 5). At sigma = 0 a relative bound means nothing:
+// The single-view calibration recovers sigma within 0.2 %. At sigma = 0 a relative bound means nothing:
 // there the estimate must lie within three of its own reported standard deviations of zero.
 constexpr double kSigmaRelTol = 0.002;
 constexpr double kSigmaStdDevs = 3.0;

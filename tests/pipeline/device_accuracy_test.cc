@@ -1,4 +1,4 @@
-// Issue 19, item 6: ten seeded devices drawn within the assembly tolerances, three reference balls (6.5, 7.8,
+// Ten seeded devices drawn within the assembly tolerances, three reference balls (6.5, 7.8,
 // 9.0 mm) placed at random (+-0.3 mm), spot noise 0.04 px. The device fit must recover the tilt, the principal point
 // and sigma, report honest uncertainties, and the paper cornea measured through each calibrated device must agree
 // with the nominal device's result — while the lens-only workflow (sigma right, geometry nominal) does not.
@@ -28,7 +28,7 @@ constexpr double kSpotNoisePx = 0.04;
 constexpr double kBallRadiiMm[] = {6.5, 7.8, 9.0};
 constexpr double kBallPlacementMm = 0.3;
 
-// Acceptance (issue 19, item 6) and regression bounds near the values measured on 2026-12-01 (in the comments).
+// Acceptance and regression bounds near the values measured on 2026-12-01 (in the comments).
 constexpr double kTiltRmsAcceptDeg = 0.01, kTiltRmsRegressionDeg = 0.005;                    // measured 0.0028
 constexpr double kPrincipalRmsAcceptMm = 1e-4;                                                // measured 7.4e-5
 constexpr double kSigmaRmsAccept = 2e-7, kSigmaRmsRegression = 1e-7;                          // measured 5.2e-8
@@ -202,8 +202,8 @@ TEST(DeviceCalibration, TenSeededDevicesFromThreeBalls) {
   EXPECT_LE(worst_pv, kPowerPvRegressionD);
   EXPECT_LE(worst_central, kCentralPowerAcceptD);
   EXPECT_LE(worst_central, kCentralPowerRegressionD);
-  // The lens-only workflow fails on the same devices (issue 19: RMS dk ~0.15, pv up to 13 D; measured here with the
-  // free-apex fit: |dk| up to 0.19, axial pv up to 2.7 D).
+  // The lens-only workflow fails on the same devices (an earlier estimate: RMS dk ~0.15, pv up to 13 D; measured
+  // here with the free-apex fit: |dk| up to 0.19, axial pv up to 2.7 D).
   EXPECT_GT(worst_lens_only_k, 10 * kConicAccept);
   EXPECT_GT(worst_lens_only_pv, 10 * kPowerPvAcceptD);
 }

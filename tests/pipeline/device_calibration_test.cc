@@ -1,4 +1,4 @@
-// Issue 19: the device model (camera + distortion + screen pose) and its calibration from reference-ball images.
+// The device model (camera + distortion + screen pose) and its calibration from reference-ball images.
 #include "pipeline/device_calibration.h"
 
 #include <ceres/jet.h>

@@ -15,7 +15,7 @@ inline model::Device NominalDevice() {
   return model::NominalDevice(model::LoadTopographerCamera(std::string(TOPOCAL_SOURCE_DIR) + "/data/camera.json"));
 }
 
-// A device drawn within the assembly tolerances of issue 19 (pipeline::DrawAssembledDevice).
+// A device drawn within the assembly tolerances (pipeline::DrawAssembledDevice).
 inline model::Device DrawDevice(std::mt19937& rng) { return DrawAssembledDevice(NominalDevice(), rng); }
 
 }  // namespace topocal::pipeline::testing

@@ -1,4 +1,4 @@
-// The maps of an analysis set are computed and written on several threads (MapSetOptions::jobs, issue 15): the
+// The maps of an analysis set are computed and written on several threads (MapSetOptions::jobs): the
 // files must not depend on the thread count.
 #include "pipeline/map_output.h"
 

@@ -1,6 +1,6 @@
-// Every number measured through a calibrated device with its U (issue 32, item 1): the device covariance's reader,
+// Every number measured through a calibrated device with its U: the device covariance's reader,
 // the parameter vocabulary, GUM's rounding, linear propagation against Monte Carlo, and the coverage of U over
-// seeded devices and eyes (item 2, small: the full table is bench/uncertainty_coverage).
+// seeded devices and eyes (small: the full table is bench/uncertainty_coverage).
 #include <cmath>
 #include <random>
 #include <string>

@@ -84,7 +84,7 @@ TEST(Limits, MalformedFilesAreRefusedNamingTheKey) {
   EXPECT_NE(LimitsError("{}").find("limits.json: decision_rule: missing"), std::string::npos);
 }
 
-// Issue 16: 1e999 was exit 1 with nlohmann's raw message; a format_version of 2^32 + 1 read as 1.
+// Hostile JSON: 1e999 was exit 1 with nlohmann's raw message; a format_version of 2^32 + 1 read as 1.
 TEST(Limits, HostileJsonIsBadInputNamingTheKey) {
   std::string text = BundledLimits().dump();
   const std::string max = "\"max\":";

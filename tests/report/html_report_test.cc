@@ -255,7 +255,7 @@ TEST_F(HtmlReportTest, HasEverySection) {
   EXPECT_NE(h.find("<td>power error (D)</td>"), std::string::npos);
   EXPECT_NE(h.find("-0.4302</td><td class=\"num\">-0.0002</td><td class=\"num\">0.0002 \u00b1 0.003</td>"),
             std::string::npos);
-  // Model adequacy (issue 18): both rows in both tables, the record's values in the stages' columns, and how to read
+  // Model adequacy: both rows in both tables, the record's values in the stages' columns, and how to read
   // them under each table.
   EXPECT_EQ(Count(h, "<td>model adequacy: slope residual / expected noise</td>"), 2u);
   EXPECT_EQ(Count(h, "<td>model adequacy: structured part / expected noise</td>"), 2u);

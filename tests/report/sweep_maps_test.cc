@@ -1,4 +1,4 @@
-// Map scales on a real sweep (issue 12): `topocal sweep --maps` on the paper's configuration writes every sigma's
+// Map scales on a real sweep: `topocal sweep --maps` on the paper's configuration writes every sigma's
 // maps; the power maps of the whole sweep are on one scale (the standard absolute one), and SelectMapScale, run on
 // the sweep's own grids (read back from the CSVs beside the PNGs), gives shared, absolute and minimum-span scales that
 // hold every map.

@@ -65,7 +65,7 @@ TEST(UnitRecordReader, OptionalBlocksMayBeAbsent) {
   EXPECT_FALSE(r.seidel_sigma_per_mm2.has_value());
 }
 
-// Issue 16: hostile numbers in unit.json are bad input naming the key (1e999 was exit 1 with nlohmann's message;
+// Hostile numbers in unit.json are bad input naming the key (1e999 was exit 1 with nlohmann's message;
 // 4294967297 wrapped to 1).
 TEST(UnitRecordReader, RefusesHostileNumbersAndDuplicateKeys) {
   auto f = MakeRecord(FreshDir("hostile"));

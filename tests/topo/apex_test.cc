@@ -1,4 +1,4 @@
-// Issue 18, item 1: an eye off the axis and tilted, exact spots from the forward model, reconstructed and fitted
+// An eye off the axis and tilted, exact spots from the forward model, reconstructed and fitted
 // with the default (free-apex) biconic fit, against the truth.
 #include <gtest/gtest.h>
 
@@ -10,7 +10,7 @@
 namespace topocal::topo {
 namespace {
 
-// Issue 18 targets (apex up to 0.5 mm off the axis, tilt up to 3 deg, exact spots).
+// Targets (apex up to 0.5 mm off the axis, tilt up to 3 deg, exact spots).
 constexpr double kRadiusTolMm = 0.002;
 constexpr double kConicTol = 0.002;
 constexpr double kApexTolMm = 0.005;
@@ -19,7 +19,7 @@ constexpr double kApexTolMm = 0.005;
 constexpr double kRadiusRegressionMm = 1e-4;
 constexpr double kConicRegression = 2e-4;
 constexpr double kApexRegressionMm = 5e-5;
-// The issue sets no tilt target; 0.001 deg is 15x the measured error and far below any clinical meaning.
+// No tilt target is set; 0.001 deg is 15x the measured error and far below any clinical meaning.
 constexpr double kTiltRegressionDeg = 1e-3;
 
 // The eye placed as the instrument places it: the point on the axis at the working distance (model::FocusOnAxis).
@@ -40,7 +40,7 @@ Analysis AnalyzeEye(const model::BiconicParams& eye, const std::string& fit) {
   return AnalyzeSpots(spots, design.targets, c, &c.cornea);
 }
 
-// The paper's cornea and an oblique one (issue 18), 0.49 mm off the axis and tilted by ~3 deg.
+// The paper's cornea and an oblique one, 0.49 mm off the axis and tilted by ~3 deg.
 const model::BiconicParams kPaperEye = Focused({8.35, 7.63, -0.43, -0.25, 17.0, 0.35, -0.34, 0.0, 2.0, -2.2});
 const model::BiconicParams kObliqueEye = Focused({7.2, 7.9, 0.3, -0.6, 123.0, -0.45, 0.2, 0.0, -2.9, 0.6});
 
@@ -70,7 +70,8 @@ TEST(Apex, FreeApexFitRecoversAnEyeOffTheAxisAndTilted) {
 }
 
 TEST(Apex, PaperFitTurnsTheDecentrationIntoShape) {
-  // Why free-apex is the default (issue 18's table): the 6-parameter fit misreads this eye's conic constants.
+  // Why free-apex is the default (accuracy_tables apex, docs/reconstruction.md): the 6-parameter fit misreads this
+  // eye's conic constants.
   const Analysis a = AnalyzeEye(kPaperEye, "paper");
   const auto t = CanonicalBiconic(kPaperEye);
   EXPECT_GT(std::max(std::abs(a.surface_fit.params.kx - t.kx), std::abs(a.surface_fit.params.ky - t.ky)), 0.1);

@@ -157,7 +157,7 @@ TEST(BiconicFit, FreeApexStaysWithinThreeSigmaOfItsCovariance) {
   EXPECT_GE(within, total - 1);
 }
 
-// The fit's covariance (its own SVD of the Jacobian since issue 15's sixth round) against ceres::Covariance with
+// The fit's covariance (its own SVD of the Jacobian) against ceres::Covariance with
 // DENSE_SVD, which it used before, on the same sag residuals at the fitted parameters (free apex and paper mode).
 class SagResiduals final : public ceres::CostFunction {
  public:

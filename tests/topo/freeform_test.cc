@@ -1,5 +1,5 @@
-// Issue 18, items 2-5 on topocal's own freeform test set (model/freeform_test_set.h): a handful of representative
-// corneas, off the axis and tilted, exact spots, against the item-4 targets over the supported disc. The whole set
+// topocal's own freeform test set (model/freeform_test_set.h): a handful of representative
+// corneas, off the axis and tilted, exact spots, against the accuracy targets over the supported disc. The whole set
 // is tabulated by build/bench/accuracy_tables freeform (docs/reconstruction.md).
 #include <gtest/gtest.h>
 
@@ -17,7 +17,7 @@
 namespace topocal::topo {
 namespace {
 
-// Issue 18, item 4 (exact spots).
+// Accuracy targets (exact spots).
 constexpr double kAxialRmsD = 0.1, kAxialMaxD = 0.5, kTangentialRmsD = 0.25, kHeightRmsUm = 0.1;
 constexpr double kKmaxD = 0.25, kKmaxLocationMm = 0.1, kConeHeightRelative = 0.10, kSimKD = 0.1;
 

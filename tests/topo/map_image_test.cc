@@ -396,8 +396,8 @@ GridMap Disc(int n, double radius_mm, const std::string& unit, F f) {
   return g;
 }
 
-// The maps of issue 12's complaint: a corrected reference sphere (43.258-43.274 D) next to its uncorrected map
-// (43-45.5 D, astigmatic).
+// The case for shared map scales (docs/maps.md): a corrected reference sphere (43.258-43.274 D) next to its
+// uncorrected map (43-45.5 D, astigmatic).
 GridMap CorrectedSphere() {
   return Disc(81, 4.0, "D", [](double x, double y) { return 43.266 + 0.008 * (x * x - y * y) / 16.0; });
 }
@@ -527,7 +527,7 @@ TEST(MapElevation, ASphereHasZeroElevationAboveItselfAndAProlateCapStandsInFront
   EXPECT_TRUE(std::isfinite(beyond.At(30, 30)));
 }
 
-// The clinical overlays (issue 18, item 6) are where the options put them: the Kmax marker's pixel has the marker
+// The clinical overlays are where the options put them: the Kmax marker's pixel has the marker
 // colour, the dashed circle lies at the supported radius, the map is hatched beyond it and untouched inside, the
 // sim-K axis runs along its angle, and the legend adds its lines.
 TEST(MapImage, ClinicalOverlaysAreDrawnWhereTheyClaim) {

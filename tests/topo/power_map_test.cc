@@ -107,7 +107,7 @@ TEST(PowerMaps, TaylorFastPathEqualsTheGenericEvaluation) {
   }
 }
 
-// The ideal maps of a centred, untilted biconic compute half the meridians and copy them (issue 15): the copy must
+// The ideal maps of a centred, untilted biconic compute half the meridians and copy them: the copy must
 // be what the other half computes, to the rounding of the samples' angles, and a tilted eye is computed in full.
 TEST(PowerMaps, PointSymmetricBiconicHalvesTheMeridians) {
   const model::BiconicParams cornea;  // the paper's eye: alpha 17 deg, centred, untilted
@@ -218,7 +218,7 @@ TEST(TaylorPolynomial, PreconditionedRefitEqualsAFreshQrSolve) {
   GradientFitter fitter;
   TaylorPolynomial a(10, 5.5), b(10, 5.5);
   ASSERT_TRUE(fitter.Fit(pts, slopes, 0.0, &a).ok);
-  // The first fit factors the normal equations by Cholesky and lets CGLS finish (issue 15): the QR solution to
+  // The first fit factors the normal equations by Cholesky and lets CGLS finish: the QR solution to
   // rounding (measured 4.6e-14 relative on 2026-12-02; the normal equations alone give 9.4e-11 here, cond(A) 4.3e3; the
   // refit below 5.5e-14 with its own factor, 1.4e-12 with the first fit's).
   ASSERT_TRUE(FitGradient(pts, slopes, 0.0, &b).ok);

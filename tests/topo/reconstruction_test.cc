@@ -15,7 +15,7 @@
 namespace topocal::topo {
 namespace {
 
-// Issue 4, noise-free sigma = 0 ground truth: radii 0.002 mm, conic constants 0.002, alpha 0.01 deg, and pv of the
+// Acceptance, noise-free sigma = 0 ground truth: radii 0.002 mm, conic constants 0.002, alpha 0.01 deg, and pv of the
 // height difference below 0.05 um (the paper reports 46 nm).
 constexpr double kTruthRadiusTolMm = 0.002;
 constexpr double kTruthConicTol = 0.002;
@@ -23,7 +23,7 @@ constexpr double kTruthAlphaTolDeg = 0.01;
 constexpr double kTruthPvTolUm = 0.05;
 // Regression bounds near what the iterative reconstruction achieves on exact spots (3-5x the value measured
 // 2026-12-02), one set for the paper cornea and one for the two other biconics (whose alpha and asymmetry the
-// polynomial represents less closely): the issue's limits above stay as the acceptance.
+// polynomial represents less closely): the limits above stay as the acceptance.
 struct TruthRegression {
   double radius_mm, conic, alpha_deg, pv_um;
 };
@@ -32,11 +32,11 @@ struct TruthRegression {
 constexpr TruthRegression kPaperCorneaRegression{2e-5, 2.5e-5, 2e-5, 4e-3};
 // The two other biconics: measured |dr| 2.7e-5 mm, |dk| 4.2e-5, |dalpha| 2.1e-12 deg, pv 9.1e-3 um (worst of both).
 constexpr TruthRegression kOtherBiconicRegression{1e-4, 1.5e-4, 2e-5, 0.03};
-// Issue 4, paper Table VI for every sigma: r 0.01 mm, k 0.02, alpha 0.01 deg.
+// Acceptance, paper Table VI for every sigma: r 0.01 mm, k 0.02, alpha 0.01 deg.
 constexpr double kTableVIRadiusTolMm = 0.01;
 constexpr double kTableVIConicTol = 0.02;
 constexpr double kTableVIAlphaTolDeg = 0.01;
-// Issue 4, paper Table VII: pv_m and pv_a within 0.1 D for |sigma| <= 1.41e-6.
+// Acceptance, paper Table VII: pv_m and pv_a within 0.1 D for |sigma| <= 1.41e-6.
 constexpr double kTableVIIPowerTolD = 0.1;
 // Regression bounds on the departure from the paper's printed (rounded) values, worst over the seven rows; measured
 // 2026-12-02: |dr| 8.6e-3 mm, |dk| 8.6e-3, |dalpha| 1.0e-3 deg (the paper prints 16.999), Table VII |dpv| 0.082 D.
@@ -244,7 +244,7 @@ WarmAndCold WarmAndColdDraw(double move_mm) {
       std::abs(warm.power.pv_tangential_D - cold.power.pv_tangential_D));
   // No factorisation of its own, and nothing computed that a draw does not read.
   EXPECT_EQ(warm.reconstruction.slope_fit_factorizations, 0);
-  // A cold analysis factors the normal matrix of every refinement pass's own points (issue 15: cheaper than CGLS
+  // A cold analysis factors the normal matrix of every refinement pass's own points (cheaper than CGLS
   // with the first pass' factor).
   EXPECT_EQ(cold.reconstruction.slope_fit_factorizations, cold.reconstruction.iterations);
   EXPECT_EQ(warm.reconstruction.expected_slope_noise, 0.0);
@@ -280,7 +280,7 @@ TEST(AnalysisStart, AWarmStartedDrawAgreesWithAColdAnalysis) {
   // 3.9e-6 D (tangential); with the sphere start for both, 2026-12-01, it was 9e-14, 4e-14 mm and 1.9e-11 D).
   ExpectAgreement(warm, cold, kConicLimit, kRadiusLimitMm, kPowerLimitD);
   ExpectAgreement(warm, cold, 1e-7, 5e-8, 1e-5);
-  // What the start saves (issue 15): refinement passes (from the nominal surface, not the sphere) and fit
+  // What the start saves: refinement passes (from the nominal surface, not the sphere) and fit
   // iterations (Gauss-Newton from the nominal fit instead of the quadratic guess; measured 4 against 6: the warm
   // solver options stop at the first rounding-level step, where they took 20 while Ceres rejected that step and
   // shrank its trust region from 1e16).

@@ -190,8 +190,8 @@ TEST(SphereFit, AWarmStartFromANearbyFitGivesTheColdFitsSphere) {
               warm.params.rx_mm - cold.params.rx_mm, (warm.apex_mm - cold.apex_mm).norm(), warm.iterations,
               cold.iterations);
   // Acceptance: a negligible part (1e-6) of the radius limit; regression bound near what was measured on 2026-12-02
-  // after the cold fits' tolerances were matched to what the cost resolves (function tolerance 1e-12, sixth round
-  // of issue 15): 9.8e-10 mm radius, 1.1e-10 mm apex, 2 against 4 iterations — both fits stop once a step changes
+  // after the cold fits' tolerances were matched to what the cost resolves (function tolerance 1e-12):
+  // 9.8e-10 mm radius, 1.1e-10 mm apex, 2 against 4 iterations — both fits stop once a step changes
   // the cost by less than its tolerance, each within ~1e-9 mm of the exact optimum. (With the cold fit at 1e-16:
   // 4.5e-11 mm, 8.3e-12 mm, 2 against 13 iterations.)
   for (const double tol : {kAcceptanceMm * 1e-6, 2e-9}) {

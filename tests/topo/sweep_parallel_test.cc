@@ -34,7 +34,7 @@ std::vector<double> Numbers(const SweepRow& row) {
   return v;
 }
 
-// Issue 15: the sigmas of the sweep run in parallel; the rows must not depend on the thread count or on which
+// The sigmas of the sweep run in parallel; the rows must not depend on the thread count or on which
 // thread ran which sigma (each sigma writes only its own row).
 TEST(Sweep, RowsAreBitIdenticalWhateverTheThreadCount) {
   const auto config = model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json");

@@ -6,7 +6,7 @@
 namespace topocal::topo {
 namespace {
 
-// Issue 3: beta_e = 17.000 deg +- 0.001 deg for every sigma (Seidel distortion is radial and cannot rotate the
+// Acceptance: beta_e = 17.000 deg +- 0.001 deg for every sigma (Seidel distortion is radial and cannot rotate the
 // contour); E_A within 1 percentage point of the paper's Table V.
 constexpr double kBetaToleranceDeg = 0.001;
 constexpr double kAreaChangeTolerancePct = 1.0;

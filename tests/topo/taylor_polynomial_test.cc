@@ -17,7 +17,7 @@ struct Reference {
   double magnitude = 0;  // sum of |c_k psi_k| and of the derivatives' terms: the scale rounding errors are relative to
 };
 
-// The formula before issue 15: sum_k c_k u^a v^b and its derivatives term by term (powers from a table).
+// The earlier formula: sum_k c_k u^a v^b and its derivatives term by term (powers from a table).
 Reference SumOfMonomials(const TaylorPolynomial& p, double x_mm, double y_mm) {
   const double r = p.norm_radius_mm(), u = x_mm / r, v = y_mm / r;
   Reference out;
@@ -76,7 +76,7 @@ TEST(TaylorPolynomial, HornerMatchesTheSumOfMonomials) {
   EXPECT_LE(worst, kRegressionRelTol);
 }
 
-// The batched evaluation (the reconstruction's ray intersections, issue 15) runs eight points at once, then pairs,
+// The batched evaluation (the reconstruction's ray intersections) runs eight points at once, then pairs,
 // then single points: each must be the single-point evaluation bit for bit, whichever group it falls in.
 TEST(TaylorPolynomial, ValueAndGradientManyIsTheSinglePointEvaluationBitForBit) {
   std::mt19937 rng(16);
@@ -99,7 +99,7 @@ TEST(TaylorPolynomial, ValueAndGradientManyIsTheSinglePointEvaluationBitForBit) 
   }
 }
 
-// The gradient fit's design matrix is built column by column from tables of powers (issue 15); before, row by row
+// The gradient fit's design matrix is built column by column from tables of powers; before, row by row
 // from GradientRows. Same products, same order: the fit must be the one a QR of the GradientRows matrix gives, bit
 // for bit.
 TEST(TaylorPolynomial, GradientFitIsTheQrSolutionOfTheGradientRowsBitForBit) {
