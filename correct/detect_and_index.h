@@ -34,6 +34,7 @@ struct LocatedSpot {
   Eigen::Vector2d position_px = Eigen::Vector2d::Zero();
   Eigen::Vector2d position_mm = Eigen::Vector2d::Zero();  // detection plane, paper frame
   int area_px = 0;   // pixels above the detection threshold
+  double flux_dn = 0;  // background-subtracted light in the window
 };
 
 struct DetectAndIndexOptions {

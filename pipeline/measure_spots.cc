@@ -2,7 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <stdexcept>
+#include <utility>
 
 #include "correct/detect_and_index.h"
 #include "correct/undistort_points.h"
@@ -24,6 +26,19 @@ std::vector<topo::MeasuredSpot> UndistortSpots(const std::vector<MeasuredImageSp
     if (undistorted.ok[i]) spots.push_back({detected[i].id, undistorted.points_mm[i]});
   }
   return spots;
+}
+
+bool FreeDetectionIsSpotLike(const correct::LocatedSpot& free, const std::vector<correct::LocatedSpot>& identified) {
+  std::vector<std::pair<double, double>> near;  // (distance, flux)
+  for (const auto& s : identified) near.emplace_back((s.position_mm - free.position_mm).norm(), s.flux_dn);
+  const size_t n = std::min<size_t>(kFreeFluxNeighbours, near.size());
+  if (n == 0) return true;
+  std::partial_sort(near.begin(), near.begin() + n, near.end());
+  std::vector<double> flux;
+  for (size_t k = 0; k < n; ++k) flux.push_back(near[k].second);
+  std::sort(flux.begin(), flux.end());
+  const double median = n % 2 ? flux[n / 2] : 0.5 * (flux[n / 2 - 1] + flux[n / 2]);
+  return free.flux_dn >= kFreeFluxLow * median && free.flux_dn <= kFreeFluxHigh * median;
 }
 
 IdentifiedSpots IdentifySpots(const cv::Mat& image, const model::TopographerCamera& camera,
@@ -57,7 +72,9 @@ SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamer
   m.missing = static_cast<int>(located.missing.size());
   m.missing_ids = located.missing;
   for (const auto& s : located.unassigned) {
-    if (!(s.flags & options.exclude_flags)) m.free_mm.push_back(s.position_mm);
+    if (!(s.flags & options.exclude_flags) && FreeDetectionIsSpotLike(s, located.spots)) {
+      m.free_mm.push_back(s.position_mm);
+    }
   }
   for (const auto& s : located.spots) m.detected.push_back({s.id, s.position_mm});
   if (!distortion) {

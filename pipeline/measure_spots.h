@@ -31,12 +31,22 @@ struct SpotMeasurement {
   int unassigned = 0;                      // detections without identity (glints)
   int missing = 0;                         // designed spots not found
   std::vector<model::SpotId> missing_ids;  // the same, by id
-  std::vector<Eigen::Vector2d> free_mm;    // unassigned detections not flagged, distorted detection-plane mm
+  // Unassigned detections that may yet be identified (pipeline/surface_labelling.h), distorted detection-plane mm:
+  // not flagged, and carrying the light of a spot (FreeDetectionIsSpotLike).
+  std::vector<Eigen::Vector2d> free_mm;
   int undistort_failures = 0;              // identified spots outside the calibration's invertible domain
   int excluded = 0;                        // identified but flagged (near another blob, at the border): left out
   std::string orientation_message;         // the image-orientation check, one line for the measurement's output
   CaptureQuality capture;
 };
+
+// Whether an unassigned detection carries the light of a spot: its flux within kFreeFluxLow..kFreeFluxHigh of the
+// median of its kFreeFluxNeighbours nearest identified spots. A glint or a lash's fragment near a hidden spot carries
+// a tenth of it (0.07-0.15 measured on the all-artefact captures); a spot a lash shades in part keeps half or more
+// and is left to the surface's check. True when there is none to compare with.
+inline constexpr int kFreeFluxNeighbours = 4;
+inline constexpr double kFreeFluxLow = 0.5, kFreeFluxHigh = 2.0;
+bool FreeDetectionIsSpotLike(const correct::LocatedSpot& free, const std::vector<correct::LocatedSpot>& identified);
 
 // Detection and identification as `topocal detect` does it: the spots located and identified, the capture assessed.
 // Throws util::InputError when the image's orientation contradicts the camera's (the orientation key says so: a
