@@ -21,18 +21,22 @@ BrownOnDetectionPlane BrownFromOpenCv(const model::CameraModel& k, const model::
   }
   BrownOnDetectionPlane out;
   const Eigen::Matrix2d mt = camera.Orientation().transpose();
-  const double p = camera.PitchMm();
-  out.brown.focal_mm = std::sqrt(k.fx_px * k.fy_px) * p;
+  const Eigen::Vector2d p = camera.PitchesMm();
+  // The focal length in mm along each pixel axis, f_x p_u and f_y p_v: one distance a when the camera's pixel aspect
+  // is the calibration's f_x / f_y.
+  const double focal_u_mm = k.fx_px * p.x(), focal_v_mm = k.fy_px * p.y();
+  out.brown.focal_mm = std::sqrt(focal_u_mm * focal_v_mm);
   if (!k.distortion_centre.allFinite()) return fail("distortion centre must be finite");
   const Eigen::Vector2d centre_mm =
-      p * (mt * Eigen::Vector2d(k.cx_px - camera.principal_point_px.x() + k.fx_px * k.distortion_centre.x(),
-                                k.cy_px - camera.principal_point_px.y() + k.fy_px * k.distortion_centre.y()));
+      mt * Eigen::Vector2d(k.cx_px - camera.principal_point_px.x() + k.fx_px * k.distortion_centre.x(),
+                           k.cy_px - camera.principal_point_px.y() + k.fy_px * k.distortion_centre.y())
+               .cwiseProduct(p);
   out.brown.centre_x_mm = centre_mm.x();
   out.brown.centre_y_mm = centre_mm.y();
   // The tangential terms are r^2 q + 2 (n.q) n with q = (p2, p1): q turns with the frame, q_mm = M^T q_cv.
   const Eigen::Vector2d q_mm = mt * Eigen::Vector2d(k.dist[3], k.dist[2]);
   out.brown.k = {k.dist[0], k.dist[1], q_mm.y(), q_mm.x(), k.dist[4]};
-  out.aspect_error = std::abs(k.fx_px / k.fy_px - 1.0);
+  out.aspect_error = std::abs(focal_u_mm / focal_v_mm - 1.0);
   out.ok = true;
   return out;
 }
@@ -42,9 +46,11 @@ model::CameraModel OpenCvFromBrown(const model::BrownParams& brown, const model:
   k.width_px = camera.width_px;
   k.height_px = camera.height_px;
   const Eigen::Matrix2d m = camera.Orientation();
-  const double p = camera.PitchMm();
-  k.fx_px = k.fy_px = brown.focal_mm / p;
-  const Eigen::Vector2d c = camera.principal_point_px + m * Eigen::Vector2d(brown.centre_x_mm, brown.centre_y_mm) / p;
+  const Eigen::Vector2d p = camera.PitchesMm();
+  k.fx_px = brown.focal_mm / p.x();
+  k.fy_px = brown.focal_mm / p.y();
+  const Eigen::Vector2d c =
+      camera.principal_point_px + (m * Eigen::Vector2d(brown.centre_x_mm, brown.centre_y_mm)).cwiseQuotient(p);
   k.cx_px = c.x();
   k.cy_px = c.y();
   // BrownFromOpenCv's q_mm = M^T q_cv with q = (p2, p1), turned back.

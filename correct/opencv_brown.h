@@ -2,13 +2,17 @@
 // An OpenCV calibration (camera matrix K and distCoeffs, in this camera's pixels) as a model::BrownParams on the
 // detection plane, so that points and images of the topographer can be undistorted in millimetres.
 //
-// With x_mm = p M^T (u - c_cam) (model/topographer_camera.h; M the image orientation) and OpenCV's
-// x_n = (u - c_x) / f_x, the distortion acting on v = x_n - e (e the distortion centre, normalised):
-//   M^T v = (x_mm - centre_mm) / focal_mm,  focal_mm = f p,  centre_mm = p M^T (c - c_cam + f e).
+// With x_mm = M^T P (u - c_cam) (model/topographer_camera.h; M the image orientation, P = diag(pitch_u, pitch_v))
+// and OpenCV's x_n = (u - c_x) / f_x, y_n = (v - c_y) / f_y, the distortion acting on v = x_n - e (e the distortion
+// centre, normalised):
+//   M^T v = (x_mm - centre_mm) / focal_mm,  focal_mm = f_x pitch_u = f_y pitch_v,  centre_mm = M^T P (c - c_cam + F e)
+// with F = diag(f_x, f_y).
 // The radial terms are unchanged by M; the tangential ones, r^2 q + 2 (n.q) n with q = (p2, p1), turn with it:
 // q_mm = M^T q (for a 180 deg rotation p1, p2 change sign).
-// OpenCV allows f_x != f_y; model::BrownParams has one focal length: f = sqrt(f_x f_y). The error this makes is
-// |f_x / f_y - 1| / 2 times the distortion displacement — reported as `aspect_error` so callers can refuse it.
+// The two focal lengths in mm agree when the camera's pixel_aspect is the calibration's f_x / f_y (what
+// pipeline::DetectionPlaneModelOf gives it). For any other camera model::BrownParams' one focal length is
+// sqrt(f_x pitch_u f_y pitch_v), and the error this makes, |f_x pitch_u / (f_y pitch_v) - 1| / 2 times the distortion
+// displacement, is reported as `aspect_error` so callers can refuse it.
 #include <optional>
 #include <string>
 
@@ -22,15 +26,16 @@ struct BrownOnDetectionPlane {
   bool ok = false;
   std::string message;  // why not, when !ok
   model::BrownParams brown;
-  double aspect_error = 0;  // |f_x / f_y - 1|
+  double aspect_error = 0;  // |f_x pitch_u / (f_y pitch_v) - 1|
 };
 
 // !ok with the reason in `message` for a non-positive focal length or a value that
 // is not finite (the camera file's content: the caller names the file and turns it into bad input).
 BrownOnDetectionPlane BrownFromOpenCv(const model::CameraModel& cv_camera, const model::TopographerCamera& camera);
 
-// The inverse view: a Brown distortion on the detection plane as the OpenCV camera (K with fx = fy, distCoeffs k1,
-// k2, p1, p2, k3, no distortion centre) that maps the same undistorted rays to the same pixels. Exact.
+// The inverse view: a Brown distortion on the detection plane as the OpenCV camera (K with fx / fy the camera's pixel
+// aspect, distCoeffs k1, k2, p1, p2, k3, no distortion centre) that maps the same undistorted rays to the same
+// pixels. Exact.
 model::CameraModel OpenCvFromBrown(const model::BrownParams& brown, const model::TopographerCamera& camera);
 
 }  // namespace topocal::correct

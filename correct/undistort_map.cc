@@ -26,10 +26,11 @@ Eigen::Vector2d CentreMm(const model::Distortion& d) {
 template <typename Distort>
 void FillRows(const Distort& distort, const model::TopographerCamera& camera, const Eigen::Vector2d& centre_mm,
               double fold_radius_mm, int r0, int r1, cv::Mat* map_x, cv::Mat* map_y, int row_offset = 0) {
-  // mm = pitch M^T (px - c) and px = c + M mm / pitch (model/topographer_camera.h); M has entries 0, +-1.
+  // mm = M^T P (px - c) and px = c + P^-1 M mm, P = diag(pitch_u, pitch_v) (model/topographer_camera.h); M has
+  // entries 0, +-1.
   const Eigen::Matrix2d m = camera.Orientation();
-  const double p_mm = camera.PitchMm();
-  const double inv = 1.0 / p_mm;
+  const double pu = camera.PitchesMm().x(), pv = camera.PitchesMm().y();
+  const double inv_u = 1.0 / pu, inv_v = 1.0 / pv;
   const double cu = camera.principal_point_px.x(), cv_ = camera.principal_point_px.y();
   const double fold2 = fold_radius_mm * fold_radius_mm;
   for (int v = r0; v < r1; ++v) {
@@ -39,15 +40,15 @@ void FillRows(const Distort& distort, const model::TopographerCamera& camera, co
     // Branch-free so that the compiler can vectorise the row: evaluate everywhere, then select.
     for (int u = 0; u < camera.width_px; ++u) {
       const double du = u - cu;
-      const double x = p_mm * (m(0, 0) * du + m(1, 0) * dv);
-      const double y = p_mm * (m(0, 1) * du + m(1, 1) * dv);
+      const double x = m(0, 0) * pu * du + m(1, 0) * pv * dv;
+      const double y = m(0, 1) * pu * du + m(1, 1) * pv * dv;
       const double dx = x - centre_mm.x(), dy = y - centre_mm.y();
       const double valid = dx * dx + dy * dy < fold2 ? 1.0 : 0.0;
       double out_x, out_y;
       distort(x, y, &out_x, &out_y);
       // Arithmetic select (exact: one term is multiplied by zero): no control flow in the loop body.
-      mx[u] = static_cast<float>(valid * (cu + inv * (m(0, 0) * out_x + m(0, 1) * out_y)) - (1.0 - valid));
-      my[u] = static_cast<float>(valid * (cv_ + inv * (m(1, 0) * out_x + m(1, 1) * out_y)) - (1.0 - valid));
+      mx[u] = static_cast<float>(valid * (cu + inv_u * (m(0, 0) * out_x + m(0, 1) * out_y)) - (1.0 - valid));
+      my[u] = static_cast<float>(valid * (cv_ + inv_v * (m(1, 0) * out_x + m(1, 1) * out_y)) - (1.0 - valid));
     }
   }
 }

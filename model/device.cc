@@ -61,6 +61,7 @@ DeviceProjectionSetup ProjectionSetupOf(const Device& device, const TopographerP
   DeviceProjectionSetup s;
   s.b_mm = design.b_mm;
   s.pixel_pitch_mm = device.camera.PitchMm();
+  s.pixel_aspect = device.camera.pixel_aspect;
   s.orientation = device.camera.Orientation();
   if (const auto* seidel = std::get_if<SeidelParams>(&device.distortion)) {
     s.brown = false;

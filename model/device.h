@@ -99,7 +99,8 @@ SyntheticImage SynthesizeImage(const Surface& surface, const Device& device, con
 // Fixed (not fitted) quantities of the device projection below.
 struct DeviceProjectionSetup {
   double b_mm = 70.0;              // pinhole to the nominal corneal vertex: the pivot is (0, 0, -b)
-  double pixel_pitch_mm = 1.12e-3;
+  double pixel_pitch_mm = 1.12e-3;  // along u
+  double pixel_aspect = 1.0;         // pitch along v / pitch along u (model/topographer_camera.h)
   Eigen::Matrix2d orientation = Eigen::Matrix2d::Identity();
   bool brown = false;              // distortion block: Seidel [sigma] or Brown [k1, k2, p1, p2, k3]
   double magnification = -0.065;   // M_T of the Seidel model
@@ -207,7 +208,8 @@ bool ProjectBallSpot(const DeviceProjectionSetup& setup, const T* pose, const T*
   }
   const auto& m = setup.orientation;
   pixel[0] = principal_px[0] + (m(0, 0) * distorted[0] + m(0, 1) * distorted[1]) / setup.pixel_pitch_mm;
-  pixel[1] = principal_px[1] + (m(1, 0) * distorted[0] + m(1, 1) * distorted[1]) / setup.pixel_pitch_mm;
+  pixel[1] = principal_px[1] + (m(1, 0) * distorted[0] + m(1, 1) * distorted[1]) /
+                                   (setup.pixel_pitch_mm * setup.pixel_aspect);
   return true;
 }
 

@@ -16,6 +16,9 @@ using nlohmann::json;
 
 // Sensor sides beyond this are a corrupt file, not a camera.
 constexpr int kMaxSidePx = 100000;
+// Pixel aspect (pitch_v / pitch_u) a camera file may declare: real sensors calibrate to |fx / fy - 1| ~ 1e-4, an
+// anamorphic squeeze to a few percent; beyond these bounds the file is corrupt or the calibration failed.
+constexpr double kMinPixelAspect = 0.5, kMaxPixelAspect = 2.0;
 
 constexpr std::pair<ImageOrientation, const char*> kOrientationNames[] = {
     {ImageOrientation::kIdentity, "identity"},   {ImageOrientation::kRotate90, "rotate_90"},
@@ -58,6 +61,9 @@ std::optional<std::string> TopographerCamera::Invalid() const {
   if (!(pixel_pitch_um > 0) || !std::isfinite(pixel_pitch_um)) {
     return fmt::format("pixel_pitch_um: must be > 0 (got {})", pixel_pitch_um);
   }
+  if (!(pixel_aspect >= kMinPixelAspect && pixel_aspect <= kMaxPixelAspect)) {
+    return fmt::format("pixel_aspect: must be in [{}, {}] (got {})", kMinPixelAspect, kMaxPixelAspect, pixel_aspect);
+  }
   if (width_px < 1 || height_px < 1) return fmt::format("width_px/height_px: must be >= 1 (got {} x {})", width_px, height_px);
   if (!(a_mm > 0) || !std::isfinite(a_mm)) return fmt::format("a_mm: must be > 0 (got {})", a_mm);
   if (!principal_point_px.allFinite()) return "principal_point_px: must be finite";
@@ -73,6 +79,7 @@ TopographerCamera CameraFromJson(const json& j, const std::string& origin, const
   util::JsonSection section(j, origin, prefix);
   TopographerCamera c;
   c.pixel_pitch_um = section.Number("pixel_pitch_um");
+  c.pixel_aspect = section.Number("pixel_aspect", 1.0);
   c.width_px = section.IntegerInRange("width_px", 1, kMaxSidePx);
   c.height_px = section.IntegerInRange("height_px", 1, kMaxSidePx);
   c.a_mm = section.Number("a_mm");
@@ -102,12 +109,15 @@ TopographerCamera CameraFromJson(const json& j, const std::string& origin, const
 }
 
 json CameraToJson(const TopographerCamera& c) {
-  return {{"pixel_pitch_um", c.pixel_pitch_um},
-          {"width_px", c.width_px},
-          {"height_px", c.height_px},
-          {"principal_point_px", {c.principal_point_px.x(), c.principal_point_px.y()}},
-          {"a_mm", c.a_mm},
-          {"orientation", OrientationName(c.orientation)}};
+  json j = {{"pixel_pitch_um", c.pixel_pitch_um},
+            {"width_px", c.width_px},
+            {"height_px", c.height_px},
+            {"principal_point_px", {c.principal_point_px.x(), c.principal_point_px.y()}},
+            {"a_mm", c.a_mm},
+            {"orientation", OrientationName(c.orientation)}};
+  // Square pixels are the default and stay unwritten, so every square-pixel file reads and writes as before.
+  if (c.pixel_aspect != 1.0) j["pixel_aspect"] = c.pixel_aspect;
+  return j;
 }
 
 TopographerCamera ParseTopographerCamera(const std::string& json_text, const std::string& origin) {

@@ -6,14 +6,16 @@
 //   x1 = -a X / (b + Z), y1 = -a Y / (b + Z)       u right, v down, centre of the top-left pixel = (0, 0)
 //   (the physical image is inverted: M_T < 0)
 //
-//   (u, v) = c + M (x1, y1) / pitch,   (x1, y1) = pitch M^T ((u, v) - c)
+//   (u, v) = c + P^-1 M (x1, y1),   (x1, y1) = M^T P ((u, v) - c),   P = diag(pitch_u, pitch_v)
 //   M, the image orientation, one of the eight axis-aligned orthogonal matrices (ImageOrientation below);
 //   identity by default, -I for a camera rolled by 180 deg (the old `rotated_180: true`).
+//   pitch_v = pixel_aspect pitch_u: a sensor whose pixels are not square (or a lens whose squeeze makes them look
+//   so) is OpenCV's fx != fy, fx / fy = pixel_aspect, held exactly rather than refused.
 //
 // With the default the pixel image is the eye as seen from the camera, upright (a corneal point at +Y appears above
 // the centre), and the OpenCV camera frame is the paper's frame turned by 180 deg about z — so OpenCV's normalised
 // coordinates are exactly x1 / a and a calibration's camera matrix and distortion coefficients apply to the
-// detection-plane millimetres with no sign change (fx = a / pitch).
+// detection-plane millimetres with no sign change (fx = a / pitch_u, fy = a / pitch_v).
 #include <optional>
 #include <string>
 
@@ -22,8 +24,8 @@
 
 namespace topocal::model {
 
-// How the delivered image is turned or mirrored relative to the default mapping (u = c_u + x1/pitch,
-// v = c_v + y1/pitch). Each is the matrix M of (u - c_u, v - c_v) = M (x1, y1) / pitch:
+// How the delivered image is turned or mirrored relative to the default mapping (u = c_u + x1/pitch_u,
+// v = c_v + y1/pitch_v). Each is the matrix M of (u - c_u, v - c_v) = P^-1 M (x1, y1):
 //   identity    [ 1  0;  0  1]      rotate_180  [-1  0;  0 -1]
 //   rotate_90   [ 0 -1;  1  0]      rotate_270  [ 0  1; -1  0]      (90: a point right of the centre moves down)
 //   flip_u      [-1  0;  0  1]      flip_v      [ 1  0;  0 -1]      (mirrored left-right / top-bottom)
@@ -37,24 +39,27 @@ const char* OrientationName(ImageOrientation o) noexcept;
 std::optional<ImageOrientation> OrientationFromName(const std::string& name) noexcept;
 
 struct TopographerCamera {
-  double pixel_pitch_um = 1.12;
+  double pixel_pitch_um = 1.12;  // along u (image columns)
+  double pixel_aspect = 1.0;     // pitch along v / pitch along u = OpenCV's fx / fy
   int width_px = 4000;
   int height_px = 3000;
   Eigen::Vector2d principal_point_px{1999.5, 1499.5};  // where the optical axis meets the sensor
   double a_mm = 5.2;          // pinhole to detection plane (config topographer.a_mm)
   ImageOrientation orientation = ImageOrientation::kIdentity;
 
-  double PitchMm() const noexcept { return pixel_pitch_um * 1e-3; }
+  double PitchMm() const noexcept { return pixel_pitch_um * 1e-3; }  // along u
+  // (pitch_u, pitch_v) in mm: the pixel's width and height.
+  Eigen::Vector2d PitchesMm() const noexcept { return {PitchMm(), PitchMm() * pixel_aspect}; }
   // M of the orientation (see ImageOrientation).
   Eigen::Matrix2d Orientation() const noexcept { return OrientationMatrix(orientation); }
-  // Focal length in pixels, a / pitch: the fx = fy of the equivalent OpenCV camera matrix.
+  // Focal length in pixels along u, a / pitch_u: the fx of the equivalent OpenCV camera matrix (fy = fx / aspect).
   double FocalPx() const noexcept { return a_mm / PitchMm(); }
 
   Eigen::Vector2d PixelFromDetectionPlane(const Eigen::Vector2d& point_mm) const noexcept {
-    return principal_point_px + Orientation() * point_mm / PitchMm();
+    return principal_point_px + (Orientation() * point_mm).cwiseQuotient(PitchesMm());
   }
   Eigen::Vector2d DetectionPlaneFromPixel(const Eigen::Vector2d& point_px) const noexcept {
-    return PitchMm() * (Orientation().transpose() * (point_px - principal_point_px));
+    return Orientation().transpose() * (point_px - principal_point_px).cwiseProduct(PitchesMm());
   }
   // True if the pixel centre lies on the sensor (OpenCV convention: [-0.5, width - 0.5) x [-0.5, height - 0.5)).
   bool OnSensor(const Eigen::Vector2d& point_px) const noexcept {

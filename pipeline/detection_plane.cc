@@ -15,33 +15,38 @@ constexpr int kErrorGridSteps = 16;
 
 }  // namespace
 
-DetectionPlaneModel DetectionPlaneModelOf(const model::CameraModel& c, const model::TopographerCamera& camera) {
-  const auto brown = correct::BrownFromOpenCv(c, camera);
+DetectionPlaneModel DetectionPlaneModelOf(const model::CameraModel& c, const model::TopographerCamera& sensor) {
   DetectionPlaneModel result;
+  result.camera = sensor;
+  if (c.fx_px > 0 && c.fy_px > 0) result.camera.pixel_aspect = c.fx_px / c.fy_px;  // else BrownFromOpenCv says why
+  if (const auto why = result.camera.Invalid()) {
+    result.message = fmt::format("fx / fy = {:.6f}: {}", c.fx_px / c.fy_px, *why);
+    return result;
+  }
+  const auto& camera = result.camera;
+  const auto brown = correct::BrownFromOpenCv(c, camera);
   if (!brown.ok) {
     result.message = brown.message;
     return result;
   }
   result.distortion = model::Distortion{brown.brown};
-  if (brown.aspect_error > 0) {
-    for (int j = 0; j <= kErrorGridSteps; ++j) {
-      for (int i = 0; i <= kErrorGridSteps; ++i) {
-        const Eigen::Vector2d px((camera.width_px - 1.0) * i / kErrorGridSteps,
-                                 (camera.height_px - 1.0) * j / kErrorGridSteps);
-        const auto normalised = c.PixelToNormalized(px);
-        const auto undistorted_mm = model::Undistort(result.distortion, camera.DetectionPlaneFromPixel(px));
-        // Beyond the distortion's fold neither side has an undistorted point to compare.
-        if (!normalised || !undistorted_mm) continue;
-        const Eigen::Vector2d exact_px(c.cx_px + c.fx_px * normalised->x(), c.cy_px + c.fy_px * normalised->y());
-        result.model_error_px =
-            std::max(result.model_error_px, (camera.PixelFromDetectionPlane(*undistorted_mm) - exact_px).norm());
-      }
+  for (int j = 0; j <= kErrorGridSteps; ++j) {
+    for (int i = 0; i <= kErrorGridSteps; ++i) {
+      const Eigen::Vector2d px((camera.width_px - 1.0) * i / kErrorGridSteps,
+                               (camera.height_px - 1.0) * j / kErrorGridSteps);
+      const auto normalised = c.PixelToNormalized(px);
+      const auto undistorted_mm = model::Undistort(result.distortion, camera.DetectionPlaneFromPixel(px));
+      // Beyond the distortion's fold neither side has an undistorted point to compare.
+      if (!normalised || !undistorted_mm) continue;
+      const Eigen::Vector2d exact_px(c.cx_px + c.fx_px * normalised->x(), c.cy_px + c.fy_px * normalised->y());
+      result.model_error_px =
+          std::max(result.model_error_px, (camera.PixelFromDetectionPlane(*undistorted_mm) - exact_px).norm());
     }
   }
   if (result.model_error_px > kMaxModelErrorPx) {
     result.message = fmt::format(
-        "fx / fy = {:.6f}: the detection-plane model (one focal length) would misplace "
-        "undistorted points by up to {:.3f} px (> {} px)",
+        "fx / fy = {:.6f}: the detection-plane model would misplace undistorted points by up to {:.3f} px "
+        "(> {} px)",
         c.fx_px / c.fy_px, result.model_error_px, kMaxModelErrorPx);
     return result;
   }

@@ -4,12 +4,11 @@
 // topographer's camera (docs/camera-conventions.md). One place for the conversion, used by the closed loop and by
 // the command line.
 //
-// fx != fy. Real cameras calibrate to |fx / fy - 1| ~ 1e-4 (13 opencv-doc photos: 0.999788). The detection-plane
-// model (model::BrownParams) has one focal length, f = sqrt(fx fy) (correct/opencv_brown.h). Its undistortion
-// agrees with the calibration's own -- undistorted pixel (cx + fx x_n, cy + fy y_n), the sensor's own pixel scale --
-// except for |fx / fy - 1| / 2 times the distortion's displacement. That error is computed, not assumed: the
-// worst over a grid of sensor pixels (ModelErrorPx). A calibration is accepted when it is at most
-// kMaxModelErrorPx, and refused with that number otherwise.
+// fx != fy is the sensor's pixel aspect (model::TopographerCamera::pixel_aspect = fx / fy; real cameras calibrate to
+// |fx / fy - 1| ~ 1e-4, the 13 opencv-doc photos to 0.999788): the camera returned carries it, and the distortion on
+// the detection plane is then exactly the calibration's. That is verified, not assumed: the worst difference between
+// the detection-plane undistortion and the calibration's own -- undistorted pixel (cx + fx x_n, cy + fy y_n) -- over
+// a grid of sensor pixels (model_error_px, ~1e-9 px). A conversion beyond kMaxModelErrorPx is refused with that number.
 #include <optional>
 #include <string>
 
@@ -19,18 +18,21 @@
 
 namespace topocal::pipeline {
 
-// Largest acceptable error of the one-focal-length model over the sensor, px: a quarter of the 0.04 px RMS of a
-// good unit calibration (README), so it never dominates the calibration's own uncertainty.
+// Largest acceptable error of the detection-plane model over the sensor, px: a quarter of the 0.04 px RMS of a good
+// unit calibration (README), so it never dominates the calibration's own uncertainty.
 inline constexpr double kMaxModelErrorPx = 0.01;
 
 struct DetectionPlaneModel {
   bool ok = false;
   std::string message;  // why the calibration cannot be expressed on the detection plane, when !ok
   model::Distortion distortion;
+  // The topographer's camera with the calibration's pixel aspect (fx / fy): the camera every pixel <-> mm mapping of
+  // this calibration's images must use.
+  model::TopographerCamera camera;
   double model_error_px = 0;  // worst |undistorted pixel, detection-plane model - calibration| over the sensor
 };
 
-// !ok with the reason (model error, coefficient count, focal length) when the calibration cannot be expressed on the
+// !ok with the reason (model error, pixel aspect, focal length) when the calibration cannot be expressed on the
 // detection plane. Whether that is bad input (a calibration file the user gave: the command line names the file,
 // exit 2) or a computation that failed (a calibration the workflow computed: std::runtime_error, exit 1) is the
 // caller's to say; an uncertainty draw counts it as a failed draw.

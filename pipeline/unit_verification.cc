@@ -56,10 +56,10 @@ std::optional<ClinicalUncertainty> Uncertainty(const std::vector<MeasuredImageSp
   }
 }
 
-model::Distortion OnDetectionPlane(const UnitCalibration& unit, const model::TopographerCamera& camera) {
-  const auto d = DetectionPlaneModelOf(unit.camera, camera);
+DetectionPlaneModel OnDetectionPlane(const UnitCalibration& unit, const model::TopographerCamera& camera) {
+  auto d = DetectionPlaneModelOf(unit.camera, camera);
   if (!d.ok) throw std::runtime_error("the calibration cannot be put on the detection plane: " + d.message);
-  return d.distortion;
+  return d;
 }
 
 }  // namespace
@@ -138,7 +138,13 @@ SphereVerification VerifyOnReferenceSphere(SphereVerification v, double radius_m
   if (v.detected.empty()) throw std::invalid_argument("no identified spots of the reference sphere");
   const model::Config sphere = WithSphere(config, radius_mm);
   const auto design = model::DesignNullScreen(sphere.ideal_image, sphere.topographer);
-  const auto distortion = OnDetectionPlane(unit, camera);
+  const auto on_plane = OnDetectionPlane(unit, camera);
+  const auto& distortion = on_plane.distortion;
+  // The spots were located before the calibration was known: put them in the millimetres of the calibrated pixel
+  // aspect (fx / fy), through the pixels they were found at.
+  for (auto& s : v.detected) {
+    s.distorted_mm = on_plane.camera.DetectionPlaneFromPixel(camera.PixelFromDetectionPlane(s.distorted_mm));
+  }
   v.radius_true_mm = radius_mm;
   v.power_true_D = model::PowerFromCurvatureD(1.0 / radius_mm);  // Eq. 25
   std::vector<topo::MeasuredSpot> uncorrected;
@@ -154,7 +160,7 @@ SphereVerification VerifyOnReferenceSphere(SphereVerification v, double radius_m
 
 SimulatedCornea SimulateThroughCalibratedCamera(const UnitCalibration& unit, const model::TopographerCamera& camera,
                                                 const model::Config& config, const CheckOptions& options) {
-  const auto distortion = OnDetectionPlane(unit, camera);
+  const auto distortion = OnDetectionPlane(unit, camera).distortion;
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
   const auto ideal =
       model::SynthesizeImage(model::Biconic{config.cornea}, model::Topographer{config.topographer}, design.targets);

@@ -236,7 +236,7 @@ std::future<SphereImage> StartSphere(const UnitRequest& r, LoadedInputs& in) {
 }
 
 std::optional<UnitDeviceStage> CalibrateDeviceStage(const UnitRequest& r, const LoadedInputs& in,
-                                                    const cv::Mat& sphere_image, const model::Distortion& lens) {
+                                                    const cv::Mat& sphere_image, const DetectionPlaneModel& lens) {
   if (in.balls.empty()) return std::nullopt;
   UnitDeviceStage d;
   try {
@@ -252,7 +252,8 @@ std::optional<UnitDeviceStage> CalibrateDeviceStage(const UnitRequest& r, const 
     throw std::runtime_error(fmt::format("{}: device calibration failed: {}", r.serial, d.calibration.fit.message));
   }
   d.lens_only = in.nominal_device;
-  d.lens_only.distortion = lens;
+  d.lens_only.camera.pixel_aspect = lens.camera.pixel_aspect;  // the lens calibration's fx / fy
+  d.lens_only.distortion = lens.distortion;
   const auto& device = d.calibration.fit.device;
   try {
     if (!sphere_image.empty()) {
@@ -469,7 +470,7 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
       throw std::runtime_error(
           fmt::format("{}: the calibration cannot be put on the detection plane: {}", r.serial, lens.message));
     }
-    u.device = CalibrateDeviceStage(r, in, sphere.image, lens.distortion);
+    u.device = CalibrateDeviceStage(r, in, sphere.image, lens);
   }
   u.config = std::move(in.config);
   u.camera = std::move(in.camera);

@@ -1,4 +1,4 @@
-// The reader of the map CSV GridMapCsv writes (plot/map_image.h): the one format, read back where it is written.
+// The map CSV (plot/map_image.h): its writer and its reader, the one format in one place.
 #include <fmt/format.h>
 
 #include <charconv>
@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "plot/map_image.h"
+#include "plot/map_text.h"
 #include "util/io.h"
 
 namespace topocal::plot {
@@ -24,6 +25,51 @@ bool ParseDouble(std::string_view field, double* out) {
 }
 
 }  // namespace
+
+std::string GridMapCsv(const GridMap& map) {
+  std::string why;
+  if (!map.IsValid(&why)) throw std::invalid_argument("GridMap: " + why);
+  std::string column = "value";
+  const std::string unit = Transliterate(map.unit);
+  if (!unit.empty()) column += '_';
+  for (char c : unit) {
+    if (c == '\x01')
+      column += 'u';
+    else if (std::isalnum(static_cast<unsigned char>(c)))
+      column += c;
+    else
+      column += '_';
+  }
+  std::string csv = "x_mm,y_mm," + column + "\n";
+  csv.reserve(csv.size() + map.values.size() * 32);
+  // Each column's x is the same double in every row: formatted once (with its comma) rather than once per value,
+  // which was two thirds of the formatting. The text is the same.
+  std::vector<std::string> x_text(static_cast<size_t>(map.nx));
+  for (int i = 0; i < map.nx; ++i) {
+    const double x = map.x_min_mm + i * (map.x_max_mm - map.x_min_mm) / (map.nx - 1);
+    x_text[static_cast<size_t>(i)] = fmt::format("{},", x);
+  }
+  std::string y_text;
+  for (int j = 0; j < map.ny; ++j) {
+    const double y = map.y_min_mm + j * (map.y_max_mm - map.y_min_mm) / (map.ny - 1);
+    y_text = fmt::format("{},", y);
+    for (int i = 0; i < map.nx; ++i) {
+      const double v = map.At(i, j);
+      csv += x_text[static_cast<size_t>(i)];
+      csv += y_text;
+      // Formatted into a stack buffer: a temporary string per value was a third of the time of writing a unit
+      // record's maps. 32 characters hold any double's shortest round-trip form.
+      if (std::isfinite(v)) {
+        char text[32];
+        csv.append(text, fmt::format_to_n(text, sizeof text, "{}", v).out);
+      }
+      csv += '\n';
+    }
+  }
+  return csv;
+}
+
+void WriteMapCsv(const std::string& path, const GridMap& map) { util::WriteFileAtomic(path, GridMapCsv(map)); }
 
 GridMap ReadMapCsv(const std::string& path) {
   const std::string text = util::ReadFile(path);

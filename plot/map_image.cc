@@ -1,21 +1,19 @@
 #include "plot/map_image.h"
 
 #include <fmt/format.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
-#include <iterator>
 #include <limits>
-#include <map>
 #include <opencv2/core.hpp>
-#include <opencv2/freetype.hpp>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <string_view>
 #include <utility>
 
 #include "imageio/image_file.h"
+#include "plot/map_text.h"
+#include "plot/map_ticks.h"
 #include "util/io.h"
 
 namespace topocal::plot {
@@ -35,184 +33,6 @@ cv::Mat ScaleLut(ColourScale s) {
   cv::Mat lut;
   cv::applyColorMap(ramp, lut, OpenCvColormap(s));
   return lut;
-}
-
-// A round step (1, 2 or 5 times a power of ten) of at least range / target_count.
-double NiceStep(double range, double target_count) {
-  const double raw = range / target_count;
-  if (!(raw > 0) || !std::isfinite(raw)) return 1.0;
-  const double mag = std::pow(10.0, std::floor(std::log10(raw)));
-  for (double f : {1.0, 2.0, 5.0, 10.0}) {
-    if (f * mag >= raw * (1 - 1e-9)) return f * mag;
-  }
-  return 10.0 * mag;
-}
-
-// At most this many ticks or band boundaries on a colour bar: the loops below are counted, not stepped, so that a
-// step below the values' rounding (1e16 + 1 over a step of 0.2) or a huge range cannot make them run or allocate
-// without bound; the two ends stand in where no such scale exists.
-constexpr double kMaxTicks = 1000;
-
-std::vector<double> Ticks(double lo, double hi, double step) {
-  const double eps = 1e-9 * step;
-  const double first = std::ceil((lo - eps) / step);
-  const double count = std::floor((hi + eps) / step) - first + 1;
-  if (!std::isfinite(first) || !std::isfinite(count) || count > kMaxTicks || std::abs(first) > 1e15) {
-    return {lo, hi};
-  }
-  std::vector<double> t;
-  for (int i = 0; i < static_cast<int>(count); ++i) {
-    const double v = (first + i) * step;
-    t.push_back(std::abs(v) < eps ? 0.0 : v);
-  }
-  return t;
-}
-
-// Decimals that print every multiple of `step` exactly (1.5 -> 1, 0.25 -> 2, 5 -> 0).
-// value_min + k step up to value_max: the band boundaries of a stepped scale.
-std::vector<double> StepTicks(double lo, double hi, double step) {
-  const double count = std::floor((hi - lo) / step + 1e-9) + 1;
-  if (!std::isfinite(count) || count > kMaxTicks || !(count >= 1)) return {lo, hi};
-  std::vector<double> t;
-  for (int k = 0; k < static_cast<int>(count); ++k) t.push_back(lo + k * step);
-  return t;
-}
-
-int Decimals(double step) {
-  for (int k = 0; k < 9; ++k) {
-    const double scaled = step * std::pow(10.0, k);
-    if (std::abs(scaled - std::round(scaled)) < 1e-6 * std::max(1.0, scaled)) return k;
-  }
-  return 9;
-}
-
-// OpenCV's Hershey fonts are ASCII only: transliterate the few symbols our titles and units use. "µ" is kept as
-// a marker (\x01) and drawn as a 'u' with a descender, which reads as µ.
-std::string Transliterate(std::string_view s) {
-  std::string out;
-  for (size_t i = 0; i < s.size(); ++i) {
-    const auto c = static_cast<unsigned char>(s[i]);
-    if (c < 0x80) {
-      out += static_cast<char>(c);
-      continue;
-    }
-    const std::string_view rest = s.substr(i);
-    const auto starts = [&](std::string_view p) { return rest.substr(0, p.size()) == p; };
-    if (starts("\u00b5") || starts("\u03bc"))
-      out += '\x01', i += 1;
-    else if (starts("\u03c3"))
-      out += "sigma", i += 1;
-    else if (starts("\u00b2"))
-      out += "^2", i += 1;
-    else if (starts("\u00b0"))
-      out += " deg", i += 1;
-    else if (starts("\u2212"))
-      out += '-', i += 2;
-    else {
-      out += '?';
-      while (i + 1 < s.size() && (static_cast<unsigned char>(s[i + 1]) & 0xC0) == 0x80) ++i;
-    }
-  }
-  return out;
-}
-
-// Text is drawn with FreeType (OpenCV's freetype module, HarfBuzz shaping) in DejaVu Sans, so that µ, ², °, σ and
-// − print as themselves; OpenCV's own Hershey fonts are ASCII only. Without the font file (Debian fonts-dejavu-core,
-// installed by scripts/setup.sh) the Hershey font is used with the transliteration above.
-constexpr const char* kFontPath = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
-
-// One FreeType renderer per thread (calibrate-batch draws maps from several threads; the renderer has state).
-cv::freetype::FreeType2* TrueType() {
-  thread_local cv::Ptr<cv::freetype::FreeType2> ft = [] {
-    cv::Ptr<cv::freetype::FreeType2> f;
-    if (::access(kFontPath, R_OK) != 0) return f;
-    try {
-      f = cv::freetype::createFreeType2();
-      f->loadFontData(kFontPath, 0);
-    } catch (const cv::Exception&) {
-      f.release();
-    }
-    return f;
-  }();
-  return ft.get();
-}
-
-struct Font {
-  int height_px;  // em height
-};
-
-double HersheyScale(const Font& f) { return f.height_px / 30.0; }
-int HersheyThickness(const Font& f) { return std::max(1, static_cast<int>(std::lround(f.height_px / 14.0))); }
-
-cv::Size TextSize(const std::string& text, const Font& f) {
-  int baseline = 0;
-  if (auto* ft = TrueType()) {
-    // Measured once per text and size on each thread (the legend's word wrapping measures each line once
-    // per word, the tick labels are measured for the layout and again to be placed, and a record's maps share their
-    // legends; FreeType shapes and hints every glyph anew on each call: ~3 % of unit calibrate's CPU). A measure
-    // depends only on the text, the size and the font, so the images are the same bytes.
-    thread_local std::map<std::pair<int, std::string>, cv::Size> measured;
-    constexpr size_t kMaxMeasured = 4096;  // a long calibrate-batch must not grow it without bound
-    const auto key = std::make_pair(f.height_px, text);
-    if (const auto it = measured.find(key); it != measured.end()) return it->second;
-    if (measured.size() >= kMaxMeasured) measured.clear();
-    const cv::Size size = ft->getTextSize(text, f.height_px, -1, &baseline);
-    return measured.emplace(key, cv::Size{size.width, size.height}).first->second;
-  }
-  std::string ascii = Transliterate(text);
-  std::replace(ascii.begin(), ascii.end(), '\x01', 'u');
-  return cv::getTextSize(ascii, cv::FONT_HERSHEY_SIMPLEX, HersheyScale(f), HersheyThickness(f), &baseline);
-}
-
-// Draws text with its baseline-left corner at `org`.
-void PutText(cv::Mat& img, const std::string& text, cv::Point org, const Font& f, const cv::Scalar& colour = kBlack) {
-  if (auto* ft = TrueType()) {
-    ft->putText(img, text, org, f.height_px, colour, -1, cv::LINE_AA, true);
-    return;
-  }
-  const std::string marked = Transliterate(text);
-  std::string ascii = marked;
-  std::replace(ascii.begin(), ascii.end(), '\x01', 'u');
-  cv::putText(img, ascii, org, cv::FONT_HERSHEY_SIMPLEX, HersheyScale(f), colour, HersheyThickness(f), cv::LINE_AA);
-  // The descender that turns each 'u' standing for µ into a µ.
-  for (size_t p = marked.find('\x01'); p != std::string::npos; p = marked.find('\x01', p + 1)) {
-    int baseline = 0;
-    const auto size = [&](const std::string& t) {
-      std::string a = t;
-      std::replace(a.begin(), a.end(), '\x01', 'u');
-      return cv::getTextSize(a, cv::FONT_HERSHEY_SIMPLEX, HersheyScale(f), HersheyThickness(f), &baseline);
-    };
-    const int x = org.x + size(marked.substr(0, p)).width;
-    const int h = size("u").height;
-    const int stem = x + std::max(1, static_cast<int>(std::lround(0.22 * h)));
-    cv::line(img, {stem, org.y - h / 2}, {stem, org.y + static_cast<int>(0.45 * h)}, colour, HersheyThickness(f),
-             cv::LINE_AA);
-  }
-}
-
-// Text anchored by its centre (x) and baseline (y), or right-aligned / centred vertically.
-void PutCentred(cv::Mat& img, const std::string& text, cv::Point centre_baseline, const Font& f) {
-  PutText(img, text, {centre_baseline.x - TextSize(text, f).width / 2, centre_baseline.y}, f);
-}
-
-void PutRightMiddle(cv::Mat& img, const std::string& text, cv::Point right_middle, const Font& f) {
-  const cv::Size s = TextSize(text, f);
-  PutText(img, text, {right_middle.x - s.width, right_middle.y + s.height / 2}, f);
-}
-
-void PutLeftMiddle(cv::Mat& img, const std::string& text, cv::Point left_middle, const Font& f) {
-  PutText(img, text, {left_middle.x, left_middle.y + TextSize(text, f).height / 2}, f);
-}
-
-// Vertical text reading bottom to top, centred at `centre`.
-void PutVertical(cv::Mat& img, const std::string& text, cv::Point centre, const Font& f) {
-  const cv::Size s = TextSize(text, f);
-  cv::Mat patch(s.height * 2 + 4, s.width + 4, CV_8UC3, kWhite);
-  PutText(patch, text, {2, s.height + 2}, f);
-  cv::Mat rotated;
-  cv::rotate(patch, rotated, cv::ROTATE_90_COUNTERCLOCKWISE);
-  const cv::Rect dst(centre.x - rotated.cols / 2, centre.y - rotated.rows / 2, rotated.cols, rotated.rows);
-  if ((dst & cv::Rect(0, 0, img.cols, img.rows)) == dst) rotated.copyTo(img(dst));
 }
 
 }  // namespace
@@ -279,12 +99,19 @@ void DrawEyeSides(cv::Mat& img, const cv::Rect& plot, const std::string& eye, co
   }
 }
 
-MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
-  std::string why;
-  if (!map.IsValid(&why)) throw std::invalid_argument("GridMap: " + why);
-  if (!options.IsValid(&why)) throw std::invalid_argument("MapImageOptions: " + why);
+namespace {
 
-  // Colour range: the options', else the data's rounded out to round ticks.
+// The colour range, its labelled ticks and the contour levels of one map.
+struct ColourRange {
+  double vmin, vmax;
+  bool stepped;         // a stepped (absolute) scale: every step boundary labelled
+  double tick_step;
+  double contour_step;  // 0: no contours
+  double level_origin;  // contour levels at level_origin + k contour_step
+};
+
+// The options' range, else the data's rounded out to round ticks.
+ColourRange ColourRangeOf(const GridMap& map, const MapImageOptions& options) {
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   for (double v : map.values) {
     if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
@@ -294,60 +121,69 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
     lo -= 0.5;
     hi += 0.5;
   }
-  double vmin = options.value_min.value_or(lo), vmax = options.value_max.value_or(hi);
-  if (options.value_min && !options.value_max && !(vmax > vmin)) vmax = vmin + 1.0;
-  if (options.value_max && !options.value_min && !(vmax > vmin)) vmin = vmax - 1.0;
+  ColourRange c;
+  c.vmin = options.value_min.value_or(lo);
+  c.vmax = options.value_max.value_or(hi);
+  if (options.value_min && !options.value_max && !(c.vmax > c.vmin)) c.vmax = c.vmin + 1.0;
+  if (options.value_max && !options.value_min && !(c.vmax > c.vmin)) c.vmin = c.vmax - 1.0;
   // Labelled ticks: 4 to 9 round ones; on a stepped (absolute) scale of up to 16 steps, every step boundary.
-  const bool stepped = options.contour_step > 0 && options.value_min && options.value_max &&
-                       (*options.value_max - *options.value_min) / options.contour_step <= 16.0 + 1e-9;
-  const double tick_step = stepped ? options.contour_step : NiceStep(vmax - vmin, 8.0);
-  if (!options.value_min) vmin = tick_step * std::floor(vmin / tick_step + 1e-9);
-  if (!options.value_max) vmax = tick_step * std::ceil(vmax / tick_step - 1e-9);
-  const double contour_step = options.contour_step > 0   ? options.contour_step
-                              : options.contour_step < 0 ? 0.0
-                                                         : NiceStep(vmax - vmin, 10.0);
+  c.stepped = options.contour_step > 0 && options.value_min && options.value_max &&
+              (*options.value_max - *options.value_min) / options.contour_step <= 16.0 + 1e-9;
+  c.tick_step = c.stepped ? options.contour_step : NiceStep(c.vmax - c.vmin, 8.0);
+  if (!options.value_min) c.vmin = c.tick_step * std::floor(c.vmin / c.tick_step + 1e-9);
+  if (!options.value_max) c.vmax = c.tick_step * std::ceil(c.vmax / c.tick_step - 1e-9);
+  c.contour_step = options.contour_step > 0   ? options.contour_step
+                   : options.contour_step < 0 ? 0.0
+                                              : NiceStep(c.vmax - c.vmin, 10.0);
   // Contour levels at origin + k step: the band boundaries of a stepped (absolute) scale start at its low end
   // (35.5, 37, ... D), round levels elsewhere start at 0.
-  const double level_origin = stepped ? vmin : 0.0;
+  c.level_origin = c.stepped ? c.vmin : 0.0;
+  return c;
+}
 
-  // Geometry: square pixels, equal mm scale on both axes; the longer side gets size_px. Text scales with the plot so
-  // that a map printed 90 mm wide (two side by side on A4) has labels of about 8 pt: the label em is 1/20 of the plot.
-  const Font label_font{std::max(12, static_cast<int>(std::lround(options.size_px / 20.0)))};
-  const Font title_font{static_cast<int>(std::lround(label_font.height_px * 1.2))};
-  const Font small_font{std::max(11, static_cast<int>(std::lround(label_font.height_px * 0.85)))};
-  const double wx = map.x_max_mm - map.x_min_mm, wy = map.y_max_mm - map.y_min_mm;
-  const double px_per_mm = options.size_px / std::max(wx, wy);
-  const int plot_w = std::max(2, static_cast<int>(std::lround(wx * px_per_mm)));
-  const int plot_h = std::max(2, static_cast<int>(std::lround(wy * px_per_mm)));
-  const int s = std::max(4, label_font.height_px / 3);  // layout unit
-  const int line_h = label_font.height_px + s;
-  // Left margin: the y tick labels, a gap, the vertical axis label (its rotated patch is twice the em high).
-  const double axis_step_mm = NiceStep(std::max(wx, wy), 8.0);
-  int y_label_w = 0;
-  for (double y : Ticks(map.y_min_mm, map.y_max_mm, axis_step_mm)) {
-    y_label_w = std::max(y_label_w, TextSize(fmt::format("{:.{}f}", y, Decimals(axis_step_mm)), label_font).width);
+// Where everything goes on the image, and the text it carries.
+struct MapLayout {
+  Font label_font{0}, title_font{0}, small_font{0};
+  double wx = 0, wy = 0, px_per_mm = 0;  // the map's extent (mm) and scale
+  int plot_w = 0, plot_h = 0;
+  int s = 0;  // layout unit
+  int line_h = 0, tick_len = 0, y_label_w = 0, y_axis_label_x = 0;
+  double axis_step_mm = 0;
+  std::vector<std::string> title_lines, footer;
+  int title_h = 0;
+  cv::Rect plot, bar;
+  int width = 0, height = 0;
+};
+
+// "beyond the scale" when some of the map lies outside the colour range (drawn in the end colours), from its
+// samples with data; empty otherwise.
+std::string BeyondScaleLine(const GridMap& map, const ColourRange& c) {
+  int with_data = 0, below = 0, above = 0;
+  for (double v : map.values) {
+    if (!std::isfinite(v)) continue;
+    ++with_data;
+    below += v < c.vmin ? 1 : 0;
+    above += v > c.vmax ? 1 : 0;
   }
-  const int tick_len = std::max(4, s / 2);
-  // Title (wrapped at its " - " into two lines when it is wider than the image), annotation lines, and a line for
-  // the colour bar's unit above the plot. The image's width does not depend on the header.
-  const int image_w = (y_label_w + 2 * label_font.height_px + 4 + 2 * s + s / 2 + tick_len) + plot_w + 4 * s +
-                      std::max(8, 2 * s) + 14 * s;
-  std::vector<std::string> title_lines = {map.title};
-  if (TextSize(map.title, title_font).width > image_w - 2 * s) {
-    for (const char* sep : {" - ", " \u2014 ", ", "}) {
-      const std::size_t at = map.title.rfind(sep);
-      if (at == std::string::npos) continue;
-      title_lines = {map.title.substr(0, at), map.title.substr(at + std::string(sep).size())};
-      break;
-    }
+  if (below + above == 0) return {};
+  const auto pct = [&](int n) { return fmt::format("{:.0f} %", std::max(1.0, std::round(100.0 * n / with_data))); };
+  std::string beyond = "beyond the scale (end colours):";
+  if (below) beyond += fmt::format(" {} below {:.{}f} {}", pct(below), c.vmin, Decimals(c.tick_step), map.unit);
+  if (above) {
+    beyond +=
+        fmt::format("{} {} above {:.{}f} {}", below ? ";" : "", pct(above), c.vmax, Decimals(c.tick_step), map.unit);
   }
-  const int title_h = static_cast<int>(title_lines.size()) * (title_font.height_px + s);
-  const int header = title_h + s + static_cast<int>(options.annotations.size()) * line_h + line_h + s;
-  // Footer lines under the x axis: the scale, the contour step, the eye and orientation.
+  return beyond;
+}
+
+// Footer lines under the x axis: the scale, the contour step, the eye and orientation, the legend (wrapped at word
+// boundaries to the image's width: a long number list must not run off the page), what lies beyond the scale.
+std::vector<std::string> FooterLines(const GridMap& map, const MapImageOptions& options, const ColourRange& c,
+                                     const Font& small_font, int max_width_px) {
   std::vector<std::string> footer;
   if (!options.scale_label.empty()) footer.push_back(options.scale_label);
-  if (contour_step > 0)
-    footer.push_back(fmt::format("contours every {:.{}f} {}", contour_step, Decimals(contour_step), map.unit));
+  if (c.contour_step > 0)
+    footer.push_back(fmt::format("contours every {:.{}f} {}", c.contour_step, Decimals(c.contour_step), map.unit));
   if (options.eye.empty()) {
     footer.push_back("test surface (no eye); " + options.orientation);
   } else {
@@ -355,7 +191,6 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
                                  options.eye == "OD" ? "right" : "left"));
     footer.push_back("examiner's view; " + options.orientation);
   }
-  // Legend lines wrap at word boundaries to the image's width (a long number list must not run off the page).
   for (const std::string& line : options.legend) {
     std::string current;
     std::size_t start = 0;
@@ -364,7 +199,7 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
       if (end == std::string::npos) end = line.size();
       const std::string word = line.substr(start, end - start);
       const std::string candidate = current.empty() ? word : current + " " + word;
-      if (!current.empty() && TextSize(candidate, small_font).width > image_w - 2 * s) {
+      if (!current.empty() && TextSize(candidate, small_font).width > max_width_px) {
         footer.push_back(current);
         current = "  " + word;
       } else {
@@ -374,34 +209,59 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
     }
     if (!current.empty()) footer.push_back(current);
   }
-  // How much of the map lies beyond the colour range (drawn in the end colours), from its samples with data.
-  int with_data = 0, below = 0, above = 0;
-  for (double v : map.values) {
-    if (!std::isfinite(v)) continue;
-    ++with_data;
-    below += v < vmin ? 1 : 0;
-    above += v > vmax ? 1 : 0;
-  }
-  if (below + above > 0) {
-    const auto pct = [&](int n) { return fmt::format("{:.0f} %", std::max(1.0, std::round(100.0 * n / with_data))); };
-    std::string beyond = "beyond the scale (end colours):";
-    if (below) beyond += fmt::format(" {} below {:.{}f} {}", pct(below), vmin, Decimals(tick_step), map.unit);
-    if (above)
-      beyond +=
-          fmt::format("{} {} above {:.{}f} {}", below ? ";" : "", pct(above), vmax, Decimals(tick_step), map.unit);
-    footer.push_back(beyond);
-  }
-  const int footer_lines = static_cast<int>(footer.size());
-  const int y_axis_label_x = s + label_font.height_px + 2;  // centre of the rotated "y (mm)"
-  const cv::Rect plot(y_axis_label_x + label_font.height_px + 2 + s + y_label_w + s / 2 + tick_len, header, plot_w,
-                      plot_h);
-  const cv::Rect bar(plot.x + plot.width + 4 * s, plot.y, std::max(8, 2 * s), plot.height);
-  const int width = bar.x + bar.width + 14 * s;
-  const int height = plot.y + plot.height + 2 * line_h + footer_lines * line_h + 2 * s;
-  cv::Mat img(height, width, CV_8UC3, kWhite);
+  if (std::string beyond = BeyondScaleLine(map, c); !beyond.empty()) footer.push_back(std::move(beyond));
+  return footer;
+}
 
-  // Sample the field at every plot pixel centre (bilinear, cv::remap). No data is carried as a weight: a pixel has
-  // data where at least half of its interpolation weight comes from samples with data.
+MapLayout LayoutOf(const GridMap& map, const MapImageOptions& options, const ColourRange& c) {
+  MapLayout l;
+  // Geometry: square pixels, equal mm scale on both axes; the longer side gets size_px. Text scales with the plot so
+  // that a map printed 90 mm wide (two side by side on A4) has labels of about 8 pt: the label em is 1/20 of the plot.
+  l.label_font = Font{std::max(12, static_cast<int>(std::lround(options.size_px / 20.0)))};
+  l.title_font = Font{static_cast<int>(std::lround(l.label_font.height_px * 1.2))};
+  l.small_font = Font{std::max(11, static_cast<int>(std::lround(l.label_font.height_px * 0.85)))};
+  l.wx = map.x_max_mm - map.x_min_mm, l.wy = map.y_max_mm - map.y_min_mm;
+  l.px_per_mm = options.size_px / std::max(l.wx, l.wy);
+  l.plot_w = std::max(2, static_cast<int>(std::lround(l.wx * l.px_per_mm)));
+  l.plot_h = std::max(2, static_cast<int>(std::lround(l.wy * l.px_per_mm)));
+  const int s = l.s = std::max(4, l.label_font.height_px / 3);
+  l.line_h = l.label_font.height_px + s;
+  // Left margin: the y tick labels, a gap, the vertical axis label (its rotated patch is twice the em high).
+  l.axis_step_mm = NiceStep(std::max(l.wx, l.wy), 8.0);
+  for (double y : Ticks(map.y_min_mm, map.y_max_mm, l.axis_step_mm)) {
+    l.y_label_w =
+        std::max(l.y_label_w, TextSize(fmt::format("{:.{}f}", y, Decimals(l.axis_step_mm)), l.label_font).width);
+  }
+  l.tick_len = std::max(4, s / 2);
+  // Title (wrapped at its " - " into two lines when it is wider than the image), annotation lines, and a line for
+  // the colour bar's unit above the plot. The image's width does not depend on the header.
+  const int image_w = (l.y_label_w + 2 * l.label_font.height_px + 4 + 2 * s + s / 2 + l.tick_len) + l.plot_w + 4 * s +
+                      std::max(8, 2 * s) + 14 * s;
+  l.title_lines = {map.title};
+  if (TextSize(map.title, l.title_font).width > image_w - 2 * s) {
+    for (const char* sep : {" - ", " \u2014 ", ", "}) {
+      const std::size_t at = map.title.rfind(sep);
+      if (at == std::string::npos) continue;
+      l.title_lines = {map.title.substr(0, at), map.title.substr(at + std::string(sep).size())};
+      break;
+    }
+  }
+  l.title_h = static_cast<int>(l.title_lines.size()) * (l.title_font.height_px + s);
+  const int header = l.title_h + s + static_cast<int>(options.annotations.size()) * l.line_h + l.line_h + s;
+  l.footer = FooterLines(map, options, c, l.small_font, image_w - 2 * s);
+  l.y_axis_label_x = s + l.label_font.height_px + 2;  // centre of the rotated "y (mm)"
+  l.plot = cv::Rect(l.y_axis_label_x + l.label_font.height_px + 2 + s + l.y_label_w + s / 2 + l.tick_len, header,
+                    l.plot_w, l.plot_h);
+  l.bar = cv::Rect(l.plot.x + l.plot.width + 4 * s, l.plot.y, std::max(8, 2 * s), l.plot.height);
+  l.width = l.bar.x + l.bar.width + 14 * s;
+  l.height = l.plot.y + l.plot.height + 2 * l.line_h + static_cast<int>(l.footer.size()) * l.line_h + 2 * s;
+  return l;
+}
+
+// The field at every plot pixel centre (bilinear, cv::remap), NaN where there is no data, and the mask of pixels
+// with data. No data is carried as a weight: a pixel has data where at least half of its interpolation weight comes
+// from samples with data.
+std::pair<cv::Mat, cv::Mat> SampleField(const GridMap& map, const MapLayout& l) {
   cv::Mat values(map.ny, map.nx, CV_32FC1), weights(map.ny, map.nx, CV_32FC1);
   for (int j = 0; j < map.ny; ++j) {
     for (int i = 0; i < map.nx; ++i) {
@@ -410,172 +270,215 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
       weights.at<float>(j, i) = std::isfinite(v) ? 1.0f : 0.0f;
     }
   }
-  cv::Mat map_x(plot_h, plot_w, CV_32FC1), map_y(plot_h, plot_w, CV_32FC1);
-  for (int r = 0; r < plot_h; ++r) {
-    const double y_mm = map.y_max_mm - (r + 0.5) * wy / plot_h;
-    for (int c = 0; c < plot_w; ++c) {
-      const double x_mm = map.x_min_mm + (c + 0.5) * wx / plot_w;
-      map_x.at<float>(r, c) = static_cast<float>((x_mm - map.x_min_mm) / wx * (map.nx - 1));
-      map_y.at<float>(r, c) = static_cast<float>((y_mm - map.y_min_mm) / wy * (map.ny - 1));
+  cv::Mat map_x(l.plot_h, l.plot_w, CV_32FC1), map_y(l.plot_h, l.plot_w, CV_32FC1);
+  for (int r = 0; r < l.plot_h; ++r) {
+    const double y_mm = map.y_max_mm - (r + 0.5) * l.wy / l.plot_h;
+    for (int c = 0; c < l.plot_w; ++c) {
+      const double x_mm = map.x_min_mm + (c + 0.5) * l.wx / l.plot_w;
+      map_x.at<float>(r, c) = static_cast<float>((x_mm - map.x_min_mm) / l.wx * (map.nx - 1));
+      map_y.at<float>(r, c) = static_cast<float>((y_mm - map.y_min_mm) / l.wy * (map.ny - 1));
     }
   }
   cv::Mat sampled, sampled_w;
   cv::remap(values, sampled, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
   cv::remap(weights, sampled_w, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-  cv::Mat field(plot_h, plot_w, CV_64FC1);
-  cv::Mat valid(plot_h, plot_w, CV_8UC1);
-  for (int r = 0; r < plot_h; ++r) {
-    for (int c = 0; c < plot_w; ++c) {
+  cv::Mat field(l.plot_h, l.plot_w, CV_64FC1);
+  cv::Mat valid(l.plot_h, l.plot_w, CV_8UC1);
+  for (int r = 0; r < l.plot_h; ++r) {
+    for (int c = 0; c < l.plot_w; ++c) {
       const float w = sampled_w.at<float>(r, c);
       const bool ok = w >= 0.5f;
       valid.at<std::uint8_t>(r, c) = ok ? 255 : 0;
       field.at<double>(r, c) = ok ? sampled.at<float>(r, c) / w : kNaN;
     }
   }
+  return {field, valid};
+}
 
-  // Colour: the value's fraction of the range through the scale's 256-entry table (OpenCV applyColorMap).
-  cv::Mat index(plot_h, plot_w, CV_8UC1, cv::Scalar(0));
-  for (int r = 0; r < plot_h; ++r) {
-    for (int c = 0; c < plot_w; ++c) {
-      if (!valid.at<std::uint8_t>(r, c)) continue;
-      const double t = std::clamp((field.at<double>(r, c) - vmin) / (vmax - vmin), 0.0, 1.0);
-      index.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(std::lround(255.0 * t));
+
+// Contour lines at the levels: a pixel is on a line where the level band floor((v - origin) / step) changes to its
+// right or below it (both pixels with data). This is the pixel-level form of marching squares, exact to a pixel at
+// the plot's resolution; cv::findContours would trace the same boundaries plus the no-data edges.
+void DrawContours(const cv::Mat& field, const cv::Mat& valid, const ColourRange& c, cv::Mat* coloured) {
+  const int h = field.rows, w = field.cols;
+  cv::Mat band(h, w, CV_32SC1, cv::Scalar(0));
+  for (int r = 0; r < h; ++r) {
+    for (int col = 0; col < w; ++col) {
+      if (valid.at<std::uint8_t>(r, col)) {
+        band.at<int>(r, col) = static_cast<int>(std::floor((field.at<double>(r, col) - c.level_origin) / c.contour_step));
+      }
+    }
+  }
+  for (int r = 0; r < h; ++r) {
+    for (int col = 0; col < w; ++col) {
+      if (!valid.at<std::uint8_t>(r, col)) continue;
+      const int b = band.at<int>(r, col);
+      const bool right = col + 1 < w && valid.at<std::uint8_t>(r, col + 1) && band.at<int>(r, col + 1) != b;
+      const bool edge_below = r + 1 < h && valid.at<std::uint8_t>(r + 1, col) && band.at<int>(r + 1, col) != b;
+      if (right || edge_below) coloured->at<cv::Vec3b>(r, col) = cv::Vec3b(30, 30, 30);
+    }
+  }
+}
+
+// The plot's colours: the value's fraction of the range through the scale's 256-entry table (OpenCV
+// applyColorMap), no-data grey, and the contour lines.
+cv::Mat ColouredPlot(const cv::Mat& field, const cv::Mat& valid, const ColourRange& c, ColourScale scale) {
+  cv::Mat index(field.rows, field.cols, CV_8UC1, cv::Scalar(0));
+  for (int r = 0; r < field.rows; ++r) {
+    for (int col = 0; col < field.cols; ++col) {
+      if (!valid.at<std::uint8_t>(r, col)) continue;
+      const double t = std::clamp((field.at<double>(r, col) - c.vmin) / (c.vmax - c.vmin), 0.0, 1.0);
+      index.at<std::uint8_t>(r, col) = static_cast<std::uint8_t>(std::lround(255.0 * t));
     }
   }
   cv::Mat coloured;
-  cv::applyColorMap(index, coloured, OpenCvColormap(options.scale));
+  cv::applyColorMap(index, coloured, OpenCvColormap(scale));
   coloured.setTo(cv::Scalar(kNoDataGrey, kNoDataGrey, kNoDataGrey), ~valid);
+  if (c.contour_step > 0) DrawContours(field, valid, c, &coloured);
+  return coloured;
+}
 
-  // Contour lines at the multiples of the step: a pixel is on a line where the level band floor(v / step) changes
-  // to its right or below it (both pixels with data). This is the pixel-level form of marching squares, exact to a
-  // pixel at the plot's resolution; cv::findContours would trace the same boundaries plus the no-data edges.
-  if (contour_step > 0) {
-    cv::Mat band(plot_h, plot_w, CV_32SC1, cv::Scalar(0));
-    for (int r = 0; r < plot_h; ++r) {
-      for (int c = 0; c < plot_w; ++c) {
-        if (valid.at<std::uint8_t>(r, c)) {
-          band.at<int>(r, c) = static_cast<int>(std::floor((field.at<double>(r, c) - level_origin) / contour_step));
-        }
-      }
-    }
-    for (int r = 0; r < plot_h; ++r) {
-      for (int c = 0; c < plot_w; ++c) {
-        if (!valid.at<std::uint8_t>(r, c)) continue;
-        const int b = band.at<int>(r, c);
-        const bool right = c + 1 < plot_w && valid.at<std::uint8_t>(r, c + 1) && band.at<int>(r, c + 1) != b;
-        const bool edge_below = r + 1 < plot_h && valid.at<std::uint8_t>(r + 1, c) && band.at<int>(r + 1, c) != b;
-        if (right || edge_below) coloured.at<cv::Vec3b>(r, c) = cv::Vec3b(30, 30, 30);
-      }
-    }
-  }
-  coloured.copyTo(img(plot));
-  cv::rectangle(img, {plot.x - 1, plot.y - 1}, {plot.x + plot.width, plot.y + plot.height}, kBlack, 1);
-
-  // Axes in mm: ticks and labels on the left and bottom, light grid through the ticks.
-  const double axis_step = axis_step_mm;
+// Axes in mm: ticks and labels on the left and bottom.
+void DrawAxes(cv::Mat& img, const GridMap& map, const MapLayout& l) {
+  const cv::Rect& plot = l.plot;
+  const double axis_step = l.axis_step_mm;
   for (double x : Ticks(map.x_min_mm, map.x_max_mm, axis_step)) {
-    const int c = plot.x + static_cast<int>(std::lround((x - map.x_min_mm) / wx * plot_w));
-    cv::line(img, {c, plot.y + plot.height}, {c, plot.y + plot.height + tick_len}, kBlack, 1);
-    PutCentred(img, fmt::format("{:.{}f}", x, Decimals(axis_step)), {c, plot.y + plot.height + tick_len + 2 * s},
-               label_font);
+    const int c = plot.x + static_cast<int>(std::lround((x - map.x_min_mm) / l.wx * l.plot_w));
+    cv::line(img, {c, plot.y + plot.height}, {c, plot.y + plot.height + l.tick_len}, kBlack, 1);
+    PutCentred(img, fmt::format("{:.{}f}", x, Decimals(axis_step)), {c, plot.y + plot.height + l.tick_len + 2 * l.s},
+               l.label_font);
   }
   for (double y : Ticks(map.y_min_mm, map.y_max_mm, axis_step)) {
-    const int r = plot.y + plot.height - static_cast<int>(std::lround((y - map.y_min_mm) / wy * plot_h));
-    cv::line(img, {plot.x - tick_len, r}, {plot.x - 1, r}, kBlack, 1);
-    PutRightMiddle(img, fmt::format("{:.{}f}", y, Decimals(axis_step)), {plot.x - tick_len - s / 2, r}, label_font);
+    const int r = plot.y + plot.height - static_cast<int>(std::lround((y - map.y_min_mm) / l.wy * l.plot_h));
+    cv::line(img, {plot.x - l.tick_len, r}, {plot.x - 1, r}, kBlack, 1);
+    PutRightMiddle(img, fmt::format("{:.{}f}", y, Decimals(axis_step)), {plot.x - l.tick_len - l.s / 2, r},
+                   l.label_font);
   }
-  PutCentred(img, "x (mm)", {plot.x + plot.width / 2, plot.y + plot.height + 2 * line_h}, label_font);
-  PutVertical(img, "y (mm)", {y_axis_label_x, plot.y + plot.height / 2}, label_font);
+  PutCentred(img, "x (mm)", {plot.x + plot.width / 2, plot.y + plot.height + 2 * l.line_h}, l.label_font);
+  PutVertical(img, "y (mm)", {l.y_axis_label_x, plot.y + plot.height / 2}, l.label_font);
+}
 
-  // Rings about the origin (the sim-K zone's meridian ring, when the caller gives one): dashed black on white.
+// Rings about the origin (the sim-K zone's meridian ring, when the caller gives one): dashed black on white.
+void DrawRings(cv::Mat& img, const GridMap& map, const MapImageOptions& options, const MapLayout& l) {
   for (double ring_mm : options.ring_radii_mm) {
     if (!(ring_mm > 0) || !std::isfinite(ring_mm)) continue;
-    const cv::Point centre(plot.x + static_cast<int>(std::lround((0 - map.x_min_mm) * px_per_mm)),
-                           plot.y + plot.height - static_cast<int>(std::lround((0 - map.y_min_mm) * px_per_mm)));
-    const int radius = static_cast<int>(std::lround(ring_mm * px_per_mm));
-    cv::Mat roi = img(plot);
-    const cv::Point c_in_plot = centre - cv::Point(plot.x, plot.y);
+    const cv::Point centre(l.plot.x + static_cast<int>(std::lround((0 - map.x_min_mm) * l.px_per_mm)),
+                           l.plot.y + l.plot.height - static_cast<int>(std::lround((0 - map.y_min_mm) * l.px_per_mm)));
+    const int radius = static_cast<int>(std::lround(ring_mm * l.px_per_mm));
+    cv::Mat roi = img(l.plot);
+    const cv::Point c_in_plot = centre - cv::Point(l.plot.x, l.plot.y);
     cv::circle(roi, c_in_plot, radius, kWhite, 3, cv::LINE_AA);
     for (int deg = 0; deg < 360; deg += 10) {
       cv::ellipse(roi, c_in_plot, {radius, radius}, 0, deg, deg + 5, kBlack, 2, cv::LINE_AA);
     }
   }
+}
 
-  // Clinical overlays, clipped to the plot. Map point (x, y) mm -> plot pixel, as the sampling
-  // above: column (x - x_min) px_per_mm - 0.5, row (y_max - y) px_per_mm - 0.5.
-  cv::Mat plot_roi = img(plot);
-  const auto to_px = [&](double x_mm, double y_mm) {
-    return cv::Point2d((x_mm - map.x_min_mm) * px_per_mm - 0.5, (map.y_max_mm - y_mm) * px_per_mm - 0.5);
-  };
+// Clinical overlays, clipped to the plot: the supported disc (stripes beyond it), the axes, the markers. Map point
+// (x, y) mm -> plot pixel, as the sampling: column (x - x_min) px_per_mm - 0.5, row (y_max - y) px_per_mm - 0.5.
+class Overlay {
+ public:
+  Overlay(cv::Mat& img, const GridMap& map, const MapImageOptions& options, const MapLayout& l)
+      : roi_(img(l.plot)), map_(map), options_(options), l_(l), line_px_(std::max(2, options.size_px / 400)) {}
+  void SupportedDisc(const cv::Mat& valid);
+  void Axes();
+  void Markers();
+
+ private:
   // Sub-pixel drawing: OpenCV's shift of 4 fractional bits.
-  constexpr int kShift = 4;
-  const auto fixed = [](const cv::Point2d& p) {
+  static constexpr int kShift = 4;
+  static cv::Point Fixed(const cv::Point2d& p) {
     return cv::Point(static_cast<int>(std::lround(p.x * 16)), static_cast<int>(std::lround(p.y * 16)));
-  };
-  const int line_px = std::max(2, options.size_px / 400);
-  if (options.supported_radius_mm > 0 && std::isfinite(options.supported_radius_mm)) {
-    // Beyond the supported radius: white diagonal stripes over the colours (half of every 8-pixel period, blended
-    // half way), so that the extrapolated part is seen at a glance and its values can still be read.
-    const cv::Point2d origin = to_px(0, 0);
-    const double r_px = options.supported_radius_mm * px_per_mm;
-    for (int r = 0; r < plot_h; ++r) {
-      for (int c = 0; c < plot_w; ++c) {
-        if (!valid.at<std::uint8_t>(r, c) || (r + c) % 8 >= 3) continue;
-        if (std::hypot(c - origin.x, r - origin.y) <= r_px + 0.5 * line_px + 1) continue;
-        cv::Vec3b& px = plot_roi.at<cv::Vec3b>(r, c);
-        for (int ch = 0; ch < 3; ++ch) px[ch] = static_cast<std::uint8_t>((px[ch] + 255 + 1) / 2);
-      }
-    }
-    // The circle itself: long black dashes on a white underlay.
-    const int radius = static_cast<int>(std::lround(r_px * 16));
-    cv::circle(plot_roi, fixed(origin), radius, kWhite, line_px + 2, cv::LINE_AA, kShift);
-    for (int deg = 0; deg < 360; deg += 8) {
-      cv::ellipse(plot_roi, fixed(origin), {radius, radius}, 0, deg, deg + 5, kBlack, line_px, cv::LINE_AA, kShift);
+  }
+  cv::Point2d ToPx(double x_mm, double y_mm) const {
+    return cv::Point2d((x_mm - map_.x_min_mm) * l_.px_per_mm - 0.5, (map_.y_max_mm - y_mm) * l_.px_per_mm - 0.5);
+  }
+  cv::Mat roi_;
+  const GridMap& map_;
+  const MapImageOptions& options_;
+  const MapLayout& l_;
+  const int line_px_;
+};
+
+// Beyond the supported radius: white diagonal stripes over the colours (half of every 8-pixel period, blended half
+// way), so that the extrapolated part is seen at a glance and its values can still be read; the circle itself in
+// long black dashes on a white underlay.
+void Overlay::SupportedDisc(const cv::Mat& valid) {
+  if (!(options_.supported_radius_mm > 0) || !std::isfinite(options_.supported_radius_mm)) return;
+  const cv::Point2d origin = ToPx(0, 0);
+  const double r_px = options_.supported_radius_mm * l_.px_per_mm;
+  for (int r = 0; r < l_.plot_h; ++r) {
+    for (int c = 0; c < l_.plot_w; ++c) {
+      if (!valid.at<std::uint8_t>(r, c) || (r + c) % 8 >= 3) continue;
+      if (std::hypot(c - origin.x, r - origin.y) <= r_px + 0.5 * line_px_ + 1) continue;
+      cv::Vec3b& px = roi_.at<cv::Vec3b>(r, c);
+      for (int ch = 0; ch < 3; ++ch) px[ch] = static_cast<std::uint8_t>((px[ch] + 255 + 1) / 2);
     }
   }
-  for (const MapAxis& axis : options.axes) {
+  const int radius = static_cast<int>(std::lround(r_px * 16));
+  cv::circle(roi_, Fixed(origin), radius, kWhite, line_px_ + 2, cv::LINE_AA, kShift);
+  for (int deg = 0; deg < 360; deg += 8) {
+    cv::ellipse(roi_, Fixed(origin), {radius, radius}, 0, deg, deg + 5, kBlack, line_px_, cv::LINE_AA, kShift);
+  }
+}
+
+void Overlay::Axes() {
+  for (const MapAxis& axis : options_.axes) {
     if (!(axis.half_length_mm > 0) || !std::isfinite(axis.half_length_mm + axis.angle_deg)) continue;
     const double a = axis.angle_deg * M_PI / 180.0;
     const cv::Point2d dir(std::cos(a), std::sin(a));
-    const cv::Point2d p0 = to_px(-axis.half_length_mm * dir.x, -axis.half_length_mm * dir.y);
-    const cv::Point2d p1 = to_px(axis.half_length_mm * dir.x, axis.half_length_mm * dir.y);
-    cv::line(plot_roi, fixed(p0), fixed(p1), kWhite, line_px + 2, cv::LINE_AA, kShift);
+    const cv::Point2d p0 = ToPx(-axis.half_length_mm * dir.x, -axis.half_length_mm * dir.y);
+    const cv::Point2d p1 = ToPx(axis.half_length_mm * dir.x, axis.half_length_mm * dir.y);
+    cv::line(roi_, Fixed(p0), Fixed(p1), kWhite, line_px_ + 2, cv::LINE_AA, kShift);
     if (!axis.dashed) {
-      cv::line(plot_roi, fixed(p0), fixed(p1), kBlack, line_px, cv::LINE_AA, kShift);
+      cv::line(roi_, Fixed(p0), Fixed(p1), kBlack, line_px_, cv::LINE_AA, kShift);
       continue;
     }
     const double length = std::hypot(p1.x - p0.x, p1.y - p0.y);
-    const double dash = 4.0 * line_px + 4;
+    const double dash = 4.0 * line_px_ + 4;
     for (double t = 0; t < length; t += 2 * dash) {
       const cv::Point2d a0 = p0 + (p1 - p0) * (t / length);
       const cv::Point2d a1 = p0 + (p1 - p0) * (std::min(length, t + dash) / length);
-      cv::line(plot_roi, fixed(a0), fixed(a1), kBlack, line_px, cv::LINE_AA, kShift);
+      cv::line(roi_, Fixed(a0), Fixed(a1), kBlack, line_px_, cv::LINE_AA, kShift);
     }
   }
-  const int marker_px = std::max(5, options.size_px / 100);
+}
+
+void Overlay::Markers() {
+  const int marker_px = std::max(5, options_.size_px / 100);
   const cv::Scalar marker_colour(kMarkerBgr[0], kMarkerBgr[1], kMarkerBgr[2]);
-  for (const MapMarker& m : options.markers) {
+  for (const MapMarker& m : options_.markers) {
     if (!std::isfinite(m.x_mm + m.y_mm)) continue;
-    const cv::Point at = fixed(to_px(m.x_mm, m.y_mm));
-    cv::circle(plot_roi, at, (marker_px + 3) * 16, kBlack, cv::FILLED, cv::LINE_AA, kShift);
-    cv::circle(plot_roi, at, (marker_px + 2) * 16, kWhite, cv::FILLED, cv::LINE_AA, kShift);
+    const cv::Point at = Fixed(ToPx(m.x_mm, m.y_mm));
+    cv::circle(roi_, at, (marker_px + 3) * 16, kBlack, cv::FILLED, cv::LINE_AA, kShift);
+    cv::circle(roi_, at, (marker_px + 2) * 16, kWhite, cv::FILLED, cv::LINE_AA, kShift);
     // The core without anti-aliasing: its pixels are exactly the marker colour.
-    cv::circle(plot_roi, at, marker_px * 16, marker_colour, cv::FILLED, cv::LINE_8, kShift);
+    cv::circle(roi_, at, marker_px * 16, marker_colour, cv::FILLED, cv::LINE_8, kShift);
   }
+}
 
-  DrawEyeSides(img, plot, options.eye, label_font);
-
-  // Title and the caller's annotation lines (sim-K etc.) above the plot.
-  for (std::size_t k = 0; k < title_lines.size(); ++k) {
-    PutCentred(img, title_lines[k],
-               {width / 2, s + title_font.height_px + static_cast<int>(k) * (title_font.height_px + s)}, title_font);
+// The title and the caller's annotation lines (sim-K etc.) above the plot; the footer lines below it.
+void DrawHeaderAndFooter(cv::Mat& img, const MapImageOptions& options, const MapLayout& l) {
+  for (std::size_t k = 0; k < l.title_lines.size(); ++k) {
+    PutCentred(img, l.title_lines[k],
+               {l.width / 2, l.s + l.title_font.height_px + static_cast<int>(k) * (l.title_font.height_px + l.s)},
+               l.title_font);
   }
   for (std::size_t k = 0; k < options.annotations.size(); ++k) {
-    PutCentred(img, options.annotations[k], {width / 2, title_h + static_cast<int>(k + 1) * line_h - s}, label_font);
+    PutCentred(img, options.annotations[k], {l.width / 2, l.title_h + static_cast<int>(k + 1) * l.line_h - l.s},
+               l.label_font);
   }
+  for (std::size_t k = 0; k < l.footer.size(); ++k) {
+    PutText(img, l.footer[k], {l.s, l.plot.y + l.plot.height + 2 * l.line_h + static_cast<int>(k + 1) * l.line_h},
+            l.small_font);
+  }
+}
 
-  // Colour bar: value_max at the top row, value_min at the bottom row; labelled ticks on the right, the contour
-  // levels as short marks on the left, the unit above.
+// Colour bar: value_max at the top row, value_min at the bottom row; labelled ticks on the right, the contour
+// levels as short marks on the left, the unit above.
+void DrawColourBar(cv::Mat& img, const GridMap& map, const MapImageOptions& options, const MapLayout& l,
+                   const ColourRange& c) {
+  const cv::Rect& bar = l.bar;
   const cv::Mat lut = ScaleLut(options.scale);
   for (int r = 0; r < bar.height; ++r) {
     const double t = 1.0 - static_cast<double>(r) / (bar.height - 1);
@@ -584,36 +487,56 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   }
   cv::rectangle(img, {bar.x - 1, bar.y - 1}, {bar.x + bar.width, bar.y + bar.height}, kBlack, 1);
   const auto bar_row = [&](double v) {
-    return bar.y + static_cast<int>(std::lround((vmax - v) / (vmax - vmin) * (bar.height - 1)));
+    return bar.y + static_cast<int>(std::lround((c.vmax - v) / (c.vmax - c.vmin) * (bar.height - 1)));
   };
-  for (double v : stepped ? StepTicks(vmin, vmax, tick_step) : Ticks(vmin, vmax, tick_step)) {
+  for (double v : c.stepped ? StepTicks(c.vmin, c.vmax, c.tick_step) : Ticks(c.vmin, c.vmax, c.tick_step)) {
     const int r = bar_row(v);
-    cv::line(img, {bar.x + bar.width, r}, {bar.x + bar.width + tick_len, r}, kBlack, 1);
-    PutLeftMiddle(img, fmt::format("{:.{}f}", v, Decimals(tick_step)), {bar.x + bar.width + tick_len + s / 2, r},
-                  label_font);
+    cv::line(img, {bar.x + bar.width, r}, {bar.x + bar.width + l.tick_len, r}, kBlack, 1);
+    PutLeftMiddle(img, fmt::format("{:.{}f}", v, Decimals(c.tick_step)), {bar.x + bar.width + l.tick_len + l.s / 2, r},
+                  l.label_font);
   }
-  if (contour_step > 0 && (vmax - vmin) / contour_step <= 200) {
-    for (double v : stepped ? StepTicks(vmin, vmax, contour_step) : Ticks(vmin, vmax, contour_step)) {
+  if (c.contour_step > 0 && (c.vmax - c.vmin) / c.contour_step <= 200) {
+    for (double v : c.stepped ? StepTicks(c.vmin, c.vmax, c.contour_step) : Ticks(c.vmin, c.vmax, c.contour_step)) {
       const int r = bar_row(v);
-      cv::line(img, {bar.x - tick_len, r}, {bar.x - 2, r}, kContourColour, 1);
+      cv::line(img, {bar.x - l.tick_len, r}, {bar.x - 2, r}, kContourColour, 1);
     }
   }
   // The unit above the bar, clear of the top tick label (centred on the bar's top row).
-  PutCentred(img, map.unit, {bar.x + bar.width / 2, bar.y - label_font.height_px * 6 / 10 - s / 2}, label_font);
-  for (std::size_t k = 0; k < footer.size(); ++k) {
-    PutText(img, footer[k], {s, plot.y + plot.height + 2 * line_h + static_cast<int>(k + 1) * line_h}, small_font);
-  }
+  PutCentred(img, map.unit, {bar.x + bar.width / 2, bar.y - l.label_font.height_px * 6 / 10 - l.s / 2}, l.label_font);
+}
+
+}  // namespace
+
+MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
+  std::string why;
+  if (!map.IsValid(&why)) throw std::invalid_argument("GridMap: " + why);
+  if (!options.IsValid(&why)) throw std::invalid_argument("MapImageOptions: " + why);
+  const ColourRange c = ColourRangeOf(map, options);
+  const MapLayout l = LayoutOf(map, options, c);
+  cv::Mat img(l.height, l.width, CV_8UC3, kWhite);
+  const auto [field, valid] = SampleField(map, l);
+  ColouredPlot(field, valid, c, options.scale).copyTo(img(l.plot));
+  cv::rectangle(img, {l.plot.x - 1, l.plot.y - 1}, {l.plot.x + l.plot.width, l.plot.y + l.plot.height}, kBlack, 1);
+  DrawAxes(img, map, l);
+  DrawRings(img, map, options, l);
+  Overlay overlay(img, map, options, l);
+  overlay.SupportedDisc(valid);
+  overlay.Axes();
+  overlay.Markers();
+  DrawEyeSides(img, l.plot, options.eye, l.label_font);
+  DrawHeaderAndFooter(img, options, l);
+  DrawColourBar(img, map, options, l, c);
 
   MapImage out;
-  out.width_px = width;
-  out.height_px = height;
+  out.width_px = l.width;
+  out.height_px = l.height;
   out.bgr.assign(img.datastart, img.dataend);
-  out.plot = {plot.x, plot.y, plot.width, plot.height};
-  out.colour_bar = {bar.x, bar.y, bar.width, bar.height};
-  out.value_min = vmin;
-  out.value_max = vmax;
-  out.contour_step = contour_step;
-  out.px_per_mm = px_per_mm;
+  out.plot = {l.plot.x, l.plot.y, l.plot.width, l.plot.height};
+  out.colour_bar = {l.bar.x, l.bar.y, l.bar.width, l.bar.height};
+  out.value_min = c.vmin;
+  out.value_max = c.vmax;
+  out.contour_step = c.contour_step;
+  out.px_per_mm = l.px_per_mm;
   out.x_min_mm = map.x_min_mm;
   out.y_max_mm = map.y_max_mm;
   return out;
@@ -622,172 +545,6 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
 void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOptions& options) {
   MapImage image = RenderMap(map, options);
   imageio::WritePng(path, cv::Mat(image.height_px, image.width_px, CV_8UC3, image.bgr.data()));
-}
-
-std::string GridMapCsv(const GridMap& map) {
-  std::string why;
-  if (!map.IsValid(&why)) throw std::invalid_argument("GridMap: " + why);
-  std::string column = "value";
-  const std::string unit = Transliterate(map.unit);
-  if (!unit.empty()) column += '_';
-  for (char c : unit) {
-    if (c == '\x01')
-      column += 'u';
-    else if (std::isalnum(static_cast<unsigned char>(c)))
-      column += c;
-    else
-      column += '_';
-  }
-  std::string csv = "x_mm,y_mm," + column + "\n";
-  csv.reserve(csv.size() + map.values.size() * 32);
-  // Each column's x is the same double in every row: formatted once (with its comma) rather than once per value,
-  // which was two thirds of the formatting. The text is the same.
-  std::vector<std::string> x_text(static_cast<size_t>(map.nx));
-  for (int i = 0; i < map.nx; ++i) {
-    const double x = map.x_min_mm + i * (map.x_max_mm - map.x_min_mm) / (map.nx - 1);
-    x_text[static_cast<size_t>(i)] = fmt::format("{},", x);
-  }
-  std::string y_text;
-  for (int j = 0; j < map.ny; ++j) {
-    const double y = map.y_min_mm + j * (map.y_max_mm - map.y_min_mm) / (map.ny - 1);
-    y_text = fmt::format("{},", y);
-    for (int i = 0; i < map.nx; ++i) {
-      const double v = map.At(i, j);
-      csv += x_text[static_cast<size_t>(i)];
-      csv += y_text;
-      // Formatted into a stack buffer: a temporary string per value was a third of the time of writing a unit
-      // record's maps. 32 characters hold any double's shortest round-trip form.
-      if (std::isfinite(v)) {
-        char text[32];
-        csv.append(text, fmt::format_to_n(text, sizeof text, "{}", v).out);
-      }
-      csv += '\n';
-    }
-  }
-  return csv;
-}
-
-void WriteMapCsv(const std::string& path, const GridMap& map) { util::WriteFileAtomic(path, GridMapCsv(map)); }
-
-bool MapScaleRequest::IsValid(std::string* why) const {
-  const auto fail = [&](const std::string& m) {
-    if (why) *why = m;
-    return false;
-  };
-  if (kind == MapScaleKind::kAbsolute) {
-    if (!(step > 0) || !std::isfinite(step)) return fail("an absolute scale needs a finite step > 0");
-    if (low.has_value() != high.has_value()) return fail("an absolute scale's low and high go together");
-    if (low && !(std::isfinite(*low) && std::isfinite(*high) && *high > *low)) {
-      return fail("an absolute scale needs finite low < high");
-    }
-    if (low) {
-      const double steps = (*high - *low) / step;
-      if (std::abs(steps - std::round(steps)) > 1e-9 * std::max(1.0, steps)) {
-        return fail("an absolute scale's high - low must be a whole number of steps");
-      }
-    }
-  }
-  if (!(min_span >= 0) || !std::isfinite(min_span)) return fail("min_span must be finite and >= 0");
-  return true;
-}
-
-MapScaleRequest FittedStepScale(double step) {
-  MapScaleRequest r;
-  r.kind = MapScaleKind::kAbsolute;
-  r.step = step;
-  return r;
-}
-
-MapScaleRequest StandardPowerScale() {
-  MapScaleRequest r = FittedStepScale(kStandardPowerStepD);
-  r.low = kStandardPowerLowD;
-  r.high = kStandardPowerHighD;
-  return r;
-}
-
-MapScaleRequest ExtendedPowerScale() {
-  MapScaleRequest r = FittedStepScale(kExtendedPowerStepD);
-  r.low = kExtendedPowerLowD;
-  r.high = kExtendedPowerHighD;
-  return r;
-}
-
-MapScaleRequest NormalisedScale(double min_span) {
-  MapScaleRequest r;
-  r.kind = MapScaleKind::kNormalised;
-  r.min_span = min_span;
-  return r;
-}
-
-MapScale SelectMapScale(const std::vector<const GridMap*>& maps, const MapScaleRequest& request) {
-  std::string why;
-  if (!request.IsValid(&why)) throw std::invalid_argument("MapScaleRequest: " + why);
-  if (maps.empty()) throw std::invalid_argument("SelectMapScale: no map");
-  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-  std::string unit;
-  for (const GridMap* m : maps) {
-    if (!m) throw std::invalid_argument("SelectMapScale: null map");
-    unit = m->unit;
-    for (double v : m->values) {
-      if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
-    }
-  }
-  const bool has_data = std::isfinite(lo);
-  const std::string set_word = maps.size() > 1 ? fmt::format("these {} maps'", maps.size()) : std::string("this map's");
-  MapScale out;
-  if (request.kind == MapScaleKind::kAbsolute) {
-    const double step = request.step;
-    double a = 0, b = 0;
-    if (request.low) {
-      a = *request.low;
-      b = *request.high;
-      // Widen by whole steps to hold every value (anchored on the standard range's boundaries) when asked.
-      if (request.widen_to_data && has_data && lo < a) a -= step * std::ceil((a - lo) / step - 1e-9);
-      if (request.widen_to_data && has_data && hi > b) b += step * std::ceil((hi - b) / step - 1e-9);
-    } else {
-      if (!has_data) lo = 0, hi = 0;
-      a = step * std::floor(lo / step + 1e-9);
-      b = step * std::ceil(hi / step - 1e-9);
-      if (b <= a) b = a + step;
-      const int missing = kMinAbsoluteSteps - static_cast<int>(std::lround((b - a) / step));
-      if (missing > 0) {
-        a -= step * (missing / 2);
-        b += step * (missing - missing / 2);
-      }
-    }
-    out.value_min = a;
-    out.value_max = b;
-    out.contour_step = step;
-    out.label = fmt::format("absolute scale, {:.{}f} {} steps", step, Decimals(step), unit);
-    return out;
-  }
-  if (!has_data) lo = 0, hi = 1;
-  double span = hi - lo;
-  const bool widened = span < request.min_span;
-  if (widened) {
-    const double mid = 0.5 * (lo + hi);
-    lo = mid - 0.5 * request.min_span;
-    hi = mid + 0.5 * request.min_span;
-    span = request.min_span;
-  }
-  if (!(span > 0)) {  // a flat field with no minimum span: a unit-wide range around it, as RenderMap does
-    lo -= 0.5;
-    hi += 0.5;
-  }
-  const double tick = NiceStep(hi - lo, 8.0);
-  out.value_min = tick * std::floor(lo / tick + 1e-9);
-  out.value_max = tick * std::ceil(hi / tick - 1e-9);
-  out.contour_step = NiceStep(out.value_max - out.value_min, 10.0);
-  out.label = fmt::format("normalised: {} range{}", set_word,
-                          widened ? fmt::format(", min. span {} {}", request.min_span, unit) : std::string());
-  return out;
-}
-
-void ApplyMapScale(const MapScale& scale, MapImageOptions* options) {
-  options->value_min = scale.value_min;
-  options->value_max = scale.value_max;
-  options->contour_step = scale.contour_step;
-  options->scale_label = scale.label;
 }
 
 }  // namespace topocal::plot

@@ -186,7 +186,7 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
     throw util::InputError(
         "--image: needs --camera (pixel pitch, principal point) or --device (the calibrated device)");
   }
-  const auto camera = in.device.empty() ? model::LoadTopographerCamera(in.camera) : device->camera;
+  auto camera = in.device.empty() ? model::LoadTopographerCamera(in.camera) : device->camera;
   const std::string& camera_file = in.device.empty() ? in.camera : in.device;
   const cv::Mat image = ReadSpotImage(in.image, camera, camera_file);
   if (device) {
@@ -215,6 +215,7 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
     const auto on_plane = pipeline::DetectionPlaneModelOf(cal->camera, camera);
     if (!on_plane.ok) throw util::InputError(fmt::format("{}: {}", in.calibration, on_plane.message));
     distortion = on_plane.distortion;
+    camera = on_plane.camera;  // with the calibration's pixel aspect, fx / fy
   }
   const auto m = MeasureImage(image, camera, cfg.ideal_image, distortion, in);
   fmt::print("image: {} spots indexed, {} unassigned detections, {} designed spots missing{}\n", m.indexed,

@@ -46,18 +46,20 @@ model::TopographerCamera CameraFor(const UndistortArgs& a, const calib::Calibrat
   return c;
 }
 
-model::Distortion DistortionFor(const calib::CalibrationFile& cal, const model::TopographerCamera& camera,
-                                const std::string& path) {
-  const auto on_plane = pipeline::DetectionPlaneModelOf(cal.camera, camera);
+// The calibration on the detection plane, and the camera with its pixel aspect (fx / fy) that maps pixels to mm.
+pipeline::DetectionPlaneModel OnDetectionPlane(const calib::CalibrationFile& cal, const model::TopographerCamera& sensor,
+                                               const std::string& path) {
+  auto on_plane = pipeline::DetectionPlaneModelOf(cal.camera, sensor);
   if (!on_plane.ok) throw util::InputError(fmt::format("{}: {}", path, on_plane.message));
-  return on_plane.distortion;
+  return on_plane;
 }
 
 void Run(const UndistortArgs& a) {
   if (a.spots.empty() == a.image.empty()) throw util::InputError("undistort: give exactly one of --spots or --image");
   const auto cal = calib::LoadCalibrationFile(a.calibration);
-  const auto camera = CameraFor(a, cal);
-  const auto distortion = DistortionFor(cal, camera, a.calibration);
+  const auto on_plane = OnDetectionPlane(cal, CameraFor(a, cal), a.calibration);
+  const auto& camera = on_plane.camera;
+  const auto& distortion = on_plane.distortion;
   if (!a.spots.empty()) {
     if (a.camera.empty() && !cal.pixel_pitch_um) {
       throw util::InputError(

@@ -574,5 +574,35 @@ TEST_F(UnitCli, BatchRecordsAreByteIdenticalWhateverTheJobs) {
   }
 }
 
+// OpenCV's 13 chessboard photographs (opencv-doc) calibrate to fx / fy = 0.99979: non-square pixels, which the
+// camera holds as its pixel aspect. The unit is calibrated as it is, without --fix-aspect, and its distortion field
+// is measured through that aspect.
+TEST_F(UnitCli, RealPhotographsWithNonSquarePixelsCalibrateWithoutFixingTheAspect) {
+  const std::string photos = "/usr/share/doc/opencv-doc/examples/data/";
+  ASSERT_TRUE(fs::exists(photos + "left01.jpg")) << "opencv-doc's left*.jpg are not installed (scripts/setup.sh test)";
+  const std::string board = (dir_ / "board.yaml").string(), camera = (dir_ / "camera.json").string();
+  util::WriteFileAtomic(board, "target_type: checkerboard\ntargetCols: 9\ntargetRows: 6\nrowSpacingMeters: 0.025\n"
+                               "colSpacingMeters: 0.025\n");
+  // A 640 x 480 sensor of 6 um pixels behind a 3.2 mm lens (fx ~ 536 px).
+  util::WriteFileAtomic(camera, R"({"pixel_pitch_um": 6.0, "width_px": 640, "height_px": 480,
+                                    "principal_point_px": [319.5, 239.5], "a_mm": 3.216})");
+  const fs::path out = dir_ / "units" / "SN-LEFT";
+  const auto r = RunTopocal(fmt::format("unit calibrate --serial SN-LEFT --target {} --images '{}left[0-9][0-9].jpg' "
+                                        "--model brown5 --camera {} --out {}",
+                                        board, photos, camera, out.string()));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const json record = json::parse(util::ReadFile((out / "unit.json").string()));
+  double fx = 0, fy = 0;
+  for (const auto& p : record["calibration"]["parameters"]) {
+    if (p["name"] == "fx") fx = p["value"].get<double>();
+    if (p["name"] == "fy") fy = p["value"].get<double>();
+  }
+  // cv::calibrateCamera on these photographs: 536.0734 / 536.0164 (docs/calibration.md).
+  EXPECT_NEAR(fx / fy, 0.99979, 2e-4) << fx << " / " << fy;
+  EXPECT_GT(std::abs(fx / fy - 1.0), 1e-4);  // not square: what used to be refused
+  const double field_px = record["calibration"]["distortion_field"]["max_displacement_px"].get<double>();
+  EXPECT_TRUE(std::isfinite(field_px) && field_px > 1.0) << field_px;  // k1 ~ -0.27: tens of px at the corners
+}
+
 }  // namespace
 }  // namespace topocal::testing_cli

@@ -77,5 +77,29 @@ TEST(TopographerCamera, StrictLoadingNamesFileKeyAndProblem) {
   EXPECT_THROW(LoadTopographerCamera("/nonexistent/cam.json"), util::InputError);
 }
 
+// Non-square pixels (OpenCV's fx != fy): the pitch along v is pitch_u x pixel_aspect, in every orientation; the
+// file carries the aspect only when it is not 1, and refuses one no sensor has.
+TEST(TopographerCamera, PixelAspectScalesTheVAxisAndRoundTrips) {
+  TopographerCamera c;
+  c.pixel_aspect = 1.0002;
+  for (const auto o : {ImageOrientation::kIdentity, ImageOrientation::kRotate90, ImageOrientation::kTranspose}) {
+    c.orientation = o;
+    const Eigen::Vector2d one_v = c.DetectionPlaneFromPixel(c.principal_point_px + Eigen::Vector2d(0, 1));
+    EXPECT_NEAR(one_v.norm(), c.PitchMm() * 1.0002, 1e-15);
+    const Eigen::Vector2d one_u = c.DetectionPlaneFromPixel(c.principal_point_px + Eigen::Vector2d(1, 0));
+    EXPECT_NEAR(one_u.norm(), c.PitchMm(), 1e-15);
+    const Eigen::Vector2d p(12.25, 2000.75);
+    EXPECT_NEAR((c.PixelFromDetectionPlane(c.DetectionPlaneFromPixel(p)) - p).norm(), 0, kRoundTripPx);
+  }
+  const std::string square = R"({"pixel_pitch_um": 1.12, "width_px": 4000, "height_px": 3000,
+                                 "principal_point_px": [1999.5, 1499.5], "a_mm": 5.2})";
+  EXPECT_EQ(TopographerCameraToJson(ParseTopographerCamera(square, "x")).find("pixel_aspect"), std::string::npos);
+  c = ParseTopographerCamera(TopographerCameraToJson(c), "x");
+  EXPECT_EQ(c.pixel_aspect, 1.0002);
+  EXPECT_NE(ErrorOf(R"({"pixel_pitch_um": 1, "width_px": 40, "height_px": 30, "principal_point_px": [1, 1],
+                       "a_mm": 5.2, "pixel_aspect": 0})").find("cam.json: pixel_aspect: must be in [0.5, 2] (got 0)"),
+            std::string::npos);
+}
+
 }  // namespace
 }  // namespace topocal::model
