@@ -321,40 +321,26 @@ std::vector<double>& HarnessConfig::Coefficients(DistortionFamily family) {
   return const_cast<std::vector<double>&>(static_cast<const HarnessConfig&>(*this).Coefficients(family));
 }
 
-HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string& origin, const std::string& base_dir) {
-  const json j = util::ParseJsonStrict(json_text, origin);
-  HarnessConfig h;
-  Reader top(j, origin, "");
-  if (top.Has("description")) top.String("description");  // free text for the reader; not part of the identity
-  h.design = ParseDesign(top, base_dir);
-  h.pixel_pitch_um = top.PositiveNumber("pixel_pitch_um", h.pixel_pitch_um);
-  if (top.Has("seed")) {
-    const json& s = top.Get("seed");
-    if (!s.is_number_unsigned())
-      top.Fail("seed", fmt::format("must be a non-negative integer (got {})", util::QuoteJsonValue(s)));
-    h.seed = s.get<std::uint64_t>();
+namespace {
+
+void ParseDistortion(Reader& top, const std::string& origin, HarnessConfig* h) {
+  Reader d(top.Get("distortion"), origin, "distortion");
+  for (const DistortionFamily f : kDistortionFamilies) {
+    const std::string name = DistortionFamilyName(f);
+    if (!d.Has(name)) continue;
+    h->Coefficients(f) = ParseValues(d, name);
   }
-  if (top.Has("distortion")) {
-    Reader d(top.Get("distortion"), origin, "distortion");
-    for (const DistortionFamily f : kDistortionFamilies) {
-      const std::string name = DistortionFamilyName(f);
-      if (!d.Has(name)) continue;
-      h.Coefficients(f) = ParseValues(d, name);
-    }
-    d.RejectUnknown();
-    if (!h.HasDistortion()) {
-      top.Fail("distortion", "must give at least one of seidel_sigma_per_mm2, brown_k1, brown_k2");
-    }
+  d.RejectUnknown();
+  if (!h->HasDistortion()) {
+    top.Fail("distortion", "must give at least one of seidel_sigma_per_mm2, brown_k1, brown_k2");
   }
-  if (top.Has("assembly")) ParseAssembly(top, &h);
-  if (!h.HasDistortion() && !h.HasAssembly()) {
-    top.Fail("distortion", "missing: give distortion coefficients, assembly errors or both");
-  }
-  h.corneas = ParseCorneas(top, h.design);
-  h.noise_px = ParseValues(top, "noise_px");
-  for (size_t i = 0; i < h.noise_px.size(); ++i) {
-    if (h.noise_px[i] < 0)
-      top.Fail(fmt::format("noise_px[{}]", i), fmt::format("must be >= 0 px (got {})", h.noise_px[i]));
+}
+
+void ParseNoise(Reader& top, HarnessConfig* h) {
+  h->noise_px = ParseValues(top, "noise_px");
+  for (size_t i = 0; i < h->noise_px.size(); ++i) {
+    if (h->noise_px[i] < 0)
+      top.Fail(fmt::format("noise_px[{}]", i), fmt::format("must be >= 0 px (got {})", h->noise_px[i]));
   }
   if (top.Has("noise_draws")) {
     const json& n = top.Get("noise_draws");
@@ -363,14 +349,17 @@ HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string
     const long long draws = util::JsonIntegerWithin(n, 1, static_cast<long long>(kMaxCases)) ? n.get<long long>() : -1;
     if (draws < 1 || draws > kMaxCases)
       top.Fail("noise_draws", fmt::format("must lie in [1, {:.0f}] (got {})", kMaxCases, util::QuoteJsonValue(n)));
-    h.noise_draws = static_cast<int>(draws);
+    h->noise_draws = static_cast<int>(draws);
   }
-  if (h.HasDistortion()) {
-    h.calibration_errors = ParseValues(top, "calibration_errors");
-    for (size_t i = 0; i < h.calibration_errors.size(); ++i) {
-      if (h.calibration_errors[i] < -1) {
+}
+
+void ParseCalibrationErrors(Reader& top, HarnessConfig* h) {
+  if (h->HasDistortion()) {
+    h->calibration_errors = ParseValues(top, "calibration_errors");
+    for (size_t i = 0; i < h->calibration_errors.size(); ++i) {
+      if (h->calibration_errors[i] < -1) {
         top.Fail(fmt::format("calibration_errors[{}]", i),
-                 fmt::format("must be >= -1 (-1: no correction; got {})", h.calibration_errors[i]));
+                 fmt::format("must be >= -1 (-1: no correction; got {})", h->calibration_errors[i]));
       }
     }
   } else if (top.Has("calibration_errors")) {
@@ -378,21 +367,24 @@ HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string
              "applies to distortion coefficients only, and none is given (assembly errors are "
              "measured uncorrected)");
   }
-  {
-    Reader l(top.Get("limits"), origin, "limits");
-    h.limits.dk = l.PositiveNumber("dk", h.limits.dk);
-    h.limits.dP_D = l.PositiveNumber("dP_D", h.limits.dP_D);
-    if (l.Has("dP_maps")) {
-      const std::string maps = l.String("dP_maps");
-      if (maps != "axial+tangential" && maps != "axial") {
-        l.Fail(l.Key("dP_maps"), fmt::format("must be \"axial+tangential\" or \"axial\" (got \"{}\")", maps));
-      }
-      h.limits.tangential_map = maps == "axial+tangential";
-    }
-    l.RejectUnknown();
-  }
-  top.RejectUnknown();
+}
 
+void ParseLimits(Reader& top, const std::string& origin, HarnessLimits* limits) {
+  Reader l(top.Get("limits"), origin, "limits");
+  limits->dk = l.PositiveNumber("dk", limits->dk);
+  limits->dP_D = l.PositiveNumber("dP_D", limits->dP_D);
+  if (l.Has("dP_maps")) {
+    const std::string maps = l.String("dP_maps");
+    if (maps != "axial+tangential" && maps != "axial") {
+      l.Fail(l.Key("dP_maps"), fmt::format("must be \"axial+tangential\" or \"axial\" (got \"{}\")", maps));
+    }
+    limits->tangential_map = maps == "axial+tangential";
+  }
+  l.RejectUnknown();
+}
+
+// The sweep's size must stay below kMaxCases.
+void CheckCaseCount(Reader& top, const HarnessConfig& h) {
   double noise_cases = 0;
   for (const double n : h.noise_px) noise_cases += n > 0 ? h.noise_draws : 1;
   const double distortions = static_cast<double>(h.seidel_sigma_per_mm2.size() + h.brown_k1.size() + h.brown_k2.size());
@@ -407,6 +399,34 @@ HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string
   if (cases > kMaxCases) {
     top.Fail("(top level)", fmt::format("{:.0f} cases: more than the {:.0f} a sweep may hold", cases, kMaxCases));
   }
+}
+
+}  // namespace
+
+HarnessConfig ParseHarnessConfig(const std::string& json_text, const std::string& origin, const std::string& base_dir) {
+  const json j = util::ParseJsonStrict(json_text, origin);
+  HarnessConfig h;
+  Reader top(j, origin, "");
+  if (top.Has("description")) top.String("description");  // free text for the reader; not part of the identity
+  h.design = ParseDesign(top, base_dir);
+  h.pixel_pitch_um = top.PositiveNumber("pixel_pitch_um", h.pixel_pitch_um);
+  if (top.Has("seed")) {
+    const json& s = top.Get("seed");
+    if (!s.is_number_unsigned())
+      top.Fail("seed", fmt::format("must be a non-negative integer (got {})", util::QuoteJsonValue(s)));
+    h.seed = s.get<std::uint64_t>();
+  }
+  if (top.Has("distortion")) ParseDistortion(top, origin, &h);
+  if (top.Has("assembly")) ParseAssembly(top, &h);
+  if (!h.HasDistortion() && !h.HasAssembly()) {
+    top.Fail("distortion", "missing: give distortion coefficients, assembly errors or both");
+  }
+  h.corneas = ParseCorneas(top, h.design);
+  ParseNoise(top, &h);
+  ParseCalibrationErrors(top, &h);
+  ParseLimits(top, origin, &h.limits);
+  top.RejectUnknown();
+  CheckCaseCount(top, h);
   return h;
 }
 

@@ -52,6 +52,76 @@ std::vector<Eigen::Index> DrawnIndices(const calib::ParameterCovariance& covaria
   return drawn;
 }
 
+// The drawn parameters' joint covariance and its factor L (L L' = S): a draw is mean + L z, z ~ N(0, I).
+// A symmetric eigendecomposition rather than a Cholesky factor, so that a covariance that is only positive
+// semi-definite (rounding in a stored file) still factors; negative rounding-level eigenvalues are clamped to 0.
+Eigen::MatrixXd DrawFactor(const calib::ParameterCovariance& covariance, const std::vector<Eigen::Index>& drawn_index) {
+  const auto m = static_cast<Eigen::Index>(drawn_index.size());
+  Eigen::MatrixXd drawn_covariance(m, m);
+  for (Eigen::Index a = 0; a < m; ++a) {
+    for (Eigen::Index b = 0; b < m; ++b) drawn_covariance(a, b) = covariance.matrix(drawn_index[static_cast<size_t>(a)], drawn_index[static_cast<size_t>(b)]);
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(drawn_covariance);
+  if (eigen.info() != Eigen::Success) throw std::invalid_argument("uncertainty: the covariance cannot be factored");
+  return eigen.eigenvectors() * eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+}
+
+// The nominal analysis (the calibration as it is): every draw moves the spots by micrometres or less from it, so
+// each draw starts from it: its slope-fit factor (no draw factorises the least-squares matrix anew), its surface
+// (the incidence points' refinement begins there, not on the design sphere) and its fit (Gauss-Newton steps).
+// Draws read only the biconic parameters and the power maps: no standard deviations, adequacy or clinical indices.
+std::optional<topo::Analysis> NominalAnalysis(const std::vector<MeasuredImageSpot>& spots,
+                                              const model::CameraModel& calibrated,
+                                              const model::TopographerCamera& camera,
+                                              const std::vector<model::TargetPoint>& targets,
+                                              const model::Config& config) {
+  std::optional<topo::Analysis> nominal;
+  if (const auto on_plane = DetectionPlaneModelOf(calibrated, camera); on_plane.ok) {
+    topo::AnalysisOptions o;
+    o.stddev = o.adequacy = o.clinical = false;
+    try {
+      nominal = topo::AnalyzeSpots(UndistortSpots(spots, on_plane.distortion), targets, config, nullptr, o);
+    } catch (const std::runtime_error&) {
+      // No start then: every draw starts cold (and fails or not on its own).
+    }
+  }
+  return nominal;
+}
+
+using DrawnQuantities = std::array<double, kQuantities.size()>;
+
+// The draws' statistics into u: failures counted, then the mean and expanded uncertainty (k = 2) of each quantity
+// over the draws that reconstructed, summed in draw order.
+void Summarise(const std::vector<std::optional<DrawnQuantities>>& per_draw,
+               const std::vector<int>& per_draw_undistort_failures, int samples, ClinicalUncertainty* u) {
+  for (const int f : per_draw_undistort_failures) {
+    u->undistort_failures += f;
+    u->draws_with_undistort_failures += f > 0;
+  }
+  std::map<std::string, std::vector<double>> draws;
+  for (const auto& v : per_draw) {
+    if (!v) {
+      ++u->failed_samples;
+      continue;
+    }
+    for (size_t q = 0; q < kQuantities.size(); ++q) draws[kQuantities[q]].push_back((*v)[q]);
+  }
+  u->samples = samples - u->failed_samples;
+  if (u->samples < 2 || 2 * u->failed_samples > samples) {
+    throw std::runtime_error(
+        fmt::format("uncertainty: {} of {} draws failed to reconstruct", u->failed_samples, samples));
+  }
+  for (const auto& [name, values] : draws) {
+    double mean = 0;
+    for (double v : values) mean += v;
+    mean /= values.size();
+    double var = 0;
+    for (double v : values) var += (v - mean) * (v - mean);
+    var /= values.size() - 1;
+    u->quantities[name] = {mean, 2.0 * std::sqrt(var)};
+  }
+}
+
 }  // namespace
 
 std::vector<std::string> DistortionParametersToDraw(const calib::ParameterCovariance& covariance) {
@@ -73,36 +143,11 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
   if (u.drawn.empty()) {
     throw std::invalid_argument("uncertainty: the calibration reports no standard deviation for a distortion parameter");
   }
-  // The drawn parameters' joint covariance and its factor L (L L' = S): a draw is mean + L z, z ~ N(0, I).
-  // A symmetric eigendecomposition rather than a Cholesky factor, so that a covariance that is only positive
-  // semi-definite (rounding in a stored file) still factors; negative rounding-level eigenvalues are clamped to 0.
   const auto m = static_cast<Eigen::Index>(drawn_index.size());
-  Eigen::MatrixXd drawn_covariance(m, m);
-  for (Eigen::Index a = 0; a < m; ++a) {
-    for (Eigen::Index b = 0; b < m; ++b) drawn_covariance(a, b) = covariance.matrix(drawn_index[static_cast<size_t>(a)], drawn_index[static_cast<size_t>(b)]);
-  }
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(drawn_covariance);
-  if (eigen.info() != Eigen::Success) throw std::invalid_argument("uncertainty: the covariance cannot be factored");
-  const Eigen::MatrixXd factor = eigen.eigenvectors() * eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+  const Eigen::MatrixXd factor = DrawFactor(covariance, drawn_index);
 
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
-
-  // The nominal analysis (the calibration as it is): every draw moves the spots by micrometres or less from it, so
-  // each draw starts from it: its slope-fit factor (no draw factorises the least-squares matrix anew), its surface
-  // (the incidence points' refinement begins there, not on the design sphere) and its fit (Gauss-Newton steps).
-  // Draws read only the biconic parameters and the power maps: no standard deviations, adequacy or clinical indices.
-  std::optional<topo::Analysis> nominal;
-  {
-    if (const auto on_plane = DetectionPlaneModelOf(calibrated, camera); on_plane.ok) {
-      topo::AnalysisOptions o;
-      o.stddev = o.adequacy = o.clinical = false;
-      try {
-        nominal = topo::AnalyzeSpots(UndistortSpots(spots, on_plane.distortion), design.targets, config, nullptr, o);
-      } catch (const std::runtime_error&) {
-        // No start then: every draw starts cold (and fails or not on its own).
-      }
-    }
-  }
+  const std::optional<topo::Analysis> nominal = NominalAnalysis(spots, calibrated, camera, design.targets, config);
   topo::AnalysisOptions draw_options;
   draw_options.stddev = draw_options.adequacy = draw_options.clinical = false;
   draw_options.start = nominal ? &*nominal : nullptr;
@@ -110,7 +155,7 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
   // Each draw's normals come from its own generator seeded by (seed, draw index) and each draw writes only its own
   // slot, so the draws are the same whatever the number of threads and the statistics (summed in draw order below)
   // are bit-identical.
-  std::vector<std::optional<std::array<double, kQuantities.size()>>> per_draw(static_cast<size_t>(samples));
+  std::vector<std::optional<DrawnQuantities>> per_draw(static_cast<size_t>(samples));
   std::vector<int> per_draw_undistort_failures(static_cast<size_t>(samples), 0);
   util::ParallelFor(static_cast<size_t>(samples), std::max(0, jobs), [&](size_t i) {
     std::seed_seq seq{seed, static_cast<std::uint32_t>(i)};
@@ -128,38 +173,14 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
       const auto undistorted = UndistortSpots(spots, *distortion, &per_draw_undistort_failures[i]);
       const auto a = topo::AnalyzeSpots(undistorted, design.targets, config, nullptr, draw_options);
       const auto& p = a.surface_fit.params;
-      per_draw[i] = std::array<double, kQuantities.size()>{
+      per_draw[i] = DrawnQuantities{
           p.rx_mm, p.ry_mm, p.kx, p.ky, p.alpha_deg, a.power.pv_tangential_D, a.power.pv_axial_D,
           0.5 * (p.rx_mm + p.ry_mm), topo::MeanAxialPowerD(a.power, kCentralPowerRadiusMm)};
     } catch (const std::runtime_error&) {
       // counted as failed below
     }
   });
-  for (const int f : per_draw_undistort_failures) {
-    u.undistort_failures += f;
-    u.draws_with_undistort_failures += f > 0;
-  }
-  std::map<std::string, std::vector<double>> draws;
-  for (const auto& v : per_draw) {
-    if (!v) {
-      ++u.failed_samples;
-      continue;
-    }
-    for (size_t q = 0; q < kQuantities.size(); ++q) draws[kQuantities[q]].push_back((*v)[q]);
-  }
-  u.samples = samples - u.failed_samples;
-  if (u.samples < 2 || 2 * u.failed_samples > samples) {
-    throw std::runtime_error(fmt::format("uncertainty: {} of {} draws failed to reconstruct", u.failed_samples, samples));
-  }
-  for (const auto& [name, values] : draws) {
-    double mean = 0;
-    for (double v : values) mean += v;
-    mean /= values.size();
-    double var = 0;
-    for (double v : values) var += (v - mean) * (v - mean);
-    var /= values.size() - 1;
-    u.quantities[name] = {mean, 2.0 * std::sqrt(var)};
-  }
+  Summarise(per_draw, per_draw_undistort_failures, samples, &u);
   return u;
 }
 

@@ -176,6 +176,191 @@ std::vector<CornerResidualRow> ReadResiduals(const std::string& path) {
   return rows;
 }
 
+// Identity and compatibility first: nothing else is read from a record of another format or version.
+void ReadIdentity(JsonSection& r, UnitRecord* rec) {
+  const std::string format = r.String("format");
+  if (format != kUnitRecordFormat) r.Fail("format", fmt::format("'{}' is not '{}'", format, kUnitRecordFormat));
+  rec->format_version = r.Integer("format_version");
+  if (rec->format_version != kUnitRecordFormatVersion) {
+    r.Fail("format_version", fmt::format("{} is not supported (this reader reads {})", rec->format_version,
+                                         kUnitRecordFormatVersion));
+  }
+  rec->tool_version = r.String("tool_version");
+  if (rec->tool_version != kVersion) {
+    r.Fail("tool_version", fmt::format("the record was written by topocal {}, this is topocal {}: recalculate it "
+                                       "with `topocal unit calibrate`",
+                                       rec->tool_version, kVersion));
+  }
+  if (r.Has("tool_commit")) rec->tool_commit = r.NonEmptyString("tool_commit");  // absent in older records
+  rec->serial = r.NonEmptyString("serial");
+  rec->created_utc = r.NonEmptyString("created_utc");
+}
+
+void ReadSettingsAndInputs(JsonSection& r, UnitRecord* rec) {
+  JsonSection settings = r.Child("settings");
+  rec->settings_model = settings.NonEmptyString("model");
+  rec->settings_single_view = settings.Bool("single_view");
+  rec->settings_fit_centre = settings.Bool("fit_centre");
+  if (settings.Has("sphere_radius_mm")) rec->settings_sphere_radius_mm = settings.Number("sphere_radius_mm");
+  rec->settings_uncertainty_samples = settings.NonNegativeInteger("uncertainty_samples");
+  rec->settings_seed = settings.Integer("seed");
+
+  const std::size_t n_inputs = r.Array("inputs").size();
+  for (std::size_t i = 0; i < n_inputs; ++i) {
+    JsonSection in = r.Element("inputs", i);
+    rec->inputs.push_back({in.NonEmptyString("role"), in.NonEmptyString("path"), Sha256(in, "sha256")});
+  }
+}
+
+// Completeness and integrity: every listed file exists with its digest.
+void ReadAndVerifyFiles(JsonSection& r, const std::string& directory, UnitRecord* rec) {
+  const std::size_t n_files = r.Array("files").size();
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < n_files; ++i) {
+    JsonSection fj = r.Element("files", i);
+    RecordFile f{fj.NonEmptyString("name"), Sha256(fj, "sha256")};
+    if (!IsSafeRelativeName(f.name))
+      fj.Fail(fj.Key("name"), fmt::format("'{}' is not a path inside the record", f.name));
+    if (!names.insert(f.name).second) fj.Fail(fj.Key("name"), fmt::format("'{}' is listed twice", f.name));
+    const std::string path = (fs::path(directory) / f.name).string();
+    if (!fs::is_regular_file(path)) {
+      throw util::InputError(fmt::format("{}: missing (listed in {} files[{}]): the unit record is incomplete", path,
+                                         rec->unit_json_path, i));
+    }
+    const std::string actual = util::Sha256HexOfFile(path);
+    if (actual != f.sha256) {
+      throw util::InputError(
+          fmt::format("{}: SHA-256 {} differs from {} in {} files[{}]: the file was changed after "
+                      "the record was written",
+                      path, actual, f.sha256, rec->unit_json_path, i));
+    }
+    rec->files.push_back(f);
+  }
+  for (const char* required : {kCalibrationYaml, kResidualsCsv}) {
+    if (!names.count(required)) {
+      const std::string path = (fs::path(directory) / required).string();
+      throw util::InputError(fs::exists(path) ? fmt::format("{}: files: '{}' is not listed, so it cannot be verified",
+                                                            rec->unit_json_path, required)
+                                              : fmt::format("{}: missing: the unit record is incomplete", path));
+    }
+  }
+}
+
+void ReadCameraAndCalibration(JsonSection& r, UnitRecord* rec) {
+  JsonSection camera = r.Child("camera");
+  rec->camera_pixel_pitch_um = camera.Number("pixel_pitch_um");
+  rec->camera_width_px = camera.Integer("width_px");
+  rec->camera_height_px = camera.Integer("height_px");
+  rec->camera_a_mm = camera.Number("a_mm");
+
+  JsonSection cal = r.Child("calibration");
+  rec->calibration_model = cal.NonEmptyString("model");
+  rec->calibration_single_view = cal.Bool("single_view");
+  rec->calibration_width_px = cal.Integer("image_width_px");
+  rec->calibration_height_px = cal.Integer("image_height_px");
+  if (rec->calibration_width_px <= 0 || rec->calibration_height_px <= 0) {
+    r.Fail("calibration.image_width_px", "the image size must be positive");
+  }
+  rec->calibration_rms_px = cal.NonNegativeNumber("rms_px");
+  rec->corners_used = cal.NonNegativeInteger("corners_used");
+  rec->outliers = cal.NonNegativeInteger("outliers");
+  const std::size_t n_params = cal.Array("parameters").size();
+  if (n_params == 0) r.Fail("calibration.parameters", "must not be empty");
+  for (std::size_t i = 0; i < n_params; ++i) {
+    JsonSection p = cal.Element("parameters", i);
+    rec->parameters.push_back(
+        {p.NonEmptyString("name"), p.Number("value"), p.NonNegativeNumber("stddev"), p.Bool("fixed")});
+  }
+  if (cal.Has("seidel")) {
+    JsonSection s = cal.Child("seidel");
+    rec->seidel_sigma_per_mm2 = s.Number("sigma_per_mm2");
+    rec->seidel_sigma_stddev_per_mm2 = s.Number("sigma_stddev_per_mm2");
+    rec->seidel_magnification = s.Number("magnification");
+    rec->seidel_focal_mm = s.Number("focal_mm");
+  }
+  if (cal.Has("distortion_field")) {
+    JsonSection df = cal.Child("distortion_field");
+    if (df.Has("field_radius_px")) {
+      rec->field_radius_px = df.Number("field_radius_px");
+      if (*rec->field_radius_px <= 0) df.Fail(df.Key("field_radius_px"), "must be positive");
+    }
+  }
+  const std::size_t n_views = cal.Array("views").size();
+  if (n_views == 0) r.Fail("calibration.views", "must not be empty");
+  for (std::size_t i = 0; i < n_views; ++i) {
+    JsonSection v = cal.Element("views", i);
+    rec->views.push_back({v.String("image"), v.NonNegativeNumber("rms_px"), v.NonNegativeInteger("corners")});
+  }
+}
+
+SphereVerification ReadVerification(JsonSection& r) {
+  JsonSection v = r.Child("verification");
+  SphereVerification s;
+  s.image = v.String("image");
+  s.radius_true_mm = v.Number("radius_true_mm");
+  if (s.radius_true_mm <= 0) v.Fail(v.Key("radius_true_mm"), "must be positive");
+  s.power_true_D = v.Number("power_true_D");
+  s.keratometric_index = v.Number("keratometric_index");
+  s.uncorrected = ReadStage(v, "uncorrected", kSphereStageKeys);
+  s.corrected = ReadStage(v, "corrected", kSphereStageKeys);
+  for (auto [key, count] :
+       {std::pair{"spots_unassigned", &s.spots_unassigned}, std::pair{"spots_missing", &s.spots_missing}}) {
+    if (v.Has(key)) *count = v.NonNegativeInteger(key);
+  }
+  s.uncertainty = ReadUncertainty(v);
+  s.repeatability = ReadRepeatability(v);
+  return s;
+}
+
+DeviceStageRecord ReadDeviceStages(JsonSection& r) {
+  // The device itself comes from device.json (its digest is checked below with every file); unit.json's copy of
+  // the parameters is not trusted for anything the report shows.
+  JsonSection d = r.Child("device");
+  DeviceStageRecord dev;
+  JsonSection paper_dev = d.Child("paper_cornea");
+  for (const char* stage : kThreeWayStages) dev.paper[stage] = ReadStage(paper_dev, stage, kDeviceStageKeys);
+  if (d.Has("held_out_ball")) {
+    JsonSection h = d.Child("held_out_ball");
+    dev.held_out_radius_true_mm = h.Number("radius_true_mm");
+    dev.held_out_power_true_D = h.Number("power_true_D");
+    for (const char* stage : kThreeWayStages) dev.held_out[stage] = ReadStage(h, stage, kDeviceStageKeys);
+  }
+  return dev;
+}
+
+// The files, now known to be the ones the record was written with.
+void LoadListedFiles(JsonSection& r, const std::string& directory, UnitRecord* rec) {
+  rec->calibration_path = (fs::path(directory) / kCalibrationYaml).string();
+  rec->calibration = calib::LoadCalibrationFile(rec->calibration_path);
+  if (rec->calibration.camera.width_px != rec->calibration_width_px ||
+      rec->calibration.camera.height_px != rec->calibration_height_px) {
+    r.Fail("calibration.image_width_px", fmt::format("{} x {} px differs from {} ({} x {} px)",
+                                                     rec->calibration_width_px, rec->calibration_height_px,
+                                                     rec->calibration_path, rec->calibration.camera.width_px,
+                                                     rec->calibration.camera.height_px));
+  }
+  rec->residuals = ReadResiduals((fs::path(directory) / kResidualsCsv).string());
+  if (rec->device) {
+    const auto listed =
+        std::find_if(rec->files.begin(), rec->files.end(), [](const RecordFile& f) { return f.name == "device.json"; });
+    if (listed == rec->files.end()) r.Fail("device", "the record has a device stage but no device.json in files");
+    rec->device->file = model::LoadDevice((fs::path(directory) / "device.json").string());
+  }
+  if (rec->verification) {
+    const auto listed = std::find_if(rec->files.begin(), rec->files.end(),
+                                     [](const RecordFile& f) { return f.name == kSphereSpotsCsv; });
+    if (listed != rec->files.end()) {
+      rec->verification->detected = model::ReadSpotsCsv((fs::path(directory) / kSphereSpotsCsv).string());
+    }
+  }
+  for (const RecordFile& f : rec->files) {
+    const fs::path name(f.name);
+    if (name.parent_path() == "maps" && name.extension() == ".png") {
+      rec->map_png[name.filename().string()] = util::ReadFile((fs::path(directory) / f.name).string());
+    }
+  }
+}
+
 }  // namespace
 
 UnitRecord ReadUnitRecord(const std::string& directory) {
@@ -194,154 +379,17 @@ UnitRecord ReadUnitRecord(const std::string& directory) {
   rec.unit_json_content_sha256 = util::Sha256Hex(root.dump());  // nlohmann's objects keep their keys sorted
   JsonSection r(root, rec.unit_json_path, "");
 
-  // Identity and compatibility first: nothing else is read from a record of another format or version.
-  const std::string format = r.String("format");
-  if (format != kUnitRecordFormat) r.Fail("format", fmt::format("'{}' is not '{}'", format, kUnitRecordFormat));
-  rec.format_version = r.Integer("format_version");
-  if (rec.format_version != kUnitRecordFormatVersion) {
-    r.Fail("format_version", fmt::format("{} is not supported (this reader reads {})", rec.format_version,
-                                         kUnitRecordFormatVersion));
-  }
-  rec.tool_version = r.String("tool_version");
-  if (rec.tool_version != kVersion) {
-    r.Fail("tool_version", fmt::format("the record was written by topocal {}, this is topocal {}: recalculate it "
-                                       "with `topocal unit calibrate`",
-                                       rec.tool_version, kVersion));
-  }
-  if (r.Has("tool_commit")) rec.tool_commit = r.NonEmptyString("tool_commit");  // absent in older records
-  rec.serial = r.NonEmptyString("serial");
-  rec.created_utc = r.NonEmptyString("created_utc");
-
-  JsonSection settings = r.Child("settings");
-  rec.settings_model = settings.NonEmptyString("model");
-  rec.settings_single_view = settings.Bool("single_view");
-  rec.settings_fit_centre = settings.Bool("fit_centre");
-  if (settings.Has("sphere_radius_mm")) rec.settings_sphere_radius_mm = settings.Number("sphere_radius_mm");
-  rec.settings_uncertainty_samples = settings.NonNegativeInteger("uncertainty_samples");
-  rec.settings_seed = settings.Integer("seed");
-
-  const std::size_t n_inputs = r.Array("inputs").size();
-  for (std::size_t i = 0; i < n_inputs; ++i) {
-    JsonSection in = r.Element("inputs", i);
-    rec.inputs.push_back({in.NonEmptyString("role"), in.NonEmptyString("path"), Sha256(in, "sha256")});
-  }
-
-  // Completeness and integrity: every listed file exists with its digest.
-  const std::size_t n_files = r.Array("files").size();
-  std::set<std::string> names;
-  for (std::size_t i = 0; i < n_files; ++i) {
-    JsonSection fj = r.Element("files", i);
-    RecordFile f{fj.NonEmptyString("name"), Sha256(fj, "sha256")};
-    if (!IsSafeRelativeName(f.name))
-      fj.Fail(fj.Key("name"), fmt::format("'{}' is not a path inside the record", f.name));
-    if (!names.insert(f.name).second) fj.Fail(fj.Key("name"), fmt::format("'{}' is listed twice", f.name));
-    const std::string path = (fs::path(directory) / f.name).string();
-    if (!fs::is_regular_file(path)) {
-      throw util::InputError(fmt::format("{}: missing (listed in {} files[{}]): the unit record is incomplete", path,
-                                         rec.unit_json_path, i));
-    }
-    const std::string actual = util::Sha256HexOfFile(path);
-    if (actual != f.sha256) {
-      throw util::InputError(
-          fmt::format("{}: SHA-256 {} differs from {} in {} files[{}]: the file was changed after "
-                      "the record was written",
-                      path, actual, f.sha256, rec.unit_json_path, i));
-    }
-    rec.files.push_back(f);
-  }
-  for (const char* required : {kCalibrationYaml, kResidualsCsv}) {
-    if (!names.count(required)) {
-      const std::string path = (fs::path(directory) / required).string();
-      throw util::InputError(fs::exists(path) ? fmt::format("{}: files: '{}' is not listed, so it cannot be verified",
-                                                            rec.unit_json_path, required)
-                                              : fmt::format("{}: missing: the unit record is incomplete", path));
-    }
-  }
-
-  JsonSection camera = r.Child("camera");
-  rec.camera_pixel_pitch_um = camera.Number("pixel_pitch_um");
-  rec.camera_width_px = camera.Integer("width_px");
-  rec.camera_height_px = camera.Integer("height_px");
-  rec.camera_a_mm = camera.Number("a_mm");
-
-  JsonSection cal = r.Child("calibration");
-  rec.calibration_model = cal.NonEmptyString("model");
-  rec.calibration_single_view = cal.Bool("single_view");
-  rec.calibration_width_px = cal.Integer("image_width_px");
-  rec.calibration_height_px = cal.Integer("image_height_px");
-  if (rec.calibration_width_px <= 0 || rec.calibration_height_px <= 0) {
-    r.Fail("calibration.image_width_px", "the image size must be positive");
-  }
-  rec.calibration_rms_px = cal.NonNegativeNumber("rms_px");
-  rec.corners_used = cal.NonNegativeInteger("corners_used");
-  rec.outliers = cal.NonNegativeInteger("outliers");
-  const std::size_t n_params = cal.Array("parameters").size();
-  if (n_params == 0) r.Fail("calibration.parameters", "must not be empty");
-  for (std::size_t i = 0; i < n_params; ++i) {
-    JsonSection p = cal.Element("parameters", i);
-    rec.parameters.push_back(
-        {p.NonEmptyString("name"), p.Number("value"), p.NonNegativeNumber("stddev"), p.Bool("fixed")});
-  }
-  if (cal.Has("seidel")) {
-    JsonSection s = cal.Child("seidel");
-    rec.seidel_sigma_per_mm2 = s.Number("sigma_per_mm2");
-    rec.seidel_sigma_stddev_per_mm2 = s.Number("sigma_stddev_per_mm2");
-    rec.seidel_magnification = s.Number("magnification");
-    rec.seidel_focal_mm = s.Number("focal_mm");
-  }
-  if (cal.Has("distortion_field")) {
-    JsonSection df = cal.Child("distortion_field");
-    if (df.Has("field_radius_px")) {
-      rec.field_radius_px = df.Number("field_radius_px");
-      if (*rec.field_radius_px <= 0) df.Fail(df.Key("field_radius_px"), "must be positive");
-    }
-  }
-  const std::size_t n_views = cal.Array("views").size();
-  if (n_views == 0) r.Fail("calibration.views", "must not be empty");
-  for (std::size_t i = 0; i < n_views; ++i) {
-    JsonSection v = cal.Element("views", i);
-    rec.views.push_back({v.String("image"), v.NonNegativeNumber("rms_px"), v.NonNegativeInteger("corners")});
-  }
-
-  if (r.Has("verification")) {
-    JsonSection v = r.Child("verification");
-    SphereVerification s;
-    s.image = v.String("image");
-    s.radius_true_mm = v.Number("radius_true_mm");
-    if (s.radius_true_mm <= 0) v.Fail(v.Key("radius_true_mm"), "must be positive");
-    s.power_true_D = v.Number("power_true_D");
-    s.keratometric_index = v.Number("keratometric_index");
-    s.uncorrected = ReadStage(v, "uncorrected", kSphereStageKeys);
-    s.corrected = ReadStage(v, "corrected", kSphereStageKeys);
-    for (auto [key, count] :
-         {std::pair{"spots_unassigned", &s.spots_unassigned}, std::pair{"spots_missing", &s.spots_missing}}) {
-      if (v.Has(key)) *count = v.NonNegativeInteger(key);
-    }
-    s.uncertainty = ReadUncertainty(v);
-    s.repeatability = ReadRepeatability(v);
-    rec.verification = std::move(s);
-  }
+  ReadIdentity(r, &rec);
+  ReadSettingsAndInputs(r, &rec);
+  ReadAndVerifyFiles(r, directory, &rec);
+  ReadCameraAndCalibration(r, &rec);
+  if (r.Has("verification")) rec.verification = ReadVerification(r);
   JsonSection paper = r.Child("paper_cornea");
   rec.paper.truth = ReadStage(paper, "truth", kPaperTruthKeys);
   rec.paper.uncorrected = ReadStage(paper, "uncorrected", kPaperStageKeys);
   rec.paper.corrected = ReadStage(paper, "corrected", kPaperStageKeys);
   rec.paper.uncertainty = ReadUncertainty(paper);
-
-  if (r.Has("device")) {
-    // The device itself comes from device.json (its digest is checked below with every file); unit.json's copy of
-    // the parameters is not trusted for anything the report shows.
-    JsonSection d = r.Child("device");
-    DeviceStageRecord dev;
-    JsonSection paper_dev = d.Child("paper_cornea");
-    for (const char* stage : kThreeWayStages) dev.paper[stage] = ReadStage(paper_dev, stage, kDeviceStageKeys);
-    if (d.Has("held_out_ball")) {
-      JsonSection h = d.Child("held_out_ball");
-      dev.held_out_radius_true_mm = h.Number("radius_true_mm");
-      dev.held_out_power_true_D = h.Number("power_true_D");
-      for (const char* stage : kThreeWayStages) dev.held_out[stage] = ReadStage(h, stage, kDeviceStageKeys);
-    }
-    rec.device = std::move(dev);
-  }
+  if (r.Has("device")) rec.device = ReadDeviceStages(r);
 
   // The design and camera the record was computed with (canonical form), for the report's recomputation.
   if (r.Has("configuration")) {
@@ -350,36 +398,7 @@ UnitRecord ReadUnitRecord(const std::string& directory) {
     rec.config = model::ParseConfig(c.Child("design").raw().dump(), origin + ".design");
     rec.topographer_camera = model::ParseTopographerCamera(c.Child("camera").raw().dump(), origin + ".camera");
   }
-
-  // The files, now known to be the ones the record was written with.
-  rec.calibration_path = (fs::path(directory) / kCalibrationYaml).string();
-  rec.calibration = calib::LoadCalibrationFile(rec.calibration_path);
-  if (rec.calibration.camera.width_px != rec.calibration_width_px ||
-      rec.calibration.camera.height_px != rec.calibration_height_px) {
-    r.Fail("calibration.image_width_px", fmt::format("{} x {} px differs from {} ({} x {} px)",
-                                                     rec.calibration_width_px, rec.calibration_height_px,
-                                                     rec.calibration_path, rec.calibration.camera.width_px,
-                                                     rec.calibration.camera.height_px));
-  }
-  rec.residuals = ReadResiduals((fs::path(directory) / kResidualsCsv).string());
-  if (rec.device) {
-    const auto listed = std::find_if(rec.files.begin(), rec.files.end(), [](const RecordFile& f) { return f.name == "device.json"; });
-    if (listed == rec.files.end()) r.Fail("device", "the record has a device stage but no device.json in files");
-    rec.device->file = model::LoadDevice((fs::path(directory) / "device.json").string());
-  }
-  if (rec.verification) {
-    const auto listed =
-        std::find_if(rec.files.begin(), rec.files.end(), [](const RecordFile& f) { return f.name == kSphereSpotsCsv; });
-    if (listed != rec.files.end()) {
-      rec.verification->detected = model::ReadSpotsCsv((fs::path(directory) / kSphereSpotsCsv).string());
-    }
-  }
-  for (const RecordFile& f : rec.files) {
-    const fs::path name(f.name);
-    if (name.parent_path() == "maps" && name.extension() == ".png") {
-      rec.map_png[name.filename().string()] = util::ReadFile((fs::path(directory) / f.name).string());
-    }
-  }
+  LoadListedFiles(r, directory, &rec);
   return rec;
 }
 

@@ -94,6 +94,79 @@ PowerMaps IdealPowerMaps(const model::BiconicParams& cornea, const model::Recons
   return maps;
 }
 
+namespace {
+
+BiconicFitOptions SurfaceFitOptions(const model::Config& config, const AnalysisOptions& options) {
+  BiconicFitOptions fit_options;
+  fit_options.mode = BiconicFitModeFromName(config.reconstruction.biconic_fit);
+  fit_options.stddev = options.stddev;
+  if (options.start && options.start->surface_fit.ok && options.start->surface_fit.mode == fit_options.mode) {
+    fit_options.start = &options.start->surface_fit.params;
+  } else if (!options.start) {
+    fit_options.start = options.fit_start;
+  }
+  return fit_options;
+}
+
+// The shape the maps describe: Psi without piston and tilts and the spline residual (surface_model "spline") with
+// its own tangent plane at the origin removed, like Psi's.
+struct MapShape {
+  explicit MapShape(const Reconstruction& r) : shape(r.surface), spline(r.residual) {
+    // Sec. 4.2: piston B_1 and tilts B_2, B_3 do not affect the shape and are zeroed before the maps.
+    shape.coefficients().head(3).setZero();
+    if (!spline.empty()) {
+      double z, zxx, zxy, zyy;
+      spline.Derivatives(0.0, 0.0, &z, &spline_tilt.x(), &spline_tilt.y(), &zxx, &zxy, &zyy);
+    }
+  }
+  bool Derivatives(double x, double y, model::SurfaceDerivatives* d) const {
+    shape.Derivatives(x, y, &d->z, &d->zx, &d->zy, &d->zxx, &d->zxy, &d->zyy);
+    if (spline.empty()) return true;
+    double s, sx, sy, sxx, sxy, syy;
+    spline.Derivatives(x, y, &s, &sx, &sy, &sxx, &sxy, &syy);
+    d->z += s - spline_tilt.dot(Eigen::Vector2d(x, y));
+    d->zx += sx - spline_tilt.x();
+    d->zy += sy - spline_tilt.y();
+    d->zxx += sxx;
+    d->zxy += sxy;
+    d->zyy += syy;
+    return true;
+  }
+
+  TaylorPolynomial shape;
+  const BSplineSurface& spline;
+  Eigen::Vector2d spline_tilt = Eigen::Vector2d::Zero();
+};
+
+// The analysis's warnings: maps beyond the disc the data support and (with options.adequacy) a surface model that
+// does not represent the data.
+void AddWarnings(const model::Config& config, const AnalysisOptions& options, Analysis* a) {
+  if (a->maps_extrapolated) {
+    a->warnings.push_back(fmt::format("the power maps reach {:.2f} mm but the data cover every direction only to "
+                                      "{:.2f} mm: beyond, the maps are extrapolated (clinical indices use the "
+                                      "supported disc only)", a->power.radius_mm, a->supported_radius_mm));
+  }
+  const auto& r = a->reconstruction;
+  // What to try: the local model, when it was not used.
+  const std::string hint = r.surface_model == "polynomial" ? "; try --surface-model auto (or spline)" : "";
+  if (options.adequacy && r.adequacy_ratio > kAdequacyWarningRatio) {
+    a->warnings.push_back(
+        fmt::format("the surface model does not represent the data: slope residual {:.3g} is {:.1f} x "
+                    "the {:.3g} expected from {:.3g} um spot-centre noise{}",
+                    r.rms_slope_residual, r.adequacy_ratio, r.expected_slope_noise,
+                    config.reconstruction.spot_uncertainty_um, hint));
+  }
+  if (options.adequacy && r.structured_residual_ratio > kStructuredResidualWarningRatio) {
+    a->warnings.push_back(fmt::format(
+        "the surface model misses a local shape: neighbouring spots share their slope "
+        "residual (correlation {:.2f}; shared part {:.2f} x the expected noise, "
+        "warning above {:.1f}){}",
+        r.residual_neighbour_correlation, r.structured_residual_ratio, kStructuredResidualWarningRatio, hint));
+  }
+}
+
+}  // namespace
+
 Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
                       const model::Config& config, const model::BiconicParams* truth,
                       const AnalysisOptions& options) {
@@ -106,19 +179,8 @@ Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<
   std::vector<Eigen::Vector3d> cloud;
   cloud.reserve(a.reconstruction.points.size());
   for (const auto& p : a.reconstruction.points) cloud.push_back(p.point_mm);
-  BiconicFitOptions fit_options;
-  fit_options.mode = BiconicFitModeFromName(config.reconstruction.biconic_fit);
-  fit_options.stddev = options.stddev;
-  if (options.start && options.start->surface_fit.ok && options.start->surface_fit.mode == fit_options.mode) {
-    fit_options.start = &options.start->surface_fit.params;
-  } else if (!options.start) {
-    fit_options.start = options.fit_start;
-  }
-  a.surface_fit = FitBiconic(cloud, fit_options);
+  a.surface_fit = FitBiconic(cloud, SurfaceFitOptions(config, options));
   if (!a.surface_fit.ok) throw std::runtime_error(fmt::format("biconic fit failed: {}", a.surface_fit.message));
-  // Sec. 4.2: piston B_1 and tilts B_2, B_3 do not affect the shape and are zeroed before the maps.
-  TaylorPolynomial shape = a.reconstruction.surface;
-  shape.coefficients().head(3).setZero();
   // The maps use the configured radius for every input, as the paper's comparisons across sigma need; how far
   // the reconstructed points reach is reported beside it (beyond that radius Psi is extrapolated).
   const PowerMapOptions map_options = PowerMapOptionsFrom(config.reconstruction);
@@ -127,54 +189,17 @@ Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<
     a.covered_radius_mm = std::max(a.covered_radius_mm, p.point_mm.head<2>().norm());
   }
   std::string why;
-  // The spline residual (surface_model "spline") with its own tangent plane at the origin removed, like Psi's.
-  const BSplineSurface& spline = a.reconstruction.residual;
-  Eigen::Vector2d spline_tilt = Eigen::Vector2d::Zero();
-  if (!spline.empty()) {
-    double z, zxx, zxy, zyy;
-    spline.Derivatives(0.0, 0.0, &z, &spline_tilt.x(), &spline_tilt.y(), &zxx, &zxy, &zyy);
-  }
+  const MapShape map_shape(a.reconstruction);
   const SurfaceEvaluator shape_eval = [&](double x, double y, model::SurfaceDerivatives* d) {
-    shape.Derivatives(x, y, &d->z, &d->zx, &d->zy, &d->zxx, &d->zxy, &d->zyy);
-    if (spline.empty()) return true;
-    double s, sx, sy, sxx, sxy, syy;
-    spline.Derivatives(x, y, &s, &sx, &sy, &sxx, &sxy, &syy);
-    d->z += s - spline_tilt.dot(Eigen::Vector2d(x, y));
-    d->zx += sx - spline_tilt.x();
-    d->zy += sy - spline_tilt.y();
-    d->zxx += sxx;
-    d->zxy += sxy;
-    d->zyy += syy;
-    return true;
+    return map_shape.Derivatives(x, y, d);
   };
-  const bool maps_ok = spline.empty() ? ComputePowerMaps(shape, map_options, &a.power, &why)
-                                      : ComputePowerMaps(shape_eval, map_options, &a.power, &why);
+  const bool maps_ok = map_shape.spline.empty() ? ComputePowerMaps(map_shape.shape, map_options, &a.power, &why)
+                                                : ComputePowerMaps(shape_eval, map_options, &a.power, &why);
   if (!maps_ok) throw std::runtime_error(fmt::format("power maps failed: {}", why));
   if (truth) a.errors = HeightErrors(a.reconstruction.points, model::Biconic{*truth});
   a.supported_radius_mm = SupportedRadiusMm(a.reconstruction.points);
   a.maps_extrapolated = a.power.radius_mm > a.supported_radius_mm;
-  if (a.maps_extrapolated) {
-    a.warnings.push_back(fmt::format("the power maps reach {:.2f} mm but the data cover every direction only to "
-                                     "{:.2f} mm: beyond, the maps are extrapolated (clinical indices use the "
-                                     "supported disc only)", a.power.radius_mm, a.supported_radius_mm));
-  }
-  const auto& r = a.reconstruction;
-  // What to try: the local model, when it was not used.
-  const std::string hint = r.surface_model == "polynomial" ? "; try --surface-model auto (or spline)" : "";
-  if (options.adequacy && r.adequacy_ratio > kAdequacyWarningRatio) {
-    a.warnings.push_back(
-        fmt::format("the surface model does not represent the data: slope residual {:.3g} is {:.1f} x "
-                    "the {:.3g} expected from {:.3g} um spot-centre noise{}",
-                    r.rms_slope_residual, r.adequacy_ratio, r.expected_slope_noise,
-                    config.reconstruction.spot_uncertainty_um, hint));
-  }
-  if (options.adequacy && r.structured_residual_ratio > kStructuredResidualWarningRatio) {
-    a.warnings.push_back(fmt::format(
-        "the surface model misses a local shape: neighbouring spots share their slope "
-        "residual (correlation {:.2f}; shared part {:.2f} x the expected noise, "
-        "warning above {:.1f}){}",
-        r.residual_neighbour_correlation, r.structured_residual_ratio, kStructuredResidualWarningRatio, hint));
-  }
+  AddWarnings(config, options, &a);
   if (options.clinical) {
     a.clinical_ok = ComputeClinicalIndices(a.power, shape_eval, a.supported_radius_mm, ClinicalOptions{}, &a.clinical,
                                            &a.clinical_message);

@@ -274,6 +274,35 @@ BiconicFit SphereAsBiconic(const std::vector<Eigen::Vector3d>& points_mm, const 
   return fit;
 }
 
+// The biconic's standard deviations from the covariance of the kernel's parameters q (ambient space, scaled by the
+// residual variance); the apex's by first-order propagation.
+void StddevFromCovariance(const Eigen::Matrix<double, K::kNumParams, K::kNumParams>& cov, const double* q,
+                          BiconicStdDev* stddev) {
+  const auto sd = [&](int i) { return std::sqrt(std::max(0.0, cov(i, i))); };
+  BiconicStdDev& s = *stddev;
+  s.rx_mm = sd(K::kCx) / (q[K::kCx] * q[K::kCx]);
+  s.ry_mm = sd(K::kCy) / (q[K::kCy] * q[K::kCy]);
+  s.kx = sd(K::kKx);
+  s.ky = sd(K::kKy);
+  s.alpha_deg = sd(K::kAlpha) * 180.0 / M_PI;
+  s.z0_mm = sd(K::kZ0);
+  s.x0_mm = sd(K::kX0);
+  s.y0_mm = sd(K::kY0);
+  s.tilt_x_deg = sd(K::kTiltX) * 180.0 / M_PI;
+  s.tilt_y_deg = sd(K::kTiltY) * 180.0 / M_PI;
+  // apex = Rot(-alpha) (x0, y0): first-order propagation through (alpha, x0, y0).
+  const double ca = std::cos(q[K::kAlpha]), sa = std::sin(q[K::kAlpha]);
+  Eigen::Matrix<double, 2, 3> J;
+  J << -sa * q[K::kX0] - ca * q[K::kY0], ca, -sa, ca * q[K::kX0] - sa * q[K::kY0], sa, ca;
+  Eigen::Matrix3d c3;
+  const int idx[3] = {K::kAlpha, K::kX0, K::kY0};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) c3(i, j) = cov(idx[i], idx[j]);
+  const Eigen::Matrix2d ca2 = J * c3 * J.transpose();
+  s.apex_x_mm = std::sqrt(std::max(0.0, ca2(0, 0)));
+  s.apex_y_mm = std::sqrt(std::max(0.0, ca2(1, 1)));
+}
+
 }  // namespace
 
 BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const BiconicFitOptions& options) {
@@ -318,29 +347,7 @@ BiconicFit FitBiconic(const std::vector<Eigen::Vector3d>& points_mm, const Bicon
   if (options.stddev && FitCovariance(*residuals, q, free_apex, &cov)) {
     const int dof = std::max(1, fit.points - free_params);
     cov *= ssr / dof;
-    const auto sd = [&](int i) { return std::sqrt(std::max(0.0, cov(i, i))); };
-    auto& s = fit.stddev;
-    s.rx_mm = sd(K::kCx) / (q[K::kCx] * q[K::kCx]);
-    s.ry_mm = sd(K::kCy) / (q[K::kCy] * q[K::kCy]);
-    s.kx = sd(K::kKx);
-    s.ky = sd(K::kKy);
-    s.alpha_deg = sd(K::kAlpha) * 180.0 / M_PI;
-    s.z0_mm = sd(K::kZ0);
-    s.x0_mm = sd(K::kX0);
-    s.y0_mm = sd(K::kY0);
-    s.tilt_x_deg = sd(K::kTiltX) * 180.0 / M_PI;
-    s.tilt_y_deg = sd(K::kTiltY) * 180.0 / M_PI;
-    // apex = Rot(-alpha) (x0, y0): first-order propagation through (alpha, x0, y0).
-    const double ca = std::cos(q[K::kAlpha]), sa = std::sin(q[K::kAlpha]);
-    Eigen::Matrix<double, 2, 3> J;
-    J << -sa * q[K::kX0] - ca * q[K::kY0], ca, -sa, ca * q[K::kX0] - sa * q[K::kY0], sa, ca;
-    Eigen::Matrix3d c3;
-    const int idx[3] = {K::kAlpha, K::kX0, K::kY0};
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) c3(i, j) = cov(idx[i], idx[j]);
-    const Eigen::Matrix2d ca2 = J * c3 * J.transpose();
-    s.apex_x_mm = std::sqrt(std::max(0.0, ca2(0, 0)));
-    s.apex_y_mm = std::sqrt(std::max(0.0, ca2(1, 1)));
+    StddevFromCovariance(cov, q, &fit.stddev);
     fit.stddev_ok = true;
   }
   const bool swapped = p.rx_mm < p.ry_mm;

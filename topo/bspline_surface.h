@@ -111,6 +111,19 @@ class SplineSlopeFitter {
   int analyses_ = 0;
   int factorisations_ = 0;
 
+  // Fit's steps.
+  struct Observations;  // the points' gradient stencils, their slopes and the unknowns (topo/bspline_surface.cc)
+  // The pattern of M for these unknowns (index: the unknown of each grid coefficient, -1 for none), the penalty on
+  // it and the places of its diagonal.
+  void BuildPattern(const std::vector<int>& index, int side, int unknowns, int penalty_order);
+  // A^T A into ata_values_; returns A^T b.
+  Eigen::VectorXd AssembleNormalEquations(const Observations& obs);
+  // Assembles M(lam) = A^T A + lam P + ridge I, factorises it into solvers_[slot] and solves for c.
+  bool SolveAt(int slot, double lam, double ridge, const Eigen::VectorXd& Atb, Eigen::VectorXd* c);
+  // lambda by REML (the walk over the grid lambda / scale): sets fit->lambda, *c and best_; false if none holds.
+  bool ChooseLambdaByReml(const Observations& obs, const Eigen::VectorXd& Atb, double scale, double ridge,
+                          const SplineFitOptions& options, SplineFit* fit, Eigen::VectorXd* c);
+
  public:
   int analyses() const { return analyses_; }              // patterns built so far (diagnostics, tests)
   int factorisations() const { return factorisations_; }  // numeric factorisations so far (diagnostics, tests)
