@@ -153,6 +153,7 @@ Count ReferenceCount(const RecallView& view) {
     zarray_get(detections.get(), i, &det);
     const int index = det->id - grid.first_tag_id;
     std::map<int, Eigen::Vector2d> corners;
+    // libapriltag samples pixel (x, y) at (x + 0.5, y + 0.5): OpenCV = libapriltag - 0.5.
     for (int k = 0; k < 4; ++k) corners[k] = Eigen::Vector2d(det->p[k][0] - 0.5, det->p[k][1] - 0.5);
     const bool right = index >= 0 && index < grid.NumTags() && TagAtItsTruth(view, index, corners);
     ++(right ? count.tags : count.wrong);
