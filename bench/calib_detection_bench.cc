@@ -2,7 +2,10 @@
 // Run by hand: build-*/bench/bench_calib_detection
 #include <benchmark/benchmark.h>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+
+#include "calib/apriltag_raii.h"
 
 #include "calib/detect.h"
 #include "calib/render_target.h"
@@ -29,6 +32,10 @@ TargetDescription Board() {
 TargetDescription Grid() {
   return ParseTargetDescription("target_type: aprilgrid\ntagCols: 6\ntagRows: 5\ntagSize: 0.03\ntagSpacing: 0.3\n",
                                 "g");  // Kalibr's layout (aruco + saddle fit)
+}
+TargetDescription KalibrGrid6x6() {
+  return ParseTargetDescription("target_type: aprilgrid\ntagCols: 6\ntagRows: 6\ntagSize: 0.03\ntagSpacing: 0.3\n",
+                                "k66");
 }
 TargetDescription GridOneCell() {
   return ParseTargetDescription(
@@ -97,6 +104,68 @@ void BM_DetectAprilGridOneCell(benchmark::State& state) {
 }
 // 0 = edge-model refinement, 2 = libapriltag's corners alone.
 BENCHMARK(BM_DetectAprilGridOneCell)->Arg(0)->Arg(2)->Unit(benchmark::kMillisecond);
+
+// A Kalibr 6 x 6 grid as a phone stores it (tests/calib/kalibr_grid_recall_test.cc): tags of ~30 px tilted 30
+// degrees, blur 1 px, noise 2, gamma-encoded, JPEG quality 50. topocal's whole detection (aruco + libapriltag,
+// saddle fit) against libapriltag with the 2-cell-border family alone, on the same view in the same run.
+const cv::Mat& KalibrJpegView() {
+  static const cv::Mat view = [] {
+    const auto target = KalibrGrid6x6();
+    RenderOptions options;
+    options.noise_grey = 2.0;
+    const auto render = RenderTarget(target, Camera(), PoseFacingTarget(target, 600.0, 30.0, 0.0, 20.0), options);
+    cv::Mat encoded;
+    cv::pow(render->irradiance / 255.0, 1.0 / 2.2, encoded);
+    std::vector<uchar> jpeg;
+    cv::imencode(".jpg", AddSensorNoise(encoded * 255.0, options.noise_grey, options.seed), jpeg,
+                 {cv::IMWRITE_JPEG_QUALITY, 50});
+    return cv::imdecode(jpeg, cv::IMREAD_GRAYSCALE);
+  }();
+  return view;
+}
+
+void BM_DetectKalibrGridJpeg(benchmark::State& state) {
+  const auto target = KalibrGrid6x6();
+  DetectionOptions options;
+  options.refinement = static_cast<CornerRefinement>(state.range(0));
+  // Outside the timing: the render, and the per-thread libapriltag table the first detection builds (timed below).
+  int tags = DetectTargetDetailed(target, KalibrJpegView(), options).tags_detected;
+  for (auto _ : state) tags = DetectTargetDetailed(target, KalibrJpegView(), options).tags_detected;
+  state.counters["tags"] = tags;
+  state.SetLabel(state.range(0) == 0 ? "topocal: aruco + libapriltag, saddle fit" : "topocal: searches alone");
+}
+// 0 = saddle fit, 2 = the two searches' corners alone.
+BENCHMARK(BM_DetectKalibrGridJpeg)->Arg(0)->Arg(2)->Unit(benchmark::kMillisecond);
+
+void BM_LibapriltagKalibrFamilyJpeg(benchmark::State& state) {
+  // The detector and its 2-bit decoding table are built once, outside the timing, as topocal keeps them per thread.
+  const auto family = apriltag_raii::MakeKalibrTag36h11();
+  const apriltag_raii::Detector detector(apriltag_detector_create());
+  apriltag_detector_add_family_bits(detector.get(), family.get(), 2);
+  detector->quad_decimate = 1.0f;
+  detector->refine_edges = true;
+  detector->nthreads = 1;
+  cv::Mat copy = KalibrJpegView().clone();
+  image_u8_t image{copy.cols, copy.rows, static_cast<int32_t>(copy.step[0]), copy.data};
+  int tags = 0;
+  for (auto _ : state) {
+    const apriltag_raii::Detections detections(apriltag_detector_detect(detector.get(), &image));
+    tags = zarray_size(detections.get());
+  }
+  state.counters["tags"] = tags;
+  state.SetLabel("libapriltag, tag36h11 with a 2-cell border, quad_decimate 1");
+}
+BENCHMARK(BM_LibapriltagKalibrFamilyJpeg)->Unit(benchmark::kMillisecond);
+
+void BM_LibapriltagKalibrFamilyTable(benchmark::State& state) {
+  for (auto _ : state) {
+    const auto family = apriltag_raii::MakeKalibrTag36h11();
+    const apriltag_raii::Detector detector(apriltag_detector_create());
+    apriltag_detector_add_family_bits(detector.get(), family.get(), static_cast<int>(state.range(0)));
+  }
+  state.SetLabel("building libapriltag's decoding table for N corrected bits (once per thread in topocal)");
+}
+BENCHMARK(BM_LibapriltagKalibrFamilyTable)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
 // A unit's target image: data/target-topographer.yaml (13 x 13 inner corners of 0.9 mm) at 70 mm on the full
 // 4000 x 3000 sensor (a = 5.2 mm, 1.12 um pitch; README's demo), with OpenCV's detectors on the same image as peers.

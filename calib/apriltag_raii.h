@@ -1,6 +1,7 @@
 #pragma once
-// RAII ownership of libapriltag's C objects (private to calib/: include only from .cc files; apriltag is a PRIVATE
-// dependency of topocal::calib). Every object libapriltag allocates is freed by its own destroy function.
+// RAII ownership of libapriltag's C objects (private to calib/ and the programs that measure it against libapriltag:
+// include only from .cc files; apriltag is a PRIVATE dependency of topocal::calib). Every object libapriltag
+// allocates is freed by its own destroy function.
 #include <cstdlib>
 #include <memory>
 #include <vector>
@@ -39,6 +40,25 @@ using Detections = std::unique_ptr<zarray_t, DetectionsDeleter>;
 using Image = std::unique_ptr<image_u8_t, ImageDeleter>;
 
 inline Tag36h11Family MakeTag36h11() { return Tag36h11Family(tag36h11_create()); }
+
+// Kalibr prints the tag36h11 codes inside a 2-cell black border (calib/target.h). libapriltag's decoder takes the
+// layout from the family struct, not from code: the quad's corners are (0, 0) and (width_at_border,
+// width_at_border) in bit cells, it learns black and white from the cells half a cell inside and outside the quad's
+// edge, and reads bit i at the centre of cell (bit_x[i], bit_y[i]); total_width (the tag with its white ring) sizes
+// the grid of bit values it sharpens. So the same codes behind one more black ring are a fresh tag36h11 instance
+// with width_at_border 8 -> 10, total_width 10 -> 12 and every bit one cell further in. The arrays are this
+// instance's own (tag36h11_create allocates them), and tag36h11_destroy frees them as usual.
+inline Tag36h11Family MakeKalibrTag36h11() {
+  Tag36h11Family family(tag36h11_create());
+  if (!family) return family;
+  family->width_at_border += 2;
+  family->total_width += 2;
+  for (uint32_t i = 0; i < family->nbits; ++i) {
+    ++family->bit_x[i];
+    ++family->bit_y[i];
+  }
+  return family;
+}
 
 // The bitmap of one code without libapriltag's outer white ring: width_at_border^2 cells, row-major, y down,
 // 1 = black (the outermost ring is the black border).

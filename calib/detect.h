@@ -7,10 +7,11 @@
 //
 // Checkerboards: OpenCV finds the board (cv::findChessboardCornersSB, then cv::findChessboardCorners as fallback),
 // and topocal refines every corner with a saddle-point fit (calib/corner_refinement.h); the whole board must be
-// visible. AprilTag grids in Kalibr's layout (tagBorderBits 2, the default): OpenCV aruco finds the tags, each tag
-// corner is refined as an X-junction (calib/kalibr_grid_detector.h). 1-cell-border grids: libapriltag 3 finds
-// tag36h11 tags; tags with hamming distance > max_hamming, a decision margin below min_decision_margin, or an id
-// not on the grid are dropped; each tag's corners are refined by fitting its four edges. Partial views keep their
+// visible. AprilTag grids in Kalibr's layout (tagBorderBits 2, the default): OpenCV aruco and libapriltag (its
+// tag36h11 codes behind a 2-cell border) both search, each tag corner is refined as an X-junction
+// (calib/kalibr_grid_detector.h). 1-cell-border grids: libapriltag 3 finds tag36h11 tags; tags with hamming
+// distance > max_hamming, a decision margin below min_decision_margin, or an id not on the grid are dropped; each
+// tag's corners are refined by fitting its four edges. Partial views keep their
 // corner ids (4 * (tag id - firstTagId) + k); every dropped tag or corner has a line in DetectionResult::reasons.
 // All pixel coordinates follow OpenCV's convention (calib/observations.h); libapriltag's are converted.
 #include <functional>

@@ -1,10 +1,15 @@
 #pragma once
 // AprilTag grids as Kalibr prints them (calib/target.h: tag36h11 inside a 2-cell black border, black squares in
-// the gap crossings): OpenCV's contrib aruco finds the tags, topocal refines every tag corner as the X-junction it is.
+// the gap crossings): two searches find the tags, topocal refines every tag corner as the X-junction it is.
 //
-// Why aruco. libapriltag 3.3 (Debian) decodes only its own 1-cell-border layout: 0 tags on both real Kalibr photos in
-// data/. OpenCV 4.6's aruco has the same tag36h11 codes (DICT_APRILTAG_36h11) and a `markerBorderBits` parameter:
-// with 2 it finds 66/66 and 36/36 tags on them (docs/calibration-targets.md), so no tag family is written by hand.
+// Two searches, one per tag id. OpenCV 4.6's contrib aruco has the tag36h11 codes (DICT_APRILTAG_36h11) and a
+// `markerBorderBits` parameter; libapriltag 3.3 reads the same codes behind a 2-cell border once its family's layout
+// is widened (calib/apriltag_raii.h: MakeKalibrTag36h11). Neither is enough alone: on gamma-encoded, JPEG-compressed
+// views with tags of 20-42 px aruco finds 29 % of what libapriltag finds; on linear images, where a blurred tag
+// corner sits exactly at mid-grey, libapriltag's threshold joins tags to their corner squares and finds ~10 % of the
+// tags, aruco's 2x-upsampled search ~45 % (tests/calib/kalibr_grid_recall_test.cc; docs/calibration-targets.md).
+// A tag found by both is kept once (aruco's corners); the same id at two places stays twice and is dropped as seen
+// twice.
 //
 // Corner numbering. aruco's corners 0..3 of a tag are, for libapriltag's upright tag (the way Kalibr prints it),
 // bottom-right, bottom-left, top-left, top-right; topocal's k (calib/target.h) is libapriltag's p[k]:
