@@ -1,4 +1,5 @@
-// Detection speed: rendering a 640 x 480 view, and detecting checkerboard / AprilTag grid corners in it.
+// Detection speed: rendering a 640 x 480 view and the unit's 4000 x 3000 view (with an OpenCV peer), and detecting
+// checkerboard / AprilTag grid corners in them.
 // Run by hand: build-*/bench/bench_calib_detection
 #include <benchmark/benchmark.h>
 #include <opencv2/calib3d.hpp>
@@ -186,6 +187,93 @@ const RenderedView& UnitView() {
   }();
   return view;
 }
+
+// The README's unit view, rendered as `topocal render-target` does (supersampling 4, blur 1 px, noise 1 grey level;
+// the paper's sigma = 6.3e-5, k1 = -6.2, folds 718 px from the centre). Arg: threads (0 = every core). Wall time.
+model::CameraModel UnitCamera() {
+  model::CameraModel camera;
+  camera.width_px = 4000;
+  camera.height_px = 3000;
+  camera.fx_px = camera.fy_px = 5.2 / 1.12e-3;
+  camera.cx_px = 1999.5;
+  camera.cy_px = 1499.5;
+  camera.dist = {model::SeidelSigmaToBrownK1(6.3e-5, -0.065, 5.2), 0.0, 0.0, 0.0, 0.0};
+  return camera;
+}
+
+void BM_RenderUnitTarget(benchmark::State& state) {
+  const auto target = LoadTargetDescription(TOPOCAL_SOURCE_DIR "/data/target-topographer.yaml");
+  const auto camera = UnitCamera();
+  const auto pose = PoseFacingTarget(target, 70.0);
+  RenderOptions options;
+  options.supersampling = 4;
+  options.noise_grey = 1.0;
+  options.jobs = static_cast<int>(state.range(0));
+  for (auto _ : state) benchmark::DoNotOptimize(RenderTarget(target, camera, pose, options));
+  state.SetLabel("topocal: exact inverse near the paper, 13 sub-samples per edge pixel, truth corners");
+}
+BENCHMARK(BM_RenderUnitTarget)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The peer, a lower bound for the same picture with OpenCV: the paper and the black squares drawn at pixel
+// resolution (cv::fillPoly, anti-aliased, 1/16 px vertices) in the undistorted image, warped through the distortion
+// (cv::remap, bilinear), blurred (cv::GaussianBlur, sigma 1 px) and noised (cv::randn, 1 grey level). Its
+// undistortion map is given (cv::undistortPoints of every pixel, outside the timing): per pixel the same inverse
+// the renderer computes near the paper only.
+void BM_RenderUnitTargetOpenCv(benchmark::State& state) {
+  const auto target = LoadTargetDescription(TOPOCAL_SOURCE_DIR "/data/target-topographer.yaml");
+  const auto camera = UnitCamera();
+  const auto pose = PoseFacingTarget(target, 70.0);
+  const cv::Matx33d k(camera.fx_px, 0, camera.cx_px, 0, camera.fy_px, camera.cy_px, 0, 0, 1);
+  const std::vector<double> dist(camera.dist.begin(), camera.dist.end());
+  const cv::Size size(camera.width_px, camera.height_px);
+  cv::Mat map_x(size, CV_32FC1), map_y(size, CV_32FC1);
+  {
+    std::vector<cv::Point2f> pixels, undistorted;
+    pixels.reserve(static_cast<size_t>(size.area()));
+    for (int y = 0; y < size.height; ++y) {
+      for (int x = 0; x < size.width; ++x) pixels.emplace_back(static_cast<float>(x), static_cast<float>(y));
+    }
+    cv::undistortPoints(pixels, undistorted, k, dist, cv::noArray(), k);
+    for (int y = 0; y < size.height; ++y) {
+      for (int x = 0; x < size.width; ++x) {
+        map_x.at<float>(y, x) = undistorted[static_cast<size_t>(y * size.width + x)].x;
+        map_y.at<float>(y, x) = undistorted[static_cast<size_t>(y * size.width + x)].y;
+      }
+    }
+  }
+  constexpr int kShift = 4;  // fillPoly's fractional bits
+  const auto to_pixel = [&](double x_mm, double y_mm) {
+    const Eigen::Vector3d in_cam = pose.rotation * Eigen::Vector3d(x_mm, y_mm, 0) + pose.translation_mm;
+    return cv::Point(static_cast<int>(std::lround((camera.fx_px * in_cam.x() / in_cam.z() + camera.cx_px) * 16)),
+                     static_cast<int>(std::lround((camera.fy_px * in_cam.y() / in_cam.z() + camera.cy_px) * 16)));
+  };
+  const auto quad = [&](double x0, double y0, double x1, double y1) {
+    return std::vector<cv::Point>{to_pixel(x0, y0), to_pixel(x1, y0), to_pixel(x1, y1), to_pixel(x0, y1)};
+  };
+  const auto& board = std::get<CheckerboardLayout>(target.layout);
+  const TargetExtent paper = target.PaperExtent();
+  std::vector<std::vector<cv::Point>> squares;
+  for (int j = 0; j <= board.rows; ++j) {
+    for (int i = (j % 2 == 0) ? 0 : 1; i <= board.cols; i += 2) {  // square (0, 0) is black
+      squares.push_back(quad((i - 1) * board.col_spacing_mm, (j - 1) * board.row_spacing_mm,
+                             i * board.col_spacing_mm, j * board.row_spacing_mm));
+    }
+  }
+  for (auto _ : state) {
+    cv::Mat ideal(size, CV_8UC1, cv::Scalar(110));
+    cv::fillPoly(ideal, std::vector{quad(paper.min_x_mm, paper.min_y_mm, paper.max_x_mm, paper.max_y_mm)},
+                 cv::Scalar(220), cv::LINE_AA, kShift);
+    cv::fillPoly(ideal, squares, cv::Scalar(30), cv::LINE_AA, kShift);
+    cv::Mat warped, blurred, noise(size, CV_16SC1), image;
+    cv::remap(ideal, warped, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(110));
+    cv::GaussianBlur(warped, blurred, cv::Size(0, 0), 1.0);
+    cv::randn(noise, 0, 1);
+    cv::add(blurred, noise, image, cv::noArray(), CV_8U);
+    benchmark::DoNotOptimize(image.data);
+  }
+  state.SetLabel("OpenCV: fillPoly + remap + GaussianBlur + randn, map given");
+}
+BENCHMARK(BM_RenderUnitTargetOpenCv)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_DetectUnitTarget(benchmark::State& state) {
   const auto target = LoadTargetDescription(TOPOCAL_SOURCE_DIR "/data/target-topographer.yaml");

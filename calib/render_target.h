@@ -11,7 +11,11 @@
 // coordinate is mapped through the inverse CDF of "pixel box (1 px) convolved with the Gaussian blur (sigma)",
 // per axis. Each sub-sample: image point -> undistorted normalised ray (CameraModel::PixelToNormalized exact on
 // the pixel-corner lattice, then Newton steps on the forward model) -> intersection with the target plane ->
-// black or white ink (TargetPattern). Pixels whose whole response support sees one grey are not sub-sampled.
+// black or white ink (TargetPattern). Pixels whose whole response support sees one grey are not sub-sampled, and
+// the exact inverse is computed only near the paper's image (its forward projection, bounded cell by cell): beyond
+// it every ray sees the background or has no inverse (past the fold of strong barrel distortion, where the inverse
+// would iterate in vain), and the pixel is the background either way. Rows run in parallel, each pixel's offset
+// drawn from one seeded stream at a position fixed by the pixel, so the image does not depend on the thread count.
 // Seeded Gaussian noise (grey levels) is added and the result is rounded to 8 bits.
 //
 // Truth: the corner positions are CameraModel::Project(cam_from_target * corner) — exact, OpenCV pixel convention.
@@ -51,6 +55,7 @@ struct RenderOptions {
   double black_grey = 30.0;      // ink
   double white_grey = 220.0;     // paper
   double background_grey = 110.0;  // beyond the paper and where rays miss the plane
+  int jobs = 0;                  // threads (0: every core this process may use); the image does not depend on it
 
   bool IsValid(std::string* why) const;
 };

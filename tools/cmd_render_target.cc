@@ -15,6 +15,7 @@
 #include "tools/commands.h"
 #include "tools/progress.h"
 #include "util/io.h"
+#include "util/parallel.h"
 
 namespace topocal::tools {
 namespace {
@@ -167,6 +168,10 @@ void AddRenderTargetCommand(CLI::App& app) {
   g_render->add_option("--blur-px", a->render.blur_sigma_px, "Optical Gaussian blur sigma, px")->capture_default_str();
   g_render->add_option("--noise", a->render.noise_grey, "Gaussian noise sigma, grey levels")->capture_default_str();
   g_render->add_option("--seed", a->render.seed, "Random seed (sub-sample offsets, noise)")->capture_default_str();
+  a->render.jobs = util::AvailableCores();
+  g_render->add_option("--jobs", a->render.jobs, "Threads (the image does not depend on it; default: the cores available)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 256));
   g_render->add_option("--black", a->render.black_grey, "Grey level of the ink")->capture_default_str();
   g_render->add_option("--white", a->render.white_grey, "Grey level of the paper")->capture_default_str();
   g_render->add_option("--background", a->render.background_grey, "Grey level beyond the paper")

@@ -1,11 +1,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 
 #include <opencv2/core.hpp>
 
 #include "calib/corner_refinement.h"
 #include "calib/detect.h"
+#include "calib/distortion_valid_region.h"
 #include "calib/render_target.h"
 #include "detection_fixtures.h"
 
@@ -127,6 +129,77 @@ TEST(RenderTarget, TruthIsTheProjectionOfVisibleCorners) {
   }
 }
 
+// The unit's view of the README: data/target-topographer.yaml at 70 mm through the paper's sigma = 6.3e-5 (k1 = -6.2),
+// on the middle 2000 x 1500 px of the 4000 x 3000 sensor. The distortion folds 718 px from the centre, inside the
+// image: beyond the fold no ray has an inverse and the renderer paints the background without inverting there.
+TEST(RenderTarget, TopographerViewCornersMatchTheTruthAndTheFoldIsBackground) {
+  const auto target = LoadTargetDescription(TOPOCAL_SOURCE_DIR "/data/target-topographer.yaml");
+  model::CameraModel camera;
+  camera.width_px = 2000;
+  camera.height_px = 1500;
+  camera.fx_px = camera.fy_px = 5.2 / 1.12e-3;
+  camera.cx_px = 999.5;
+  camera.cy_px = 749.5;
+  camera.dist = {model::SeidelSigmaToBrownK1(6.3e-5, -0.065, 5.2), 0, 0, 0, 0};
+  RenderOptions options;
+  // N = 8 (55 sub-samples per edge pixel): the README's N = 4 (13) leaves 0.037 px RMS of sampling noise in the
+  // corners at this geometry, N = 16 (233) 0.006 px (both measured 2026-12-06, noise 0).
+  options.supersampling = 8;
+  options.noise_grey = 1.0;
+  const auto view = RenderTarget(target, camera, PoseFacingTarget(target, 70.0, 5.0, -5.0, 2.0), options);
+  ASSERT_TRUE(view.has_value());
+  ASSERT_EQ(view->corners.size(), 169u);
+  const auto found = DetectTarget(target, view->image);
+  ASSERT_TRUE(found.has_value());
+  int unmatched = 0;
+  const auto stats = testing::CornerError(*found, view->corners, &unmatched);
+  EXPECT_EQ(unmatched, 0);
+  EXPECT_EQ(stats.matched, 169);
+  std::printf("topographer view: corners against truth RMS %.4f px, max %.4f px\n", stats.rms_px, stats.max_px);
+  // Acceptance: the checkerboard bar of the detection tests (blur ~1 px, noise 0-2 grey levels).
+  constexpr double kAcceptanceRmsPx = 0.02;
+  // Regression bound: measured 2026-12-06 RMS 0.0143 px (max 0.035 px); the acceptance is near, so 30 % margin.
+  constexpr double kRegressionRmsPx = 0.0186;
+  EXPECT_LT(stats.rms_px, kAcceptanceRmsPx);
+  EXPECT_LT(stats.rms_px, kRegressionRmsPx);
+
+  // Beyond the fold (with a pixel of margin for the bisection and the pixel's support) the view is the background.
+  const double fold_px = ValidRegionOf(camera).radius_px;
+  ASSERT_LT(fold_px, 0.5 * camera.width_px);
+  int beyond = 0;
+  for (int y = 0; y < camera.height_px; y += 7) {
+    for (int x = 0; x < camera.width_px; x += 7) {
+      if (std::hypot(x - camera.cx_px, y - camera.cy_px) < fold_px + 6.0) continue;
+      ++beyond;
+      ASSERT_EQ(view->irradiance.at<float>(y, x), static_cast<float>(options.background_grey)) << x << ", " << y;
+    }
+  }
+  EXPECT_GT(beyond, 20000);
+}
+
+// Rows are rendered in parallel; each pixel's sub-sample offsets and noise come from seeded streams at positions
+// fixed by the pixel, so the bytes do not depend on the thread count.
+TEST(RenderTarget, ImageDoesNotDependOnTheThreadCount) {
+  const auto target = testing::KalibrGrid6x5();
+  const auto pose = PoseFacingTarget(target, 550.0, 30.0, 0.0, -3.0);
+  RenderOptions options;
+  options.supersampling = 6;
+  options.noise_grey = 2.0;
+  options.seed = 9;
+  std::vector<RenderedView> views;
+  for (int jobs : {1, 2, 3}) {
+    options.jobs = jobs;
+    auto view = RenderTarget(target, testing::TestCamera(), pose, options);
+    ASSERT_TRUE(view.has_value());
+    views.push_back(std::move(*view));
+  }
+  for (size_t i = 1; i < views.size(); ++i) {
+    const cv::Mat &a = views[0].irradiance, &b = views[i].irradiance;
+    EXPECT_EQ(std::memcmp(a.data, b.data, a.total() * a.elemSize()), 0) << "jobs " << i + 1;
+    EXPECT_EQ(cv::norm(views[0].image, views[i].image, cv::NORM_INF), 0.0) << "jobs " << i + 1;
+  }
+}
+
 TEST(RenderTarget, SeededAndValidated) {
   const auto target = testing::AprilGrid6x5();
   model::CameraModel camera = PinholeCamera();
@@ -149,6 +222,10 @@ TEST(RenderTarget, SeededAndValidated) {
   options.noise_grey = -1;
   EXPECT_FALSE(RenderTarget(target, camera, pose, options, &why).has_value());
   options.noise_grey = 0;
+  options.jobs = -1;
+  EXPECT_FALSE(RenderTarget(target, camera, pose, options, &why).has_value());
+  EXPECT_NE(why.find("jobs"), std::string::npos);
+  options.jobs = 0;
   camera.width_px = 0;
   EXPECT_FALSE(RenderTarget(target, camera, pose, options, &why).has_value());
 }
