@@ -241,6 +241,85 @@ CalibrationFile ParseCalibrationFile(const std::string& text, const std::string&
 
 namespace {
 
+Eigen::MatrixXd ReadCovariance(const cv::FileStorage& fs, const std::string& path, int n) {
+  const cv::Mat cov = ReadMatrix(fs, path, "parameter_covariance", n, n, true);
+  Eigen::MatrixXd m(n, n);
+  for (int r = 0; r < n; ++r) {
+    for (int c = 0; c < n; ++c) m(r, c) = cov.at<double>(r, c);
+  }
+  // Written symmetric to full precision; anything beyond rounding is a corrupt file.
+  constexpr double kSymmetryTolerance = 1e-9;
+  if (!m.allFinite()) Bad(path, "parameter_covariance", "non-finite entry");
+  if ((m - m.transpose()).cwiseAbs().maxCoeff() > kSymmetryTolerance * m.cwiseAbs().maxCoeff()) {
+    Bad(path, "parameter_covariance", "not symmetric");
+  }
+  for (int d = 0; d < n; ++d) {
+    if (m(d, d) < 0) Bad(path, "parameter_covariance", "negative variance on the diagonal");
+  }
+  return m;
+}
+
+// The fields only topocal writes: its model, the exact camera, the fit's quality, parameters and provenance.
+void ReadTopocalFields(const cv::FileStorage& fs, const std::string& path, const model::CameraModel& cv_cam,
+                       CalibrationFile& out) {
+  out.model = ReadOptionalString(fs, path, "model");
+  if (out.model.empty()) Bad(path, "model", "missing");
+  if (!ParseDistortionModel(out.model)) Bad(path, "model", "'" + out.model + "' is not seidel or brown5");
+  const cv::Mat centre = ReadMatrix(fs, path, "distortion_centre", 1, 2, true);
+  if (centre.at<double>(0) != 0 || centre.at<double>(1) != 0) {
+    model::CameraModel exact = cv_cam;
+    SetIntrinsics(ReadMatrix(fs, path, "topocal_camera_matrix", 3, 3, true), path, "topocal_camera_matrix", exact);
+    SetDistortion(ReadMatrix(fs, path, "topocal_distortion_coefficients", 1, 5, true), exact);
+    exact.distortion_centre = {centre.at<double>(0), centre.at<double>(1)};
+    out.camera = exact;
+  }
+  out.single_view = ReadOptionalReal(fs, path, "single_view").value_or(0) != 0;
+  out.rms_px = ReadOptionalReal(fs, path, "rms_px");
+  if (!out.rms_px) Bad(path, "rms_px", "missing");
+  const cv::FileNode per_view = fs["per_view_rms_px"];
+  if (!per_view.empty()) {
+    if (!per_view.isSeq()) Bad(path, "per_view_rms_px", "not a sequence");
+    for (const auto& n : per_view) out.per_view_rms_px.push_back(static_cast<double>(n));
+  }
+  const cv::FileNode names = fs["parameter_names"];
+  const cv::Mat sd = ReadMatrix(fs, path, "parameter_stddev", 1, static_cast<int>(names.size()), !names.empty());
+  if (!names.empty()) {
+    int i = 0;
+    for (const auto& n : names) {
+      out.parameter_names.push_back(static_cast<std::string>(n));
+      out.stddev[out.parameter_names.back()] = sd.at<double>(i++);
+    }
+  }
+  // Absent in files from before topocal 0.1.0 stored it; ParameterCovarianceOf then falls back to the diagonal.
+  if (!fs["parameter_covariance"].empty()) {
+    out.covariance = ReadCovariance(fs, path, static_cast<int>(out.parameter_names.size()));
+  }
+  out.sigma_per_mm2 = ReadOptionalReal(fs, path, "seidel_sigma_per_mm2");
+  out.sigma_stddev_per_mm2 = ReadOptionalReal(fs, path, "seidel_sigma_stddev_per_mm2");
+  out.magnification = ReadOptionalReal(fs, path, "magnification");
+  out.focal_mm = ReadOptionalReal(fs, path, "focal_mm");
+  out.pixel_pitch_um = ReadOptionalReal(fs, path, "pixel_pitch_um");
+  out.target = ReadOptionalString(fs, path, "target");
+  out.date = ReadOptionalString(fs, path, "calibration_date");
+  out.tool_version = ReadOptionalString(fs, path, "tool_version");
+}
+
+// The valid region: stored by topocal since it states it, computed for older and plain OpenCV files.
+void ReadValidRegion(const cv::FileStorage& fs, const std::string& path, CalibrationFile& out) {
+  const auto radius_px = ReadOptionalReal(fs, path, "valid_radius_px");
+  if (radius_px) {
+    if (!(*radius_px > 0)) Bad(path, "valid_radius_px", "must be > 0");
+    out.valid_region.radius_px = *radius_px;
+    out.valid_region.covers_sensor = *radius_px >= FarthestSensorPixelPx(out.camera);
+    const auto covers = ReadOptionalReal(fs, path, "valid_region_covers_sensor");
+    if (covers && (*covers != 0) != out.valid_region.covers_sensor) {
+      Bad(path, "valid_region_covers_sensor", "contradicts valid_radius_px and the image size");
+    }
+  } else {
+    out.valid_region = ValidRegionOf(out.camera);
+  }
+}
+
 CalibrationFile ReadCalibration(const cv::FileStorage& fs, const std::string& path) {
   if (fs["camera_matrix"].empty() && fs["distortion_coefficients"].empty()) {
     Bad(path, "camera_matrix", "missing: not a topocal or OpenCV calibration file");
@@ -258,76 +337,8 @@ CalibrationFile ReadCalibration(const cv::FileStorage& fs, const std::string& pa
   out.opencv_camera = cv_cam;
   out.camera = cv_cam;
 
-  if (out.written_by_topocal) {
-    out.model = ReadOptionalString(fs, path, "model");
-    if (out.model.empty()) Bad(path, "model", "missing");
-    if (!ParseDistortionModel(out.model)) Bad(path, "model", "'" + out.model + "' is not seidel or brown5");
-    const cv::Mat centre = ReadMatrix(fs, path, "distortion_centre", 1, 2, true);
-    if (centre.at<double>(0) != 0 || centre.at<double>(1) != 0) {
-      model::CameraModel exact = cv_cam;
-      SetIntrinsics(ReadMatrix(fs, path, "topocal_camera_matrix", 3, 3, true), path, "topocal_camera_matrix", exact);
-      SetDistortion(ReadMatrix(fs, path, "topocal_distortion_coefficients", 1, 5, true), exact);
-      exact.distortion_centre = {centre.at<double>(0), centre.at<double>(1)};
-      out.camera = exact;
-    }
-    out.single_view = ReadOptionalReal(fs, path, "single_view").value_or(0) != 0;
-    out.rms_px = ReadOptionalReal(fs, path, "rms_px");
-    if (!out.rms_px) Bad(path, "rms_px", "missing");
-    const cv::FileNode per_view = fs["per_view_rms_px"];
-    if (!per_view.empty()) {
-      if (!per_view.isSeq()) Bad(path, "per_view_rms_px", "not a sequence");
-      for (const auto& n : per_view) out.per_view_rms_px.push_back(static_cast<double>(n));
-    }
-    const cv::FileNode names = fs["parameter_names"];
-    const cv::Mat sd = ReadMatrix(fs, path, "parameter_stddev", 1, static_cast<int>(names.size()), !names.empty());
-    if (!names.empty()) {
-      int i = 0;
-      for (const auto& n : names) {
-        out.parameter_names.push_back(static_cast<std::string>(n));
-        out.stddev[out.parameter_names.back()] = sd.at<double>(i++);
-      }
-    }
-    // Absent in files from before topocal 0.1.0 stored it; ParameterCovarianceOf then falls back to the diagonal.
-    if (!fs["parameter_covariance"].empty()) {
-      const int n = static_cast<int>(out.parameter_names.size());
-      const cv::Mat cov = ReadMatrix(fs, path, "parameter_covariance", n, n, true);
-      Eigen::MatrixXd m(n, n);
-      for (int r = 0; r < n; ++r) {
-        for (int c = 0; c < n; ++c) m(r, c) = cov.at<double>(r, c);
-      }
-      // Written symmetric to full precision; anything beyond rounding is a corrupt file.
-      constexpr double kSymmetryTolerance = 1e-9;
-      if (!m.allFinite()) Bad(path, "parameter_covariance", "non-finite entry");
-      if ((m - m.transpose()).cwiseAbs().maxCoeff() > kSymmetryTolerance * m.cwiseAbs().maxCoeff()) {
-        Bad(path, "parameter_covariance", "not symmetric");
-      }
-      for (int d = 0; d < n; ++d) {
-        if (m(d, d) < 0) Bad(path, "parameter_covariance", "negative variance on the diagonal");
-      }
-      out.covariance = m;
-    }
-    out.sigma_per_mm2 = ReadOptionalReal(fs, path, "seidel_sigma_per_mm2");
-    out.sigma_stddev_per_mm2 = ReadOptionalReal(fs, path, "seidel_sigma_stddev_per_mm2");
-    out.magnification = ReadOptionalReal(fs, path, "magnification");
-    out.focal_mm = ReadOptionalReal(fs, path, "focal_mm");
-    out.pixel_pitch_um = ReadOptionalReal(fs, path, "pixel_pitch_um");
-    out.target = ReadOptionalString(fs, path, "target");
-    out.date = ReadOptionalString(fs, path, "calibration_date");
-    out.tool_version = ReadOptionalString(fs, path, "tool_version");
-  }
-  // The valid region: stored by topocal since it states it, computed for older and plain OpenCV files.
-  const auto radius_px = ReadOptionalReal(fs, path, "valid_radius_px");
-  if (radius_px) {
-    if (!(*radius_px > 0)) Bad(path, "valid_radius_px", "must be > 0");
-    out.valid_region.radius_px = *radius_px;
-    out.valid_region.covers_sensor = *radius_px >= FarthestSensorPixelPx(out.camera);
-    const auto covers = ReadOptionalReal(fs, path, "valid_region_covers_sensor");
-    if (covers && (*covers != 0) != out.valid_region.covers_sensor) {
-      Bad(path, "valid_region_covers_sensor", "contradicts valid_radius_px and the image size");
-    }
-  } else {
-    out.valid_region = ValidRegionOf(out.camera);
-  }
+  if (out.written_by_topocal) ReadTopocalFields(fs, path, cv_cam, out);
+  ReadValidRegion(fs, path, out);
   return out;
 }
 

@@ -74,28 +74,9 @@ std::string TickLabel(const Axis& a, double v) {
   return fmt::format("{:g}", v);
 }
 
-}  // namespace
-
-std::string RenderScatterSvg(const ScatterPlot& plot) {
-  std::vector<double> xs, ys;
-  for (const auto& s : plot.series) {
-    for (const auto& p : s.points) {
-      xs.push_back(p.x);
-      ys.push_back(p.y);
-    }
-  }
-  for (const auto& l : plot.vertical) xs.push_back(l.value);
-  for (const auto& l : plot.horizontal) ys.push_back(l.value);
-  const Axis x = MakeAxis(plot.log_x, xs, kLeft, kWidth - kRight);
-  const Axis y = MakeAxis(plot.log_y, ys, kHeight - kBottom, kTop);
-
-  std::string svg = fmt::format(
-      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{0}\" height=\"{1}\" viewBox=\"0 0 {0} {1}\" "
-      "font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"{0}\" height=\"{1}\" fill=\"white\"/>\n",
-      kWidth, kHeight);
-  svg += fmt::format("<text x=\"{:.1f}\" y=\"24\" text-anchor=\"middle\" font-size=\"15\">{}</text>\n",
-                     (kLeft + kWidth - kRight) / 2, EscapeXml(plot.title));
-  // Grid, ticks and labels.
+// Grid, ticks and labels.
+std::string GridAndAxes(const ScatterPlot& plot, const Axis& x, const Axis& y) {
+  std::string svg;
   for (const double t : Ticks(x)) {
     const double px = x.Pixel(t);
     svg += fmt::format("<line x1=\"{0:.1f}\" y1=\"{1:.1f}\" x2=\"{0:.1f}\" y2=\"{2:.1f}\" stroke=\"#ddd\"/>\n", px,
@@ -117,7 +98,12 @@ std::string RenderScatterSvg(const ScatterPlot& plot) {
                      kHeight - kBottom + 40, EscapeXml(plot.x_label));
   svg += fmt::format("<text transform=\"translate(22 {:.1f}) rotate(-90)\" text-anchor=\"middle\">{}</text>\n",
                      (kTop + kHeight - kBottom) / 2, EscapeXml(plot.y_label));
-  // Points, then the reference lines above them.
+  return svg;
+}
+
+// Points, then the reference lines above them.
+std::string PointsAndLines(const ScatterPlot& plot, const Axis& x, const Axis& y) {
+  std::string svg;
   for (const auto& s : plot.series) {
     svg += fmt::format("<g fill=\"{0}\" stroke=\"{0}\" fill-opacity=\"0.55\">\n", EscapeXml(s.colour));
     for (const auto& p : s.points) {
@@ -143,7 +129,12 @@ std::string RenderScatterSvg(const ScatterPlot& plot) {
     svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" fill=\"{}\">{}</text>\n", px + 4, kTop + 14, EscapeXml(l.colour),
                        EscapeXml(l.label));
   }
-  // Legend.
+  return svg;
+}
+
+// Legend, and the note under the plot.
+std::string LegendAndNote(const ScatterPlot& plot) {
+  std::string svg;
   double ly = kTop + 10;
   for (const auto& s : plot.series) {
     svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4\" fill=\"{}\"/>\n", kWidth - kRight + 18, ly,
@@ -156,6 +147,33 @@ std::string RenderScatterSvg(const ScatterPlot& plot) {
     svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" font-size=\"11\" fill=\"#444\">{}</text>\n", kLeft,
                        kHeight - 12, EscapeXml(plot.note));
   }
+  return svg;
+}
+
+}  // namespace
+
+std::string RenderScatterSvg(const ScatterPlot& plot) {
+  std::vector<double> xs, ys;
+  for (const auto& s : plot.series) {
+    for (const auto& p : s.points) {
+      xs.push_back(p.x);
+      ys.push_back(p.y);
+    }
+  }
+  for (const auto& l : plot.vertical) xs.push_back(l.value);
+  for (const auto& l : plot.horizontal) ys.push_back(l.value);
+  const Axis x = MakeAxis(plot.log_x, xs, kLeft, kWidth - kRight);
+  const Axis y = MakeAxis(plot.log_y, ys, kHeight - kBottom, kTop);
+
+  std::string svg = fmt::format(
+      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{0}\" height=\"{1}\" viewBox=\"0 0 {0} {1}\" "
+      "font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"{0}\" height=\"{1}\" fill=\"white\"/>\n",
+      kWidth, kHeight);
+  svg += fmt::format("<text x=\"{:.1f}\" y=\"24\" text-anchor=\"middle\" font-size=\"15\">{}</text>\n",
+                     (kLeft + kWidth - kRight) / 2, EscapeXml(plot.title));
+  svg += GridAndAxes(plot, x, y);
+  svg += PointsAndLines(plot, x, y);
+  svg += LegendAndNote(plot);
   svg += "</svg>\n";
   return svg;
 }

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -121,7 +122,19 @@ std::string SvgBarChart(const std::vector<Bar>& bars, const BarChartOptions& o) 
   return s;
 }
 
-std::string SvgQuiver(const std::vector<Arrow>& arrows, const QuiverOptions& o) {
+namespace {
+
+// The quiver's geometry: the image region drawn, the vectors' magnification and the plot area in user units.
+struct QuiverFrame {
+  PixelRegion region;
+  double longest, magnification;
+  bool bar;  // a background field with its colour bar
+  double inner_w, scale, x0, y0, inner_h, w, h;
+  double X(double x_px) const { return x0 + (x_px - region.x_px) * scale; }
+  double Y(double y_px) const { return y0 + (y_px - region.y_px) * scale; }
+};
+
+QuiverFrame FrameQuiver(const std::vector<Arrow>& arrows, const QuiverOptions& o) {
   if (o.image_width_px <= 0 || o.image_height_px <= 0) throw std::invalid_argument("quiver: image size must be > 0");
   double longest = 0;
   for (const Arrow& a : arrows) {
@@ -144,68 +157,77 @@ std::string SvgQuiver(const std::vector<Arrow>& arrows, const QuiverOptions& o) 
   const double x0 = 20, y0 = kMarginTop;
   const double inner_h = img_h * scale;
   const double w = kPlotWidth, h = y0 + inner_h + kMarginBottom;
-  auto X = [&](double x_px) { return x0 + (x_px - region.x_px) * scale; };
-  auto Y = [&](double y_px) { return y0 + (y_px - region.y_px) * scale; };
+  return QuiverFrame{region, longest, magnification, bar, inner_w, scale, x0, y0, inner_h, w, h};
+}
 
-  std::string s = fmt::format(
-      "<svg class=\"plot\" viewBox=\"0 0 {} {}\" role=\"img\" "
-      "aria-label=\"{}\">\n",
-      Num(w, 0), Num(h, 0), EscapeXml(o.title));
-  s += fmt::format("<text x=\"{}\" y=\"18\" font-size=\"13\" font-weight=\"bold\" {}>{}</text>\n", Num(x0), kFont,
-                   EscapeXml(o.title));
-  if (bar) {
-    const CellField& f = *o.background;
-    if (f.cols <= 0 || f.rows <= 0 || f.values.size() != static_cast<std::size_t>(f.cols) * f.rows) {
-      throw std::invalid_argument("quiver: background grid size does not match its values");
-    }
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (double v : f.values) {
-      if (std::isinf(v)) throw std::invalid_argument("quiver: infinite background value");
-      if (std::isnan(v)) continue;  // no data
-      lo = std::min(lo, v);
-      hi = std::max(hi, v);
-    }
-    if (!std::isfinite(lo)) lo = 0, hi = 1;  // no cell with data
-    lo = f.value_min.value_or(lo);
-    hi = f.value_max.value_or(hi);
-    if (!std::isfinite(lo) || !std::isfinite(hi)) throw std::invalid_argument("quiver: non-finite colour range");
-    const double span = hi > lo ? hi - lo : 1;
-    const double cw = inner_w / f.cols, ch = inner_h / f.rows;
-    s += "<g class=\"field\" shape-rendering=\"crispEdges\">\n";
-    for (int r = 0; r < f.rows; ++r) {
-      for (int c = 0; c < f.cols; ++c) {
-        // Cells overlap by a hair so no background seam shows between them.
-        const double v = f.values[r * f.cols + c];
-        s += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\"/>", Num(x0 + c * cw),
-                         Num(y0 + r * ch), Num(cw + 0.3), Num(ch + 0.3),
-                         std::isnan(v) ? std::string(kNoDataColour) : Colour((v - lo) / span));
-      }
-      s += "\n";
-    }
-    s += "</g>\n";
-    const double bx = x0 + inner_w + kColourBarGap;
-    constexpr int kBarSteps = 32;
-    for (int i = 0; i < kBarSteps; ++i) {
-      const double t = 1.0 - (i + 0.5) / kBarSteps;
-      s += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\"/>", Num(bx),
-                       Num(y0 + i * inner_h / kBarSteps), Num(kColourBarWidth), Num(inner_h / kBarSteps + 0.3),
-                       Colour(t));
+// The background's colour range: its values' extent unless the field sets it.
+std::pair<double, double> BackgroundRange(const CellField& f) {
+  if (f.cols <= 0 || f.rows <= 0 || f.values.size() != static_cast<std::size_t>(f.cols) * f.rows) {
+    throw std::invalid_argument("quiver: background grid size does not match its values");
+  }
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (double v : f.values) {
+    if (std::isinf(v)) throw std::invalid_argument("quiver: infinite background value");
+    if (std::isnan(v)) continue;  // no data
+    lo = std::min(lo, v);
+    hi = std::max(hi, v);
+  }
+  if (!std::isfinite(lo)) lo = 0, hi = 1;  // no cell with data
+  lo = f.value_min.value_or(lo);
+  hi = f.value_max.value_or(hi);
+  if (!std::isfinite(lo) || !std::isfinite(hi)) throw std::invalid_argument("quiver: non-finite colour range");
+  return {lo, hi};
+}
+
+std::string ColourBar(const QuiverFrame& q, double lo, double hi, const std::string& label) {
+  std::string s;
+  const double bx = q.x0 + q.inner_w + kColourBarGap;
+  constexpr int kBarSteps = 32;
+  for (int i = 0; i < kBarSteps; ++i) {
+    const double t = 1.0 - (i + 0.5) / kBarSteps;
+    s += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\"/>", Num(bx),
+                     Num(q.y0 + i * q.inner_h / kBarSteps), Num(kColourBarWidth), Num(q.inner_h / kBarSteps + 0.3),
+                     Colour(t));
+  }
+  s += "\n";
+  s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" {}>{}</text>\n", Num(bx + kColourBarWidth + 4),
+                   Num(q.y0 + 8), kFont, Label(hi));
+  s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" {}>{}</text>\n", Num(bx + kColourBarWidth + 4),
+                   Num(q.y0 + q.inner_h), kFont, Label(lo));
+  s += fmt::format(
+      "<text transform=\"translate({} {}) rotate(90)\" font-size=\"10\" text-anchor=\"middle\" {}>{}</text>\n",
+      Num(bx + kColourBarWidth + 30), Num(q.y0 + q.inner_h / 2), kFont, EscapeXml(label));
+  return s;
+}
+
+// The background field as cells under the plot, and its colour bar.
+std::string QuiverBackground(const CellField& f, const QuiverFrame& q) {
+  const auto [lo, hi] = BackgroundRange(f);
+  const double span = hi > lo ? hi - lo : 1;
+  const double cw = q.inner_w / f.cols, ch = q.inner_h / f.rows;
+  std::string s;
+  s += "<g class=\"field\" shape-rendering=\"crispEdges\">\n";
+  for (int r = 0; r < f.rows; ++r) {
+    for (int c = 0; c < f.cols; ++c) {
+      // Cells overlap by a hair so no background seam shows between them.
+      const double v = f.values[r * f.cols + c];
+      s += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\"/>", Num(q.x0 + c * cw),
+                       Num(q.y0 + r * ch), Num(cw + 0.3), Num(ch + 0.3),
+                       std::isnan(v) ? std::string(kNoDataColour) : Colour((v - lo) / span));
     }
     s += "\n";
-    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" {}>{}</text>\n", Num(bx + kColourBarWidth + 4),
-                     Num(y0 + 8), kFont, Label(hi));
-    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" {}>{}</text>\n", Num(bx + kColourBarWidth + 4),
-                     Num(y0 + inner_h), kFont, Label(lo));
-    s += fmt::format(
-        "<text transform=\"translate({} {}) rotate(90)\" font-size=\"10\" text-anchor=\"middle\" {}>{}</text>\n",
-        Num(bx + kColourBarWidth + 30), Num(y0 + inner_h / 2), kFont, EscapeXml(f.label));
   }
-  s += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#333\"/>\n", Num(x0),
-                   Num(y0), Num(inner_w), Num(inner_h));
+  s += "</g>\n";
+  s += ColourBar(q, lo, hi, f.label);
+  return s;
+}
+
+std::string QuiverArrows(const std::vector<Arrow>& arrows, const QuiverFrame& q) {
+  std::string s;
   s += "<g class=\"arrows\" stroke-linecap=\"round\">\n";
   for (const Arrow& a : arrows) {
-    const double bx = X(a.x_px), by = Y(a.y_px);
-    const double ex = bx + a.dx_px * magnification * scale, ey = by + a.dy_px * magnification * scale;
+    const double bx = q.X(a.x_px), by = q.Y(a.y_px);
+    const double ex = bx + a.dx_px * q.magnification * q.scale, ey = by + a.dy_px * q.magnification * q.scale;
     const double len = std::hypot(ex - bx, ey - by);
     const char* colour = a.highlight ? kHighlightColour : kArrowColour;
     s += fmt::format("<line x1=\"{}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"{}\" stroke-width=\"0.8\"/>", Num(bx),
@@ -221,27 +243,52 @@ std::string SvgQuiver(const std::vector<Arrow>& arrows, const QuiverOptions& o) 
     s += "\n";
   }
   s += "</g>\n";
-  // Scale bar: a round displacement about half the longest, drawn at the plot's magnification.
-  const double bar_value = longest > 0 ? NiceFloor(longest / 2) : 1;
-  const double bar_len = bar_value * magnification * scale;
-  const double sy = y0 + inner_h + 22;
+  return s;
+}
+
+// Scale bar: a round displacement about half the longest, drawn at the plot's magnification; then what part of
+// the image is shown.
+std::string QuiverCaption(const QuiverOptions& o, const QuiverFrame& q) {
+  std::string s;
+  const double bar_value = q.longest > 0 ? NiceFloor(q.longest / 2) : 1;
+  const double bar_len = bar_value * q.magnification * q.scale;
+  const double sy = q.y0 + q.inner_h + 22;
   s += fmt::format("<line class=\"scale-bar\" x1=\"{}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"#000\" "
                    "stroke-width=\"2\"/>\n",
-                   Num(x0), Num(sy), Num(x0 + bar_len), Num(sy));
+                   Num(q.x0), Num(sy), Num(q.x0 + bar_len), Num(sy));
   s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" {}>{} {} (vectors magnified \u00d7{}; longest {} {})"
                    "</text>\n",
-                   Num(x0 + bar_len + 8), Num(sy + 4), kFont, Label(bar_value), EscapeXml(o.caption_unit),
-                   Label(magnification), Label(longest), EscapeXml(o.caption_unit));
+                   Num(q.x0 + bar_len + 8), Num(sy + 4), kFont, Label(bar_value), EscapeXml(o.caption_unit),
+                   Label(q.magnification), Label(q.longest), EscapeXml(o.caption_unit));
+  const PixelRegion& region = q.region;
   if (o.region) {
     s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" fill=\"#555\" {}>x {} to {} px, y {} to {} px of the "
                      "{} \u00d7 {} px image</text>\n",
-                     Num(x0), Num(sy + 18), kFont, Label(std::round(region.x_px)),
+                     Num(q.x0), Num(sy + 18), kFont, Label(std::round(region.x_px)),
                      Label(std::round(region.x_px + region.width_px)), Label(std::round(region.y_px)),
                      Label(std::round(region.y_px + region.height_px)), o.image_width_px, o.image_height_px);
   } else {
     s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" fill=\"#555\" {}>image {} \u00d7 {} px</text>\n",
-                     Num(x0), Num(sy + 18), kFont, o.image_width_px, o.image_height_px);
+                     Num(q.x0), Num(sy + 18), kFont, o.image_width_px, o.image_height_px);
   }
+  return s;
+}
+
+}  // namespace
+
+std::string SvgQuiver(const std::vector<Arrow>& arrows, const QuiverOptions& o) {
+  const QuiverFrame q = FrameQuiver(arrows, o);
+  std::string s = fmt::format(
+      "<svg class=\"plot\" viewBox=\"0 0 {} {}\" role=\"img\" "
+      "aria-label=\"{}\">\n",
+      Num(q.w, 0), Num(q.h, 0), EscapeXml(o.title));
+  s += fmt::format("<text x=\"{}\" y=\"18\" font-size=\"13\" font-weight=\"bold\" {}>{}</text>\n", Num(q.x0), kFont,
+                   EscapeXml(o.title));
+  if (q.bar) s += QuiverBackground(*o.background, q);
+  s += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#333\"/>\n", Num(q.x0),
+                   Num(q.y0), Num(q.inner_w), Num(q.inner_h));
+  s += QuiverArrows(arrows, q);
+  s += QuiverCaption(o, q);
   s += "</svg>\n";
   return s;
 }
@@ -283,11 +330,13 @@ Range Padded(double lo, double hi) {
   return {lo - pad, hi + pad};
 }
 
-}  // namespace
+// The control chart's value scale: the values, the control limits and (when not far off) the acceptance limit.
+struct ChartScale {
+  Range r;
+  bool two_sided, limit_on_scale;
+};
 
-std::string SvgControlChart(const ControlChartPlot& p) {
-  const double left = 62, right = 40, top = 24, bottom = 30;
-  const double w = p.width, h = p.height, pw = w - left - right, ph = h - top - bottom;
+ChartScale ControlScale(const ControlChartPlot& p) {
   double lo = 0, hi = 0;
   bool first = true;
   for (double v : p.values) {
@@ -311,72 +360,122 @@ std::string SvgControlChart(const ControlChartPlot& p) {
       if (two_sided) lo = std::min(lo, -*p.limit);
     }
   }
-  const Range r = Padded(lo, hi);
-  const int n = static_cast<int>(p.values.size());
-  const auto x_of = [&](int i) { return left + (n <= 1 ? pw / 2 : pw * i / (n - 1)); };
-  std::string s = fmt::format("<svg class=\"plot chart\" viewBox=\"0 0 {} {}\" role=\"img\" aria-label=\"{}\">\n",
-                              Num(w, 0), Num(h, 0), EscapeXml(p.title));
-  s += fmt::format("<text x=\"{}\" y=\"15\" font-size=\"12\" font-weight=\"bold\" {}>{}</text>\n", Num(left), kFont,
-                   EscapeXml(p.title));
+  return {Padded(lo, hi), two_sided, limit_on_scale};
+}
+
+// The control chart's drawing: margins, size and plot area in user units.
+struct ChartArea {
+  double left = 62, right = 40, top = 24, bottom = 30;
+  double w, h, pw, ph;
+  explicit ChartArea(const ControlChartPlot& p)
+      : w(p.width), h(p.height), pw(w - left - right), ph(h - top - bottom) {}
+};
+
+// The value grid, the value axis's label and the plot's frame.
+std::string ChartAxes(const ControlChartPlot& p, const ChartArea& a, const Range& r) {
+  std::string s;
   for (double v : AxisTicks(r.lo, r.hi)) {
-    const double y = r.Y(v, top, ph);
-    s += fmt::format("<line x1=\"{}\" x2=\"{}\" y1=\"{}\" y2=\"{}\" stroke=\"#eee\"/>\n", Num(left), Num(w - right),
-                     Num(y), Num(y));
-    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" text-anchor=\"end\" {}>{}</text>\n", Num(left - 4),
+    const double y = r.Y(v, a.top, a.ph);
+    s += fmt::format("<line x1=\"{}\" x2=\"{}\" y1=\"{}\" y2=\"{}\" stroke=\"#eee\"/>\n", Num(a.left),
+                     Num(a.w - a.right), Num(y), Num(y));
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" text-anchor=\"end\" {}>{}</text>\n", Num(a.left - 4),
                      Num(y + 3), kFont, Label(v));
   }
   s += fmt::format("<text transform=\"translate(11 {}) rotate(-90)\" font-size=\"10\" text-anchor=\"middle\" {}>{}"
                    "</text>\n",
-                   Num(top + ph / 2), kFont, EscapeXml(p.value_label));
-  s += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#999\"/>\n", Num(left),
-                   Num(top), Num(pw), Num(ph));
-  const auto hline = [&](double v, const char* colour, const char* dash, const std::string& label) {
-    const double y = r.Y(v, top, ph);
-    s += fmt::format("<line class=\"{}\" x1=\"{}\" x2=\"{}\" y1=\"{}\" y2=\"{}\" stroke=\"{}\"{}/>\n",
-                     label.empty() ? "zone" : "ref", Num(left), Num(w - right), Num(y), Num(y), colour,
-                     *dash ? fmt::format(" stroke-dasharray=\"{}\"", dash) : std::string());
-    if (!label.empty()) {
-      s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" {} fill=\"{}\">{}</text>\n", Num(w - right + 2),
-                       Num(y + 3), kFont, colour, EscapeXml(label));
-    }
-  };
+                   Num(a.top + a.ph / 2), kFont, EscapeXml(p.value_label));
+  s += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#999\"/>\n", Num(a.left),
+                   Num(a.top), Num(a.pw), Num(a.ph));
+  return s;
+}
+
+// A horizontal line at value v; a labelled one is a reference ("ref"), an unlabelled one a zone boundary.
+std::string HLine(const ChartArea& a, const Range& r, double v, const char* colour, const char* dash,
+                  const std::string& label) {
+  std::string s;
+  const double y = r.Y(v, a.top, a.ph);
+  s += fmt::format("<line class=\"{}\" x1=\"{}\" x2=\"{}\" y1=\"{}\" y2=\"{}\" stroke=\"{}\"{}/>\n",
+                   label.empty() ? "zone" : "ref", Num(a.left), Num(a.w - a.right), Num(y), Num(y), colour,
+                   *dash ? fmt::format(" stroke-dasharray=\"{}\"", dash) : std::string());
+  if (!label.empty()) {
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" {} fill=\"{}\">{}</text>\n", Num(a.w - a.right + 2),
+                     Num(y + 3), kFont, colour, EscapeXml(label));
+  }
+  return s;
+}
+
+// The 1 and 2 sigma zones, the control limits and the centre line; the acceptance limit where it is on scale.
+std::string ControlLines(const ControlChartPlot& p, const ChartArea& a, const ChartScale& sc) {
+  std::string s;
+  const Range& r = sc.r;
   if (p.centre && p.sigma) {
     for (int k : {1, 2}) {
-      hline(*p.centre + k * *p.sigma, "#bbb", "2 3", "");
-      hline(*p.centre - k * *p.sigma, "#bbb", "2 3", "");
+      s += HLine(a, r, *p.centre + k * *p.sigma, "#bbb", "2 3", "");
+      s += HLine(a, r, *p.centre - k * *p.sigma, "#bbb", "2 3", "");
     }
-    hline(*p.centre + 3 * *p.sigma, "#c62828", "", "UCL");
-    hline(*p.centre - 3 * *p.sigma, "#c62828", "", "LCL");
-    hline(*p.centre, "#2e7d32", "", "CL");
+    s += HLine(a, r, *p.centre + 3 * *p.sigma, "#c62828", "", "UCL");
+    s += HLine(a, r, *p.centre - 3 * *p.sigma, "#c62828", "", "LCL");
+    s += HLine(a, r, *p.centre, "#2e7d32", "", "CL");
   }
-  if (p.limit && limit_on_scale) {
-    hline(*p.limit, "#000", "6 3", "+lim");
-    if (two_sided) hline(-*p.limit, "#000", "6 3", "\u2212lim");
+  if (p.limit && sc.limit_on_scale) {
+    s += HLine(a, r, *p.limit, "#000", "6 3", "+lim");
+    if (sc.two_sided) s += HLine(a, r, -*p.limit, "#000", "6 3", "\u2212lim");
   }
+  return s;
+}
+
+// The values as a line through points, the flagged ones larger and in the warning colour.
+std::string ControlSeries(const ControlChartPlot& p, const ChartArea& a, const Range& r) {
+  std::string s;
+  const int n = static_cast<int>(p.values.size());
+  const auto x_of = [&](int i) { return a.left + (n <= 1 ? a.pw / 2 : a.pw * i / (n - 1)); };
   std::string path;
   for (int i = 0; i < n; ++i) {
     if (!std::isfinite(p.values[i])) continue;
-    path += fmt::format("{}{} {} ", path.empty() ? "M" : "L", Num(x_of(i)), Num(r.Y(p.values[i], top, ph)));
+    path += fmt::format("{}{} {} ", path.empty() ? "M" : "L", Num(x_of(i)), Num(r.Y(p.values[i], a.top, a.ph)));
   }
   if (!path.empty()) s += fmt::format("<path d=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"0.8\"/>\n", path, kArrowColour);
   for (int i = 0; i < n; ++i) {
     if (!std::isfinite(p.values[i])) continue;
     const bool flag = i < static_cast<int>(p.flagged.size()) && p.flagged[i];
     s += fmt::format("<circle class=\"{}\" cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{}\"/>\n", flag ? "point flagged" : "point",
-                     Num(x_of(i)), Num(r.Y(p.values[i], top, ph)), flag ? "3" : "2",
+                     Num(x_of(i)), Num(r.Y(p.values[i], a.top, a.ph)), flag ? "3" : "2",
                      flag ? kHighlightColour : kArrowColour);
   }
+  return s;
+}
+
+// The first and last unit's labels and the x axis's caption.
+std::string ControlXAxis(const ControlChartPlot& p, const ChartArea& a, const ChartScale& sc) {
+  std::string s;
+  const int n = static_cast<int>(p.values.size());
   if (p.x_labels.size() >= 2) {
-    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" {}>{}</text>\n", Num(left), Num(h - 8), kFont,
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" {}>{}</text>\n", Num(a.left), Num(a.h - 8), kFont,
                      EscapeXml(p.x_labels.front()));
-    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" text-anchor=\"end\" {}>{}</text>\n", Num(w - right),
-                     Num(h - 8), kFont, EscapeXml(p.x_labels.back()));
+    s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" text-anchor=\"end\" {}>{}</text>\n", Num(a.w - a.right),
+                     Num(a.h - 8), kFont, EscapeXml(p.x_labels.back()));
   }
   s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" text-anchor=\"middle\" {}>unit, in order of calibration "
                    "({}){}</text>\n",
-                   Num(left + pw / 2), Num(h - 8), kFont, n,
-                   p.limit && !limit_on_scale ? fmt::format("; acceptance limit \u00b1{} off scale", Label(*p.limit))
-                                              : std::string());
+                   Num(a.left + a.pw / 2), Num(a.h - 8), kFont, n,
+                   p.limit && !sc.limit_on_scale ? fmt::format("; acceptance limit \u00b1{} off scale", Label(*p.limit))
+                                                 : std::string());
+  return s;
+}
+
+}  // namespace
+
+std::string SvgControlChart(const ControlChartPlot& p) {
+  const ChartArea a(p);
+  const ChartScale sc = ControlScale(p);
+  std::string s = fmt::format("<svg class=\"plot chart\" viewBox=\"0 0 {} {}\" role=\"img\" aria-label=\"{}\">\n",
+                              Num(a.w, 0), Num(a.h, 0), EscapeXml(p.title));
+  s += fmt::format("<text x=\"{}\" y=\"15\" font-size=\"12\" font-weight=\"bold\" {}>{}</text>\n", Num(a.left), kFont,
+                   EscapeXml(p.title));
+  s += ChartAxes(p, a, sc.r);
+  s += ControlLines(p, a, sc);
+  s += ControlSeries(p, a, sc.r);
+  s += ControlXAxis(p, a, sc);
   s += "</svg>\n";
   return s;
 }

@@ -193,11 +193,11 @@ std::string RenderHtmlReport(const UnitRecord& rec, const ReportInputs& inputs) 
   return s;
 }
 
-nlohmann::json ReportJson(const UnitRecord& rec, const ReportInputs& inputs) {
-  using nlohmann::json;
-  inputs.Validate(rec);
-  const Limits& l = inputs.limits;
-  const Verdict verdict = Evaluate(rec, l, inputs.budget);
+namespace {
+
+using nlohmann::json;
+
+json ChecksJson(const Verdict& verdict) {
   json checks = json::array();
   for (const Check& c : verdict.checks) {
     json budget = json::array();
@@ -215,7 +215,12 @@ nlohmann::json ReportJson(const UnitRecord& rec, const ReportInputs& inputs) {
     if (!c.budget.empty()) j["combined_standard_uncertainty"] = CombinedStandardUncertainty(c.budget);
     checks.push_back(j);
   }
-  json informative = json::array();  // the paper cornea: not part of the verdict
+  return checks;
+}
+
+// The paper cornea: not part of the verdict.
+json InformativeJson(const UnitRecord& rec, const Limits& l) {
+  json informative = json::array();
   for (const Check& c : PaperCorneaRows(rec, l)) {
     informative.push_back({{"id", c.id},
                            {"what", c.what},
@@ -226,10 +231,52 @@ nlohmann::json ReportJson(const UnitRecord& rec, const ReportInputs& inputs) {
                            {"threshold", c.limit},
                            {"within", c.pass}});
   }
+  return informative;
+}
+
+json LimitsJson(const Limits& l) {
   json limits = json::object();
   for (const NamedLimit& named : NamedLimits(l)) {
     limits[named.name] = {{"max", named.limit->max}, {"source", named.limit->source}};
   }
+  return limits;
+}
+
+// The previous record of the unit: its verdict and the change of each compared quantity.
+json PreviousJson(const UnitRecord& rec, const ReportInputs& inputs) {
+  const Limits& l = inputs.limits;
+  const Verdict vp = Evaluate(*inputs.previous, l, inputs.budget);
+  json comparison = json::array();
+  for (const ComparisonRow& r : ComparisonRows(rec, *inputs.previous, inputs)) {
+    const auto number = [](const std::optional<double>& v) { return v ? json(*v) : json(nullptr); };
+    const auto change = r.Change();
+    const auto U = r.ChangeU();
+    comparison.push_back({{"id", r.id},
+                          {"unit", r.plain_unit},
+                          {"previous", number(r.prev)},
+                          {"now", number(r.now)},
+                          {"change", number(change)},
+                          {"U_change", number(U)},
+                          {"coverage_factor", 2},
+                          {"within_U", change && U ? json(std::abs(*change) <= *U) : json(nullptr)}});
+  }
+  return {{"record", inputs.previous->directory},
+          {"unit_json_sha256", inputs.previous->unit_json_sha256},
+          {"record_created_utc", inputs.previous->created_utc},
+          {"verdict", vp.pass ? "PASS" : "FAIL"},
+          {"comparison", comparison}};
+}
+
+}  // namespace
+
+nlohmann::json ReportJson(const UnitRecord& rec, const ReportInputs& inputs) {
+  using nlohmann::json;
+  inputs.Validate(rec);
+  const Limits& l = inputs.limits;
+  const Verdict verdict = Evaluate(rec, l, inputs.budget);
+  const json checks = ChecksJson(verdict);
+  const json informative = InformativeJson(rec, l);
+  const json limits = LimitsJson(l);
   const SignOff& so = inputs.sign_off;
   json out = {{"format", kReportJsonFormat},
               {"format_version", kReportJsonFormatVersion},
@@ -255,28 +302,7 @@ nlohmann::json ReportJson(const UnitRecord& rec, const ReportInputs& inputs) {
               {"checks_passed", std::count_if(verdict.checks.begin(), verdict.checks.end(),
                                               [](const Check& c) { return c.pass; })},
               {"verdict", verdict.pass ? "PASS" : "FAIL"}};
-  if (inputs.previous) {
-    const Verdict vp = Evaluate(*inputs.previous, l, inputs.budget);
-    json comparison = json::array();
-    for (const ComparisonRow& r : ComparisonRows(rec, *inputs.previous, inputs)) {
-      const auto number = [](const std::optional<double>& v) { return v ? json(*v) : json(nullptr); };
-      const auto change = r.Change();
-      const auto U = r.ChangeU();
-      comparison.push_back({{"id", r.id},
-                            {"unit", r.plain_unit},
-                            {"previous", number(r.prev)},
-                            {"now", number(r.now)},
-                            {"change", number(change)},
-                            {"U_change", number(U)},
-                            {"coverage_factor", 2},
-                            {"within_U", change && U ? json(std::abs(*change) <= *U) : json(nullptr)}});
-    }
-    out["previous"] = {{"record", inputs.previous->directory},
-                       {"unit_json_sha256", inputs.previous->unit_json_sha256},
-                       {"record_created_utc", inputs.previous->created_utc},
-                       {"verdict", vp.pass ? "PASS" : "FAIL"},
-                       {"comparison", comparison}};
-  }
+  if (inputs.previous) out["previous"] = PreviousJson(rec, inputs);
   return out;
 }
 

@@ -70,10 +70,8 @@ void PrintCalibration(const calib::CalibrationResult& result, const CalibrateArg
   }
 }
 
-void Run(const CalibrateArgs& a) {
-  // Ceres logs through glog (e.g. a rank-deficient covariance); the calibration's status already says it in one
-  // line, so keep glog's lines off the terminal.
-  FLAGS_minloglevel = google::GLOG_FATAL;
+// The fit's options from the arguments, checked against each other.
+calib::CalibrationOptions OptionsOf(const CalibrateArgs& a) {
   const auto model = calib::ParseDistortionModel(a.model);
   if (!model) throw util::InputError(fmt::format("--model: '{}' is not seidel or brown5", a.model));
   calib::CalibrationOptions options;
@@ -109,22 +107,25 @@ void Run(const CalibrateArgs& a) {
   }
   std::string why;
   if (!options.IsValid(&why)) throw util::InputError(why);
+  return options;
+}
 
-  const auto target = calib::LoadTargetDescription(a.target);
-  const auto paths = util::Glob(a.images);
-  if (a.single_view && paths.size() != 1) {
-    throw util::InputError(fmt::format("--single-view takes one image; '{}' matches {}", a.images, paths.size()));
-  }
+// The views in which the target was found, with their images' paths.
+struct DetectedViews {
+  std::vector<calib::ViewObservations> views;
+  std::vector<std::string> view_paths;
+};
+
+DetectedViews DetectViews(const calib::TargetDescription& target, const std::vector<std::string>& paths, int jobs) {
   calib::FileSetOptions detect;
-  detect.jobs = a.jobs;
+  detect.jobs = jobs;
   if (paths.size() > kProgressFromImages) {
     detect.on_done = [&, done = size_t{0}](size_t, const calib::FileDetection& f) mutable {
       fmt::print(stderr, "topocal calibrate: [{}/{}] {}: {}\n", ++done, paths.size(), f.path,
                  f.skipped.empty() ? f.detection.message : f.skipped);
     };
   }
-  std::vector<calib::ViewObservations> views;
-  std::vector<std::string> view_paths;
+  DetectedViews d;
   for (auto& f : calib::DetectTargetInFiles(target, paths, detect)) {
     if (!f.skipped.empty()) {
       fmt::print(stderr, "topocal calibrate: skipping {}: {}\n", f.path, f.skipped);
@@ -136,41 +137,62 @@ void Run(const CalibrateArgs& a) {
                  f.detection.message.empty() ? "" : ": " + f.detection.message);
       continue;
     }
-    views.push_back(std::move(*f.detection.view));
-    view_paths.push_back(f.path);
+    d.views.push_back(std::move(*f.detection.view));
+    d.view_paths.push_back(f.path);
   }
+  return d;
+}
 
+// The fit, single- or multi-view; the views it left out and the outliers it rejected are reported on stderr.
+calib::CalibrationResult Calibrate(const DetectedViews& d, const std::vector<std::string>& paths, const CalibrateArgs& a,
+                                   const calib::CalibrationOptions& options) {
   calib::CalibrationResult result;
   if (a.single_view) {
-    if (views.empty()) {
+    if (d.views.empty()) {
       throw std::runtime_error(
           fmt::format("{}: no target found, nothing to calibrate (target description {})", paths[0], a.target));
     }
-    result = calib::CalibrateSingleView(views[0], options);
+    result = calib::CalibrateSingleView(d.views[0], options);
   } else {
-    result = calib::CalibrateMultiView(views, options);
+    result = calib::CalibrateMultiView(d.views, options);
   }
   for (const auto& s : result.skipped_views) {
-    fmt::print(stderr, "topocal calibrate: not used {}: {}\n", view_paths[static_cast<size_t>(s.view)], s.reason);
+    fmt::print(stderr, "topocal calibrate: not used {}: {}\n", d.view_paths[static_cast<size_t>(s.view)], s.reason);
   }
   if (!result.ok()) {
     throw std::runtime_error(fmt::format("calibration failed ({}): {}", calib::ToString(result.status), result.message));
   }
   for (const auto& o : result.outliers) {
     fmt::print(stderr, "topocal calibrate: outlier {} corner {}: residual {:.3f} px\n",
-               view_paths[static_cast<size_t>(o.view)], o.corner_id, o.residual_px.norm());
+               d.view_paths[static_cast<size_t>(o.view)], o.corner_id, o.residual_px.norm());
   }
+  return result;
+}
+
+void Run(const CalibrateArgs& a) {
+  // Ceres logs through glog (e.g. a rank-deficient covariance); the calibration's status already says it in one
+  // line, so keep glog's lines off the terminal.
+  FLAGS_minloglevel = google::GLOG_FATAL;
+  const calib::CalibrationOptions options = OptionsOf(a);
+
+  const auto target = calib::LoadTargetDescription(a.target);
+  const auto paths = util::Glob(a.images);
+  if (a.single_view && paths.size() != 1) {
+    throw util::InputError(fmt::format("--single-view takes one image; '{}' matches {}", a.images, paths.size()));
+  }
+  const DetectedViews d = DetectViews(target, paths, a.jobs);
+  const calib::CalibrationResult result = Calibrate(d, paths, a, options);
   std::optional<calib::CrossValidationResult> cross;
   std::string cross_svg;
   if (!a.cross_validate_svg.empty()) {
     // Only the views the full calibration used (an unusable view would fail a half for no reason of its own).
     std::vector<calib::ViewObservations> used;
-    for (const int v : result.views_used) used.push_back(views[static_cast<size_t>(v)]);
+    for (const int v : result.views_used) used.push_back(d.views[static_cast<size_t>(v)]);
     cross = calib::CrossValidate(used, options);
     if (!cross->ok) throw std::runtime_error(cross->message);
     cross_svg = calib::CrossValidationSvg(*cross, result.camera.height_px);
   }
-  const calib::CalibrationProvenance provenance{a.target, view_paths, {}};
+  const calib::CalibrationProvenance provenance{a.target, d.view_paths, {}};
   // All texts are complete before any file is written, so a failure leaves none behind.
   const std::string cal_text = calib::CalibrationFileText(result, provenance);
   const std::string json_text = a.json.empty() ? std::string() : calib::CalibrationReportJson(result, provenance);

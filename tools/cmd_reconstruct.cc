@@ -329,15 +329,59 @@ pipeline::MeasurementUncertainty UncertaintyOrRefusal(const Inputs& in,
   return u;
 }
 
-void Run(const std::string& config, const Inputs& in, const std::string& json_out, const std::string& maps, bool truth,
-         const ReconstructionOverrides& overrides) {
-  const NewDirectoryGuard maps_guard(maps);  // a failed run leaves no empty --maps folder
-  const plot::MapScaleRequest power_scale = PowerScaleOf(in);  // bad options refused before any work
+// The configuration with the command line's overrides, for measuring eyes.
+model::Config ReconstructionConfig(const std::string& config, const ReconstructionOverrides& overrides) {
   auto cfg = model::LoadConfig(config);
   overrides.ApplyTo(&cfg);
   // The verb that measures eyes: unless the configuration or --surface-model names a model, the spline joins
   // where the polynomial does not fit the data (keratoconus, ablations; docs/reconstruction.md).
   if (!cfg.reconstruction.surface_model_given) cfg.reconstruction.surface_model = "auto";
+  return cfg;
+}
+
+// From an image: the capture-quality line, and the measurement refused when the verdict is invalid.
+std::optional<pipeline::CaptureQuality> JudgeCapture(const std::optional<pipeline::SpotMeasurement>& from_image,
+                                                     const topo::Analysis& analysis, const std::string& image,
+                                                     nlohmann::json& info, const std::string& json_out) {
+  const std::optional<pipeline::CaptureQuality> capture =
+      from_image ? std::optional(from_image->capture) : std::nullopt;
+  if (capture) {
+    fmt::print("{}\n", capture->Line());
+    info["capture"] = report::CaptureJson(*capture);
+    const auto verdict = pipeline::JudgeMeasurement(*capture, analysis);
+    info["valid"] = verdict.valid;
+    if (!verdict.valid) RefuseMeasurement(image, verdict, info, json_out);
+  }
+  return capture;
+}
+
+// The maps of the analysis, with the U of the axial power and the peaks' determination when measured through a
+// device.
+void AddMaps(util::StagedOutputs& outputs, const std::string& maps, const Inputs& in,
+             const plot::MapScaleRequest& power_scale, const topo::Analysis& analysis,
+             const model::BiconicParams* truth_cornea,
+             const std::optional<pipeline::MeasurementUncertainty>& measurement_u) {
+  pipeline::MapSetOptions map_options;
+  map_options.eye = in.eye;  // N/T/S/I on the maps, in the examiner's view
+  map_options.power = power_scale;
+  pipeline::AnalysisMapEntry entry{"", "", &analysis, truth_cornea, {}};
+  if (measurement_u) {
+    entry.axial_expanded_D = &measurement_u->axial_expanded_D;
+    const auto determined = [&](const char* name) {
+      const auto* q = measurement_u->Find(name);
+      return !q || q->determined;
+    };
+    entry.kmax_location_determined = determined("clinical.kmax.x_mm");
+    entry.elevation_peak_location_determined = determined("clinical.best_fit_sphere.elevation_peak_x_mm");
+  }
+  pipeline::WriteAnalysisMapSet(outputs.AddDirectory(maps), {entry}, map_options);
+}
+
+void Run(const std::string& config, const Inputs& in, const std::string& json_out, const std::string& maps, bool truth,
+         const ReconstructionOverrides& overrides) {
+  const NewDirectoryGuard maps_guard(maps);  // a failed run leaves no empty --maps folder
+  const plot::MapScaleRequest power_scale = PowerScaleOf(in);  // bad options refused before any work
+  auto cfg = ReconstructionConfig(config, overrides);
   if (in.spots.empty() == in.image.empty()) throw util::InputError("reconstruct: give one of --spots or --image");
   if (in.uncertainty_samples > 0 && (in.image.empty() || (in.calibration.empty() && in.device.empty()))) {
     throw util::InputError("--uncertainty needs --image and --calibration or --device");
@@ -369,15 +413,7 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
   // detections the pattern's lattice left free (capture-quality line: rejected, identified through it).
   const auto analysis =
       from_image ? pipeline::LabelThroughSurface(&*from_image, imaging, cfg, analyze) : analyze(measured);
-  const std::optional<pipeline::CaptureQuality> capture =
-      from_image ? std::optional(from_image->capture) : std::nullopt;
-  if (capture) {
-    fmt::print("{}\n", capture->Line());
-    info["capture"] = report::CaptureJson(*capture);
-    const auto verdict = pipeline::JudgeMeasurement(*capture, analysis);
-    info["valid"] = verdict.valid;
-    if (!verdict.valid) RefuseMeasurement(in.image, verdict, info, json_out);
-  }
+  const std::optional<pipeline::CaptureQuality> capture = JudgeCapture(from_image, analysis, in.image, info, json_out);
   // Through a device, every reported number carries its U: the device's covariance, this image's spot noise, the
   // fit's residual (pipeline/measurement_uncertainty.h).
   std::optional<pipeline::MeasurementUncertainty> measurement_u;
@@ -393,22 +429,7 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
     if (measurement_u) report::WithdrawUndetermined(*measurement_u, &j);
     outputs.AddFile(json_out, util::JsonFileText(j));
   }
-  if (!maps.empty()) {
-    pipeline::MapSetOptions map_options;
-    map_options.eye = in.eye;  // N/T/S/I on the maps, in the examiner's view
-    map_options.power = power_scale;
-    pipeline::AnalysisMapEntry entry{"", "", &analysis, truth ? &cfg.cornea : nullptr, {}};
-    if (measurement_u) {
-      entry.axial_expanded_D = &measurement_u->axial_expanded_D;
-      const auto determined = [&](const char* name) {
-        const auto* q = measurement_u->Find(name);
-        return !q || q->determined;
-      };
-      entry.kmax_location_determined = determined("clinical.kmax.x_mm");
-      entry.elevation_peak_location_determined = determined("clinical.best_fit_sphere.elevation_peak_x_mm");
-    }
-    pipeline::WriteAnalysisMapSet(outputs.AddDirectory(maps), {entry}, map_options);
-  }
+  if (!maps.empty()) AddMaps(outputs, maps, in, power_scale, analysis, truth ? &cfg.cornea : nullptr, measurement_u);
   outputs.Commit();
 }
 
