@@ -283,7 +283,6 @@ plot::MapScaleRequest PowerScaleOf(const Inputs& in) {
   return plot::StandardPowerScale();
 }
 
-// The verb's work, once its options are parsed.
 // The lens calibration's uncertainty carried by Monte Carlo (--calibration --uncertainty N): printed, and its JSON.
 nlohmann::json PrintCalibrationUncertainty(const pipeline::ClinicalUncertainty& uncertainty) {
   fmt::print("calibration uncertainty carried through ({} draws of {}, {}; {} failed; {} spot(s) not undistorted "
@@ -377,6 +376,7 @@ void AddMaps(util::StagedOutputs& outputs, const std::string& maps, const Inputs
   pipeline::WriteAnalysisMapSet(outputs.AddDirectory(maps), {entry}, map_options);
 }
 
+// The verb's work, once its options are parsed.
 void Run(const std::string& config, const Inputs& in, const std::string& json_out, const std::string& maps, bool truth,
          const ReconstructionOverrides& overrides) {
   const NewDirectoryGuard maps_guard(maps);  // a failed run leaves no empty --maps folder
