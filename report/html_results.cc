@@ -22,14 +22,6 @@ namespace topocal::report::html {
 
 namespace {
 
-using plot::Arrow;
-using plot::Bar;
-using plot::CellField;
-using plot::PixelRegion;
-using plot::QuiverOptions;
-using plot::SvgBarChart;
-using plot::SvgQuiver;
-
 // Map kinds and stages in the order they are shown (docs/unit-record.md names: <case>_<stage>_<map>.png).
 constexpr const char* kMapKinds[] = {"axial_power", "tangential_power", "elevation", "height_difference"};
 
