@@ -600,8 +600,10 @@ TEST_F(UnitCli, RealPhotographsWithNonSquarePixelsCalibrateWithoutFixingTheAspec
   // cv::calibrateCamera on these photographs: 536.0734 / 536.0164 (docs/calibration.md).
   EXPECT_NEAR(fx / fy, 0.99979, 2e-4) << fx << " / " << fy;
   EXPECT_GT(std::abs(fx / fy - 1.0), 1e-4);  // not square: what used to be refused
+  // The distortion over the measurement field (the paper's spot disc, ~0.25 mm on this 3.2 mm lens): measured through
+  // the calibrated aspect, 0.687 px (k1 ~ -0.27 grows to tens of px only at the photographs' corners).
   const double field_px = record["calibration"]["distortion_field"]["max_displacement_px"].get<double>();
-  EXPECT_TRUE(std::isfinite(field_px) && field_px > 1.0) << field_px;  // k1 ~ -0.27: tens of px at the corners
+  EXPECT_NEAR(field_px, 0.687, 0.07);
 }
 
 }  // namespace
