@@ -107,6 +107,8 @@ void RegisterDevice(py::module_& m) {
       .def_property_readonly("width_px", [](const model::DeviceFile& f) { return f.device.camera.width_px; })
       .def_property_readonly("height_px", [](const model::DeviceFile& f) { return f.device.camera.height_px; })
       .def_property_readonly("pixel_pitch_um", [](const model::DeviceFile& f) { return f.device.camera.pixel_pitch_um; })
+      .def_property_readonly("pixel_aspect", [](const model::DeviceFile& f) { return f.device.camera.pixel_aspect; },
+                             "Pitch along v / pitch along u: OpenCV's fx / fy (1 for square pixels).")
       .def_property_readonly("a_mm", [](const model::DeviceFile& f) { return f.device.camera.a_mm; },
                              "Pinhole to detection plane, mm (the paper's a), as built.")
       .def_property_readonly(

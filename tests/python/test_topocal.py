@@ -112,6 +112,29 @@ def test_device_round_trip_and_projection_against_opencv():
     assert err < 1e-9
 
 
+def test_a_device_with_non_square_pixels_is_opencvs_fx_over_fy():
+    spec = json.loads(topocal.Device.load(DEMO_DEVICE).to_json())
+    spec["camera"]["pixel_aspect"] = 1.0003
+    device = topocal.Device.from_json(json.dumps(spec))
+    assert device.pixel_aspect == 1.0003
+    assert topocal.Device.from_json(device.to_json()).to_json() == device.to_json()
+    K, dist = device.opencv_view()
+    assert abs(K[0, 0] / K[1, 1] - 1.0003) < 1e-12
+    # The same rays to the same pixels with a pitch per axis (identity orientation).
+    rng = np.random.default_rng(8)
+    points_mm = rng.uniform(-0.3, 0.3, size=(200, 2))
+    px = device.pixel_of(points_mm)
+    pitch_mm = device.pixel_pitch_um * 1e-3 * np.array([1.0, 1.0003])
+    undistorted_px = np.asarray(device.principal_point_px) + points_mm / pitch_mm
+    rays = np.column_stack([(undistorted_px[:, 0] - K[0, 2]) / K[0, 0], (undistorted_px[:, 1] - K[1, 2]) / K[1, 1],
+                            np.ones(len(points_mm))])
+    projected, _ = cv2.projectPoints(rays, np.zeros(3), np.zeros(3), K, dist)
+    # Acceptance 1e-6 px (an exact view); regression bound 1e-9 px, as for square pixels (4.5e-13 px there).
+    err = np.max(np.abs(projected.reshape(-1, 2) - px))
+    assert err < 1e-6
+    assert err < 1e-9
+
+
 def test_detect_gives_the_cli_rows_and_summary(work, eye):
     csv, summary = work / "eye.csv", work / "eye-detect.json"
     run("detect", "--image", str(eye), "--device", DEMO_DEVICE, "--config", PAPER, "--out", str(csv), "--json",
