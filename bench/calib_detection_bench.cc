@@ -168,18 +168,24 @@ void BM_LibapriltagKalibrFamilyTable(benchmark::State& state) {
 }
 BENCHMARK(BM_LibapriltagKalibrFamilyTable)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
+// The unit's camera: the full 4000 x 3000 sensor, a = 5.2 mm, 1.12 um pitch, Brown k1 alone.
+model::CameraModel UnitCamera(double k1) {
+  model::CameraModel camera;
+  camera.width_px = 4000;
+  camera.height_px = 3000;
+  camera.fx_px = camera.fy_px = 5.2 / 1.12e-3;
+  camera.cx_px = 1999.5;
+  camera.cy_px = 1499.5;
+  camera.dist = {k1, 0.0, 0.0, 0.0, 0.0};
+  return camera;
+}
+
 // A unit's target image: data/target-topographer.yaml (13 x 13 inner corners of 0.9 mm) at 70 mm on the full
 // 4000 x 3000 sensor (a = 5.2 mm, 1.12 um pitch; README's demo), with OpenCV's detectors on the same image as peers.
 const RenderedView& UnitView() {
   static const RenderedView view = [] {
     const auto target = LoadTargetDescription(TOPOCAL_SOURCE_DIR "/data/target-topographer.yaml");
-    model::CameraModel camera;
-    camera.width_px = 4000;
-    camera.height_px = 3000;
-    camera.fx_px = camera.fy_px = 5.2 / 1.12e-3;
-    camera.cx_px = 1999.5;
-    camera.cy_px = 1499.5;
-    camera.dist = {-0.05, 0.0, 0.0, 0.0, 0.0};
+    const model::CameraModel camera = UnitCamera(-0.05);
     RenderOptions options;
     options.supersampling = 4;  // the detector's speed does not depend on the render's fidelity
     options.noise_grey = 1.0;
@@ -190,20 +196,9 @@ const RenderedView& UnitView() {
 
 // The README's unit view, rendered as `topocal render-target` does (supersampling 4, blur 1 px, noise 1 grey level;
 // the paper's sigma = 6.3e-5, k1 = -6.2, folds 718 px from the centre). Arg: threads (0 = every core). Wall time.
-model::CameraModel UnitCamera() {
-  model::CameraModel camera;
-  camera.width_px = 4000;
-  camera.height_px = 3000;
-  camera.fx_px = camera.fy_px = 5.2 / 1.12e-3;
-  camera.cx_px = 1999.5;
-  camera.cy_px = 1499.5;
-  camera.dist = {model::SeidelSigmaToBrownK1(6.3e-5, -0.065, 5.2), 0.0, 0.0, 0.0, 0.0};
-  return camera;
-}
-
 void BM_RenderUnitTarget(benchmark::State& state) {
   const auto target = LoadTargetDescription(TOPOCAL_SOURCE_DIR "/data/target-topographer.yaml");
-  const auto camera = UnitCamera();
+  const auto camera = UnitCamera(model::SeidelSigmaToBrownK1(6.3e-5, -0.065, 5.2));
   const auto pose = PoseFacingTarget(target, 70.0);
   RenderOptions options;
   options.supersampling = 4;
@@ -221,7 +216,7 @@ BENCHMARK(BM_RenderUnitTarget)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->U
 // the renderer computes near the paper only.
 void BM_RenderUnitTargetOpenCv(benchmark::State& state) {
   const auto target = LoadTargetDescription(TOPOCAL_SOURCE_DIR "/data/target-topographer.yaml");
-  const auto camera = UnitCamera();
+  const auto camera = UnitCamera(model::SeidelSigmaToBrownK1(6.3e-5, -0.065, 5.2));
   const auto pose = PoseFacingTarget(target, 70.0);
   const cv::Matx33d k(camera.fx_px, 0, camera.cx_px, 0, camera.fy_px, camera.cy_px, 0, 0, 1);
   const std::vector<double> dist(camera.dist.begin(), camera.dist.end());

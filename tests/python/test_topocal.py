@@ -87,6 +87,17 @@ def test_errors_are_python_errors_naming_the_input(tmp_path):
         device.pixel_of(np.zeros((4, 3)))
 
 
+def max_error_against_opencv(device, points_mm, pitch_mm):
+    """|pixel_of - cv2.projectPoints| over the points: the undistorted pixel (identity orientation, a pitch per axis)
+    as a normalised ray through the device's OpenCV view."""
+    K, dist = device.opencv_view()
+    undistorted_px = np.asarray(device.principal_point_px) + points_mm / pitch_mm
+    rays = np.column_stack([(undistorted_px[:, 0] - K[0, 2]) / K[0, 0], (undistorted_px[:, 1] - K[1, 2]) / K[1, 1],
+                            np.ones(len(points_mm))])
+    projected, _ = cv2.projectPoints(rays, np.zeros(3), np.zeros(3), K, dist)
+    return np.max(np.abs(projected.reshape(-1, 2) - device.pixel_of(points_mm)))
+
+
 def test_device_round_trip_and_projection_against_opencv():
     device = topocal.Device.load(DEMO_DEVICE)
     assert (device.width_px, device.height_px) == (4000, 3000)
@@ -100,14 +111,8 @@ def test_device_round_trip_and_projection_against_opencv():
     back = device.undistorted_of(px)
     assert np.max(np.abs(back - points_mm)) < 1e-9
     # The OpenCV view maps the same rays to the same pixels: undistorted pixel -> normalised ray -> projectPoints.
-    K, dist = device.opencv_view()
-    pitch_mm = device.pixel_pitch_um * 1e-3
-    undistorted_px = np.asarray(device.principal_point_px) + points_mm / pitch_mm  # identity orientation
-    rays = np.column_stack([(undistorted_px[:, 0] - K[0, 2]) / K[0, 0], (undistorted_px[:, 1] - K[1, 2]) / K[1, 1],
-                            np.ones(len(points_mm))])
-    projected, _ = cv2.projectPoints(rays, np.zeros(3), np.zeros(3), K, dist)
-    # Measured 2026-12-03: 4.5e-13 px; acceptance 1e-6 px (an exact view), regression bound 1e-9 px.
-    err = np.max(np.abs(projected.reshape(-1, 2) - px))
+    # Measured 4.5e-13 px; acceptance 1e-6 px (an exact view), regression bound 1e-9 px.
+    err = max_error_against_opencv(device, points_mm, device.pixel_pitch_um * 1e-3)
     assert err < 1e-6
     assert err < 1e-9
 
@@ -118,19 +123,12 @@ def test_a_device_with_non_square_pixels_is_opencvs_fx_over_fy():
     device = topocal.Device.from_json(json.dumps(spec))
     assert device.pixel_aspect == 1.0003
     assert topocal.Device.from_json(device.to_json()).to_json() == device.to_json()
-    K, dist = device.opencv_view()
+    K, _ = device.opencv_view()
     assert abs(K[0, 0] / K[1, 1] - 1.0003) < 1e-12
-    # The same rays to the same pixels with a pitch per axis (identity orientation).
-    rng = np.random.default_rng(8)
-    points_mm = rng.uniform(-0.3, 0.3, size=(200, 2))
-    px = device.pixel_of(points_mm)
-    pitch_mm = device.pixel_pitch_um * 1e-3 * np.array([1.0, 1.0003])
-    undistorted_px = np.asarray(device.principal_point_px) + points_mm / pitch_mm
-    rays = np.column_stack([(undistorted_px[:, 0] - K[0, 2]) / K[0, 0], (undistorted_px[:, 1] - K[1, 2]) / K[1, 1],
-                            np.ones(len(points_mm))])
-    projected, _ = cv2.projectPoints(rays, np.zeros(3), np.zeros(3), K, dist)
-    # Acceptance 1e-6 px (an exact view); regression bound 1e-9 px, as for square pixels (4.5e-13 px there).
-    err = np.max(np.abs(projected.reshape(-1, 2) - px))
+    # The same rays to the same pixels with a pitch per axis. Acceptance 1e-6 px (an exact view); regression bound
+    # 1e-9 px, as for square pixels (4.5e-13 px there).
+    points_mm = np.random.default_rng(8).uniform(-0.3, 0.3, size=(200, 2))
+    err = max_error_against_opencv(device, points_mm, device.pixel_pitch_um * 1e-3 * np.array([1.0, 1.0003]))
     assert err < 1e-6
     assert err < 1e-9
 
