@@ -321,6 +321,8 @@ std::string SpotFlagsText(unsigned flags) {
   if (flags & kTruncated) add("truncated");
   if (flags & kFluxOutlier) add("flux_outlier");
   if (flags & kUnevenBackground) add("uneven_background");
+  if (flags & kSurfaceOutlier) add("surface_outlier");
+  if (flags & kSurfaceLabelled) add("surface_labelled");
   return out;
 }
 

@@ -59,8 +59,13 @@ enum SpotFlag : unsigned {
                       // (set by DetectAndIndexSpots, which knows the neighbours)
   kUnevenBackground = 16u,  // the background about the spot is not a plane (a lid margin, a lash's edge): the
                             // centre may be pulled
+  // Set by the surface's check of the identities (pipeline/surface_labelling.h), which knows the surface the other
+  // spots give:
+  kSurfaceOutlier = 32u,   // its slope stands out of its neighbours' on that surface: a pulled centre or a wrong
+                           // identity; left out of the measurement
+  kSurfaceLabelled = 64u,  // identified by that surface's prediction (the pattern's lattice left it free)
 };
-// "near_blob|saturated|truncated|flux_outlier|uneven_background" (empty for 0).
+// "near_blob|saturated|truncated|flux_outlier|uneven_background|surface_outlier|surface_labelled" (empty for 0).
 std::string SpotFlagsText(unsigned flags);
 
 struct SpotDetectionOptions {

@@ -130,7 +130,7 @@ topo::Analysis RejectSurfaceOutliers(
     if (outliers.empty()) break;
     std::erase_if(spots, [&](const topo::MeasuredSpot& s) { return outliers.count(s.id) > 0; });
     if (capture) {
-      capture->surface_outliers += static_cast<int>(outliers.size());
+      capture->surface_outliers.insert(capture->surface_outliers.end(), outliers.begin(), outliers.end());
       capture->usable -= static_cast<int>(outliers.size());
     }
     analysis = analyze(spots);
@@ -147,8 +147,8 @@ std::string CaptureQuality::Line() const {
   return fmt::format("capture: {} of {} spots identified ({:.0f} % visible), {} usable; {}; {} unidentified blobs "
                      "(glints, lashes, skin); {} identities refused as ambiguous; {} spots rejected by the "
                      "reconstructed surface, {} identified through it; median spot area {:.0f} px",
-                     identified, designed, 100 * visible_fraction, usable, gap, unassigned, refused, surface_outliers,
-                     surface_labelled, median_spot_area_px);
+                     identified, designed, 100 * visible_fraction, usable, gap, unassigned, refused,
+                     surface_outliers.size(), surface_labelled, median_spot_area_px);
 }
 
 MeasurementVerdict JudgeMeasurement(const CaptureQuality& capture, const topo::Analysis& analysis) {

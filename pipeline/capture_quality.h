@@ -26,8 +26,8 @@ struct CaptureQuality {
   std::string gap_side;
   double median_spot_area_px = 0;  // of the identified spots: grows with defocus and motion blur
   // Usable spots the reconstructed surface rejected (RejectSurfaceOutliers): their slope residual stands out of
-  // the others' — a centre pulled by a lash's shadow or the lid margin, or a wrong identity.
-  int surface_outliers = 0;
+  // the others' — a centre pulled by a lash's shadow or the lid margin, or a wrong identity. By id.
+  std::vector<model::SpotId> surface_outliers;
   // Free detections the reconstructed surface's prediction identified (pipeline/surface_labelling.h), counted in
   // identified and usable too.
   int surface_labelled = 0;

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include "correct/opencv_brown.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -52,6 +53,20 @@ DetectionPlaneModel DetectionPlaneModelOf(const model::CameraModel& c, const mod
   }
   result.ok = true;
   return result;
+}
+
+DetectionPlaneModel CalibrationOnDetectionPlane(const calib::CalibrationFile& calibration,
+                                                const std::string& calibration_path,
+                                                const model::TopographerCamera& camera,
+                                                const std::string& camera_path) {
+  if (calibration.camera.width_px != camera.width_px || calibration.camera.height_px != camera.height_px) {
+    throw util::InputError(fmt::format("{}: calibrated at {} x {} px but {} is {} x {} px: calibrate the same sensor",
+                                       calibration_path, calibration.camera.width_px, calibration.camera.height_px,
+                                       camera_path, camera.width_px, camera.height_px));
+  }
+  auto on_plane = DetectionPlaneModelOf(calibration.camera, camera);
+  if (!on_plane.ok) throw util::InputError(fmt::format("{}: {}", calibration_path, on_plane.message));
+  return on_plane;
 }
 
 }  // namespace topocal::pipeline

@@ -12,6 +12,7 @@
 #include <optional>
 #include <string>
 
+#include "calib/calibration_file.h"
 #include "model/camera_model.h"
 #include "model/distortion.h"
 #include "model/topographer_camera.h"
@@ -37,5 +38,12 @@ struct DetectionPlaneModel {
 // exit 2) or a computation that failed (a calibration the workflow computed: std::runtime_error, exit 1) is the
 // caller's to say; an uncertainty draw counts it as a failed draw.
 DetectionPlaneModel DetectionPlaneModelOf(const model::CameraModel& calibrated, const model::TopographerCamera& camera);
+
+// A lens calibration file given beside a camera file (`--camera CAM --calibration cal.yaml`) on the detection plane:
+// DetectionPlaneModelOf, ok. Throws util::InputError naming the calibration file when it was made on a sensor of
+// another size or cannot be expressed on the detection plane.
+DetectionPlaneModel CalibrationOnDetectionPlane(const calib::CalibrationFile& calibration,
+                                                const std::string& calibration_path,
+                                                const model::TopographerCamera& camera, const std::string& camera_path);
 
 }  // namespace topocal::pipeline

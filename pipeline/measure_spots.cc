@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <set>
 #include <stdexcept>
 #include <utility>
 
@@ -58,13 +59,11 @@ IdentifiedSpots IdentifySpots(const cv::Mat& image, const model::TopographerCame
   return out;
 }
 
-SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,
-                             const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion,
-                             const correct::DetectAndIndexOptions& options) {
-  auto identified = IdentifySpots(image, camera, ideal, options);
+SpotMeasurement MeasurementOf(const IdentifiedSpots& identified, const std::optional<model::Distortion>& distortion,
+                              const correct::DetectAndIndexOptions& options) {
   const correct::DetectAndIndexResult& located = identified.located;
   SpotMeasurement m;
-  m.capture = std::move(identified.capture);
+  m.capture = identified.capture;
   m.excluded = static_cast<int>(located.excluded.size());
   m.orientation_message = located.orientation.message;
   m.indexed = static_cast<int>(located.spots.size());
@@ -85,6 +84,12 @@ SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamer
   return m;
 }
 
+SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,
+                             const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion,
+                             const correct::DetectAndIndexOptions& options) {
+  return MeasurementOf(IdentifySpots(image, camera, ideal, options), distortion, options);
+}
+
 SpotMeasurement MeasureSpots(const cv::Mat& image, const model::Device& device, const model::IdealImageParams& ideal,
                              const correct::DetectAndIndexOptions& options) {
   return MeasureSpots(image, device.camera, ideal, device.distortion, options);
@@ -94,12 +99,95 @@ EyeMeasurement MeasureEye(const cv::Mat& image, const model::Device& device, con
                           const correct::DetectAndIndexOptions& options, const model::BiconicParams* truth) {
   EyeMeasurement m;
   m.spots = MeasureSpots(image, device, config.ideal_image, options);
-  const auto analyze = [&](const std::vector<topo::MeasuredSpot>& spots) {
-    return AnalyzeThroughDevice(spots, device, config, truth);
-  };
-  m.analysis = LabelThroughSurface(&m.spots, device, config, analyze);
-  m.verdict = JudgeMeasurement(m.spots.capture, m.analysis);
+  m.verdict = LabelAndJudge(&m.spots, device, config, AnalysisOf(&device, config, truth), &m.analysis);
   return m;
+}
+
+model::Config ForEyes(model::Config config) {
+  if (!config.reconstruction.surface_model_given) config.reconstruction.surface_model = "auto";
+  return config;
+}
+
+SpotAnalysis AnalysisOf(const model::Device* device, const model::Config& config, const model::BiconicParams* truth) {
+  if (device) {
+    return [device = *device, config, truth](const std::vector<topo::MeasuredSpot>& spots) {
+      return AnalyzeThroughDevice(spots, device, config, truth);
+    };
+  }
+  return [design = model::DesignNullScreen(config.ideal_image, config.topographer), config,
+          truth](const std::vector<topo::MeasuredSpot>& spots) {
+    return topo::AnalyzeSpots(spots, design.targets, config, truth);
+  };
+}
+
+MeasurementVerdict LabelAndJudge(SpotMeasurement* m, const model::Device& imaging, const model::Config& config,
+                                 const SpotAnalysis& analyze, topo::Analysis* analysis) {
+  try {
+    *analysis = LabelThroughSurface(m, imaging, config, analyze);
+  } catch (const std::runtime_error& e) {
+    *analysis = {};
+    return {false, {fmt::format("the identified spots give no surface: {}", e.what())}};
+  }
+  return JudgeMeasurement(m->capture, *analysis);
+}
+
+namespace {
+
+// Where a detection sits in `v` (bitwise the same position: the measurement copies it), or -1.
+int FindAt(const std::vector<correct::LocatedSpot>& v, const Eigen::Vector2d& mm) {
+  for (size_t i = 0; i < v.size(); ++i) {
+    if (v[i].position_mm == mm) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+}  // namespace
+
+correct::DetectAndIndexResult WithSurfaceIdentities(const correct::DetectAndIndexResult& located,
+                                                    const SpotMeasurement& labelled) {
+  correct::DetectAndIndexResult out = located;
+  std::vector<correct::LocatedSpot> identified = out.spots;
+  std::set<model::SpotId> before;
+  for (const auto& s : located.spots) before.insert(s.id);
+  for (const auto& d : labelled.detected) {
+    if (before.count(d.id)) continue;
+    const int k = FindAt(out.unassigned, d.distorted_mm);
+    if (k < 0) continue;  // cannot happen: every surface identity is a free detection's position
+    correct::LocatedSpot s = out.unassigned[k];
+    s.id = d.id;
+    s.flags |= correct::kSurfaceLabelled;
+    identified.push_back(s);
+    out.unassigned.erase(out.unassigned.begin() + k);
+    std::erase(out.missing, d.id);
+  }
+  const std::set<model::SpotId> outliers(labelled.capture.surface_outliers.begin(),
+                                         labelled.capture.surface_outliers.end());
+  out.spots.clear();
+  for (auto& s : identified) {
+    if (outliers.count(s.id)) {
+      s.flags |= correct::kSurfaceOutlier;
+      out.excluded.push_back(s);
+    } else {
+      out.spots.push_back(s);
+    }
+  }
+  const auto by_id = [](const correct::LocatedSpot& a, const correct::LocatedSpot& b) { return a.id < b.id; };
+  std::sort(out.spots.begin(), out.spots.end(), by_id);
+  std::sort(out.excluded.begin(), out.excluded.end(), by_id);
+  return out;
+}
+
+CheckedSpots DetectThroughSurface(const cv::Mat& image, const model::Device& imaging, bool undistort,
+                                  const SpotAnalysis& analyze, const model::Config& config,
+                                  const correct::DetectAndIndexOptions& options) {
+  const IdentifiedSpots identified = IdentifySpots(image, imaging.camera, config.ideal_image, options);
+  SpotMeasurement m = MeasurementOf(identified, undistort ? std::optional(imaging.distortion) : std::nullopt, options);
+  topo::Analysis analysis;
+  CheckedSpots out;
+  out.verdict = LabelAndJudge(&m, imaging, config, analyze, &analysis);
+  out.located = WithSurfaceIdentities(identified.located, m);
+  out.capture = m.capture;
+  return out;
 }
 
 topo::Analysis AnalyzeThroughDevice(const std::vector<topo::MeasuredSpot>& spots, const model::Device& device,

@@ -1,6 +1,7 @@
 #pragma once
 // A raw spot image to reconstruction input: detect and index the spots (correct/), convert to detection-plane mm
 // through the camera, and undistort them with a calibrated distortion when one is given.
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -60,6 +61,11 @@ struct IdentifiedSpots {
 IdentifiedSpots IdentifySpots(const cv::Mat& image, const model::TopographerCamera& camera,
                               const model::IdealImageParams& ideal, const correct::DetectAndIndexOptions& options = {});
 
+// The identified spots of `identified` on the detection plane, undistorted with `distortion` when one is given; the
+// unassigned detections that carry a spot's light (FreeDetectionIsSpotLike) kept as free detections.
+SpotMeasurement MeasurementOf(const IdentifiedSpots& identified, const std::optional<model::Distortion>& distortion,
+                              const correct::DetectAndIndexOptions& options = {});
+
 // The detected (distorted) spots undistorted with `distortion`. Spots outside its invertible domain are left out;
 // *failures (if given) counts them.
 std::vector<topo::MeasuredSpot> UndistortSpots(const std::vector<MeasuredImageSpot>& detected,
@@ -73,6 +79,43 @@ SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamer
 // Through an as-built device: its camera maps pixels to the detection plane and its distortion is undone.
 SpotMeasurement MeasureSpots(const cv::Mat& image, const model::Device& device, const model::IdealImageParams& ideal,
                              const correct::DetectAndIndexOptions& options = {});
+
+// The configuration as eyes are measured with it (`reconstruct`, `detect` and the Python module): unless the
+// configuration (or --surface-model) names a surface model, the spline joins where the polynomial does not fit the
+// data (keratoconus, ablations; docs/reconstruction.md).
+model::Config ForEyes(model::Config config);
+
+// The analysis of undistorted spots as a measurement makes it: through `device` (AnalyzeThroughDevice) or, without
+// one (a camera alone), through the configuration's design (topo::AnalyzeSpots with the designed targets).
+using SpotAnalysis = std::function<topo::Analysis(const std::vector<topo::MeasuredSpot>&)>;
+SpotAnalysis AnalysisOf(const model::Device* device, const model::Config& config, const model::BiconicParams* truth);
+
+// Every identity of *m checked against the surface the others give and the free detections identified through it
+// (LabelThroughSurface through `imaging`, the device the image was taken through), then the verdict
+// (JudgeMeasurement). When the identified spots give no surface (`analyze` throws: a ray misses it, the fit fails),
+// the verdict is invalid with that reason and *analysis is left empty. An invalid verdict means: no clinical number.
+MeasurementVerdict LabelAndJudge(SpotMeasurement* m, const model::Device& imaging, const model::Config& config,
+                                 const SpotAnalysis& analyze, topo::Analysis* analysis);
+
+// The detection with the identities the surface's check left (`labelled`, measured from `located` and through
+// LabelAndJudge): spots the surface rejected moved to `excluded` and flagged kSurfaceOutlier, free detections it
+// identified moved from `unassigned` to `spots` with their identity and flagged kSurfaceLabelled, both lists kept in
+// id order and `missing` without the new identities.
+correct::DetectAndIndexResult WithSurfaceIdentities(const correct::DetectAndIndexResult& located,
+                                                    const SpotMeasurement& labelled);
+
+// Detection and identification as `topocal detect` and the Python module's detect() give them, the same as
+// `reconstruct --image` measures with: IdentifySpots with imaging's camera, MeasurementOf (imaging's distortion
+// undone when `undistort`), LabelAndJudge through `imaging` with `analyze`, WithSurfaceIdentities. Throws what
+// IdentifySpots throws.
+struct CheckedSpots {
+  correct::DetectAndIndexResult located;  // with the surface's identities
+  CaptureQuality capture;
+  MeasurementVerdict verdict;
+};
+CheckedSpots DetectThroughSurface(const cv::Mat& image, const model::Device& imaging, bool undistort,
+                                  const SpotAnalysis& analyze, const model::Config& config,
+                                  const correct::DetectAndIndexOptions& options = {});
 
 // Reconstruction, biconic fit and maps of undistorted spots measured through a device: the design's targets placed
 // where the device's screen puts them, rays traced with the device's a, the vertex reference of the configuration

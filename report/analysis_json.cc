@@ -158,7 +158,7 @@ nlohmann::json CaptureJson(const pipeline::CaptureQuality& q) {
           {"largest_gap_deg", q.largest_gap_deg},
           {"gap_side", q.gap_side},
           {"median_spot_area_px", q.median_spot_area_px},
-          {"surface_outliers", q.surface_outliers},
+          {"surface_outliers", q.surface_outliers.size()},
           {"surface_labelled", q.surface_labelled}};
 }
 

@@ -207,13 +207,7 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::C
   std::optional<calib::CalibrationFile> cal;
   if (!in.calibration.empty()) {
     cal = calib::LoadCalibrationFile(in.calibration);
-    if (cal->camera.width_px != camera.width_px || cal->camera.height_px != camera.height_px) {
-      throw util::InputError(fmt::format("{}: calibrated at {} x {} px but {} is {} x {} px: calibrate the same sensor",
-                                         in.calibration, cal->camera.width_px, cal->camera.height_px, in.camera,
-                                         camera.width_px, camera.height_px));
-    }
-    const auto on_plane = pipeline::DetectionPlaneModelOf(cal->camera, camera);
-    if (!on_plane.ok) throw util::InputError(fmt::format("{}: {}", in.calibration, on_plane.message));
+    const auto on_plane = pipeline::CalibrationOnDetectionPlane(*cal, in.calibration, camera, in.camera);
     distortion = on_plane.distortion;
     camera = on_plane.camera;  // with the calibration's pixel aspect, fx / fy
   }
@@ -332,22 +326,19 @@ pipeline::MeasurementUncertainty UncertaintyOrRefusal(const Inputs& in,
 model::Config ReconstructionConfig(const std::string& config, const ReconstructionOverrides& overrides) {
   auto cfg = model::LoadConfig(config);
   overrides.ApplyTo(&cfg);
-  // The verb that measures eyes: unless the configuration or --surface-model names a model, the spline joins
-  // where the polynomial does not fit the data (keratoconus, ablations; docs/reconstruction.md).
-  if (!cfg.reconstruction.surface_model_given) cfg.reconstruction.surface_model = "auto";
-  return cfg;
+  return pipeline::ForEyes(cfg);  // the verb that measures eyes
 }
 
 // From an image: the capture-quality line, and the measurement refused when the verdict is invalid.
 std::optional<pipeline::CaptureQuality> JudgeCapture(const std::optional<pipeline::SpotMeasurement>& from_image,
-                                                     const topo::Analysis& analysis, const std::string& image,
-                                                     nlohmann::json& info, const std::string& json_out) {
+                                                     const pipeline::MeasurementVerdict& verdict,
+                                                     const std::string& image, nlohmann::json& info,
+                                                     const std::string& json_out) {
   const std::optional<pipeline::CaptureQuality> capture =
       from_image ? std::optional(from_image->capture) : std::nullopt;
   if (capture) {
     fmt::print("{}\n", capture->Line());
     info["capture"] = report::CaptureJson(*capture);
-    const auto verdict = pipeline::JudgeMeasurement(*capture, analysis);
     info["valid"] = verdict.valid;
     if (!verdict.valid) RefuseMeasurement(image, verdict, info, json_out);
   }
@@ -404,16 +395,17 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
   } catch (const util::MeasurementRefused& e) {  // the spots could not be identified: the JSON says so too
     RefuseMeasurement(in.image, {false, {e.what()}}, info, json_out, /*print=*/false);
   }
-  const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
-  const auto analyze = [&](const std::vector<topo::MeasuredSpot>& spots) {
-    return device ? pipeline::AnalyzeThroughDevice(spots, *device, cfg, truth ? &cfg.cornea : nullptr)
-                  : topo::AnalyzeSpots(spots, design.targets, cfg, truth ? &cfg.cornea : nullptr);
-  };
+  const auto analyze = pipeline::AnalysisOf(device ? &*device : nullptr, cfg, truth ? &cfg.cornea : nullptr);
   // From an image, every spot is checked against the surface the others give, and the surface identifies the
   // detections the pattern's lattice left free (capture-quality line: rejected, identified through it).
-  const auto analysis =
-      from_image ? pipeline::LabelThroughSurface(&*from_image, imaging, cfg, analyze) : analyze(measured);
-  const std::optional<pipeline::CaptureQuality> capture = JudgeCapture(from_image, analysis, in.image, info, json_out);
+  topo::Analysis analysis;
+  pipeline::MeasurementVerdict verdict;
+  if (from_image) {
+    verdict = pipeline::LabelAndJudge(&*from_image, imaging, cfg, analyze, &analysis);
+  } else {
+    analysis = analyze(measured);
+  }
+  const std::optional<pipeline::CaptureQuality> capture = JudgeCapture(from_image, verdict, in.image, info, json_out);
   // Through a device, every reported number carries its U: the device's covariance, this image's spot noise, the
   // fit's residual (pipeline/measurement_uncertainty.h).
   std::optional<pipeline::MeasurementUncertainty> measurement_u;

@@ -58,24 +58,33 @@ py::array SpotTable(const correct::DetectAndIndexResult& r) {
 py::object Detect(const py::array& image, const py::object& device, const py::object& config,
                   const std::string& estimator, bool return_summary) {
   const model::DeviceFile dev = DeviceArg(device);
-  const model::Config cfg = ConfigArg(config);
+  const model::Config cfg = pipeline::ForEyes(ConfigArg(config));  // the identities checked as reconstruct checks them
   const auto options = OptionsFor(estimator);
   const cv::Mat view = SensorImage(image, dev.device.camera);
-  pipeline::IdentifiedSpots identified;
+  pipeline::CheckedSpots checked;
   try {
     py::gil_scoped_release release;
-    identified = pipeline::IdentifySpots(view, dev.device.camera, cfg.ideal_image, options);
+    checked = pipeline::DetectThroughSurface(view, dev.device, /*undistort=*/true,
+                                             pipeline::AnalysisOf(&dev.device, cfg, nullptr), cfg, options);
   } catch (const util::MeasurementRefused& e) {
     RaiseRefused(e.what(), {e.what()}, {{"valid", false}, {"refused", {e.what()}}});
   }
-  py::array table = SpotTable(identified.located);
+  nlohmann::json summary = report::DetectionJson(checked.located, options.detection.method, checked.capture);
+  summary["valid"] = checked.verdict.valid;
+  if (!checked.verdict.valid) {
+    summary["refused"] = checked.verdict.reasons;
+    RaiseRefused(fmt::format("spot identities refused: {}", fmt::join(checked.verdict.reasons, "; ")),
+                 checked.verdict.reasons, summary);
+  }
+  py::array table = SpotTable(checked.located);
   if (!return_summary) return table;
-  return py::make_tuple(
-      table, ToPython(report::DetectionJson(identified.located, options.detection.method, identified.capture)));
+  return py::make_tuple(table, ToPython(summary));
 }
 
 // A spots table (structured array with ring, index, x_mm, y_mm, or what detect() returns) as measured spots; rows of
-// ring 0 (blobs without identity) are left out, as the CLI's spots CSV reader leaves them.
+// ring 0 (blobs without identity) are left out, as the CLI's spots CSV reader leaves them, and so are rows whose
+// flags (when the table has them) leave the spot out of a measurement: flagged near a blob, truncated, a flux
+// outlier, on an uneven background or rejected by the surface.
 std::vector<topo::MeasuredSpot> SpotsFrom(const py::array& spots) {
   const py::object names = spots.dtype().attr("names");
   if (names.is_none()) throw util::InputError("spots: need a structured array with fields ring, index, x_mm, y_mm");
@@ -90,9 +99,13 @@ std::vector<topo::MeasuredSpot> SpotsFrom(const py::array& spots) {
   const auto index = column("index", np.attr("int64")).cast<py::array_t<std::int64_t>>();
   const auto x = column("x_mm", np.attr("float64")).cast<py::array_t<double>>();
   const auto y = column("y_mm", np.attr("float64")).cast<py::array_t<double>>();
+  const bool flagged = py::cast<py::tuple>(names).contains("flags");
+  const auto flags = flagged ? column("flags", np.attr("uint32")).cast<py::array_t<std::uint32_t>>()
+                             : py::array_t<std::uint32_t>(ring.size());
+  const unsigned left_out = correct::DetectAndIndexOptions{}.exclude_flags | correct::kSurfaceOutlier;
   std::vector<topo::MeasuredSpot> out;
   for (py::ssize_t i = 0; i < ring.size(); ++i) {
-    if (ring.at(i) == 0) continue;
+    if (ring.at(i) == 0 || (flagged && (flags.at(i) & left_out))) continue;
     if (ring.at(i) < 0 || index.at(i) < 0 || !std::isfinite(x.at(i)) || !std::isfinite(y.at(i))) {
       throw util::InputError(fmt::format("spots: row {}: ring and index must be >= 0 and x_mm, y_mm finite", i));
     }
@@ -197,10 +210,7 @@ py::dict Reconstruct(const py::object& config, const py::object& device, const p
                      int uncertainty, unsigned seed) {
   if (uncertainty < 0) throw util::InputError("uncertainty: must be >= 0 (0: linear propagation)");
   if (!eye.empty() && eye != "OD" && eye != "OS") throw util::InputError("eye: must be OD, OS or empty");
-  model::Config cfg = ConfigArg(config);
-  // As `topocal reconstruct`: unless the configuration names a surface model, the spline joins where the
-  // polynomial does not fit the data (docs/reconstruction.md).
-  if (!cfg.reconstruction.surface_model_given) cfg.reconstruction.surface_model = "auto";
+  const model::Config cfg = pipeline::ForEyes(ConfigArg(config));  // as `topocal reconstruct`
   if (image.is_none() == spots.is_none()) throw util::InputError("reconstruct: give one of image or spots");
   if (!image.is_none()) {
     if (device.is_none()) throw util::InputError("reconstruct: image needs device (the calibrated device)");
@@ -236,7 +246,9 @@ void RegisterMeasure(py::module_& m) {
   py::dict flags;
   for (const auto& [name, bit] : {std::pair{"near_blob", correct::kNearBlob}, {"saturated", correct::kSaturated},
                                   {"truncated", correct::kTruncated}, {"flux_outlier", correct::kFluxOutlier},
-                                  {"uneven_background", correct::kUnevenBackground}}) {
+                                  {"uneven_background", correct::kUnevenBackground},
+                                  {"surface_outlier", correct::kSurfaceOutlier},
+                                  {"surface_labelled", correct::kSurfaceLabelled}}) {
     flags[name] = static_cast<unsigned>(bit);
   }
   m.attr("SPOT_FLAGS") = flags;
@@ -244,10 +256,11 @@ void RegisterMeasure(py::module_& m) {
   m.def("detect", &Detect, py::arg("image"), py::arg("device"), py::arg("config"), py::arg("estimator") = "psf",
         py::arg("return_summary") = false,
         "Detect, identify and flag the spots of a raw sensor image (2-D uint8/uint16 array) through a device, as "
-        "`topocal detect`. Returns a structured array of SPOT_DTYPE (ring, index, x_mm, y_mm on the detection "
-        "plane as recorded, u_px, v_px, flags: SPOT_FLAGS bits; ring 0: a blob without identity), and with "
+        "`topocal detect` (every identity checked against the surface the others give). Returns a structured "
+        "array of SPOT_DTYPE (ring, index, x_mm, y_mm on the detection plane as recorded, u_px, v_px, flags: "
+        "SPOT_FLAGS bits; ring 0: a blob without identity), and with "
         "return_summary=True also the summary dict of `detect --json`. Raises MeasurementRefused when the "
-        "pattern cannot be identified.");
+        "pattern cannot be identified or the identities are refused.");
   m.def("_reconstruct", &Reconstruct, py::arg("config"), py::arg("device") = py::none(),
         py::arg("image") = py::none(), py::arg("spots") = py::none(), py::arg("estimator") = "psf",
         py::arg("truth") = false, py::arg("eye") = "", py::arg("uncertainty") = 0, py::arg("seed") = 1u,

@@ -131,5 +131,72 @@ TEST_F(DetectCli, AnUnkeyedScreenSaysTheRiskAndBadInputIsOneLine) {
   EXPECT_FALSE(fs::exists(Path("x.csv")));
 }
 
+// detect checks every identity against the surface the others give, as reconstruct --image does (one library
+// call): on a clinical capture (an upper lid with its skin, lash shadows, an iris, defocus growing to the rim, motion
+// blur, tear film, glints) the spots the surface rejects are flagged surface_outlier and left out, the counts are
+// reconstruct's, and every identity written is right (its own spot the nearest).
+TEST_F(DetectCli, EveryIdentityIsCheckedAgainstTheSurfaceAsReconstructChecksIt) {
+  const std::string paper = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
+  const auto render = RunTopocal(
+      "render-spots --config " + paper + " --camera " + Path("identity.json") +
+      " --sigma 0 --upper-lid 0.2 --lid-skin 8000 --lashes 4 --iris 2500 --psf-px 1.5 --defocus-rim-px 3 "
+      "--motion-blur-px 1.5 --motion-blur-deg 30 --tear-film 2 --glints 2 --seed 5 --out " + Path("clinical.png") +
+      " --truth " + Path("truth.csv"));
+  ASSERT_EQ(render.exit_code, 0) << render.output;
+  const auto det = RunTopocal("detect --image " + Path("clinical.png") + " --camera " + Path("identity.json") +
+                              " --config " + paper + " --out " + Path("spots.csv") + " --json " + Path("spots.json"));
+  ASSERT_EQ(det.exit_code, 0) << det.output;
+  const auto rec = RunTopocal("reconstruct --image " + Path("clinical.png") + " --camera " + Path("identity.json") +
+                              " --config " + paper + " --json " + Path("cornea.json"));
+  ASSERT_EQ(rec.exit_code, 0) << rec.output;
+  const auto dj = nlohmann::json::parse(std::ifstream(Path("spots.json")));
+  const auto rj = nlohmann::json::parse(std::ifstream(Path("cornea.json")));
+  EXPECT_TRUE(dj["valid"].get<bool>());
+  EXPECT_EQ(dj["capture"], rj["capture"]);  // the same identities, rejections and counts
+  EXPECT_GE(dj["capture"]["surface_outliers"].get<int>(), 1);
+
+  const auto truth = ReadRows(Path("truth.csv"), nullptr, 2);
+  const auto found = ReadRows(Path("spots.csv"), nullptr, 4);
+  int rejected = 0, usable = 0;
+  for (const auto& [id, f] : found) {
+    const auto t = truth.find(id);
+    ASSERT_NE(t, truth.end()) << "identity given to a blob that is no spot: " << id.first << "," << id.second;
+    // Right: its own spot is the nearest (a centre a lash pulled by a few px is still nearest to its own spot,
+    // ~20 px from the next).
+    const double own = std::hypot(f.u - t->second.u, f.v - t->second.v);
+    for (const auto& [other, o] : truth) {
+      if (other != id) EXPECT_GT(std::hypot(f.u - o.u, f.v - o.v), own) << id.first << "," << id.second;
+    }
+    rejected += f.flags.find("surface_outlier") != std::string::npos;
+    bool excluded = false;
+    for (const char* flag : {"near_blob", "truncated", "flux_outlier", "uneven_background", "surface_outlier"}) {
+      excluded = excluded || f.flags.find(flag) != std::string::npos;
+    }
+    usable += !excluded;
+  }
+  EXPECT_EQ(rejected, dj["capture"]["surface_outliers"].get<int>());
+  EXPECT_EQ(usable, dj["capture"]["usable"].get<int>());
+}
+
+// A capture the data cannot support (a lid over 45 % of the pattern hides the sim-K zone above the centre): detect
+// exits 4 as reconstruct does, writes no spots file, and its JSON is marked invalid with the reason.
+TEST_F(DetectCli, IdentitiesTheDataCannotSupportAreRefusedWithoutASpotsFile) {
+  const std::string paper = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
+  ASSERT_EQ(RunTopocal("render-spots --config " + paper + " --camera " + Path("identity.json") +
+                       " --upper-lid 0.45 --out " + Path("lid45.png")).exit_code, 0);
+  const auto det = RunTopocal("detect --image " + Path("lid45.png") + " --camera " + Path("identity.json") +
+                              " --config " + paper + " --out " + Path("spots.csv") + " --json " + Path("spots.json"));
+  EXPECT_EQ(det.exit_code, 4) << det.output;
+  EXPECT_NE(det.output.find("REFUSED"), std::string::npos) << det.output;
+  EXPECT_NE(det.output.find("topocal: " + Path("lid45.png")), std::string::npos) << det.output;
+  EXPECT_FALSE(fs::exists(Path("spots.csv")));
+  const auto j = nlohmann::json::parse(std::ifstream(Path("spots.json")));
+  EXPECT_FALSE(j["valid"].get<bool>());
+  ASSERT_FALSE(j["refused"].empty());
+  const auto rec = RunTopocal("reconstruct --image " + Path("lid45.png") + " --camera " + Path("identity.json") +
+                              " --config " + paper);
+  EXPECT_EQ(rec.exit_code, 4) << rec.output;
+}
+
 }  // namespace
 }  // namespace topocal::correct

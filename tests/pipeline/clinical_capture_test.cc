@@ -27,6 +27,7 @@
 #include "pipeline/measure_spots.h"
 #include "pipeline/measurement_uncertainty.h"
 #include "pipeline/surface_labelling.h"
+#include "tests/correct/capture_eyes.h"
 #include "topo/truth_comparison.h"
 #include "util/io.h"
 
@@ -95,12 +96,19 @@ Capture PostLasikEverything() {
   return {"lasik-myopic-6D, everything", Freeform("lasik-myopic-6D"), 0.2, 0.05, 8000, all, 3.0, 2, 2};
 }
 
-// with_uncertainty: also the U of the measurement (the spots' measured noise; the drawn device is exact here, so it
-// has no covariance) and the refusal of a map too uncertain for a clinical reading (UncertaintyRefusal).
-Outcome Measure(const Capture& cap, uint32_t seed, bool with_uncertainty = false) {
+// A capture rendered through a drawn device, with the visible spots' true (distorted) positions.
+struct Rendered {
+  model::Device device;
+  cv::Mat image;
+  std::map<model::SpotId, Eigen::Vector2d> where_mm;
+};
+
+Rendered RenderCapture(const Capture& cap, uint32_t seed) {
   const auto cfg = testing::PaperConfig();
   std::mt19937 rng(seed);
-  const model::Device device = testing::DrawDevice(rng);
+  Rendered r;
+  r.device = testing::DrawDevice(rng);
+  const model::Device& device = r.device;
   const auto truth = correct::SpotsOnSensor(cap.eye, cfg.ideal_image, cfg.topographer, device);
   correct::SpotRenderOptions o;
   o.psf_sigma_px = cap.defocus_rim_px > 0 ? 1.5 : 1.0;
@@ -117,13 +125,37 @@ Outcome Measure(const Capture& cap, uint32_t seed, bool with_uncertainty = false
   if (cap.defocus_rim_px > 0) spots = correct::GrowDefocus(spots, o.lids, o.psf_sigma_px, cap.defocus_rim_px);
   if (cap.tear_film > 0) spots = correct::BreakTearFilm(spots, o.lids, cap.tear_film, o.psf_sigma_px, seed + 2);
   spots = correct::HideUnderLids(spots, o.lids);
-  const cv::Mat image = correct::RenderSpotImage(spots, device.camera.width_px, device.camera.height_px, o);
-
-  Outcome out;
-  std::map<model::SpotId, Eigen::Vector2d> where_mm;  // the visible spots' true (distorted) positions
+  r.image = correct::RenderSpotImage(spots, device.camera.width_px, device.camera.height_px, o);
   for (const auto& s : spots) {
-    if (s.id.ring != 0) where_mm[s.id] = device.camera.DetectionPlaneFromPixel(s.centre_px);
+    if (s.id.ring != 0) r.where_mm[s.id] = device.camera.DetectionPlaneFromPixel(s.centre_px);
   }
+  return r;
+}
+
+// Whether the visible spot nearest to a detection at `mm` is another than `id` (a right identity whose centre a lash
+// pulled by a few px is still nearest to its own spot, ~20 px from the next).
+bool WrongIdentity(const std::map<model::SpotId, Eigen::Vector2d>& where_mm, const model::SpotId& id,
+                   const Eigen::Vector2d& mm) {
+  model::SpotId nearest;
+  double best = std::numeric_limits<double>::infinity();
+  for (const auto& [truth_id, truth_mm] : where_mm) {
+    if ((truth_mm - mm).norm() < best) {
+      best = (truth_mm - mm).norm();
+      nearest = truth_id;
+    }
+  }
+  return !(nearest == id);
+}
+
+// with_uncertainty: also the U of the measurement (the spots' measured noise; the drawn device is exact here, so it
+// has no covariance) and the refusal of a map too uncertain for a clinical reading (UncertaintyRefusal).
+Outcome Measure(const Capture& cap, uint32_t seed, bool with_uncertainty = false) {
+  const auto cfg = testing::PaperConfig();
+  const Rendered rendered = RenderCapture(cap, seed);
+  const model::Device& device = rendered.device;
+  const cv::Mat& image = rendered.image;
+  const auto& where_mm = rendered.where_mm;
+  Outcome out;
   out.visible = static_cast<int>(where_mm.size());
   SpotMeasurement m;
   try {
@@ -133,29 +165,15 @@ Outcome Measure(const Capture& cap, uint32_t seed, bool with_uncertainty = false
     out.reason = e.what();
     return out;
   }
-  auto config = cfg;
-  config.reconstruction.surface_model = "auto";  // as `reconstruct` without --surface-model
-  const topo::Analysis analysis = LabelThroughSurface(
-      &m, device, config, [&](const auto& s) { return AnalyzeThroughDevice(s, device, config, nullptr); });
+  const auto config = ForEyes(cfg);  // as `reconstruct` measures eyes
+  topo::Analysis analysis;
+  MeasurementVerdict verdict = LabelAndJudge(&m, device, config, AnalysisOf(&device, config, nullptr), &analysis);
   out.identified = m.capture.identified;
-  // A wrong identity: the visible spot nearest to the detection is another (a right identity whose centre a lash
-  // pulled by a few px is still nearest to its own spot, ~20 px from the next).
-  for (const auto& d : m.detected) {
-    model::SpotId nearest;
-    double best = std::numeric_limits<double>::infinity();
-    for (const auto& [id, mm] : where_mm) {
-      if ((mm - d.distorted_mm).norm() < best) {
-        best = (mm - d.distorted_mm).norm();
-        nearest = id;
-      }
-    }
-    out.wrong += !(nearest == d.id);
-  }
+  for (const auto& d : m.detected) out.wrong += WrongIdentity(where_mm, d.id, d.distorted_mm);
   std::set<model::SpotId> ids;
   for (const auto& d : m.detected) ids.insert(d.id);
   out.duplicates = static_cast<int>(m.detected.size() - ids.size());
-  out.surface_outliers = m.capture.surface_outliers;
-  MeasurementVerdict verdict = JudgeMeasurement(m.capture, analysis);
+  out.surface_outliers = static_cast<int>(m.capture.surface_outliers.size());
   if (verdict.valid && with_uncertainty) {
     const auto u = PropagateMeasurementUncertainty(m.detected, device, std::nullopt, config, analysis);
     if (const auto reason = UncertaintyRefusal(u)) verdict = {false, {*reason}};
@@ -243,6 +261,63 @@ TEST(ClinicalCapture, APostLasikEyeUnderEveryArtefactIsWithinTwiceTheCleanLimits
   EXPECT_EQ(refused, 6);
   EXPECT_EQ(refused_for_u, 3);
   EXPECT_EQ(wrong_in_refused, 0);
+}
+
+// `topocal detect` and the Python module's detect() give the identities the measurement uses (DetectThroughSurface):
+// on post-LASIK eyes under a lid and other artefacts the spots the surface rejected are flagged surface_outlier and
+// left out, the usable identities are the measurement's, each right, and the verdict is the measurement's.
+TEST(ClinicalCapture, DetectionGivesTheIdentitiesTheMeasurementUses) {
+  // The deep myopic ablation, decentred, where the lattice leaves a ring of the blend zone to the surface.
+  const auto eyes = correct::testing::Eyes();
+  const Capture deep{"lasik-myopic-8D decentred, upper lid 20 %", eyes.back().surface, 0.2, 0.0, 8000, {}};
+  const auto config = ForEyes(testing::PaperConfig());
+  int rejected_total = 0;
+  for (const auto& [cap, seed] : {std::pair{PostLasikEverything(), 13u}, std::pair{PostLasikEverything(), 11u},
+                                  std::pair{deep, 17u}, std::pair{deep, 19u}}) {
+    SCOPED_TRACE(fmt::format("{}, seed {}", cap.name, seed));
+    const Rendered r = RenderCapture(cap, seed);
+    const CheckedSpots checked =
+        DetectThroughSurface(r.image, r.device, /*undistort=*/true, AnalysisOf(&r.device, config, nullptr), config);
+    SpotMeasurement m = MeasureSpots(r.image, r.device, config.ideal_image);
+    topo::Analysis analysis;
+    const auto verdict = LabelAndJudge(&m, r.device, config, AnalysisOf(&r.device, config, nullptr), &analysis);
+    EXPECT_EQ(checked.verdict.valid, verdict.valid);
+    // The usable identities are the measurement's, at the same positions.
+    const std::set<model::SpotId> outliers(m.capture.surface_outliers.begin(), m.capture.surface_outliers.end());
+    std::set<std::pair<model::SpotId, std::pair<double, double>>> measured, detected;
+    for (const auto& d : m.detected) {
+      if (!outliers.count(d.id)) measured.insert({d.id, {d.distorted_mm.x(), d.distorted_mm.y()}});
+    }
+    for (const auto& s : checked.located.spots) detected.insert({s.id, {s.position_mm.x(), s.position_mm.y()}});
+    EXPECT_EQ(detected, measured);
+    // A usable identity is right; a flagged row (left out of the measurement) keeps the identity the lattice gave it,
+    // its centre pulled so far by a lid's margin or a lash that another spot may be nearer (counted, not gated).
+    int labelled = 0, rejected = 0, wrong = 0, wrong_flagged = 0;
+    for (const auto& s : checked.located.spots) wrong += WrongIdentity(r.where_mm, s.id, s.position_mm);
+    for (const auto* list : {&checked.located.spots, &checked.located.excluded}) {
+      for (const auto& s : *list) {
+        labelled += (s.flags & correct::kSurfaceLabelled) != 0;
+        rejected += (s.flags & correct::kSurfaceOutlier) != 0;
+      }
+    }
+    for (const auto& s : checked.located.excluded) wrong_flagged += WrongIdentity(r.where_mm, s.id, s.position_mm);
+    fmt::print("{}, seed {}: {} identified through the surface, {} rejected by it, {} wrong usable, {} wrong flagged; "
+               "verdict {}\n",
+               cap.name, seed, labelled, rejected, wrong, wrong_flagged,
+               verdict.valid ? "valid" : verdict.reasons.front());
+    EXPECT_EQ(labelled, m.capture.surface_labelled);
+    EXPECT_EQ(rejected, static_cast<int>(outliers.size()));
+    EXPECT_EQ(wrong, 0);
+    rejected_total += rejected;
+    std::set<model::SpotId> ids;
+    for (const auto* list : {&checked.located.spots, &checked.located.excluded}) {
+      for (const auto& s : *list) EXPECT_TRUE(ids.insert(s.id).second) << "twice: " << s.id.ring << "," << s.id.index;
+    }
+    for (const auto& id : checked.located.missing) EXPECT_FALSE(ids.count(id)) << id.ring << "," << id.index;
+    EXPECT_EQ(checked.located.spots.size() + checked.located.excluded.size() + checked.located.missing.size(),
+              static_cast<size_t>(m.capture.designed));
+  }
+  EXPECT_GT(rejected_total, 0);  // the cases show the surface's check at work (measured: 15, 26, 59, 76)
 }
 
 }  // namespace

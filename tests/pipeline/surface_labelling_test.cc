@@ -140,5 +140,37 @@ TEST(SurfaceLabelling, StrongBlendZonesAreIdentifiedThroughTheSurfaceWithNoWrong
   EXPECT_GE(gained, 400);  // measured 457
 }
 
+// The detection as `detect` writes it carries the surface's identities (WithSurfaceIdentities): a free detection the
+// surface identified moves from the unassigned blobs to the spots, flagged surface_labelled and no longer missing; a
+// spot the surface rejected moves to the excluded ones, flagged surface_outlier.
+TEST(SurfaceLabelling, TheDetectionCarriesTheSurfacesIdentities) {
+  const auto located_at = [](model::SpotId id, double x_mm) {
+    correct::LocatedSpot s;
+    s.id = id;
+    s.position_mm = {x_mm, 0.5};
+    return s;
+  };
+  correct::DetectAndIndexResult located;
+  located.spots = {located_at({1, 0}, 0.0), located_at({1, 1}, 1.0)};
+  located.unassigned = {located_at({0, 0}, 2.0), located_at({0, 1}, 3.0)};
+  located.missing = {{1, 2}, {1, 3}};
+  SpotMeasurement labelled;
+  labelled.detected = {{{1, 0}, {0.0, 0.5}}, {{1, 1}, {1.0, 0.5}}, {{1, 2}, {2.0, 0.5}}};
+  labelled.capture.surface_outliers = {{1, 1}};
+  const auto out = WithSurfaceIdentities(located, labelled);
+  ASSERT_EQ(out.spots.size(), 2u);
+  EXPECT_EQ(out.spots[0].id, (model::SpotId{1, 0}));
+  EXPECT_EQ(out.spots[0].flags, 0u);
+  EXPECT_EQ(out.spots[1].id, (model::SpotId{1, 2}));
+  EXPECT_EQ(out.spots[1].flags, static_cast<unsigned>(correct::kSurfaceLabelled));
+  EXPECT_EQ(out.spots[1].position_mm.x(), 2.0);
+  ASSERT_EQ(out.excluded.size(), 1u);
+  EXPECT_EQ(out.excluded[0].id, (model::SpotId{1, 1}));
+  EXPECT_EQ(out.excluded[0].flags, static_cast<unsigned>(correct::kSurfaceOutlier));
+  ASSERT_EQ(out.unassigned.size(), 1u);
+  EXPECT_EQ(out.unassigned[0].position_mm.x(), 3.0);
+  EXPECT_EQ(out.missing, (std::vector<model::SpotId>{{1, 3}}));
+}
+
 }  // namespace
 }  // namespace topocal::pipeline

@@ -203,7 +203,11 @@ def test_the_thread_count_does_not_change_the_spots(eye):
 def test_reconstruct_from_spots_of_detect(work, eye):
     spots = topocal.detect(read_image(eye), DEMO_DEVICE, PAPER)
     m = topocal.reconstruct(PAPER, spots=spots)
-    assert m.result["spots_read"] == int(np.count_nonzero(spots["ring"] > 0))
+    left_out = 0
+    for name in ("near_blob", "truncated", "flux_outlier", "uneven_background", "surface_outlier"):
+        left_out |= topocal.SPOT_FLAGS[name]
+    usable = (spots["ring"] > 0) & ((spots["flags"] & left_out) == 0)
+    assert m.result["spots_read"] == int(np.count_nonzero(usable))
     assert "surface_fit" in m.result
 
 
