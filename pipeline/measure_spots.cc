@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <limits>
 #include <set>
 #include <stdexcept>
 #include <utility>
@@ -187,7 +188,47 @@ CheckedSpots DetectThroughSurface(const cv::Mat& image, const model::Device& ima
   out.verdict = LabelAndJudge(&m, imaging, config, analyze, &analysis);
   out.located = WithSurfaceIdentities(identified.located, m);
   out.capture = m.capture;
+  if (out.verdict.valid) {
+    out.flagged_identities_dropped = CheckFlaggedIdentities(&out.located, analysis.reconstruction, imaging, config);
+  }
   return out;
+}
+
+int CheckFlaggedIdentities(correct::DetectAndIndexResult* located, const topo::Reconstruction& surface,
+                           const model::Device& imaging, const model::Config& config) {
+  if (located->excluded.empty()) return 0;
+  std::vector<model::SpotId> ids;
+  for (const auto& t : model::DesignNullScreen(config.ideal_image, config.topographer).targets) ids.push_back(t.id);
+  const auto predictions = PredictSpots(surface, ids, imaging, config);
+  int next_blob = 0;
+  for (const auto& u : located->unassigned) next_blob = std::max(next_blob, u.id.index + 1);
+  std::vector<correct::LocatedSpot> kept;
+  int dropped = 0;
+  for (const auto& s : located->excluded) {
+    const PredictedSpot* nearest = nullptr;
+    for (const auto& p : predictions) {
+      if (!nearest || (p.distorted_mm - s.position_mm).squaredNorm() <
+                          (nearest->distorted_mm - s.position_mm).squaredNorm()) {
+        nearest = &p;
+      }
+    }
+    double spacing = std::numeric_limits<double>::infinity();  // from its prediction to the next one
+    for (const auto& p : predictions) {
+      if (nearest && &p != nearest) spacing = std::min(spacing, (p.distorted_mm - nearest->distorted_mm).norm());
+    }
+    if (nearest && nearest->id == s.id && (nearest->distorted_mm - s.position_mm).norm() <= kGateSpacings * spacing) {
+      kept.push_back(s);
+      continue;
+    }
+    correct::LocatedSpot blob = s;
+    blob.id = {0, next_blob++};
+    located->unassigned.push_back(blob);
+    located->missing.push_back(s.id);
+    ++dropped;
+  }
+  located->excluded = std::move(kept);
+  std::sort(located->missing.begin(), located->missing.end());
+  return dropped;
 }
 
 topo::Analysis AnalyzeThroughDevice(const std::vector<topo::MeasuredSpot>& spots, const model::Device& device,

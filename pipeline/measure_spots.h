@@ -106,13 +106,23 @@ correct::DetectAndIndexResult WithSurfaceIdentities(const correct::DetectAndInde
 
 // Detection and identification as `topocal detect` and the Python module's detect() give them, the same as
 // `reconstruct --image` measures with: IdentifySpots with imaging's camera, MeasurementOf (imaging's distortion
-// undone when `undistort`), LabelAndJudge through `imaging` with `analyze`, WithSurfaceIdentities. Throws what
-// IdentifySpots throws.
+// undone when `undistort`), LabelAndJudge through `imaging` with `analyze`, WithSurfaceIdentities and, when the
+// verdict is valid, CheckFlaggedIdentities. Throws what IdentifySpots throws.
 struct CheckedSpots {
   correct::DetectAndIndexResult located;  // with the surface's identities
   CaptureQuality capture;
   MeasurementVerdict verdict;
+  int flagged_identities_dropped = 0;  // CheckFlaggedIdentities
 };
+
+// The identities of the flagged spots (left out of the measurement, so never checked by the surface the others give)
+// checked against that surface: a flagged spot keeps its identity only when, of every designed spot the surface
+// images through `imaging` (PredictSpots), its own lands nearest to it, within the labelling's gate
+// (kGateSpacings of the distance from there to the next prediction). Otherwise — a centre a lid's margin or a lash
+// pulled towards another spot's place, or a wrong identity — the identity is dropped: the detection joins the
+// unassigned blobs with its flags, its id the missing ones. Returns how many were dropped.
+int CheckFlaggedIdentities(correct::DetectAndIndexResult* located, const topo::Reconstruction& surface,
+                           const model::Device& imaging, const model::Config& config);
 CheckedSpots DetectThroughSurface(const cv::Mat& image, const model::Device& imaging, bool undistort,
                                   const SpotAnalysis& analyze, const model::Config& config,
                                   const correct::DetectAndIndexOptions& options = {});

@@ -77,6 +77,7 @@ void Run(const DetectArgs& a) {
   nlohmann::json j = report::DetectionJson(r, options.detection.method, checked.capture);
   j["image"] = a.image;
   j["valid"] = checked.verdict.valid;
+  j["flagged_identities_dropped"] = checked.flagged_identities_dropped;
   if (!checked.verdict.valid) {
     // Identities the data cannot support are not written: the JSON says why, the spots file is not made.
     j["refused"] = checked.verdict.reasons;
@@ -93,9 +94,11 @@ void Run(const DetectArgs& a) {
   outputs.Commit();
   fmt::print("detect ({}): {} spots indexed ({} flagged and left out of a measurement: near a blob, at the border, "
              "on an uneven background, a flux outlier or rejected by the surface the others give; {} identified "
-             "through that surface), {} unassigned blobs, {} designed spots missing -> {}\n",
+             "through that surface; {} flagged spots' identities dropped, their own spot not the nearest the surface "
+             "predicts), {} unassigned blobs, {} designed spots missing -> {}\n",
              j["estimator"].get<std::string>(), r.spots.size() + r.excluded.size(), r.excluded.size(),
-             checked.capture.surface_labelled, r.unassigned.size(), r.missing.size(), a.out);
+             checked.capture.surface_labelled, checked.flagged_identities_dropped, r.unassigned.size(),
+             r.missing.size(), a.out);
   fmt::print("{}\n", r.orientation.message);
   fmt::print("{}\n", checked.capture.Line());
 }

@@ -71,6 +71,7 @@ py::object Detect(const py::array& image, const py::object& device, const py::ob
   }
   nlohmann::json summary = report::DetectionJson(checked.located, options.detection.method, checked.capture);
   summary["valid"] = checked.verdict.valid;
+  summary["flagged_identities_dropped"] = checked.flagged_identities_dropped;
   if (!checked.verdict.valid) {
     summary["refused"] = checked.verdict.reasons;
     RaiseRefused(fmt::format("spot identities refused: {}", fmt::join(checked.verdict.reasons, "; ")),
