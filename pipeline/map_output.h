@@ -32,7 +32,7 @@ struct MapSetOptions {
   bool csv = true;                                  // the CSV grid beside each PNG (~0.6 MB each)
   int size_px = plot::MapImageOptions{}.size_px;    // side of the PNGs' plot area
   plot::MapScaleRequest power = plot::StandardPowerScale();                             // axial and tangential
-  plot::MapScaleRequest elevation = plot::NormalisedScale(plot::kMinNormalisedSpanUm);  // elevation, height error
+  plot::MapScaleRequest elevation = plot::SymmetricScale(plot::kMinNormalisedSpanUm);  // elevation, height error
   std::string eye;                                  // "OD", "OS" or empty (test surface)
   std::vector<double> power_ring_radii_mm;          // rings on the power maps; empty: the sim-K zone (0.5, 1.5 mm)
   bool rings_are_sim_k_zone = false;                // set when the rings are the default (the legend says so)
