@@ -11,7 +11,6 @@
 #include <string_view>
 #include <utility>
 
-#include "imageio/image_file.h"
 #include "plot/map_text.h"
 #include "plot/map_ticks.h"
 #include "util/io.h"
@@ -554,11 +553,6 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   out.x_min_mm = map.x_min_mm;
   out.y_max_mm = map.y_max_mm;
   return out;
-}
-
-void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOptions& options) {
-  MapImage image = RenderMap(map, options);
-  imageio::WritePng(path, cv::Mat(image.height_px, image.width_px, CV_8UC3, image.bgr.data()));
 }
 
 }  // namespace topocal::plot

@@ -161,7 +161,9 @@ std::array<std::uint8_t, 3> NoDataColour();
 
 // Renders the map. Throws std::invalid_argument if the map or the options are invalid (see IsValid).
 MapImage RenderMap(const GridMap& map, const MapImageOptions& options = {});
-// Renders and writes a PNG atomically. Throws util::InputError naming the path if it cannot be written.
+// Renders and writes a PNG atomically: a map on a stepped palette as a palette PNG (plot/map_png.cc: every band
+// colour exact, anti-aliased edges of text and lines the nearest of the map's colours; about a fifth of the
+// bytes of true colour), any other map in true colour. Throws util::InputError naming the path if it cannot be written.
 void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOptions& options = {});
 
 // The map as CSV, long format: a header "x_mm,y_mm,<quantity>_<unit>" (e.g. value_D, value_um) then one row per

@@ -4,9 +4,15 @@
 
 #include <array>
 #include <cmath>
+#include <filesystem>
+#include <opencv2/core.hpp>
 #include <set>
+#include <string>
+#include <unistd.h>
 
+#include "imageio/image_file.h"
 #include "plot/map_image.h"
+#include "util/io.h"
 
 namespace topocal::plot {
 namespace {
@@ -117,6 +123,72 @@ TEST(MapPalette, ElevationIsSymmetricAboutZero) {
   EXPECT_EQ(f.value_min, -f.value_max);
   EXPECT_GE(f.value_max - f.value_min, kMinNormalisedSpanUm);
   EXPECT_LE(f.value_max - f.value_min, 2 * kMinNormalisedSpanUm);
+}
+
+// A stepped map is written as a palette PNG: colour type 3, every band colour (plain and hatched) exactly as drawn,
+// nearly every pixel identical (the rest anti-aliased edges of letters and lines, given the nearest of the map's
+// colours: a grey moves by at most 2 levels), in a fraction of the true-colour bytes. A continuous map stays in true colour, pixel for pixel.
+TEST(MapPalette, AStepMapIsAPalettePngWithItsColoursExact) {
+  const GridMap ramp = RampAlongX(141, 36.0, 50.0, "D");
+  MapImageOptions o;
+  o.size_px = 400;
+  ApplyMapScale(SelectMapScale({&ramp}, StandardPowerScale()), &o);
+  o.markers = {{43.0, 43.0}};
+  o.supported_radius_mm = 5.0;  // about (0, 0): the whole ramp lies beyond it, hatched
+  o.eye = "OD";
+  o.legend = {"magenta dot: a marker"};
+  const auto dir = std::filesystem::temp_directory_path() / ("topocal_palette_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const auto written = [&](const MapImageOptions& options) {
+    const std::string path = (dir / "map.png").string();
+    WriteMapPng(path, ramp, options);
+    return util::ReadFile(path);
+  };
+  const std::string png = written(o);
+  EXPECT_EQ(static_cast<int>(png[25]), 3);  // IHDR colour type: palette
+  const MapImage img = RenderMap(ramp, o);
+  const cv::Mat decoded = imageio::DecodeImage(png, imageio::Channels::kAsStored, "map.png");
+  ASSERT_EQ(decoded.type(), CV_8UC3);
+  ASSERT_EQ(decoded.cols, img.width_px);
+  ASSERT_EQ(decoded.rows, img.height_px);
+  std::set<Bgr> bands;
+  for (int k = 0; k < 10; ++k) {
+    Bgr c = ScaleColour(ColourScale::kTurbo, (k + 0.5) / 10);
+    bands.insert(c);
+    for (auto& v : c) v = static_cast<std::uint8_t>((v + 256) / 2);
+    bands.insert(c);
+  }
+  long same = 0, band_pixels = 0, band_changed = 0, grey_moved_far = 0;
+  for (int y = 0; y < img.height_px; ++y) {
+    for (int x = 0; x < img.width_px; ++x) {
+      const cv::Vec3b d = decoded.at<cv::Vec3b>(y, x);
+      const Bgr drawn = img.Bgr(x, y);
+      const bool equal = d[0] == drawn[0] && d[1] == drawn[1] && d[2] == drawn[2];
+      same += equal ? 1 : 0;
+      if (bands.count(drawn)) ++band_pixels, band_changed += equal ? 0 : 1;
+      if (drawn[0] == drawn[1] && drawn[1] == drawn[2]) grey_moved_far += std::abs(d[0] - drawn[0]) > 2 ? 1 : 0;
+    }
+  }
+  EXPECT_GT(band_pixels, 50000);
+  EXPECT_EQ(band_changed, 0);
+  const double share = static_cast<double>(same) / (img.width_px * img.height_px);
+  // Measured 0.974: the others are mostly letters' anti-aliased greys, moved to the palette's greys (every 5th level).
+  EXPECT_GT(share, 0.95) << share;
+  EXPECT_EQ(grey_moved_far, 0);
+  const std::vector<unsigned char> true_colour =
+      imageio::EncodePng(cv::Mat(img.height_px, img.width_px, CV_8UC3, const_cast<std::uint8_t*>(img.bgr.data())), "t");
+  EXPECT_LT(png.size(), true_colour.size() / 3) << png.size() << " vs " << true_colour.size();  // measured 1/18
+  // The continuous palette: true colour (type 2), the pixels as drawn.
+  MapImageOptions continuous;
+  continuous.size_px = 200;
+  const std::string tc = written(continuous);
+  EXPECT_EQ(static_cast<int>(tc[25]), 2);
+  const MapImage ci = RenderMap(ramp, continuous);
+  const cv::Mat cd = imageio::DecodeImage(tc, imageio::Channels::kAsStored, "map.png");
+  EXPECT_EQ(cv::norm(cd, cv::Mat(ci.height_px, ci.width_px, CV_8UC3, const_cast<std::uint8_t*>(ci.bgr.data())),
+                     cv::NORM_INF),
+            0.0);
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
