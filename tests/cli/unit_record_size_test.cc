@@ -90,5 +90,31 @@ TEST_F(UnitRecordSize, MapCsvAddsTheGridBehindEveryPicture) {
   EXPECT_EQ(rep.exit_code, 0) << rep.output;  // the CSVs are verified by their digests with the rest
 }
 
+// unit calibrate-batch --map-csv: every unit of the batch keeps its grids; without it, none does.
+TEST_F(UnitRecordSize, BatchMapCsvReachesEveryUnit) {
+  const std::string in = UnitInputsDir();
+  const fs::path batch = dir_ / "line";
+  for (const char* serial : {"SN-A", "SN-B"}) {
+    fs::create_directories(batch / serial);
+    util::WriteFileAtomic((batch / serial / "unit-inputs.json").string(),
+                          fmt::format(R"({{"serial": "{0}", "target": "{1}/target.yaml", "images": "{1}/view.png",)"
+                                      R"( "reference_sphere": "{1}/sphere.png", "sphere_radius_mm": {2},)"
+                                      R"( "camera": "{1}/camera.json"}})",
+                                      serial, in, kUnitSphereRadiusMm));
+  }
+  for (const bool csv : {true, false}) {
+    const fs::path out = dir_ / (csv ? "with" : "without");
+    const auto r = RunTopocal(fmt::format("unit calibrate-batch {} --out {} --uncertainty 4 {}", batch.string(),
+                                          out.string(), csv ? "--map-csv" : ""));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    for (const char* serial : {"SN-A", "SN-B"}) {
+      int csv_maps = 0, png_maps = 0;
+      TreeBytes(out / serial, &csv_maps, &png_maps);
+      EXPECT_EQ(png_maps, kRecordMaps) << serial;
+      EXPECT_EQ(csv_maps, csv ? kRecordMaps : 0) << serial;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace topocal::testing_cli
