@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <opencv2/core.hpp>
 #include <stdexcept>
+#include <string_view>
 
-#include "imageio/image_file.h"
+#include "plot/map_png.h"
 #include "plot/map_text.h"
+#include "util/io.h"
 
 namespace topocal::plot {
 namespace {
@@ -71,6 +73,7 @@ MapPage ComposeMapPage(const std::vector<MapImage>& maps, const std::string& tit
     const cv::Mat src(m.height_px, m.width_px, CV_8UC3, const_cast<std::uint8_t*>(m.bgr.data()));
     src.copyTo(img(cv::Rect(at.x, at.y, m.width_px, m.height_px)));
     page.panels.push_back({at.x, at.y, m.width_px, m.height_px});
+    page.colour_bars.push_back({at.x + m.colour_bar.x, at.y + m.colour_bar.y, m.colour_bar.width, m.colour_bar.height});
   }
   const cv::Point text_at = cell(static_cast<int>(maps.size()));
   page.text = {text_at.x, text_at.y, cell_w, cell_h};
@@ -87,7 +90,8 @@ MapPage ComposeMapPage(const std::vector<MapImage>& maps, const std::string& tit
 }
 
 void WriteMapPagePng(const std::string& path, const MapPage& page) {
-  imageio::WritePng(path, cv::Mat(page.height_px, page.width_px, CV_8UC3, const_cast<std::uint8_t*>(page.bgr.data())));
+  const auto png = MapPictureBytes(page.width_px, page.height_px, page.bgr, page.colour_bars, path);
+  util::WriteFileAtomic(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
 }
 
 }  // namespace topocal::plot

@@ -15,6 +15,7 @@ struct MapPage {
   std::vector<PixelRect> panels;  // where each map was placed, in the order given
   PixelRect text;                 // the cell holding the text lines
   std::vector<std::string> text_lines;  // the lines drawn there, after wrapping to the cell's width
+  std::vector<PixelRect> colour_bars;   // the maps' colour bars, where they now lie on the page
 };
 
 // The maps (1 to 8) in two columns, each pixel for pixel as rendered, cells as large as the largest map; `title`
@@ -22,7 +23,8 @@ struct MapPage {
 // Throws std::invalid_argument for no map, more than 8, or a map without pixels.
 MapPage ComposeMapPage(const std::vector<MapImage>& maps, const std::string& title,
                        const std::vector<std::string>& lines);
-// ComposeMapPage written as a PNG atomically (true colour). Throws util::InputError naming the path if it cannot be
+// ComposeMapPage written as a PNG atomically: a palette PNG when the maps are on stepped palettes, as WriteMapPng
+// writes them (every band colour exact), else true colour. Throws util::InputError naming the path if it cannot be
 // written.
 void WriteMapPagePng(const std::string& path, const MapPage& page);
 

@@ -1,5 +1,5 @@
-// A map's PNG file (plot/map_image.h, WriteMapPng): a map drawn on a stepped palette in a palette PNG, any other in
-// true colour.
+// A map's PNG file (plot/map_image.h, WriteMapPng) and a page of maps' (plot/map_page.h): maps drawn on stepped
+// palettes in a palette PNG, any other in true colour.
 #include <opencv2/core.hpp>
 
 #include <array>
@@ -13,6 +13,7 @@
 #include "imageio/image_file.h"
 #include "imageio/indexed_png.h"
 #include "plot/map_image.h"
+#include "plot/map_png.h"
 #include "util/io.h"
 
 namespace topocal::plot {
@@ -31,14 +32,17 @@ Bgr HalfWhite(Bgr c) {  // the hatching beyond the supported radius (plot/map_im
   return c;
 }
 
-// The colours a stepped map is drawn in: its bar's band colours and their hatched forms, the no-data grey (both
-// forms), the marker's magenta, and greys for text, lines and contours. Empty when the bar is not stepped.
-std::vector<Bgr> MapPalette(const MapImage& img) {
+// The colours stepped maps are drawn in: their bars' band colours and their hatched forms, the no-data grey (both
+// forms), the marker's magenta, and greys for text, lines and contours. Empty when a bar is not stepped.
+std::vector<Bgr> MapPalette(int width_px, const std::vector<std::uint8_t>& bgr, const std::vector<PixelRect>& bars) {
   std::set<Bgr> bar;
-  const int x = img.colour_bar.x + img.colour_bar.width / 2;
-  for (int y = img.colour_bar.y; y < img.colour_bar.y + img.colour_bar.height; ++y) {
-    bar.insert(img.Bgr(x, y));
-    if (bar.size() > kMaxBarColours) return {};
+  for (const PixelRect& r : bars) {
+    const int x = r.x + r.width / 2;
+    for (int y = r.y; y < r.y + r.height; ++y) {
+      const std::size_t k = 3 * (static_cast<std::size_t>(y) * width_px + x);
+      bar.insert({bgr[k], bgr[k + 1], bgr[k + 2]});
+      if (bar.size() > kMaxBarColours) return {};
+    }
   }
   std::set<Bgr> seen;
   std::vector<Bgr> palette;
@@ -60,11 +64,11 @@ std::vector<Bgr> MapPalette(const MapImage& img) {
 
 // Each pixel as the index of its colour in the palette, or of the nearest entry (squared RGB distance, the first of
 // equals): the anti-aliased edges of lines and letters over the colours.
-std::vector<std::uint8_t> Indices(const MapImage& img, const std::vector<Bgr>& palette) {
+std::vector<std::uint8_t> Indices(const std::vector<std::uint8_t>& bgr, const std::vector<Bgr>& palette) {
   std::unordered_map<std::uint32_t, std::uint8_t> index_of;
-  std::vector<std::uint8_t> out(static_cast<std::size_t>(img.width_px) * img.height_px);
+  std::vector<std::uint8_t> out(bgr.size() / 3);
   for (std::size_t k = 0; k < out.size(); ++k) {
-    const std::uint8_t* p = &img.bgr[3 * k];
+    const std::uint8_t* p = &bgr[3 * k];
     const std::uint32_t key = (std::uint32_t{p[0]} << 16) | (std::uint32_t{p[1]} << 8) | p[2];
     auto it = index_of.find(key);
     if (it == index_of.end()) {
@@ -83,16 +87,20 @@ std::vector<std::uint8_t> Indices(const MapImage& img, const std::vector<Bgr>& p
 
 }  // namespace
 
-void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOptions& options) {
-  MapImage image = RenderMap(map, options);
-  const std::vector<Bgr> palette = MapPalette(image);
+std::vector<unsigned char> MapPictureBytes(int width_px, int height_px, const std::vector<std::uint8_t>& bgr,
+                                           const std::vector<PixelRect>& bars, const std::string& name) {
+  const std::vector<Bgr> palette = MapPalette(width_px, bgr, bars);
   if (palette.empty()) {
-    imageio::WritePng(path, cv::Mat(image.height_px, image.width_px, CV_8UC3, image.bgr.data()));
-    return;
+    return imageio::EncodePng(cv::Mat(height_px, width_px, CV_8UC3, const_cast<std::uint8_t*>(bgr.data())), name);
   }
   std::vector<std::array<std::uint8_t, 3>> rgb;
   for (const Bgr& c : palette) rgb.push_back({c[2], c[1], c[0]});
-  const auto png = imageio::EncodeIndexedPng(image.width_px, image.height_px, Indices(image, palette), rgb);
+  return imageio::EncodeIndexedPng(width_px, height_px, Indices(bgr, palette), rgb);
+}
+
+void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOptions& options) {
+  const MapImage image = RenderMap(map, options);
+  const auto png = MapPictureBytes(image.width_px, image.height_px, image.bgr, {image.colour_bar}, path);
   util::WriteFileAtomic(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
 }
 

@@ -1,13 +1,22 @@
 // The one-page overview (plot/map_page.h): every map placed pixel for pixel in its cell, the text lines drawn in the
-// next cell and wrapped to it.
+// next cell and wrapped to it, the page written as a palette PNG like the maps.
 #include "plot/map_page.h"
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <filesystem>
+#include <opencv2/core.hpp>
+#include <set>
 #include <string>
 #include <vector>
+
+#include "imageio/image_file.h"
+#include "util/io.h"
 
 namespace topocal::plot {
 namespace {
@@ -80,6 +89,37 @@ TEST(MapPage, TheMapsArePlacedAsDrawnAndTheNumbersBesideThem) {
   EXPECT_GT(DarkPixels(page, page.text, page.text.y, page.text.y + page.text.height), 500);
   EXPECT_GT(DarkPixels(page, {0, 0, page.width_px, page.panels[0].y}, 0, page.panels[0].y), 200);
   EXPECT_THROW(ComposeMapPage({}, "t", {}), std::invalid_argument);
+
+  // Written as the maps are: a palette PNG, every colour of the maps' bars exactly where the page has it.
+  ASSERT_EQ(page.colour_bars.size(), 3u);
+  const auto path = std::filesystem::temp_directory_path() / ("topocal_page_" + std::to_string(::getpid()) + ".png");
+  WriteMapPagePng(path.string(), page);
+  const std::string png = util::ReadFile(path.string());
+  std::filesystem::remove(path);
+  EXPECT_EQ(static_cast<int>(png[25]), 3);  // IHDR colour type: palette
+  const cv::Mat decoded = imageio::DecodeImage(png, imageio::Channels::kAsStored, "page.png");
+  ASSERT_EQ(decoded.cols, page.width_px);
+  ASSERT_EQ(decoded.rows, page.height_px);
+  std::set<std::array<std::uint8_t, 3>> bar_colours;
+  for (const PixelRect& b : page.colour_bars) {
+    for (int y = b.y; y < b.y + b.height; ++y) {
+      const std::size_t k = 3 * (static_cast<std::size_t>(y) * page.width_px + b.x + b.width / 2);
+      bar_colours.insert({page.bgr[k], page.bgr[k + 1], page.bgr[k + 2]});
+    }
+  }
+  EXPECT_LE(bar_colours.size(), 10u);  // the standard scale's 10 bands
+  long band_pixels = 0, changed = 0;
+  for (int y = 0; y < page.height_px; ++y) {
+    for (int x = 0; x < page.width_px; ++x) {
+      const std::size_t k = 3 * (static_cast<std::size_t>(y) * page.width_px + x);
+      if (!bar_colours.count({page.bgr[k], page.bgr[k + 1], page.bgr[k + 2]})) continue;
+      ++band_pixels;
+      const cv::Vec3b d = decoded.at<cv::Vec3b>(y, x);
+      changed += d[0] == page.bgr[k] && d[1] == page.bgr[k + 1] && d[2] == page.bgr[k + 2] ? 0 : 1;
+    }
+  }
+  EXPECT_GT(band_pixels, 10000);
+  EXPECT_EQ(changed, 0);
 }
 
 }  // namespace
