@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Whole-process timings: wall time, CPU time and peak RSS of `/bin/true` (the peer: what any process costs
-# here), `topocal --version`, `--help`, `sweep` of the paper and `unit calibrate` of the demo unit (SN-DEMO-0001 of
-# scripts/demo-unit.sh: 4000 x 3000 target and reference sphere, 200 uncertainty draws), each the median of N runs by
+# here), `topocal --version`, `--help`, `sweep` of the paper, `unit calibrate` of the demo unit (SN-DEMO-0001 of
+# scripts/demo-unit.sh: 4000 x 3000 target and reference sphere, 200 uncertainty draws) and the README's harness runs
+# (data/harness.json on one thread and on every core, data/harness-assembly.json), each the median of N runs by
 # /usr/bin/time -v: wall time (nanosecond clock), CPU time (user + system, in 10 ms steps; the figure that holds when
 # other processes share the cores) and peak RSS. Given a second binary (BEFORE, e.g. main's build), the two run interleaved — before, after, before,
 # ... — so that both see the same machine, and the table has both. Prints a markdown table and the machine's load,
@@ -72,5 +73,12 @@ figure "topocal sweep --config data/paper.json" topocal sweep --config data/pape
 figure "topocal unit calibrate (demo unit, 200 draws)" topocal unit calibrate --serial SN-DEMO-0001 \
   --target data/target-topographer.yaml --images "$demo/target.png" --reference-sphere "$demo/sphere.png" \
   --sphere-radius-mm 7.8 --out "$work/out/SN-DEMO-0001"
+# The README's harness runs: the residual-distortion sweep on one thread and on every core, the assembly sweep.
+figure "topocal harness --config data/harness.json --jobs 1" topocal harness --config data/harness.json \
+  --out "$work/out" --jobs 1 --quiet
+figure "topocal harness --config data/harness.json (every core)" topocal harness --config data/harness.json \
+  --out "$work/out" --quiet
+figure "topocal harness --config data/harness-assembly.json" topocal harness --config data/harness-assembly.json \
+  --out "$work/out" --quiet
 echo
 echo "load after: $(cut -d' ' -f1-3 /proc/loadavg)"

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <optional>
@@ -10,6 +11,7 @@
 
 #include "model/surface.h"
 #include "plot/map_image.h"
+#include "plot/map_page.h"
 #include "topo/map_grid.h"
 #include "topo/sphere_fit.h"
 #include "util/io.h"
@@ -209,6 +211,28 @@ PendingMap UncertaintyMap(const std::string& base, const AnalysisMapEntry& e, do
   return u;
 }
 
+}  // namespace
+
+std::vector<std::string> ClinicalSummaryLines(const topo::Analysis& a, bool kmax_location_determined,
+                                              bool elevation_peak_location_determined) {
+  if (!a.clinical_ok) return {"no clinical indices: " + a.clinical_message};
+  const auto& c = a.clinical;
+  return {c.CylinderD() >= kMinDrawnCylinderD
+              ? fmt::format("sim-K {:.2f} D @ {:.0f}\u00b0 / {:.2f} D @ {:.0f}\u00b0 (cyl {:.2f} D)", c.steep_k_D,
+                            c.steep_axis_deg, c.flat_k_D, c.flat_axis_deg, c.CylinderD())
+              : fmt::format("sim-K {:.2f} D / {:.2f} D (cyl {:.2f} D: no axis)", c.steep_k_D, c.flat_k_D, c.CylinderD()),
+          kmax_location_determined
+              ? fmt::format("Kmax {:.2f} D at ({:+.2f}, {:+.2f}) mm", c.kmax_D, c.kmax_at_mm.x(), c.kmax_at_mm.y())
+              : fmt::format("Kmax {:.2f} D at {}", c.kmax_D, kUndeterminedLocation),
+          elevation_peak_location_determined
+              ? fmt::format("elevation peak {:.2f} \u00b5m at ({:+.2f}, {:+.2f}) mm", c.elevation_peak_um,
+                            c.elevation_peak_at_mm.x(), c.elevation_peak_at_mm.y())
+              : fmt::format("elevation peak {:.2f} \u00b5m at {}", c.elevation_peak_um, kUndeterminedLocation),
+          fmt::format("best-fit sphere R = {:.3f} mm (fitted within {:.2f} mm)", c.bfs_radius_mm, c.bfs_zone_radius_mm)};
+}
+
+namespace {
+
 EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
   EntryMaps out;
   const std::string base = (std::filesystem::path(dir) / e.prefix).string();
@@ -216,15 +240,8 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
   // The clinical summary under the power maps' titles (topo/clinical_indices.h), unless the caller gave its own.
   std::vector<std::string> notes = e.power_annotations;
   if (notes.empty() && a.clinical_ok) {
-    const auto& c = a.clinical;
-    notes.push_back(c.CylinderD() >= kMinDrawnCylinderD
-                        ? fmt::format("sim-K {:.2f} D @ {:.0f}\u00b0 / {:.2f} D @ {:.0f}\u00b0 (cyl {:.2f} D)", c.steep_k_D,
-                                      c.steep_axis_deg, c.flat_k_D, c.flat_axis_deg, c.CylinderD())
-                        : fmt::format("sim-K {:.2f} D / {:.2f} D (cyl {:.2f} D: no axis)", c.steep_k_D, c.flat_k_D,
-                                      c.CylinderD()));
-    notes.push_back(e.kmax_location_determined
-                        ? fmt::format("Kmax {:.2f} D at ({:+.2f}, {:+.2f}) mm", c.kmax_D, c.kmax_at_mm.x(), c.kmax_at_mm.y())
-                        : fmt::format("Kmax {:.2f} D at {}", c.kmax_D, kUndeterminedLocation));
+    notes = ClinicalSummaryLines(a, e.kmax_location_determined);
+    notes.resize(2);  // sim-K and Kmax
   }
   // Overlays from the clinical indices: the sim-K axes across the supported disc on both
   // power maps, Kmax (an axial quantity) on the axial map, the elevation peak on the elevation map, and on every
@@ -281,6 +298,30 @@ EntryMaps ComputeEntryMaps(const std::string& dir, const AnalysisMapEntry& e) {
   return out;
 }
 
+// Each entry's overview page (MapSetOptions::overview): its axial, tangential and elevation maps as drawn, at half
+// size, with the clinical numbers and the caller's lines.
+void WriteOverviews(const std::string& dir, const std::vector<AnalysisMapEntry>& entries,
+                    const std::vector<MapJob>& jobs, const MapSetOptions& o) {
+  for (const AnalysisMapEntry& e : entries) {
+    const std::string base = (std::filesystem::path(dir) / e.prefix).string();
+    std::vector<plot::MapImage> maps;
+    for (const char* kind : {"axial_power", "tangential_power", "elevation"}) {
+      for (const MapJob& job : jobs) {
+        if (job.map->file != base + kind) continue;
+        plot::MapImageOptions half = job.image;
+        half.size_px = std::max(200, job.image.size_px / 2);
+        maps.push_back(plot::RenderMap(job.map->grid, half));
+      }
+    }
+    std::vector<std::string> lines =
+        ClinicalSummaryLines(*e.analysis, e.kmax_location_determined, e.elevation_peak_location_determined);
+    lines.insert(lines.end(), o.overview_lines.begin(), o.overview_lines.end());
+    const std::string eye = o.eye.empty() ? "test surface (no eye)"
+                                          : fmt::format("eye {} ({})", o.eye, o.eye == "OD" ? "right" : "left");
+    plot::WriteMapPagePng(base + "overview.png", plot::ComposeMapPage(maps, "Overview: " + eye + e.label, lines));
+  }
+}
+
 }  // namespace
 
 void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEntry>& entries,
@@ -318,6 +359,7 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
     if (job.csv) plot::WriteMapCsv(job.map->file + ".csv", job.map->grid);
     plot::WriteMapPng(job.map->file + ".png", job.map->grid, job.image);
   });
+  if (o.overview) WriteOverviews(dir, entries, jobs, o);
 }
 
 }  // namespace topocal::pipeline

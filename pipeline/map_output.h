@@ -32,13 +32,24 @@ struct MapSetOptions {
   bool csv = true;                                  // the CSV grid beside each PNG (~0.6 MB each)
   int size_px = plot::MapImageOptions{}.size_px;    // side of the PNGs' plot area
   plot::MapScaleRequest power = plot::StandardPowerScale();                             // axial and tangential
-  plot::MapScaleRequest elevation = plot::NormalisedScale(plot::kMinNormalisedSpanUm);  // elevation, height error
+  plot::MapScaleRequest elevation = plot::SymmetricScale(plot::kMinNormalisedSpanUm);  // elevation, height error
   std::string eye;                                  // "OD", "OS" or empty (test surface)
   std::vector<double> power_ring_radii_mm;          // rings on the power maps; empty: the sim-K zone (0.5, 1.5 mm)
   bool rings_are_sim_k_zone = false;                // set when the rings are the default (the legend says so)
   // Threads computing and writing the maps (0: every core); the files are the same whatever the number.
   int jobs = 1;
+  // Also <prefix>overview.png per entry: its axial, tangential and elevation maps as drawn (at half size) on one
+  // page with the clinical numbers (ClinicalSummaryLines) and these lines after them — e.g. the capture-quality
+  // line — the clinical topographers' overview display.
+  bool overview = false;
+  std::vector<std::string> overview_lines;
 };
+
+// The clinical numbers of an analysis in words, as the maps print them: sim-K (with its axes when the cylinder shows
+// at 0.01 D), Kmax and the elevation peak with where they lie (or that the location is not determined), the best-fit
+// sphere; or why there are none.
+std::vector<std::string> ClinicalSummaryLines(const topo::Analysis& analysis, bool kmax_location_determined = true,
+                                              bool elevation_peak_location_determined = true);
 
 // Files per entry: <prefix>axial_power.{csv,png}, <prefix>tangential_power.{csv,png}, <prefix>elevation.{csv,png}
 // (elevation above the best-fit sphere, um, its radius in the title) and, with `truth`,

@@ -52,6 +52,9 @@ struct UnitRequest {
   // A record already at `out` is refused (nothing computed); with keep_history (--force) it is moved to
   // <parent>/.history/<serial>/<its created_utc>/ when the new one is in place (docs/unit-record.md).
   bool keep_history = false;
+  // The CSV grid beside each map PNG in maps/ (~3 MB each, 16 maps: ~47 MB); off, the record holds the PNGs only and
+  // its numbers in unit.json (a few MB in all).
+  bool map_csv = false;
   // How the record names an input file instead of its path: the data bundled with topocal as "bundled:NAME", so that
   // a record does not carry the build or install tree's location (the digest still pins the content).
   std::map<std::string, std::string> input_names;

@@ -11,7 +11,6 @@
 #include <string_view>
 #include <utility>
 
-#include "imageio/image_file.h"
 #include "plot/map_text.h"
 #include "plot/map_ticks.h"
 #include "util/io.h"
@@ -108,7 +107,20 @@ struct ColourRange {
   double tick_step;
   double contour_step;  // 0: no contours
   double level_origin;  // contour levels at level_origin + k contour_step
+  bool banded;          // a stepped palette: one colour per contour band
 };
+
+// The palette fraction of value v: its place in the range; on a stepped palette that of the middle of its contour
+// band (the band boundaries are the contour levels; values beyond the range take the end bands' colours).
+double PaletteFraction(const ColourRange& c, double v) {
+  if (c.banded) {
+    const double first = std::floor((c.vmin - c.level_origin) / c.contour_step + 1e-9);
+    const double last = std::max(first, std::ceil((c.vmax - c.level_origin) / c.contour_step - 1e-9) - 1);
+    const double band = std::clamp(std::floor((v - c.level_origin) / c.contour_step), first, last);
+    v = c.level_origin + (band + 0.5) * c.contour_step;
+  }
+  return std::clamp((v - c.vmin) / (c.vmax - c.vmin), 0.0, 1.0);
+}
 
 // The options' range, else the data's rounded out to round ticks.
 ColourRange ColourRangeOf(const GridMap& map, const MapImageOptions& options) {
@@ -138,6 +150,7 @@ ColourRange ColourRangeOf(const GridMap& map, const MapImageOptions& options) {
   // Contour levels at origin + k step: the band boundaries of a stepped (absolute) scale start at its low end
   // (35.5, 37, ... D), round levels elsewhere start at 0.
   c.level_origin = c.stepped ? c.vmin : 0.0;
+  c.banded = options.stepped_palette && c.contour_step > 0;
   return c;
 }
 
@@ -320,14 +333,14 @@ void DrawContours(const cv::Mat& field, const cv::Mat& valid, const ColourRange&
   }
 }
 
-// The plot's colours: the value's fraction of the range through the scale's 256-entry table (OpenCV
+// The plot's colours: the value's palette fraction (PaletteFraction) through the scale's 256-entry table (OpenCV
 // applyColorMap), no-data grey, and the contour lines.
 cv::Mat ColouredPlot(const cv::Mat& field, const cv::Mat& valid, const ColourRange& c, ColourScale scale) {
   cv::Mat index(field.rows, field.cols, CV_8UC1, cv::Scalar(0));
   for (int r = 0; r < field.rows; ++r) {
     for (int col = 0; col < field.cols; ++col) {
       if (!valid.at<std::uint8_t>(r, col)) continue;
-      const double t = std::clamp((field.at<double>(r, col) - c.vmin) / (c.vmax - c.vmin), 0.0, 1.0);
+      const double t = PaletteFraction(c, field.at<double>(r, col));
       index.at<std::uint8_t>(r, col) = static_cast<std::uint8_t>(std::lround(255.0 * t));
     }
   }
@@ -481,7 +494,7 @@ void DrawColourBar(cv::Mat& img, const GridMap& map, const MapImageOptions& opti
   const cv::Rect& bar = l.bar;
   const cv::Mat lut = ScaleLut(options.scale);
   for (int r = 0; r < bar.height; ++r) {
-    const double t = 1.0 - static_cast<double>(r) / (bar.height - 1);
+    const double t = PaletteFraction(c, c.vmax - (c.vmax - c.vmin) * r / (bar.height - 1));
     const auto& colour = lut.at<cv::Vec3b>(static_cast<int>(std::lround(255.0 * t)));
     img(cv::Rect(bar.x, bar.y + r, bar.width, 1)).setTo(cv::Scalar(colour[0], colour[1], colour[2]));
   }
@@ -540,11 +553,6 @@ MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   out.x_min_mm = map.x_min_mm;
   out.y_max_mm = map.y_max_mm;
   return out;
-}
-
-void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOptions& options) {
-  MapImage image = RenderMap(map, options);
-  imageio::WritePng(path, cv::Mat(image.height_px, image.width_px, CV_8UC3, image.bgr.data()));
 }
 
 }  // namespace topocal::plot

@@ -55,6 +55,10 @@ struct MapImageOptions {
   std::optional<double> value_min, value_max;  // colour range; default: the data's range (rounded out to ticks)
   double contour_step = 0;                     // 0: a round step giving about 10 levels; < 0: no contour lines
   ColourScale scale = ColourScale::kTurbo;
+  // One colour per contour band (the colour of the band's middle value), as clinical displays step their palettes:
+  // a colour then names a band of values, read off the colour bar's bands. false: the continuous palette. Needs a
+  // contour step (> 0, given or automatic); set by ApplyMapScale.
+  bool stepped_palette = false;
   std::string scale_label;  // printed under the plot, e.g. "absolute scale, 1.5 D steps"
   // Lines printed under the title (a hook for clinical indices such as sim-K: the caller computes, the map prints).
   std::vector<std::string> annotations;
@@ -86,6 +90,7 @@ struct MapScaleRequest {
   std::optional<double> low, high;  // absolute: the standard range, multiples of step apart
   bool widen_to_data = false;       // absolute with a range: widen it by whole steps to hold the set's data
   double min_span = 0;              // normalised: the smallest range drawn (so that a sphere looks flat)
+  bool symmetric_about_zero = false;  // normalised: [-m, m], zero in the palette's middle (elevation, signed errors)
   bool IsValid(std::string* why) const;
 };
 // The standard absolute power scale: 1.5 D steps over 35.5-50.5 D, the range of normal corneas, after the
@@ -109,6 +114,10 @@ MapScaleRequest ExtendedPowerScale();
 // cornea's detail on a scale whose colours still mean fixed powers within the set.
 MapScaleRequest FittedStepScale(double step);
 MapScaleRequest NormalisedScale(double min_span);
+// The normalised scale symmetric about zero, as clinical elevation displays draw it: the range [-m, m] with m the
+// set's largest |value| (at least min_span / 2) rounded out to a round tick, so that zero — on the reference
+// surface — is the palette's middle colour and equal heights above and below it are equally far from it.
+MapScaleRequest SymmetricScale(double min_span);
 
 struct MapScale {
   double value_min = 0, value_max = 1, contour_step = 0;
@@ -117,7 +126,7 @@ struct MapScale {
 // One scale for all `maps` (their finite values together; a set with no data gets [0, 1] widened as requested).
 // Throws std::invalid_argument for an invalid request or an empty set.
 MapScale SelectMapScale(const std::vector<const GridMap*>& maps, const MapScaleRequest& request);
-// The scale's range, contour step and label into the drawing options.
+// The scale's range, contour step (the palette stepped at it) and label into the drawing options.
 void ApplyMapScale(const MapScale& scale, MapImageOptions* options);
 
 struct PixelRect {
@@ -152,7 +161,9 @@ std::array<std::uint8_t, 3> NoDataColour();
 
 // Renders the map. Throws std::invalid_argument if the map or the options are invalid (see IsValid).
 MapImage RenderMap(const GridMap& map, const MapImageOptions& options = {});
-// Renders and writes a PNG atomically. Throws util::InputError naming the path if it cannot be written.
+// Renders and writes a PNG atomically: a map on a stepped palette as a palette PNG (plot/map_png.cc: every band
+// colour exact, anti-aliased edges of text and lines the nearest of the map's colours; about a fifth of the
+// bytes of true colour), any other map in true colour. Throws util::InputError naming the path if it cannot be written.
 void WriteMapPng(const std::string& path, const GridMap& map, const MapImageOptions& options = {});
 
 // The map as CSV, long format: a header "x_mm,y_mm,<quantity>_<unit>" (e.g. value_D, value_um) then one row per

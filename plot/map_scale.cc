@@ -116,6 +116,12 @@ MapScaleRequest NormalisedScale(double min_span) {
   return r;
 }
 
+MapScaleRequest SymmetricScale(double min_span) {
+  MapScaleRequest r = NormalisedScale(min_span);
+  r.symmetric_about_zero = true;
+  return r;
+}
+
 MapScale SelectMapScale(const std::vector<const GridMap*>& maps, const MapScaleRequest& request) {
   std::string why;
   if (!request.IsValid(&why)) throw std::invalid_argument("MapScaleRequest: " + why);
@@ -158,7 +164,20 @@ MapScale SelectMapScale(const std::vector<const GridMap*>& maps, const MapScaleR
     out.label = fmt::format("absolute scale, {:.{}f} {} steps", step, Decimals(step), unit);
     return out;
   }
-  if (!has_data) lo = 0, hi = 1;
+  if (!has_data) lo = 0, hi = request.symmetric_about_zero ? 0 : 1;
+  if (request.symmetric_about_zero) {
+    const double m = std::max({std::abs(lo), std::abs(hi), 0.5 * request.min_span});
+    const double half = m > 0 ? m : 0.5;
+    const double tick = NiceStep(2 * half, 8.0);
+    out.value_max = tick * std::ceil(half / tick - 1e-9);
+    out.value_min = -out.value_max;
+    out.contour_step = NiceStep(out.value_max - out.value_min, 10.0);
+    out.label = fmt::format("normalised, symmetric about 0: {} range{}", set_word,
+                            2 * std::max(std::abs(lo), std::abs(hi)) < request.min_span
+                                ? fmt::format(", min. span {} {}", request.min_span, unit)
+                                : std::string());
+    return out;
+  }
   double span = hi - lo;
   const bool widened = span < request.min_span;
   if (widened) {
@@ -184,6 +203,7 @@ void ApplyMapScale(const MapScale& scale, MapImageOptions* options) {
   options->value_min = scale.value_min;
   options->value_max = scale.value_max;
   options->contour_step = scale.contour_step;
+  options->stepped_palette = true;
   options->scale_label = scale.label;
 }
 

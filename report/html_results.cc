@@ -159,13 +159,13 @@ std::string DeviceSection(const UnitRecord& rec) {
   const std::string head = "<tr><th>quantity</th><th>truth</th><th>uncorrected</th><th>lens only</th>"
                            "<th>through the device</th></tr>\n";
   if (!d.held_out.empty()) {
-    s += "<h3>Held-out reference ball (not used in the fit)</h3>\n<table class=\"data\">" + head;
+    s += "<div class=\"keep\"><h3>Held-out reference ball (not used in the fit)</h3>\n<table class=\"data\">" + head;
     s += "<tr><td>radius (mm)</td>" + three_way(d.held_out, "radius_mm", 4, Fixed(d.held_out_radius_true_mm, 4)) + "</tr>\n";
     s += "<tr><td>mean axial power, central 3 mm (D)</td>" +
          three_way(d.held_out, "central_axial_power_D", 3, Fixed(d.held_out_power_true_D, 3)) + "</tr>\n";
-    s += "</table>\n";
+    s += "</table></div>\n";
   }
-  s += "<h3>Paper cornea imaged through the calibrated unit</h3>\n<table class=\"data\">" + head;
+  s += "<div class=\"keep\"><h3>Paper cornea imaged through the calibrated unit</h3>\n<table class=\"data\">" + head;
   for (const Quantity& q : kPaperRows) {
     const auto t = rec.paper.truth.find(q.key);
     if (!d.paper.at("device").count(q.key)) continue;
@@ -173,7 +173,7 @@ std::string DeviceSection(const UnitRecord& rec) {
          three_way(d.paper, q.key, q.decimals, t != rec.paper.truth.end() ? Fixed(t->second, q.decimals) : "") +
          "</tr>\n";
   }
-  s += "</table>\n<p class=\"note\">Through the device the simulation reproduces the truth by construction; the "
+  s += "</table></div>\n<p class=\"note\">Through the device the simulation reproduces the truth by construction; the "
        "other columns are what this unit would report without the device stage (docs/device.md).</p>\n";
   s += "</section>\n";
   return s;

@@ -177,7 +177,8 @@ std::string BudgetTables(const Verdict& v) {
     if (c.budget.size() < 2 || !c.U) continue;
     const double uc = CombinedStandardUncertainty(c.budget);
     const std::string unit = c.unit.empty() ? "" : " " + c.unit;
-    s += fmt::format("<h3>Uncertainty budget: {}</h3>\n<table class=\"data budget\" data-budget=\"{}\"><tr>"
+    s += fmt::format("<div class=\"keep\"><h3>Uncertainty budget: {}</h3>\n"
+                     "<table class=\"data budget\" data-budget=\"{}\"><tr>"
                      "<th>input</th><th>source</th><th>u (k = 1)</th><th>share of u<sub>c</sub><sup>2</sup></th></tr>\n",
                      H(c.what), H(c.id));
     for (const BudgetTerm& t : c.budget) {
@@ -190,7 +191,7 @@ std::string BudgetTables(const Verdict& v) {
                      "independent</td><td class=\"num\">{}</td><td class=\"num\">100 %</td></tr>\n",
                      Sig(uc, 3) + unit);
     s += fmt::format("<tr><th>expanded</th><td class=\"note\">U = 2 u<sub>c</sub> (k = 2)</td><td class=\"num\" "
-                     "data-U=\"{}\">{}</td><td></td></tr>\n</table>\n",
+                     "data-U=\"{}\">{}</td><td></td></tr>\n</table></div>\n",
                      H(c.id), Sig(*c.U, 3) + unit);
   }
   s += "<p class=\"note\">The paper-cornea checks are a simulation (truth exact, images noise-free): their U is the "
@@ -365,7 +366,8 @@ std::string AcceptanceSection(const UnitRecord& rec, const Limits& limits, const
   }
   s += "</table>\n";
   // The simulated paper cornea, informative: what this calibration does to a typical eye, not evidence of it.
-  s += "<h3>Informative, not a check: the paper cornea through this calibration</h3>\n<p class=\"note\">Simulated "
+  s += "<div class=\"keep\"><h3>Informative, not a check: the paper cornea through this calibration</h3>\n"
+       "<p class=\"note\">Simulated "
        "through the unit's own fitted calibration and corrected by the same calibration: its error shows what the "
        "calibration does to a typical eye, not whether the calibration is right (a broken unit shows the same "
        "numbers), so it is not part of the verdict.</p>\n";
@@ -379,16 +381,16 @@ std::string AcceptanceSection(const UnitRecord& rec, const Limits& limits, const
                      c.U ? Sig(*c.U, 3) + unit : "\u2014", Sig(c.limit, 4) + unit,
                      c.pass ? "within" : "beyond");
   }
-  s += "</table>\n";
+  s += "</table></div>\n";
   s += BudgetTables(verdict);
-  s += fmt::format("<h3>Limits ({})</h3>\n<table class=\"data\"><tr><th>limit</th><th>value</th><th>source</th>"
-                   "</tr>\n",
+  s += fmt::format("<div class=\"keep\"><h3>Limits ({})</h3>\n<table class=\"data\"><tr><th>limit</th><th>value</th>"
+                   "<th>source</th></tr>\n",
                    H(limits.origin));
   for (const NamedLimit& l : NamedLimits(limits)) {
     s += fmt::format("<tr><td>{}</td><td class=\"num\">{}{}{}</td><td class=\"note\">{}</td></tr>\n", l.name,
                      Sig(l.limit->max, 4), *l.unit ? " " : "", l.unit, H(l.limit->source));
   }
-  s += "</table>\n";
+  s += "</table></div>\n";
   s += fmt::format("<p class=\"verdict-line\">Overall: <strong>{}</strong> (report <span class=\"report-id\">{}</span>)"
                    "</p>\n",
                    verdict_word, H(id));
@@ -407,18 +409,20 @@ std::string ProvenanceSection(const UnitRecord& rec, const ReportInputs& inputs)
     s += fmt::format("<p>Previous record {}: unit.json SHA-256 <span class=\"hash\">{}</span>.</p>\n",
                      H(inputs.previous->directory), H(inputs.previous->unit_json_sha256));
   }
-  s += "<h3>Inputs</h3>\n<table class=\"data\"><tr><th>role</th><th>path</th>"
+  // Each table kept whole with its heading (.keep: break-inside avoid); one longer than a page runs on, its heading
+  // kept with its first rows (h3: break-after avoid).
+  s += "<div class=\"keep\"><h3>Inputs</h3>\n<table class=\"data\"><tr><th>role</th><th>path</th>"
        "<th>SHA-256</th></tr>\n";
   for (const InputFile& f : rec.inputs) {
     s += fmt::format("<tr><td>{}</td><td>{}</td><td class=\"hash\">{}</td></tr>\n", H(f.role), H(f.path),
                      H(f.sha256));
   }
-  s += "</table>\n<h3>Record files (each verified against its SHA-256 when this report was made)</h3>\n"
-       "<table class=\"data\"><tr><th>file</th><th>SHA-256</th></tr>\n";
+  s += "</table></div>\n<div class=\"keep\"><h3>Record files (each verified against its SHA-256 when this report was "
+       "made)</h3>\n<table class=\"data\"><tr><th>file</th><th>SHA-256</th></tr>\n";
   for (const RecordFile& f : rec.files) {
     s += fmt::format("<tr><td>{}</td><td class=\"hash\">{}</td></tr>\n", H(f.name), H(f.sha256));
   }
-  s += "</table></section>\n";
+  s += "</table></div></section>\n";
   return s;
 }
 

@@ -376,14 +376,13 @@ std::string ResidualsCsv(const pipeline::UnitCameraCalibration& c) {
 }
 
 void WriteRecordMaps(const std::string& dir, const std::optional<pipeline::SphereVerification>& sphere,
-                     const pipeline::SimulatedCornea& paper, const model::Config& config, int jobs) {
-  // The PNGs go in the record, at half the default size (~0.15 MB each; the report embeds them all); the numbers
-  // are in unit.json (CSV grids would be ~0.6 MB each).
-  constexpr bool kMapCsv = true;  // the numbers behind every picture (~0.6 MB a map, 16 maps)
+                     const pipeline::SimulatedCornea& paper, const model::Config& config, int jobs, bool csv) {
+  // The PNGs go in the record at half the default size (the report embeds them all); the numbers are in unit.json,
+  // and the CSV grids behind the pictures (~3 MB each) only when asked for.
   constexpr int kMapSizePx = 400;
   // Each case's before/after pair is one set: both stages on the same scales, so that they compare by eye.
   pipeline::MapSetOptions o;
-  o.csv = kMapCsv;
+  o.csv = csv;
   o.size_px = kMapSizePx;
   o.jobs = jobs;  // the unit's threads (its draws are done by now); the same files on any number
   if (sphere) {
@@ -443,7 +442,7 @@ void WriteUnitRecord(const pipeline::UnitResult& u) {
   util::WriteFileAtomic((dir / "calibration.yaml").string(),
                         calib::CalibrationFileText(c.result, {r.target, c.view_paths, u.created_utc}));
   util::WriteFileAtomic((dir / "residuals.csv").string(), ResidualsCsv(c));
-  WriteRecordMaps((dir / "maps").string(), u.sphere, u.paper, u.config, r.jobs);
+  WriteRecordMaps((dir / "maps").string(), u.sphere, u.paper, u.config, r.jobs, r.map_csv);
   if (u.sphere) {
     // The sphere's identified spots as the camera saw them: the report recomputes the check from them
     // (report/record_check.h). Shortest round-trip decimals, so the recomputation starts from the same doubles.

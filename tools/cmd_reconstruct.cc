@@ -350,10 +350,13 @@ std::optional<pipeline::CaptureQuality> JudgeCapture(const std::optional<pipelin
 void AddMaps(util::StagedOutputs& outputs, const std::string& maps, const Inputs& in,
              const plot::MapScaleRequest& power_scale, const topo::Analysis& analysis,
              const model::BiconicParams* truth_cornea,
-             const std::optional<pipeline::MeasurementUncertainty>& measurement_u) {
+             const std::optional<pipeline::MeasurementUncertainty>& measurement_u,
+             const std::optional<pipeline::CaptureQuality>& capture) {
   pipeline::MapSetOptions map_options;
   map_options.eye = in.eye;  // N/T/S/I on the maps, in the examiner's view
   map_options.power = power_scale;
+  map_options.overview = true;  // overview.png: the three maps, the clinical numbers and the capture's quality
+  if (capture) map_options.overview_lines.push_back(capture->Line());
   pipeline::AnalysisMapEntry entry{"", "", &analysis, truth_cornea, {}};
   if (measurement_u) {
     entry.axial_expanded_D = &measurement_u->axial_expanded_D;
@@ -421,7 +424,9 @@ void Run(const std::string& config, const Inputs& in, const std::string& json_ou
     if (measurement_u) report::WithdrawUndetermined(*measurement_u, &j);
     outputs.AddFile(json_out, util::JsonFileText(j));
   }
-  if (!maps.empty()) AddMaps(outputs, maps, in, power_scale, analysis, truth ? &cfg.cornea : nullptr, measurement_u);
+  if (!maps.empty()) {
+    AddMaps(outputs, maps, in, power_scale, analysis, truth ? &cfg.cornea : nullptr, measurement_u, capture);
+  }
   outputs.Commit();
 }
 
@@ -465,7 +470,9 @@ void AddReconstructCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--power-step", in->power_step_D, "Step of --power-scale fit, D [0.5]")->default_str("");
   cmd->add_option("--json", *json_out, "Write the result as JSON");
-  cmd->add_option("--maps", *maps, "Write power and height maps (CSV + PNG) into this directory");
+  cmd->add_option("--maps", *maps,
+                  "Write power and height maps (CSV + PNG) and their one-page overview (overview.png) into this "
+                  "directory");
   auto overrides = std::make_shared<ReconstructionOverrides>();
   overrides->AddTo(cmd);
   cmd->add_flag("--truth", *truth, "Compare with the configuration's cornea (pv and rms of the height difference)");

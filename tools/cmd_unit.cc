@@ -57,6 +57,9 @@ void AddCommonOptions(CLI::App* cmd, UnitRequest* r) {
   cmd->add_flag("--allow-undetermined", r->allow_undetermined,
                 "Record a calibration whose views leave a parameter undetermined (listed in the record) instead of "
                 "refusing it");
+  cmd->add_flag("--map-csv", r->map_csv,
+                "Also store each map's CSV grid beside its PNG in maps/ (~3 MB a map; without it a record is a few "
+                "MB)");
   cmd->add_flag("--force", r->keep_history,
                 "Replace a unit's existing record; the old one is kept under <units>/.history/<serial>/<its date>/");
 }

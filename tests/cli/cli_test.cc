@@ -110,7 +110,8 @@ TEST_F(Cli, ReconstructFromSimulatedSpotsWritesJsonAndMaps) {
   EXPECT_NEAR(j["surface_fit"]["kx"].get<double>(), -0.43, 0.002);
   EXPECT_LT(j["errors"]["pv_um"].get<double>(), 0.05);
   EXPECT_GT(j["surface_fit"]["stddev"]["rx_mm"].get<double>(), 0.0);
-  for (const char* f : {"axial_power.png", "tangential_power.csv", "elevation.png", "elevation.csv", "height_difference.png"}) {
+  for (const char* f : {"axial_power.png", "tangential_power.csv", "elevation.png", "elevation.csv", "height_difference.png",
+                        "overview.png"}) {
     EXPECT_TRUE(fs::exists(Path("maps/") + f)) << f;
   }
 }

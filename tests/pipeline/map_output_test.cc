@@ -1,7 +1,8 @@
-// The maps of an analysis set are computed and written on several threads (MapSetOptions::jobs): the
-// files must not depend on the thread count.
+// The maps of an analysis set: the files do not depend on the thread count (MapSetOptions::jobs), the sim-K axes
+// are drawn only where there is a cylinder, and the overview page carries the maps and the clinical numbers.
 #include "pipeline/map_output.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -109,6 +110,43 @@ TEST(MapOutput, SimKAxesOnlyWhereThereIsACylinder) {
   // 37 px/mm (and its contour lines); the sphere: not one dark pixel.
   EXPECT_GT(dark[0], 100);
   EXPECT_EQ(dark[1], 0);
+  fs::remove_all(root);
+}
+
+// The overview page: written only when asked for, beside the maps; its text is the analysis's clinical numbers as
+// the JSON has them, then the caller's lines (the capture's quality).
+TEST(MapOutput, TheOverviewPageCarriesTheMapsAndTheClinicalNumbers) {
+  const model::Config config = model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json");
+  const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
+  std::vector<topo::MeasuredSpot> spots;
+  for (const auto& s : topo::SimulateSpots(config, 0.0).spots) spots.push_back({s.id, s.position_mm});
+  const topo::Analysis a = topo::AnalyzeSpots(spots, design.targets, config, nullptr);
+  ASSERT_TRUE(a.clinical_ok);
+  const std::vector<std::string> lines = ClinicalSummaryLines(a);
+  ASSERT_EQ(lines.size(), 4u);
+  const auto& c = a.clinical;
+  EXPECT_EQ(lines[0].rfind(fmt::format("sim-K {:.2f} D @ {:.0f}", c.steep_k_D, c.steep_axis_deg), 0), 0u) << lines[0];
+  EXPECT_EQ(lines[1], fmt::format("Kmax {:.2f} D at ({:+.2f}, {:+.2f}) mm", c.kmax_D, c.kmax_at_mm.x(), c.kmax_at_mm.y()));
+  EXPECT_EQ(lines[2].rfind(fmt::format("elevation peak {:.2f} \u00b5m at (", c.elevation_peak_um), 0), 0u) << lines[2];
+  EXPECT_EQ(lines[3].rfind(fmt::format("best-fit sphere R = {:.3f} mm", c.bfs_radius_mm), 0), 0u) << lines[3];
+  EXPECT_NE(ClinicalSummaryLines(a, false, false)[1].find("not determined"), std::string::npos);
+
+  const fs::path root = fs::temp_directory_path() / ("topocal-map-overview-" + std::to_string(::getpid()));
+  fs::remove_all(root);
+  MapSetOptions o;
+  o.size_px = 400;
+  WriteAnalysisMapSet((root / "plain").string(), {{"", "", &a, nullptr, {}}}, o);
+  EXPECT_FALSE(fs::exists(root / "plain" / "overview.png"));
+  o.overview = true;
+  o.eye = "OD";
+  o.overview_lines = {"capture: 624 of 624 spots identified"};
+  WriteAnalysisMapSet((root / "page").string(), {{"", "", &a, nullptr, {}}}, o);
+  const cv::Mat page = cv::imread((root / "page" / "overview.png").string());
+  ASSERT_FALSE(page.empty());
+  // Two rows of two cells (axial, tangential; elevation, the numbers): taller than wide, as a portrait page.
+  EXPECT_GT(page.rows, page.cols);
+  const cv::Mat axial = cv::imread((root / "page" / "axial_power.png").string());
+  EXPECT_LT(page.cols, 2 * axial.cols);  // the maps at half size
   fs::remove_all(root);
 }
 

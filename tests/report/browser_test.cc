@@ -179,6 +179,29 @@ TEST(ReportInBrowser, AUnitCalibratedFromImagesReportsAndRendersEndToEnd) {
   EXPECT_NE(d.find("SN-E2E-0001-"), std::string::npos);  // the report id
   EXPECT_EQ(Count(d, "<svg class=\"plot\""), 3u);
 
+  // Printed: every uncertainty budget on one page, its heading with its last row ("expanded"); the budgets used to
+  // print their heading and first rows on one page and the rest on the next.
+  const std::string pdf = work + "/report.pdf";
+  const ShellRun printed = Chromium(chromium, work, "pdf",
+                                    "--no-pdf-header-footer --print-to-pdf=" + pdf + " file://" + fs::absolute(html).string());
+  ASSERT_EQ(printed.exit_code, 0) << printed.output;
+  const ShellRun text = testing::Shell("pdftotext -layout " + pdf + " - 2>&1");
+  ASSERT_EQ(text.exit_code, 0) << text.output;
+  int budgets = 0, page = 1, heading_page = 0;
+  std::size_t line_start = 0;
+  while (line_start < text.output.size()) {
+    const std::size_t end = std::min(text.output.find('\n', line_start), text.output.size());
+    const std::string line = text.output.substr(line_start, end - line_start);
+    page += static_cast<int>(Count(line, "\f"));
+    const std::size_t first = line.find_first_not_of(" \f");
+    if (first != std::string::npos && line.compare(first, 18, "Uncertainty budget") == 0) heading_page = page, ++budgets;
+    if (first != std::string::npos && line.compare(first, 8, "expanded") == 0) {
+      EXPECT_EQ(page, heading_page) << "budget " << budgets << " split across pages";
+    }
+    line_start = end + 1;
+  }
+  EXPECT_EQ(budgets, 2);
+
   // Limits this unit cannot meet: the report is still written, says FAIL, and the exit code is 3.
   const std::string strict = work + "/strict.json";
   std::string limits = util::ReadFile(std::string(TOPOCAL_SOURCE_DIR) + "/data/limits.json");

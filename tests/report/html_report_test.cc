@@ -207,6 +207,30 @@ TEST_F(HtmlReportTest, DistortionPlotColourBarArrowsAndCaptionAgree) {
   EXPECT_NE(svg.find("#dcdcdc"), std::string::npos);  // the corners beyond the field: no data
 }
 
+// A short table is never split from its heading nor across pages: each heading followed by a table of at most
+// kShortTableRows rows is in a .keep block (break-inside: avoid) that closes right after the table — the uncertainty
+// budgets printed heading on one page, half their rows on the next. Longer tables (limits, provenance) may run on:
+// their heading stays with their first rows (h3 break-after: avoid, rows unbroken).
+TEST_F(HtmlReportTest, AShortTableIsKeptWithItsHeading) {
+  constexpr int kShortTableRows = 12;
+  const std::string& h = *html_;
+  int kept = 0;
+  for (std::size_t at = h.find("<h3>"); at != std::string::npos; at = h.find("<h3>", at + 1)) {
+    const std::size_t table = h.find("<table", at), end = h.find("</table>", at);
+    ASSERT_NE(end, std::string::npos);
+    if (h.find("<h3>", at + 1) < table) continue;  // a heading over text only
+    const std::string body = h.substr(table, end - table);
+    if (Count(body, "<tr") > static_cast<std::size_t>(kShortTableRows)) continue;
+    const std::string heading = h.substr(at, h.find("</h3>", at) - at);
+    const std::string open = "<div class=\"keep\">";
+    EXPECT_EQ(h.compare(at - open.size(), open.size(), open), 0) << heading;
+    EXPECT_EQ(h.compare(end, 14, "</table></div>"), 0) << heading;
+    ++kept;
+  }
+  EXPECT_GE(kept, 3);  // the informative rows and the two budgets
+  EXPECT_NE(h.find(".keep { break-inside: avoid; }"), std::string::npos);
+}
+
 TEST_F(HtmlReportTest, HasEverySection) {
   const std::string& h = *html_;
   for (const char* id : {"id=\"verdict\"", "id=\"identity\"", "id=\"sign-off\"", "id=\"method\"", "id=\"inputs\"",
