@@ -1,5 +1,5 @@
-// topocal-full — every verb of the topocal command line. Users run `topocal` (launcher.cc), which runs the verbs
-// that need no OpenCV in its own, lighter process and hands every other command line to this program unchanged.
+// topocal-full — every verb of the topocal command line. Users run `topocal` (launcher.cc), which hands `--version`
+// and the sweep to topocal-sweep (sweep_main.cc, no OpenCV) and every other command line to this program unchanged.
 #include <CLI/CLI.hpp>
 
 #include "imageio/large_buffers.h"
