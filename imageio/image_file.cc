@@ -23,6 +23,7 @@
 
 #include "imageio/container_check.h"
 #include "imageio/imgcodecs_abi.h"
+#include "imageio/png_decode.h"
 #include "util/io.h"
 
 namespace topocal::imageio {
@@ -163,12 +164,22 @@ cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string
   }
   if (const auto stored = ProbeStoredSize(bytes)) CheckPixels(stored->width_px, stored->height_px, name, limits);
   CheckContainer(bytes, name);
-  const ImgcodecsApi& codecs = Codecs();
+  const int flags = channels == Channels::kGrey ? cv::IMREAD_GRAYSCALE : cv::IMREAD_UNCHANGED;
   cv::Mat image;
   char error[512] = "";
-  if (!codecs.decode(reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size(),
-                     channels == Channels::kGrey ? cv::IMREAD_GRAYSCALE : cv::IMREAD_UNCHANGED, &image, error,
-                     sizeof error)) {
+  // The common PNGs in this process (png_decode.h), the rest through the plugin: the same pixels and messages.
+  std::optional<cv::Mat> common;
+  try {
+    common = DecodeCommonPng(bytes, flags);
+  } catch (const cv::Exception& e) {  // as the plugin reports OpenCV's exceptions
+    throw util::InputError(fmt::format("{}: cannot be read as an image ({})", name, e.err));
+  } catch (const std::exception& e) {
+    throw util::InputError(fmt::format("{}: cannot be read as an image ({})", name, e.what()));
+  }
+  if (common) {
+    image = std::move(*common);
+  } else if (!Codecs().decode(reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size(), flags, &image,
+                              error, sizeof error)) {
     throw util::InputError(fmt::format("{}: cannot be read as an image ({})", name, error));
   }
   if (image.empty()) {

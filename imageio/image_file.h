@@ -10,8 +10,9 @@
 // Decoding and encoding are OpenCV's (cv::imdecode, cv::imencode); only the header probe is written here, because
 // OpenCV 4.6 has no call that reads an image's size without decoding it. This module is the only owner of image
 // encoding and decoding in topocal: OpenCV's codecs live in a plugin (libtopocal_imgcodecs.so, imgcodecs_abi.h)
-// loaded at the first image a process encodes or decodes, so that the verbs that touch no image do not pay for the
-// 112 shared libraries behind Debian's libopencv_imgcodecs (docs/performance.md, "Start-up"). The plugin is looked
+// loaded at the first image a process encodes, or decodes other than a common PNG (png_decode.h: those are decoded
+// in process by OpenCV's own libpng calls), so that the processes that need no codec do not pay for the 112 shared
+// libraries behind Debian's libopencv_imgcodecs (docs/performance.md, "Start-up"). The plugin is looked
 // up as $TOPOCAL_IMGCODECS_PLUGIN (a file) if set, else at <executable>/../<libdir>/topocal/ (the installed layout,
 // which the build tree mirrors), else at <the configured install prefix>/<libdir>/topocal/. When it cannot be
 // loaded, the first image operation throws CodecsUnavailable naming the file and where it was looked for.

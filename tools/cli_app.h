@@ -1,5 +1,5 @@
 #pragma once
-// What topocal-full (main.cc) and the launcher (launcher.cc) share: the application's description, version and global
+// What topocal-full (main.cc) and topocal-sweep (sweep_main.cc) share: the application's description, version and global
 // options, and how a command's outcome becomes an exit code.
 // Exit codes: 0 success; 1 a computation failed (solver did not converge, no usable data); 2 bad input (usage,
 // missing or corrupt file, invalid configuration); 3 a QA verdict of FAIL (the report is written); 4 a measurement
@@ -16,11 +16,11 @@ inline constexpr const char* kAppDescription =
 void SetUpApp(CLI::App& app);
 
 // Parses and runs; every exception of a command becomes one line on stderr and its exit code. NeedsFullCli passes
-// through (launcher.cc).
+// through (sweep_main.cc).
 int RunApp(CLI::App& app, int argc, char** argv);
 
-// Thrown, before any work or output, by a command the launcher cannot run in its own process (a stage that needs
-// OpenCV): the launcher hands the whole command line to topocal-full. Not a std::exception, so that nothing in
+// Thrown, before any work or output, by a command topocal-sweep cannot run in its own process (a stage that needs
+// OpenCV): topocal-sweep hands the whole command line to topocal-full. Not a std::exception, so that nothing in
 // between reports it as a failure.
 struct NeedsFullCli {};
 

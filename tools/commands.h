@@ -27,7 +27,7 @@ class VerdictFailed : public std::runtime_error {
 void AddDesignCommand(CLI::App& app);
 void AddSimulateCommand(CLI::App& app);
 // The sweep's two stages that need OpenCV: --correct (a rendered target and sensor image, calibrated, detected,
-// undistorted) and --maps (map images). topocal-full passes kSweepImageStages (cmd_sweep_stages.cc); the launcher,
+// undistorted) and --maps (map images). topocal-full passes kSweepImageStages (cmd_sweep_stages.cc); topocal-sweep,
 // which links no OpenCV, passes nullptr, and a sweep that asks for either throws NeedsFullCli (cli_app.h).
 struct SweepImageStages {
   std::vector<pipeline::ClosedLoopResult> (*close_loops)(const model::Config& config, const topo::SweepResult& result,

@@ -1,71 +1,55 @@
-// topocal — the program users run. Most verbs need OpenCV, whose shared libraries and their dependencies are most of
-// a process' start-up (docs/performance.md: `--version` took ~34 ms of CPU, nearly all of it the dynamic loader and
-// page faults for 56 libraries). The commands that touch no image — `--version` and `sweep` without --correct or
-// --maps — run here, in a program linked only against model, topo, Ceres and fmt. Every other command line, and
-// every --help, is handed unchanged to topocal-full (main.cc) with execv: the same process, so the same process id,
-// signals, standard streams and exit code.
-#include <fmt/format.h>
+// topocal — the program users run. It only chooses the program that runs the command line and hands it over with
+// execv: the same process, so the same process id, signals, standard streams and exit code. Loading shared libraries
+// is most of a short process' cost (docs/performance.md, "Start-up"), and this choice needs none: the program links
+// the C library alone (no C++ library either), so a verb pays for the libraries of the program that runs it only.
+//  - `--version`, and `sweep` without a help flag: topocal-sweep (sweep_main.cc), linked against model, topo, Ceres
+//    and fmt but no OpenCV; it hands a sweep with --correct or --maps on to topocal-full.
+//  - Every other command line, and every --help: topocal-full (main.cc), every verb.
+// Both are installed in <prefix>/<libexecdir>, as this program is in <prefix>/<bindir>; the build tree mirrors that
+// layout (tools/CMakeLists.txt).
+#include <errno.h>
+#include <limits.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 #include <unistd.h>
-
-#include <CLI/CLI.hpp>
-#include <cerrno>
-#include <cstdio>
-#include <cstdlib>
-#include <cstring>
-#include <filesystem>
-#include <string_view>
-#include <system_error>
-#include <vector>
-
-#include "tools/cli_app.h"
-#include "tools/commands.h"
 
 namespace {
 
-// Whether this program runs the command line itself: `--version`, or `sweep` without a help flag (the sweep's
-// --correct and --maps are found when parsed: NeedsFullCli).
-bool RunsHere(int argc, char** argv) {
-  std::vector<std::string_view> args;
+// Whether topocal-sweep runs the command line: `--version` alone, or `sweep` without a help flag (`--quiet` may stand
+// anywhere).
+bool RunsInSweepProgram(int argc, char** argv) {
+  int first = 0, count = 0;
+  bool help = false;
   for (int i = 1; i < argc; ++i) {
-    if (std::string_view(argv[i]) != "--quiet") args.emplace_back(argv[i]);
+    if (strcmp(argv[i], "--quiet") == 0) continue;
+    if (count++ == 0) first = i;
+    help = help || strcmp(argv[i], "-h") == 0 || strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "--help-all") == 0;
   }
-  if (args.size() == 1 && args[0] == "--version") return true;
-  if (args.empty() || args[0] != "sweep") return false;
-  for (const auto a : args) {
-    if (a == "-h" || a == "--help" || a == "--help-all") return false;
-  }
-  return true;
-}
-
-// topocal-full is installed in <prefix>/<libexecdir>, as this program is in <prefix>/<bindir>; the build tree mirrors
-// that layout (tools/CMakeLists.txt).
-[[noreturn]] void ExecFullCli(char** argv) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  const fs::path full = exe.parent_path().parent_path() / TOPOCAL_INSTALL_LIBEXECDIR / "topocal-full";
-  if (ec) {
-    fmt::print(stderr, "topocal: cannot locate this executable (/proc/self/exe: {}) to run topocal-full\n",
-               ec.message());
-    std::exit(1);
-  }
-  std::fflush(nullptr);
-  execv(full.c_str(), argv);
-  fmt::print(stderr, "topocal: cannot run {}: {} (install topocal with `cmake --install`)\n", full.string(),
-             std::strerror(errno));
-  std::exit(1);
+  if (count == 0) return false;
+  if (count == 1 && strcmp(argv[first], "--version") == 0) return true;
+  return strcmp(argv[first], "sweep") == 0 && !help;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (!RunsHere(argc, argv)) ExecFullCli(argv);
-  CLI::App app{topocal::tools::kAppDescription};
-  topocal::tools::SetUpApp(app);
-  topocal::tools::AddSweepCommand(app, nullptr);
-  try {
-    return topocal::tools::RunApp(app, argc, argv);
-  } catch (const topocal::tools::NeedsFullCli&) {
-    ExecFullCli(argv);
+  const char* program = RunsInSweepProgram(argc, argv) ? "topocal-sweep" : "topocal-full";
+  // <this executable's directory>/../<libexecdir>/<program>
+  char path[PATH_MAX + 64];
+  const ssize_t n = readlink("/proc/self/exe", path, PATH_MAX);
+  if (n < 0) {
+    fprintf(stderr, "topocal: cannot locate this executable (/proc/self/exe: %s) to run %s\n", strerror(errno), program);
+    return 1;
   }
+  path[n] = '\0';
+  for (int up = 0; up < 2; ++up) {
+    char* slash = strrchr(path, '/');
+    if (slash) *slash = '\0';
+  }
+  char full[PATH_MAX + 256];
+  snprintf(full, sizeof full, "%s/%s/%s", path, TOPOCAL_INSTALL_LIBEXECDIR, program);
+  execv(full, argv);
+  fprintf(stderr, "topocal: cannot run %s: %s (install topocal with `cmake --install`)\n", full, strerror(errno));
+  return 1;
 }

@@ -1,13 +1,15 @@
-// topocal-full — every verb of the topocal command line. Users run `topocal` (launcher.cc), which runs the verbs
-// that need no OpenCV in its own, lighter process and hands every other command line to this program unchanged.
+// topocal-full — every verb of the topocal command line. Users run `topocal` (launcher.cc), which hands `--version`
+// and the sweep to topocal-sweep (sweep_main.cc, no OpenCV) and every other command line to this program unchanged.
 #include <CLI/CLI.hpp>
 
+#include "imageio/large_buffers.h"
 #include "tools/cli_app.h"
 #include "tools/commands.h"
 
 int main(int argc, char** argv) {
   CLI::App app{topocal::tools::kAppDescription};
   topocal::tools::SetUpApp(app);
+  topocal::imageio::UseHugePagesForImageBuffers();  // frames and their masks: one fault per 2 MB, not per 4 KB
   topocal::tools::AddDesignCommand(app);
   topocal::tools::AddSimulateCommand(app);
   topocal::tools::AddSweepCommand(app, &topocal::tools::kSweepImageStages);

@@ -4,15 +4,20 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <zlib.h>
 #include <unistd.h>
 
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <vector>
 
+#include "imageio/png_decode.h"
 #include "util/io.h"
 
 namespace topocal::imageio {
@@ -70,6 +75,96 @@ TEST(ImageFile, DecodesWhatOpenCvDecodes) {
   EXPECT_EQ(DecodeImage(Encode(colour, ".png"), Channels::kGrey, "mem.png").channels(), 1);
   cv::Mat deep(8, 8, CV_16UC1, cv::Scalar(40000));
   EXPECT_EQ(DecodeImage(Encode(deep, ".png"), Channels::kAsStored, "mem.png").depth(), CV_16U);
+}
+
+// A PNG chunk (length, type, data, CRC-32 of type and data) inserted after the IHDR, or the IHDR rewritten.
+std::string WithChunk(const std::string& png, const std::string& type, const std::string& data) {
+  std::string chunk(4, '\0');
+  for (int i = 0; i < 4; ++i) chunk[i] = static_cast<char>((data.size() >> (24 - 8 * i)) & 0xFF);
+  chunk += type + data;
+  const auto crc = crc32(0L, reinterpret_cast<const Bytef*>(chunk.data() + 4), static_cast<uInt>(chunk.size() - 4));
+  for (int i = 0; i < 4; ++i) chunk += static_cast<char>((crc >> (24 - 8 * i)) & 0xFF);
+  if (type == "IHDR") return png.substr(0, 8) + chunk + png.substr(33);
+  return png.substr(0, 33) + chunk + png.substr(33);
+}
+
+// The common PNGs are decoded in this process (png_decode.h), by the same libpng calls as OpenCV's decoder: every
+// type OpenCV writes, with both flags topocal uses, gives cv::imdecode's pixels bit for bit, and libpng's errors
+// the same empty image and the same lines on stderr. Every other PNG is left to OpenCV.
+TEST(ImageFile, CommonPngDecodesAsOpenCvDoes) {
+  std::vector<std::string> files;
+  for (const int type : {CV_8UC1, CV_8UC3, CV_8UC4, CV_16UC1, CV_16UC3, CV_16UC4}) {
+    for (const auto& [w, h] : {std::pair{1, 1}, std::pair{37, 11}, std::pair{300, 200}}) {
+      cv::Mat image(h, w, type);
+      cv::randu(image, 0, CV_MAT_DEPTH(type) == CV_16U ? 65536 : 256);
+      if (w > 1) {  // the extremes
+        image.row(0).setTo(0);
+        image.row(h - 1).setTo(CV_MAT_DEPTH(type) == CV_16U ? 65535 : 255);
+      }
+      files.push_back(Encode(image, ".png"));
+      files.push_back(Encode(image, ".png", {cv::IMWRITE_PNG_COMPRESSION, 9}));
+    }
+  }
+  // Ancillary chunks that change no pixel OpenCV reads: gamma, significant bits, text, physical size.
+  const std::string grey = Encode(Gradient(40, 30), ".png");
+  files.push_back(WithChunk(grey, "gAMA", std::string("\x00\x00\xB1\x8F", 4)));
+  files.push_back(WithChunk(grey, "sBIT", "\x05"));
+  files.push_back(WithChunk(grey, "tEXt", std::string("Software\0topocal", 16)));
+  files.push_back(WithChunk(Encode(Gradient(40, 30, CV_8UC3), ".png"), "gAMA", std::string("\x00\x00\xB1\x8F", 4)));
+  for (std::size_t i = 0; i < files.size(); ++i) {
+    for (const int flags : {cv::IMREAD_UNCHANGED, cv::IMREAD_GRAYSCALE}) {
+      SCOPED_TRACE(fmt::format("file {} flags {}", i, flags));
+      const auto bytes = cv::Mat(1, static_cast<int>(files[i].size()), CV_8UC1, files[i].data());
+      const cv::Mat opencv = cv::imdecode(bytes, flags);
+      const std::optional<cv::Mat> here = DecodeCommonPng(files[i], flags);
+      ASSERT_TRUE(here.has_value());
+      ASSERT_EQ(here->type(), opencv.type());
+      ASSERT_EQ(here->size(), opencv.size());
+      ASSERT_TRUE(here->isContinuous() && opencv.isContinuous());
+      EXPECT_EQ(std::memcmp(here->data, opencv.data, opencv.total() * opencv.elemSize()), 0);
+    }
+  }
+  // Data libpng refuses (a zlib stream cut inside a whole IDAT chunk, a bad filter type): empty, as cv::imdecode
+  // gives it, with what libpng prints.
+  cv::Mat flat(64, 64, CV_8UC1, cv::Scalar(7));
+  const std::string png = Encode(flat, ".png", {cv::IMWRITE_PNG_COMPRESSION, 0});
+  const std::size_t idat = png.find("IDAT") - 4;
+  const std::uint32_t idat_length = (static_cast<unsigned char>(png[idat + 2]) << 8) | static_cast<unsigned char>(png[idat + 3]);
+  std::string damaged = png.substr(0, idat) + WithChunk(std::string(33, '\0'), "IDAT",
+                                                         png.substr(idat + 8, idat_length / 2)).substr(33) +
+                        png.substr(idat + 12 + idat_length);
+  std::string bad_filter = png;  // stored (level 0) deflate: the first row's filter byte follows the block header
+  bad_filter[idat + 8 + 2 + 5] = 9;
+  bad_filter = bad_filter.substr(0, idat) + WithChunk(std::string(33, '\0'), "IDAT",
+                                                      bad_filter.substr(idat + 8, idat_length)).substr(33) +
+               bad_filter.substr(idat + 12 + idat_length);
+  for (const std::string* file : {&damaged, &bad_filter}) {
+    for (const int flags : {cv::IMREAD_UNCHANGED, cv::IMREAD_GRAYSCALE}) {
+      const auto bytes = cv::Mat(1, static_cast<int>(file->size()), CV_8UC1, const_cast<char*>(file->data()));
+      ::testing::internal::CaptureStderr();
+      const cv::Mat opencv = cv::imdecode(bytes, flags);
+      const std::string opencv_printed = ::testing::internal::GetCapturedStderr();
+      ::testing::internal::CaptureStderr();
+      const std::optional<cv::Mat> here = DecodeCommonPng(*file, flags);
+      const std::string printed = ::testing::internal::GetCapturedStderr();
+      EXPECT_TRUE(opencv.empty());
+      ASSERT_TRUE(here.has_value());
+      EXPECT_TRUE(here->empty());
+      EXPECT_EQ(printed, opencv_printed);
+      EXPECT_NE(printed.find("libpng error"), std::string::npos) << printed;
+    }
+  }
+  // Left to OpenCV: transparency, EXIF, interlacing, a palette, 1-bit grey, another format, other flags.
+  EXPECT_FALSE(DecodeCommonPng(WithChunk(grey, "tRNS", std::string("\x00\x07", 2)), cv::IMREAD_UNCHANGED));
+  EXPECT_FALSE(DecodeCommonPng(WithChunk(grey, "eXIf", "MM"), cv::IMREAD_GRAYSCALE));
+  const std::string ihdr = grey.substr(16, 13);
+  for (const auto& [at, value] : {std::pair{12, '\x01'}, std::pair{9, '\x03'}, std::pair{8, '\x01'}}) {
+    std::string changed = ihdr;
+    changed[at] = value;
+    EXPECT_FALSE(DecodeCommonPng(WithChunk(grey, "IHDR", changed), cv::IMREAD_UNCHANGED)) << at;
+  }
+  EXPECT_FALSE(DecodeCommonPng(Encode(Gradient(8, 8), ".jpg"), cv::IMREAD_GRAYSCALE));
+  EXPECT_FALSE(DecodeCommonPng(grey, cv::IMREAD_COLOR));
 }
 
 // A PNG that declares 100 000 x 100 000 px in 60 bytes: refused from its header, before any decoding.

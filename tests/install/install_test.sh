@@ -52,7 +52,7 @@ msg=$("$prefix/bin/topocal" unit calibrate --serial SN-1 --target "$prefix/share
       --images 'none*.png' --out "$work/unit/SN-1/" 2>&1)
 set -e
 case "$msg" in *"no file matches"*|*"none*.png"*) ;; *) echo "installed unit calibrate: $msg" >&2; exit 1 ;; esac
-# Without topocal-full: `--version` and the sweep still run in the launcher; every other verb fails with one line
+# Without topocal-full: `--version` and the sweep still run (topocal-sweep); every other verb fails with one line
 # naming the missing program, and writes nothing.
 mv "$prefix/libexec/topocal-full" "$work/full"
 "$prefix/bin/topocal" --version
@@ -89,6 +89,7 @@ contents=$(dpkg-deb -c "$work"/deb/topocal_*_amd64.deb)
 grep "usr/share/topocal/data/paper.json" <<< "$contents" >/dev/null
 grep "usr/lib/topocal/libtopocal_imgcodecs.so" <<< "$contents" >/dev/null
 grep "usr/libexec/topocal-full" <<< "$contents" >/dev/null
+grep "usr/libexec/topocal-sweep" <<< "$contents" >/dev/null
 if [ -f "$build/python/topocal/__init__.py" ]; then
   grep "usr/lib/python3.*/dist-packages/topocal/_topocal.*\.so" <<< "$contents" >/dev/null
   grep "usr/lib/python3.*/dist-packages/topocal/__init__.py" <<< "$contents" >/dev/null
