@@ -21,7 +21,7 @@ class Determinism : public topocal::testing_cli::TempDirTest {
 
 TEST_F(Determinism, DetectIsByteIdenticalWhateverTheThreads) {
   // A clinical-looking capture: lid with skin, an iris, glints (the local-background and deblending paths).
-  ASSERT_EQ(RunTopocal("render-spots --config " + paper_ + " --camera " + data_ + "camera.json --sigma 6.3e-5 " +
+  ASSERT_EQ(RunTopocal("render-spots --config " + paper_ + " --camera " + data_ + "camera.json --sigma 0 " +
                        "--upper-lid 0.2 --lid-skin 2000 --iris 1500 --glints 3 --seed 4 --out " + Path("eye.png"))
                 .exit_code,
             0);
