@@ -10,11 +10,6 @@
 namespace topocal::imageio {
 namespace {
 
-std::uint32_t BigEndian32(std::string_view b, std::size_t at) {
-  std::uint32_t v = 0;
-  for (std::size_t i = 0; i < 4; ++i) v = (v << 8) | static_cast<unsigned char>(b[at + i]);
-  return v;
-}
 
 unsigned char Byte(std::string_view b, std::size_t at) { return static_cast<unsigned char>(b[at]); }
 
@@ -99,6 +94,12 @@ void CheckJpeg(std::string_view b, const std::string& name) {
 }
 
 }  // namespace
+
+std::uint32_t BigEndian32(std::string_view b, std::size_t at) {
+  std::uint32_t v = 0;
+  for (std::size_t i = 0; i < 4; ++i) v = (v << 8) | static_cast<unsigned char>(b[at + i]);
+  return v;
+}
 
 void CheckContainer(std::string_view bytes, const std::string& name) {
   static constexpr std::string_view kPngSignature("\x89PNG\r\n\x1a\n", 8);

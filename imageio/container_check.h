@@ -10,6 +10,8 @@
 //   JPEG (ITU-T T.81 §B): SOI, marker segments, entropy-coded scans (0xFF stuffed as 0xFF00; RSTn inside), up to
 //        EOI. A file that ends before EOI is truncated.
 // Other formats (PNM, TIFF, BMP, ...) are left to the decoder.
+#include <cstddef>
+#include <cstdint>
 #include <string>
 #include <string_view>
 
@@ -18,5 +20,8 @@ namespace topocal::imageio {
 // Throws util::InputError "NAME: cannot be read as an image (truncated PNG: ...)" (or damaged PNG, truncated or
 // damaged JPEG) when the bytes are a PNG or JPEG whose framing is broken; returns for anything else.
 void CheckContainer(std::string_view bytes, const std::string& name);
+
+// The 4-byte big-endian unsigned integer at `at` (PNG's lengths and sizes); the caller checks that it lies in b.
+std::uint32_t BigEndian32(std::string_view b, std::size_t at);
 
 }  // namespace topocal::imageio

@@ -8,14 +8,10 @@
 #include <opencv2/imgcodecs.hpp>  // the IMREAD_ constants only
 #include <vector>
 
+#include "imageio/container_check.h"
+
 namespace topocal::imageio {
 namespace {
-
-std::uint32_t BigEndian32(std::string_view b, std::size_t at) {
-  std::uint32_t v = 0;
-  for (std::size_t i = 0; i < 4; ++i) v = (v << 8) | static_cast<unsigned char>(b[at + i]);
-  return v;
-}
 
 // Whether the file is one of the PNGs this decodes (png_decode.h), from its bytes: the signature, an IHDR of 8- or
 // 16-bit grey (0), RGB (2) or RGBA (6) without interlacing, a size within cv::imdecode's own limits (so that OpenCV

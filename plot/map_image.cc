@@ -205,22 +205,7 @@ std::vector<std::string> FooterLines(const GridMap& map, const MapImageOptions& 
     footer.push_back("examiner's view; " + options.orientation);
   }
   for (const std::string& line : options.legend) {
-    std::string current;
-    std::size_t start = 0;
-    while (start <= line.size()) {
-      std::size_t end = line.find(' ', start);
-      if (end == std::string::npos) end = line.size();
-      const std::string word = line.substr(start, end - start);
-      const std::string candidate = current.empty() ? word : current + " " + word;
-      if (!current.empty() && TextSize(candidate, small_font).width > max_width_px) {
-        footer.push_back(current);
-        current = "  " + word;
-      } else {
-        current = candidate;
-      }
-      start = end + 1;
-    }
-    if (!current.empty()) footer.push_back(current);
+    for (std::string& wrapped : WrapText(line, small_font, max_width_px, "  ")) footer.push_back(std::move(wrapped));
   }
   if (std::string beyond = BeyondScaleLine(map, c); !beyond.empty()) footer.push_back(std::move(beyond));
   return footer;

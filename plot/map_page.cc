@@ -16,28 +16,6 @@ namespace {
 
 constexpr std::size_t kMaxMaps = 8;
 
-// `line` broken at spaces into lines no wider than `width_px` (a word wider than that stands on its own line).
-std::vector<std::string> Wrap(const std::string& line, const Font& f, int width_px) {
-  std::vector<std::string> out;
-  std::string current;
-  std::size_t start = 0;
-  while (start <= line.size()) {
-    std::size_t end = line.find(' ', start);
-    if (end == std::string::npos) end = line.size();
-    const std::string word = line.substr(start, end - start);
-    const std::string tried = current.empty() ? word : current + " " + word;
-    if (!current.empty() && TextSize(tried, f).width > width_px) {
-      out.push_back(current);
-      current = word;
-    } else {
-      current = tried;
-    }
-    start = end + 1;
-  }
-  if (!current.empty()) out.push_back(current);
-  return out;
-}
-
 }  // namespace
 
 MapPage ComposeMapPage(const std::vector<MapImage>& maps, const std::string& title,
@@ -78,7 +56,7 @@ MapPage ComposeMapPage(const std::vector<MapImage>& maps, const std::string& tit
   const cv::Point text_at = cell(static_cast<int>(maps.size()));
   page.text = {text_at.x, text_at.y, cell_w, cell_h};
   for (const std::string& line : lines) {
-    for (std::string& wrapped : Wrap(line, label, cell_w - margin)) page.text_lines.push_back(std::move(wrapped));
+    for (std::string& wrapped : WrapText(line, label, cell_w - margin)) page.text_lines.push_back(std::move(wrapped));
   }
   for (std::size_t k = 0; k < page.text_lines.size(); ++k) {
     const int baseline = text_at.y + margin + static_cast<int>(k + 1) * line_h;

@@ -88,6 +88,28 @@ cv::Size TextSize(const std::string& text, const Font& f) {
   return cv::getTextSize(ascii, cv::FONT_HERSHEY_SIMPLEX, HersheyScale(f), HersheyThickness(f), &baseline);
 }
 
+std::vector<std::string> WrapText(const std::string& line, const Font& f, int width_px,
+                                  const std::string& continuation) {
+  std::vector<std::string> out;
+  std::string current;
+  std::size_t start = 0;
+  while (start <= line.size()) {
+    std::size_t end = line.find(' ', start);
+    if (end == std::string::npos) end = line.size();
+    const std::string word = line.substr(start, end - start);
+    const std::string tried = current.empty() ? word : current + " " + word;
+    if (!current.empty() && TextSize(tried, f).width > width_px) {
+      out.push_back(current);
+      current = continuation + word;
+    } else {
+      current = tried;
+    }
+    start = end + 1;
+  }
+  if (!current.empty()) out.push_back(current);
+  return out;
+}
+
 // Draws text with its baseline-left corner at `org`.
 void PutText(cv::Mat& img, const std::string& text, cv::Point org, const Font& f, const cv::Scalar& colour) {
   if (auto* ft = TrueType()) {

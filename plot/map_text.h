@@ -2,6 +2,7 @@
 // Text on the map images (plot/map_image.cc): DejaVu Sans through OpenCV's FreeType module so that µ, ², °, σ and −
 // print as themselves, OpenCV's ASCII Hershey font with a transliteration where the font file is missing.
 #include <string>
+#include <vector>
 #include <string_view>
 
 #include <opencv2/core.hpp>
@@ -16,6 +17,10 @@ struct Font {
 // descender).
 std::string Transliterate(std::string_view s);
 cv::Size TextSize(const std::string& text, const Font& f);
+// `line` broken at spaces into lines no wider than `width_px` in `f` (a word wider than that stands on its own line);
+// every line after the first begins with `continuation`.
+std::vector<std::string> WrapText(const std::string& line, const Font& f, int width_px,
+                                  const std::string& continuation = "");
 // `org` is the left end of the baseline.
 void PutText(cv::Mat& img, const std::string& text, cv::Point org, const Font& f,
              const cv::Scalar& colour = cv::Scalar(0, 0, 0));
