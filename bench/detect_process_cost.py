@@ -69,7 +69,7 @@ def main():
     camera, config = os.path.join(ROOT, "data/camera.json"), os.path.join(ROOT, "data/paper.json")
     spots, blank = os.path.join(work, "spots.png"), os.path.join(work, "blank.png")
     if not os.path.exists(spots):
-        subprocess.run([args.topocal, "render-spots", "--config", config, "--camera", camera, "--sigma", "6.3e-5",
+        subprocess.run([args.topocal, "render-spots", "--config", config, "--camera", camera, "--sigma", "0",
                         "--out", spots], check=True, stdout=subprocess.DEVNULL)
     if not os.path.exists(blank):  # the same sensor, nothing in front of it: the background level, 16-bit
         cv2.imwrite(blank, np.full((3000, 4000), 1000, np.uint16))
