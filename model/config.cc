@@ -231,6 +231,12 @@ Config ParseConfig(const std::string& json_text, const std::string& origin) {
   ParseCornea(top.Child("cornea"), c.cornea);
   ParseDistortion(top.Child("distortion"), c.distortion);
   if (top.Has("reconstruction")) ParseReconstruction(top.Child("reconstruction"), c.reconstruction);
+  if (top.Has("eye")) {
+    c.eye = top.String("eye");
+    if (c.eye != "OD" && c.eye != "OS") {
+      top.Fail(top.Key("eye"), fmt::format("must be \"OD\" (right) or \"OS\" (left) (got \"{}\")", c.eye));
+    }
+  }
   top.RejectUnknown();
   CheckSigmas(c);
   CheckGeometry(c);
@@ -276,6 +282,7 @@ std::string ConfigToJson(const Config& c) {
                          {"power_map_radial_samples", r.power_map_radial_samples},
                          {"spot_uncertainty_um", r.spot_uncertainty_um}, {"surface_model", r.surface_model},
                          {"spline_spacing_mm", r.spline_spacing_mm}, {"biconic_fit", r.biconic_fit}};
+  if (!c.eye.empty()) j["eye"] = c.eye;  // absent: not stated
   return j.dump(2);
 }
 

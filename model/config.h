@@ -110,6 +110,7 @@ struct Config {
   BiconicParams cornea;
   DistortionSweep distortion;
   ReconstructionSettings reconstruction;
+  std::string eye;  // the eye measured, "OD" (right) or "OS" (left); empty when not stated (`--eye` overrides it)
 };
 
 // The largest |sigma| (mm^-2) of Seidel distortion (paper Eq. 18) the configured image can take without folding:

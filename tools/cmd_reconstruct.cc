@@ -371,11 +371,13 @@ void AddMaps(util::StagedOutputs& outputs, const std::string& maps, const Inputs
 }
 
 // The verb's work, once its options are parsed.
-void Run(const std::string& config, const Inputs& in, const std::string& json_out, const std::string& maps, bool truth,
-         const ReconstructionOverrides& overrides) {
+void Run(const std::string& config, const Inputs& given, const std::string& json_out, const std::string& maps,
+         bool truth, const ReconstructionOverrides& overrides) {
   const NewDirectoryGuard maps_guard(maps);  // a failed run leaves no empty --maps folder
-  const plot::MapScaleRequest power_scale = PowerScaleOf(in);  // bad options refused before any work
+  const plot::MapScaleRequest power_scale = PowerScaleOf(given);  // bad options refused before any work
   auto cfg = ReconstructionConfig(config, overrides);
+  Inputs in = given;  // the eye: --eye, else the configuration's
+  if (in.eye.empty()) in.eye = cfg.eye;
   if (in.spots.empty() == in.image.empty()) throw util::InputError("reconstruct: give one of --spots or --image");
   if (in.uncertainty_samples > 0 && (in.image.empty() || (in.calibration.empty() && in.device.empty()))) {
     throw util::InputError("--uncertainty needs --image and --calibration or --device");

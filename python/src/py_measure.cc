@@ -207,11 +207,12 @@ py::dict ReconstructImage(const py::array& image, const model::DeviceFile& dev, 
 }
 
 py::dict Reconstruct(const py::object& config, const py::object& device, const py::object& image,
-                     const py::object& spots, const std::string& estimator, bool truth, const std::string& eye,
+                     const py::object& spots, const std::string& estimator, bool truth, const std::string& eye_arg,
                      int uncertainty, unsigned seed) {
   if (uncertainty < 0) throw util::InputError("uncertainty: must be >= 0 (0: linear propagation)");
-  if (!eye.empty() && eye != "OD" && eye != "OS") throw util::InputError("eye: must be OD, OS or empty");
+  if (!eye_arg.empty() && eye_arg != "OD" && eye_arg != "OS") throw util::InputError("eye: must be OD, OS or empty");
   const model::Config cfg = pipeline::ForEyes(ConfigArg(config));  // as `topocal reconstruct`
+  const std::string& eye = eye_arg.empty() ? cfg.eye : eye_arg;  // the argument, else the configuration's
   if (image.is_none() == spots.is_none()) throw util::InputError("reconstruct: give one of image or spots");
   if (!image.is_none()) {
     if (device.is_none()) throw util::InputError("reconstruct: image needs device (the calibrated device)");

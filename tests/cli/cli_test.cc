@@ -210,6 +210,23 @@ TEST_F(Cli, ReconstructEyeIsRecordedAndLabelsTheMaps) {
   r = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("s.csv") + " --eye OU");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("--eye"), std::string::npos) << r.output;
+  // The configuration's key `eye` states it too; --eye overrides it; anything but OD or OS is refused, by key.
+  auto cfg = ReadJson(paper_);
+  cfg["eye"] = "OD";
+  Write("od.json", cfg.dump(2));
+  r = RunTopocal("reconstruct --config " + Path("od.json") + " --spots " + Path("s.csv") + " --json " +
+                 Path("od-result.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(ReadJson(Path("od-result.json"))["eye"], "OD");
+  r = RunTopocal("reconstruct --config " + Path("od.json") + " --spots " + Path("s.csv") + " --eye OS --json " +
+                 Path("os-over.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(ReadJson(Path("os-over.json"))["eye"], "OS");
+  cfg["eye"] = "left";
+  Write("bad-eye.json", cfg.dump(2));
+  r = RunTopocal("reconstruct --config " + Path("bad-eye.json") + " --spots " + Path("s.csv"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("bad-eye.json: eye: must be \"OD\""), std::string::npos) << r.output;
 }
 
 // --power-scale: the power maps on the extended scale (ectasia) or on steps fitted to the data; the maps differ
