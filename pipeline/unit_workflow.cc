@@ -31,6 +31,7 @@
 #include "util/file_glob.h"
 #include "util/io.h"
 #include "util/json_section.h"
+#include "util/median.h"
 #include "util/sha256.h"
 #include "util/utc_date.h"
 
@@ -67,6 +68,7 @@ struct LoadedInputs {
   std::vector<imageio::ImageBytes> view_bytes;  // the calibration images as read for their digests, decoded by CalibrateViews
   imageio::ImageBytes sphere_bytes;  // the reference sphere as read (empty without one), decoded by StartSphere
   size_t sphere_provenance = 0;  // its entry in `provenance`, whose digest StartSphere computes
+  std::vector<imageio::ImageBytes> repeat_bytes;  // the sphere's repeated images as read, decoded one at a time
   model::Device nominal_device;
   std::vector<pipeline::BallImage> balls;  // empty: no device stage
   std::vector<UnitInputDigest> provenance;
@@ -101,6 +103,9 @@ void ValidateRequest(const UnitRequest& r) {
   if (r.out.empty()) throw util::InputError("--out: the record directory is required");
   if (r.reference_sphere.empty() != (r.sphere_radius_mm == 0)) {
     throw util::InputError("--reference-sphere and --sphere-radius-mm go together");
+  }
+  if (!r.sphere_repeats.empty() && r.reference_sphere.empty()) {
+    throw util::InputError("--sphere-repeats: repeated images of the reference sphere go with --reference-sphere");
   }
   if (r.uncertainty_samples != 0 && (r.uncertainty_samples < 2 || r.uncertainty_samples > kMaxUncertaintySamples)) {
     throw util::InputError(
@@ -190,6 +195,10 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
     in.sphere_provenance = in.provenance.size();
     in.provenance.push_back({"reference_sphere", r.reference_sphere, ""});
   }
+  for (const auto& path : r.sphere_repeats) {
+    in.repeat_bytes.push_back(imageio::ReadImageBytes(path));
+    in.provenance.push_back({"reference_sphere_repeat", path, util::Sha256Hex(in.repeat_bytes.back())});
+  }
   if (!r.device.empty()) add("device", r.device);
   for (size_t i = 0; i < r.balls.size(); ++i) {
     // Checked before the image is read (pipeline::CalibrateDevice checks it too).
@@ -202,6 +211,44 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
     in.balls.push_back(std::move(b));
   }
   return in;
+}
+
+// An error of the reference sphere's check (or of a repeated image of it), named by its image: bad input stays bad
+// input (exit 2), a computation that failed names the unit too (exit 1).
+[[noreturn]] void RethrowForImage(const std::exception_ptr& error, const std::string& path, const std::string& serial) {
+  try {
+    std::rethrow_exception(error);
+  } catch (const std::invalid_argument& e) {
+    throw util::InputError(fmt::format("{}: {}", path, e.what()));
+  } catch (const util::InputError& e) {
+    throw util::InputError(fmt::format("{}: {}", path, e.what()));
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(fmt::format("{}: {}: {}", serial, path, e.what()));
+  }
+}
+
+// Each repeated image of the reference sphere measured as the sphere was, without Monte Carlo draws (only the
+// corrected numbers are kept), after the sphere's own numbers. The images are decoded one at a time.
+SphereRepeats MeasureSphereRepeats(const UnitRequest& r, LoadedInputs& in, const UnitCalibration& unit,
+                                   const SphereVerification& sphere) {
+  SphereRepeats out;
+  const auto keep = [&out](const SphereVerification& s) {
+    out.radius_mm.push_back(s.corrected.numbers.radius_mm);
+    out.central_axial_power_D.push_back(s.corrected.numbers.central_axial_power_D);
+  };
+  keep(sphere);
+  for (size_t i = 0; i < r.sphere_repeats.size(); ++i) {
+    const std::string& path = r.sphere_repeats[i];
+    try {
+      const imageio::ImageBytes bytes = std::move(in.repeat_bytes[i]);
+      const cv::Mat image = imageio::DecodeImage(bytes, imageio::Channels::kAsStored, path);
+      CheckImageSize(image, path, in, r);
+      keep(VerifyOnReferenceSphere(image, r.sphere_radius_mm, unit, in.camera, in.config, CheckOptions{0, r.seed, 1}));
+    } catch (...) {
+      RethrowForImage(std::current_exception(), path, r.serial);
+    }
+  }
+  return out;
 }
 
 // The reference sphere as the camera saw it: decoded, its size checked and its spots detected and identified. None of
@@ -368,6 +415,12 @@ std::vector<std::string> UnitSummary(const UnitResult& unit) {
         s.uncertainty ? " (U, k = 2: the calibration's covariance; the ball's certificate joins it in the QA report)"
                       : ""));
   }
+  if (const auto& rep = unit.sphere_repeats) {
+    lines.push_back(fmt::format("  repeatability over {} images of the sphere: radius sd {:.2g} mm, central power sd "
+                                "{:.2g} D (the QA report's budget uses them)",
+                                rep->radius_mm.size(), util::SampleStddev(rep->radius_mm),
+                                util::SampleStddev(rep->central_axial_power_D)));
+  }
   lines.push_back(fmt::format("  paper cornea (simulated, informative): kx {:.4f} -> {}, ky {:.4f} -> {} (truth {}, {}{})",
                               paper.uncorrected.numbers.kx, with_u(paper.uncertainty, "kx", paper.corrected.numbers.kx, 4),
                               paper.uncorrected.numbers.ky, with_u(paper.uncertainty, "ky", paper.corrected.numbers.ky, 4),
@@ -413,17 +466,7 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
   UnitResult u;
   u.request = r;
   auto sphere_image = StartSphere(r, in);
-  const auto rethrow_sphere = [&](const std::exception_ptr& error) {
-    try {
-      std::rethrow_exception(error);
-    } catch (const std::invalid_argument& e) {
-      throw util::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
-    } catch (const util::InputError& e) {
-      throw util::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
-    } catch (const std::runtime_error& e) {
-      throw std::runtime_error(fmt::format("{}: {}: {}", r.serial, r.reference_sphere, e.what()));
-    }
-  };
+  const auto rethrow_sphere = [&](const std::exception_ptr& error) { RethrowForImage(error, r.reference_sphere, r.serial); };
   try {
     u.calibration = CalibrateViews(r, in, log);
   } catch (...) {
@@ -461,6 +504,7 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
     } catch (...) {
       rethrow_sphere(std::current_exception());
     }
+    if (!r.sphere_repeats.empty()) u.sphere_repeats = MeasureSphereRepeats(r, in, unit, *u.sphere);
   }
   u.paper = paper.valid() ? paper.get() : SimulateThroughCalibratedCamera(unit, in.camera, in.config, u.check);
   u.field = MeasureDistortionField(c.result.camera, in, r.serial);
@@ -476,73 +520,6 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
   u.camera = std::move(in.camera);
   u.inputs = std::move(in.provenance);
   return u;
-}
-
-UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults) {
-  const json j = util::ParseJsonStrict(util::ReadFile(path), path);
-  util::JsonSection s(j, path, "");
-  // Unknown keys first: a misspelt key is the likelier cause of whatever would fail next.
-  for (const char* key : {"serial", "target", "images", "reference_sphere", "sphere_radius_mm", "model", "fit_centre",
-                          "fix", "fix_aspect", "allow_undetermined", "config", "camera", "uncertainty_samples", "seed"}) {
-    s.MarkSeen(key);
-  }
-  s.RejectUnknown();
-  const fs::path base = fs::path(path).parent_path();
-  const auto relative = [&](const std::string& p) { return fs::path(p).is_absolute() ? p : (base / p).string(); };
-  const auto str = [&](const char* key, bool required) -> std::optional<std::string> {
-    if (!s.Has(key)) {
-      if (required) s.Get(key);  // fails: missing
-      return std::nullopt;
-    }
-    const std::string v = s.String(key);
-    if (v.empty()) s.Fail(key, "expected a non-empty string");
-    return v;
-  };
-  UnitRequest r = defaults;
-  r.serial = *str("serial", true);
-  r.target = relative(*str("target", true));
-  r.images = util::Glob(relative(*str("images", true)), fmt::format("{}: images", path));
-  if (const auto v = str("reference_sphere", false)) r.reference_sphere = relative(*v);
-  if (s.Has("sphere_radius_mm")) r.sphere_radius_mm = s.PositiveNumber("sphere_radius_mm", 0);
-  if (const auto v = str("model", false)) r.model = *v;
-  if (const auto v = str("config", false)) r.config = relative(*v);
-  if (const auto v = str("camera", false)) r.camera = relative(*v);
-  if (s.Has("fit_centre")) {
-    const json& v = s.Get("fit_centre");
-    if (!v.is_boolean()) s.Fail("fit_centre", fmt::format("expected true or false (got {})", util::QuoteJsonValue(v)));
-    r.fit_centre = v.get<bool>();
-  }
-  if (s.Has("fix")) {
-    const json& v = s.Get("fix");
-    const auto bad = [&] {
-      s.Fail("fix", fmt::format("expected a list of parameter names (got {})", util::QuoteJsonValue(v)));
-    };
-    if (!v.is_array()) bad();
-    r.fixed.clear();
-    for (const auto& f : v) {
-      if (!f.is_string()) bad();
-      r.fixed.push_back(f.get<std::string>());
-    }
-  }
-  if (s.Has("fix_aspect")) r.fixed_aspect_ratio = s.Number("fix_aspect");  // range checked with the options
-  if (s.Has("allow_undetermined")) {
-    const json& v = s.Get("allow_undetermined");
-    if (!v.is_boolean()) {
-      s.Fail("allow_undetermined", fmt::format("expected true or false (got {})", util::QuoteJsonValue(v)));
-    }
-    r.allow_undetermined = v.get<bool>();
-  }
-  // The same range as --uncertainty: 0 (none) or 2 to kMaxUncertaintySamples draws.
-  r.uncertainty_samples = s.IntegerInRange("uncertainty_samples", r.uncertainty_samples, 0, kMaxUncertaintySamples);
-  if (s.Has("seed")) {
-    const json& v = s.Get("seed");
-    if (!util::JsonIntegerWithin(v, 0, std::numeric_limits<std::uint32_t>::max())) {
-      s.Fail("seed", fmt::format("expected an integer in [0, {}] (got {})", std::numeric_limits<std::uint32_t>::max(),
-                                 util::QuoteJsonValue(v)));
-    }
-    r.seed = static_cast<unsigned>(v.get<unsigned long long>());
-  }
-  return r;
 }
 
 }  // namespace topocal::pipeline

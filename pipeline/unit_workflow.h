@@ -33,6 +33,10 @@ struct UnitRequest {
   std::string camera;                 // topographer camera (JSON)
   std::string reference_sphere;       // raw spot image of the reference sphere; empty = no verification
   double sphere_radius_mm = 0;
+  // Further images of the same reference sphere, the ball taken out and seated again between captures: each is
+  // measured as the reference sphere is (without Monte Carlo draws), and the sample standard deviations of the
+  // corrected radius and central power over all of them are the repeatability the QA report's budget uses.
+  std::vector<std::string> sphere_repeats;
   // The device stage: reference-ball images and their certified radii; empty = lens-only calibration.
   // The reference sphere, when given, is then a held-out ball measured through the calibrated device too.
   std::vector<std::string> balls;
@@ -66,7 +70,7 @@ std::filesystem::path RecordHistoryDir(const std::filesystem::path& record);
 
 // One input file of the unit and its SHA-256 (the record's provenance).
 struct UnitInputDigest {
-  std::string role;  // config, camera, target, image, reference_sphere, device, ball
+  std::string role;  // config, camera, target, image, reference_sphere, reference_sphere_repeat, device, ball
   std::string path, sha256;
 };
 
@@ -81,6 +85,12 @@ struct UnitCameraCalibration {
 struct DistortionField {
   double field_radius_mm = 0;  // the outermost spot of the configured cornea
   double max_um = 0, max_px = 0;
+};
+
+// The reference sphere measured again from its repeated captures (UnitRequest::sphere_repeats): the corrected
+// radius and central axial power of every image, the reference sphere's own first.
+struct SphereRepeats {
+  std::vector<double> radius_mm, central_axial_power_D;
 };
 
 // The device stage: the device fitted to the balls, and what it is worth beside the lens-only calibration.
@@ -102,6 +112,7 @@ struct UnitResult {
   DistortionField field;
   CheckOptions check;
   std::optional<SphereVerification> sphere;  // with a reference sphere
+  std::optional<SphereRepeats> sphere_repeats;  // with repeated images of it
   SimulatedCornea paper;
   std::optional<UnitDeviceStage> device;     // with reference balls
 };

@@ -13,6 +13,7 @@
 #include "model/spots_csv.h"
 #include "util/io.h"
 #include "util/json_section.h"
+#include "util/median.h"
 #include "util/sha256.h"
 #include "util/version.h"
 
@@ -83,16 +84,14 @@ double SampleStddev(JsonSection& rep, const char* key, std::size_t* count) {
   if (a.size() < 2) rep.Fail(p, "needs at least 2 repeated measurements");
   if (*count != 0 && a.size() != *count) rep.Fail(p, "must have as many entries as radius_mm");
   *count = a.size();
-  double sum = 0, sum2 = 0;
+  std::vector<double> values;
   for (std::size_t i = 0; i < a.size(); ++i) {
     if (!a[i].is_number() || !std::isfinite(a[i].get<double>())) {
       rep.Fail(fmt::format("{}[{}]", p, i), "must be a finite number");
     }
-    sum += a[i].get<double>();
+    values.push_back(a[i].get<double>());
   }
-  const double mean = sum / static_cast<double>(a.size());
-  for (const auto& x : a) sum2 += (x.get<double>() - mean) * (x.get<double>() - mean);
-  return std::sqrt(sum2 / static_cast<double>(a.size() - 1));
+  return util::SampleStddev(values);
 }
 
 std::optional<SphereRepeatability> ReadRepeatability(JsonSection& v) {

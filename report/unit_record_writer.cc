@@ -478,6 +478,11 @@ void WriteUnitRecord(const pipeline::UnitResult& u) {
   record["camera"] = model::CameraToJson(u.camera);
   record["calibration"] = CalibrationJson(c, u.field, u.camera);
   if (u.sphere) record["verification"] = VerificationJson(*u.sphere, r.reference_sphere, u.check);
+  if (u.sphere_repeats) {
+    // Read back by ReadUnitRecord: their sample standard deviations are the budget's repeatability terms.
+    record["verification"]["repeatability"] = {{"radius_mm", u.sphere_repeats->radius_mm},
+                                               {"central_axial_power_D", u.sphere_repeats->central_axial_power_D}};
+  }
   record["paper_cornea"] = PaperCorneaJson(u.paper, u.check);
   if (u.device) record["device"] = DeviceJson(*u.device);
   try {

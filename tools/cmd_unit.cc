@@ -124,6 +124,9 @@ void AddUnitCommand(CLI::App& app) {
   cal->add_option("--images", *images, "Target images, a glob(3) pattern (quote it); one image = single view")->required();
   cal->add_option("--reference-sphere", r->reference_sphere, "Raw spot image of the reference sphere");
   cal->add_option("--sphere-radius-mm", r->sphere_radius_mm, "Radius of the reference sphere, mm");
+  cal->add_option("--sphere-repeats", r->sphere_repeats,
+                  "Further images of the reference sphere, re-seated between captures: the repeatability the QA "
+                  "report's budget uses");
   cal->add_option("--balls", r->balls,
                   "Reference-ball images for the device stage (screen pose, principal point, a, distortion; "
                   "docs/device.md); the reference sphere is then a held-out ball");

@@ -19,6 +19,7 @@
 #include "tests/unit_fixture.h"
 #include "topo/reconstruction.h"
 #include "util/io.h"
+#include "util/median.h"
 #include "util/sha256.h"
 
 namespace topocal::testing_cli {
@@ -163,6 +164,53 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
 // calibrate sigma right), three reference balls placed by hand, and a held-out ball off the axis at the working
 // position. The record gains device.json and the three-way comparison; the device recovers the assembly, and the
 // held-out ball and the paper cornea come out right only through it. With the trailing slash in --out.
+// Repeated images of the reference sphere, the ball seated again between captures (its vertex 4-6 um off each
+// time, fresh noise): their spread is the repeatability term of the QA report's budget, in place of its default.
+TEST_F(UnitCli, RepeatedImagesOfTheSphereAreTheBudgetsRepeatability) {
+  std::string repeats;
+  for (const auto& [seed, x, y, z] : {std::tuple{2, "0.005", "-0.004", "0.003"}, std::tuple{3, "-0.004", "0.006", "-0.005"}}) {
+    const std::string png = (dir_ / fmt::format("repeat-{}.png", seed)).string();
+    const auto b = RunTopocal(fmt::format("render-spots --config {}/data/paper.json --camera {}/camera.json --sigma {} "
+                                          "--sphere-radius-mm {} --ball-at {} {} {} --seed {} --out {}",
+                                          TOPOCAL_SOURCE_DIR, in_, kUnitSigmaPerMm2, kUnitSphereRadiusMm, x, y, z,
+                                          seed, png));
+    ASSERT_EQ(b.exit_code, 0) << b.output;
+    repeats += " " + png;
+  }
+  const auto out = (dir_ / "units" / "SN-REP").string();
+  const auto r = RunTopocal(Calibrate("SN-REP", out, "--sphere-repeats" + repeats));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("repeatability over 3 images of the sphere"), std::string::npos) << r.output;
+  const json j = json::parse(util::ReadFile(out + "/unit.json"));
+  const auto& v = j["verification"];
+  const auto radii = v["repeatability"]["radius_mm"].get<std::vector<double>>();
+  const auto powers = v["repeatability"]["central_axial_power_D"].get<std::vector<double>>();
+  ASSERT_EQ(radii.size(), 3u);
+  ASSERT_EQ(powers.size(), 3u);
+  // The reference sphere's own measurement first, then the repeats in their order.
+  EXPECT_EQ(radii[0], v["corrected"]["radius_mm"].get<double>());
+  EXPECT_EQ(powers[0], v["corrected"]["central_axial_power_D"].get<double>());
+  int repeat_inputs = 0;
+  for (const auto& input : j["inputs"]) {
+    if (input["role"] != "reference_sphere_repeat") continue;
+    EXPECT_EQ(input["sha256"], util::Sha256HexOfFile(input["path"].get<std::string>()));
+    ++repeat_inputs;
+  }
+  EXPECT_EQ(repeat_inputs, 2);
+  // Each re-seated image measures the ball within the closed loop's radius bound (2 um); the spread is real, not
+  // zero (measured 2026-12-07: radii 7.80003, 7.79840, 7.80273 mm, sample sd 2.2 um; powers sd 0.0083 D).
+  for (const double radius : radii) EXPECT_NEAR(radius, kUnitSphereRadiusMm, 2 * kRadiusErrorMm);
+  const double sd = util::SampleStddev(radii);
+  EXPECT_GT(sd, 5e-4);
+  EXPECT_LT(sd, 4e-3);
+  // The QA report's budget uses them and says so.
+  const auto rep = RunTopocal(fmt::format("report --unit {} --out {}/r.html", out, dir_.string()));
+  ASSERT_TRUE(rep.exit_code == 0 || rep.exit_code == 3) << rep.output;
+  const std::string html = util::ReadFile((dir_ / "r.html").string());
+  EXPECT_NE(html.find("sample standard deviation of 3 repeated images of the sphere"), std::string::npos);
+  EXPECT_EQ(html.find("no repeated images in the record"), std::string::npos);
+}
+
 TEST_F(UnitCli, TheDeviceStageFromBallsFixesWhatTheLensCalibrationCannot) {
   const auto [balls, radii] = RenderBalls();
   const std::string held_out = (dir_ / "ball-7.8-0.10.png").string();
@@ -283,6 +331,12 @@ TEST_F(UnitCli, BadInputIsOneLineAndLeavesNoRecord) {
                    in_, out),
        2, "--reference-sphere and --sphere-radius-mm go together"},
       // An image without the target.
+      {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png "
+                   "--sphere-repeats {0}/sphere.png --camera {0}/camera.json --out {1}",
+                   in_, out),
+       2, "--sphere-repeats: repeated images of the reference sphere go with --reference-sphere"},
+      {Calibrate("SN-0003", out, fmt::format("--sphere-repeats {}/sphere.png {}/absent.png", in_, in_)), 2,
+       "absent.png: cannot be opened"},
       {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/blank.png "
                    "--camera {0}/camera.json --uncertainty 0 --out {1}",
                    in_, out),

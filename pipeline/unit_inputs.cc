@@ -1,0 +1,103 @@
+// unit-inputs.json, one unit of `unit calibrate-batch` (docs/unit-record.md, "Batch"): read strictly, every key
+// checked by name, paths relative to the file.
+#include <fmt/format.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+
+#include "pipeline/unit_workflow.h"
+#include "util/file_glob.h"
+#include "util/io.h"
+#include "util/json_section.h"
+
+namespace topocal::pipeline {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults) {
+  const json j = util::ParseJsonStrict(util::ReadFile(path), path);
+  util::JsonSection s(j, path, "");
+  // Unknown keys first: a misspelt key is the likelier cause of whatever would fail next.
+  for (const char* key : {"serial", "target", "images", "reference_sphere", "sphere_radius_mm", "model", "fit_centre",
+                          "fix", "fix_aspect", "allow_undetermined", "config", "camera", "uncertainty_samples", "seed",
+                          "sphere_repeats"}) {
+    s.MarkSeen(key);
+  }
+  s.RejectUnknown();
+  const fs::path base = fs::path(path).parent_path();
+  const auto relative = [&](const std::string& p) { return fs::path(p).is_absolute() ? p : (base / p).string(); };
+  const auto str = [&](const char* key, bool required) -> std::optional<std::string> {
+    if (!s.Has(key)) {
+      if (required) s.Get(key);  // fails: missing
+      return std::nullopt;
+    }
+    const std::string v = s.String(key);
+    if (v.empty()) s.Fail(key, "expected a non-empty string");
+    return v;
+  };
+  UnitRequest r = defaults;
+  r.serial = *str("serial", true);
+  r.target = relative(*str("target", true));
+  r.images = util::Glob(relative(*str("images", true)), fmt::format("{}: images", path));
+  if (const auto v = str("reference_sphere", false)) r.reference_sphere = relative(*v);
+  if (s.Has("sphere_radius_mm")) r.sphere_radius_mm = s.PositiveNumber("sphere_radius_mm", 0);
+  if (s.Has("sphere_repeats")) {
+    const json& v = s.Get("sphere_repeats");
+    const auto bad = [&] {
+      s.Fail("sphere_repeats", fmt::format("expected a list of image paths (got {})", util::QuoteJsonValue(v)));
+    };
+    if (!v.is_array()) bad();
+    r.sphere_repeats.clear();
+    for (const auto& f : v) {
+      if (!f.is_string() || f.get<std::string>().empty()) bad();
+      r.sphere_repeats.push_back(relative(f.get<std::string>()));
+    }
+  }
+  if (const auto v = str("model", false)) r.model = *v;
+  if (const auto v = str("config", false)) r.config = relative(*v);
+  if (const auto v = str("camera", false)) r.camera = relative(*v);
+  if (s.Has("fit_centre")) {
+    const json& v = s.Get("fit_centre");
+    if (!v.is_boolean()) s.Fail("fit_centre", fmt::format("expected true or false (got {})", util::QuoteJsonValue(v)));
+    r.fit_centre = v.get<bool>();
+  }
+  if (s.Has("fix")) {
+    const json& v = s.Get("fix");
+    const auto bad = [&] {
+      s.Fail("fix", fmt::format("expected a list of parameter names (got {})", util::QuoteJsonValue(v)));
+    };
+    if (!v.is_array()) bad();
+    r.fixed.clear();
+    for (const auto& f : v) {
+      if (!f.is_string()) bad();
+      r.fixed.push_back(f.get<std::string>());
+    }
+  }
+  if (s.Has("fix_aspect")) r.fixed_aspect_ratio = s.Number("fix_aspect");  // range checked with the options
+  if (s.Has("allow_undetermined")) {
+    const json& v = s.Get("allow_undetermined");
+    if (!v.is_boolean()) {
+      s.Fail("allow_undetermined", fmt::format("expected true or false (got {})", util::QuoteJsonValue(v)));
+    }
+    r.allow_undetermined = v.get<bool>();
+  }
+  // The same range as --uncertainty: 0 (none) or 2 to kMaxUncertaintySamples draws.
+  r.uncertainty_samples = s.IntegerInRange("uncertainty_samples", r.uncertainty_samples, 0, kMaxUncertaintySamples);
+  if (s.Has("seed")) {
+    const json& v = s.Get("seed");
+    if (!util::JsonIntegerWithin(v, 0, std::numeric_limits<std::uint32_t>::max())) {
+      s.Fail("seed", fmt::format("expected an integer in [0, {}] (got {})", std::numeric_limits<std::uint32_t>::max(),
+                                 util::QuoteJsonValue(v)));
+    }
+    r.seed = static_cast<unsigned>(v.get<unsigned long long>());
+  }
+  return r;
+}
+
+
+}  // namespace topocal::pipeline
