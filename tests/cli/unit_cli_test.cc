@@ -211,6 +211,43 @@ TEST_F(UnitCli, RepeatedImagesOfTheSphereAreTheBudgetsRepeatability) {
   EXPECT_EQ(html.find("no repeated images in the record"), std::string::npos);
 }
 
+// Two broken units as a line produces them, end to end from images: the lens changed between the target views and the
+// sphere (the sphere seen through sigma of the opposite sign), and a 7.7 mm ball declared as 7.8 mm. Both calibrate
+// (the target views are fine); their QA reports fail on the physical reference-sphere check, which the report's first
+// page and the CLI's last line name. (Measured 2026-12-07: radius errors +0.359 and -0.100 mm against the 0.05 mm
+// limit; the wrong ball's power error 0.564 D against 0.25 D.)
+TEST_F(UnitCli, BrokenUnitsFailOnThePhysicalCheckThatTheFirstPageNames) {
+  for (const auto& [serial, sigma, radius] : {std::tuple{"SN-LENS", -kUnitSigmaPerMm2, 7.8},
+                                              std::tuple{"SN-BALL", kUnitSigmaPerMm2, 7.7}}) {
+    SCOPED_TRACE(serial);
+    const std::string sphere = (dir_ / fmt::format("{}.png", serial)).string();
+    ASSERT_EQ(RunTopocal(fmt::format("render-spots --config {}/data/paper.json --camera {}/camera.json --sigma {} "
+                                     "--sphere-radius-mm {} --out {}",
+                                     TOPOCAL_SOURCE_DIR, in_, sigma, radius, sphere))
+                  .exit_code,
+              0);
+    const auto out = (dir_ / "units" / serial).string();
+    const auto r = RunTopocal(fmt::format(
+        "unit calibrate --serial {0} --target {1}/target.yaml --images {1}/view.png --reference-sphere {2} "
+        "--sphere-radius-mm 7.8 --camera {1}/camera.json --uncertainty {3} --out {4}",
+        serial, in_, sphere, kDraws, out));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const std::string html_path = (dir_ / fmt::format("{}.html", serial)).string();
+    const auto rep = RunTopocal(fmt::format("report --unit {} --out {}", out, html_path));
+    EXPECT_EQ(rep.exit_code, 3) << rep.output;
+    EXPECT_NE(rep.output.find(fmt::format("unit {}: FAIL: reference sphere: radius error, corrected |error|", serial)),
+              std::string::npos)
+        << rep.output;
+    const std::string h = util::ReadFile(html_path);
+    const std::size_t failed = h.find("<ul id=\"failed-checks\"");
+    ASSERT_NE(failed, std::string::npos);
+    EXPECT_LT(failed, h.find("id=\"identity\""));
+    const std::string list = h.substr(failed, h.find("</ul>", failed) - failed);
+    EXPECT_NE(list.find("FAILED: reference sphere: radius error, corrected"), std::string::npos) << list;
+    EXPECT_EQ(list.find("paper cornea"), std::string::npos) << list;
+  }
+}
+
 TEST_F(UnitCli, TheDeviceStageFromBallsFixesWhatTheLensCalibrationCannot) {
   const auto [balls, radii] = RenderBalls();
   const std::string held_out = (dir_ / "ball-7.8-0.10.png").string();
