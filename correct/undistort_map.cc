@@ -15,12 +15,6 @@ namespace {
 // check (a 1e-12 mm residual allows a 1e-10 mm error).
 constexpr double kMinRadialDerivative = 0.01;
 
-Eigen::Vector2d CentreMm(const model::Distortion& d) {
-  if (const auto* s = std::get_if<model::SeidelParams>(&d)) return {s->centre_x_mm, s->centre_y_mm};
-  const auto& b = std::get<model::BrownParams>(d);
-  return {b.centre_x_mm, b.centre_y_mm};
-}
-
 // Fills image rows [r0, r1) of the map with `distort` (mm -> mm), marking radii >= fold_radius_mm invalid; image
 // row v goes to map row v - row_offset (a band of the map).
 template <typename Distort>
@@ -65,11 +59,8 @@ UndistortMap BuildUndistortMap(const model::Distortion& distortion, const model:
   return out;
 }
 
-namespace {
-
-// Largest radius about the distortion centre that the sensor reaches (the farthest corner), and the fold within it.
 double SensorFoldRadiusMm(const model::Distortion& distortion, const model::TopographerCamera& camera) {
-  const Eigen::Vector2d centre = CentreMm(distortion);
+  const Eigen::Vector2d centre = model::DistortionCentreMm(distortion);
   double max_r = 0;
   for (const double u : {-0.5, camera.width_px - 0.5}) {
     for (const double v : {-0.5, camera.height_px - 0.5}) {
@@ -78,6 +69,8 @@ double SensorFoldRadiusMm(const model::Distortion& distortion, const model::Topo
   }
   return FoldRadiusMm(distortion, max_r * 1.001);
 }
+
+namespace {
 
 // Calls fill(kernel) with the per-pixel forward model (mm -> mm) of `distortion`: the model is chosen once, outside
 // the pixel loop, and the kernel is a few multiply-adds.
@@ -115,7 +108,7 @@ void BuildUndistortMap(const model::Distortion& distortion, const model::Topogra
   out.invalid_px = 0;
   out.map_x.create(camera.height_px, camera.width_px, CV_32FC1);
   out.map_y.create(camera.height_px, camera.width_px, CV_32FC1);
-  const Eigen::Vector2d centre = CentreMm(distortion);
+  const Eigen::Vector2d centre = model::DistortionCentreMm(distortion);
   out.fold_radius_mm = SensorFoldRadiusMm(distortion, camera);
   const double fold = out.fold_radius_mm;
   cv::Mat* mx = &out.map_x;
@@ -137,7 +130,7 @@ cv::Mat UndistortImage(const cv::Mat& distorted, const model::Distortion& distor
   // Bands of rows, as cv::undistort works: each band's map (2 x 4 B x width x kBandRows, ~1 MB at 4000 px) is built
   // and used while it is in cache, instead of two 48 MB maps written to memory and read back.
   constexpr int kBandRows = 32;
-  const Eigen::Vector2d centre = CentreMm(distortion);
+  const Eigen::Vector2d centre = model::DistortionCentreMm(distortion);
   const double fold = SensorFoldRadiusMm(distortion, camera);
   cv::Mat out(distorted.size(), distorted.type());
   const int bands = (camera.height_px + kBandRows - 1) / kBandRows;

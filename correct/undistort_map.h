@@ -45,5 +45,7 @@ cv::Mat UndistortImage(const cv::Mat& distorted, const model::Distortion& distor
 // stretches by less than 0.01 (d r_d / d r <= 0.01, just short of its fold) within `max_radius_mm`; +infinity if it
 // never does out to there.
 double FoldRadiusMm(const model::Distortion& distortion, double max_radius_mm);
+// The same out to the farthest corner of `camera`'s sensor: the fold within the image (+infinity if it has none).
+double SensorFoldRadiusMm(const model::Distortion& distortion, const model::TopographerCamera& camera);
 
 }  // namespace topocal::correct

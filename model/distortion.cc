@@ -108,6 +108,12 @@ struct InverseVisitor {
 };
 }  // namespace
 
+Eigen::Vector2d DistortionCentreMm(const Distortion& distortion) noexcept {
+  if (const auto* s = std::get_if<SeidelParams>(&distortion)) return {s->centre_x_mm, s->centre_y_mm};
+  const auto& b = std::get<BrownParams>(distortion);
+  return {b.centre_x_mm, b.centre_y_mm};
+}
+
 Eigen::Vector2d Distort(const Distortion& distortion, const Eigen::Vector2d& undistorted_mm) noexcept {
   return std::visit(ForwardVisitor{undistorted_mm}, distortion);
 }

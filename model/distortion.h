@@ -106,6 +106,10 @@ struct BrownParams {
 // The distortion of a camera, chosen at run time.
 using Distortion = std::variant<SeidelParams, BrownParams>;
 
+// The centre the model's radial part is symmetric about, on the detection plane (mm): Seidel's centre, Brown's
+// principal point.
+Eigen::Vector2d DistortionCentreMm(const Distortion& distortion) noexcept;
+
 // Forward map undistorted -> distorted on the detection plane, mm.
 Eigen::Vector2d Distort(const Distortion& distortion, const Eigen::Vector2d& undistorted_mm) noexcept;
 // Converged inverse; std::nullopt when the point has no preimage or the iteration fails.

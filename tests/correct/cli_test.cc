@@ -1,6 +1,7 @@
 // The command line for correct/: render-spots and undistort, end to end through their files; exit codes and
 // one-line messages for bad input, and no output file when the input is bad.
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -18,6 +19,8 @@
 #include "correct/detect_and_index.h"
 #include "correct/opencv_brown.h"
 #include "correct/undistort_map.h"
+#include "model/device.h"
+#include "model/spots_csv.h"
 #include "synthetic.h"
 
 namespace topocal::correct {
@@ -185,6 +188,71 @@ TEST_F(CorrectCli, UndistortImageMatchesTheLibrary) {
                              Path("out2.png"));
   ASSERT_EQ(r2.exit_code, 0) << r2.output;
   EXPECT_LE(cv::norm(cv::imread(Path("out2.png"), cv::IMREAD_UNCHANGED), expected, cv::NORM_INF), 1.0);
+}
+
+// A device file corrects as a calibration does: its camera maps the pixels, its distortion (Seidel about an off-axis
+// centre here) is inverted to the CSV's round trip, an image matches the library's remap, and a strong barrel's
+// spots beyond its fold are refused by name.
+TEST_F(CorrectCli, UndistortWithADeviceInvertsItsDistortion) {
+  model::Device device = model::NominalDevice(camera_);
+  device.distortion = model::SeidelParams{6.3e-5, -0.065, 0.01, -0.02};
+  Write("device.json", model::DeviceToJson(device));
+  std::vector<Eigen::Vector2d> truth;
+  std::string csv = "ring,index,x_mm,y_mm\n";
+  int id = 0;
+  for (double x = -0.45; x <= 0.45; x += 0.09) {
+    for (double y = -0.45; y <= 0.45; y += 0.09) {
+      truth.emplace_back(x, y);
+      const Eigen::Vector2d d = model::Distort(device.distortion, truth.back());
+      csv += fmt::format("1,{},{},{}\n", id++, d.x(), d.y());
+    }
+  }
+  Write("in.csv", csv);
+  auto r = RunTopocal("undistort --device " + Path("device.json") + " --spots " + Path("in.csv") + " --out " +
+                      Path("out.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto rows = model::ReadSpotsCsv(Path("out.csv"));
+  ASSERT_EQ(rows.size(), truth.size());
+  for (const auto& row : rows) {
+    EXPECT_LT((Eigen::Vector2d(row.x_mm, row.y_mm) - truth[row.id.index]).norm(), kCsvRoundTripMm);
+  }
+  cv::Mat img(camera_.height_px, camera_.width_px, CV_8UC1);
+  cv::randu(img, 0, 255);
+  cv::imwrite(Path("in.png"), img);
+  r = RunTopocal("undistort --device " + Path("device.json") + " --image " + Path("in.png") + " --out " + Path("out.png"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto expected = UndistortImage(img, BuildUndistortMap(device.distortion, camera_));
+  EXPECT_EQ(cv::norm(cv::imread(Path("out.png"), cv::IMREAD_UNCHANGED), expected, cv::NORM_INF), 0.0);
+  // sigma 3e-4 mm^-2 folds 0.55 mm from the centre (its image 0.37 mm): the outer spots have no unique preimage.
+  device.distortion = model::SeidelParams{3e-4, -0.065, 0.0, 0.0};
+  Write("barrel.json", model::DeviceToJson(device));
+  r = RunTopocal("undistort --device " + Path("barrel.json") + " --spots " + Path("in.csv") + " --out " +
+                 Path("barrel.csv"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("beyond the fold"), std::string::npos) << r.output;
+  const auto kept = model::ReadSpotsCsv(Path("barrel.csv"));
+  EXPECT_LT(kept.size(), truth.size());
+  EXPECT_GT(kept.size(), truth.size() / 4);
+  // What is kept is the preimage inside the fold: distorted again, it lands on its input spot.
+  const auto input = model::ReadSpotsCsv(Path("in.csv"));
+  for (const auto& row : kept) {
+    const Eigen::Vector2d back = model::Distort(device.distortion, {row.x_mm, row.y_mm});
+    const auto& in_row = input[row.id.index];
+    EXPECT_LT((back - Eigen::Vector2d(in_row.x_mm, in_row.y_mm)).norm(), kCsvRoundTripMm);
+    EXPECT_LT(std::hypot(row.x_mm, row.y_mm), std::sqrt(-std::pow(-0.065, 3) / (3 * 3e-4)));
+  }
+  // One of --calibration and --device; a device holds its own camera.
+  for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
+           {"undistort --spots " + Path("in.csv") + " --out " + Path("o.csv"), "exactly one of --calibration or --device"},
+           {"undistort --device " + Path("device.json") + " --camera " + Path("cam.json") + " --spots " +
+                Path("in.csv") + " --out " + Path("o.csv"),
+            "--camera: not with --device"}}) {
+    SCOPED_TRACE(args);
+    const auto bad = RunTopocal(args);
+    EXPECT_EQ(bad.exit_code, 2) << bad.output;
+    EXPECT_NE(bad.output.find(needle), std::string::npos) << bad.output;
+    EXPECT_FALSE(fs::exists(Path("o.csv")));
+  }
 }
 
 TEST_F(CorrectCli, UndistortBadInputIsOneLineExitTwoNoOutput) {

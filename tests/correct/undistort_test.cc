@@ -45,11 +45,7 @@ std::vector<model::Distortion> Models() {
   return m;
 }
 
-Eigen::Vector2d CentreOf(const model::Distortion& d) {
-  if (const auto* s = std::get_if<model::SeidelParams>(&d)) return {s->centre_x_mm, s->centre_y_mm};
-  const auto& b = std::get<model::BrownParams>(d);
-  return {b.centre_x_mm, b.centre_y_mm};
-}
+Eigen::Vector2d CentreOf(const model::Distortion& d) { return model::DistortionCentreMm(d); }
 
 double MinSingularValue(const model::Distortion& d, const Eigen::Vector2d& mm) {
   constexpr double h = 1e-6;  // mm; central differences of a polynomial map: error ~h^2
