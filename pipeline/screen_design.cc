@@ -295,9 +295,11 @@ void Choose(const ScreenDesignGoal& g, ScreenDesignResult* r) {
   const size_t chosen = *std::min_element(eligible.begin(), eligible.end(), fewer_spots);
   r->chosen = chosen;
   const auto& c = cs[chosen];
-  const std::string resolves = fmt::format("resolves {:.2f}-{:.1f} mm, prints on {:.0f} x {:.0f} mm",
-                                           c.steepest_resolved_mm, c.flattest_resolved_mm, c.page_width_mm,
-                                           c.page_height_mm);
+  std::string resolves = fmt::format("resolves {:.2f}-{:.1f} mm, prints on {:.0f} x {:.0f} mm", c.steepest_resolved_mm,
+                                     c.flattest_resolved_mm, c.page_width_mm, c.page_height_mm);
+  if (!g.max_tangential_rms_D && !c.base && c.ideal.rings_N + 1 == *std::max_element(g.rings.begin(), g.rings.end())) {
+    resolves += "; at the grid's most rings: more may do better (extend \"rings\")";
+  }
   if (g.max_tangential_rms_D) {
     r->why = fmt::format("{} ({} spots, spot radius {:.1f} um): the fewest spots of the {} candidates that resolve and "
                          "print with the worst tangential RMS within {} D ({:.2f} D); {}",
