@@ -301,12 +301,12 @@ void Choose(const ScreenDesignGoal& g, ScreenDesignResult* r) {
     resolves += "; at the grid's most rings: more may do better (extend \"rings\")";
   }
   if (g.max_tangential_rms_D) {
-    r->why = fmt::format("{} ({} spots, spot radius {:.1f} um): the fewest spots of the {} candidates that resolve and "
+    r->why = fmt::format("{} ({} spots, spot radius {:.2f} um): the fewest spots of the {} candidates that resolve and "
                          "print with the worst tangential RMS within {} D ({:.2f} D); {}",
                          DesignName(c), c.spots, c.ideal.spot_radius_um, ok.size(), *g.max_tangential_rms_D,
                          c.worst_tangential_rms_D, resolves);
   } else {
-    r->why = fmt::format("{} ({} spots, spot radius {:.1f} um): worst tangential RMS {:.2f} D, {} of the {} candidates "
+    r->why = fmt::format("{} ({} spots, spot radius {:.2f} um): worst tangential RMS {:.2f} D, {} of the {} candidates "
                          "that resolve and print (lowest {:.2f} D; fewer spots taken within {:.0f} % of it); {}",
                          DesignName(c), c.spots, c.ideal.spot_radius_um, c.worst_tangential_rms_D,
                          chosen == best ? "the lowest" : "the fewest spots near the lowest", ok.size(),

@@ -54,7 +54,7 @@ TEST(ScreenDesign, BeatsThePaperScreenOnTheGoalWithinTheSpacingConstraint) {
   EXPECT_EQ(r.config.ideal_image.rings_N, chosen.ideal.rings_N);
   EXPECT_EQ(r.config.ideal_image.spot_radius_um, chosen.ideal.spot_radius_um);
   EXPECT_EQ(r.config.reconstruction.surface_model, "spline");
-  // Regression (measured 2026-12-03): paper 1.87 D (lasik-hyperopic-6D); chosen 18 rings x 6, 1026 spots, spot radius
+  // Regression (measured 2026-12-07): paper 1.87 D (lasik-hyperopic-6D); chosen 18 rings x 6, 1026 spots, spot radius
   // 7.34 um, worst 0.82 D (the same ablation), gap 3.01 px at 6.5 mm, resolves from 6.48 mm.
   EXPECT_NEAR(paper.worst_tangential_rms_D, 1.87, 0.05);
   EXPECT_EQ(chosen.ideal.rings_N + 1, 18);
@@ -105,7 +105,7 @@ TEST(ScreenDesign, AMapErrorNoDesignReachesIsRefusedNamingTheKey) {
 TEST(ScreenDesign, ATargetTakesTheFewestSpotsThatMeetIt) {
   auto goal = SmallGoal();
   goal.corneas = {"kc-33um-0.85mm"};
-  goal.max_tangential_rms_D = 0.14;  // 12 rings: 0.15 D; 16 and 18 rings: 0.10, 0.08 D (measured 2026-12-03)
+  goal.max_tangential_rms_D = 0.14;  // 12 rings: 0.15 D; 16 and 18 rings: 0.10, 0.08 D (measured 2026-12-07)
   const auto r = OptimizeScreenDesign(Paper(), goal, Jobs(1));
   ASSERT_TRUE(r.chosen) << r.why;
   const auto& chosen = r.candidates[*r.chosen];
@@ -200,7 +200,7 @@ TEST(ScreenDesign, TheSpotImageModelHoldsAgainstAnExactTraceOfTheOutlines) {
   }
   // The centres are the same solve (nearest pair over all pairs against over the neighbour pairs): to rounding. The
   // gap: the model takes the spot image for a circle scaled by one magnification; acceptance 10 % of the 3 px the
-  // detector needs. Regression (measured 2026-12-03): exact 3.010990 px, model 3.010973 px (the chain sphere -> cone
+  // detector needs. Regression (measured 2026-12-07): exact 3.010990 px, model 3.010973 px (the chain sphere -> cone
   // -> steeper sphere is locally a similarity to 2e-5 px over a spot).
   EXPECT_NEAR(model_spacing->min_spacing_um, spacing_um, 1e-9);
   EXPECT_NEAR(model_spacing->min_gap_px, gap_um / kPitchUm, 0.3);
