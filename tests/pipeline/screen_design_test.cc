@@ -155,6 +155,25 @@ TEST(ScreenDesignGoal, ReadsEveryKeyAndRefusesBadOnesNamingThem) {
   EXPECT_EQ(refusal(R"({"surface_model": "cubic"})").rfind("g.json: surface_model:", 0), 0u);
 }
 
+// data/screen-design-goal.json spells out the built-in defaults (docs/screen-design.md): the two stay equal.
+TEST(ScreenDesignGoal, TheBundledGoalIsTheDefault) {
+  const auto file = LoadScreenDesignGoal(std::string(TOPOCAL_SOURCE_DIR) + "/data/screen-design-goal.json");
+  const ScreenDesignGoal d;
+  EXPECT_EQ(file.corneas, d.corneas);
+  EXPECT_EQ(file.max_tangential_rms_D, d.max_tangential_rms_D);
+  EXPECT_EQ(file.surface_model, d.surface_model);
+  EXPECT_EQ(file.steepest_radius_mm, d.steepest_radius_mm);
+  EXPECT_EQ(file.flattest_radius_mm, d.flattest_radius_mm);
+  EXPECT_EQ(file.pixel_pitch_um, d.pixel_pitch_um);
+  EXPECT_EQ(file.min_gap_px, d.min_gap_px);
+  EXPECT_EQ(file.max_spot_radius_um, d.max_spot_radius_um);
+  EXPECT_EQ(file.min_spot_radius_um, d.min_spot_radius_um);
+  EXPECT_EQ(file.min_printed_feature_mm, d.min_printed_feature_mm);
+  EXPECT_EQ(file.max_page_mm, d.max_page_mm);
+  EXPECT_EQ(file.rings, d.rings);
+  EXPECT_EQ(file.eta, d.eta);
+}
+
 // The spot image taken as its ideal circle scaled by the pair's magnification (SpotSpacingAt) against the exact
 // image: every outline point of every spot traced to the cone (model::LayoutNullScreen) and imaged back through a
 // steep cornea (Eq. 15 solved per point), the smallest distance between neighbouring outlines.
