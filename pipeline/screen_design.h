@@ -84,7 +84,8 @@ struct ScreenDesignOptions {
   std::function<void(size_t done, size_t total)> progress;  // called from worker threads
 };
 
-// Throws std::invalid_argument if the goal is invalid (IsValid), util::ConfigError for a cornea name not in the set.
+// Throws std::invalid_argument if the goal is invalid (IsValid) or names a cornea not in the test set (the goal's
+// reader refuses both as util::ConfigError first).
 ScreenDesignResult OptimizeScreenDesign(const model::Config& base, const ScreenDesignGoal& goal,
                                         const ScreenDesignOptions& options = {});
 
