@@ -91,6 +91,15 @@ Sheet PlaceOnPage(const model::NullScreenLayout& layout, const NullScreenSvgOpti
   return Sheet{dev, theta, s_in, s_out, t, width_mm, height_mm, theta > M_PI ? "1" : "0"};
 }
 
+}  // namespace
+
+Eigen::Vector2d NullScreenPageSizeMm(const model::NullScreenLayout& layout, const NullScreenSvgOptions& options) {
+  const Sheet sh = PlaceOnPage(layout, options);
+  return {sh.width_mm, sh.height_mm};
+}
+
+namespace {
+
 std::string SvgOpening(const Sheet& sh, const std::string& title) {
   std::string svg;
   svg += "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";

@@ -22,4 +22,7 @@ struct NullScreenSvgOptions {
 // The SVG document. Sheet y points up (model convention); SVG y points down, so y is flipped here.
 std::string NullScreenSvg(const model::NullScreenLayout& layout, const NullScreenSvgOptions& options);
 
+// The page NullScreenSvg draws on, width and height in mm (the SVG's width/height): the sheet to print.
+Eigen::Vector2d NullScreenPageSizeMm(const model::NullScreenLayout& layout, const NullScreenSvgOptions& options);
+
 }  // namespace topocal::plot

@@ -1,0 +1,382 @@
+// The search of `topocal design --optimize` (pipeline/screen_design.h, docs/screen-design.md).
+#include "pipeline/screen_design.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <tuple>
+#include <stdexcept>
+
+#include "model/freeform_test_set.h"
+#include "model/null_screen.h"
+#include "model/null_screen_layout.h"
+#include "plot/null_screen_svg.h"
+#include "topo/truth_comparison.h"
+#include "util/parallel.h"
+
+namespace topocal::pipeline {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// Each spot is paired with its nearest designed neighbours (ideal image): the closest approach of two spot images
+// is always between near neighbours, and six hold a spot's ring and the two rings beside it.
+constexpr int kNeighbours = 6;
+// The resolving range's limits are found to this (bisection; far below the 0.25 D ~ 0.05 mm a clinician reads).
+constexpr double kResolveToleranceMm = 0.005;
+// Steps of the scan towards flat corneas (the spacing grows with the apex radius: only a ray that misses ends it).
+constexpr double kFlatScanStepMm = 0.5;
+
+struct Pair {
+  size_t a, b;
+  double ideal_um;  // centre distance on the ideal image
+};
+
+// Each spot's kNeighbours nearest spots of the ideal image, each pair once. Brute force: 2,000 spots are 4e6
+// distances, a few ms, once per candidate.
+std::vector<Pair> NeighbourPairs(const std::vector<model::TargetPoint>& targets) {
+  std::vector<Pair> pairs;
+  std::vector<std::pair<double, size_t>> d(targets.size());
+  for (size_t i = 0; i < targets.size(); ++i) {
+    for (size_t j = 0; j < targets.size(); ++j) d[j] = {(targets[j].ideal_mm - targets[i].ideal_mm).norm(), j};
+    const size_t k = std::min<size_t>(kNeighbours + 1, d.size());
+    std::partial_sort(d.begin(), d.begin() + k, d.end());
+    for (size_t n = 1; n < k; ++n) {
+      const size_t j = d[n].second;
+      const bool listed = j < i && std::any_of(pairs.begin(), pairs.end(), [&](const Pair& p) {
+        return p.a == j && p.b == i;
+      });
+      if (!listed) pairs.push_back({std::min(i, j), std::max(i, j), d[n].first * 1e3});
+    }
+  }
+  return pairs;
+}
+
+// A candidate's spots, imaged by spheres of any apex radius.
+class SpacingProbe {
+ public:
+  SpacingProbe(const model::IdealImageParams& ideal, const model::TopographerParams& topographer)
+      : topographer_{topographer}, design_(model::DesignNullScreen(ideal, topographer)),
+        pairs_(NeighbourPairs(design_.targets)) {}
+  bool Designed() const { return design_.failures.empty() && !design_.targets.empty(); }
+  const std::vector<Pair>& pairs() const { return pairs_; }
+
+  // Nearest centre spacing, the smallest gap between spot images of radius spot_radius_um (ideal image) scaled by
+  // the local magnification, and the largest spot radius that leaves min_gap_px.
+  std::optional<SpotSpacing> At(double apex_radius_mm, double spot_radius_um, double pitch_um,
+                                double min_gap_px) const {
+    const auto image = model::SynthesizeImage(model::Sphere{apex_radius_mm}, topographer_, design_.targets);
+    if (!image.failures.empty() || image.spots.size() != design_.targets.size()) return std::nullopt;
+    SpotSpacing s{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+                  std::numeric_limits<double>::infinity()};
+    for (const auto& p : pairs_) {
+      const double image_um = (image.spots[p.a].position_mm - image.spots[p.b].position_mm).norm() * 1e3;
+      const double magnification = image_um / p.ideal_um;
+      s.min_spacing_um = std::min(s.min_spacing_um, image_um);
+      s.min_gap_px = std::min(s.min_gap_px, (image_um - 2.0 * spot_radius_um * magnification) / pitch_um);
+      s.max_spot_radius_um = std::min(s.max_spot_radius_um, 0.5 * (image_um - min_gap_px * pitch_um) / magnification);
+    }
+    return s;
+  }
+  bool Resolves(double apex_radius_mm, double spot_radius_um, const ScreenDesignGoal& g) const {
+    const auto s = At(apex_radius_mm, spot_radius_um, g.pixel_pitch_um, g.min_gap_px);
+    return s && s->min_gap_px >= g.min_gap_px;
+  }
+
+ private:
+  model::Topographer topographer_;
+  model::NullScreenDesign design_;
+  std::vector<Pair> pairs_;
+};
+
+// The apex radii within the scan on which every spot resolves: the steepest by bisection (the gap grows with the
+// radius), the flattest by steps up to the scan's end. NaN, NaN when none in [steepest, flattest of the goal] does.
+std::pair<double, double> ResolvingRange(const SpacingProbe& probe, double spot_radius_um, const ScreenDesignGoal& g) {
+  const auto ok = [&](double r) { return probe.Resolves(r, spot_radius_um, g); };
+  double hi = kNaN;
+  for (double r : {g.steepest_radius_mm, 0.5 * (g.steepest_radius_mm + g.flattest_radius_mm), g.flattest_radius_mm}) {
+    if (ok(r)) {
+      hi = r;
+      break;
+    }
+  }
+  if (std::isnan(hi)) return {kNaN, kNaN};
+  double steep = kScanSteepestMm;
+  if (!ok(steep)) {
+    double lo = kScanSteepestMm;
+    steep = hi;
+    while (steep - lo > kResolveToleranceMm) {
+      const double mid = 0.5 * (lo + steep);
+      (ok(mid) ? steep : lo) = mid;
+    }
+  }
+  double flat = hi;
+  while (flat + kFlatScanStepMm <= kScanFlattestMm + 1e-9 && ok(flat + kFlatScanStepMm)) flat += kFlatScanStepMm;
+  if (flat < kScanFlattestMm && ok(kScanFlattestMm)) flat = kScanFlattestMm;
+  return {steep, flat};
+}
+
+// Page size, narrowest printed ellipse (second moments of its outline: an ellipse's boundary, sampled evenly in its
+// parameter, has variance b^2 / 2 across) and narrowest printed gap between neighbouring outlines (nearest outline
+// points on the cone; the development is an isometry, so the printed gap is the same to the chord's sag).
+void MeasurePrint(const model::IdealImageParams& ideal, const model::TopographerParams& topographer,
+                  const std::vector<Pair>& pairs, ScreenCandidate* c) {
+  const auto layout = model::LayoutNullScreen(ideal, topographer);
+  const Eigen::Vector2d page = plot::NullScreenPageSizeMm(layout, {});
+  c->page_width_mm = page.x();
+  c->page_height_mm = page.y();
+  c->min_printed_width_mm = c->min_printed_gap_mm = std::numeric_limits<double>::infinity();
+  std::map<model::SpotId, size_t> outline_of;
+  for (size_t k = 0; k < layout.outlines.size(); ++k) {
+    const auto& pts = layout.outlines[k].sheet_mm;
+    outline_of[layout.outlines[k].id] = k;
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (const auto& p : pts) mean += p / pts.size();
+    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+    for (const auto& p : pts) cov += (p - mean) * (p - mean).transpose() / pts.size();
+    const double lambda_min = 0.5 * (cov.trace() - std::hypot(cov(0, 0) - cov(1, 1), 2.0 * cov(0, 1)));
+    c->min_printed_width_mm = std::min(c->min_printed_width_mm, 2.0 * std::sqrt(2.0 * std::max(0.0, lambda_min)));
+  }
+  const auto ids = model::IdealImage(ideal);
+  for (const auto& p : pairs) {
+    const auto a = outline_of.find(ids[p.a].id), b = outline_of.find(ids[p.b].id);
+    if (a == outline_of.end() || b == outline_of.end()) continue;  // a key's gap: nothing printed
+    double d2 = std::numeric_limits<double>::infinity();
+    for (const auto& pa : layout.outlines[a->second].on_cone_mm) {
+      for (const auto& pb : layout.outlines[b->second].on_cone_mm) d2 = std::min(d2, (pa - pb).squaredNorm());
+    }
+    c->min_printed_gap_mm = std::min(c->min_printed_gap_mm, std::sqrt(d2));
+  }
+}
+
+std::string PrintRefusal(const ScreenCandidate& c, const ScreenDesignGoal& g) {
+  const double lo = std::min(g.max_page_mm[0], g.max_page_mm[1]), hi = std::max(g.max_page_mm[0], g.max_page_mm[1]);
+  if (std::min(c.page_width_mm, c.page_height_mm) > lo || std::max(c.page_width_mm, c.page_height_mm) > hi) {
+    return fmt::format("max_page_mm: the sheet needs {:.0f} x {:.0f} mm", c.page_width_mm, c.page_height_mm);
+  }
+  if (c.min_printed_width_mm < g.min_printed_feature_mm || c.min_printed_gap_mm < g.min_printed_feature_mm) {
+    return fmt::format("min_printed_feature_mm: printed ellipses {:.2f} mm wide, {:.2f} mm apart",
+                       c.min_printed_width_mm, c.min_printed_gap_mm);
+  }
+  return "";
+}
+
+// Everything but the map error: the spot radius, resolvability and print of one candidate.
+ScreenCandidate Assess(const model::IdealImageParams& ideal, bool base, const model::TopographerParams& topographer,
+                       const ScreenDesignGoal& g) {
+  ScreenCandidate c;
+  c.ideal = ideal;
+  c.base = base;
+  c.spots = ideal.SpotCount();
+  c.tangential_rms_D.assign(g.corneas.size(), kNaN);
+  c.worst_tangential_rms_D = kNaN;
+  c.steepest_resolved_mm = c.flattest_resolved_mm = kNaN;
+  const SpacingProbe probe(ideal, topographer);
+  const auto steep = probe.At(g.steepest_radius_mm, ideal.spot_radius_um, g.pixel_pitch_um, g.min_gap_px);
+  const auto flat = probe.At(g.flattest_radius_mm, ideal.spot_radius_um, g.pixel_pitch_um, g.min_gap_px);
+  if (!probe.Designed() || !steep || !flat) {
+    c.refused = "steepest_radius_mm, flattest_radius_mm: a spot's ray misses the cone or the cornea";
+    return c;
+  }
+  // Rounded down to 0.01 um: a value the configuration file holds exactly, and the gap it leaves is never below
+  // min_gap_px by a rounding error.
+  if (!base) c.ideal.spot_radius_um = std::floor(100.0 * std::min(g.max_spot_radius_um, steep->max_spot_radius_um)) / 100.0;
+  const double r = c.ideal.spot_radius_um;
+  c.min_spacing_steep_um = steep->min_spacing_um;
+  c.min_spacing_flat_um = flat->min_spacing_um;
+  c.min_gap_steep_px = probe.At(g.steepest_radius_mm, r, g.pixel_pitch_um, g.min_gap_px)->min_gap_px;
+  c.min_gap_flat_px = probe.At(g.flattest_radius_mm, r, g.pixel_pitch_um, g.min_gap_px)->min_gap_px;
+  std::tie(c.steepest_resolved_mm, c.flattest_resolved_mm) = ResolvingRange(probe, r, g);
+  if (r < g.min_spot_radius_um) {
+    c.refused = fmt::format("min_spot_radius_um: spots of {:.1f} um at most leave {} px at {} mm", r, g.min_gap_px,
+                            g.steepest_radius_mm);
+  } else if (c.min_gap_steep_px < g.min_gap_px) {
+    c.refused = fmt::format("min_gap_px: spot images {:.1f} px apart at steepest_radius_mm = {}", c.min_gap_steep_px,
+                            g.steepest_radius_mm);
+  }
+  MeasurePrint(c.ideal, topographer, probe.pairs(), &c);
+  if (c.refused.empty()) c.refused = PrintRefusal(c, g);
+  return c;
+}
+
+}  // namespace
+
+std::optional<SpotSpacing> SpotSpacingAt(const model::IdealImageParams& ideal, const model::TopographerParams& topographer,
+                                         double apex_radius_mm, double pixel_pitch_um, double min_gap_px) {
+  const SpacingProbe probe(ideal, topographer);
+  if (!probe.Designed()) return std::nullopt;
+  return probe.At(apex_radius_mm, ideal.spot_radius_um, pixel_pitch_um, min_gap_px);
+}
+
+namespace {
+
+std::string DesignName(const ScreenCandidate& c) {
+  return fmt::format("{} rings x {}{}", c.ideal.rings_N + 1, c.ideal.eta,
+                     c.ideal.eta0 != c.ideal.eta ? fmt::format(" (eta0 {})", c.ideal.eta0) : "");
+}
+
+// Every candidate that resolves and prints, measured on every goal cornea (one work item per pair, written by index).
+void MeasureMapErrors(const model::Config& base, const ScreenDesignGoal& g, const ScreenDesignOptions& options,
+                      std::vector<ScreenCandidate>* candidates) {
+  const auto corneas = model::FreeformTestSubset(g.corneas);
+  std::vector<std::pair<size_t, size_t>> items;
+  for (size_t c = 0; c < candidates->size(); ++c) {
+    if ((*candidates)[c].refused.empty()) {
+      for (size_t k = 0; k < corneas.size(); ++k) items.emplace_back(c, k);
+    }
+  }
+  std::atomic<size_t> done{0};
+  std::vector<std::string> failure(items.size());
+  util::ParallelFor(items.size(), options.jobs, [&](size_t i) {
+    const auto [c, k] = items[i];
+    model::Config config = base;
+    config.ideal_image = (*candidates)[c].ideal;
+    config.reconstruction.surface_model = g.surface_model;
+    try {
+      (*candidates)[c].tangential_rms_D[k] =
+          topo::MeasureSimulatedCornea(corneas[k].surface, config).comparison.tangential_rms_D;
+    } catch (const std::runtime_error& e) {
+      failure[i] = fmt::format("the reconstruction of {} failed: {}", corneas[k].name, e.what());
+    }
+    if (options.progress) options.progress(++done, items.size());
+  });
+  for (size_t i = 0; i < items.size(); ++i) {
+    if (!failure[i].empty() && (*candidates)[items[i].first].refused.empty()) {
+      (*candidates)[items[i].first].refused = failure[i];
+    }
+  }
+  for (auto& c : *candidates) {
+    if (!c.refused.empty()) continue;
+    c.worst_tangential_rms_D = *std::max_element(c.tangential_rms_D.begin(), c.tangential_rms_D.end());
+    c.meets_goal = !g.max_tangential_rms_D || c.worst_tangential_rms_D <= *g.max_tangential_rms_D;
+  }
+}
+
+// The choice among the candidates that resolve and print (see the header); `why` says why, or names the goal key
+// that cannot be met.
+void Choose(const ScreenDesignGoal& g, ScreenDesignResult* r) {
+  const auto& cs = r->candidates;
+  std::vector<size_t> ok;
+  for (size_t i = 0; i < cs.size(); ++i) {
+    if (cs[i].refused.empty()) ok.push_back(i);
+  }
+  if (ok.empty()) {
+    // The sparsest candidate's reason: the one most likely to meet the constraints, so its reason is the binding one.
+    const auto sparsest = std::min_element(cs.begin(), cs.end(), [](const auto& a, const auto& b) {
+      return a.spots < b.spots;
+    });
+    r->why = fmt::format("{} (no candidate of the grid resolves and prints; the sparsest, {}, {} spots)",
+                         sparsest->refused, DesignName(*sparsest), sparsest->spots);
+    return;
+  }
+  const auto best = *std::min_element(ok.begin(), ok.end(), [&](size_t a, size_t b) {
+    return cs[a].worst_tangential_rms_D < cs[b].worst_tangential_rms_D;
+  });
+  const auto fewer_spots = [&](size_t a, size_t b) {
+    return cs[a].spots != cs[b].spots ? cs[a].spots < cs[b].spots
+                                      : cs[a].worst_tangential_rms_D < cs[b].worst_tangential_rms_D;
+  };
+  std::vector<size_t> eligible;
+  for (size_t i : ok) {
+    const bool good = g.max_tangential_rms_D
+                          ? cs[i].meets_goal
+                          : cs[i].worst_tangential_rms_D <= (1.0 + kNegligibleErrorGain) * cs[best].worst_tangential_rms_D;
+    if (good) eligible.push_back(i);
+  }
+  if (eligible.empty()) {
+    r->why = fmt::format("max_tangential_rms_D: no candidate that resolves and prints meets {} D; the best, {} ({} "
+                         "spots), has {:.2f} D",
+                         *g.max_tangential_rms_D, DesignName(cs[best]), cs[best].spots, cs[best].worst_tangential_rms_D);
+    return;
+  }
+  const size_t chosen = *std::min_element(eligible.begin(), eligible.end(), fewer_spots);
+  r->chosen = chosen;
+  const auto& c = cs[chosen];
+  std::string resolves = fmt::format("resolves {:.2f}-{:.1f} mm, prints on {:.0f} x {:.0f} mm", c.steepest_resolved_mm,
+                                     c.flattest_resolved_mm, c.page_width_mm, c.page_height_mm);
+  if (!g.max_tangential_rms_D && !c.base && c.ideal.rings_N + 1 == *std::max_element(g.rings.begin(), g.rings.end())) {
+    resolves += "; at the grid's most rings: more may do better (extend \"rings\")";
+  }
+  if (g.max_tangential_rms_D) {
+    r->why = fmt::format("{} ({} spots, spot radius {:.2f} um): the fewest spots of the {} candidates that resolve and "
+                         "print with the worst tangential RMS within {} D ({:.2f} D); {}",
+                         DesignName(c), c.spots, c.ideal.spot_radius_um, ok.size(), *g.max_tangential_rms_D,
+                         c.worst_tangential_rms_D, resolves);
+  } else {
+    r->why = fmt::format("{} ({} spots, spot radius {:.2f} um): worst tangential RMS {:.2f} D, {} of the {} candidates "
+                         "that resolve and print (lowest {:.2f} D; fewer spots taken within {:.0f} % of it); {}",
+                         DesignName(c), c.spots, c.ideal.spot_radius_um, c.worst_tangential_rms_D,
+                         chosen == best ? "the lowest" : "the fewest spots near the lowest", ok.size(),
+                         cs[best].worst_tangential_rms_D, 100 * kNegligibleErrorGain, resolves);
+  }
+}
+
+}  // namespace
+
+ScreenDesignResult OptimizeScreenDesign(const model::Config& base, const ScreenDesignGoal& goal,
+                                        const ScreenDesignOptions& options) {
+  std::string why;
+  if (!goal.IsValid(&why)) throw std::invalid_argument("ScreenDesignGoal: " + why);
+  (void)model::FreeformTestSubset(goal.corneas);  // an unknown name throws before any work
+  ScreenDesignResult r;
+  r.candidates.push_back(Assess(base.ideal_image, true, base.topographer, goal));
+  for (int rings : goal.rings) {
+    for (int eta : goal.eta) {
+      model::IdealImageParams ideal = base.ideal_image;
+      ideal.rings_N = rings - 1;
+      ideal.eta0 = ideal.eta = eta;
+      if (ideal.orientation_key && ideal.rings_N < 4) continue;  // the key needs three distinct rings (config.h)
+      ScreenCandidate c = Assess(ideal, false, base.topographer, goal);
+      const auto& b = r.candidates.front().ideal;
+      const bool same_as_base = c.ideal.rings_N == b.rings_N && c.ideal.eta0 == b.eta0 && c.ideal.eta == b.eta &&
+                                c.ideal.spot_radius_um == b.spot_radius_um;
+      if (!same_as_base) r.candidates.push_back(std::move(c));
+    }
+  }
+  MeasureMapErrors(base, goal, options, &r.candidates);
+  Choose(goal, &r);
+  if (r.chosen) {
+    r.config = base;
+    r.config.ideal_image = r.candidates[*r.chosen].ideal;
+    r.config.reconstruction.surface_model = goal.surface_model;
+    r.config.reconstruction.surface_model_given = true;
+  }
+  return r;
+}
+
+std::string ScreenDesignTable(const ScreenDesignResult& result, const ScreenDesignGoal& g) {
+  const auto num = [](double v, int digits) { return std::isnan(v) ? std::string("-") : fmt::format("{:.{}f}", v, digits); };
+  const auto range = [&](const ScreenCandidate& c) {
+    if (std::isnan(c.steepest_resolved_mm)) return std::string("none");
+    return fmt::format("{}{:.2f}-{:.1f}{}", c.steepest_resolved_mm <= kScanSteepestMm ? "<=" : "",
+                       c.steepest_resolved_mm, c.flattest_resolved_mm, c.flattest_resolved_mm >= kScanFlattestMm ? "+" : "");
+  };
+  std::string t = "| design | spots | spot r um |";
+  for (const auto& n : g.corneas) t += " " + n + " tgRMS D |";
+  t += fmt::format(" worst D | spacing um at {} / {} mm | gap px at {} / {} mm | resolves, mm | page mm | "
+                   "printed width / gap mm | verdict |\n|---|---|---|",
+                   g.steepest_radius_mm, g.flattest_radius_mm, g.steepest_radius_mm, g.flattest_radius_mm);
+  for (size_t k = 0; k < g.corneas.size(); ++k) t += "---|";
+  t += "---|---|---|---|---|---|---|\n";
+  for (size_t i = 0; i < result.candidates.size(); ++i) {
+    const auto& c = result.candidates[i];
+    t += fmt::format("| {}{} | {} | {:.2f} |", DesignName(c), c.base ? " (base)" : "", c.spots, c.ideal.spot_radius_um);
+    for (double e : c.tangential_rms_D) t += fmt::format(" {} |", num(e, 2));
+    const std::string verdict = result.chosen == i ? "**chosen**"
+                                : !c.refused.empty() ? c.refused
+                                : !g.max_tangential_rms_D ? "resolves, prints"
+                                : c.meets_goal ? "meets the goal"
+                                               : "misses max_tangential_rms_D";
+    t += fmt::format(" {} | {:.1f} / {:.1f} | {:.2f} / {:.2f} | {} | {:.0f} x {:.0f} | {:.2f} / {:.2f} | {} |\n",
+                     num(c.worst_tangential_rms_D, 2), c.min_spacing_steep_um, c.min_spacing_flat_um,
+                     c.min_gap_steep_px, c.min_gap_flat_px, range(c), c.page_width_mm, c.page_height_mm,
+                     c.min_printed_width_mm, c.min_printed_gap_mm, verdict);
+  }
+  t += fmt::format("\n{}{}\n", result.chosen ? "Chosen: " : "No design chosen: ", result.why);
+  return t;
+}
+
+}  // namespace topocal::pipeline

@@ -1,0 +1,105 @@
+#pragma once
+// A null screen designed for the eyes it will see (`topocal design --optimize`, docs/screen-design.md).
+//
+// A bounded, deterministic grid search over the ideal image's density — N + 1 rings (Eq. 2a) and eta0 = eta spots
+// added per ring (Eq. 2b) — with the pattern's extent (rho0_mm, rhoN_mm) and the topographer of the base
+// configuration. Each candidate gets the largest spot radius (ideal image, µm) up to the goal's maximum that keeps
+// its spots resolvable at the steepest cornea of the goal's range, and is judged on
+//   * resolvability: the smallest gap between neighbouring spot images on the detection plane, in pixels, at the
+//     steepest and flattest corneas (spheres of those apex radii) against the detector's need (min_gap_px);
+//   * printability: the page the printable screen (plot::NullScreenSvg) needs, the narrowest printed ellipse and the
+//     narrowest printed gap between neighbouring ellipses;
+//   * map error: the tangential-map RMS of the goal's test corneas (model/freeform_test_set.h), each imaged through
+//     the candidate with exact spots and reconstructed (topo::MeasureSimulatedCornea), the worst of them the score.
+// The choice: among the candidates that resolve and print, the fewest spots that meet max_tangential_rms_D when
+// the goal states one; otherwise the lowest worst-case error, a design with fewer spots preferred when it is within
+// kNegligibleErrorGain of it.
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "model/config.h"
+
+namespace topocal::pipeline {
+
+// The goal (JSON, docs/screen-design.md; every key optional, defaults below).
+struct ScreenDesignGoal {
+  // The test corneas whose tangential-map RMS is the score (names of model::FreeformTestSet()).
+  std::vector<std::string> corneas = {"lasik-myopic-4D", "lasik-myopic-6D", "lasik-hyperopic-4D",
+                                      "lasik-hyperopic-6D", "kc-33um-0.85mm"};
+  std::optional<double> max_tangential_rms_D;  // the worst cornea's RMS must not exceed it; none: the lowest
+  std::string surface_model = "spline";        // reconstruction.surface_model the candidates are measured with
+  double steepest_radius_mm = 6.5;             // apex radii of the corneas every spot must resolve on
+  double flattest_radius_mm = 9.5;
+  double pixel_pitch_um = 1.12;      // the sensor's (data/camera.json)
+  double min_gap_px = 3.0;           // gap the detector needs between neighbouring spot images
+  double max_spot_radius_um = 8.0;   // ideal-image spot radius: the paper's, and the largest tried
+  double min_spot_radius_um = 4.0;   // below it a candidate is refused (a quarter of the paper's light)
+  double min_printed_feature_mm = 0.15;  // narrowest printed ellipse and printed gap between ellipses
+  std::vector<double> max_page_mm = {297.0, 210.0};  // the page the sheet must fit, either way round (A4)
+  std::vector<int> rings = {10, 12, 14, 16, 18, 20, 22};  // N + 1 of the grid
+  std::vector<int> eta = {6, 8, 10};                     // eta0 = eta of the grid: ring i holds eta * i spots
+  bool IsValid(std::string* why) const;
+};
+
+// Loads and validates a goal file: unknown keys, wrong types and values out of range throw util::ConfigError
+// "FILE: KEY: problem" (a cornea name not in the test set included).
+ScreenDesignGoal LoadScreenDesignGoal(const std::string& path);
+ScreenDesignGoal ParseScreenDesignGoal(const std::string& json_text, const std::string& origin);
+
+// A gain in the worst tangential RMS smaller than this fraction of it is not worth more spots: 0.04 px of spot
+// noise moves the ablations' tangential RMS by 3-9 % (docs/reconstruction.md: 0.43-1.87 D exact, 0.44-2.03 D noisy).
+inline constexpr double kNegligibleErrorGain = 0.05;
+// The scan of corneas that still resolve: apex radii 5-12 mm (a keratoconus apex to a flat post-myopic cornea).
+inline constexpr double kScanSteepestMm = 5.0, kScanFlattestMm = 12.0;
+
+struct ScreenCandidate {
+  model::IdealImageParams ideal;  // rings_N, eta0 = eta, spot_radius_um chosen; extent from the base config
+  bool base = false;              // the base configuration's own design, as given
+  int spots = 0;
+  // Resolvability (spheres at the goal's steepest / flattest apex radius).
+  double min_spacing_steep_um = 0, min_spacing_flat_um = 0;  // nearest spot centres on the detection plane
+  double min_gap_steep_px = 0, min_gap_flat_px = 0;          // nearest spot images' edges
+  double steepest_resolved_mm = 0, flattest_resolved_mm = 0; // range that resolves (NaN: none), within the scan
+  // Printability.
+  double page_width_mm = 0, page_height_mm = 0;
+  double min_printed_width_mm = 0, min_printed_gap_mm = 0;
+  // Map error, per goal cornea (NaN: not measured — the candidate was refused before — or the analysis failed).
+  std::vector<double> tangential_rms_D;
+  double worst_tangential_rms_D = 0;  // NaN when not measured
+  std::string refused;                // empty: resolves and prints; else the first constraint it breaks
+  bool meets_goal = false;
+};
+
+struct ScreenDesignResult {
+  std::vector<ScreenCandidate> candidates;  // grid order (rings, then eta), the base design first
+  std::optional<size_t> chosen;             // index into candidates; none: the goal cannot be met
+  std::string why;                          // why this one, or (no choice) "KEY: problem" naming the goal key
+  model::Config config;                     // the base configuration with the chosen design (when chosen)
+};
+
+struct ScreenDesignOptions {
+  int jobs = 0;  // threads (0: the cores available); the result does not depend on it
+  std::function<void(size_t done, size_t total)> progress;  // called from worker threads
+};
+
+// Throws std::invalid_argument if the goal is invalid (IsValid) or names a cornea not in the test set (the goal's
+// reader refuses both as util::ConfigError first).
+ScreenDesignResult OptimizeScreenDesign(const model::Config& base, const ScreenDesignGoal& goal,
+                                        const ScreenDesignOptions& options = {});
+
+// The trade-off as a Markdown table with the choice and its reason under it.
+std::string ScreenDesignTable(const ScreenDesignResult& result, const ScreenDesignGoal& goal);
+
+// Resolvability of one design at one apex radius (exposed for tests): the spots imaged by a sphere of that radius;
+// neighbouring spots' centre spacing and the gap between their images, the image of a spot taken as its ideal
+// circle scaled by the local magnification (the pair's image spacing over its ideal spacing). Also the largest
+// spot radius that keeps gap_px >= min_gap_px. nullopt when a spot cannot be imaged.
+struct SpotSpacing {
+  double min_spacing_um = 0, min_gap_px = 0, max_spot_radius_um = 0;
+};
+std::optional<SpotSpacing> SpotSpacingAt(const model::IdealImageParams& ideal, const model::TopographerParams& topographer,
+                                         double apex_radius_mm, double pixel_pitch_um, double min_gap_px);
+
+}  // namespace topocal::pipeline
