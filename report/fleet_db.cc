@@ -472,10 +472,7 @@ IngestResult FleetDb::Ingest(const std::vector<UnitRecord>& records, const std::
 void FleetDb::ForEachUnit(const std::function<void(FleetUnit&&)>& visit) const {
   // One pass in time order (the units by units_by_time, each one's measurements by their primary key): one unit in
   // memory at a time. A measurement whose unit is not there is not joined; `fleet check` names it.
-  Statement s(db_, path_,
-              "SELECT u.id, u.serial, u.unit_json_sha256, u.created_utc, u.station, u.tool_version, u.model, u.source, "
-              "u.ingested_utc, m.parameter, m.value, m.U FROM units AS u LEFT JOIN measurements AS m "
-              "ON m.unit_id = u.id ORDER BY u.created_utc, u.id");
+  Statement s(db_, path_, kFleetUnitsInTimeOrderSql);
   std::optional<FleetUnit> unit;
   while (s.Step()) {
     if (!unit || unit->id != s.ColumnInt(0)) {
@@ -524,9 +521,7 @@ plot::HistogramBins FleetDb::Histogram(const std::string& parameter) const {
     return h;
   }
   // plot::BinValues's expression, evaluated by SQLite in the same double arithmetic (CAST truncates as int() does).
-  Statement s(db_, path_,
-              "SELECT min(?2 - 1, CAST((value - ?3) / ?4 AS INTEGER)) AS bin, count(*) FROM measurements "
-              "WHERE parameter = ?1 GROUP BY bin");
+  Statement s(db_, path_, kFleetHistogramSql);
   s.Text(1, parameter);
   s.Int(2, bins);
   s.Double(3, h.lo);

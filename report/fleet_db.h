@@ -43,6 +43,18 @@ inline constexpr std::int32_t kFleetApplicationId = 0x54504346;  // "TPCF"
 // How long a writer waits for another process's transaction before giving up (exit 1, nothing written).
 inline constexpr int kFleetBusyTimeoutMs = 60000;
 
+// The report's two queries over every unit, here so that a test can ask SQLite for their plans (docs/fleet.md):
+// the units in time order by the index units_by_time, each one's measurements by their primary key (no sort);
+// one parameter's values counted into bins from the index measurements_by_value alone (plot::BinValues's
+// expression: ?1 parameter, ?2 bins, ?3 lowest value, ?4 bin width).
+inline constexpr const char* kFleetUnitsInTimeOrderSql =
+    "SELECT u.id, u.serial, u.unit_json_sha256, u.created_utc, u.station, u.tool_version, u.model, u.source, "
+    "u.ingested_utc, m.parameter, m.value, m.U FROM units AS u LEFT JOIN measurements AS m "
+    "ON m.unit_id = u.id ORDER BY u.created_utc, u.id";
+inline constexpr const char* kFleetHistogramSql =
+    "SELECT min(?2 - 1, CAST((value - ?3) / ?4 AS INTEGER)) AS bin, count(*) FROM measurements "
+    "WHERE parameter = ?1 GROUP BY bin";
+
 struct FleetMeasurement {
   std::string parameter;    // e.g. "sphere_radius_error_mm" (docs/fleet.md lists them)
   double value = 0;         // signed
