@@ -455,9 +455,10 @@ std::string ControlXAxis(const ControlChartPlot& p, const ChartArea& a, const Ch
     s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" text-anchor=\"end\" {}>{}</text>\n", Num(a.w - a.right),
                      Num(a.h - 8), kFont, EscapeXml(p.x_labels.back()));
   }
-  s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" text-anchor=\"middle\" {}>unit, in order of calibration "
+  s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"9\" text-anchor=\"middle\" {}>{}, in order of calibration "
                    "({}){}</text>\n",
-                   Num(a.left + a.pw / 2), Num(a.h - 8), kFont, n,
+                   Num(a.left + a.pw / 2), Num(a.h - 8), kFont,
+                   p.subgroup_size > 1 ? fmt::format("mean of {} consecutive units", p.subgroup_size) : "unit", n,
                    p.limit && !sc.limit_on_scale ? fmt::format("; acceptance limit \u00b1{} off scale", Label(*p.limit))
                                                  : std::string());
   return s;
@@ -480,35 +481,52 @@ std::string SvgControlChart(const ControlChartPlot& p) {
   return s;
 }
 
+int HistogramBinCount(std::size_t n) {
+  return std::clamp(static_cast<int>(std::ceil(std::sqrt(static_cast<double>(n)))), 5, kMaxHistogramBins);
+}
+
+HistogramBins BinValues(const std::vector<double>& values) {
+  HistogramBins h;
+  std::vector<double> v;
+  for (double x : values) {
+    if (std::isfinite(x)) v.push_back(x);
+  }
+  if (v.empty()) return h;
+  const auto [mn, mx] = std::minmax_element(v.begin(), v.end());
+  h.lo = *mn;
+  h.hi = *mx;
+  h.n = static_cast<std::int64_t>(v.size());
+  const int bins = HistogramBinCount(v.size());
+  const double bw = (h.hi - h.lo) / bins;
+  h.counts.assign(bins, 0);
+  for (double x : v) h.counts[bw > 0 ? std::min(bins - 1, static_cast<int>((x - h.lo) / bw)) : bins / 2]++;
+  return h;
+}
+
 std::string SvgHistogram(const HistogramPlot& p) {
   const double left = 40, right = 12, top = 24, bottom = 34;
   const double w = p.width, h = p.height, pw = w - left - right, ph = h - top - bottom;
-  std::vector<double> v;
-  for (double x : p.values) {
-    if (std::isfinite(x)) v.push_back(x);
-  }
+  const HistogramBins hist = p.bins ? *p.bins : BinValues(p.values);
   std::string s = fmt::format("<svg class=\"plot histogram\" viewBox=\"0 0 {} {}\" role=\"img\" aria-label=\"{}\">\n",
                               Num(w, 0), Num(h, 0), EscapeXml(p.title));
   s += fmt::format("<text x=\"{}\" y=\"15\" font-size=\"12\" font-weight=\"bold\" {}>{}</text>\n", Num(left), kFont,
                    EscapeXml(p.title));
-  if (v.empty()) return s + "</svg>\n";
-  const auto [mn, mx] = std::minmax_element(v.begin(), v.end());
-  double lo = *mn, hi = *mx;
+  if (hist.n == 0 || hist.counts.empty()) return s + "</svg>\n";
+  double lo = hist.lo, hi = hist.hi;
   if (p.limit && *p.limit <= 2 * std::max(std::abs(lo), std::abs(hi))) {
     hi = std::max(hi, *p.limit);
     if (lo < 0) lo = std::min(lo, -*p.limit);
   }
   const Range r = Padded(lo, hi);
-  const int bins = std::max(5, static_cast<int>(std::ceil(std::sqrt(static_cast<double>(v.size())))));
-  const double bw = (*mx - *mn) / bins;
-  std::vector<int> count(bins, 0);
-  for (double x : v) count[bw > 0 ? std::min(bins - 1, static_cast<int>((x - *mn) / bw)) : bins / 2]++;
-  const int cmax = *std::max_element(count.begin(), count.end());
+  const int bins = static_cast<int>(hist.counts.size());
+  const double bw = (hist.hi - hist.lo) / bins;
+  const std::vector<std::int64_t>& count = hist.counts;
+  const std::int64_t cmax = *std::max_element(count.begin(), count.end());
   const auto x_of = [&](double x) { return left + pw * (x - r.lo) / (r.hi - r.lo); };
   for (int b = 0; b < bins; ++b) {
-    const double x0 = bw > 0 ? *mn + b * bw : *mn - 0.5 * (r.hi - r.lo) / bins + (b - bins / 2) * (r.hi - r.lo) / bins;
+    const double x0 = bw > 0 ? hist.lo + b * bw : hist.lo - 0.5 * (r.hi - r.lo) / bins + (b - bins / 2) * (r.hi - r.lo) / bins;
     const double x1 = bw > 0 ? x0 + bw : x0 + (r.hi - r.lo) / bins;
-    const double bh = ph * count[b] / std::max(1, cmax);
+    const double bh = ph * static_cast<double>(count[b]) / static_cast<double>(std::max<std::int64_t>(1, cmax));
     s += fmt::format("<rect class=\"bin\" x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\" stroke=\"#fff\" "
                      "stroke-width=\"0.5\"/>\n",
                      Num(x_of(x0)), Num(top + ph - bh), Num(std::max(0.5, x_of(x1) - x_of(x0))), Num(bh), kArrowColour);
@@ -530,7 +548,7 @@ std::string SvgHistogram(const HistogramPlot& p) {
     }
   }
   s += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"10\" text-anchor=\"middle\" {}>{} (n = {})</text>\n",
-                   Num(left + pw / 2), Num(h - 6), kFont, EscapeXml(p.value_label), v.size());
+                   Num(left + pw / 2), Num(h - 6), kFont, EscapeXml(p.value_label), hist.n);
   s += "</svg>\n";
   return s;
 }

@@ -5,6 +5,7 @@
 // Image-space plots use OpenCV's pixel convention (x right, y down, the centre of the top-left pixel at (0, 0)),
 // scaled to a fixed drawing width; vectors are magnified by a 1-2-5 factor chosen so the longest is visible, and a
 // scale bar says how long a given displacement is drawn.
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -75,14 +76,30 @@ struct ControlChartPlot {
   std::optional<double> centre, sigma;
   std::optional<double> limit;      // acceptance: |value| <= limit
   std::vector<std::string> x_labels;  // first and last tick labels (dates), may be empty
+  int subgroup_size = 1;            // units per point: > 1 for a chart of subgroup means
   double width = 640, height = 220;
 };
 std::string SvgControlChart(const ControlChartPlot& plot);
 
-// Histogram of finite values (ceil(sqrt(n)) equal bins, at least 5), acceptance limits +-limit dashed when in range.
+// Equal bins over [lo, hi] (the smallest and largest value) of n finite values: ceil(sqrt(n)) bins, at least 5 and at
+// most kMaxHistogramBins (more than the plot has pixels for says nothing more). Value x falls in bin
+// min(bins - 1, int((x - lo) / ((hi - lo) / bins))); all values equal: the middle bin. A database bins its values
+// with the same expression in SQL (report/fleet_db.h FleetDb::Histogram) and gets the same counts.
+inline constexpr int kMaxHistogramBins = 60;
+int HistogramBinCount(std::size_t n);
+struct HistogramBins {
+  double lo = 0, hi = 0;
+  std::vector<std::int64_t> counts;
+  std::int64_t n = 0;
+};
+HistogramBins BinValues(const std::vector<double>& values);  // the finite ones
+
+// Histogram (HistogramBins: of `values`, or `bins` when given, e.g. counted by a database), acceptance limits
+// +-limit dashed when in range.
 struct HistogramPlot {
   std::string title, value_label;
   std::vector<double> values;
+  std::optional<HistogramBins> bins;
   std::optional<double> limit;
   double width = 320, height = 200;
 };

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <stdexcept>
 
 #include "report/acceptance.h"
@@ -19,7 +20,7 @@ namespace {
 // STRICT tables and CHECK constraints: a value that is not a finite REAL, a negative U, an empty name or a malformed
 // date cannot be stored by anyone writing through SQLite (a writer that switches the checks off is caught on
 // reading, ValidUnit / ValidMeasurement).
-constexpr const char* kSchema = R"sql(
+constexpr const char* kSchemaV2 = R"sql(
 CREATE TABLE units (
   id               INTEGER PRIMARY KEY,
   serial           TEXT NOT NULL CHECK (length(serial) > 0),
@@ -41,6 +42,15 @@ CREATE TABLE measurements (
   PRIMARY KEY (unit_id, parameter)
 ) STRICT;
 CREATE INDEX measurements_by_parameter ON measurements(parameter, unit_id);
+)sql";
+
+// Version 3 adds two indexes to version 2 (docs/fleet.md "At scale"): a unit's history by serial (and the count of
+// distinct serials the report states), and a parameter's values in order, which the report's histograms and each
+// parameter's range read without visiting the table. A version-2 database opened by a writer gets them in one
+// transaction (MigrateToV3); a reader reads it as it is.
+constexpr const char* kIndexesV3 = R"sql(
+CREATE INDEX units_by_serial ON units(serial, created_utc);
+CREATE INDEX measurements_by_value ON measurements(parameter, value);
 )sql";
 
 // What the line is told when SQLite finds the file damaged: the database is the line's ledger, so it is never
@@ -137,25 +147,28 @@ std::vector<std::string> SchemaObjects(sqlite3* db, const std::string& path) {
   return objects;
 }
 
-// The layout this topocal writes, read back from a scratch database in memory (so the comparison does not depend on
-// how SQLite stores the schema's text).
-const std::vector<std::string>& ExpectedSchemaObjects() {
-  static const std::vector<std::string> objects = [] {
-    sqlite3* db = nullptr;
-    const std::string name = "fleet schema";
-    if (sqlite3_open(":memory:", &db) != SQLITE_OK) throw std::runtime_error("SQLite: cannot open a memory database");
-    std::vector<std::string> out;
-    try {
-      Exec(db, name, kSchema);
-      out = SchemaObjects(db, name);
-    } catch (...) {
-      sqlite3_close(db);
-      throw;
-    }
+// The layout of schema `version` (2 or 3), read back from a scratch database in memory (so the comparison does not
+// depend on how SQLite stores the schema's text).
+std::vector<std::string> SchemaObjectsOf(int version) {
+  sqlite3* db = nullptr;
+  const std::string name = "fleet schema";
+  if (sqlite3_open(":memory:", &db) != SQLITE_OK) throw std::runtime_error("SQLite: cannot open a memory database");
+  std::vector<std::string> out;
+  try {
+    Exec(db, name, kSchemaV2);
+    if (version >= 3) Exec(db, name, kIndexesV3);
+    out = SchemaObjects(db, name);
+  } catch (...) {
     sqlite3_close(db);
-    return out;
-  }();
-  return objects;
+    throw;
+  }
+  sqlite3_close(db);
+  return out;
+}
+
+const std::vector<std::string>& ExpectedSchemaObjects(int version) {
+  static const std::vector<std::string> v2 = SchemaObjectsOf(2), v3 = SchemaObjectsOf(3);
+  return version >= 3 ? v3 : v2;
 }
 
 // PRAGMA quick_check or integrity_check: "ok", or SQLite's first finding on one line (its answer may start with a
@@ -289,12 +302,24 @@ void CreateSchema(sqlite3* db, const std::string& path) {
   // Another process may have created the schema while this one waited for the lock.
   if (PragmaInt(db, path, "SELECT count(*) FROM sqlite_master") == 0) {
     try {
-      Exec(db, path, kSchema);
+      Exec(db, path, kSchemaV2);
+      Exec(db, path, kIndexesV3);
       Exec(db, path, fmt::format("PRAGMA application_id = {}; PRAGMA user_version = {}", kFleetApplicationId,
                                  kFleetSchemaVersion).c_str());
     } catch (const std::runtime_error& e) {
       throw util::InputError(fmt::format("{}: cannot create the fleet database: {}", path, sqlite3_errmsg(db)));
     }
+  }
+  t.Commit();
+}
+
+// Version 2 to 3: the indexes added, in one transaction (another writer may have migrated it meanwhile). The rows are
+// untouched, so a version-2 database keeps every record and reads the same.
+void MigrateToV3(sqlite3* db, const std::string& path) {
+  Transaction t(db, path);
+  if (PragmaInt(db, path, "PRAGMA user_version") == 2) {
+    Exec(db, path, kIndexesV3);
+    Exec(db, path, "PRAGMA user_version = 3");
   }
   t.Commit();
 }
@@ -316,20 +341,22 @@ void Identify(sqlite3* db, const std::string& path, bool create) {
     throw util::InputError(
         fmt::format("{}: not a topocal fleet database (application_id {})", path, id.application_id));
   }
-  if (id.version != kFleetSchemaVersion) {
+  const bool readable = id.version == kFleetSchemaVersion || id.version == kFleetOldestReadableSchemaVersion;
+  if (!readable) {
     throw util::InputError(fmt::format("{}: fleet database schema version {} is not supported (this topocal reads "
-                                       "version {}{})",
-                                       path, id.version, kFleetSchemaVersion,
-                                       id.version < kFleetSchemaVersion
+                                       "versions {} and {}{})",
+                                       path, id.version, kFleetOldestReadableSchemaVersion, kFleetSchemaVersion,
+                                       id.version < kFleetOldestReadableSchemaVersion
                                            ? "; ingest the unit records into a new database" : ""));
   }
   const std::string finding = IntegrityFinding(db, path, "PRAGMA quick_check");
   if (finding != "ok") throw util::InputError(CorruptMessage(path, "SQLite's quick check: " + finding));
-  if (SchemaObjects(db, path) != ExpectedSchemaObjects()) {
+  if (SchemaObjects(db, path) != ExpectedSchemaObjects(static_cast<int>(id.version))) {
     throw util::InputError(
         fmt::format("{}: not a topocal fleet database: its tables or indexes differ from schema version {}", path,
-                    kFleetSchemaVersion));
+                    id.version));
   }
+  if (create && id.version < kFleetSchemaVersion) MigrateToV3(db, path);
 }
 
 // Values as the ledger stores them, checked again on reading (a writer can switch SQLite's checks off):
@@ -360,17 +387,18 @@ FleetUnit ReadUnitRow(const Statement& s, const std::string& path) {
   return u;
 }
 
-FleetMeasurement ReadMeasurementRow(const Statement& s, const std::string& path) {
-  FleetMeasurement m{s.ColumnText(1), s.ColumnDouble(2), std::nullopt};
-  const bool value_ok = s.ColumnType(2) == SQLITE_FLOAT && std::isfinite(m.value);
-  const bool u_ok = s.ColumnNull(3) ||
-                    (s.ColumnType(3) == SQLITE_FLOAT && std::isfinite(s.ColumnDouble(3)) && s.ColumnDouble(3) >= 0);
+// The measurement in columns `c` (parameter), c + 1 (value), c + 2 (U) of unit `unit_id`'s row.
+FleetMeasurement ReadMeasurementRow(const Statement& s, const std::string& path, std::int64_t unit_id, int c) {
+  FleetMeasurement m{s.ColumnText(c), s.ColumnDouble(c + 1), std::nullopt};
+  const bool value_ok = s.ColumnType(c + 1) == SQLITE_FLOAT && std::isfinite(m.value);
+  const bool u_ok = s.ColumnNull(c + 2) || (s.ColumnType(c + 2) == SQLITE_FLOAT &&
+                                            std::isfinite(s.ColumnDouble(c + 2)) && s.ColumnDouble(c + 2) >= 0);
   if (!value_ok || !u_ok || m.parameter.empty() || !util::IsValidUtf8(m.parameter)) {
     throw util::InputError(CorruptMessage(
-        path, fmt::format("unit {}: measurement '{:.40}' is not a finite number with a U >= 0", s.ColumnInt(0),
+        path, fmt::format("unit {}: measurement '{:.40}' is not a finite number with a U >= 0", unit_id,
                           util::IsValidUtf8(m.parameter) ? m.parameter : std::string("?"))));
   }
-  if (!s.ColumnNull(3)) m.U = s.ColumnDouble(3);
+  if (!s.ColumnNull(c + 2)) m.U = s.ColumnDouble(c + 2);
   return m;
 }
 
@@ -441,30 +469,68 @@ IngestResult FleetDb::Ingest(const std::vector<UnitRecord>& records, const std::
   return result;
 }
 
+void FleetDb::ForEachUnit(const std::function<void(FleetUnit&&)>& visit) const {
+  // One pass in time order (the units by units_by_time, each one's measurements by their primary key): one unit in
+  // memory at a time. A measurement whose unit is not there is not joined; `fleet check` names it.
+  Statement s(db_, path_, kFleetUnitsInTimeOrderSql);
+  std::optional<FleetUnit> unit;
+  while (s.Step()) {
+    if (!unit || unit->id != s.ColumnInt(0)) {
+      if (unit) visit(std::move(*unit));
+      unit = ReadUnitRow(s, path_);
+    }
+    if (s.ColumnNull(9)) continue;  // a unit without measurements
+    FleetMeasurement m = ReadMeasurementRow(s, path_, unit->id, 9);
+    unit->measurements[m.parameter] = std::move(m);
+  }
+  if (unit) visit(std::move(*unit));
+}
+
 std::vector<FleetUnit> FleetDb::Units() const {
   std::vector<FleetUnit> units;
-  std::map<std::int64_t, std::size_t> index;
-  {
-    Statement s(db_, path_,
-                "SELECT id, serial, unit_json_sha256, created_utc, station, tool_version, model, source, ingested_utc "
-                "FROM units ORDER BY created_utc, id");
-    while (s.Step()) {
-      FleetUnit u = ReadUnitRow(s, path_);
-      index[u.id] = units.size();
-      units.push_back(std::move(u));
-    }
-  }
-  Statement s(db_, path_, "SELECT unit_id, parameter, value, U FROM measurements");
-  while (s.Step()) {
-    const auto it = index.find(s.ColumnInt(0));
-    if (it == index.end()) {
-      throw util::InputError(CorruptMessage(path_, fmt::format("a measurement of unit {}, which is not in the "
-                                                               "database", s.ColumnInt(0))));
-    }
-    FleetMeasurement m = ReadMeasurementRow(s, path_);
-    units[it->second].measurements[m.parameter] = m;
-  }
+  ForEachUnit([&](FleetUnit&& u) { units.push_back(std::move(u)); });
   return units;
+}
+
+FleetTotals FleetDb::Totals() const {
+  Statement s(db_, path_, "SELECT count(*), count(DISTINCT serial) FROM units");
+  FleetTotals t;
+  if (s.Step()) {
+    t.records = s.ColumnInt(0);
+    t.serials = s.ColumnInt(1);
+  }
+  return t;
+}
+
+plot::HistogramBins FleetDb::Histogram(const std::string& parameter) const {
+  // Both queries read the index measurements_by_value alone (the rows of the table are not visited).
+  plot::HistogramBins h;
+  {
+    Statement range(db_, path_, "SELECT count(*), min(value), max(value) FROM measurements WHERE parameter = ?1");
+    range.Text(1, parameter);
+    if (!range.Step() || range.ColumnInt(0) == 0) return h;
+    h.n = range.ColumnInt(0);
+    h.lo = range.ColumnDouble(1);
+    h.hi = range.ColumnDouble(2);
+  }
+  const int bins = plot::HistogramBinCount(static_cast<std::size_t>(h.n));
+  h.counts.assign(bins, 0);
+  const double bw = (h.hi - h.lo) / bins;
+  if (!(bw > 0)) {
+    h.counts[bins / 2] = h.n;
+    return h;
+  }
+  // plot::BinValues's expression, evaluated by SQLite in the same double arithmetic (CAST truncates as int() does).
+  Statement s(db_, path_, kFleetHistogramSql);
+  s.Text(1, parameter);
+  s.Int(2, bins);
+  s.Double(3, h.lo);
+  s.Double(4, bw);
+  while (s.Step()) {
+    const std::int64_t bin = s.ColumnInt(0);
+    if (bin >= 0 && bin < bins) h.counts[static_cast<std::size_t>(bin)] += s.ColumnInt(1);
+  }
+  return h;
 }
 
 FleetCheck FleetDb::Check() const {

@@ -29,114 +29,7 @@ std::string Sig(double v, int digits = 4) {
   return fmt::format("{:.{}g}", v, digits);
 }
 
-// The parameters judged by a limit, in the order shown, then the calibration's own (no limit).
-std::vector<FleetParameter> Parameters(const std::vector<FleetUnit>& units, const Limits& l) {
-  std::vector<FleetParameter> p = {
-      {"calibration_rms_px", "calibration RMS", "px", l.calibration_rms_px.max, false, true},
-      {"sphere_radius_error_mm", "reference sphere radius error, corrected", "mm", l.sphere_radius_error_mm.max, true},
-      {"sphere_power_error_D", "reference sphere power error, corrected", "D", l.sphere_power_error_D.max, true},
-      {"seidel_sigma_per_mm2", "Seidel \u03c3", "mm\u207b\u00b2", std::nullopt, false},
-  };
-  std::set<std::string> calib, device;
-  bool held_out = false;
-  for (const FleetUnit& u : units) {
-    for (const auto& [key, m] : u.measurements) {
-      if (key.rfind("calib_", 0) == 0) calib.insert(key);
-      if (key.rfind("device_", 0) == 0) device.insert(key);
-      held_out = held_out || key == "held_out_radius_error_mm";
-    }
-  }
-  // The device stage's physical evidence first (a ball the fit did not use), then the fit's own numbers.
-  if (held_out) p.push_back({"held_out_radius_error_mm", "held-out ball radius error, through the device", "mm",
-                             std::nullopt, false});
-  for (const std::string& key : device) {
-    p.push_back({key, key == "device_chi2_per_dof" ? "device fit \u03c7\u00b2/dof" : "device parameter " + key.substr(7),
-                 "", std::nullopt, false});
-  }
-  for (const std::string& key : calib) {
-    p.push_back({key, "calibration parameter " + key.substr(6), "", std::nullopt, false});
-  }
-  return p;
-}
-
-// The judged size of a value: |value| (+ U under the guarded rule when the parameter has one).
-std::optional<double> JudgedSize(const FleetParameter& p, const FleetMeasurement& m, DecisionRule rule) {
-  if (!p.uses_U || rule == DecisionRule::kSimple) return std::abs(m.value);
-  if (!m.U) return std::nullopt;  // guarded acceptance cannot decide without U
-  return std::abs(m.value) + *m.U;
-}
-
 }  // namespace
-
-FleetAnalysis AnalyseFleet(const std::string& database, std::vector<FleetUnit> units, const Limits& limits) {
-  FleetAnalysis a;
-  a.database = database;
-  a.limits = limits;
-  a.units = std::move(units);
-  a.parameters = Parameters(a.units, limits);
-  std::set<std::string> stations;
-  for (const FleetUnit& u : a.units) stations.insert(u.station);
-  a.stations.assign(stations.begin(), stations.end());
-
-  for (const FleetUnit& u : a.units) {
-    UnitVerdict v;
-    v.pass = true;
-    for (const FleetParameter& p : a.parameters) {
-      if (!p.limit) continue;
-      const auto it = u.measurements.find(p.key);
-      if (it == u.measurements.end()) {
-        v.pass = false;
-        v.failed.push_back(p.key + " (not measured)");
-        continue;
-      }
-      const auto size = JudgedSize(p, it->second, limits.rule);
-      if (!size || *size > *p.limit) {
-        v.pass = false;
-        v.failed.push_back(p.key);
-      } else if (*size >= kNearLimitFraction * *p.limit) {
-        v.near.push_back(p.key);
-      }
-    }
-    a.verdicts.push_back(v);
-  }
-
-  for (const FleetParameter& p : a.parameters) {
-    for (const std::string& station : [&] {
-           std::vector<std::string> s{""};
-           s.insert(s.end(), a.stations.begin(), a.stations.end());
-           return s;
-         }()) {
-      if (!station.empty() && a.stations.size() < 2) continue;  // one station: its chart is the line's
-      ChartSeries s;
-      s.parameter = p.key;
-      s.station = station;
-      for (std::size_t i = 0; i < a.units.size(); ++i) {
-        if (!station.empty() && a.units[i].station != station) continue;
-        const auto it = a.units[i].measurements.find(p.key);
-        if (it == a.units[i].measurements.end()) continue;
-        s.units.push_back(i);
-        s.values.push_back(it->second.value);
-      }
-      if (s.values.empty()) continue;
-      // Phase I: the limits from the units that passed (a broken unit would widen them for every other one).
-      std::vector<bool> passed;
-      for (const std::size_t i : s.units) passed.push_back(a.verdicts[i].pass);
-      s.chart = IndividualsChart(s.values, passed);
-      if (s.chart && p.limit) {
-        s.capability = CapabilityOf(*s.chart, p.one_sided ? std::nullopt : std::optional<double>(-*p.limit), *p.limit);
-      }
-      if (s.chart) {
-        std::map<std::size_t, std::vector<int>> by_point;
-        for (const ControlSignal& sig : s.chart->signals) by_point[static_cast<std::size_t>(sig.index)].push_back(sig.rule);
-        for (const auto& [k, rules] : by_point) a.out_of_control.push_back({s.units[k], p.key, station, rules});
-      }
-      a.series.push_back(std::move(s));
-    }
-  }
-  std::stable_sort(a.out_of_control.begin(), a.out_of_control.end(),
-                   [](const OutOfControl& x, const OutOfControl& y) { return x.unit < y.unit; });
-  return a;
-}
 
 namespace {
 
@@ -174,11 +67,12 @@ ControlChartPlot ChartPlotOf(const ChartSeries& series, std::string title, std::
   ControlChartPlot c;
   c.title = std::move(title);
   c.value_label = std::move(value_label);
-  c.values = series.values;
+  c.values = series.Values();
+  c.subgroup_size = series.subgroup_size;
   if (series.chart) {
     c.flagged = series.chart->flagged;
     c.centre = series.chart->centre;
-    c.sigma = series.chart->sigma;
+    c.sigma = series.chart->PointSigma();
   }
   c.limit = limit;
   return c;
@@ -226,26 +120,34 @@ std::string StationSummary(const FleetAnalysis& a) {
   s += "<section id=\"summary\"><h2>Verdicts</h2>\n<table class=\"data\" id=\"stations\"><tr><th>station</th>"
        "<th>units</th><th>PASS</th><th>FAIL</th><th>yield</th><th>near a limit</th>"
        "<th>points out of control on its own charts</th></tr>\n";
-  for (const std::string& st : [&] {
-         std::vector<std::string> v = a.stations;
-         if (a.stations.size() > 1) v.push_back("");
-         return v;
-       }()) {
-    int n = 0, pass = 0, near = 0, ooc = 0;
-    for (std::size_t i = 0; i < a.units.size(); ++i) {
-      if (!st.empty() && a.units[i].station != st) continue;
-      ++n;
-      pass += a.verdicts[i].pass ? 1 : 0;
-      near += (a.verdicts[i].pass && !a.verdicts[i].near.empty()) ? 1 : 0;
-    }
-    for (const OutOfControl& o : a.out_of_control) ooc += o.station == st ? 1 : 0;  // "" = the line's charts
+  for (const StationCount& c : a.counts) {
+    if (c.station.empty() && a.stations.size() < 2) continue;  // one station: its row is the line's
+    int ooc = 0;
+    for (const OutOfControl& o : a.out_of_control) ooc += o.station == c.station ? 1 : 0;  // "" = the line's charts
     s += fmt::format("<tr><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td>"
                      "<td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td></tr>\n",
-                     st.empty() ? "<strong>whole line</strong>" : H(st), n, pass, n - pass,
-                     n > 0 ? fmt::format("{:.1f} %", 100.0 * pass / n) : std::string("\u2014"), near, ooc);
+                     c.station.empty() ? "<strong>whole line</strong>" : H(c.station), c.units, c.passed,
+                     c.units - c.passed,
+                     c.units > 0 ? fmt::format("{:.1f} %", 100.0 * static_cast<double>(c.passed) / c.units)
+                                 : std::string("\u2014"),
+                     c.near, ooc);
   }
   s += "</table>\n" + CapabilityTable(a) + "</section>\n";
   return s;
+}
+
+// The line chart's limits: of the units (individuals chart) or of the subgroup means.
+std::string ChartNote(const ChartSeries& line) {
+  if (!line.chart) return ", too few passing units for a chart";
+  const ControlChart& c = *line.chart;
+  if (line.subgroup_size == 1) {
+    return fmt::format(", chart \u03c3 (moving range) {}, UCL {}, LCL {} (limits from {} passing units){}", Sig(c.sigma),
+                       Sig(c.Ucl()), Sig(c.Lcl()), c.limit_points, CapabilityText(line.capability));
+  }
+  return fmt::format(", chart of the means of {} consecutive units ({} points): \u03c3 within subgroups {}, UCL {}, "
+                     "LCL {} of a mean (limits from {} passing units){}",
+                     line.subgroup_size, line.points.size(), Sig(c.sigma), Sig(c.Ucl()), Sig(c.Lcl()), c.limit_points,
+                     CapabilityText(line.capability));
 }
 
 // Per parameter: distribution, the line's chart, each station's chart.
@@ -260,23 +162,13 @@ std::string ParameterSections(const FleetAnalysis& a) {
     if (series.empty()) continue;
     const ChartSeries& line = *series.front();
     s += fmt::format("<div class=\"parameter\" data-parameter=\"{}\"><h3>{}</h3>\n", H(p.key), H(UnitLabel(p)));
-    double mean = 0, sd = 0;
-    for (double v : line.values) mean += v;
-    mean /= line.values.size();
-    for (double v : line.values) sd += (v - mean) * (v - mean);
-    sd = line.values.size() > 1 ? std::sqrt(sd / (line.values.size() - 1)) : 0;
-    s += fmt::format("<p class=\"note\">n = {}, mean {}, standard deviation {}{}{}</p>\n", line.values.size(), Sig(mean),
-                     Sig(sd),
-                     line.chart ? fmt::format(", chart \u03c3 (moving range) {}, UCL {}, LCL {} (limits from {} passing "
-                                              "units){}",
-                                              Sig(line.chart->sigma), Sig(line.chart->Ucl()), Sig(line.chart->Lcl()),
-                                              line.chart->limit_points, CapabilityText(line.capability))
-                                : std::string(", too few passing units for a chart"),
+    s += fmt::format("<p class=\"note\">n = {}, mean {}, standard deviation {}{}{}</p>\n", line.n, Sig(line.mean),
+                     Sig(line.sd), ChartNote(line),
                      p.limit ? fmt::format("; acceptance limit \u00b1{}", Sig(*p.limit)) : std::string());
-    HistogramPlot hist{"Distribution", UnitLabel(p), line.values, p.limit};
+    HistogramPlot hist{"Distribution", UnitLabel(p), {}, line.histogram, p.limit};
+    if (!hist.bins) hist.values = line.Values();
     ControlChartPlot chart = ChartPlotOf(line, "Control chart, whole line", p.unit.empty() ? p.key : p.unit, p.limit);
-    chart.x_labels = {a.units[line.units.front()].created_utc.substr(0, 10),
-                      a.units[line.units.back()].created_utc.substr(0, 10)};
+    chart.x_labels = {line.points.front().first_utc.substr(0, 10), line.points.back().last_utc.substr(0, 10)};
     s += "<div class=\"pair\"><div style=\"flex: 1 1 0\">" + SvgHistogram(hist) + "</div><div style=\"flex: 2 1 0\">" +
          SvgControlChart(chart) + "</div></div>\n";
     if (series.size() > 1) {
@@ -300,6 +192,12 @@ std::string ParameterSections(const FleetAnalysis& a) {
 // Every unit, in time order, with its verdict (the table is closed by the caller with the page).
 std::string UnitTable(const FleetAnalysis& a) {
   std::string s;
+  if (!a.units_complete) {
+    return fmt::format("<section id=\"units\" class=\"page-break\"><h2>Units</h2>\n<p id=\"units-not-listed\">{} "
+                       "records: more than the {} this page lists; the CSV (<code>--csv</code>) has every one.</p>\n"
+                       "<table>",
+                       a.unit_count, kMaxListedUnits);
+  }
   s += "<section id=\"units\" class=\"page-break\"><h2>Units</h2>\n<table class=\"data\" id=\"unit-table\"><tr><th>#</th>"
        "<th>serial</th><th>calibrated</th><th>station</th><th>RMS (px)</th><th>sphere radius error (mm)</th>"
        "<th>sphere power error (D)</th><th>verdict</th></tr>\n";
@@ -318,25 +216,40 @@ std::string UnitTable(const FleetAnalysis& a) {
   return s;
 }
 
+// One point that breaks a rule: a unit, or a subgroup by its first and last unit.
+std::string OutOfControlRow(const FleetAnalysis& a, const OutOfControl& o) {
+  const ChartPoint& pt = o.point;
+  std::string who, when, station;
+  if (pt.unit) {
+    const FleetUnit& u = a.units[*pt.unit];
+    who = H(u.serial);
+    when = H(u.created_utc);
+    station = H(u.station);
+  } else {
+    who = fmt::format("{} \u2026 {} ({} units)", H(pt.first_serial), H(pt.last_serial), pt.units);
+    when = H(pt.first_utc) + " \u2026 " + H(pt.last_utc);
+    station = o.station.empty() ? "all" : H(o.station);
+  }
+  return fmt::format("<tr data-serial=\"{}\" data-parameter=\"{}\"><td>{}</td><td>{}</td><td>{}</td><td>{}</td>"
+                     "<td class=\"num\">{}</td><td>{}</td><td>{}</td></tr>\n",
+                     H(pt.first_serial), H(o.parameter), who, when, station, H(o.parameter),
+                     pt.unit ? Sig(pt.value) : "mean " + Sig(pt.value),
+                     o.station.empty() ? "line" : "station " + H(o.station), H(RulesText(o.rules)));
+}
+
 }  // namespace
 
 std::string RenderFleetHtml(const FleetAnalysis& a) {
-  const int passed = static_cast<int>(std::count_if(a.verdicts.begin(), a.verdicts.end(),
-                                                    [](const UnitVerdict& v) { return v.pass; }));
+  const std::int64_t passed = a.counts.empty() ? 0 : a.counts.back().passed;
   std::string s = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n";
-  s += fmt::format("<title>topocal fleet report \u2014 {} units</title>\n<style>{}</style>\n</head>\n", a.units.size(),
+  s += fmt::format("<title>topocal fleet report \u2014 {} units</title>\n<style>{}</style>\n</head>\n", a.unit_count,
                    kCss);
-  s += fmt::format("<body data-units=\"{}\" data-passed=\"{}\" data-out-of-control=\"{}\">\n<main>\n", a.units.size(),
+  s += fmt::format("<body data-units=\"{}\" data-passed=\"{}\" data-out-of-control=\"{}\">\n<main>\n", a.unit_count,
                    passed, a.out_of_control.size());
   s += "<h1>Fleet report: the production line</h1>\n";
   s += fmt::format("<p>Database {} \u00b7 {} units ({} records) from {} to {} \u00b7 {} station(s) \u00b7 topocal {}</p>\n",
-                   H(a.database), [&] {
-                     std::set<std::string> serials;
-                     for (const FleetUnit& u : a.units) serials.insert(u.serial);
-                     return serials.size();
-                   }(),
-                   a.units.size(), a.units.empty() ? "\u2014" : H(a.units.front().created_utc),
-                   a.units.empty() ? "\u2014" : H(a.units.back().created_utc), a.stations.size(), H(kVersion));
+                   H(a.database), a.serial_count, a.unit_count, a.unit_count == 0 ? "\u2014" : H(a.first_utc),
+                   a.unit_count == 0 ? "\u2014" : H(a.last_utc), a.stations.size(), H(kVersion));
   s += fmt::format("<p>Limits: {} ({} acceptance). {}</p>\n", H(a.limits.origin), ToString(a.limits.rule),
                    H(DecisionRuleText(a.limits.rule)));
   s += "<p class=\"note\">Control charts: Shewhart individuals charts, limits from the data of the units that "
@@ -355,14 +268,7 @@ std::string RenderFleetHtml(const FleetAnalysis& a) {
   } else {
     s += "<table class=\"data\" id=\"out-of-control\"><tr><th>unit</th><th>calibrated</th><th>station</th>"
          "<th>parameter</th><th>value</th><th>chart</th><th>rules</th></tr>\n";
-    for (const OutOfControl& o : a.out_of_control) {
-      const FleetUnit& u = a.units[o.unit];
-      s += fmt::format("<tr data-serial=\"{}\" data-parameter=\"{}\"><td>{}</td><td>{}</td><td>{}</td><td>{}</td>"
-                       "<td class=\"num\">{}</td><td>{}</td><td>{}</td></tr>\n",
-                       H(u.serial), H(o.parameter), H(u.serial), H(u.created_utc), H(u.station), H(o.parameter),
-                       Sig(u.measurements.at(o.parameter).value), o.station.empty() ? "line" : "station " + H(o.station),
-                       H(RulesText(o.rules)));
-    }
+    for (const OutOfControl& o : a.out_of_control) s += OutOfControlRow(a, o);
     s += "</table>\n";
   }
   s += "<h2>Units beyond or near their acceptance limits</h2>\n";
@@ -377,6 +283,11 @@ std::string RenderFleetHtml(const FleetAnalysis& a) {
                         "</tr>\n",
                         H(a.units[i].serial), H(a.units[i].serial), H(a.units[i].created_utc), H(a.units[i].station),
                         v.pass ? "pass" : "fail", v.pass ? "PASS" : "FAIL", H(what));
+  }
+  if (a.failed_not_listed + a.near_not_listed > 0) {
+    rows += fmt::format("<tr id=\"not-listed\"><td colspan=\"5\">and {} FAIL and {} near units more: the CSV "
+                        "(<code>--csv</code>) has every unit with its verdict</td></tr>\n",
+                        a.failed_not_listed, a.near_not_listed);
   }
   if (rows.empty()) {
     s += fmt::format("<p>Every unit passes with more than {:.0f} % of each limit to spare.</p>\n",
@@ -395,7 +306,11 @@ std::string RenderFleetHtml(const FleetAnalysis& a) {
   return s;
 }
 
-std::string FleetCsv(const FleetAnalysis& a) {
+std::string FleetCsvHeader() {
+  return "serial,unit_json_sha256,created_utc,station,parameter,value,U,limit,unit_verdict\n";
+}
+
+std::string FleetCsvRows(const std::vector<FleetParameter>& parameters, const FleetUnit& u, const UnitVerdict& verdict) {
   // Station and serial are [A-Za-z0-9._-] for serials; a station name may hold anything: quoted (RFC 4180).
   const auto quote = [](const std::string& f) {
     if (f.find_first_of(",\"\n") == std::string::npos) return f;
@@ -403,20 +318,33 @@ std::string FleetCsv(const FleetAnalysis& a) {
     for (char c : f) q += c == '"' ? std::string("\"\"") : std::string(1, c);
     return q + "\"";
   };
-  std::string csv = "serial,unit_json_sha256,created_utc,station,parameter,value,U,limit,unit_verdict\n";
-  for (std::size_t i = 0; i < a.units.size(); ++i) {
-    const FleetUnit& u = a.units[i];
-    for (const FleetParameter& p : a.parameters) {
-      const auto it = u.measurements.find(p.key);
-      if (it == u.measurements.end()) continue;
-      csv += fmt::format("{},{},{},{},{},{},{},{},{}\n", quote(u.serial), u.unit_json_sha256, quote(u.created_utc),
-                         quote(u.station), p.key, it->second.value,
-                         it->second.U ? fmt::format("{}", *it->second.U) : std::string(),
-                         p.limit ? fmt::format("{}", *p.limit) : std::string(), a.verdicts[i].pass ? "PASS" : "FAIL");
-    }
+  std::string csv;
+  for (const FleetParameter& p : parameters) {
+    const auto it = u.measurements.find(p.key);
+    if (it == u.measurements.end()) continue;
+    csv += fmt::format("{},{},{},{},{},{},{},{},{}\n", quote(u.serial), u.unit_json_sha256, quote(u.created_utc),
+                       quote(u.station), p.key, it->second.value,
+                       it->second.U ? fmt::format("{}", *it->second.U) : std::string(),
+                       p.limit ? fmt::format("{}", *p.limit) : std::string(), verdict.pass ? "PASS" : "FAIL");
   }
   return csv;
 }
+
+std::string FleetCsv(const FleetAnalysis& a) {
+  std::string csv = FleetCsvHeader();
+  for (std::size_t i = 0; i < a.units.size(); ++i) csv += FleetCsvRows(a.parameters, a.units[i], a.verdicts[i]);
+  return csv;
+}
+
+namespace {
+
+// A chart's point: its unit, or its subgroup by first and last serial.
+json PointJson(const ChartPoint& p) {
+  if (p.unit) return {{"serial", p.first_serial}, {"unit_json_sha256", p.first_sha256}};
+  return {{"first_serial", p.first_serial}, {"last_serial", p.last_serial}, {"units", p.units}};
+}
+
+}  // namespace
 
 json FleetJson(const FleetAnalysis& a) {
   json units = json::array();
@@ -438,13 +366,13 @@ json FleetJson(const FleetAnalysis& a) {
   json charts = json::array();
   for (const ChartSeries& s : a.series) {
     json c = {{"parameter", s.parameter}, {"station", s.station.empty() ? json(nullptr) : json(s.station)},
-              {"points", s.values.size()}};
+              {"points", s.points.size()}, {"units", s.n}, {"subgroup_size", s.subgroup_size}};
     if (s.chart) {
       json signals = json::array();
       for (const ControlSignal& sig : s.chart->signals) {
-        signals.push_back({{"serial", a.units[s.units[sig.index]].serial},
-                           {"unit_json_sha256", a.units[s.units[sig.index]].unit_json_sha256},
-                           {"rule", sig.rule}});
+        json j = PointJson(s.points[static_cast<std::size_t>(sig.index)]);
+        j["rule"] = sig.rule;
+        signals.push_back(j);
       }
       c["centre"] = s.chart->centre;
       c["sigma"] = s.chart->sigma;
@@ -461,21 +389,17 @@ json FleetJson(const FleetAnalysis& a) {
   }
   json ooc = json::array();
   for (const OutOfControl& o : a.out_of_control) {
-    ooc.push_back({{"serial", a.units[o.unit].serial},
-                   {"unit_json_sha256", a.units[o.unit].unit_json_sha256},
-                   {"parameter", o.parameter},
-                   {"chart", o.station.empty() ? std::string("line") : "station " + o.station},
-                   {"rules", o.rules}});
+    json j = PointJson(o.point);
+    j["parameter"] = o.parameter;
+    j["chart"] = o.station.empty() ? std::string("line") : "station " + o.station;
+    j["rules"] = o.rules;
+    ooc.push_back(j);
   }
   json yield = json::array();
-  for (const std::string& st : a.stations) {
-    int n = 0, pass = 0;
-    for (std::size_t i = 0; i < a.units.size(); ++i) {
-      if (a.units[i].station != st) continue;
-      ++n;
-      pass += a.verdicts[i].pass ? 1 : 0;
-    }
-    yield.push_back({{"station", st}, {"units", n}, {"passed", pass}, {"yield", static_cast<double>(pass) / n}});
+  for (const StationCount& c : a.counts) {
+    if (c.station.empty()) continue;
+    yield.push_back({{"station", c.station}, {"units", c.units}, {"passed", c.passed},
+                     {"yield", static_cast<double>(c.passed) / static_cast<double>(c.units)}});
   }
   return {{"format", kFleetReportFormat},
           {"format_version", kFleetReportFormatVersion},
@@ -487,6 +411,8 @@ json FleetJson(const FleetAnalysis& a) {
           {"near_limit_fraction", kNearLimitFraction},
           {"stations", a.stations},
           {"yield", yield},
+          {"unit_count", a.unit_count},
+          {"units_complete", a.units_complete},
           {"units", units},
           {"charts", charts},
           {"out_of_control", ooc}};

@@ -50,26 +50,39 @@ void Ingest(const IngestArgs& a) {
   report::FleetDb db(a.db, /*create=*/true);
   const report::IngestResult r = db.Ingest(records, a.station);
   fmt::print("{}: {} record(s) added, {} already present; {} record(s) in the database\n", a.db, r.added, r.present,
-             db.Units().size());
+             db.Totals().records);
 }
 
+// The analysis in one pass over the database (one unit in memory at a time), the histograms and the count of
+// serials from SQLite; the CSV, when asked, in a second pass.
 void Report(const FleetReportArgs& a) {
   const report::Limits limits = a.limits.empty() ? report::DefaultLimits() : report::LoadLimits(a.limits);
   const report::FleetDb db(a.db, /*create=*/false);
-  const report::FleetAnalysis analysis = report::AnalyseFleet(a.db, db.Units(), limits);
-  if (analysis.units.empty()) throw util::InputError(fmt::format("{}: the fleet database holds no unit", a.db));
+  report::FleetAnalyser analyser(a.db, limits);
+  db.ForEachUnit([&](report::FleetUnit&& u) { analyser.Add(std::move(u)); });
+  report::FleetAnalysis analysis = analyser.Finish();
+  if (analysis.unit_count == 0) throw util::InputError(fmt::format("{}: the fleet database holds no unit", a.db));
+  analysis.serial_count = db.Totals().serials;
+  for (report::ChartSeries& s : analysis.series) {
+    if (s.station.empty()) s.histogram = db.Histogram(s.parameter);
+  }
   const std::string html = report::RenderFleetHtml(analysis);
-  const std::string csv = a.csv.empty() ? "" : report::FleetCsv(analysis);
+  std::string csv;
+  if (!a.csv.empty()) {
+    csv = report::FleetCsvHeader();
+    db.ForEachUnit([&](report::FleetUnit&& u) {
+      csv += report::FleetCsvRows(analysis.parameters, u, report::JudgeUnit(u, analysis.parameters, limits));
+    });
+  }
   const std::string json = a.json.empty() ? "" : util::JsonFileText(report::FleetJson(analysis));
   util::StagedOutputs outputs;  // published together or not at all
   outputs.AddFile(a.out, html);
   if (!a.csv.empty()) outputs.AddFile(a.csv, csv);
   if (!a.json.empty()) outputs.AddFile(a.json, json);
   outputs.Commit();
-  int passed = 0;
-  for (const auto& v : analysis.verdicts) passed += v.pass ? 1 : 0;
-  fmt::print("{}: {} records, {} PASS, {} FAIL, {} out-of-control signal(s)\n", a.out, analysis.units.size(), passed,
-             static_cast<int>(analysis.units.size()) - passed, analysis.out_of_control.size());
+  const std::int64_t passed = analysis.counts.back().passed;
+  fmt::print("{}: {} records, {} PASS, {} FAIL, {} out-of-control signal(s)\n", a.out, analysis.unit_count, passed,
+             analysis.unit_count - passed, analysis.out_of_control.size());
 }
 
 void Check(const std::string& path) {

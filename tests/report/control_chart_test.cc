@@ -1,6 +1,7 @@
 // Shewhart individuals chart and the Western Electric rules (report/control_chart.h).
 #include "report/control_chart.h"
 
+#include <cmath>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -125,6 +126,63 @@ TEST(ControlChart, DriftIsFlaggedAndStableLinesOnlyAtTheFalseAlarmRate) {
   // Rule 1 alone: 0.27 % of points beyond 3 sigma, P(some in 60) = 0.15; with data limits a little lower or higher.
   EXPECT_LT(stable_rule1, 0.3 * kLines);
   EXPECT_GE(drift_flagged, drift_flagged_late);
+}
+
+
+// Subgroups merged pairwise hold what one subgroup of all their values would (the charts of a long series merge
+// neighbours as it grows).
+TEST(SubgroupMeansChart, MergedSubgroupsEqualOneOfAllTheirValues) {
+  std::mt19937 rng(3);
+  std::normal_distribution<double> z(0.01, 0.002);
+  Subgroup whole, left, right;
+  for (int i = 0; i < 37; ++i) {
+    const double v = z(rng);
+    const bool included = i % 5 != 0;
+    whole.Add(v, included);
+    (i < 20 ? left : right).Add(v, included);
+  }
+  left.Merge(right);
+  EXPECT_EQ(left.n, whole.n);
+  EXPECT_EQ(left.n_in, whole.n_in);
+  // Round-off of two running sums of ~40 values of 1e-2 (a few ulps).
+  EXPECT_NEAR(left.mean, whole.mean, 1e-16);
+  EXPECT_NEAR(left.mean_in, whole.mean_in, 1e-16);
+  EXPECT_NEAR(left.m2_in, whole.m2_in, 1e-18);
+}
+
+// Limits by hand: 20 subgroups of 4 units -1, +1, -1, +1 about their means, which alternate 5 -+ 0.1 (centre 5, no
+// run on one side); each subgroup's squared deviations 4 over 3 degrees of freedom, so sigma = sqrt(80 / 60); a
+// point's limits are 3 sigma / sqrt(4).
+TEST(SubgroupMeansChart, PooledSigmaAndEachPointAgainstItsOwnSize) {
+  std::vector<Subgroup> groups(20);
+  for (std::size_t k = 0; k < groups.size(); ++k) {
+    for (double v : {-1.0, 1.0, -1.0, 1.0}) groups[k].Add(5 + (k % 2 ? 0.1 : -0.1) + v, true);
+  }
+  auto c = SubgroupMeansChart(groups);
+  ASSERT_TRUE(c.has_value());
+  EXPECT_NEAR(c->centre, 5, 1e-14);
+  EXPECT_NEAR(c->sigma, std::sqrt(80.0 / 60.0), 1e-14);
+  EXPECT_EQ(c->subgroup_size, 4);
+  EXPECT_EQ(c->limit_points, 80);
+  EXPECT_NEAR(c->Ucl(), 5 + 3 * std::sqrt(80.0 / 60.0) / 2, 1e-14);
+  EXPECT_TRUE(c->signals.empty());
+  // A last subgroup of one unit 2 sigma above the centre: within its own limits (3 sigma / sqrt(1)), but the same
+  // value as the mean of four would be beyond 3 sigma / sqrt(4).
+  Subgroup one;
+  one.Add(5 + 2 * c->sigma, true);
+  groups.push_back(one);
+  c = SubgroupMeansChart(groups);
+  ASSERT_TRUE(c.has_value());
+  EXPECT_TRUE(c->signals.empty());
+  groups.back() = Subgroup();
+  for (int k = 0; k < 4; ++k) groups.back().Add(5 + 2 * c->sigma, k < 3);  // the fourth excluded (a FAIL unit)
+  c = SubgroupMeansChart(groups);
+  ASSERT_TRUE(c.has_value());
+  ASSERT_FALSE(c->signals.empty());
+  EXPECT_EQ(c->signals.front().index, 20);
+  EXPECT_EQ(c->signals.front().rule, 1);
+  // Too few subgroups with a passing unit: no chart.
+  EXPECT_FALSE(SubgroupMeansChart(std::vector<Subgroup>(groups.begin(), groups.begin() + 7)).has_value());
 }
 
 }  // namespace

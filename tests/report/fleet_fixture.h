@@ -2,7 +2,8 @@
 // A generated production line for the fleet tests: unit records with seeded, varied numbers, written through the
 // project's record writer (report/unit_record_writer.h) so that their digests are valid. The calibration is one real
 // single-view Seidel calibration (record_fixture.h) whose k1 is scaled per unit; the reference-sphere and paper-cornea
-// numbers are drawn around what a corrected unit measures.
+// numbers are drawn around what a corrected unit measures. Free of GoogleTest: bench/fleet_generate.cc writes the
+// line at scale (GenerateFleet) with it.
 #include <cmath>
 #include <ctime>
 #include <random>
@@ -13,7 +14,7 @@
 
 #include "calib/calibration_file.h"
 #include "report/unit_record_writer.h"
-#include "tests/report/record_fixture.h"
+#include "tests/report/record_body.h"
 
 namespace topocal::report::testing {
 
@@ -87,6 +88,74 @@ inline void WriteLineUnit(const std::string& out, const calib::CalibrationResult
                    calib::CalibrationFileText(r, {"data/target-topographer.yaml", {"views/v1.png"}, u.created_utc}));
   writer.WriteFile("residuals.csv", ResidualsCsv(r));
   writer.Commit(body);
+}
+
+// A production line at scale: several stations over years, one station drifting, a few units failing. Unit i of
+// `units` (serial SN-000001, ... in time order) is calibrated at start + i * span / units seconds (strictly
+// increasing, so time order is serial order), on a station drawn at random; its numbers are GenerateLine's scatter.
+struct FleetSpec {
+  int units = 2000;
+  int stations = 4;           // LINE-1 ... LINE-<stations>
+  double years = 3;           // from 2024-01-01T00:00:00Z
+  unsigned seed = 1;
+  // A FAIL unit: its corrected sphere radius error is beyond the default limit (0.05 mm), a broken unit.
+  double fail_fraction = 0.005;
+  // The station whose sphere radius error drifts (0-based; -1 none), linearly from `drift_from` (a fraction of the
+  // time span) to `drift_mm` at the end: 4 um = 2 sigma of the line's scatter.
+  int drift_station = 2;
+  double drift_from = 0.75, drift_mm = 0.004;
+};
+
+struct FleetLineUnit {
+  LineUnit unit;
+  int station = 0;
+  bool fails = false;
+};
+
+inline constexpr std::time_t kFleetStartUtc = 1704067200;  // 2024-01-01T00:00:00Z
+inline constexpr double kFleetFailRadiusErrorMm = 0.08;    // beyond the 0.05 mm limit
+
+inline std::string FleetStationName(int station) { return fmt::format("LINE-{}", station + 1); }
+
+inline std::vector<FleetLineUnit> GenerateFleet(const FleetSpec& spec) {
+  std::mt19937 rng(spec.seed);
+  std::normal_distribution<double> z(0.0, 1.0);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::uniform_int_distribution<int> pick(0, spec.stations - 1);
+  const double span_s = spec.years * 365.25 * 86400;
+  std::vector<FleetLineUnit> fleet;
+  fleet.reserve(static_cast<std::size_t>(spec.units));
+  for (int i = 0; i < spec.units; ++i) {
+    FleetLineUnit f;
+    LineUnit& u = f.unit;
+    u.serial = fmt::format("SN-{:06d}", i + 1);
+    const double fraction = static_cast<double>(i) / spec.units;
+    const std::time_t t = kFleetStartUtc + static_cast<std::time_t>(fraction * span_s);
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+    u.created_utc = buf;
+    f.station = pick(rng);
+    u.sigma_scale = 1 + kLineSigmaScatter * z(rng);
+    u.radius_error_mm = 0.001 + kLineRadiusScatterMm * z(rng);
+    if (f.station == spec.drift_station && fraction >= spec.drift_from) {
+      u.radius_error_mm += spec.drift_mm * (fraction - spec.drift_from) / (1 - spec.drift_from);
+    }
+    u.rms_px = 0.03 + kLineRmsScatterPx * z(rng);
+    u.kx_error = kLineConicScatter * z(rng);
+    u.ky_error = kLineConicScatter * z(rng);
+    f.fails = u01(rng) < spec.fail_fraction;
+    if (f.fails) u.radius_error_mm = kFleetFailRadiusErrorMm;
+    fleet.push_back(f);
+  }
+  return fleet;
+}
+
+// Where GenerateFleet's unit goes under `out`: <station>/<YYYY-MM>/<serial>, so that a station ingests a month at a
+// time (`fleet ingest --station LINE-1 out/LINE-1/2024-01/*/`).
+inline std::string FleetRecordDir(const std::string& out, const FleetLineUnit& f) {
+  return fmt::format("{}/{}/{}/{}", out, FleetStationName(f.station), f.unit.created_utc.substr(0, 7), f.unit.serial);
 }
 
 }  // namespace topocal::report::testing

@@ -17,6 +17,7 @@
 #include "tests/cli_harness.h"
 #include "tests/report/chromium.h"
 #include "tests/report/fleet_fixture.h"
+#include "tests/report/record_fixture.h"
 #include "util/io.h"
 #include "util/sha256.h"
 
@@ -178,13 +179,13 @@ TEST_F(FleetTest, BadInputIsRefusedAndTheDatabaseKeepsEverything) {
   const std::string v2 = Db("v2");
   sqlite3* h = nullptr;
   ASSERT_EQ(sqlite3_open(v2.c_str(), &h), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(h, fmt::format("CREATE TABLE units(x); PRAGMA application_id = {}; PRAGMA user_version = 3",
+  ASSERT_EQ(sqlite3_exec(h, fmt::format("CREATE TABLE units(x); PRAGMA application_id = {}; PRAGMA user_version = 4",
                                         kFleetApplicationId).c_str(),
                          nullptr, nullptr, nullptr),
             SQLITE_OK);
   sqlite3_close(h);
-  ExpectRefused(Ingest(v2, "A"), "schema version 3 is not supported (this topocal reads version 2)", v2);
-  ExpectRefused("fleet report --db " + v2 + " --out " + *work_ + "/v2.html", "schema version 3", v2);
+  ExpectRefused(Ingest(v2, "A"), "schema version 4 is not supported (this topocal reads versions 2 and 3)", v2);
+  ExpectRefused("fleet report --db " + v2 + " --out " + *work_ + "/v2.html", "schema version 4", v2);
   EXPECT_FALSE(fs::exists(*work_ + "/v2.html"));
   // Not a database at all; an unwritable path; a directory.
   const std::string text = *work_ + "/not-a-db.sqlite";
@@ -262,7 +263,7 @@ TEST_F(FleetTest, ADamagedOrForeignDatabaseIsRefusedBeforeAnyWrite) {
   // `fleet check` passes a sound database; `fleet backup` copies it, and the copy reports the same line.
   const auto ok = RunTopocal("fleet check --db " + db);
   ASSERT_EQ(ok.exit_code, 0) << ok.output;
-  EXPECT_NE(ok.output.find(fmt::format("ok: schema version 2, {} record(s)", kUnitsPerStation)), std::string::npos)
+  EXPECT_NE(ok.output.find(fmt::format("ok: schema version 3, {} record(s)", kUnitsPerStation)), std::string::npos)
       << ok.output;
   const std::string copy = *work_ + "/ledger-backup.sqlite";
   ASSERT_EQ(RunTopocal("fleet backup --db " + db + " --out " + copy).exit_code, 0);
@@ -298,7 +299,7 @@ TEST_F(FleetTest, ADamagedOrForeignDatabaseIsRefusedBeforeAnyWrite) {
   const std::string foreign = Db("ledger-foreign");
   ExecSql(foreign, fmt::format("CREATE TABLE units(x); PRAGMA application_id = {}; PRAGMA user_version = {}",
                                kFleetApplicationId, kFleetSchemaVersion));
-  ExpectRefused(Ingest(foreign, "A"), "tables or indexes differ from schema version 2", foreign);
+  ExpectRefused(Ingest(foreign, "A"), "tables or indexes differ from schema version 3", foreign);
 }
 
 TEST_F(FleetTest, ChromiumRendersTheFleetReport) {
