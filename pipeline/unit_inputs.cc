@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "pipeline/unit_workflow.h"
 #include "util/file_glob.h"
@@ -40,6 +41,18 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
     if (v.empty()) s.Fail(key, "expected a non-empty string");
     return v;
   };
+  // A list of non-empty strings.
+  const auto strings = [&](const char* key, const char* what) {
+    const json& v = s.Get(key);
+    const auto bad = [&] { s.Fail(key, fmt::format("expected a list of {} (got {})", what, util::QuoteJsonValue(v))); };
+    if (!v.is_array()) bad();
+    std::vector<std::string> out;
+    for (const auto& f : v) {
+      if (!f.is_string() || f.get<std::string>().empty()) bad();
+      out.push_back(f.get<std::string>());
+    }
+    return out;
+  };
   UnitRequest r = defaults;
   r.serial = *str("serial", true);
   r.target = relative(*str("target", true));
@@ -47,16 +60,8 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
   if (const auto v = str("reference_sphere", false)) r.reference_sphere = relative(*v);
   if (s.Has("sphere_radius_mm")) r.sphere_radius_mm = s.PositiveNumber("sphere_radius_mm", 0);
   if (s.Has("sphere_repeats")) {
-    const json& v = s.Get("sphere_repeats");
-    const auto bad = [&] {
-      s.Fail("sphere_repeats", fmt::format("expected a list of image paths (got {})", util::QuoteJsonValue(v)));
-    };
-    if (!v.is_array()) bad();
-    r.sphere_repeats.clear();
-    for (const auto& f : v) {
-      if (!f.is_string() || f.get<std::string>().empty()) bad();
-      r.sphere_repeats.push_back(relative(f.get<std::string>()));
-    }
+    r.sphere_repeats = strings("sphere_repeats", "image paths");
+    for (auto& p : r.sphere_repeats) p = relative(p);
   }
   if (const auto v = str("model", false)) r.model = *v;
   if (const auto v = str("config", false)) r.config = relative(*v);
@@ -66,18 +71,7 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
     if (!v.is_boolean()) s.Fail("fit_centre", fmt::format("expected true or false (got {})", util::QuoteJsonValue(v)));
     r.fit_centre = v.get<bool>();
   }
-  if (s.Has("fix")) {
-    const json& v = s.Get("fix");
-    const auto bad = [&] {
-      s.Fail("fix", fmt::format("expected a list of parameter names (got {})", util::QuoteJsonValue(v)));
-    };
-    if (!v.is_array()) bad();
-    r.fixed.clear();
-    for (const auto& f : v) {
-      if (!f.is_string()) bad();
-      r.fixed.push_back(f.get<std::string>());
-    }
-  }
+  if (s.Has("fix")) r.fixed = strings("fix", "parameter names");
   if (s.Has("fix_aspect")) r.fixed_aspect_ratio = s.Number("fix_aspect");  // range checked with the options
   if (s.Has("allow_undetermined")) {
     const json& v = s.Get("allow_undetermined");

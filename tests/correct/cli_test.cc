@@ -56,6 +56,21 @@ class CorrectCli : public topocal::testing_cli::TempDirTest {
     fs << "camera_matrix" << cv::Mat(cv::Matx33d(k.fx_px, 0, k.cx_px, 0, k.fy_px, k.cy_px, 0, 0, 1));
     fs << "distortion_coefficients" << cv::Mat(cv::Mat(std::vector<double>(k.dist.begin(), k.dist.end())).t());
   }
+  // An 11 x 11 grid of undistorted points 0.09 mm apart (the truth), written distorted by `distortion` as the spots
+  // CSV `name` (ring 1, index = the point's place in the truth).
+  std::vector<Eigen::Vector2d> WriteDistortedGrid(const std::string& name, const model::Distortion& distortion) const {
+    std::vector<Eigen::Vector2d> truth;
+    std::string csv = "ring,index,x_mm,y_mm\n";
+    for (double x = -0.45; x <= 0.45; x += 0.09) {
+      for (double y = -0.45; y <= 0.45; y += 0.09) {
+        truth.emplace_back(x, y);
+        const Eigen::Vector2d d = model::Distort(distortion, truth.back());
+        csv += fmt::format("1,{},{},{}\n", truth.size() - 1, d.x(), d.y());
+      }
+    }
+    Write(name, csv);
+    return truth;
+  }
   model::CameraModel Lens() const {
     const double f = camera_.FocalPx();
     return {.fx_px = f,
@@ -138,17 +153,7 @@ TEST_F(CorrectCli, UndistortSpotsInvertsTheCalibratedLens) {
   WriteCalibration("cal.yaml", k, camera_.width_px, camera_.height_px);
   const auto brown = BrownFromOpenCv(k, camera_);
   ASSERT_TRUE(brown.ok) << brown.message;
-  std::vector<Eigen::Vector2d> truth;
-  std::string csv = "ring,index,x_mm,y_mm\n";
-  int id = 0;
-  for (double x = -0.45; x <= 0.45; x += 0.09) {
-    for (double y = -0.45; y <= 0.45; y += 0.09) {
-      truth.emplace_back(x, y);
-      const Eigen::Vector2d d = model::Distort(brown.brown, truth.back());
-      csv += fmt::format("1,{},{},{}\n", id++, d.x(), d.y());
-    }
-  }
-  Write("in.csv", csv);
+  const auto truth = WriteDistortedGrid("in.csv", brown.brown);
   const auto r = RunTopocal("undistort --calibration " + Path("cal.yaml") + " --camera " + Path("cam.json") +
                             " --spots " + Path("in.csv") + " --out " + Path("out.csv"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -197,17 +202,7 @@ TEST_F(CorrectCli, UndistortWithADeviceInvertsItsDistortion) {
   model::Device device = model::NominalDevice(camera_);
   device.distortion = model::SeidelParams{6.3e-5, -0.065, 0.01, -0.02};
   Write("device.json", model::DeviceToJson(device));
-  std::vector<Eigen::Vector2d> truth;
-  std::string csv = "ring,index,x_mm,y_mm\n";
-  int id = 0;
-  for (double x = -0.45; x <= 0.45; x += 0.09) {
-    for (double y = -0.45; y <= 0.45; y += 0.09) {
-      truth.emplace_back(x, y);
-      const Eigen::Vector2d d = model::Distort(device.distortion, truth.back());
-      csv += fmt::format("1,{},{},{}\n", id++, d.x(), d.y());
-    }
-  }
-  Write("in.csv", csv);
+  const auto truth = WriteDistortedGrid("in.csv", device.distortion);
   auto r = RunTopocal("undistort --device " + Path("device.json") + " --spots " + Path("in.csv") + " --out " +
                       Path("out.csv"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
