@@ -371,12 +371,11 @@ HarnessRun RunHarness(const HarnessConfig& config, util::ShardSpec shard, int jo
   run.config = config;
   run.config_sha256 = HarnessConfigSha256(config);
   run.shard = shard;
-  const auto all = EnumerateHarnessCases(config);
-  run.total_cases = static_cast<int>(all.size());
-  std::vector<HarnessCaseSpec> mine;
-  for (const auto& s : all) {
-    if (s.index % shard.count == shard.index) mine.push_back(s);
-  }
+  std::vector<HarnessCaseSpec> mine = EnumerateHarnessCases(config);
+  run.total_cases = static_cast<int>(mine.size());
+  // This shard's cases in place (~90 MB for a million: no second list).
+  std::erase_if(mine, [&](const HarnessCaseSpec& s) { return s.index % shard.count != shard.index; });
+  mine.shrink_to_fit();
   const HarnessCaseRunner runner(run.config);
   run.truth = runner.truth();
   run.cases.resize(mine.size());
