@@ -94,6 +94,8 @@ struct HarnessTruth {
 
 // Every case of the configuration in the fixed global order.
 std::vector<HarnessCaseSpec> EnumerateHarnessCases(const HarnessConfig& config);
+// The cases of one shard (index % N == i), in the same order; *total is the number of cases of all shards.
+std::vector<HarnessCaseSpec> EnumerateHarnessCases(const HarnessConfig& config, util::ShardSpec shard, int* total);
 // The seed of case `index`: SplitMix64 of (config seed, index).
 std::uint64_t HarnessCaseSeed(std::uint64_t config_seed, int index);
 
