@@ -144,7 +144,7 @@ class HarnessCaseRunner {
 
 // A shard as a JSON file and back. Reading checks the format and every field; throws util::InputError naming the
 // file and key. The cases are one array per line under "case_columns" (docs/harness.md): a shard's size and reading
-// time grow with its cases, ~230 bytes each.
+// time grow with its cases, ~265 bytes each.
 std::string HarnessShardJson(const HarnessRun& run);
 HarnessRun ParseHarnessShard(const std::string& json_text, const std::string& origin);
 // The shard files one `harness merge` argument names: the file itself, or the shard-*.json files of a directory,

@@ -24,7 +24,7 @@ using namespace topocal;
 const std::string kPaper = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
 constexpr int kShards = 100;
 constexpr int kDraws = 8000;          // 2 distortions x 3 calibration errors x (1 + 8000 draws) = 48,006 cases
-constexpr size_t kMaxPlotBytes = 300 << 10;  // 5,000 markers of ~45 bytes and the frame: ~230 KB measured
+constexpr size_t kMaxPlotBytes = 300 << 10;  // 5,000 markers of ~45 bytes (~225 KB) and the frame
 
 // A number in [0, 1) from the bits of a case's seed, `k` choosing which.
 double Unit(std::uint64_t seed, int k) {
