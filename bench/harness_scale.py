@@ -4,7 +4,9 @@ a sharded run through scripts/cluster/harness-array.sbatch as a Slurm array runs
 SLURM_ARRAY_TASK_COUNT; here many local processes, --slots at a time), the merge through
 scripts/cluster/harness-merge.sbatch, and `cmp` of every merged file with the single run's. Prints cases/min/core
 (CPU time of the processes, from getrusage of the children), the merge's wall and CPU time and peak RSS, and the
-output sizes, each beside its limit; with --merge-1000, a 1,000-shard run of the largest size and its merge.
+output sizes, each beside its limit; with --merge-1000, a 1,000-shard run of the largest size and its merge; with
+--runner k8s, the tasks run the container command of scripts/cluster/harness-indexed-job.yaml instead
+(JOB_COMPLETION_INDEX, SHARDS = the number of tasks).
 
   nice -n 19 /usr/bin/python3 bench/harness_scale.py --topocal build/tools/topocal --work /tmp/harness-scale-data/bench
   ... --sizes 1e6 --shards 1000            # the million-case run (~30 CPU-minutes per pass at 1.8 ms per case)
@@ -55,18 +57,32 @@ def write_config(work, size):
     return path
 
 
-def sharded(config, shard_dir, n, slots, env, tasks=None):
-    """The array script once per task (the first `tasks` of the n, or all), `slots` tasks at a time (a scheduler's
-    free slots); CPU of all tasks."""
-    array = os.path.join(SOURCE, "scripts/cluster/harness-array.sbatch")
+def task_command(runner, config, shard_dir, n, i, env):
+    """One task as the scheduler starts it: the Slurm array script with its environment, or the container command
+    of the Kubernetes Indexed Job (scripts/cluster/harness-indexed-job.yaml) with JOB_COMPLETION_INDEX and SHARDS
+    (= completions) set to i and n."""
+    if runner == "slurm":
+        return ["bash", os.path.join(SOURCE, "scripts/cluster/harness-array.sbatch")], dict(
+            env, TOPOCAL_HARNESS_CONFIG=config, TOPOCAL_SHARD_DIR=shard_dir, SLURM_ARRAY_TASK_ID=str(i),
+            SLURM_ARRAY_TASK_COUNT=str(n), SLURM_CPUS_PER_TASK="1")
+    import yaml  # python3-yaml, as tests/cli/scale_out_test.py
+    with open(os.path.join(SOURCE, "scripts/cluster/harness-indexed-job.yaml")) as f:
+        container = yaml.safe_load(f)["spec"]["template"]["spec"]["containers"][0]
+    task_env = dict(env, **{e["name"]: e["value"] for e in container["env"]})
+    task_env.update(SHARDS=str(n), HARNESS_CONFIG=config, SHARD_DIR=shard_dir, JOB_COMPLETION_INDEX=str(i))
+    return container["command"] + container["args"], task_env
+
+
+def sharded(config, shard_dir, n, slots, env, tasks=None, runner="slurm"):
+    """Each task (the first `tasks` of the n, or all) through the runner's file, `slots` tasks at a time (a
+    scheduler's free slots); CPU of all tasks."""
     tasks = n if tasks is None else tasks
     cpu0, t0 = children_cpu(), time.monotonic()
     running, next_task = [], 0
     while next_task < tasks or running:
         while next_task < tasks and len(running) < slots:
-            task_env = dict(env, TOPOCAL_HARNESS_CONFIG=config, TOPOCAL_SHARD_DIR=shard_dir,
-                            SLURM_ARRAY_TASK_ID=str(next_task), SLURM_ARRAY_TASK_COUNT=str(n), SLURM_CPUS_PER_TASK="1")
-            running.append((next_task, subprocess.Popen(["bash", array], env=task_env, stdout=subprocess.DEVNULL,
+            command, task_env = task_command(runner, config, shard_dir, n, next_task, env)
+            running.append((next_task, subprocess.Popen(command, env=task_env, stdout=subprocess.DEVNULL,
                                                         stderr=subprocess.DEVNULL)))
             next_task += 1
         task, p = running.pop(0)
@@ -100,12 +116,13 @@ def cases_of(d):
 
 def measure(size, n, args, env, results):
     """Single run, sharded run, merge and cmp of one size; each stage kept in `results` as it completes."""
-    key = f"{size}/{n}"
+    key = f"{size}/{n}" + (f" {args.runner}" if args.runner != "slurm" else "")
     rec = results.setdefault(key, {})
     base = os.path.join(args.work, size)
     os.makedirs(base, exist_ok=True)
     config = write_config(args.work, size)
-    single, shards, merged = (os.path.join(base, d) for d in ("single", f"shards-{n}", f"merged-{n}"))
+    suffix = f"-{args.runner}" if args.runner != "slurm" else ""
+    single, shards, merged = (os.path.join(base, d) for d in ("single", f"shards-{n}{suffix}", f"merged-{n}{suffix}"))
 
     def stage(name, have, run):
         if not (args.resume and name in rec and have()):
@@ -119,7 +136,7 @@ def measure(size, n, args, env, results):
                             env, os.path.join(base, "single.log")))
         rec["single"]["outputs"] = output_sizes(single)
     stage("shards", lambda: len(os.listdir(shards)) == n if os.path.isdir(shards) else False,
-          lambda: sharded(config, shards, n, args.slots, env))
+          lambda: sharded(config, shards, n, args.slots, env, runner=args.runner))
     stage("merge", lambda: os.path.exists(os.path.join(merged, "summary.json")),
           lambda: merge(shards, merged, env, os.path.join(base, f"merge-{n}.log")))
     rec["cases"] = cases_of(merged)
@@ -197,7 +214,7 @@ def rate(cases, cpu_s):
 
 
 def report(results):
-    rows = sorted(results.items(), key=lambda kv: (kv[1].get("cases", 0), int(kv[0].split("/")[1].split()[0])))
+    rows = sorted(results.items(), key=lambda kv: (kv[1].get("cases", 0), int(kv[0].split("/")[1].split()[0]), kv[0]))
     first_rate = None
     print(f"\n{'cases':>9} {'shards':>6} | {'single c/min/core':>17} {'sharded c/min/core':>18} {'vs first':>8} | "
           f"{'merge wall s':>12} {'CPU s':>6} {'RSS MB':>7} | {'single RSS':>10} | {'shards MB':>9} "
@@ -213,8 +230,9 @@ def report(results):
         cases, n = r["cases"], int(key.split("/")[1].split()[0])
         s_rate = rate(cases, r["single"]["cpu_s"]) if "single" in r else float("nan")
         m_rate = rate(cases, r["shards"]["cpu_s"])
-        first_rate = first_rate or (s_rate if s_rate == s_rate else m_rate)
-        ratio = (s_rate if s_rate == s_rate else m_rate) / first_rate
+        if s_rate == s_rate:  # the ratio compares single runs: an array's rate depends on its cases per task
+            first_rate = first_rate or s_rate
+        ratio = s_rate / first_rate if first_rate and s_rate == s_rate else float("nan")
         outs = r["merge"]["outputs"]
         svg = max(v for k, v in outs.items() if k.endswith(".svg")) / 1024
         limit = f" (<= {MERGE_LIMIT_S:.0f})" if n >= 1000 else ""
@@ -224,7 +242,8 @@ def report(results):
               f"{r['merge']['peak_rss_mb']:>7.0f} | {r['single']['peak_rss_mb'] if 'single' in r else float('nan'):>10.0f}"
               f" | {r['shards']['shard_bytes'] / 2**20:>9.1f} {outs['cases.csv'] / 2**20:>7.1f} {svg:>6.0f} | "
               f"{ {True: 'yes', False: 'NO', None: '-'}[r['identical']] }"
-              f"{' (constructed shards: merge only)' if r.get('constructed') else ''}")
+              f"{' (constructed shards: merge only)' if r.get('constructed') else ''}"
+              f"{' (Kubernetes Indexed Job command)' if key.endswith('k8s') else ''}")
     print(f"limits: cases/min/core constant (within {RATE_TOLERANCE:.0%} of the first row: 'vs first' in "
           f"[{1 - RATE_TOLERANCE:.2f}, {1 + RATE_TOLERANCE:.2f}]); merge of 1,000 shards <= {MERGE_LIMIT_S:.0f} s; "
           "merged files byte-identical to the single run; plots of bounded size (<= ~250 KB)")
@@ -238,6 +257,8 @@ def main():
     ap.add_argument("--sizes", default="1e3,1e4,1e5", help="comma-separated, of " + ", ".join(DRAWS))
     ap.add_argument("--shards", type=int, default=100)
     ap.add_argument("--slots", type=int, default=2, help="array tasks running at once (default 2)")
+    ap.add_argument("--runner", choices=("slurm", "k8s"), default="slurm",
+                    help="the tasks through the Slurm array script or the Kubernetes Indexed Job's command")
     ap.add_argument("--merge-1000", action="store_true", help="also split the largest size into 1,000 shards")
     ap.add_argument("--skip-single", action="store_true", help="no single run (cases/min/core from the shards)")
     ap.add_argument("--constructed-merge", metavar="SIZE", help="time the merge of --shards constructed shard "
