@@ -57,12 +57,10 @@ HarnessTruth ReadTruth(util::JsonSection& t_json) {
 
 // The columns of a case row, in order. Rows instead of one object per case: keys are not repeated in every case (the
 // file is 2.2 x smaller, ~265 bytes per case) and a row is read by position, without a lookup per field.
-constexpr const char* kCaseColumns[] = {"index",           "seed",          "ok",
-                                        "failure",         "residual_max_um", "residual_rms_um",
-                                        "spots_used",      "undistort_failures", "dk_x",
-                                        "dk_y",            "dr_x_mm",       "dr_y_mm",
-                                        "dP_axial_max_D",  "dP_tangential_max_D", "dpv_axial_D",
-                                        "dpv_tangential_D", "compared_radius_mm"};
+constexpr const char* kCaseColumns[] = {
+    "index", "seed", "ok", "failure", "residual_max_um", "residual_rms_um", "spots_used", "undistort_failures",
+    "dk_x", "dk_y", "dr_x_mm", "dr_y_mm", "dP_axial_max_D", "dP_tangential_max_D", "dpv_axial_D", "dpv_tangential_D",
+    "compared_radius_mm"};
 constexpr size_t kNumCaseColumns = std::size(kCaseColumns);
 
 // A shard of a million cases is ~265 MB; beyond 1 GiB (~4 million cases in one file) split the run into shards.
