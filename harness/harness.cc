@@ -86,20 +86,26 @@ std::uint64_t HarnessCaseSeed(std::uint64_t config_seed, int index) {
 }
 
 std::vector<HarnessCaseSpec> EnumerateHarnessCases(const HarnessConfig& config) {
+  int total = 0;
+  return EnumerateHarnessCases(config, util::ShardSpec{0, 1}, &total);
+}
+
+std::vector<HarnessCaseSpec> EnumerateHarnessCases(const HarnessConfig& config, util::ShardSpec shard, int* total) {
   std::vector<HarnessCaseSpec> cases;
   int index = 0;
-  // The noise levels and draws of one swept setting.
+  // The noise levels and draws of one swept setting; only the shard's cases are built (a shard of a million-case run
+  // spent 0.5 s and 90 MB on the other shards' cases).
   auto add = [&](const HarnessCaseSpec& setting) {
     for (const double noise : config.noise_px) {
       const int draws = noise > 0 ? config.noise_draws : 1;
-      for (int d = 0; d < draws; ++d) {
+      for (int d = 0; d < draws; ++d, ++index) {
+        if (index % shard.count != shard.index) continue;
         HarnessCaseSpec s = setting;
         s.index = index;
         s.noise_px = noise;
         s.draw = d;
         s.seed = HarnessCaseSeed(config.seed, index);
         cases.push_back(s);
-        ++index;
       }
     }
   };
@@ -136,6 +142,7 @@ std::vector<HarnessCaseSpec> EnumerateHarnessCases(const HarnessConfig& config) 
       }
     }
   }
+  *total = index;
   return cases;
 }
 
@@ -371,12 +378,7 @@ HarnessRun RunHarness(const HarnessConfig& config, util::ShardSpec shard, int jo
   run.config = config;
   run.config_sha256 = HarnessConfigSha256(config);
   run.shard = shard;
-  const auto all = EnumerateHarnessCases(config);
-  run.total_cases = static_cast<int>(all.size());
-  std::vector<HarnessCaseSpec> mine;
-  for (const auto& s : all) {
-    if (s.index % shard.count == shard.index) mine.push_back(s);
-  }
+  const std::vector<HarnessCaseSpec> mine = EnumerateHarnessCases(config, shard, &run.total_cases);
   const HarnessCaseRunner runner(run.config);
   run.truth = runner.truth();
   run.cases.resize(mine.size());

@@ -24,6 +24,7 @@
 // into exactly the cases of a single run. A configuration without assembly axes enumerates exactly as before.
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -93,6 +94,8 @@ struct HarnessTruth {
 
 // Every case of the configuration in the fixed global order.
 std::vector<HarnessCaseSpec> EnumerateHarnessCases(const HarnessConfig& config);
+// The cases of one shard (index % N == i), in the same order; *total is the number of cases of all shards.
+std::vector<HarnessCaseSpec> EnumerateHarnessCases(const HarnessConfig& config, util::ShardSpec shard, int* total);
 // The seed of case `index`: SplitMix64 of (config seed, index).
 std::uint64_t HarnessCaseSeed(std::uint64_t config_seed, int index);
 
@@ -140,7 +143,8 @@ class HarnessCaseRunner {
 };
 
 // A shard as a JSON file and back. Reading checks the format and every field; throws util::InputError naming the
-// file and key.
+// file and key. The cases are one array per line under "case_columns" (docs/harness.md): a shard's size and reading
+// time grow with its cases, ~265 bytes each.
 std::string HarnessShardJson(const HarnessRun& run);
 HarnessRun ParseHarnessShard(const std::string& json_text, const std::string& origin);
 // The shard files one `harness merge` argument names: the file itself, or the shard-*.json files of a directory,
@@ -152,5 +156,23 @@ std::string HarnessShardFileName(util::ShardSpec shard);
 // Combines shards into the run of all cases. Throws util::InputError when the shards come from different
 // configurations or tool versions, when one is missing or given twice, or when a case is missing or duplicated.
 HarnessRun MergeHarnessShards(const std::vector<HarnessRun>& shards, const std::vector<std::string>& origins);
+
+// The same merge one shard at a time, for many or large shards: each shard's cases move into the merged run as it
+// is added (memory: the merged cases and one shard), and the cases of the configuration are enumerated once, not
+// once per shard file. Add() throws as MergeHarnessShards does, as soon as a shard does not belong; Finish() when a
+// shard or a case is missing.
+class HarnessShardMerger {
+ public:
+  void Add(const std::string& json_text, const std::string& origin);  // a shard file's text
+  void Add(HarnessRun shard, const std::string& origin);
+  HarnessRun Finish();
+
+ private:
+  HarnessRun merged_;  // config, truth and the cases filled so far (shard: the first shard's split)
+  std::string first_origin_;
+  std::vector<HarnessCaseSpec> all_;   // every case of the first shard's configuration (read from text)
+  std::map<int, std::string> shards_;  // shard index -> the file it came from
+  std::vector<bool> filled_;           // per case
+};
 
 }  // namespace topocal::harness

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <unordered_set>
 
 #include <fmt/format.h>
 
@@ -101,12 +103,51 @@ std::string GridAndAxes(const ScatterPlot& plot, const Axis& x, const Axis& y) {
   return svg;
 }
 
+// The points of each series that get a marker: all of them, or (beyond plot.max_markers) the first of each series
+// in each occupied cell of `*cell_px` px (hollow and filled markers apart), the cell doubled from the marker's radius
+// until they fit. *cell_px is 0 when every point is drawn.
+std::vector<std::vector<size_t>> MarkedPoints(const ScatterPlot& plot, const Axis& x, const Axis& y, double* cell_px) {
+  std::vector<std::vector<size_t>> marked(plot.series.size());
+  size_t total = 0;
+  for (const auto& s : plot.series) total += s.points.size();
+  *cell_px = 0;
+  if (plot.max_markers == 0 || total <= plot.max_markers) {
+    for (size_t k = 0; k < marked.size(); ++k) {
+      for (size_t i = 0; i < plot.series[k].points.size(); ++i) marked[k].push_back(i);
+    }
+    return marked;
+  }
+  for (double cell = 3;; cell *= 2) {
+    size_t drawn = 0;
+    for (size_t k = 0; k < marked.size(); ++k) {
+      marked[k].clear();
+      std::unordered_set<std::uint64_t> occupied;
+      const auto& points = plot.series[k].points;
+      for (size_t i = 0; i < points.size(); ++i) {
+        const bool clamped = x.Clamped(points[i].x) || y.Clamped(points[i].y);
+        // Pixels lie within [0, kWidth] x [0, kHeight]: the cell indices fit 20 bits each.
+        const auto cx = static_cast<std::uint64_t>(x.Pixel(points[i].x) / cell);
+        const auto cy = static_cast<std::uint64_t>(y.Pixel(points[i].y) / cell);
+        if (occupied.insert((cx << 21) | (cy << 1) | (clamped ? 1 : 0)).second) marked[k].push_back(i);
+      }
+      drawn += marked[k].size();
+    }
+    if (drawn <= plot.max_markers || cell > kWidth) {
+      *cell_px = cell;
+      return marked;
+    }
+  }
+}
+
 // Points, then the reference lines above them.
-std::string PointsAndLines(const ScatterPlot& plot, const Axis& x, const Axis& y) {
+std::string PointsAndLines(const ScatterPlot& plot, const Axis& x, const Axis& y,
+                           const std::vector<std::vector<size_t>>& marked) {
   std::string svg;
-  for (const auto& s : plot.series) {
+  for (size_t k = 0; k < plot.series.size(); ++k) {
+    const auto& s = plot.series[k];
     svg += fmt::format("<g fill=\"{0}\" stroke=\"{0}\" fill-opacity=\"0.55\">\n", EscapeXml(s.colour));
-    for (const auto& p : s.points) {
+    for (const size_t i : marked[k]) {
+      const auto& p = s.points[i];
       const bool clamped = x.Clamped(p.x) || y.Clamped(p.y);
       svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"3\"{}/>\n", x.Pixel(p.x), y.Pixel(p.y),
                          clamped ? " fill=\"none\"" : "");
@@ -132,8 +173,8 @@ std::string PointsAndLines(const ScatterPlot& plot, const Axis& x, const Axis& y
   return svg;
 }
 
-// Legend, and the note under the plot.
-std::string LegendAndNote(const ScatterPlot& plot) {
+// Legend (with how the markers were thinned, when they were), and the note under the plot.
+std::string LegendAndNote(const ScatterPlot& plot, const std::vector<std::vector<size_t>>& marked, double cell_px) {
   std::string svg;
   double ly = kTop + 10;
   for (const auto& s : plot.series) {
@@ -142,6 +183,17 @@ std::string LegendAndNote(const ScatterPlot& plot) {
     svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\">{} ({})</text>\n", kWidth - kRight + 28, ly + 4,
                        EscapeXml(s.label), s.points.size());
     ly += 18;
+  }
+  if (cell_px > 0) {
+    size_t drawn = 0;
+    for (const auto& m : marked) drawn += m.size();
+    const std::string lines[] = {fmt::format("{} markers for", drawn), "the points above:",
+                                 fmt::format("one per {:g} px cell,", cell_px), "the first in it"};
+    for (const auto& line : lines) {
+      svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" font-size=\"11\" fill=\"#444\">{}</text>\n",
+                         kWidth - kRight + 12, ly + 4, line);
+      ly += 14;
+    }
   }
   if (!plot.note.empty()) {
     svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" font-size=\"11\" fill=\"#444\">{}</text>\n", kLeft,
@@ -171,9 +223,11 @@ std::string RenderScatterSvg(const ScatterPlot& plot) {
       kWidth, kHeight);
   svg += fmt::format("<text x=\"{:.1f}\" y=\"24\" text-anchor=\"middle\" font-size=\"15\">{}</text>\n",
                      (kLeft + kWidth - kRight) / 2, EscapeXml(plot.title));
+  double cell_px = 0;
+  const auto marked = MarkedPoints(plot, x, y, &cell_px);
   svg += GridAndAxes(plot, x, y);
-  svg += PointsAndLines(plot, x, y);
-  svg += LegendAndNote(plot);
+  svg += PointsAndLines(plot, x, y, marked);
+  svg += LegendAndNote(plot, marked, cell_px);
   svg += "</svg>\n";
   return svg;
 }

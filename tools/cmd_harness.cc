@@ -78,15 +78,12 @@ void AddHarnessCommand(CLI::App& app) {
   merge->add_option("shards", *inputs, "Shard files, or directories holding shard-<i>-of-<N>.json files")->required();
   merge->callback([=] {
     const NewDirectoryGuard out_guard(*merge_out);  // a failed merge leaves no empty folder
-    std::vector<harness::HarnessRun> shards;
-    std::vector<std::string> origins;
+    // One shard at a time: memory holds the merged cases and one shard file, whatever the number of shards.
+    harness::HarnessShardMerger merger;
     for (const auto& arg : *inputs) {
-      for (const auto& file : harness::ShardFilesIn(arg)) {
-        shards.push_back(harness::ParseHarnessShard(util::ReadFile(file), file));
-        origins.push_back(file);
-      }
+      for (const auto& file : harness::ShardFilesIn(arg)) merger.Add(util::ReadFile(file), file);
     }
-    const auto run = harness::MergeHarnessShards(shards, origins);
+    const auto run = merger.Finish();
     PrepareOutputDirectory(*merge_out);
     WriteOutputs(*merge_out, run);
   });

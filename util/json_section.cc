@@ -1,4 +1,5 @@
 #include "util/json_section.h"
+#include "util/json_strict.h"
 
 #include <stdexcept>
 #include <vector>
@@ -24,10 +25,18 @@ std::string DottedPath(const std::vector<std::string>& path) {
 }  // namespace
 
 nlohmann::json ParseJsonStrict(const std::string& text, const std::string& origin) {
-  using json = nlohmann::json;
   if (text.size() > kMaxJsonBytes) {
     throw ConfigError(fmt::format("{}: {} bytes: larger than the {} MiB a configuration may have", origin, text.size(),
                                   kMaxJsonBytes >> 20));
+  }
+  return ParseJsonStrictUpTo(text, origin, kMaxJsonBytes);
+}
+
+nlohmann::json ParseJsonStrictUpTo(const std::string& text, const std::string& origin, size_t max_bytes) {
+  using json = nlohmann::json;
+  if (text.size() > max_bytes) {
+    throw ConfigError(
+        fmt::format("{}: {} bytes: larger than the {} MiB such a file may have", origin, text.size(), max_bytes >> 20));
   }
   // Nesting depth outside strings, before the (recursive) parser sees the text.
   int depth = 0;
