@@ -492,7 +492,10 @@ TEST_F(UnitCli, BatchCalibratesEveryGoodUnitAndListsTheFailures) {
   };
   write_unit("a", good("SN-A"));
   write_unit("b", fmt::format(R"({{"serial": "SN-B", "target": "{0}/target.yaml", "images": "missing/*.png"}})", in_));
-  write_unit("c", good("SN-C"));
+  // Unit c's reference sphere photographed twice more (here the same file): its record holds the repeatability.
+  std::string c = good("SN-C");
+  c.insert(c.size() - 1, fmt::format(R"(, "sphere_repeats": ["{0}/sphere.png", "{0}/sphere.png"])", in_));
+  write_unit("c", c);
   write_unit("d", R"({"serial": "SN-D", "target": "t.yaml", "images": "v.png", "colour": "red"})");
   const auto r = RunTopocal(fmt::format("unit calibrate-batch {} --out {} --jobs 2 --uncertainty {}", batch.string(),
                                         (dir_ / "records").string(), kDraws));
@@ -502,7 +505,10 @@ TEST_F(UnitCli, BatchCalibratesEveryGoodUnitAndListsTheFailures) {
   EXPECT_NE(r.output.find("colour: unknown key"), std::string::npos) << r.output;  // unit d's reason
   EXPECT_NE(r.output.find("[4/4]"), std::string::npos) << r.output;  // progress, one line per unit off a terminal
   EXPECT_EQ(Entries(dir_ / "records"), (std::vector<std::string>{"SN-A", "SN-C"}));
-  EXPECT_TRUE(fs::exists(dir_ / "records" / "SN-C" / "unit.json"));
+  const json unit_c = json::parse(util::ReadFile((dir_ / "records" / "SN-C" / "unit.json").string()));
+  EXPECT_EQ(unit_c["verification"]["repeatability"]["radius_mm"].size(), 3u);
+  EXPECT_FALSE(json::parse(util::ReadFile((dir_ / "records" / "SN-A" / "unit.json").string()))["verification"]
+                   .contains("repeatability"));
 }
 
 // calibrate-batch --seed reaches every unit's Monte Carlo draws (a test for every option): a unit of the
