@@ -231,13 +231,4 @@ int CheckFlaggedIdentities(correct::DetectAndIndexResult* located, const topo::R
   return dropped;
 }
 
-topo::Analysis AnalyzeThroughDevice(const std::vector<topo::MeasuredSpot>& spots, const model::Device& device,
-                                    const model::Config& config, const model::BiconicParams* truth,
-                                    const topo::AnalysisOptions& options) {
-  const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
-  model::Config as_built = config;
-  as_built.topographer = device.AsBuilt(config.topographer);
-  return topo::AnalyzeSpots(spots, device.PlaceTargets(design.targets, config.topographer), as_built, truth, options);
-}
-
 }  // namespace topocal::pipeline

@@ -12,6 +12,7 @@
 #include "pipeline/capture_quality.h"
 #include "model/config.h"
 #include "model/device.h"
+#include "topo/device_analysis.h"
 #include "model/distortion.h"
 #include "model/topographer_camera.h"
 #include "topo/analysis.h"
@@ -127,12 +128,8 @@ CheckedSpots DetectThroughSurface(const cv::Mat& image, const model::Device& ima
                                   const SpotAnalysis& analyze, const model::Config& config,
                                   const correct::DetectAndIndexOptions& options = {});
 
-// Reconstruction, biconic fit and maps of undistorted spots measured through a device: the design's targets placed
-// where the device's screen puts them, rays traced with the device's a, the vertex reference of the configuration
-// (the datum of the device's calibration). Throws std::runtime_error like topo::AnalyzeSpots.
-topo::Analysis AnalyzeThroughDevice(const std::vector<topo::MeasuredSpot>& spots, const model::Device& device,
-                                    const model::Config& config, const model::BiconicParams* truth,
-                                    const topo::AnalysisOptions& options = {});
+// Reconstruction, biconic fit and maps of undistorted spots measured through a device (topo/device_analysis.h).
+using topo::AnalyzeThroughDevice;
 
 // A raw image of an eye measured through a device as `topocal reconstruct --image --device` measures it: the spots
 // detected, identified and undistorted (MeasureSpots), every spot checked against the surface the others give and

@@ -145,6 +145,12 @@ std::string SweepJson(const topo::SweepResult& r, const std::vector<pipeline::Cl
                     {"synthesis", r.timing.synthesis_ms},
                     {"analysis", r.timing.analysis_ms},
                     {"total", r.timing.total_ms}};
+  if (r.through_device) {
+    // The calibrated unit's answer (the rows are the unit uncalibrated); absent without a device.
+    j["through_device"] = {{"surface_fit", report::SurfaceFitJson(r.through_device->surface_fit)},
+                           {"errors", report::ErrorsJson(*r.through_device)},
+                           {"clinical", report::ClinicalJson(*r.through_device)}};
+  }
   return util::JsonFileText(j);
 }
 

@@ -1,6 +1,10 @@
 #include <fmt/format.h>
 
+#include <optional>
+#include <string>
+
 #include "model/config.h"
+#include "model/device.h"
 #include "model/topographer_camera.h"
 #include "pipeline/closed_loop.h"
 #include "report/analysis_json.h"
@@ -56,6 +60,21 @@ void PrintTableVII(const topo::SweepResult& r) {
              r.ideal_power.pv_axial_D);
 }
 
+// The calibrated unit's answer beside the rows (the unit uncalibrated, assembly and sigma left in).
+void PrintThroughDevice(const topo::SweepResult& r, const std::string& device_path) {
+  if (!r.through_device) return;
+  const auto& a = *r.through_device;
+  const auto& f = a.surface_fit;
+  const auto& p = f.params;
+  fmt::print("\nThrough the device {} with its geometry and the sigma known (the calibrated unit; the rows above are "
+             "the unit uncalibrated)\n", device_path);
+  fmt::print("{:>8}  {:>8}  {:>8}  {:>8}  {:>9}  {:>10}  {:>9}  {:>8}  {:>10}  {:>10}\n", "rx/mm", "ry/mm", "kx", "ky",
+             "alpha/deg", "vertex/um", "apex/mm", "tilt/deg", "pv_m/D", "pv_a/D");
+  fmt::print("{:>8.4f}  {:>8.4f}  {:>8.4f}  {:>8.4f}  {:>9.4f}  {:>10.4f}  {:>9.5f}  {:>8.4f}  {:>10.3f}  {:>10.3f}\n",
+             p.rx_mm, p.ry_mm, p.kx, p.ky, p.alpha_deg, p.z0_mm * 1e3, f.DecentrationMm(), f.TiltDeg(),
+             a.power.pv_tangential_D, a.power.pv_axial_D);
+}
+
 void PrintCorrection(const topo::SweepResult& r, const std::vector<pipeline::ClosedLoopResult>& corrected) {
   fmt::print("\nBefore / after correction — single-view Seidel calibration at the cornea position, spots detected in "
              "the rendered sensor image, undistorted, reconstructed\n");
@@ -106,12 +125,22 @@ void AddSweepCommand(CLI::App& app, const SweepImageStages* image_stages) {
                 "Close the loop for every sigma: calibrate from a rendered target, detect the spots in a rendered "
                 "sensor image, undistort, reconstruct; print before and after side by side");
   cmd->add_option("--camera", *camera, "Topographer camera (JSON) for --correct; default: 1.12 um pitch, a from the config");
+  auto device = std::make_shared<std::string>();
+  cmd->add_option("--device", *device,
+                  "Sweep through this as-built device (docs/device.md): its screen pose and a image the cornea, its own "
+                  "distortion replaced by each sigma; the rows are the unit uncalibrated, and its calibrated answer "
+                  "is printed beside them");
   cmd->callback([=] {
     if ((*correct || !maps->empty()) && !image_stages) throw NeedsFullCli{};  // before any work or output
     const NewDirectoryGuard maps_guard(*maps);  // a failed run leaves no empty --maps folder
     auto cfg = model::LoadConfig(*config);
     overrides->ApplyTo(&cfg);
     if (!camera->empty() && !*correct) throw util::InputError("--camera goes with --correct");
+    if (!device->empty() && *correct) {
+      throw util::InputError("--device: not with --correct (the closed loop calibrates a rendered camera, not a device)");
+    }
+    std::optional<model::Device> as_built;
+    if (!device->empty()) as_built = model::LoadDevice(*device).device;
     // Inputs are checked before any work: a bad camera file fails at once, not after the sweep.
     pipeline::ClosedLoopOptions options;
     if (!camera->empty()) {
@@ -119,12 +148,13 @@ void AddSweepCommand(CLI::App& app, const SweepImageStages* image_stages) {
     } else {
       options.camera.a_mm = cfg.topographer.a_mm;
     }
-    const auto result = topo::RunSweep(cfg);
+    const auto result = topo::RunSweep(cfg, 0, as_built ? &*as_built : nullptr);
     for (const auto& f : result.synthesis_failures) {
       fmt::print(stderr, "topocal sweep: spot ({}, {}) not imaged: {}\n", f.id.ring, f.id.index, f.reason);
     }
     PrintTableV(result);
     PrintTableVI(result);
+    PrintThroughDevice(result, *device);
     PrintTableVII(result);
     PrintClinical(result);
     std::vector<pipeline::ClosedLoopResult> corrected;

@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "model/distortion.h"
+#include "topo/device_analysis.h"
 #include "topo/image_ellipse.h"
 #include "util/parallel.h"
 
@@ -34,7 +35,7 @@ model::SyntheticImage SimulateSpots(const model::Config& config, double sigma_pe
   return image;
 }
 
-SweepResult RunSweep(const model::Config& config, int jobs) {
+SweepResult RunSweep(const model::Config& config, int jobs, const model::Device* device) {
   const auto t_start = std::chrono::steady_clock::now();
   SweepResult result;
   auto t0 = std::chrono::steady_clock::now();
@@ -45,8 +46,10 @@ SweepResult RunSweep(const model::Config& config, int jobs) {
   if (design.targets.empty()) throw std::runtime_error(fmt::format("{}: no spot of the ideal image reaches the cone", config.path));
 
   t0 = std::chrono::steady_clock::now();
-  const auto undistorted = model::SynthesizeImage(model::Biconic{config.cornea},
-                                                  model::Topographer{config.topographer}, design.targets);
+  const auto undistorted =
+      device ? model::SynthesizeImage(model::Biconic{config.cornea}, *device, config.topographer, design.targets)
+             : model::SynthesizeImage(model::Biconic{config.cornea}, model::Topographer{config.topographer},
+                                      design.targets);
   result.timing.synthesis_ms = MsSince(t0);
   result.synthesis_failures = undistorted.failures;
   const int outer_ring = config.ideal_image.rings_N + 1;
@@ -100,6 +103,15 @@ SweepResult RunSweep(const model::Config& config, int jobs) {
     if (!e.empty()) throw std::runtime_error(e);
   }
   for (const double ms : analysis_ms) result.timing.analysis_ms += ms;
+  if (device) {
+    std::vector<MeasuredSpot> exact;
+    for (const auto& s : undistorted.spots) exact.push_back({s.id, s.position_mm});
+    try {
+      result.through_device = AnalyzeThroughDevice(exact, *device, config, &config.cornea);
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(fmt::format("{}: through the device: {}", config.path, e.what()));
+    }
+  }
   result.timing.total_ms = MsSince(t_start);
   return result;
 }

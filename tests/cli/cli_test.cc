@@ -11,6 +11,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <tuple>
 #include <utility>
 
 #include "tests/cli_harness.h"
@@ -66,6 +67,37 @@ TEST_F(Cli, SweepPrintsTableVAndWritesJson) {
   EXPECT_NEAR(sweep["rows"][3]["surface_fit"]["rx_mm"].get<double>(), 8.35, 0.002);
   EXPECT_NEAR(sweep["rows"][3]["surface_fit"]["ry_mm"].get<double>(), 7.63, 0.002);
   EXPECT_EQ(r.output.find("nan"), std::string::npos);
+}
+
+// The sweep through an as-built unit (cone tilted 0.8 / -0.5 / 0.3 deg and moved 0.1 / -0.05 / 0.3 mm): the rows are
+// the unit uncalibrated, its calibrated answer (geometry and sigma known) is the paper cornea.
+TEST_F(Cli, SweepThroughADeviceGivesTheUncalibratedRowsAndTheCalibratedAnswer) {
+  Write("unit.json", R"({"format": "topocal-device", "format_version": 1,
+    "camera": {"pixel_pitch_um": 1.12, "width_px": 4000, "height_px": 3000, "principal_point_px": [1999.5, 1499.5],
+               "a_mm": 5.2},
+    "distortion": {"model": "seidel", "sigma_per_mm2": 0},
+    "screen_pose": {"rx_deg": 0.8, "ry_deg": -0.5, "rz_deg": 0.3, "tx_mm": 0.1, "ty_mm": -0.05, "tz_mm": 0.3}})");
+  const auto r = RunTopocal("sweep --config " + paper_ + " --device " + Path("unit.json") + " --json " + Path("s.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("Through the device"), std::string::npos) << r.output;
+  const auto sweep = nlohmann::json::parse(std::ifstream(Path("s.json")));
+  // Calibrated: the paper cornea within the closed loop's bounds (0.002 mm, 0.005); regression bounds near the
+  // errors measured 2026-12-07 (rx +2.6e-6 mm, ry +5.1e-6 mm, kx +2.4e-6, ky +6.8e-6).
+  const auto& fit = sweep["through_device"]["surface_fit"];
+  for (const auto& [key, truth, limit, bound] : {std::tuple{"rx_mm", 8.35, 0.002, 5e-5}, std::tuple{"ry_mm", 7.63, 0.002, 5e-5},
+                                                 std::tuple{"kx", -0.43, 0.005, 5e-5}, std::tuple{"ky", -0.25, 0.005, 5e-5}}) {
+    EXPECT_NEAR(fit[key].get<double>(), truth, limit) << key;
+    EXPECT_NEAR(fit[key].get<double>(), truth, bound) << key;
+  }
+  // Uncalibrated, even without distortion (sigma = 0), the assembly alone moves k_x by 0.03 and reads a 9 deg eye
+  // tilt that is not there (measured: kx -0.3986, tilt 9.44 deg).
+  const auto& row0 = sweep["rows"][3]["surface_fit"];
+  EXPECT_GT(std::abs(row0["kx"].get<double>() + 0.43), 0.01);
+  EXPECT_GT(row0["tilt_deg"].get<double>(), 1.0);
+  // With --correct (the closed loop renders a camera, not a device): bad input before any work.
+  const auto bad = RunTopocal("sweep --config " + paper_ + " --device " + Path("unit.json") + " --correct");
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_EQ(bad.output.find("Table V"), std::string::npos) << bad.output;
 }
 
 TEST_F(Cli, SweepCorrectPrintsBeforeAndAfterAndWritesTheCorrectedRows) {
