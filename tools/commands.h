@@ -14,15 +14,11 @@
 #include "pipeline/closed_loop.h"
 #include "topo/sweep.h"
 #include "util/io.h"
+#include "util/verdict.h"
 
 namespace topocal::tools {
 
-// A check that ran to the end and said no (a QA verdict of FAIL): the output is complete and written; main() prints
-// the message and exits 3, so that a production line's script can gate on the verdict.
-class VerdictFailed : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+using util::VerdictFailed;
 
 void AddDesignCommand(CLI::App& app);
 void AddSimulateCommand(CLI::App& app);
