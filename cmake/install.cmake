@@ -10,18 +10,19 @@ set(TOPOCAL_MODULES util model imageio plot calib correct topo pipeline harness 
 
 foreach(module ${TOPOCAL_MODULES})
   set_target_properties(topocal_${module} PROPERTIES EXPORT_NAME ${module})
-  # Consumers write #include <topocal/model/device.h>; topocal's own headers include "model/config.h", which the
-  # second directory resolves.
-  target_include_directories(topocal_${module} INTERFACE $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>
-                                                         $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}/topocal>)
-  install(DIRECTORY ${PROJECT_SOURCE_DIR}/${module}/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/topocal/${module}
-          COMPONENT dev FILES_MATCHING PATTERN "*.h")
+  # Consumers write #include <topocal/model/device.h>, and so do the installed headers (cmake/install_headers.cmake).
+  target_include_directories(topocal_${module} INTERFACE $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
 endforeach()
+install(CODE "
+  set(TOPOCAL_SOURCE_DIR \"${PROJECT_SOURCE_DIR}\")
+  set(TOPOCAL_BINARY_DIR \"${PROJECT_BINARY_DIR}\")
+  set(TOPOCAL_INCLUDE_DESTINATION \"${CMAKE_INSTALL_INCLUDEDIR}/topocal\")
+  set(TOPOCAL_MODULES \"${TOPOCAL_MODULES}\")
+  set(TOPOCAL_GENERATED_HEADERS util/version.h)
+  include(\"${PROJECT_SOURCE_DIR}/cmake/install_headers.cmake\")" COMPONENT dev)
 list(TRANSFORM TOPOCAL_MODULES PREPEND topocal_ OUTPUT_VARIABLE TOPOCAL_LIBRARY_TARGETS)
 install(TARGETS ${TOPOCAL_LIBRARY_TARGETS} EXPORT topocalTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev)
-install(FILES ${PROJECT_BINARY_DIR}/generated/util/version.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/topocal/util
-        COMPONENT dev)
 install(TARGETS topocal RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT cli)
 # Every verb, and `--version` and the sweep without OpenCV; `topocal` (tools/launcher.cc) runs them from
 # <bindir>/../<libexecdir>.
