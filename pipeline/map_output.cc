@@ -24,7 +24,7 @@ constexpr int kGridSide = 241;
 // The sim-K axes are drawn when the cylinder shows at the printed resolution (0.01 D).
 constexpr double kMinDrawnCylinderD = 0.005;  // samples per side of the Cartesian grids (0.05 mm steps over +-6 mm)
 
-plot::GridMap PowerGrid(const topo::PowerMaps& pm, const std::vector<double>& values, const std::string& title) {
+model::GridMap PowerGrid(const topo::PowerMaps& pm, const std::vector<double>& values, const std::string& title) {
   topo::PolarField field;
   field.meridians = pm.meridians;
   for (int k = 0; k < pm.radial_samples; ++k) field.radii_mm.push_back(pm.RhoMm(k));
@@ -33,8 +33,8 @@ plot::GridMap PowerGrid(const topo::PowerMaps& pm, const std::vector<double>& va
 }
 
 template <typename F>
-plot::GridMap CartesianGrid(double radius_mm, const std::string& title, const std::string& unit, F value) {
-  plot::GridMap g;
+model::GridMap CartesianGrid(double radius_mm, const std::string& title, const std::string& unit, F value) {
+  model::GridMap g;
   g.x_min_mm = g.y_min_mm = -radius_mm;
   g.x_max_mm = g.y_max_mm = radius_mm;
   g.nx = g.ny = kGridSide;
@@ -76,7 +76,7 @@ AnalysisGrids AnalysisGridsOf(const topo::Analysis& a) {
   g.tangential_D = PowerGrid(pm, pm.tangential_D, "Tangential power");
   // The recovered surface: Psi plus the spline residual in spline mode (topo/reconstruction.h).
   const auto& rec = a.reconstruction;
-  const plot::GridMap sag =
+  const model::GridMap sag =
       CartesianGrid(a.covered_radius_mm, "", "\u00b5m", [&](double x, double y) { return rec.Height(x, y) * 1e3; });
   // Elevation above the clinical indices' best-fit sphere (one fit, topo/clinical_indices.h); without the indices
   // (data short of the sim-K ring) the same sag fit (topo/sphere_fit.h) over the whole map.
@@ -109,10 +109,10 @@ namespace {
 
 struct PendingMap {
   PendingMap() = default;
-  PendingMap(std::string file_in, plot::GridMap grid_in, std::vector<std::string> annotations_in = {})
+  PendingMap(std::string file_in, model::GridMap grid_in, std::vector<std::string> annotations_in = {})
       : file(std::move(file_in)), grid(std::move(grid_in)), annotations(std::move(annotations_in)) {}
   std::string file;  // without extension
-  plot::GridMap grid;
+  model::GridMap grid;
   std::vector<std::string> annotations;
   // Clinical overlays (plot::MapImageOptions): markers, sim-K axes, supported circle, legend.
   std::vector<plot::MapMarker> markers;
@@ -132,7 +132,7 @@ struct MapJob {
 void AddKind(const std::vector<PendingMap>& maps, const plot::MapScaleRequest& request, const MapSetOptions& o,
              bool rings, std::vector<MapJob>* jobs) {
   if (maps.empty()) return;
-  std::vector<const plot::GridMap*> grids;
+  std::vector<const model::GridMap*> grids;
   for (const PendingMap& m : maps) grids.push_back(&m.grid);
   const plot::MapScale scale = plot::SelectMapScale(grids, request);
   for (const PendingMap& m : maps) {

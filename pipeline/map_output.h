@@ -65,8 +65,8 @@ void WriteAnalysisMapSet(const std::string& dir, const std::vector<AnalysisMapEn
 // recovered sag over the covered disc) — absent when no sphere fits. 241 x 241 samples over the map's disc; NaN
 // outside it.
 struct AnalysisGrids {
-  plot::GridMap axial_D, tangential_D;
-  std::optional<plot::GridMap> elevation_um;
+  model::GridMap axial_D, tangential_D;
+  std::optional<model::GridMap> elevation_um;
   topo::SphereFit best_fit_sphere;
 };
 AnalysisGrids AnalysisGridsOf(const topo::Analysis& analysis);

@@ -150,13 +150,13 @@ constexpr MapKind kMapKinds[] = {{"axial_power", "Axial power change, B - A", 0.
 // steps to hold larger changes; so two comparisons' maps read alike.
 constexpr int kChangeStepsEachSide = 10;
 
-plot::GridMap ReadPair(const std::string& dir, const char* stem) {
+model::GridMap ReadPair(const std::string& dir, const char* stem) {
   return plot::ReadMapCsv((std::filesystem::path(dir) / (std::string(stem) + ".csv")).string());
 }
 
 // The map's value at (x, y) mm, bilinear between its four neighbouring samples; NaN outside the grid or where a
 // neighbour has no data.
-double SampleAt(const plot::GridMap& m, double x, double y) {
+double SampleAt(const model::GridMap& m, double x, double y) {
   const double fi = (x - m.x_min_mm) / (m.x_max_mm - m.x_min_mm) * (m.nx - 1);
   const double fj = (y - m.y_min_mm) / (m.y_max_mm - m.y_min_mm) * (m.ny - 1);
   constexpr double kEdge = 1e-9;  // a sample on the grid's edge is inside it
@@ -169,11 +169,11 @@ double SampleAt(const plot::GridMap& m, double x, double y) {
 
 // `b` on the grid of `a` (the measurements' maps may cover different discs: each is drawn to its own data). Throws
 // util::InputError naming b_file when the units differ.
-plot::GridMap OnGridOf(const plot::GridMap& a, const plot::GridMap& b, const std::string& b_file) {
+model::GridMap OnGridOf(const model::GridMap& a, const model::GridMap& b, const std::string& b_file) {
   if (a.unit != b.unit) {
     throw util::InputError(fmt::format("{}: in {}, its counterpart in {}", b_file, b.unit, a.unit));
   }
-  plot::GridMap out = a;
+  model::GridMap out = a;
   for (int j = 0; j < a.ny; ++j) {
     const double y = a.y_min_mm + j * (a.y_max_mm - a.y_min_mm) / (a.ny - 1);
     for (int i = 0; i < a.nx; ++i) {
@@ -185,7 +185,7 @@ plot::GridMap OnGridOf(const plot::GridMap& a, const plot::GridMap& b, const std
 }
 
 // A fixed scale of `step` over [low, high] steps, widened by whole steps to hold the data.
-plot::MapScale FixedScale(const std::vector<const plot::GridMap*>& maps, double step, int low_steps, int high_steps) {
+plot::MapScale FixedScale(const std::vector<const model::GridMap*>& maps, double step, int low_steps, int high_steps) {
   plot::MapScaleRequest r;
   r.kind = plot::MapScaleKind::kAbsolute;
   r.step = step;
@@ -200,8 +200,8 @@ plot::MapScale FixedScale(const std::vector<const plot::GridMap*>& maps, double 
 MapComparison CompareMapDirectories(const std::string& a_dir, const std::string& b_dir) {
   MapComparison out;
   for (const MapKind& kind : kMapKinds) {
-    const plot::GridMap a = ReadPair(a_dir, kind.stem);
-    const plot::GridMap b =
+    const model::GridMap a = ReadPair(a_dir, kind.stem);
+    const model::GridMap b =
         OnGridOf(a, ReadPair(b_dir, kind.stem), (std::filesystem::path(b_dir) / (std::string(kind.stem) + ".csv")).string());
     MapChange c;
     c.name = std::string(kind.stem) + "_change";
@@ -214,9 +214,9 @@ MapComparison CompareMapDirectories(const std::string& a_dir, const std::string&
   const auto ua_file = std::filesystem::path(a_dir) / "axial_uncertainty.csv";
   const auto ub_file = std::filesystem::path(b_dir) / "axial_uncertainty.csv";
   if (std::filesystem::exists(ua_file) && std::filesystem::exists(ub_file)) {
-    const plot::GridMap& axial = out.maps.front().map;
-    const plot::GridMap ua = OnGridOf(axial, plot::ReadMapCsv(ua_file.string()), ua_file.string());
-    const plot::GridMap ub = OnGridOf(axial, plot::ReadMapCsv(ub_file.string()), ub_file.string());
+    const model::GridMap& axial = out.maps.front().map;
+    const model::GridMap ua = OnGridOf(axial, plot::ReadMapCsv(ua_file.string()), ua_file.string());
+    const model::GridMap ub = OnGridOf(axial, plot::ReadMapCsv(ub_file.string()), ub_file.string());
     MapChange u;
     u.name = "axial_change_uncertainty";
     u.map = ua;

@@ -45,7 +45,7 @@ MeasurementComparison CompareMeasurements(const nlohmann::json& a, const std::st
 struct MapChange {
   std::string name;  // file stem: axial_power_change, tangential_power_change, elevation_change,
                      // axial_change_uncertainty
-  plot::GridMap map;
+  model::GridMap map;
   plot::MapScale scale;
   std::vector<std::string> annotations;
 };

@@ -6,8 +6,7 @@
 // (kept out of this header: topocal_plot links OpenCV privately, so callers get raw 8-bit BGR pixels, not a cv::Mat).
 // See docs/maps.md for the conventions.
 //
-// Frame: the topographer's (x, y) in mm, the cornea seen from the camera, x to the right and y UP on the image
-// (row 0 of the grid is y_min and is drawn at the bottom of the plot). Equal scale on both axes.
+// Frame: model/grid_map.h's (row 0 of the grid, y_min, is drawn at the bottom of the plot). Equal scale on both axes.
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -15,19 +14,11 @@
 #include <string>
 #include <vector>
 
+#include "model/grid_map.h"
+
 namespace topocal::plot {
 
-// A scalar field sampled on a regular grid over [x_min, x_max] x [y_min, y_max] (sample points include the edges:
-// x_i = x_min + i (x_max - x_min) / (nx - 1)). NaN = no data (outside the measured zone).
-struct GridMap {
-  double x_min_mm = -1.0, x_max_mm = 1.0, y_min_mm = -1.0, y_max_mm = 1.0;
-  int nx = 0, ny = 0;
-  std::vector<double> values;  // row-major, values[j * nx + i] at (x_i, y_j), row 0 at y_min
-  std::string title;           // e.g. "Axial power, sigma = 2e-4 /mm^2"
-  std::string unit;            // e.g. "D" or "µm"
-  double At(int i, int j) const { return values[static_cast<size_t>(j) * nx + i]; }
-  bool IsValid(std::string* why) const;
-};
+using model::GridMap;  // the maps plot/ draws are model/grid_map.h's
 
 // Colour scales of OpenCV's applyColorMap. Turbo (default): Google's perceptually smoothed rainbow, low = blue,
 // high = red, the clinical convention for power maps (steep = warm). Jet: the classic rainbow, for comparison.

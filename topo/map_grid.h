@@ -1,12 +1,12 @@
 #pragma once
 // The data grids of maps (docs/maps.md): a polar field resampled onto the Cartesian grid the maps are drawn from, and
-// the elevation above a sphere. The grid type and its drawing (PNG) and CSV belong to the plotting layer
-// (plot/map_image.h); topo computes the values, pipeline/map_output.h writes the files.
+// the elevation above a sphere. The grid type is model/grid_map.h; topo computes the values,
+// plot/map_image.h draws them and pipeline/map_output.h writes the files.
 #include <string>
 #include <vector>
 
 #include "model/surface.h"
-#include "plot/map_image.h"
+#include "model/grid_map.h"
 
 namespace topocal::topo {
 
@@ -21,13 +21,13 @@ struct PolarField {
 // Resamples a polar field onto an n x n grid over [-R, R]^2, R = the largest radius: bilinear in (r, angle),
 // periodic in angle; NaN beyond R; inside the smallest radius the innermost ring's value on that meridian.
 // Throws std::invalid_argument on an inconsistent field or n < 2.
-plot::GridMap ResamplePolar(const PolarField& field, int n, std::string title, std::string unit);
+model::GridMap ResamplePolar(const PolarField& field, int n, std::string title, std::string unit);
 
 // Elevation above a sphere (the best-fit sphere of the clinical indices, topo/clinical_indices.h, fitted by
 // topo/sphere_fit.h — this only evaluates it), um: sphere sag - surface sag, positive where the surface stands in
 // front of the sphere (towards the camera), the clinical sign. `sag_um` is the surface's sag in um (z into the eye,
 // as topo/ heights); the sphere's cap facing the camera is used. Samples beyond the sphere's equator and no-data
 // samples have no data. Keeps the grid and sets the unit to "µm"; the title is the caller's.
-plot::GridMap ElevationAboveSphere(const plot::GridMap& sag_um, const model::Sphere& sphere);
+model::GridMap ElevationAboveSphere(const model::GridMap& sag_um, const model::Sphere& sphere);
 
 }  // namespace topocal::topo

@@ -115,7 +115,7 @@ std::vector<topo::MeasuredSpot> SpotsFrom(const py::array& spots) {
   return out;
 }
 
-py::dict GridDict(const plot::GridMap& g) {
+py::dict GridDict(const model::GridMap& g) {
   py::array_t<double> values({static_cast<py::ssize_t>(g.ny), static_cast<py::ssize_t>(g.nx)});
   std::copy(g.values.begin(), g.values.end(), values.mutable_data());
   py::array_t<double> x(g.nx), y(g.ny);

@@ -231,7 +231,7 @@ TEST_F(Cli, UsageErrorsExitTwoAndHelpExitsZero) {
 nlohmann::json ReadJson(const std::string& path) { return nlohmann::json::parse(std::ifstream(path)); }
 
 // --eye names the eye measured: the JSON records it and the maps carry its sides (the drawing's own test,
-// tests/topo/map_image_test.cc, checks the labels' pixels); anything but OD or OS is refused.
+// tests/plot/map_image_test.cc, checks the labels' pixels); anything but OD or OS is refused.
 TEST_F(Cli, ReconstructEyeIsRecordedAndLabelsTheMaps) {
   ASSERT_EQ(RunTopocal("simulate --config " + paper_ + " --sigma 0 --out " + Path("s.csv")).exit_code, 0);
   auto r = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("s.csv") + " --eye OS --json " +

@@ -21,7 +21,7 @@ namespace fs = std::filesystem;
 using topocal::testing_cli::RunTopocal;
 
 // A CSV written by plot::WriteMapCsv (square grid, y then x ascending, empty = no data) back as a GridMap.
-plot::GridMap ReadGridCsv(const std::string& path, const std::string& unit) {
+model::GridMap ReadGridCsv(const std::string& path, const std::string& unit) {
   std::istringstream in(util::ReadFile(path));
   std::string line;
   std::getline(in, line);
@@ -33,7 +33,7 @@ plot::GridMap ReadGridCsv(const std::string& path, const std::string& unit) {
     const std::string v = line.substr(b + 1);
     values.push_back(v.empty() ? std::nan("") : std::stod(v));
   }
-  plot::GridMap g;
+  model::GridMap g;
   g.nx = g.ny = static_cast<int>(std::lround(std::sqrt(static_cast<double>(values.size()))));
   g.x_min_mm = xs.front();
   g.x_max_mm = xs.back();
@@ -55,12 +55,12 @@ TEST(SweepMaps, EveryPowerMapOfASweepSharesOneScale) {
   }
   std::sort(sigmas.begin(), sigmas.end());
   ASSERT_GE(sigmas.size(), 5u);  // the paper's sigmas
-  std::vector<plot::GridMap> axial, elevation;
+  std::vector<model::GridMap> axial, elevation;
   for (const std::string& s : sigmas) {
     axial.push_back(ReadGridCsv(dir + "/" + s + "_axial_power.csv", "D"));
     elevation.push_back(ReadGridCsv(dir + "/" + s + "_elevation.csv", "\u00b5m"));
   }
-  std::vector<const plot::GridMap*> axial_set, elevation_set;
+  std::vector<const model::GridMap*> axial_set, elevation_set;
   for (const auto& g : axial) axial_set.push_back(&g);
   for (const auto& g : elevation) elevation_set.push_back(&g);
 
