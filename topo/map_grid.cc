@@ -12,7 +12,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 }  // namespace
 
-plot::GridMap ResamplePolar(const PolarField& field, int n, std::string title, std::string unit) {
+model::GridMap ResamplePolar(const PolarField& field, int n, std::string title, std::string unit) {
   const size_t nr = field.radii_mm.size();
   if (n < 2) throw std::invalid_argument("ResamplePolar: n must be at least 2");
   if (nr < 2 || field.meridians < 1 || field.values.size() != nr * field.meridians) {
@@ -24,7 +24,7 @@ plot::GridMap ResamplePolar(const PolarField& field, int n, std::string title, s
     }
   }
   const double R = field.radii_mm.back();
-  plot::GridMap g;
+  model::GridMap g;
   g.x_min_mm = g.y_min_mm = -R;
   g.x_max_mm = g.y_max_mm = R;
   g.nx = g.ny = n;
@@ -57,10 +57,10 @@ plot::GridMap ResamplePolar(const PolarField& field, int n, std::string title, s
   return g;
 }
 
-plot::GridMap ElevationAboveSphere(const plot::GridMap& sag_um, const model::Sphere& sphere) {
+model::GridMap ElevationAboveSphere(const model::GridMap& sag_um, const model::Sphere& sphere) {
   std::string why;
   if (!sag_um.IsValid(&why)) throw std::invalid_argument("GridMap: " + why);
-  plot::GridMap out = sag_um;
+  model::GridMap out = sag_um;
   for (int j = 0; j < sag_um.ny; ++j) {
     const double y = sag_um.y_min_mm + j * (sag_um.y_max_mm - sag_um.y_min_mm) / (sag_um.ny - 1);
     for (int i = 0; i < sag_um.nx; ++i) {
