@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "calib/file_storage.h"
+#include "calib/yaml_section.h"
 #include "calib/opencv_equivalent.h"
 #include "calib/parameter_range.h"
 #include "util/io.h"
@@ -34,86 +35,19 @@ std::optional<double> SingleViewDistance(const CalibrationResult& r) {
 
 // ---- strict reading ----------------------------------------------------------------------------------------------
 
-[[noreturn]] void Bad(const std::string& path, const std::string& key, const std::string& problem) {
-  throw util::InputError(fmt::format("{}: {}: {}", path, key, problem));
-}
-
-cv::Mat ReadMatrix(const cv::FileStorage& fs, const std::string& path, const std::string& key, int rows, int cols,
-                   bool required) {
-  const cv::FileNode node = fs[key];
-  if (node.empty()) {
-    if (required) Bad(path, key, "missing");
-    return {};
-  }
-  // The declared size first: "rows: 100000, cols: 100000" would have OpenCV allocate 80 GB before it notices that
-  // the data are missing.
-  if (node.isMap()) {
-    const cv::FileNode r = node["rows"], c = node["cols"];
-    if (!r.isInt() || !c.isInt()) Bad(path, key, "not an OpenCV matrix (rows, cols)");
-    const int nr = static_cast<int>(r), nc = static_cast<int>(c);
-    const bool vector_shape = (rows == 1 || cols == 1) && (nr == 1 || nc == 1) &&
-                              static_cast<long long>(nr) * nc == static_cast<long long>(rows) * cols;
-    if (!(nr == rows && nc == cols) && !vector_shape) {
-      Bad(path, key, fmt::format("expected {}x{}, found {}x{}", rows, cols, nr, nc));
-    }
-  }
-  cv::Mat m;
-  try {
-    node >> m;
-  } catch (const cv::Exception&) {
-    Bad(path, key, "not an OpenCV matrix");
-  }
-  if (m.empty()) Bad(path, key, "not an OpenCV matrix");
-  // Distortion vectors are accepted as a row or a column, as cv::undistort does.
-  const bool vector_ok = (rows == 1 || cols == 1) && static_cast<int>(m.total()) == rows * cols && m.channels() == 1;
-  if (!(m.rows == rows && m.cols == cols) && !vector_ok) {
-    Bad(path, key, fmt::format("expected {}x{}, found {}x{}", rows, cols, m.rows, m.cols));
-  }
-  m.convertTo(m, CV_64F);
-  for (int i = 0; i < static_cast<int>(m.total()); ++i) {
-    if (!std::isfinite(m.at<double>(i))) Bad(path, key, "non-finite value");
-  }
-  return m.reshape(1, rows);
-}
-
-int ReadPositiveInt(const cv::FileStorage& fs, const std::string& path, const std::string& key) {
-  const cv::FileNode node = fs[key];
-  if (node.empty()) Bad(path, key, "missing");
-  if (!node.isInt()) Bad(path, key, "not an integer");
-  const int v = static_cast<int>(node);
-  if (v <= 0) Bad(path, key, "must be > 0");
-  return v;
-}
-
-std::optional<double> ReadOptionalReal(const cv::FileStorage& fs, const std::string& path, const std::string& key) {
-  const cv::FileNode node = fs[key];
-  if (node.empty()) return std::nullopt;
-  if (!node.isReal() && !node.isInt()) Bad(path, key, "not a number");
-  const double v = static_cast<double>(node);
-  if (!std::isfinite(v)) Bad(path, key, "non-finite value");
-  return v;
-}
-
-std::string ReadOptionalString(const cv::FileStorage& fs, const std::string& path, const std::string& key) {
-  const cv::FileNode node = fs[key];
-  if (node.empty()) return {};
-  if (!node.isString()) Bad(path, key, "not a string");
-  return static_cast<std::string>(node);
-}
-
-void SetIntrinsics(const cv::Mat& k, const std::string& path, const std::string& key, model::CameraModel& cam) {
+void SetIntrinsics(const cv::Mat& k, YamlSection& yaml, const std::string& key, model::CameraModel& cam) {
   if (k.at<double>(0, 1) != 0 || k.at<double>(1, 0) != 0 || k.at<double>(2, 0) != 0 || k.at<double>(2, 1) != 0 ||
       k.at<double>(2, 2) != 1) {
-    Bad(path, key, "not a pinhole camera matrix [fx 0 cx; 0 fy cy; 0 0 1]");
+    yaml.Fail(key, "not a pinhole camera matrix [fx 0 cx; 0 fy cy; 0 0 1]");
   }
-  if (!(k.at<double>(0, 0) > 0 && k.at<double>(1, 1) > 0)) Bad(path, key, "focal lengths must be > 0");
+  if (!(k.at<double>(0, 0) > 0 && k.at<double>(1, 1) > 0)) yaml.Fail(key, "focal lengths must be > 0");
   cam.fx_px = k.at<double>(0, 0);
   cam.fy_px = k.at<double>(1, 1);
   cam.cx_px = k.at<double>(0, 2);
   cam.cy_px = k.at<double>(1, 2);
 }
 
-CalibrationFile ReadCalibration(const cv::FileStorage& fs, const std::string& path);
+CalibrationFile ReadCalibration(YamlSection& yaml);
 
 void SetDistortion(const cv::Mat& d, model::CameraModel& cam) {
   for (int i = 0; i < 5; ++i) cam.dist[static_cast<size_t>(i)] = d.at<double>(i);
@@ -122,28 +56,28 @@ void SetDistortion(const cv::Mat& d, model::CameraModel& cam) {
 // OpenCV writes 4, 5, 8, 12 or 14 distortion coefficients (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]) depending
 // on the calibration flags of the tool that made the file. topocal's model holds the first five: a shorter vector
 // means k3 = 0, a longer one is accepted only when the rational, thin-prism and tilt terms are all zero.
-cv::Mat ReadOpenCvDistortion(const cv::FileStorage& fs, const std::string& path, const std::string& key) {
+cv::Mat ReadOpenCvDistortion(YamlSection& yaml, const std::string& key) {
+  const cv::FileNode node = yaml.Node(key);
   cv::Mat d;
   try {
-    fs[key] >> d;
+    node >> d;
   } catch (const cv::Exception&) {
-    Bad(path, key, "not an OpenCV matrix");
+    yaml.Fail(key, "not an OpenCV matrix");
   }
   const int n = static_cast<int>(d.total());
-  if (fs[key].empty()) Bad(path, key, "missing");
   if (d.empty() || d.channels() != 1 || (d.rows != 1 && d.cols != 1) || (n != 4 && n != 5 && n != 8 && n != 12 && n != 14)) {
-    Bad(path, key, fmt::format("expected 4, 5, 8, 12 or 14 coefficients in a row or column, found {}x{}", d.rows, d.cols));
+    yaml.Fail(key, fmt::format("expected 4, 5, 8, 12 or 14 coefficients in a row or column, found {}x{}", d.rows, d.cols));
   }
-  if (n == 5) return ReadMatrix(fs, path, key, 1, 5, true);
+  if (n == 5) return yaml.Matrix(key, 1, 5);
   d.convertTo(d, CV_64F);
   cv::Mat five = cv::Mat::zeros(1, 5, CV_64F);
   for (int i = 0; i < n; ++i) {
     const double v = d.at<double>(i);
-    if (!std::isfinite(v)) Bad(path, key, "non-finite value");
+    if (!std::isfinite(v)) yaml.Fail(key, "non-finite value");
     if (i < 5) {
       five.at<double>(i) = v;
     } else if (v != 0) {
-      Bad(path, key, fmt::format("coefficient {} is {} but topocal's model ends at k3 (OpenCV's rational, thin-prism "
+      yaml.Fail(key, fmt::format("coefficient {} is {} but topocal's model ends at k3 (OpenCV's rational, thin-prism "
                                  "and tilt terms must be 0)", i + 1, v));
     }
   }
@@ -236,54 +170,56 @@ CalibrationFile LoadCalibrationFile(const std::string& path) {
 CalibrationFile ParseCalibrationFile(const std::string& text, const std::string& path) {
   const cv::FileStorage fs = OpenFileStorage(text, path);
   // A node of an unexpected type deep in the file: bad input, not a crash.
-  return ReadFileStorage(path, "a calibration", [&] { return ReadCalibration(fs, path); });
+  return ReadFileStorage(path, "a calibration", [&] {
+    YamlSection yaml(fs.root(), path);
+    return ReadCalibration(yaml);
+  });
 }
 
 namespace {
 
-Eigen::MatrixXd ReadCovariance(const cv::FileStorage& fs, const std::string& path, int n) {
-  const cv::Mat cov = ReadMatrix(fs, path, "parameter_covariance", n, n, true);
+Eigen::MatrixXd ReadCovariance(YamlSection& yaml, int n) {
+  const cv::Mat cov = yaml.Matrix("parameter_covariance", n, n);
   Eigen::MatrixXd m(n, n);
   for (int r = 0; r < n; ++r) {
     for (int c = 0; c < n; ++c) m(r, c) = cov.at<double>(r, c);
   }
   // Written symmetric to full precision; anything beyond rounding is a corrupt file.
   constexpr double kSymmetryTolerance = 1e-9;
-  if (!m.allFinite()) Bad(path, "parameter_covariance", "non-finite entry");
+  if (!m.allFinite()) yaml.Fail("parameter_covariance", "non-finite entry");
   if ((m - m.transpose()).cwiseAbs().maxCoeff() > kSymmetryTolerance * m.cwiseAbs().maxCoeff()) {
-    Bad(path, "parameter_covariance", "not symmetric");
+    yaml.Fail("parameter_covariance", "not symmetric");
   }
   for (int d = 0; d < n; ++d) {
-    if (m(d, d) < 0) Bad(path, "parameter_covariance", "negative variance on the diagonal");
+    if (m(d, d) < 0) yaml.Fail("parameter_covariance", "negative variance on the diagonal");
   }
   return m;
 }
 
 // The fields only topocal writes: its model, the exact camera, the fit's quality, parameters and provenance.
-void ReadTopocalFields(const cv::FileStorage& fs, const std::string& path, const model::CameraModel& cv_cam,
-                       CalibrationFile& out) {
-  out.model = ReadOptionalString(fs, path, "model");
-  if (out.model.empty()) Bad(path, "model", "missing");
-  if (!ParseDistortionModel(out.model)) Bad(path, "model", "'" + out.model + "' is not seidel or brown5");
-  const cv::Mat centre = ReadMatrix(fs, path, "distortion_centre", 1, 2, true);
+void ReadTopocalFields(YamlSection& yaml, const model::CameraModel& cv_cam, CalibrationFile& out) {
+  out.model = yaml.OptionalString("model").value_or("");
+  if (out.model.empty()) yaml.Fail("model", "missing");
+  if (!ParseDistortionModel(out.model)) yaml.Fail("model", "'" + out.model + "' is not seidel or brown5");
+  const cv::Mat centre = yaml.Matrix("distortion_centre", 1, 2);
   if (centre.at<double>(0) != 0 || centre.at<double>(1) != 0) {
     model::CameraModel exact = cv_cam;
-    SetIntrinsics(ReadMatrix(fs, path, "topocal_camera_matrix", 3, 3, true), path, "topocal_camera_matrix", exact);
-    SetDistortion(ReadMatrix(fs, path, "topocal_distortion_coefficients", 1, 5, true), exact);
+    SetIntrinsics(yaml.Matrix("topocal_camera_matrix", 3, 3), yaml, "topocal_camera_matrix", exact);
+    SetDistortion(yaml.Matrix("topocal_distortion_coefficients", 1, 5), exact);
     exact.distortion_centre = {centre.at<double>(0), centre.at<double>(1)};
     out.camera = exact;
   }
-  out.single_view = ReadOptionalReal(fs, path, "single_view").value_or(0) != 0;
-  out.rms_px = ReadOptionalReal(fs, path, "rms_px");
-  if (!out.rms_px) Bad(path, "rms_px", "missing");
-  const cv::FileNode per_view = fs["per_view_rms_px"];
-  if (!per_view.empty()) {
-    if (!per_view.isSeq()) Bad(path, "per_view_rms_px", "not a sequence");
+  out.single_view = yaml.OptionalNumber("single_view").value_or(0) != 0;
+  out.rms_px = yaml.OptionalNumber("rms_px");
+  if (!out.rms_px) yaml.Fail("rms_px", "missing");
+  if (yaml.Has("per_view_rms_px")) {
+    const cv::FileNode per_view = yaml.Node("per_view_rms_px");
+    if (!per_view.isSeq()) yaml.Fail("per_view_rms_px", "not a sequence");
     for (const auto& n : per_view) out.per_view_rms_px.push_back(static_cast<double>(n));
   }
-  const cv::FileNode names = fs["parameter_names"];
-  const cv::Mat sd = ReadMatrix(fs, path, "parameter_stddev", 1, static_cast<int>(names.size()), !names.empty());
-  if (!names.empty()) {
+  if (yaml.Has("parameter_names")) {
+    const cv::FileNode names = yaml.Node("parameter_names");
+    const cv::Mat sd = yaml.Matrix("parameter_stddev", 1, static_cast<int>(names.size()));
     int i = 0;
     for (const auto& n : names) {
       out.parameter_names.push_back(static_cast<std::string>(n));
@@ -291,54 +227,54 @@ void ReadTopocalFields(const cv::FileStorage& fs, const std::string& path, const
     }
   }
   // Absent in files from before topocal 0.1.0 stored it; ParameterCovarianceOf then falls back to the diagonal.
-  if (!fs["parameter_covariance"].empty()) {
-    out.covariance = ReadCovariance(fs, path, static_cast<int>(out.parameter_names.size()));
+  if (yaml.Has("parameter_covariance")) {
+    out.covariance = ReadCovariance(yaml, static_cast<int>(out.parameter_names.size()));
   }
-  out.sigma_per_mm2 = ReadOptionalReal(fs, path, "seidel_sigma_per_mm2");
-  out.sigma_stddev_per_mm2 = ReadOptionalReal(fs, path, "seidel_sigma_stddev_per_mm2");
-  out.magnification = ReadOptionalReal(fs, path, "magnification");
-  out.focal_mm = ReadOptionalReal(fs, path, "focal_mm");
-  out.pixel_pitch_um = ReadOptionalReal(fs, path, "pixel_pitch_um");
-  out.target = ReadOptionalString(fs, path, "target");
-  out.date = ReadOptionalString(fs, path, "calibration_date");
-  out.tool_version = ReadOptionalString(fs, path, "tool_version");
+  out.sigma_per_mm2 = yaml.OptionalNumber("seidel_sigma_per_mm2");
+  out.sigma_stddev_per_mm2 = yaml.OptionalNumber("seidel_sigma_stddev_per_mm2");
+  out.magnification = yaml.OptionalNumber("magnification");
+  out.focal_mm = yaml.OptionalNumber("focal_mm");
+  out.pixel_pitch_um = yaml.OptionalNumber("pixel_pitch_um");
+  out.target = yaml.OptionalString("target").value_or("");
+  out.date = yaml.OptionalString("calibration_date").value_or("");
+  out.tool_version = yaml.OptionalString("tool_version").value_or("");
 }
 
 // The valid region: stored by topocal since it states it, computed for older and plain OpenCV files.
-void ReadValidRegion(const cv::FileStorage& fs, const std::string& path, CalibrationFile& out) {
-  const auto radius_px = ReadOptionalReal(fs, path, "valid_radius_px");
+void ReadValidRegion(YamlSection& yaml, CalibrationFile& out) {
+  const auto radius_px = yaml.OptionalNumber("valid_radius_px");
   if (radius_px) {
-    if (!(*radius_px > 0)) Bad(path, "valid_radius_px", "must be > 0");
+    if (!(*radius_px > 0)) yaml.Fail("valid_radius_px", "must be > 0");
     out.valid_region.radius_px = *radius_px;
     out.valid_region.covers_sensor = *radius_px >= FarthestSensorPixelPx(out.camera);
-    const auto covers = ReadOptionalReal(fs, path, "valid_region_covers_sensor");
+    const auto covers = yaml.OptionalNumber("valid_region_covers_sensor");
     if (covers && (*covers != 0) != out.valid_region.covers_sensor) {
-      Bad(path, "valid_region_covers_sensor", "contradicts valid_radius_px and the image size");
+      yaml.Fail("valid_region_covers_sensor", "contradicts valid_radius_px and the image size");
     }
   } else {
     out.valid_region = ValidRegionOf(out.camera);
   }
 }
 
-CalibrationFile ReadCalibration(const cv::FileStorage& fs, const std::string& path) {
-  if (fs["camera_matrix"].empty() && fs["distortion_coefficients"].empty()) {
-    Bad(path, "camera_matrix", "missing: not a topocal or OpenCV calibration file");
+CalibrationFile ReadCalibration(YamlSection& yaml) {
+  if (!yaml.Has("camera_matrix") && !yaml.Has("distortion_coefficients")) {
+    yaml.Fail("camera_matrix", "missing: not a topocal or OpenCV calibration file");
   }
   CalibrationFile out;
-  const std::string tool = ReadOptionalString(fs, path, "calibration_tool");
+  const std::string tool = yaml.OptionalString("calibration_tool").value_or("");
   out.written_by_topocal = tool == "topocal";
-  if (!tool.empty() && !out.written_by_topocal) Bad(path, "calibration_tool", "'" + tool + "' is not topocal");
+  if (!tool.empty() && !out.written_by_topocal) yaml.Fail("calibration_tool", "'" + tool + "' is not topocal");
 
   model::CameraModel cv_cam;
-  cv_cam.width_px = ReadPositiveInt(fs, path, "image_width");
-  cv_cam.height_px = ReadPositiveInt(fs, path, "image_height");
-  SetIntrinsics(ReadMatrix(fs, path, "camera_matrix", 3, 3, true), path, "camera_matrix", cv_cam);
-  SetDistortion(ReadOpenCvDistortion(fs, path, "distortion_coefficients"), cv_cam);
+  cv_cam.width_px = yaml.PositiveInt("image_width");
+  cv_cam.height_px = yaml.PositiveInt("image_height");
+  SetIntrinsics(yaml.Matrix("camera_matrix", 3, 3), yaml, "camera_matrix", cv_cam);
+  SetDistortion(ReadOpenCvDistortion(yaml, "distortion_coefficients"), cv_cam);
   out.opencv_camera = cv_cam;
   out.camera = cv_cam;
 
-  if (out.written_by_topocal) ReadTopocalFields(fs, path, cv_cam, out);
-  ReadValidRegion(fs, path, out);
+  if (out.written_by_topocal) ReadTopocalFields(yaml, cv_cam, out);
+  ReadValidRegion(yaml, out);
   return out;
 }
 

@@ -17,6 +17,7 @@
 
 #include "calib/camera_exchange.h"
 #include "calib/file_storage.h"
+#include "calib/yaml_section.h"
 #include "util/io.h"
 
 namespace topocal::calib {
@@ -37,36 +38,6 @@ std::string Shown(const std::string& token, size_t max = 100) {
 }
 
 // ---- YAML (Kalibr, ROS) ------------------------------------------------------------------------------------------
-
-// `where` prefixes the key in messages (Kalibr's "cam1.", ROS' "camera_matrix.").
-std::vector<double> ReadNumbers(const cv::FileNode& map, const std::string& path, const std::string& where,
-                                const std::string& key, size_t n) {
-  const cv::FileNode node = map[key];
-  if (node.empty()) Bad(path, where + key, "missing");
-  if (!node.isSeq() || node.size() != n) Bad(path, where + key, fmt::format("expected a list of {} numbers", n));
-  std::vector<double> out;
-  for (const auto& v : node) {
-    if (!v.isReal() && !v.isInt()) Bad(path, where + key, "not a number");
-    out.push_back(static_cast<double>(v));
-    if (!std::isfinite(out.back())) Bad(path, where + key, "non-finite value");
-  }
-  return out;
-}
-
-std::string ReadString(const cv::FileNode& map, const std::string& path, const std::string& where,
-                       const std::string& key) {
-  const cv::FileNode node = map[key];
-  if (node.empty()) Bad(path, where + key, "missing");
-  if (!node.isString()) Bad(path, where + key, "not a string");
-  return static_cast<std::string>(node);
-}
-
-int ReadInt(const cv::FileNode& map, const std::string& path, const std::string& where, const std::string& key) {
-  const cv::FileNode node = map[key];
-  if (node.empty()) Bad(path, where + key, "missing");
-  if (!node.isInt()) Bad(path, where + key, "not an integer");
-  return static_cast<int>(node);
-}
 
 // PyYAML (which writes Kalibr's camchains, and ROS camera_info files from Python) puts a block sequence at the
 // indentation of its key:
@@ -136,39 +107,37 @@ void RequirePhysicalCamera(const model::CameraModel& c, const std::string& path,
 // ---- ROS camera_info ---------------------------------------------------------------------------------------------
 
 // A camera_info matrix {rows, cols, data}: rows x cols as expected, data of rows * cols finite numbers.
-std::vector<double> ReadRosMatrix(const cv::FileNode& root, const std::string& path, const std::string& key, int rows,
-                                  int cols) {
-  const cv::FileNode node = root[key];
-  if (node.empty()) Bad(path, key, "missing");
-  if (!node.isMap()) Bad(path, key, "not a mapping {rows, cols, data}");
-  const std::string where = key + ".";
-  const int r = ReadInt(node, path, where, "rows"), c = ReadInt(node, path, where, "cols");
-  if (r != rows || c != cols) Bad(path, key, fmt::format("expected {} x {}, found rows {}, cols {}", rows, cols, r, c));
-  return ReadNumbers(node, path, where, "data", static_cast<size_t>(rows * cols));
+std::vector<double> ReadRosMatrix(YamlSection& root, const std::string& key, int rows, int cols) {
+  const cv::FileNode node = root.Node(key);
+  if (!node.isMap()) root.Fail(key, "not a mapping {rows, cols, data}");
+  YamlSection matrix(node, root.Origin(), key + ".");
+  const int r = matrix.Int("rows"), c = matrix.Int("cols");
+  if (r != rows || c != cols) root.Fail(key, fmt::format("expected {} x {}, found rows {}, cols {}", rows, cols, r, c));
+  return matrix.Numbers("data", static_cast<size_t>(rows * cols));
 }
 
 // The distortion models of ROS (sensor_msgs/distortion_models.h) that are OpenCV's: plumb_bob (k1 k2 t1 t2 k3) and
 // rational_polynomial (k1 k2 t1 t2 k3 k4 k5 k6), the latter only when k4..k6 are 0.
-std::array<double, 5> ReadRosDistortion(const cv::FileNode& root, const std::string& path) {
-  const std::string model_name = ReadString(root, path, "", "distortion_model");
+std::array<double, 5> ReadRosDistortion(YamlSection& root) {
+  const std::string model_name = root.String("distortion_model");
   const int n = model_name == "plumb_bob" ? 5 : model_name == "rational_polynomial" ? 8 : 0;
   if (n == 0) {
-    Bad(path, "distortion_model",
-        fmt::format("'{}': topocal's model is OpenCV's k1 k2 p1 p2 k3: plumb_bob, or rational_polynomial with k4 = "
+    root.Fail("distortion_model",
+              fmt::format("'{}': topocal's model is OpenCV's k1 k2 p1 p2 k3: plumb_bob, or rational_polynomial with k4 = "
                     "k5 = k6 = 0 (equidistant is a fisheye model topocal does not fit)",
                     Shown(model_name)));
   }
   const std::string key = "distortion_coefficients";
-  const cv::FileNode node = root[key];
+  const cv::FileNode node = root.Has(key) ? root.Node(key) : cv::FileNode();
   if (!node.empty() && node.isMap() && !node["data"].empty() && node["data"].isSeq() &&
       node["data"].size() != static_cast<size_t>(n)) {
-    Bad(path, key + ".data", fmt::format("{} has {} coefficients, found {}", model_name, n, node["data"].size()));
+    root.Fail(key + ".data", fmt::format("{} has {} coefficients, found {}", model_name, n, node["data"].size()));
   }
-  const std::vector<double> d = ReadRosMatrix(root, path, key, 1, n);
+  const std::vector<double> d = ReadRosMatrix(root, key, 1, n);
   for (int i = 5; i < n; ++i) {
     if (d[static_cast<size_t>(i)] != 0) {
-      Bad(path, key,
-          fmt::format("k{} = {} but topocal's model ends at k3 (rational_polynomial is accepted with k4 "
+      root.Fail(key,
+                fmt::format("k{} = {} but topocal's model ends at k3 (rational_polynomial is accepted with k4 "
                       "= k5 = k6 = 0)",
                       i - 1, d[static_cast<size_t>(i)]));
     }
@@ -444,31 +413,31 @@ model::CameraModel ReadKalibrCamchain(const std::string& path, const std::string
     const cv::FileNode cam = fs[camera_key];
     if (cam.empty()) Bad(path, camera_key, "missing: not a Kalibr camchain, or no such camera");
     if (!cam.isMap()) Bad(path, camera_key, "not a mapping");
-    const std::string where = camera_key + ".";
-    const std::string model_name = ReadString(cam, path, where, "camera_model");
+    YamlSection section(cam, path, camera_key + ".");
+    const std::string model_name = section.String("camera_model");
     if (model_name != "pinhole") {
-      Bad(path, where + "camera_model",
+      section.Fail("camera_model",
           fmt::format("'{}': only pinhole is supported (OpenCV's model)", Shown(model_name)));
     }
-    const std::string distortion = ReadString(cam, path, where, "distortion_model");
+    const std::string distortion = section.String("distortion_model");
     if (distortion != "radtan") {
-      Bad(path, where + "distortion_model",
+      section.Fail("distortion_model",
           fmt::format("'{}': only radtan is supported (equidistant is a fisheye model topocal does not fit)",
                       Shown(distortion)));
     }
-    const auto intrinsics = ReadNumbers(cam, path, where, "intrinsics", 4);
-    const auto coeffs = ReadNumbers(cam, path, where, "distortion_coeffs", 4);
-    const auto resolution = ReadNumbers(cam, path, where, "resolution", 2);
+    const auto intrinsics = section.Numbers("intrinsics", 4);
+    const auto coeffs = section.Numbers("distortion_coeffs", 4);
+    const auto resolution = section.Numbers("resolution", 2);
     model::CameraModel c;
     for (int i = 0; i < 2; ++i) {
       const double v = resolution[static_cast<size_t>(i)];
       if (!(v >= 1) || v != std::floor(v) || v > std::numeric_limits<int>::max()) {
-        Bad(path, where + "resolution", "must be two positive integers [width, height]");
+        section.Fail("resolution", "must be two positive integers [width, height]");
       }
     }
     c.width_px = static_cast<int>(resolution[0]);
     c.height_px = static_cast<int>(resolution[1]);
-    if (!(intrinsics[0] > 0 && intrinsics[1] > 0)) Bad(path, where + "intrinsics", "focal lengths fu, fv must be > 0");
+    if (!(intrinsics[0] > 0 && intrinsics[1] > 0)) section.Fail("intrinsics", "focal lengths fu, fv must be > 0");
     c.fx_px = intrinsics[0];
     c.fy_px = intrinsics[1];
     c.cx_px = intrinsics[2];
@@ -484,13 +453,11 @@ model::CameraModel ReadRosCameraInfo(const std::string& path) {
     if (!fs.isOpened() || !fs.root().isMap()) {
       Bad(path, "file", "not a YAML mapping (a ROS camera_info has image_width: ...)");
     }
-    const cv::FileNode root = fs.root();
+    YamlSection root(fs.root(), path);
     model::CameraModel c;
-    c.width_px = ReadInt(root, path, "", "image_width");
-    if (c.width_px < 1) Bad(path, "image_width", "must be > 0");
-    c.height_px = ReadInt(root, path, "", "image_height");
-    if (c.height_px < 1) Bad(path, "image_height", "must be > 0");
-    const std::vector<double> k = ReadRosMatrix(root, path, "camera_matrix", 3, 3);
+    c.width_px = root.PositiveInt("image_width");
+    c.height_px = root.PositiveInt("image_height");
+    const std::vector<double> k = ReadRosMatrix(root, "camera_matrix", 3, 3);
     if (k[1] != 0 || k[3] != 0 || k[6] != 0 || k[7] != 0 || k[8] != 1) {
       Bad(path, "camera_matrix", "not a pinhole camera matrix [fx 0 cx; 0 fy cy; 0 0 1]");
     }
@@ -499,7 +466,7 @@ model::CameraModel ReadRosCameraInfo(const std::string& path) {
     c.cx_px = k[2];
     c.cy_px = k[5];
     RequirePhysicalCamera(c, path, "camera_matrix");
-    c.dist = ReadRosDistortion(root, path);
+    c.dist = ReadRosDistortion(root);
     return c;
   });
 }

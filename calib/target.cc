@@ -2,13 +2,12 @@
 
 #include <fmt/format.h>
 
-#include <cctype>
 #include <cmath>
 #include <opencv2/aruco/dictionary.hpp>
 #include <opencv2/core.hpp>
-#include <set>
 
 #include "calib/file_storage.h"
+#include "calib/yaml_section.h"
 #include "util/io.h"
 
 namespace topocal::calib {
@@ -21,98 +20,46 @@ constexpr double kMaxTargetLengthMm = 10000.0;
 constexpr int kMaxGridSide = 1000;
 constexpr int kMaxTagId = 1000000;
 
-// Reads the keys of one YAML mapping strictly: every key must be consumed exactly as its expected type.
-class StrictMap {
- public:
-  StrictMap(const cv::FileNode& root, std::string name) : root_(root), name_(std::move(name)) {}
+// A grid's side (columns or rows of corners, squares or tags).
+int GridSide(YamlSection& map, const std::string& key) { return map.IntIn(key, 1, kMaxGridSide); }
 
-  std::string String(const std::string& key) {
-    const cv::FileNode node = Find(key);
-    if (!node.isString()) Fail(key, "must be a string");
-    // OpenCV keeps a trailing "# comment" in an unquoted scalar (`target_type: aprilgrid #gridtype`); none of
-    // our string values contains '#', so cut it off.
-    std::string value = node.string();
-    if (const auto hash = value.find('#'); hash != std::string::npos) value.erase(hash);
-    while (!value.empty() && std::isspace(static_cast<unsigned char>(value.back()))) value.pop_back();
-    return value;
-  }
-  int PositiveInt(const std::string& key, int max = kMaxGridSide) {
-    const cv::FileNode node = Find(key);
-    if (!node.isInt()) Fail(key, "must be an integer");
-    const int value = static_cast<int>(node);
-    if (value <= 0 || value > max) Fail(key, fmt::format("must be in [1, {}], got {}", max, value));
-    return value;
-  }
-  int NonNegativeInt(const std::string& key, int fallback) {
-    if (!Has(key)) return fallback;
-    const cv::FileNode node = Find(key);
-    if (!node.isInt()) Fail(key, "must be an integer");
-    const int value = static_cast<int>(node);
-    if (value < 0 || value > kMaxTagId) Fail(key, fmt::format("must be in [0, {}], got {}", kMaxTagId, value));
-    return value;
-  }
-  double PositiveReal(const std::string& key) {
-    const cv::FileNode node = Find(key);
-    // YAML writes 1 as an integer; a length of exactly one metre is still a number.
-    if (!node.isReal() && !node.isInt()) Fail(key, "must be a number");
-    const double value = static_cast<double>(node);
-    if (!std::isfinite(value) || value <= 0) Fail(key, fmt::format("must be a positive number, got {}", value));
-    return value;
-  }
-  // A length given in metres (Kalibr's unit), returned in mm and checked after the conversion.
-  double LengthMm(const std::string& key) {
-    const double mm = PositiveReal(key) * kMmPerMetre;
-    if (!(std::isfinite(mm) && mm <= kMaxTargetLengthMm)) {
-      Fail(key, fmt::format("must be at most {:g} m, got {:g} m", kMaxTargetLengthMm / kMmPerMetre, mm / kMmPerMetre));
-    }
-    return mm;
-  }
-  bool Has(const std::string& key) const {
-    const cv::FileNode node = root_[key];
-    return !node.empty() && !node.isNone();
-  }
-  // Every key of the file must have been read: a misspelt key is an error, not a silent default.
-  void RejectUnknownKeys() const {
-    for (auto it = root_.begin(); it != root_.end(); ++it) {
-      const std::string key = (*it).name();
-      if (!used_.count(key)) Fail(key, "unknown key");
-    }
-  }
-  [[noreturn]] void Fail(const std::string& key, const std::string& problem) const {
-    throw util::InputError(fmt::format("{}: {}: {}", name_, key, problem));
-  }
+int OptionalTagId(YamlSection& map, const std::string& key, int fallback) {
+  return map.Has(key) ? map.IntIn(key, 0, kMaxTagId) : fallback;
+}
 
- private:
-  cv::FileNode Find(const std::string& key) {
-    const cv::FileNode node = root_[key];
-    if (node.empty() || node.isNone()) Fail(key, "missing");
-    used_.insert(key);
-    return node;
+double PositiveNumber(YamlSection& map, const std::string& key) {
+  const double value = map.Number(key);
+  if (value <= 0) map.Fail(key, fmt::format("must be a positive number, got {}", value));
+  return value;
+}
+
+// A length given in metres (Kalibr's unit), returned in mm and checked after the conversion.
+double LengthMm(YamlSection& map, const std::string& key) {
+  const double mm = PositiveNumber(map, key) * kMmPerMetre;
+  if (!(std::isfinite(mm) && mm <= kMaxTargetLengthMm)) {
+    map.Fail(key, fmt::format("must be at most {:g} m, got {:g} m", kMaxTargetLengthMm / kMmPerMetre, mm / kMmPerMetre));
   }
+  return mm;
+}
 
-  cv::FileNode root_;
-  std::string name_;
-  std::set<std::string> used_;
-};
-
-CheckerboardLayout ParseCheckerboard(StrictMap& map) {
+CheckerboardLayout ParseCheckerboard(YamlSection& map) {
   CheckerboardLayout b;
-  b.cols = map.PositiveInt("targetCols");
-  b.rows = map.PositiveInt("targetRows");
-  b.row_spacing_mm = map.LengthMm("rowSpacingMeters");
-  b.col_spacing_mm = map.LengthMm("colSpacingMeters");
+  b.cols = GridSide(map, "targetCols");
+  b.rows = GridSide(map, "targetRows");
+  b.row_spacing_mm = LengthMm(map, "rowSpacingMeters");
+  b.col_spacing_mm = LengthMm(map, "colSpacingMeters");
   // OpenCV's board detectors need at least 2 x 2 inner corners (3 x 3 squares).
   if (b.cols < 2) map.Fail("targetCols", fmt::format("must be at least 2, got {}", b.cols));
   if (b.rows < 2) map.Fail("targetRows", fmt::format("must be at least 2, got {}", b.rows));
   return b;
 }
 
-AprilGridLayout ParseAprilGrid(StrictMap& map) {
+AprilGridLayout ParseAprilGrid(YamlSection& map) {
   AprilGridLayout g;
-  g.tag_cols = map.PositiveInt("tagCols");
-  g.tag_rows = map.PositiveInt("tagRows");
-  g.tag_size_mm = map.LengthMm("tagSize");
-  g.tag_spacing_ratio = map.PositiveReal("tagSpacing");
+  g.tag_cols = GridSide(map, "tagCols");
+  g.tag_rows = GridSide(map, "tagRows");
+  g.tag_size_mm = LengthMm(map, "tagSize");
+  g.tag_spacing_ratio = PositiveNumber(map, "tagSpacing");
   constexpr double kMaxTagSpacingRatio = 10;  // Kalibr's boards use 0.3; a gap ten tags wide is no grid
   if (g.tag_spacing_ratio > kMaxTagSpacingRatio) {
     map.Fail("tagSpacing", fmt::format("must be at most {:g} (a fraction of tagSize), got {:g}", kMaxTagSpacingRatio,
@@ -122,8 +69,8 @@ AprilGridLayout ParseAprilGrid(StrictMap& map) {
     g.family = map.String("tagFamily");
     if (g.family != "tag36h11") map.Fail("tagFamily", fmt::format("only tag36h11 is supported, got '{}'", g.family));
   }
-  g.first_tag_id = map.NonNegativeInt("firstTagId", 0);
-  g.border_bits = map.NonNegativeInt("tagBorderBits", 2);
+  g.first_tag_id = OptionalTagId(map, "firstTagId", 0);
+  g.border_bits = OptionalTagId(map, "tagBorderBits", 2);
   if (g.border_bits != 1 && g.border_bits != 2) {
     map.Fail("tagBorderBits", fmt::format("must be 1 or 2 (Kalibr prints 2), got {}", g.border_bits));
   }
@@ -136,12 +83,12 @@ AprilGridLayout ParseAprilGrid(StrictMap& map) {
   return g;
 }
 
-CharucoLayout ParseCharuco(StrictMap& map) {
+CharucoLayout ParseCharuco(YamlSection& map) {
   CharucoLayout c;
-  c.squares_x = map.PositiveInt("squaresX");
-  c.squares_y = map.PositiveInt("squaresY");
-  c.square_size_mm = map.LengthMm("squareSizeMeters");
-  c.marker_size_mm = map.LengthMm("markerSizeMeters");
+  c.squares_x = GridSide(map, "squaresX");
+  c.squares_y = GridSide(map, "squaresY");
+  c.square_size_mm = LengthMm(map, "squareSizeMeters");
+  c.marker_size_mm = LengthMm(map, "markerSizeMeters");
   if (map.Has("arucoDictionary")) c.dictionary = map.String("arucoDictionary");
   // At least 2 x 2 inner corners, as for checkerboards.
   if (c.squares_x < 3) map.Fail("squaresX", fmt::format("must be at least 3, got {}", c.squares_x));
@@ -197,7 +144,7 @@ TargetDescription ParseTargetDescription(std::string_view yaml_text, const std::
     throw util::InputError(fmt::format("{}: not a YAML mapping of target keys", name));
   }
   return ReadFileStorage(name, "a target description", [&] {
-    StrictMap map(fs.root(), name);
+    YamlSection map(fs.root(), name);
     TargetDescription target;
     target.source = name;
     const std::string type = map.String("target_type");

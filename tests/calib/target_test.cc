@@ -81,9 +81,9 @@ TEST(TargetDescription, RejectsBadFilesNamingFileAndKey) {
   EXPECT_EQ(ErrorOf(std::string(kKalibrAprilGrid) + "tagBorderBits: 3\n"),
             "T.yaml: tagBorderBits: must be 1 or 2 (Kalibr prints 2), got 3");
   EXPECT_EQ(ErrorOf(std::regex_replace(cb, std::regex("targetCols: 9"), "targetCols: nine")),
-            "T.yaml: targetCols: must be an integer");
+            "T.yaml: targetCols: not an integer");
   EXPECT_EQ(ErrorOf(std::regex_replace(cb, std::regex("targetCols: 9"), "targetCols: 9.5")),
-            "T.yaml: targetCols: must be an integer");
+            "T.yaml: targetCols: not an integer");
   EXPECT_EQ(ErrorOf(std::regex_replace(cb, std::regex("targetRows: 6"), "targetRows: 0")),
             "T.yaml: targetRows: must be in [1, 1000], got 0");
   EXPECT_EQ(ErrorOf(std::regex_replace(cb, std::regex("0.025"), "-0.025")),
