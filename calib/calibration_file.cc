@@ -87,7 +87,7 @@ cv::Mat ReadOpenCvDistortion(YamlSection& yaml, const std::string& key) {
 }  // namespace
 
 std::string CalibrationFileText(const CalibrationResult& result, const CalibrationProvenance& provenance) {
-  if (!result.ok()) throw std::invalid_argument("calibration file requested for a failed calibration");
+  if (!result.ok()) throw util::InputError("calibration file requested for a failed calibration");
   const auto equivalent = ToOpenCvModel(result.camera);
   if (!equivalent) {
     throw std::runtime_error("the calibrated camera has no OpenCV equivalent over the image (distortion not "

@@ -36,6 +36,7 @@
 #include "calib/calibrate.h"
 #include "calib/distortion_valid_region.h"
 #include "model/camera_model.h"
+#include "util/io.h"
 
 namespace topocal::calib {
 
@@ -62,7 +63,7 @@ struct CalibrationFile {
   DistortionValidRegion valid_region;
 };
 
-// The YAML text for a successful result. Throws std::invalid_argument for a failed result and std::runtime_error
+// The YAML text for a successful result. Throws util::InputError for a failed result and std::runtime_error
 // when the OpenCV-equivalent model cannot be computed.
 std::string CalibrationFileText(const CalibrationResult& result, const CalibrationProvenance& provenance);
 // Writes it atomically (util::WriteFileAtomic). Throws util::InputError if the path cannot be written.

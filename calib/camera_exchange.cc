@@ -19,7 +19,7 @@ namespace {
 // A real number that reads back bit for bit and that every consumer takes as a float: PyYAML (YAML 1.1) reads
 // "1e-05" as a string, so the mantissa always carries a decimal point ("1.0e-05").
 std::string Real(double v) {
-  if (!std::isfinite(v)) throw std::invalid_argument("non-finite value in a calibration export");
+  if (!std::isfinite(v)) throw util::InputError("non-finite value in a calibration export");
   std::string s = fmt::format("{:.17g}", v);
   if (s.find_first_of(".") == std::string::npos) {
     const auto e = s.find_first_of("eE");
@@ -40,7 +40,7 @@ std::string List(const std::vector<double>& values) {
 
 void RequireOpenCvModel(const model::CameraModel& c) {
   if (!c.distortion_centre.isZero(0)) {
-    throw std::invalid_argument("export needs OpenCV's model (distortion centre 0): use CalibrationFile::opencv_camera");
+    throw util::InputError("export needs OpenCV's model (distortion centre 0): use CalibrationFile::opencv_camera");
   }
 }
 
@@ -167,7 +167,7 @@ std::string ExportCalibration(const CalibrationFile& calibration, ExportFormat f
     case ExportFormat::kOpenCv:
       return OpenCvCalibrationText(c, source);
   }
-  throw std::invalid_argument("unknown export format");
+  throw util::InputError("unknown export format");
 }
 
 }  // namespace topocal::calib

@@ -15,6 +15,7 @@
 #include "calib/calibration_file.h"
 #include "calib/distortion_valid_region.h"
 #include "model/camera_model.h"
+#include "util/io.h"
 
 namespace topocal::calib {
 
@@ -35,7 +36,7 @@ struct ExportOptions {
 std::string ExportCalibration(const CalibrationFile& calibration, ExportFormat format, const std::string& source,
                               const ExportOptions& options = {});
 
-// Individual writers (the camera must have a zero distortion centre; std::invalid_argument otherwise).
+// Individual writers (the camera must have a zero distortion centre; util::InputError otherwise).
 std::string RosCameraInfoYaml(const model::CameraModel& camera, const std::string& camera_name);
 std::string KalibrCamchainYaml(const model::CameraModel& camera, const std::string& ros_topic);
 // With `valid_region` (when it does not cover the sensor): mrcal's valid_intrinsics_region, the circle of

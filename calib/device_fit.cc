@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "calib/jacobian_covariance.h"
+#include "util/io.h"
 
 namespace topocal::calib {
 namespace {
@@ -454,7 +455,7 @@ DeviceFit FitDevice(const model::Device& nominal, const model::TopographerParams
                     const std::vector<model::TargetPoint>& designed_targets, const std::vector<BallView>& balls,
                     const DeviceFitOptions& options) {
   std::string why;
-  if (!options.IsValid(&why)) throw std::invalid_argument(why);
+  if (!options.IsValid(&why)) throw util::InputError(why);
   DeviceFit fit;
   fit.device = nominal;
   const auto fail = [&fit](std::string m) {

@@ -29,6 +29,7 @@
 #include "model/config.h"
 #include "model/device.h"
 #include "model/null_screen.h"
+#include "util/io.h"
 
 namespace topocal::calib {
 
@@ -98,7 +99,7 @@ struct DeviceFit {
 };
 
 // Fits the device. Never throws for data: too few balls or spots, or a solver failure give ok = false and a message.
-// Throws std::invalid_argument for invalid options.
+// Throws util::InputError for invalid options.
 DeviceFit FitDevice(const model::Device& nominal, const model::TopographerParams& design,
                     const std::vector<model::TargetPoint>& designed_targets, const std::vector<BallView>& balls,
                     const DeviceFitOptions& options = {});

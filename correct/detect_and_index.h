@@ -25,6 +25,7 @@
 #include "model/config.h"
 #include "model/null_screen.h"
 #include "model/topographer_camera.h"
+#include "util/io.h"
 
 namespace topocal::correct {
 
@@ -70,7 +71,7 @@ struct DetectAndIndexResult {
   std::vector<model::ImageSpot> AsImageSpots() const;
 };
 
-// Throws std::invalid_argument for an unusable image type or invalid options; never for what the image contains.
+// Throws util::InputError for an unusable image type or invalid options; never for what the image contains.
 DetectAndIndexResult DetectAndIndexSpots(const cv::Mat& image, const model::TopographerCamera& camera,
                                          const model::IdealImageParams& ideal,
                                          const DetectAndIndexOptions& options = {});

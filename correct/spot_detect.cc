@@ -15,6 +15,7 @@
 
 #include "correct/background_stats.h"
 #include "correct/spot_detail.h"
+#include "util/io.h"
 
 namespace topocal::correct {
 namespace {
@@ -301,7 +302,7 @@ CentroidMethod CentroidMethodFromName(const std::string& name) {
   if (name == "centroid") return CentroidMethod::kIntensityWeighted;
   if (name == "gaussian") return CentroidMethod::kGaussianFit;
   if (name == "psf") return CentroidMethod::kWeightedPsfFit;
-  throw std::invalid_argument(fmt::format("unknown estimator '{}' (centroid, gaussian or psf)", name));
+  throw util::InputError(fmt::format("unknown estimator '{}' (centroid, gaussian or psf)", name));
 }
 
 const char* CentroidMethodName(CentroidMethod method) noexcept {
@@ -371,9 +372,9 @@ void MeasureReadNoise(const cv::Mat& image, const detail::BackgroundStats& st, b
 
 SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& options) {
   std::string why;
-  if (!options.IsValid(&why)) throw std::invalid_argument("DetectSpots: " + why);
+  if (!options.IsValid(&why)) throw util::InputError("DetectSpots: " + why);
   if (image.channels() != 1 || (image.depth() != CV_8U && image.depth() != CV_16U && image.depth() != CV_32F)) {
-    throw std::invalid_argument("DetectSpots: the image must be one channel of 8-bit, 16-bit or float pixels");
+    throw util::InputError("DetectSpots: the image must be one channel of 8-bit, 16-bit or float pixels");
   }
   SpotDetection out;
   out.gain_source = options.method == CentroidMethod::kWeightedPsfFit

@@ -42,11 +42,12 @@
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
+#include "util/io.h"
 
 namespace topocal::correct {
 
 enum class CentroidMethod { kIntensityWeighted, kGaussianFit, kWeightedPsfFit };
-// The names the command line uses: "centroid", "gaussian", "psf" (default). Throws std::invalid_argument.
+// The names the command line uses: "centroid", "gaussian", "psf" (default). Throws util::InputError.
 CentroidMethod CentroidMethodFromName(const std::string& name);
 const char* CentroidMethodName(CentroidMethod method) noexcept;
 
@@ -110,7 +111,7 @@ struct SpotDetection {
   std::string read_noise_source;  // one phrase: given, or which statistic of the background measured it
 };
 
-// `image`: CV_8UC1, CV_16UC1 or CV_32FC1. Throws std::invalid_argument for other types or invalid options.
+// `image`: CV_8UC1, CV_16UC1 or CV_32FC1. Throws util::InputError for other types or invalid options.
 SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& options = {});
 
 }  // namespace topocal::correct

@@ -7,6 +7,7 @@
 #include <Eigen/LU>
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
+#include "util/io.h"
 
 namespace topocal::correct {
 namespace {
@@ -266,7 +267,7 @@ bool SpotRenderOptions::IsValid(std::string* why) const {
 cv::Mat RenderSpotImage(const std::vector<SpotToRender>& spots, int width_px, int height_px,
                         const SpotRenderOptions& options) {
   std::string why;
-  if (!options.IsValid(&why)) throw std::invalid_argument("RenderSpotImage: " + why);
+  if (!options.IsValid(&why)) throw util::InputError("RenderSpotImage: " + why);
   cv::Mat acc(height_px, width_px, CV_32FC1, cv::Scalar(0));
   for (const auto& s : spots) {
     const double sigma = s.psf_sigma_px > 0 ? s.psf_sigma_px : options.psf_sigma_px;

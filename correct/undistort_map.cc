@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include <opencv2/imgproc.hpp>
+#include "util/io.h"
 
 namespace topocal::correct {
 namespace {
@@ -125,7 +126,7 @@ cv::Mat UndistortImage(const cv::Mat& distorted, const model::Distortion& distor
                        const model::TopographerCamera& camera, int* invalid_px, int interpolation,
                        double border_value) {
   if (distorted.cols != camera.width_px || distorted.rows != camera.height_px) {
-    throw std::invalid_argument("UndistortImage: image size differs from the camera's sensor size");
+    throw util::InputError("UndistortImage: image size differs from the camera's sensor size");
   }
   // Bands of rows, as cv::undistort works: each band's map (2 x 4 B x width x kBandRows, ~1 MB at 4000 px) is built
   // and used while it is in cache, instead of two 48 MB maps written to memory and read back.
@@ -154,7 +155,7 @@ cv::Mat UndistortImage(const cv::Mat& distorted, const model::Distortion& distor
 
 cv::Mat UndistortImage(const cv::Mat& distorted, const UndistortMap& map, int interpolation, double border_value) {
   if (distorted.size() != map.map_x.size()) {
-    throw std::invalid_argument("UndistortImage: image size differs from the camera's sensor size");
+    throw util::InputError("UndistortImage: image size differs from the camera's sensor size");
   }
   cv::Mat out;
   cv::remap(distorted, out, map.map_x, map.map_y, interpolation, cv::BORDER_CONSTANT, cv::Scalar::all(border_value));

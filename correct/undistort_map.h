@@ -13,6 +13,7 @@
 
 #include "model/distortion.h"
 #include "model/topographer_camera.h"
+#include "util/io.h"
 
 namespace topocal::correct {
 
@@ -30,7 +31,7 @@ UndistortMap BuildUndistortMap(const model::Distortion& distortion, const model:
 void BuildUndistortMap(const model::Distortion& distortion, const model::TopographerCamera& camera, UndistortMap* map);
 
 // The undistorted image (same size and type as `distorted`, which must match the camera's size). Pixels without a
-// source are `border_value`. Throws std::invalid_argument if the sizes differ.
+// source are `border_value`. Throws util::InputError if the sizes differ.
 cv::Mat UndistortImage(const cv::Mat& distorted, const UndistortMap& map, int interpolation = cv::INTER_LINEAR,
                        double border_value = 0.0);
 

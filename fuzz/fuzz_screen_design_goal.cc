@@ -1,6 +1,6 @@
 // Fuzz target: the goal of `design --optimize` (pipeline/screen_design.h). Bad input must be a util::ConfigError;
 // anything else escaping (another exception, a crash, a sanitizer report) is a defect. An accepted goal must also be
-// valid as the optimiser judges it (IsValid), or the search would throw std::invalid_argument.
+// valid as the optimiser judges it (IsValid), or the search would throw util::InputError.
 #include <cstdlib>
 
 #include "fuzz/fuzz_input.h"

@@ -259,7 +259,7 @@ cv::Mat ReadImage(const std::string& path, Channels channels, const ImageLimits&
 }
 
 std::vector<unsigned char> EncodePng(const cv::Mat& image, const std::string& name) {
-  if (image.empty()) throw std::invalid_argument(fmt::format("{}: no image to encode", name));
+  if (image.empty()) throw util::InputError(fmt::format("{}: no image to encode", name));
   const ImgcodecsApi& codecs = Codecs();
   std::vector<unsigned char> png;
   char error[512] = "";

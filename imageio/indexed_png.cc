@@ -5,6 +5,7 @@
 
 #include <stdexcept>
 #include <string_view>
+#include "util/io.h"
 
 namespace topocal::imageio {
 namespace {
@@ -28,13 +29,13 @@ void AppendChunk(std::vector<unsigned char>* out, std::string_view type, const s
 std::vector<unsigned char> EncodeIndexedPng(int width, int height, const std::vector<std::uint8_t>& indices,
                                             const std::vector<std::array<std::uint8_t, 3>>& palette_rgb) {
   if (width <= 0 || height <= 0 || indices.size() != static_cast<std::size_t>(width) * height) {
-    throw std::invalid_argument(fmt::format("EncodeIndexedPng: {} indices for {} x {} pixels", indices.size(), width, height));
+    throw util::InputError(fmt::format("EncodeIndexedPng: {} indices for {} x {} pixels", indices.size(), width, height));
   }
   if (palette_rgb.empty() || palette_rgb.size() > 256) {
-    throw std::invalid_argument(fmt::format("EncodeIndexedPng: a palette of {} colours (1 to 256)", palette_rgb.size()));
+    throw util::InputError(fmt::format("EncodeIndexedPng: a palette of {} colours (1 to 256)", palette_rgb.size()));
   }
   for (const std::uint8_t i : indices) {
-    if (i >= palette_rgb.size()) throw std::invalid_argument(fmt::format("EncodeIndexedPng: index {} beyond the palette", i));
+    if (i >= palette_rgb.size()) throw util::InputError(fmt::format("EncodeIndexedPng: index {} beyond the palette", i));
   }
   std::vector<unsigned char> png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
   std::vector<unsigned char> ihdr;

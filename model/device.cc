@@ -248,7 +248,7 @@ double* DeviceParameter(Device* d, const std::string& name) {
 
 void ShiftDeviceParameter(Device* device, const std::string& name, double delta) {
   double* p = DeviceParameter(device, name);
-  if (!p) throw std::invalid_argument(fmt::format("'{}' is not a parameter of this device", name));
+  if (!p) throw util::InputError(fmt::format("'{}' is not a parameter of this device", name));
   *p += delta;
   if (name == "a_mm") {
     if (auto* b = std::get_if<BrownParams>(&device->distortion)) b->focal_mm = device->camera.a_mm;
@@ -258,7 +258,7 @@ void ShiftDeviceParameter(Device* device, const std::string& name, double delta)
 double DeviceParameterOf(const Device& device, const std::string& name) {
   Device copy = device;
   const double* p = DeviceParameter(&copy, name);
-  if (!p) throw std::invalid_argument(fmt::format("'{}' is not a parameter of this device", name));
+  if (!p) throw util::InputError(fmt::format("'{}' is not a parameter of this device", name));
   return *p;
 }
 

@@ -32,6 +32,7 @@
 #include "model/distortion.h"
 #include "model/null_screen.h"
 #include "model/topographer_camera.h"
+#include "util/io.h"
 
 namespace topocal::model {
 
@@ -144,10 +145,10 @@ struct DeviceCovariance {
 // the matrix not square over the names, not finite, not symmetric, or a negative variance.
 std::optional<DeviceCovariance> DeviceCovarianceOf(const nlohmann::json& calibration, const std::string& origin);
 // Adds `delta` to the named parameter of `device` (the names above; a_mm moves Brown's focal length with it: they
-// are one distance). Throws std::invalid_argument for a name that is not a device parameter, or a Brown name on a
+// are one distance). Throws util::InputError for a name that is not a device parameter, or a Brown name on a
 // Seidel device and the reverse.
 void ShiftDeviceParameter(Device* device, const std::string& name, double delta);
-// The named parameter's value (the same names). Throws std::invalid_argument like ShiftDeviceParameter.
+// The named parameter's value (the same names). Throws util::InputError like ShiftDeviceParameter.
 double DeviceParameterOf(const Device& device, const std::string& name);
 
 DeviceFile ParseDevice(const std::string& json_text, const std::string& origin);

@@ -1,6 +1,7 @@
 #include "model/freeform_test_set.h"
 
 #include <stdexcept>
+#include "util/io.h"
 
 namespace topocal::model {
 namespace {
@@ -84,7 +85,7 @@ std::vector<TestCornea> FreeformTestSubset(const std::vector<std::string>& names
         found = true;
       }
     }
-    if (!found) throw std::invalid_argument("freeform test set: no cornea named \"" + n + "\"");
+    if (!found) throw util::InputError("freeform test set: no cornea named \"" + n + "\"");
   }
   return out;
 }

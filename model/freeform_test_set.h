@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "model/surface.h"
+#include "util/io.h"
 
 namespace topocal::model {
 
@@ -19,7 +20,7 @@ struct TestCornea {
 // The whole set (benchmarked; docs/reconstruction.md gives its table).
 std::vector<TestCornea> FreeformTestSet();
 // The named entries of the set (for the CI tests: a handful of representative corneas). Throws
-// std::invalid_argument naming an unknown entry.
+// util::InputError naming an unknown entry.
 std::vector<TestCornea> FreeformTestSubset(const std::vector<std::string>& names);
 
 }  // namespace topocal::model

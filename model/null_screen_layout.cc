@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include "util/io.h"
 
 namespace topocal::model {
 
@@ -129,7 +130,7 @@ bool IsOrientationKeySpot(const IdealImageParams& ideal, const SpotId& id) {
 NullScreenLayout LayoutNullScreen(const IdealImageParams& ideal, const TopographerParams& topographer,
                                   const NullScreenLayoutOptions& options) {
   std::string why;
-  if (!options.IsValid(&why)) throw std::invalid_argument("NullScreenLayoutOptions: " + why);
+  if (!options.IsValid(&why)) throw util::InputError("NullScreenLayoutOptions: " + why);
   const Topographer topo{topographer};
   const double radius_mm = ideal.spot_radius_um * 1e-3;
   NullScreenLayout layout;

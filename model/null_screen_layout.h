@@ -32,6 +32,7 @@
 
 #include "model/config.h"
 #include "model/null_screen.h"
+#include "util/io.h"
 
 namespace topocal::model {
 
@@ -94,7 +95,7 @@ bool IsOrientationKeySpot(const IdealImageParams& ideal, const SpotId& id);
 // centres. nullopt if the ray misses the reference sphere or the reflected ray misses the cone.
 std::optional<Eigen::Vector3d> TraceImagePointToCone(const Topographer& topographer, const Eigen::Vector2d& image_mm);
 
-// Lays out the whole null screen. Throws std::invalid_argument if `options` is invalid (see IsValid).
+// Lays out the whole null screen. Throws util::InputError if `options` is invalid (see IsValid).
 NullScreenLayout LayoutNullScreen(const IdealImageParams& ideal, const TopographerParams& topographer,
                                   const NullScreenLayoutOptions& options = {});
 

@@ -10,6 +10,7 @@
 #include "calib/device_fit.h"
 #include "model/config.h"
 #include "model/device.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 
@@ -26,7 +27,7 @@ struct BallDetection {
 };
 
 // Detects and identifies the spots of one ball image with the nominal device's camera. Throws std::runtime_error
-// (one line naming the image) when the spots cannot be indexed; std::invalid_argument for an unusable image type.
+// (one line naming the image) when the spots cannot be indexed; util::InputError for an unusable image type.
 BallDetection DetectBall(const BallImage& ball, const model::Device& nominal, const model::IdealImageParams& ideal);
 
 struct DeviceCalibration {

@@ -7,6 +7,7 @@
 #include "model/keratometry.h"
 #include "pipeline/measure_spots.h"
 #include "topo/power_map.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -48,12 +49,12 @@ HeldOutBall VerifyHeldOutBall(const cv::Mat& image, double radius_mm, const mode
                               const model::Device& lens_only, const model::Device& calibrated,
                               const model::Config& config) {
   if (!(radius_mm >= kMinRadiusMm && radius_mm <= kMaxRadiusMm)) {
-    throw std::invalid_argument(
+    throw util::InputError(
         fmt::format("ball radius {} mm is outside [{}, {}] mm", radius_mm, kMinRadiusMm, kMaxRadiusMm));
   }
   const auto& cam = nominal.camera;
   if (image.cols != cam.width_px || image.rows != cam.height_px) {
-    throw std::invalid_argument(fmt::format("the image is {} x {} px but the camera is {} x {} px", image.cols,
+    throw util::InputError(fmt::format("the image is {} x {} px but the camera is {} x {} px", image.cols,
                                             image.rows, cam.width_px, cam.height_px));
   }
   const model::Config ball = WithSphere(config, radius_mm);

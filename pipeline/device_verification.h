@@ -11,6 +11,7 @@
 #include "model/config.h"
 #include "model/device.h"
 #include "pipeline/unit_verification.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 
@@ -25,7 +26,7 @@ struct HeldOutBall {
   ThreeWay stages;
 };
 
-// Throws std::invalid_argument for a non-physical radius or an image of the wrong size, std::runtime_error (one
+// Throws util::InputError for a non-physical radius or an image of the wrong size, std::runtime_error (one
 // line) when the spots cannot be found or a reconstruction fails.
 HeldOutBall VerifyHeldOutBall(const cv::Mat& image, double radius_mm, const model::Device& nominal,
                               const model::Device& lens_only, const model::Device& calibrated,

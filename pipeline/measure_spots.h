@@ -17,6 +17,7 @@
 #include "model/topographer_camera.h"
 #include "topo/analysis.h"
 #include "topo/reconstruction.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 
@@ -54,7 +55,7 @@ bool FreeDetectionIsSpotLike(const correct::LocatedSpot& free, const std::vector
 // Throws util::InputError when the image's orientation contradicts the camera's (the orientation key says so: a
 // camera file that does not describe this camera), util::MeasurementRefused (one line: why, the share of the designed
 // spots identified, the capture-quality line) when the pattern cannot be identified or fewer than
-// kMinVisibleFraction of its spots are, std::invalid_argument for an image type the detector cannot use.
+// kMinVisibleFraction of its spots are, util::InputError for an image type the detector cannot use.
 struct IdentifiedSpots {
   correct::DetectAndIndexResult located;
   CaptureQuality capture;

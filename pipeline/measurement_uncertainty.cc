@@ -16,6 +16,7 @@
 #include "topo/clinical_indices.h"
 #include "topo/power_map.h"
 #include "util/parallel.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -303,7 +304,7 @@ MeasurementUncertainty PropagateMeasurementUncertainty(const std::vector<Measure
                                                        const std::optional<model::DeviceCovariance>& covariance,
                                                        const model::Config& config, const topo::Analysis& nominal,
                                                        const UncertaintyOptions& options) {
-  if (options.spot_draws < 2) throw std::invalid_argument("uncertainty: at least 2 spot-noise draws are needed");
+  if (options.spot_draws < 2) throw util::InputError("uncertainty: at least 2 spot-noise draws are needed");
   MeasurementUncertainty u;
   const std::vector<NamedQuantity> reference = ReportedQuantities(nominal);
   const std::vector<MeasuredImageSpot> used = UsedSpots(detected, nominal);

@@ -31,6 +31,7 @@
 #include "model/device.h"
 #include "pipeline/measure_spots.h"
 #include "topo/analysis.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 
@@ -90,7 +91,7 @@ std::vector<NamedQuantity> ReportedQuantities(const topo::Analysis& analysis);
 // `detected`: the identified spots as measured (distorted, on `device`'s detection plane); `nominal`: the
 // measurement's analysis of them (AnalyzeThroughDevice after RejectSurfaceOutliers: only the spots it used are
 // drawn). `covariance` nullopt: the device's part is left out and said so (device_covariance = false). Throws
-// std::invalid_argument for spot_draws < 2 and std::runtime_error when more than half of the analyses fail.
+// util::InputError for spot_draws < 2 and std::runtime_error when more than half of the analyses fail.
 MeasurementUncertainty PropagateMeasurementUncertainty(const std::vector<MeasuredImageSpot>& detected,
                                                        const model::Device& device,
                                                        const std::optional<model::DeviceCovariance>& covariance,

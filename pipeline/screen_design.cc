@@ -17,6 +17,7 @@
 #include "plot/null_screen_svg.h"
 #include "topo/truth_comparison.h"
 #include "util/parallel.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -319,7 +320,7 @@ void Choose(const ScreenDesignGoal& g, ScreenDesignResult* r) {
 ScreenDesignResult OptimizeScreenDesign(const model::Config& base, const ScreenDesignGoal& goal,
                                         const ScreenDesignOptions& options) {
   std::string why;
-  if (!goal.IsValid(&why)) throw std::invalid_argument("ScreenDesignGoal: " + why);
+  if (!goal.IsValid(&why)) throw util::InputError("ScreenDesignGoal: " + why);
   (void)model::FreeformTestSubset(goal.corneas);  // an unknown name throws before any work
   ScreenDesignResult r;
   r.candidates.push_back(Assess(base.ideal_image, true, base.topographer, goal));

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "model/config.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 
@@ -84,7 +85,7 @@ struct ScreenDesignOptions {
   std::function<void(size_t done, size_t total)> progress;  // called from worker threads
 };
 
-// Throws std::invalid_argument if the goal is invalid (IsValid) or names a cornea not in the test set (the goal's
+// Throws util::InputError if the goal is invalid (IsValid) or names a cornea not in the test set (the goal's
 // reader refuses both as util::ConfigError first).
 ScreenDesignResult OptimizeScreenDesign(const model::Config& base, const ScreenDesignGoal& goal,
                                         const ScreenDesignOptions& options = {});

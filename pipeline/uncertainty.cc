@@ -13,6 +13,7 @@
 #include "pipeline/detection_plane.h"
 #include "topo/analysis.h"
 #include "util/parallel.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -35,7 +36,7 @@ constexpr std::array<const char*, 9> kQuantities = {"rx_mm", "ry_mm", "kx", "ky"
 void RequireShape(const calib::ParameterCovariance& covariance) {
   const auto n_names = static_cast<Eigen::Index>(covariance.names.size());
   if (covariance.matrix.rows() != n_names || covariance.matrix.cols() != n_names) {
-    throw std::invalid_argument(fmt::format("uncertainty: the covariance matrix is {} x {} but has {} parameter names",
+    throw util::InputError(fmt::format("uncertainty: the covariance matrix is {} x {} but has {} parameter names",
                                             covariance.matrix.rows(), covariance.matrix.cols(), n_names));
   }
 }
@@ -62,7 +63,7 @@ Eigen::MatrixXd DrawFactor(const calib::ParameterCovariance& covariance, const s
     for (Eigen::Index b = 0; b < m; ++b) drawn_covariance(a, b) = covariance.matrix(drawn_index[static_cast<size_t>(a)], drawn_index[static_cast<size_t>(b)]);
   }
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(drawn_covariance);
-  if (eigen.info() != Eigen::Success) throw std::invalid_argument("uncertainty: the covariance cannot be factored");
+  if (eigen.info() != Eigen::Success) throw util::InputError("uncertainty: the covariance cannot be factored");
   return eigen.eigenvectors() * eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
 }
 
@@ -135,13 +136,13 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
                                                     const calib::ParameterCovariance& covariance,
                                                     const model::TopographerCamera& camera, const model::Config& config,
                                                     int samples, std::uint32_t seed, int jobs) {
-  if (samples < 2) throw std::invalid_argument("uncertainty: at least 2 samples are needed");
+  if (samples < 2) throw util::InputError("uncertainty: at least 2 samples are needed");
   ClinicalUncertainty u;
   u.correlated = covariance.full;
   const std::vector<Eigen::Index> drawn_index = DrawnIndices(covariance);
   for (const Eigen::Index i : drawn_index) u.drawn.push_back(covariance.names[static_cast<size_t>(i)]);
   if (u.drawn.empty()) {
-    throw std::invalid_argument("uncertainty: the calibration reports no standard deviation for a distortion parameter");
+    throw util::InputError("uncertainty: the calibration reports no standard deviation for a distortion parameter");
   }
   const auto m = static_cast<Eigen::Index>(drawn_index.size());
   const Eigen::MatrixXd factor = DrawFactor(covariance, drawn_index);

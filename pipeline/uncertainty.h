@@ -19,6 +19,7 @@
 #include "model/null_screen.h"
 #include "model/topographer_camera.h"
 #include "pipeline/measure_spots.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 
@@ -47,14 +48,14 @@ struct ClinicalUncertainty {
 // The distortion parameters of `covariance` that have a spread to draw (positive, finite variance), in the
 // covariance's order. Empty means nothing to propagate (every distortion parameter fixed or without a reported
 // standard deviation): the one legitimate "no uncertainty" case, which callers test for before propagating.
-// Throws std::invalid_argument when the matrix does not match its names.
+// Throws util::InputError when the matrix does not match its names.
 std::vector<std::string> DistortionParametersToDraw(const calib::ParameterCovariance& covariance);
 
 // The draws run on `jobs` threads (<= 0: every core; model/parallel.h); draw i takes its normals from
 // std::seed_seq{seed, i}, so the result is bit-identical whatever `jobs` is. Each draw starts from the nominal
 // analysis (the calibration as it is: topo::AnalysisOptions::start — its slope-fit factor, its surface for the first
 // incidence points, its biconic or sphere fit) and computes only what the quantities need.
-// Throws std::invalid_argument for samples < 2, a covariance whose size does not match its names, or no distortion
+// Throws util::InputError for samples < 2, a covariance whose size does not match its names, or no distortion
 // parameter with a positive variance;
 // std::runtime_error when more than half of the draws fail.
 ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredImageSpot>& spots,

@@ -16,6 +16,7 @@
 #include "pipeline/measure_spots.h"
 #include "pipeline/measurement_uncertainty.h"
 #include "util/parallel.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -202,12 +203,12 @@ model::Device DrawAssembledDevice(const model::Device& nominal, std::mt19937& rn
 
 CoverageResult RunUncertaintyCoverage(const model::Config& config, const model::Device& nominal,
                                       const CoverageOptions& o) {
-  if (o.cases < 1) throw std::invalid_argument("coverage: at least one case is needed");
-  if (!(o.spot_noise_px > 0)) throw std::invalid_argument("coverage: the spot noise must be > 0 px");
+  if (o.cases < 1) throw util::InputError("coverage: at least one case is needed");
+  if (!(o.spot_noise_px > 0)) throw util::InputError("coverage: the spot noise must be > 0 px");
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
   if (!o.eye_kind.empty() && o.eye_kind != "biconic" && o.eye_kind != "keratoconus" && o.eye_kind != "ablation" &&
       o.eye_kind != "irregular") {
-    throw std::invalid_argument(fmt::format("coverage: no eyes of kind '{}'", o.eye_kind));
+    throw util::InputError(fmt::format("coverage: no eyes of kind '{}'", o.eye_kind));
   }
   const auto eyes = StudyEyes(config, o.eye_kind);
   std::vector<CaseOutcome> outcomes(static_cast<size_t>(o.cases));

@@ -17,6 +17,7 @@
 
 #include "model/config.h"
 #include "model/device.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 
@@ -65,7 +66,7 @@ struct CoverageResult {
 model::Device DrawAssembledDevice(const model::Device& nominal, std::mt19937& rng);
 
 // `nominal`: the device the unit is designed as (its camera; the drawn devices depart from it). Throws
-// std::invalid_argument for cases < 1 or a non-positive noise.
+// util::InputError for cases < 1 or a non-positive noise.
 CoverageResult RunUncertaintyCoverage(const model::Config& config, const model::Device& nominal,
                                       const CoverageOptions& options = {});
 

@@ -14,6 +14,7 @@
 #include "pipeline/detection_plane.h"
 #include "pipeline/measure_spots.h"
 #include "topo/power_map.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -49,8 +50,6 @@ std::optional<ClinicalUncertainty> Uncertainty(const std::vector<MeasuredImageSp
     if (DistortionParametersToDraw(unit.covariance).empty()) return std::nullopt;
     return PropagateCalibrationUncertainty(detected, unit.camera, unit.covariance, camera, config,
                                            options.uncertainty_samples, options.seed, options.jobs);
-  } catch (const std::invalid_argument& e) {
-    throw std::runtime_error(fmt::format("{}: {}", what, e.what()));
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(fmt::format("{}: {}", what, e.what()));
   }
@@ -103,11 +102,11 @@ model::Config WithSphere(const model::Config& config, double radius_mm) {
 SphereVerification DetectReferenceSphere(const cv::Mat& image, double radius_mm, const model::TopographerCamera& camera,
                                          const model::Config& config) {
   if (!(radius_mm >= kMinSphereRadiusMm && radius_mm <= kMaxSphereRadiusMm)) {
-    throw std::invalid_argument(fmt::format("sphere radius {} mm is outside [{}, {}] mm", radius_mm,
+    throw util::InputError(fmt::format("sphere radius {} mm is outside [{}, {}] mm", radius_mm,
                                             kMinSphereRadiusMm, kMaxSphereRadiusMm));
   }
   if (image.cols != camera.width_px || image.rows != camera.height_px) {
-    throw std::invalid_argument(fmt::format("the image is {} x {} px but the camera is {} x {} px", image.cols,
+    throw util::InputError(fmt::format("the image is {} x {} px but the camera is {} x {} px", image.cols,
                                             image.rows, camera.width_px, camera.height_px));
   }
   const model::Config sphere = WithSphere(config, radius_mm);
@@ -132,10 +131,10 @@ SphereVerification VerifyOnReferenceSphere(SphereVerification v, double radius_m
                                            const model::TopographerCamera& camera, const model::Config& config,
                                            const CheckOptions& options) {
   if (!(radius_mm >= kMinSphereRadiusMm && radius_mm <= kMaxSphereRadiusMm)) {
-    throw std::invalid_argument(
+    throw util::InputError(
         fmt::format("sphere radius {} mm is outside [{}, {}] mm", radius_mm, kMinSphereRadiusMm, kMaxSphereRadiusMm));
   }
-  if (v.detected.empty()) throw std::invalid_argument("no identified spots of the reference sphere");
+  if (v.detected.empty()) throw util::InputError("no identified spots of the reference sphere");
   const model::Config sphere = WithSphere(config, radius_mm);
   const auto design = model::DesignNullScreen(sphere.ideal_image, sphere.topographer);
   const auto on_plane = OnDetectionPlane(unit, camera);

@@ -19,6 +19,7 @@
 #include "model/topographer_camera.h"
 #include "pipeline/uncertainty.h"
 #include "topo/analysis.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 
@@ -69,7 +70,7 @@ struct SphereVerification {
 // (reconstruction.biconic_fit = "sphere": centre and radius; k_x = k_y = alpha = 0 by construction).
 model::Config WithSphere(const model::Config& config, double radius_mm);
 
-// Throws std::invalid_argument for a non-physical radius or an image of the wrong size, std::runtime_error (one
+// Throws util::InputError for a non-physical radius or an image of the wrong size, std::runtime_error (one
 // line) when the spots cannot be found, the reconstruction fails or the uncertainty cannot be propagated (the
 // uncertainty is left out only when no distortion parameter has a spread: DistortionParametersToDraw).
 SphereVerification VerifyOnReferenceSphere(const cv::Mat& image, double radius_mm, const UnitCalibration& unit,
@@ -84,7 +85,7 @@ SphereVerification DetectReferenceSphere(const cv::Mat& image, double radius_mm,
 
 // The same check from spots already detected and identified (`v.detected` and the detector's counts in `v`, the
 // rest of `v` ignored): what VerifyOnReferenceSphere does after detection, and what the QA report recomputes from
-// the record's sphere_spots.csv. Same exceptions, std::invalid_argument also for an empty spot list.
+// the record's sphere_spots.csv. Same exceptions, util::InputError also for an empty spot list.
 SphereVerification VerifyOnReferenceSphere(SphereVerification v, double radius_mm, const UnitCalibration& unit,
                                            const model::TopographerCamera& camera, const model::Config& config,
                                            const CheckOptions& options);

@@ -218,8 +218,6 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
 [[noreturn]] void RethrowForImage(const std::exception_ptr& error, const std::string& path, const std::string& serial) {
   try {
     std::rethrow_exception(error);
-  } catch (const std::invalid_argument& e) {
-    throw util::InputError(fmt::format("{}: {}", path, e.what()));
   } catch (const util::InputError& e) {
     throw util::InputError(fmt::format("{}: {}", path, e.what()));
   } catch (const std::runtime_error& e) {
@@ -288,8 +286,6 @@ std::optional<UnitDeviceStage> CalibrateDeviceStage(const UnitRequest& r, const 
   UnitDeviceStage d;
   try {
     d.calibration = pipeline::CalibrateDevice(in.balls, in.nominal_device, in.config, {});
-  } catch (const std::invalid_argument& e) {
-    throw util::InputError(e.what());
   } catch (const util::InputError& e) {  // bad input stays bad input (it is a runtime_error too)
     throw util::InputError(fmt::format("{}: {}", r.serial, e.what()));
   } catch (const std::runtime_error& e) {
@@ -308,8 +304,6 @@ std::optional<UnitDeviceStage> CalibrateDeviceStage(const UnitRequest& r, const 
                                                device, in.config);
     }
     d.paper = pipeline::PaperCorneaThroughDevice(in.nominal_device, d.lens_only, device, in.config);
-  } catch (const std::invalid_argument& e) {
-    throw util::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
   } catch (const util::InputError& e) {
     throw util::InputError(fmt::format("{}: {}", r.reference_sphere, e.what()));
   } catch (const std::runtime_error& e) {

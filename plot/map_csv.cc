@@ -28,7 +28,7 @@ bool ParseDouble(std::string_view field, double* out) {
 
 std::string GridMapCsv(const GridMap& map) {
   std::string why;
-  if (!map.IsValid(&why)) throw std::invalid_argument("GridMap: " + why);
+  if (!map.IsValid(&why)) throw util::InputError("GridMap: " + why);
   std::string column = "value";
   const std::string unit = Transliterate(map.unit);
   if (!unit.empty()) column += '_';

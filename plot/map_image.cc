@@ -491,8 +491,8 @@ void DrawColourBar(cv::Mat& img, const GridMap& map, const MapImageOptions& opti
 
 MapImage RenderMap(const GridMap& map, const MapImageOptions& options) {
   std::string why;
-  if (!map.IsValid(&why)) throw std::invalid_argument("GridMap: " + why);
-  if (!options.IsValid(&why)) throw std::invalid_argument("MapImageOptions: " + why);
+  if (!map.IsValid(&why)) throw util::InputError("GridMap: " + why);
+  if (!options.IsValid(&why)) throw util::InputError("MapImageOptions: " + why);
   const ColourRange c = ColourRangeOf(map, options);
   const MapLayout l = LayoutOf(map, options, c);
   cv::Mat img(l.height, l.width, CV_8UC3, kWhite);

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "model/grid_map.h"
+#include "util/io.h"
 
 namespace topocal::plot {
 
@@ -115,7 +116,7 @@ struct MapScale {
   std::string label;  // e.g. "absolute scale, 1.5 D steps", "normalised scale (this set), minimum span 1 D"
 };
 // One scale for all `maps` (their finite values together; a set with no data gets [0, 1] widened as requested).
-// Throws std::invalid_argument for an invalid request or an empty set.
+// Throws util::InputError for an invalid request or an empty set.
 MapScale SelectMapScale(const std::vector<const GridMap*>& maps, const MapScaleRequest& request);
 // The scale's range, contour step (the palette stepped at it) and label into the drawing options.
 void ApplyMapScale(const MapScale& scale, MapImageOptions* options);
@@ -150,7 +151,7 @@ std::array<std::uint8_t, 3> ScaleColour(ColourScale scale, double t);
 // The light grey drawn where the map has no data, BGR.
 std::array<std::uint8_t, 3> NoDataColour();
 
-// Renders the map. Throws std::invalid_argument if the map or the options are invalid (see IsValid).
+// Renders the map. Throws util::InputError if the map or the options are invalid (see IsValid).
 MapImage RenderMap(const GridMap& map, const MapImageOptions& options = {});
 // Renders and writes a PNG atomically: a map on a stepped palette as a palette PNG (plot/map_png.cc: every band
 // colour exact, anti-aliased edges of text and lines the nearest of the map's colours; about a fifth of the

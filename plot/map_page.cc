@@ -21,12 +21,12 @@ constexpr std::size_t kMaxMaps = 8;
 MapPage ComposeMapPage(const std::vector<MapImage>& maps, const std::string& title,
                        const std::vector<std::string>& lines) {
   if (maps.empty() || maps.size() > kMaxMaps) {
-    throw std::invalid_argument(fmt::format("ComposeMapPage: {} maps (1 to {})", maps.size(), kMaxMaps));
+    throw util::InputError(fmt::format("ComposeMapPage: {} maps (1 to {})", maps.size(), kMaxMaps));
   }
   int cell_w = 0, cell_h = 0, plot_side = 0;
   for (const MapImage& m : maps) {
     if (m.width_px <= 0 || m.height_px <= 0 || m.bgr.size() != 3u * m.width_px * m.height_px) {
-      throw std::invalid_argument("ComposeMapPage: a map without pixels");
+      throw util::InputError("ComposeMapPage: a map without pixels");
     }
     cell_w = std::max(cell_w, m.width_px);
     cell_h = std::max(cell_h, m.height_px);

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "plot/map_image.h"
+#include "util/io.h"
 
 namespace topocal::plot {
 
@@ -20,7 +21,7 @@ struct MapPage {
 
 // The maps (1 to 8) in two columns, each pixel for pixel as rendered, cells as large as the largest map; `title`
 // above them; `lines` in the cell after the last map, wrapped at spaces to its width, in the maps' label size.
-// Throws std::invalid_argument for no map, more than 8, or a map without pixels.
+// Throws util::InputError for no map, more than 8, or a map without pixels.
 MapPage ComposeMapPage(const std::vector<MapImage>& maps, const std::string& title,
                        const std::vector<std::string>& lines);
 // ComposeMapPage written as a PNG atomically: a palette PNG when the maps are on stepped palettes, as WriteMapPng

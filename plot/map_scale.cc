@@ -9,6 +9,7 @@
 
 #include "plot/map_image.h"
 #include "plot/map_ticks.h"
+#include "util/io.h"
 
 namespace topocal::plot {
 namespace {
@@ -124,12 +125,12 @@ MapScaleRequest SymmetricScale(double min_span) {
 
 MapScale SelectMapScale(const std::vector<const GridMap*>& maps, const MapScaleRequest& request) {
   std::string why;
-  if (!request.IsValid(&why)) throw std::invalid_argument("MapScaleRequest: " + why);
-  if (maps.empty()) throw std::invalid_argument("SelectMapScale: no map");
+  if (!request.IsValid(&why)) throw util::InputError("MapScaleRequest: " + why);
+  if (maps.empty()) throw util::InputError("SelectMapScale: no map");
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   std::string unit;
   for (const GridMap* m : maps) {
-    if (!m) throw std::invalid_argument("SelectMapScale: null map");
+    if (!m) throw util::InputError("SelectMapScale: null map");
     unit = m->unit;
     for (double v : m->values) {
       if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);

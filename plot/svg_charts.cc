@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "plot/svg.h"
+#include "util/io.h"
 
 namespace topocal::plot {
 namespace {
@@ -68,7 +69,7 @@ double NiceFloor(double x) {
 std::string SvgBarChart(const std::vector<Bar>& bars, const BarChartOptions& o) {
   double top = o.limit.value_or(0);
   for (const Bar& b : bars) {
-    if (!std::isfinite(b.value) || b.value < 0) throw std::invalid_argument("bar chart: values must be finite and >= 0");
+    if (!std::isfinite(b.value) || b.value < 0) throw util::InputError("bar chart: values must be finite and >= 0");
     top = std::max(top, b.value);
   }
   if (top <= 0) top = 1;
@@ -135,17 +136,17 @@ struct QuiverFrame {
 };
 
 QuiverFrame FrameQuiver(const std::vector<Arrow>& arrows, const QuiverOptions& o) {
-  if (o.image_width_px <= 0 || o.image_height_px <= 0) throw std::invalid_argument("quiver: image size must be > 0");
+  if (o.image_width_px <= 0 || o.image_height_px <= 0) throw util::InputError("quiver: image size must be > 0");
   double longest = 0;
   for (const Arrow& a : arrows) {
     if (!std::isfinite(a.x_px) || !std::isfinite(a.y_px) || !std::isfinite(a.dx_px) || !std::isfinite(a.dy_px)) {
-      throw std::invalid_argument("quiver: non-finite arrow");
+      throw util::InputError("quiver: non-finite arrow");
     }
     longest = std::max(longest, std::hypot(a.dx_px, a.dy_px));
   }
   const PixelRegion region = o.region.value_or(PixelRegion{-0.5, -0.5, static_cast<double>(o.image_width_px),
                                                             static_cast<double>(o.image_height_px)});
-  if (!(region.width_px > 0) || !(region.height_px > 0)) throw std::invalid_argument("quiver: empty region");
+  if (!(region.width_px > 0) || !(region.height_px > 0)) throw util::InputError("quiver: empty region");
   const double img_w = region.width_px, img_h = region.height_px;
   const double magnification =
       o.magnification.value_or(longest > 0 ? NiceFloor(kLongestArrowFraction * std::max(img_w, img_h) / longest) : 1);
@@ -163,11 +164,11 @@ QuiverFrame FrameQuiver(const std::vector<Arrow>& arrows, const QuiverOptions& o
 // The background's colour range: its values' extent unless the field sets it.
 std::pair<double, double> BackgroundRange(const CellField& f) {
   if (f.cols <= 0 || f.rows <= 0 || f.values.size() != static_cast<std::size_t>(f.cols) * f.rows) {
-    throw std::invalid_argument("quiver: background grid size does not match its values");
+    throw util::InputError("quiver: background grid size does not match its values");
   }
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   for (double v : f.values) {
-    if (std::isinf(v)) throw std::invalid_argument("quiver: infinite background value");
+    if (std::isinf(v)) throw util::InputError("quiver: infinite background value");
     if (std::isnan(v)) continue;  // no data
     lo = std::min(lo, v);
     hi = std::max(hi, v);
@@ -175,7 +176,7 @@ std::pair<double, double> BackgroundRange(const CellField& f) {
   if (!std::isfinite(lo)) lo = 0, hi = 1;  // no cell with data
   lo = f.value_min.value_or(lo);
   hi = f.value_max.value_or(hi);
-  if (!std::isfinite(lo) || !std::isfinite(hi)) throw std::invalid_argument("quiver: non-finite colour range");
+  if (!std::isfinite(lo) || !std::isfinite(hi)) throw util::InputError("quiver: non-finite colour range");
   return {lo, hi};
 }
 

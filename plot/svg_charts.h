@@ -10,6 +10,7 @@
 #include <string>
 #include <string_view>
 #include <vector>
+#include "util/io.h"
 
 namespace topocal::plot {
 
@@ -61,7 +62,7 @@ struct QuiverOptions {
   std::optional<CellField> background;
 };
 
-// Arrows over the image frame, magnified, with a scale bar. Throws std::invalid_argument for a non-positive image
+// Arrows over the image frame, magnified, with a scale bar. Throws util::InputError for a non-positive image
 // size or a non-finite vector.
 std::string SvgQuiver(const std::vector<Arrow>& arrows, const QuiverOptions& options);
 

@@ -301,7 +301,7 @@ std::vector<Check> SphereChecks(const UnitRecord& rec, const Limits& limits, con
 
 Verdict Evaluate(const UnitRecord& rec, const Limits& limits, const BudgetOptions& budget) {
   std::string why;
-  if (!budget.IsValid(&why)) throw std::invalid_argument("BudgetOptions: " + why);
+  if (!budget.IsValid(&why)) throw util::InputError("BudgetOptions: " + why);
   Verdict v;
   {
     Check c{"calibration_rms_px", "calibration: reprojection RMS", "px", rec.calibration_rms_px, std::nullopt,

@@ -14,6 +14,7 @@
 #include "topo/biconic_jacobian.h"
 #include "topo/sphere_fit.h"
 #include "topo/surface_fit_solver.h"
+#include "util/io.h"
 
 namespace topocal::topo {
 namespace {
@@ -191,7 +192,7 @@ BiconicFitMode BiconicFitModeFromName(const std::string& name) {
   if (name == "free-apex") return BiconicFitMode::kFreeApex;
   if (name == "paper") return BiconicFitMode::kPaper;
   if (name == "sphere") return BiconicFitMode::kSphere;
-  throw std::invalid_argument(
+  throw util::InputError(
       fmt::format("biconic fit must be \"free-apex\", \"paper\" or \"sphere\" (got \"{}\")", name));
 }
 

@@ -17,6 +17,7 @@
 #include <Eigen/Core>
 
 #include "model/config.h"
+#include "util/io.h"
 
 namespace topocal::topo {
 
@@ -41,7 +42,7 @@ struct BiconicFitOptions {
 };
 
 // "free-apex" / "paper" / "sphere" (the configuration key reconstruction.biconic_fit and the CLI's --biconic-fit).
-BiconicFitMode BiconicFitModeFromName(const std::string& name);  // throws std::invalid_argument
+BiconicFitMode BiconicFitModeFromName(const std::string& name);  // throws util::InputError
 const char* BiconicFitModeName(BiconicFitMode mode);
 
 struct BiconicStdDev {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include "util/io.h"
 
 namespace topocal::topo {
 namespace {
@@ -14,13 +15,13 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 model::GridMap ResamplePolar(const PolarField& field, int n, std::string title, std::string unit) {
   const size_t nr = field.radii_mm.size();
-  if (n < 2) throw std::invalid_argument("ResamplePolar: n must be at least 2");
+  if (n < 2) throw util::InputError("ResamplePolar: n must be at least 2");
   if (nr < 2 || field.meridians < 1 || field.values.size() != nr * field.meridians) {
-    throw std::invalid_argument("ResamplePolar: need >= 2 radii, >= 1 meridian and meridians * radii values");
+    throw util::InputError("ResamplePolar: need >= 2 radii, >= 1 meridian and meridians * radii values");
   }
   for (size_t k = 0; k < nr; ++k) {
     if (!(field.radii_mm[k] >= 0) || (k > 0 && !(field.radii_mm[k] > field.radii_mm[k - 1]))) {
-      throw std::invalid_argument("ResamplePolar: radii must be >= 0 and strictly ascending");
+      throw util::InputError("ResamplePolar: radii must be >= 0 and strictly ascending");
     }
   }
   const double R = field.radii_mm.back();
@@ -59,7 +60,7 @@ model::GridMap ResamplePolar(const PolarField& field, int n, std::string title, 
 
 model::GridMap ElevationAboveSphere(const model::GridMap& sag_um, const model::Sphere& sphere) {
   std::string why;
-  if (!sag_um.IsValid(&why)) throw std::invalid_argument("GridMap: " + why);
+  if (!sag_um.IsValid(&why)) throw util::InputError("GridMap: " + why);
   model::GridMap out = sag_um;
   for (int j = 0; j < sag_um.ny; ++j) {
     const double y = sag_um.y_min_mm + j * (sag_um.y_max_mm - sag_um.y_min_mm) / (sag_um.ny - 1);

@@ -7,6 +7,7 @@
 
 #include "model/surface.h"
 #include "model/grid_map.h"
+#include "util/io.h"
 
 namespace topocal::topo {
 
@@ -20,7 +21,7 @@ struct PolarField {
 
 // Resamples a polar field onto an n x n grid over [-R, R]^2, R = the largest radius: bilinear in (r, angle),
 // periodic in angle; NaN beyond R; inside the smallest radius the innermost ring's value on that meridian.
-// Throws std::invalid_argument on an inconsistent field or n < 2.
+// Throws util::InputError on an inconsistent field or n < 2.
 model::GridMap ResamplePolar(const PolarField& field, int n, std::string title, std::string unit);
 
 // Elevation above a sphere (the best-fit sphere of the clinical indices, topo/clinical_indices.h, fitted by

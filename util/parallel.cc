@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <thread>
 #include <vector>
+#include "util/io.h"
 
 namespace topocal::util {
 
@@ -20,7 +21,7 @@ int AvailableCores() {
 }
 
 void ParallelFor(size_t n, int jobs, const std::function<void(size_t)>& fn) {
-  if (jobs < 0) throw std::invalid_argument("ParallelFor: jobs must be >= 0");
+  if (jobs < 0) throw util::InputError("ParallelFor: jobs must be >= 0");
   const size_t threads = std::min(n, static_cast<size_t>(jobs == 0 ? AvailableCores() : jobs));
   if (threads <= 1) {
     for (size_t i = 0; i < n; ++i) fn(i);

@@ -11,13 +11,14 @@
 // and exceptions must cross back to the caller.
 #include <cstddef>
 #include <functional>
+#include "util/io.h"
 
 namespace topocal::util {
 
 // Cores this process may run on (its CPU affinity, as a container or `taskset` limits it), at least 1.
 int AvailableCores();
 
-// `jobs` < 0 is a programming error (std::invalid_argument); 0 means AvailableCores().
+// `jobs` < 0 is a programming error (util::InputError); 0 means AvailableCores().
 void ParallelFor(size_t n, int jobs, const std::function<void(size_t)>& fn);
 
 }  // namespace topocal::util

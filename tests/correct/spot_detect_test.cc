@@ -11,6 +11,7 @@
 #include "correct/detect_and_index.h"
 #include "correct/spot_render.h"
 #include "synthetic.h"
+#include "util/io.h"
 
 namespace topocal::correct {
 namespace {
@@ -236,7 +237,7 @@ TEST(SpotDetectOptions, InvalidOptionsSayWhy) {
   std::string why;
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("min_area_px"), std::string::npos);
-  EXPECT_THROW(DetectSpots(cv::Mat(10, 10, CV_8UC3), {}), std::invalid_argument);
+  EXPECT_THROW(DetectSpots(cv::Mat(10, 10, CV_8UC3), {}), util::InputError);
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 
 #include "model/config.h"
 #include "model/surface.h"
+#include "util/io.h"
 
 namespace topocal::model {
 namespace {
@@ -276,7 +277,7 @@ TEST(NullScreenLayout, RejectsInvalidOptions) {
   std::string why;
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("outline_points"), std::string::npos);
-  EXPECT_THROW(LayoutNullScreen(c.ideal_image, c.topographer, o), std::invalid_argument);
+  EXPECT_THROW(LayoutNullScreen(c.ideal_image, c.topographer, o), util::InputError);
 }
 
 }  // namespace

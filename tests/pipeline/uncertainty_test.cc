@@ -9,6 +9,7 @@
 #include "model/config.h"
 #include "pipeline/uncertainty.h"
 #include "topo/sweep.h"
+#include "util/io.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -122,13 +123,13 @@ TEST(Uncertainty, CorrelationsOfTheCalibrationChangeTheClinicalUncertainty) {
 TEST(Uncertainty, RefusesWhatItCannotPropagate) {
   const Fixture f;
   EXPECT_THROW(PropagateCalibrationUncertainty(f.spots, f.calibrated, Diagonal({{"k1", 0.0}}), f.camera, f.config, 8, 1),
-               std::invalid_argument);
+               util::InputError);
   EXPECT_THROW(PropagateCalibrationUncertainty(f.spots, f.calibrated, Diagonal({{"k1", 1e-3}}), f.camera, f.config, 1, 1),
-               std::invalid_argument);
+               util::InputError);
   auto mismatched = K1K2(1e-3, 1e-3, 0.0);
   mismatched.names.pop_back();
   EXPECT_THROW(PropagateCalibrationUncertainty(f.spots, f.calibrated, mismatched, f.camera, f.config, 8, 1),
-               std::invalid_argument);
+               util::InputError);
 }
 
 TEST(Uncertainty, NothingToPropagateIsItsOwnConditionAndAMalformedCovarianceIsAnError) {
@@ -141,7 +142,7 @@ TEST(Uncertainty, NothingToPropagateIsItsOwnConditionAndAMalformedCovarianceIsAn
   // ...while a covariance that does not match its names is an error, not "nothing to propagate".
   auto mismatched = K1K2(1e-3, 1e-3, 0.0);
   mismatched.names.pop_back();
-  EXPECT_THROW(DistortionParametersToDraw(mismatched), std::invalid_argument);
+  EXPECT_THROW(DistortionParametersToDraw(mismatched), util::InputError);
 }
 
 TEST(Uncertainty, SpotsADrawCannotUndistortAreCountedNotDropped) {

@@ -364,18 +364,18 @@ TEST(MapImage, RejectsInconsistentInput) {
   g.values.pop_back();
   std::string why;
   EXPECT_FALSE(g.IsValid(&why));
-  EXPECT_THROW(RenderMap(g), std::invalid_argument);
-  EXPECT_THROW(GridMapCsv(g), std::invalid_argument);
+  EXPECT_THROW(RenderMap(g), util::InputError);
+  EXPECT_THROW(GridMapCsv(g), util::InputError);
   MapImageOptions o;
   o.value_min = 2.0;
   o.value_max = 1.0;
   EXPECT_FALSE(o.IsValid(&why));
-  EXPECT_THROW(RenderMap(Ramp(5, -1, 1, true), o), std::invalid_argument);
+  EXPECT_THROW(RenderMap(Ramp(5, -1, 1, true), o), util::InputError);
   PolarField p;
   p.radii_mm = {0.0, 1.0};
   p.meridians = 4;
   p.values = {1.0};
-  EXPECT_THROW(ResamplePolar(p, 10, "", ""), std::invalid_argument);
+  EXPECT_THROW(ResamplePolar(p, 10, "", ""), util::InputError);
 }
 
 // A disc of radius `radius_mm` on an n x n grid holding f(x, y), no data outside.
@@ -459,11 +459,11 @@ TEST(MapScale, AbsoluteScalesStepFromTheStandardRange) {
   EXPECT_NEAR(std::remainder(u.value_min, 0.5), 0.0, 1e-9);
   // Invalid requests say why.
   user.step = 0;
-  EXPECT_THROW(SelectMapScale({&sphere}, user), std::invalid_argument);
+  EXPECT_THROW(SelectMapScale({&sphere}, user), util::InputError);
   user.step = 1.5;
   user.low = 35.0;
   user.high = 50.2;  // not a whole number of steps
-  EXPECT_THROW(SelectMapScale({&sphere}, user), std::invalid_argument);
+  EXPECT_THROW(SelectMapScale({&sphere}, user), util::InputError);
 }
 
 // With the minimum span a sphere looks flat: its whole map falls in one or two contour bands and near the middle of

@@ -88,7 +88,7 @@ TEST(MapPage, TheMapsArePlacedAsDrawnAndTheNumbersBesideThem) {
   EXPECT_EQ(joined, long_line);
   EXPECT_GT(DarkPixels(page, page.text, page.text.y, page.text.y + page.text.height), 500);
   EXPECT_GT(DarkPixels(page, {0, 0, page.width_px, page.panels[0].y}, 0, page.panels[0].y), 200);
-  EXPECT_THROW(ComposeMapPage({}, "t", {}), std::invalid_argument);
+  EXPECT_THROW(ComposeMapPage({}, "t", {}), util::InputError);
 
   // Written as the maps are: a palette PNG, every colour of the maps' bars exactly where the page has it.
   ASSERT_EQ(page.colour_bars.size(), 3u);

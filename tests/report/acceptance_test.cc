@@ -201,7 +201,7 @@ TEST(Acceptance, UncertaintyBudgetCombinesCalibrationRepeatabilityAndCertificate
   // The certificate's U is the user's number: a bad one is refused.
   BudgetOptions bad;
   bad.ball_radius_U_mm = -1;
-  EXPECT_THROW(Evaluate(ReadUnitRecord(f.dir), DefaultLimits(), bad), std::invalid_argument);
+  EXPECT_THROW(Evaluate(ReadUnitRecord(f.dir), DefaultLimits(), bad), util::InputError);
 }
 
 TEST(Acceptance, AGuardBandThatTheBudgetWidensTurnsAPassIntoAFail) {

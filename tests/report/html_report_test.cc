@@ -13,6 +13,7 @@
 #include "plot/svg.h"
 #include "plot/svg_charts.h"
 #include "tests/report/record_fixture.h"
+#include "util/io.h"
 
 namespace topocal::report {
 namespace {
@@ -95,7 +96,7 @@ TEST(SvgPlot, NiceFloorAndEscaping) {
   EXPECT_EQ(EscapeXml("a<b & \"c\">'"), "a&lt;b &amp; &quot;c&quot;&gt;&#39;");
   QuiverOptions o;
   o.image_width_px = o.image_height_px = 10;
-  EXPECT_THROW(SvgQuiver({{0, 0, std::nan(""), 0, false}}, o), std::invalid_argument);
+  EXPECT_THROW(SvgQuiver({{0, 0, std::nan(""), 0, false}}, o), util::InputError);
 }
 
 TEST(SvgPlot, QuiverHasOneArrowPerVectorAndAScaleBar) {

@@ -11,6 +11,7 @@
 
 #include "model/surface.h"
 #include "topo/biconic_jacobian.h"
+#include "util/io.h"
 
 namespace topocal::topo {
 namespace {
@@ -240,7 +241,7 @@ TEST(BiconicFit, StdDevIsCeresDenseSvdCovariance) {
 TEST(BiconicFit, ModeNames) {
   EXPECT_EQ(BiconicFitModeFromName("paper"), BiconicFitMode::kPaper);
   EXPECT_EQ(BiconicFitModeFromName("free-apex"), BiconicFitMode::kFreeApex);
-  EXPECT_THROW(BiconicFitModeFromName("free"), std::invalid_argument);
+  EXPECT_THROW(BiconicFitModeFromName("free"), util::InputError);
 }
 
 TEST(BiconicFit, CanonicalFormSwapsAxesAndWrapsAlpha) {

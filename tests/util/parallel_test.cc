@@ -1,4 +1,5 @@
 #include "util/parallel.h"
+#include "util/io.h"
 
 #include <gtest/gtest.h>
 
@@ -23,7 +24,7 @@ TEST(ParallelFor, RunsEveryIndexOnceWhateverTheThreadCount) {
   util::ParallelFor(0, 4, [&](size_t) { ++calls; });
   EXPECT_EQ(calls, 0);
   EXPECT_GE(util::AvailableCores(), 1);
-  EXPECT_THROW(util::ParallelFor(3, -1, [](size_t) {}), std::invalid_argument);
+  EXPECT_THROW(util::ParallelFor(3, -1, [](size_t) {}), util::InputError);
 }
 
 // An exception in one item reaches the caller after every thread has stopped; later items are not started.
