@@ -10,6 +10,7 @@
 
 #include "correct/detect_and_index.h"
 #include "correct/undistort_points.h"
+#include "imageio/image_file.h"
 #include "pipeline/surface_labelling.h"
 #include "util/io.h"
 
@@ -83,6 +84,12 @@ SpotMeasurement MeasurementOf(const IdentifiedSpots& identified, const std::opti
   }
   m.spots = UndistortSpots(m.detected, *distortion, &m.undistort_failures);
   return m;
+}
+
+cv::Mat ReadSpotImage(const std::string& path, const model::TopographerCamera& camera, const std::string& camera_file) {
+  cv::Mat image = imageio::ReadImage(path, imageio::Channels::kAsStored);
+  imageio::RequireSize(image, path, camera.width_px, camera.height_px, camera_file);
+  return image;
 }
 
 SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,

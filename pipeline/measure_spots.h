@@ -78,6 +78,10 @@ SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamer
                              const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion,
                              const correct::DetectAndIndexOptions& options = {});
 
+// A raw spot image, checked against the camera's sensor size: util::InputError naming the file (and `camera_file`,
+// where the size comes from) otherwise.
+cv::Mat ReadSpotImage(const std::string& path, const model::TopographerCamera& camera, const std::string& camera_file);
+
 // Through an as-built device: its camera maps pixels to the detection plane and its distortion is undone.
 SpotMeasurement MeasureSpots(const cv::Mat& image, const model::Device& device, const model::IdealImageParams& ideal,
                              const correct::DetectAndIndexOptions& options = {});

@@ -1,454 +1,28 @@
-#include <fmt/format.h>
-#include <fmt/ranges.h>
+// topocal reconstruct: the options of report/reconstruct_command.h.
+#include <functional>
+#include <iostream>
+#include <memory>
+#include <string>
 
-#include <nlohmann/json.hpp>
-
-#include "calib/calibration_file.h"
-#include "correct/detect_and_index.h"
-#include "model/config.h"
-#include "model/null_screen.h"
-#include "model/spots_csv.h"
-#include "model/topographer_camera.h"
-#include "pipeline/detection_plane.h"
-#include "pipeline/map_output.h"
-#include "plot/map_image.h"
-#include "pipeline/measure_spots.h"
-#include "pipeline/surface_labelling.h"
-#include "pipeline/measurement_uncertainty.h"
-#include "pipeline/uncertainty.h"
-#include "report/analysis_json.h"
+#include "report/reconstruct_command.h"
 #include "tools/commands.h"
 #include "tools/output_dir.h"
 #include "tools/progress.h"
 #include "tools/surface_option.h"
-#include "topo/analysis.h"
-#include "util/io.h"
-#include "util/json_section.h"
 
 namespace topocal::tools {
-namespace {
-
-// "value +- U" of a reported quantity (GUM: U to two digits, k = 2 stated once) when `u` has it, otherwise
-// "value +- sd" with the fit's standard deviation as before (no device: the fit's own figure).
-class Printer {
- public:
-  explicit Printer(const pipeline::MeasurementUncertainty* u) : u_(u) {}
-  std::string operator()(const std::string& name, double value, double sd, int decimals) const {
-    if (u_) return (*this)(name, value, decimals);
-    return fmt::format("{:.{}f} +- {:.{}f}", value, decimals, sd, decimals);
-  }
-  std::string operator()(const std::string& name, double value, int decimals) const {
-    if (const auto* q = u_ ? u_->Find(name) : nullptr) {
-      return pipeline::FormatWithUncertainty(value, q->expanded, decimals) + (q->lower_bound ? "*" : "");
-    }
-    return fmt::format("{:.{}f}", value, decimals);
-  }
-  // "at (x, y) mm" of a peak whose location is read as <prefix>x_mm, <prefix>y_mm; a location the data do not
-  // determine (a second peak within the value's U) is said so, without numbers.
-  std::string At(const std::string& prefix, const Eigen::Vector2d& at) const {
-    if (const auto* q = u_ ? u_->Find(prefix + "x_mm") : nullptr; q && !q->determined) {
-      return "at a location not determined (a second peak 1 mm or more away lies within U)";
-    }
-    return fmt::format("at ({}, {}) mm", (*this)(prefix + "x_mm", at.x(), 2), (*this)(prefix + "y_mm", at.y(), 2));
-  }
-
- private:
-  const pipeline::MeasurementUncertainty* u_;
-};
-
-void PrintUncertaintySources(const pipeline::MeasurementUncertainty& u) {
-  fmt::print("uncertainties below are U (k = 2) from: ");
-  if (!u.device_covariance) {
-    fmt::print("NOT the device (its file has no calibration covariance: a hand-written device), ");
-  } else if (u.device_monte_carlo) {
-    fmt::print("the device's covariance ({} Monte Carlo draws of {} parameters), ", u.device_analyses,
-               u.device_parameters.size());
-  } else {
-    fmt::print("the device's covariance ({} parameters, linear along {} directions), ", u.device_parameters.size(),
-               u.device_directions);
-  }
-  fmt::print("the spot-centre noise measured in this image ({:.3g} um = {:.2f} x the configured {:.3g} um, what the "
-             "surface model leaves unexplained included; {} draws){}; the map's sampling\n",
-             u.spot_sigma_um, u.spot_sigma_um / u.configured_spot_sigma_um, u.configured_spot_sigma_um, u.spot_draws,
-             u.failed_draws > 0 ? fmt::format("; {} analyses failed", u.failed_draws) : std::string());
-  const bool lower_bounds = std::any_of(u.quantities.begin(), u.quantities.end(), [](const auto& q) { return q.lower_bound; });
-  if (lower_bounds) {
-    fmt::print("  * U a lower bound: the spline surface smooths a map's peaks and ranges by an amount the noise "
-               "draws do not reveal (docs/uncertainty.md)\n");
-  }
-}
-
-void PrintAnalysis(const topo::Analysis& a, const pipeline::MeasurementUncertainty* u = nullptr) {
-  const auto& r = a.reconstruction;
-  const auto& f = a.surface_fit;
-  const auto& p = f.params;
-  const Printer v(u);
-  fmt::print("reconstruction: {}\n", r.message);
-  if (!r.unmatched.empty()) fmt::print("spots not in the design (ignored): {}\n", r.unmatched.size());
-  if (u) PrintUncertaintySources(*u);
-  fmt::print("biconic fit ({}, {} points, rms {:.4f} um):\n", topo::BiconicFitModeName(f.mode), f.points,
-             f.rms_residual_um);
-  const auto& sd = f.stddev;
-  fmt::print("  rx = {} mm   ry = {} mm\n", v("surface_fit.rx_mm", p.rx_mm, sd.rx_mm, 4),
-             v("surface_fit.ry_mm", p.ry_mm, sd.ry_mm, 4));
-  fmt::print("  kx = {}      ky = {}\n", v("surface_fit.kx", p.kx, sd.kx, 4), v("surface_fit.ky", p.ky, sd.ky, 4));
-  fmt::print("  alpha = {} deg   vertex = {} um\n", v("surface_fit.alpha_deg", p.alpha_deg, sd.alpha_deg, 4),
-             v("surface_fit.vertex_um", p.z0_mm * 1e3, sd.z0_mm * 1e3, 4));
-  if (f.mode != topo::BiconicFitMode::kPaper) {
-    fmt::print("  apex at ({}, {}) mm: decentration {} mm\n", v("surface_fit.apex_x_mm", f.apex_mm.x(), sd.apex_x_mm, 4),
-               v("surface_fit.apex_y_mm", f.apex_mm.y(), sd.apex_y_mm, 4),
-               v("surface_fit.decentration_mm", f.DecentrationMm(), 4));
-  }
-  if (f.mode == topo::BiconicFitMode::kFreeApex) {
-    fmt::print("  tilt x = {} deg, y = {} deg: {} deg off the axis\n", v("surface_fit.tilt_x_deg", p.tilt_x_deg, sd.tilt_x_deg, 3),
-               v("surface_fit.tilt_y_deg", p.tilt_y_deg, sd.tilt_y_deg, 3), v("surface_fit.tilt_deg", f.TiltDeg(), 3));
-  }
-  fmt::print("power maps (R = {:.2f} mm, points reach {:.2f} mm, every direction {:.2f} mm): pv tangential {} D, "
-             "pv axial {} D\n", a.power.radius_mm, a.covered_radius_mm, a.supported_radius_mm,
-             v("power.pv_tangential_D", a.power.pv_tangential_D, 3), v("power.pv_axial_D", a.power.pv_axial_D, 3));
-  if (a.errors) fmt::print("against the configured cornea: pv {:.4f} um, rms {:.4f} um\n", a.errors->pv_um, a.errors->rms_um);
-  fmt::print("model adequacy: slope residual {:.3g} = {:.2f} x the {:.3g} expected from spot-centre noise; "
-             "neighbour correlation {:.2f}, shared part {:.2f} x\n",
-             r.rms_slope_residual, r.adequacy_ratio, r.expected_slope_noise, r.residual_neighbour_correlation,
-             r.structured_residual_ratio);
-  fmt::print("surface model: {}{}\n", r.surface_model,
-             r.surface_model_reason.empty() ? "" : " (" + r.surface_model_reason + ")");
-  if (a.clinical_ok) {
-    const auto& c = a.clinical;
-    fmt::print("clinical (data to {:.2f} mm): sim-K {} D @ {} deg / {} D @ {} deg; Kmax {} D {}\n",
-               c.supported_radius_mm, v("clinical.sim_k.steep_D", c.steep_k_D, 2),
-               v("clinical.sim_k.steep_axis_deg", c.steep_axis_deg, 0), v("clinical.sim_k.flat_D", c.flat_k_D, 2),
-               v("clinical.sim_k.flat_axis_deg", c.flat_axis_deg, 0), v("clinical.kmax.power_D", c.kmax_D, 2),
-               v.At("clinical.kmax.", c.kmax_at_mm));
-    fmt::print("  BFS {} mm over {:.2f} mm: elevation peak {} um {}{}\n",
-               v("clinical.best_fit_sphere.radius_mm", c.bfs_radius_mm, 3), c.bfs_zone_radius_mm,
-               v("clinical.best_fit_sphere.elevation_peak_um", c.elevation_peak_um, 2),
-               v.At("clinical.best_fit_sphere.elevation_peak_", c.elevation_peak_at_mm),
-               c.is_available ? fmt::format("; I-S {} D", v("clinical.inferior_superior_D", c.inferior_superior_D, 2))
-                              : std::string());
-  } else {
-    fmt::print("clinical indices: {}\n", a.clinical_message);
-  }
-  for (const auto& w : a.warnings) fmt::print("WARNING: {}\n", w);
-}
-
-struct Inputs {
-  std::string spots, image, camera, calibration, device, estimator = "psf", eye, power_scale = "standard";
-  double power_step_D = 0;  // with --power-scale fit
-  int uncertainty_samples = 0;
-  unsigned seed = 1;
-};
-
-// pipeline::MeasureSpots with the user's estimator; its failures name the image.
-pipeline::SpotMeasurement MeasureImage(const cv::Mat& image, const model::TopographerCamera& camera,
-                                       const model::IdealImageParams& ideal,
-                                       const std::optional<model::Distortion>& distortion, const Inputs& in) {
-  correct::DetectAndIndexOptions options;
-  options.detection.method = correct::CentroidMethodFromName(in.estimator);
-  pipeline::SpotMeasurement m;
-  try {
-    m = pipeline::MeasureSpots(image, camera, ideal, distortion, options);
-  } catch (const util::InputError& e) {
-    throw util::InputError(fmt::format("{}: {}", in.image, e.what()));
-  } catch (const util::MeasurementRefused& e) {
-    throw util::MeasurementRefused(fmt::format("{}: {}", in.image, e.what()));
-  } catch (const std::invalid_argument& e) {
-    throw util::InputError(fmt::format("{}: {}", in.image, e.what()));
-  } catch (const std::runtime_error& e) {
-    throw std::runtime_error(fmt::format("{}: {}", in.image, e.what()));
-  }
-  fmt::print("{}\n", m.orientation_message);
-  if (m.excluded > 0)
-    fmt::print("{} identified spots flagged (near another blob, at the border, on an uneven background or a flux "
-               "outlier): left out\n",
-               m.excluded);
-  return m;
-}
-
-// Spots from a CSV, or detected, indexed and (with a calibration) undistorted in a raw image.
-// From an image, *from_image is the measurement and *imaging the device it was measured through (the calibrated
-// device, or the camera with the calibration's distortion, if any): the surface's labelling needs both.
-std::vector<topo::MeasuredSpot> ReadMeasurement(const Inputs& in, const model::Config& cfg,
-                                                const std::optional<model::Device>& device, nlohmann::json* info,
-                                                std::optional<pipeline::ClinicalUncertainty>* uncertainty,
-                                                std::optional<pipeline::SpotMeasurement>* from_image,
-                                                model::Device* imaging) {
-  std::vector<topo::MeasuredSpot> measured;
-  if (!in.spots.empty()) {
-    if (!in.camera.empty() || !in.calibration.empty() || !in.device.empty()) {
-      throw util::InputError("--camera, --device and --calibration go with --image (a spots CSV is already in mm)");
-    }
-    for (const auto& r : model::ReadSpotsCsv(in.spots)) measured.push_back({r.id, Eigen::Vector2d(r.x_mm, r.y_mm)});
-    (*info)["spots_read"] = measured.size();
-    return measured;
-  }
-  if (in.camera.empty() == in.device.empty()) {
-    throw util::InputError(
-        "--image: needs --camera (pixel pitch, principal point) or --device (the calibrated device)");
-  }
-  auto camera = in.device.empty() ? model::LoadTopographerCamera(in.camera) : device->camera;
-  const std::string& camera_file = in.device.empty() ? in.camera : in.device;
-  const cv::Mat image = ReadSpotImage(in.image, camera, camera_file);
-  if (device) {
-    const auto m = MeasureImage(image, device->camera, cfg.ideal_image, device->distortion, in);
-    fmt::print("image: {} spots indexed, {} unassigned detections, {} designed spots missing, measured through the "
-               "device {} ({} outside its distortion's domain)\n",
-               m.indexed, m.unassigned, m.missing, in.device, m.undistort_failures);
-    (*info)["image"] = {{"indexed", m.indexed},
-                        {"unassigned", m.unassigned},
-                        {"missing", m.missing},
-                        {"device", in.device},
-                        {"undistort_failures", m.undistort_failures}};
-    *from_image = m;
-    *imaging = *device;
-    return m.spots;
-  }
-  std::optional<model::Distortion> distortion;
-  std::optional<calib::CalibrationFile> cal;
-  if (!in.calibration.empty()) {
-    cal = calib::LoadCalibrationFile(in.calibration);
-    const auto on_plane = pipeline::CalibrationOnDetectionPlane(*cal, in.calibration, camera, in.camera);
-    distortion = on_plane.distortion;
-    camera = on_plane.camera;  // with the calibration's pixel aspect, fx / fy
-  }
-  const auto m = MeasureImage(image, camera, cfg.ideal_image, distortion, in);
-  fmt::print("image: {} spots indexed, {} unassigned detections, {} designed spots missing{}\n", m.indexed,
-             m.unassigned, m.missing,
-             distortion ? fmt::format(", undistorted with {} ({} outside its domain)", in.calibration,
-                                      m.undistort_failures)
-                        : std::string(", NOT undistorted (no --calibration)"));
-  (*info)["image"] = {{"indexed", m.indexed},
-                      {"unassigned", m.unassigned},
-                      {"missing", m.missing},
-                      {"undistorted", distortion.has_value()},
-                      {"undistort_failures", m.undistort_failures}};
-  *from_image = m;
-  *imaging = model::NominalDevice(camera);
-  if (distortion) imaging->distortion = *distortion;
-  if (in.uncertainty_samples > 0) {
-    try {
-      const Progress progress(fmt::format("topocal reconstruct: {} uncertainty draws", in.uncertainty_samples));
-      *uncertainty = pipeline::PropagateCalibrationUncertainty(m.detected, cal->camera, calib::ParameterCovarianceOf(*cal), camera, cfg,
-                                                               in.uncertainty_samples, in.seed);
-    } catch (const std::invalid_argument& e) {
-      throw util::InputError(fmt::format("{}: {}", in.calibration, e.what()));
-    }
-  }
-  return m.spots;
-}
-
-
-// A measurement the data cannot support: its reasons on stdout and in the JSON (marked invalid, no clinical
-// number), no maps, exit 4.
-[[noreturn]] void RefuseMeasurement(const std::string& image, const pipeline::MeasurementVerdict& verdict,
-                                    nlohmann::json info, const std::string& json_out, bool print = true) {
-  info["valid"] = false;
-  info["refused"] = verdict.reasons;
-  if (!print) {  // the reason is already a whole line naming the image
-    if (!json_out.empty()) {
-      util::StagedOutputs outputs;
-      outputs.AddFile(json_out, util::JsonFileText(info));
-      outputs.Commit();
-    }
-    throw util::MeasurementRefused(verdict.reasons.front());
-  }
-  fmt::print("measurement REFUSED (no clinical number is given):\n");
-  for (const auto& r : verdict.reasons) fmt::print("  - {}\n", r);
-  if (!json_out.empty()) {
-    util::StagedOutputs outputs;
-    outputs.AddFile(json_out, util::JsonFileText(info));
-    outputs.Commit();
-  }
-  throw util::MeasurementRefused(
-      fmt::format("{}: measurement refused: {}", image, fmt::join(verdict.reasons, "; ")));
-}
-
-// --power-scale and --power-step as the maps' power scale (docs/maps.md, "Scales").
-plot::MapScaleRequest PowerScaleOf(const Inputs& in) {
-  if (in.power_step_D != 0 && in.power_scale != "fit") {
-    throw util::InputError("--power-step: goes with --power-scale fit (the standard and extended scales have their own)");
-  }
-  if (in.power_scale == "extended") return plot::ExtendedPowerScale();
-  if (in.power_scale == "fit") {
-    const double step = in.power_step_D == 0 ? 0.5 : in.power_step_D;
-    if (!(step >= 0.05 && step <= 5.0)) throw util::InputError("--power-step: must be 0.05 to 5 D");
-    return plot::FittedStepScale(step);
-  }
-  return plot::StandardPowerScale();
-}
-
-// The lens calibration's uncertainty carried by Monte Carlo (--calibration --uncertainty N): printed, and its JSON.
-nlohmann::json PrintCalibrationUncertainty(const pipeline::ClinicalUncertainty& uncertainty) {
-  fmt::print("calibration uncertainty carried through ({} draws of {}, {}; {} failed; {} spot(s) not undistorted "
-             "in {} draw(s)), mean +- U (k = 2):\n",
-             uncertainty.samples, fmt::join(uncertainty.drawn, ", "),
-             uncertainty.correlated ? "with their covariance" : "independent (the file has no covariance)",
-             uncertainty.failed_samples, uncertainty.undistort_failures, uncertainty.draws_with_undistort_failures);
-  for (const auto& [name, q] : uncertainty.quantities) {
-    fmt::print("  {:<16} {:>12.6f} +- {:.3g}\n", name, q.mean, q.expanded_k2);
-  }
-  nlohmann::json u;
-  u["samples"] = uncertainty.samples;
-  u["failed_samples"] = uncertainty.failed_samples;
-  u["undistort_failures"] = uncertainty.undistort_failures;
-  u["draws_with_undistort_failures"] = uncertainty.draws_with_undistort_failures;
-  u["drawn"] = uncertainty.drawn;
-  u["correlated"] = uncertainty.correlated;
-  u["coverage_factor"] = 2;
-  for (const auto& [name, q] : uncertainty.quantities) u[name] = {{"mean", q.mean}, {"expanded", q.expanded_k2}};
-  return u;
-}
-
-// The U of every number measured through a device (its "uncertainty" JSON block in `info`); the measurement is
-// refused when the U cannot be evaluated or leaves no clinical reading (pipeline::UncertaintyRefusal).
-pipeline::MeasurementUncertainty UncertaintyOrRefusal(const Inputs& in,
-                                                      const std::vector<pipeline::MeasuredImageSpot>& detected,
-                                                      const model::Device& device,
-                                                      const std::optional<model::DeviceCovariance>& covariance,
-                                                      const model::Config& cfg, const topo::Analysis& analysis,
-                                                      nlohmann::json* info, const std::string& json_out) {
-  pipeline::UncertaintyOptions u_options;
-  u_options.device_draws = in.uncertainty_samples;
-  u_options.seed = in.seed;
-  pipeline::MeasurementUncertainty u;
-  try {
-    u = pipeline::PropagateMeasurementUncertainty(detected, device, covariance, cfg, analysis, u_options);
-  } catch (const std::runtime_error& e) {
-    RefuseMeasurement(in.image, {false, {fmt::format("its uncertainty cannot be evaluated: {}", e.what())}}, *info,
-                      json_out);
-  }
-  (*info)["uncertainty"] = report::MeasurementUncertaintyJson(u);
-  if (const auto reason = pipeline::UncertaintyRefusal(u)) RefuseMeasurement(in.image, {false, {*reason}}, *info, json_out);
-  return u;
-}
-
-// The configuration with the command line's overrides, for measuring eyes.
-model::Config ReconstructionConfig(const std::string& config, const ReconstructionOverrides& overrides) {
-  auto cfg = model::LoadConfig(config);
-  overrides.ApplyTo(&cfg);
-  return pipeline::ForEyes(cfg);  // the verb that measures eyes
-}
-
-// From an image: the capture-quality line, and the measurement refused when the verdict is invalid.
-std::optional<pipeline::CaptureQuality> JudgeCapture(const std::optional<pipeline::SpotMeasurement>& from_image,
-                                                     const pipeline::MeasurementVerdict& verdict,
-                                                     const std::string& image, nlohmann::json& info,
-                                                     const std::string& json_out) {
-  const std::optional<pipeline::CaptureQuality> capture =
-      from_image ? std::optional(from_image->capture) : std::nullopt;
-  if (capture) {
-    fmt::print("{}\n", capture->Line());
-    info["capture"] = report::CaptureJson(*capture);
-    info["valid"] = verdict.valid;
-    if (!verdict.valid) RefuseMeasurement(image, verdict, info, json_out);
-  }
-  return capture;
-}
-
-// The maps of the analysis, with the U of the axial power and the peaks' determination when measured through a
-// device.
-void AddMaps(util::StagedOutputs& outputs, const std::string& maps, const Inputs& in,
-             const plot::MapScaleRequest& power_scale, const topo::Analysis& analysis,
-             const model::BiconicParams* truth_cornea,
-             const std::optional<pipeline::MeasurementUncertainty>& measurement_u,
-             const std::optional<pipeline::CaptureQuality>& capture) {
-  pipeline::MapSetOptions map_options;
-  map_options.eye = in.eye;  // N/T/S/I on the maps, in the examiner's view
-  map_options.power = power_scale;
-  map_options.overview = true;  // overview.png: the three maps, the clinical numbers and the capture's quality
-  if (capture) map_options.overview_lines.push_back(capture->Line());
-  pipeline::AnalysisMapEntry entry{"", "", &analysis, truth_cornea, {}};
-  if (measurement_u) {
-    entry.axial_expanded_D = &measurement_u->axial_expanded_D;
-    const auto determined = [&](const char* name) {
-      const auto* q = measurement_u->Find(name);
-      return !q || q->determined;
-    };
-    entry.kmax_location_determined = determined("clinical.kmax.x_mm");
-    entry.elevation_peak_location_determined = determined("clinical.best_fit_sphere.elevation_peak_x_mm");
-  }
-  pipeline::WriteAnalysisMapSet(outputs.AddDirectory(maps), {entry}, map_options);
-}
-
-// The verb's work, once its options are parsed.
-void Run(const std::string& config, const Inputs& given, const std::string& json_out, const std::string& maps,
-         bool truth, const ReconstructionOverrides& overrides) {
-  const NewDirectoryGuard maps_guard(maps);  // a failed run leaves no empty --maps folder
-  const plot::MapScaleRequest power_scale = PowerScaleOf(given);  // bad options refused before any work
-  auto cfg = ReconstructionConfig(config, overrides);
-  Inputs in = given;  // the eye: --eye, else the configuration's
-  if (in.eye.empty()) in.eye = cfg.eye;
-  if (in.spots.empty() == in.image.empty()) throw util::InputError("reconstruct: give one of --spots or --image");
-  if (in.uncertainty_samples > 0 && (in.image.empty() || (in.calibration.empty() && in.device.empty()))) {
-    throw util::InputError("--uncertainty needs --image and --calibration or --device");
-  }
-  nlohmann::json info;
-  if (!in.eye.empty()) info["eye"] = in.eye;
-  std::optional<pipeline::ClinicalUncertainty> uncertainty;
-  std::optional<model::Device> device;
-  std::optional<model::DeviceCovariance> device_covariance;
-  if (!in.device.empty()) {
-    const auto file = model::LoadDevice(in.device);
-    device = file.device;
-    device_covariance = model::DeviceCovarianceOf(file.calibration, in.device);
-  }
-  std::optional<pipeline::SpotMeasurement> from_image;
-  model::Device imaging;
-  std::vector<topo::MeasuredSpot> measured;
-  try {
-    measured = ReadMeasurement(in, cfg, device, &info, &uncertainty, &from_image, &imaging);
-  } catch (const util::MeasurementRefused& e) {  // the spots could not be identified: the JSON says so too
-    RefuseMeasurement(in.image, {false, {e.what()}}, info, json_out, /*print=*/false);
-  }
-  const auto analyze = pipeline::AnalysisOf(device ? &*device : nullptr, cfg, truth ? &cfg.cornea : nullptr);
-  // From an image, every spot is checked against the surface the others give, and the surface identifies the
-  // detections the pattern's lattice left free (capture-quality line: rejected, identified through it).
-  topo::Analysis analysis;
-  pipeline::MeasurementVerdict verdict;
-  if (from_image) {
-    verdict = pipeline::LabelAndJudge(&*from_image, imaging, cfg, analyze, &analysis);
-  } else {
-    analysis = analyze(measured);
-  }
-  const std::optional<pipeline::CaptureQuality> capture = JudgeCapture(from_image, verdict, in.image, info, json_out);
-  // Through a device, every reported number carries its U: the device's covariance, this image's spot noise, the
-  // fit's residual (pipeline/measurement_uncertainty.h).
-  std::optional<pipeline::MeasurementUncertainty> measurement_u;
-  if (device && capture) {
-    measurement_u = UncertaintyOrRefusal(in, from_image->detected, *device, device_covariance, cfg, analysis, &info, json_out);
-  }
-  PrintAnalysis(analysis, measurement_u ? &*measurement_u : nullptr);
-  if (uncertainty) info["uncertainty"] = PrintCalibrationUncertainty(*uncertainty);
-  util::StagedOutputs outputs;  // the JSON and the maps are published together or not at all
-  if (!json_out.empty()) {
-    nlohmann::json j = info;
-    j.update(report::MeasurementJson(analysis, truth));
-    if (measurement_u) report::WithdrawUndetermined(*measurement_u, &j);
-    outputs.AddFile(json_out, util::JsonFileText(j));
-  }
-  if (!maps.empty()) {
-    AddMaps(outputs, maps, in, power_scale, analysis, truth ? &cfg.cornea : nullptr, measurement_u, capture);
-  }
-  outputs.Commit();
-}
-
-}  // namespace
 
 void AddReconstructCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("reconstruct", "Recover the cornea from spot positions: surface, biconic fit, maps");
-  auto config = std::make_shared<std::string>();
-  auto in = std::make_shared<Inputs>();
-  auto json_out = std::make_shared<std::string>();
-  auto maps = std::make_shared<std::string>();
-  auto truth = std::make_shared<bool>(false);
-  cmd->add_option("--config", *config, "Topographer configuration (JSON)")->required();
-  auto* spots_opt = cmd->add_option("--spots", in->spots, "Spots CSV (ring,index,x_mm,y_mm on the detection plane)");
-  auto* image_opt = cmd->add_option("--image", in->image, "Raw sensor image of the spots (detected and indexed)");
+  auto in = std::make_shared<report::ReconstructRequest>();
+  cmd->add_option("--config", in->config_path, "Topographer configuration (JSON)")->required();
+  auto* spots_opt = cmd->add_option("--spots", in->spots_path, "Spots CSV (ring,index,x_mm,y_mm on the detection plane)");
+  auto* image_opt = cmd->add_option("--image", in->image_path, "Raw sensor image of the spots (detected and indexed)");
   spots_opt->excludes(image_opt);
-  cmd->add_option("--camera", in->camera, "Topographer camera (JSON) for --image");
+  cmd->add_option("--camera", in->camera_path, "Topographer camera (JSON) for --image");
   auto* calibration_opt =
-      cmd->add_option("--calibration", in->calibration, "Calibration file (YAML) to undistort the --image spots with");
-  auto* device_opt = cmd->add_option("--device", in->device,
+      cmd->add_option("--calibration", in->calibration_path, "Calibration file (YAML) to undistort the --image spots with");
+  auto* device_opt = cmd->add_option("--device", in->device_path,
                                      "Calibrated device (JSON, `device calibrate`): measure the --image through it "
                                      "(its camera, distortion, screen pose and a)");
   device_opt->excludes(calibration_opt);
@@ -471,14 +45,22 @@ void AddReconstructCommand(CLI::App& app) {
       ->check(CLI::IsMember({"standard", "extended", "fit"}))
       ->capture_default_str();
   cmd->add_option("--power-step", in->power_step_D, "Step of --power-scale fit, D [0.5]")->default_str("");
-  cmd->add_option("--json", *json_out, "Write the result as JSON");
-  cmd->add_option("--maps", *maps,
+  cmd->add_option("--json", in->json_path, "Write the result as JSON");
+  cmd->add_option("--maps", in->maps_dir,
                   "Write power and height maps (CSV + PNG) and their one-page overview (overview.png) into this "
                   "directory");
   auto overrides = std::make_shared<ReconstructionOverrides>();
   overrides->AddTo(cmd);
-  cmd->add_flag("--truth", *truth, "Compare with the configuration's cornea (pv and rms of the height difference)");
-  cmd->callback([=] { Run(*config, *in, *json_out, *maps, *truth, *overrides); });
+  cmd->add_flag("--truth", in->truth, "Compare with the configuration's cornea (pv and rms of the height difference)");
+  in->override_config = [overrides](model::Config* config) { overrides->ApplyTo(config); };
+  in->with_progress = [](const std::string& what, const std::function<void()>& work) {
+    const Progress progress(what);
+    work();
+  };
+  cmd->callback([in] {
+    const NewDirectoryGuard maps_guard(in->maps_dir);  // a failed run leaves no empty --maps folder
+    report::RunReconstruct(*in, std::cout);
+  });
 }
 
 }  // namespace topocal::tools

@@ -51,7 +51,4 @@ void AddExportCommands(CLI::App& app);  // export and import (cmd_export.cc)
 // After every verb is added: one example per verb as its --help footer, and one syntax for lists (help.cc).
 void FinishHelp(CLI::App& app);
 
-// A raw spot image (cmd_detect.cc), checked against the camera's sensor size; InputError naming the file otherwise.
-cv::Mat ReadSpotImage(const std::string& path, const model::TopographerCamera& camera, const std::string& camera_file);
-
 }  // namespace topocal::tools

@@ -1,0 +1,33 @@
+#include "pipeline/export_command.h"
+
+#include <fmt/format.h>
+
+#include "calib/calibration_file.h"
+#include "calib/camera_exchange.h"
+#include "util/io.h"
+
+namespace topocal::pipeline {
+
+void RunExport(const ExportRequest& request, std::ostream& out) {
+  const auto format = calib::ParseExportFormat(request.format);
+  if (!format) throw util::InputError(fmt::format("--to: '{}' is not ros, kalibr, mrcal or opencv", request.format));
+  const auto cal = calib::LoadCalibrationFile(request.calibration_path);
+  calib::ExportOptions options;
+  options.camera_name = request.camera_name;
+  util::WriteFileAtomic(request.out_path, calib::ExportCalibration(cal, *format, request.calibration_path, options));
+  out << fmt::format("{} -> {} ({})\n", request.calibration_path, request.out_path, request.format);
+  if (!cal.camera.distortion_centre.isZero(0)) {
+    out << fmt::format(
+        "note: {} has a distortion centre; the export holds its closest OpenCV model "
+        "(opencv_equivalent_max_error_px in the file says how close)\n",
+        request.calibration_path);
+  }
+}
+
+void RunImport(const ImportRequest& request, std::ostream& out) {
+  util::WriteFileAtomic(request.out_path,
+                        calib::ImportCalibrationText(request.format, request.file_path, request.camera));
+  out << fmt::format("{} ({}) -> {}\n", request.file_path, request.format, request.out_path);
+}
+
+}  // namespace topocal::pipeline

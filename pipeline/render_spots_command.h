@@ -1,0 +1,45 @@
+#pragma once
+// `topocal render-spots`: the raw sensor image of a measurement (the spot pattern of the configured cornea or of a
+// reference ball, distorted, seen by the topographer's camera or an as-built device), with the artefacts of a real
+// capture on request, and its truth. Conventions: docs/camera-conventions.md.
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "model/config.h"
+#include "model/surface.h"
+
+namespace topocal::pipeline {
+
+struct RenderSpotsRequest {
+  std::string config_path;
+  std::string camera_path, device_path;  // exactly one: the camera (with sigma) or an as-built device
+  std::string out_path;                  // the image (.png)
+  std::string truth_path;                // truth CSV; empty: none
+  std::string spot = "ellipse";          // spot model: ellipse or psf
+  double sigma_per_mm2 = 0;              // Seidel distortion with a camera
+  double psf_px = 1.0, drop_fraction = 0, sphere_radius_mm = 0, upper_lid_fraction = 0, lower_lid_fraction = 0;
+  std::vector<double> ball_at_mm;  // vertex of the reference ball (x, y, z); empty: the origin
+  // NaN: the bit depth's default (a well-exposed frame with realistic read and shot noise).
+  double background_dn = NAN, peak_dn = NAN, read_noise_dn = NAN, gain_e_per_dn = NAN;
+  double lid_skin_dn = 0, iris_dn = 0, defocus_rim_px = 0, motion_blur_px = 0, motion_blur_deg = 0;
+  int bits = 16, glints = 0, lashes = 0, tear_film_patches = 0;
+  uint32_t seed = 1;
+  // The surface imaged for the configuration, the sphere radius (0: none) and the ball's vertex, as the command
+  // line's --sphere-radius-mm and --ball-at define it; empty: the configuration's cornea.
+  std::function<model::Surface(const model::Config&, double sphere_radius_mm, const std::vector<double>& ball_at_mm)>
+      surface_to_image;
+  // Throws util::InputError for a sigma that folds the configuration's image (the command line's --sigma check);
+  // empty: no check.
+  std::function<void(double sigma_per_mm2, const model::Config&, const std::string& config_path)>
+      require_fold_free_sigma;
+};
+
+// Writes the image and the truth together and says so on `out`; spots not imaged or off the sensor on `warnings`.
+// util::InputError for bad input; std::runtime_error when the surface images no spot.
+void RunRenderSpots(const RenderSpotsRequest& request, std::ostream& out, std::ostream& warnings);
+
+}  // namespace topocal::pipeline
