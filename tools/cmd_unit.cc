@@ -1,45 +1,22 @@
 // topocal unit calibrate | calibrate-batch: the per-unit calibration workflow on the production line
-// (pipeline/unit_workflow.h computes, report/unit_record_writer.h writes; docs/unit-record.md).
+// (report/unit_command.h; docs/unit-record.md).
 #include <fmt/format.h>
-#include <glog/logging.h>
 
 #include <memory>
 #include <string>
-#include <vector>
 
-#include "model/config.h"
-#include "pipeline/unit_batch.h"
-#include "pipeline/unit_workflow.h"
-#include "report/unit_record_writer.h"
+#include "report/unit_command.h"
 #include "tools/commands.h"
 #include "tools/data_dir.h"
 #include "tools/output_dir.h"
 #include "tools/progress.h"
-#include "util/file_glob.h"
-#include "util/io.h"
-#include "util/parallel.h"
-#include "util/shard.h"
 
 namespace topocal::tools {
 namespace {
 
 using pipeline::UnitRequest;
 
-// The bundled design and camera (tools/data_dir.h), the defaults of --config and --camera, filled in when the
-// command runs (so that other verbs never depend on finding the data).
-void FillDefaults(UnitRequest* r) {
-  for (auto [path, name] : {std::pair{&r->config, "paper.json"}, std::pair{&r->camera, "camera.json"}}) {
-    if (!path->empty()) continue;
-    *path = DataDir() + "/" + name;
-    r->input_names[*path] = std::string("bundled:") + name;  // the record names it, not the tree it lies in
-  }
-}
 constexpr int kProgressBarWidth = 30;
-
-void QuietCeres() {
-  // Ceres logs through glog (e.g. a rank-deficient covariance); the workflow reports failures in one line.
-  FLAGS_minloglevel = google::GLOG_FATAL;
-}
 
 void AddCommonOptions(CLI::App* cmd, UnitRequest* r) {
   cmd->add_option("--config", r->config, "Topographer design (JSON) [bundled data/paper.json]");
@@ -65,8 +42,7 @@ void AddCommonOptions(CLI::App* cmd, UnitRequest* r) {
 }
 
 // The batch's progress on stderr: a redrawn bar on a terminal; one line per unit in logs or with --quiet.
-void RunBatch(const pipeline::UnitBatchOptions& options) {
-  QuietCeres();
+pipeline::UnitBatchCallbacks BatchProgress() {
   const bool tty = ProgressEnabled();
   const auto draw_bar = [](size_t finished, size_t failed, size_t total, const std::string& last) {
     const int filled = static_cast<int>(kProgressBarWidth * finished / total);
@@ -75,8 +51,7 @@ void RunBatch(const pipeline::UnitBatchOptions& options) {
     if (finished == total) fmt::print(stderr, "\n");
   };
   pipeline::UnitBatchCallbacks callbacks;
-  callbacks.write_record = [](const pipeline::UnitResult& unit) { report::WriteUnitRecord(unit); };
-  callbacks.on_done = [&](const pipeline::UnitBatchItem& item, size_t finished, size_t failed, size_t total) {
+  callbacks.on_done = [=](const pipeline::UnitBatchItem& item, size_t finished, size_t failed, size_t total) {
     const std::string name = item.request ? item.request->serial : item.inputs_path;
     if (tty) {
       draw_bar(finished, failed, total, name);
@@ -85,28 +60,14 @@ void RunBatch(const pipeline::UnitBatchOptions& options) {
                  item.error.empty() ? std::string("ok") : "FAILED: " + item.error);
     }
   };
-  callbacks.on_start = [&](size_t finished, size_t total) {
+  callbacks.on_start = [=](size_t finished, size_t total) {
     if (tty && finished == 0) draw_bar(0, 0, total, "");  // the empty bar at once: a unit takes seconds
   };
-  callbacks.on_log = [&](const std::string& line) {
+  callbacks.on_log = [=](const std::string& line) {
     if (tty) fmt::print(stderr, "\n");
     fmt::print(stderr, "topocal unit: {}\n", line);
   };
-  const pipeline::UnitBatchResult result = pipeline::RunUnitBatch(options, callbacks);
-  if (result.items.empty()) {
-    const util::ShardSpec spec = util::ParseShardSpec(options.shard);
-    fmt::print("shard {}/{}: no unit (fewer units than shards)\n", spec.index, spec.count);
-    return;
-  }
-  for (const auto& item : result.items) {
-    for (const auto& line : item.summary) fmt::print("{}\n", line);
-  }
-  fmt::print("{} unit(s): {} calibrated, {} failed\n", result.items.size(), result.items.size() - result.failed,
-             result.failed);
-  for (const auto& item : result.items) {
-    if (!item.error.empty()) fmt::print("  FAILED {}: {}\n", item.inputs_path, item.error);
-  }
-  pipeline::ThrowIfUnitsFailed(result);
+  return callbacks;
 }
 
 }  // namespace
@@ -117,11 +78,11 @@ void AddUnitCommand(CLI::App& app) {
 
   auto* cal = unit->add_subcommand("calibrate",
                                    "Calibrate one unit, verify it on a reference sphere, write its unit record");
-  auto r = std::make_shared<UnitRequest>();
-  auto images = std::make_shared<std::string>();
+  auto c = std::make_shared<report::UnitCalibrateRequest>();
+  UnitRequest* r = &c->unit;
   cal->add_option("--serial", r->serial, "Unit serial number (A-Z a-z 0-9 . _ -)")->required();
   cal->add_option("--target", r->target, "Target description (Kalibr-style YAML)")->required();
-  cal->add_option("--images", *images, "Target images, a glob(3) pattern (quote it); one image = single view")->required();
+  cal->add_option("--images", c->images, "Target images, a glob(3) pattern (quote it); one image = single view")->required();
   cal->add_option("--reference-sphere", r->reference_sphere, "Raw spot image of the reference sphere");
   cal->add_option("--sphere-radius-mm", r->sphere_radius_mm, "Radius of the reference sphere, mm");
   cal->add_option("--sphere-repeats", r->sphere_repeats,
@@ -133,34 +94,32 @@ void AddUnitCommand(CLI::App& app) {
   cal->add_option("--radii-mm", r->ball_radii_mm, "Certified radius of each ball, in the order of --balls, mm");
   cal->add_option("--device", r->device, "Nominal device (JSON) the device stage starts from [the camera, nominal]");
   cal->add_option("--out", r->out, "Unit record directory (e.g. units/SN/)")->required();
-  AddCommonOptions(cal, r.get());
-  cal->callback([r, images] {
-    const NewDirectoryGuard out_guard(r->out);  // a failed unit leaves no empty units/ behind
-    QuietCeres();
-    UnitRequest request = *r;
-    FillDefaults(&request);
-    request.images = util::Glob(*images);
-    Progress progress("topocal unit calibrate: " + request.serial);
-    const auto computed = pipeline::CalibrateUnit(
-        request, [&progress](const std::string& line) { progress.Line("topocal unit: " + line); });
-    report::WriteUnitRecord(computed);
-    for (const auto& line : pipeline::UnitSummary(computed)) fmt::print("{}\n", line);
+  AddCommonOptions(cal, r);
+  c->bundled_data_dir = DataDir;
+  cal->callback([c] {
+    const NewDirectoryGuard out_guard(c->unit.out);  // a failed unit leaves no empty units/ behind
+    Progress progress("topocal unit calibrate: " + c->unit.serial);
+    report::UnitCalibrateRequest request = *c;
+    request.log = [&progress](const std::string& line) { progress.Line("topocal unit: " + line); };
+    report::RunUnitCalibrate(request, std::cout);
   });
 
   auto* batch = unit->add_subcommand(
       "calibrate-batch", "Calibrate every unit of a directory (DIR/<unit>/unit-inputs.json), in parallel");
-  auto b = std::make_shared<pipeline::UnitBatchOptions>();
-  b->jobs = util::AvailableCores();
+  auto q = std::make_shared<report::UnitBatchRequest>();
+  pipeline::UnitBatchOptions* b = &q->batch;
   batch->add_option("dir", b->dir, "Directory of unit directories")->required();
   batch->add_option("--out", b->out, "Where the unit records go: OUT/<serial>/")->required();
   batch->add_option("--jobs", b->jobs, "Units calibrated at once [the cores available]")->check(CLI::Range(1, 256));
   batch->add_option("--shard", b->shard, "Only shard i/N of the units (sorted by folder, index % N == i), e.g. "
                                          "from a Slurm array or a Kubernetes Indexed Job (docs/scale-out.md)");
   AddCommonOptions(batch, &b->defaults);
-  batch->callback([b] {
-    const NewDirectoryGuard out_guard(b->out);
-    FillDefaults(&b->defaults);
-    RunBatch(*b);
+  q->bundled_data_dir = DataDir;
+  batch->callback([q] {
+    const NewDirectoryGuard out_guard(q->batch.out);
+    report::UnitBatchRequest request = *q;
+    request.progress = BatchProgress();
+    report::RunUnitCalibrateBatch(request, std::cout);
   });
 }
 

@@ -12,6 +12,7 @@
 
 #include "pipeline/capture_quality.h"
 #include "pipeline/closed_loop.h"
+#include "report/sweep_command.h"
 #include "topo/sweep.h"
 #include "util/io.h"
 #include "util/verdict.h"
@@ -22,15 +23,10 @@ using util::VerdictFailed;
 
 void AddDesignCommand(CLI::App& app);
 void AddSimulateCommand(CLI::App& app);
-// The sweep's two stages that need OpenCV: --correct (a rendered target and sensor image, calibrated, detected,
-// undistorted) and --maps (map images). topocal-full passes kSweepImageStages (cmd_sweep_stages.cc); topocal-sweep,
-// which links no OpenCV, passes nullptr, and a sweep that asks for either throws NeedsFullCli (cli_app.h).
-struct SweepImageStages {
-  std::vector<pipeline::ClosedLoopResult> (*close_loops)(const model::Config& config, const topo::SweepResult& result,
-                                                         const pipeline::ClosedLoopOptions& options);
-  void (*write_maps)(util::StagedOutputs& outputs, const std::string& dir, const model::Config& config,
-                     const topo::SweepResult& result);
-};
+// The sweep's two stages that need OpenCV (report/sweep_command.h). topocal-full passes kSweepImageStages
+// (cmd_sweep_stages.cc); topocal-sweep, which links no OpenCV, passes nullptr, and a sweep that asks for either throws
+// NeedsFullCli (cli_app.h).
+using report::SweepImageStages;
 extern const SweepImageStages kSweepImageStages;
 void AddSweepCommand(CLI::App& app, const SweepImageStages* image_stages);
 void AddReconstructCommand(CLI::App& app);
