@@ -13,6 +13,7 @@
 #include "harness/harness_report.h"
 #include "util/io.h"
 #include "util/shard.h"
+#include "util/new_directory_guard.h"
 
 namespace topocal::harness {
 namespace {
@@ -48,6 +49,7 @@ double SecondsSince(std::chrono::steady_clock::time_point t0) {
 }  // namespace
 
 void RunHarnessCommand(const HarnessRequest& a, std::ostream& out) {
+  const util::NewDirectoryGuard out_guard(a.out);  // a failed run leaves no empty folder
   if (a.config.empty()) throw util::InputError("harness: --config is required (or: topocal harness merge)");
   if (a.out.empty()) throw util::InputError("harness: --out is required");
   if (a.jobs < 1) throw util::InputError(fmt::format("--jobs: must be >= 1 (got {})", a.jobs));
@@ -74,6 +76,7 @@ void RunHarnessCommand(const HarnessRequest& a, std::ostream& out) {
 }
 
 void RunHarnessMerge(const HarnessMergeRequest& a, std::ostream& out) {
+  const util::NewDirectoryGuard out_guard(a.out);  // a failed merge leaves no empty folder
   HarnessShardMerger merger;
   for (const auto& arg : a.shards) {
     for (const auto& file : ShardFilesIn(arg)) merger.Add(util::ReadFile(file), file);

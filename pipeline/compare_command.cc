@@ -7,10 +7,12 @@
 #include "pipeline/measurement_compare.h"
 #include "util/io.h"
 #include "util/json_section.h"
+#include "util/new_directory_guard.h"
 
 namespace topocal::pipeline {
 
 void RunCompare(const CompareRequest& request, std::ostream& out) {
+  const util::NewDirectoryGuard guard(request.maps_dir);  // a failed comparison leaves no empty --maps folder
   if (request.a_maps_dir.empty() != request.b_maps_dir.empty()) {
     throw util::InputError("--a-maps and --b-maps: give both or neither");
   }

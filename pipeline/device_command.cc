@@ -88,12 +88,8 @@ void RunDeviceCalibrate(const DeviceCalibrateRequest& a, std::ostream& out) {
     imageio::RequireSize(b.image, a.balls[i], cam.width_px, cam.height_px, a.nominal_device);
     images.push_back(std::move(b));
   }
-  DeviceCalibration result;
-  try {
-    result = CalibrateDevice(images, nominal.device, cfg, options);
-  } catch (const std::invalid_argument& e) {
-    throw util::InputError(e.what());  // an image the spot detector cannot use: bad input
-  }
+  // An image the spot detector cannot use is bad input (util::InputError, exit 2).
+  const DeviceCalibration result = CalibrateDevice(images, nominal.device, cfg, options);
   const auto& fit = result.fit;
   if (!fit.ok) throw std::runtime_error(fmt::format("device calibration failed: {}", fit.message));
   util::WriteFileAtomic(a.out, model::DeviceToJson(fit.device, ReportOf(result, a, options)));

@@ -14,6 +14,7 @@
 #include "model/device.h"
 #include "model/topographer_camera.h"
 #include "util/io.h"
+#include "pipeline/simulation_surface.h"
 
 namespace topocal::pipeline {
 namespace {
@@ -49,7 +50,7 @@ model::Device DeviceOf(const RenderSpotsRequest& a, const model::Config& cfg) {
     throw util::InputError(fmt::format("{}: a_mm: {} differs from the configuration's topographer.a_mm = {} ({})",
                                        a.camera_path, device.camera.a_mm, cfg.topographer.a_mm, a.config_path));
   }
-  if (a.require_fold_free_sigma) a.require_fold_free_sigma(a.sigma_per_mm2, cfg, a.config_path);
+  RequireFoldFreeSigma(a.sigma_per_mm2, cfg, a.config_path);
   device.distortion = cfg.distortion.SeidelAt(a.sigma_per_mm2);
   return device;
 }
@@ -104,8 +105,7 @@ std::vector<correct::SpotToRender> CapturedSpots(const RenderSpotsRequest& a,
 void RunRenderSpots(const RenderSpotsRequest& a, std::ostream& out, std::ostream& warnings) {
   Validate(a);
   const auto cfg = model::LoadConfig(a.config_path);
-  const model::Surface surface = a.surface_to_image ? a.surface_to_image(cfg, a.sphere_radius_mm, a.ball_at_mm)
-                                                    : model::Surface(model::Biconic{cfg.cornea});
+  const model::Surface surface = SurfaceToImage(cfg, a.sphere_radius_mm, a.ball_at_mm);
   const model::Device device = DeviceOf(a, cfg);
   const auto& camera = device.camera;
   correct::SpotRenderOptions o = SensorOptions(a);

@@ -4,7 +4,6 @@
 // capture on request, and its truth. Conventions: docs/camera-conventions.md.
 #include <cmath>
 #include <cstdint>
-#include <functional>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -28,14 +27,6 @@ struct RenderSpotsRequest {
   double lid_skin_dn = 0, iris_dn = 0, defocus_rim_px = 0, motion_blur_px = 0, motion_blur_deg = 0;
   int bits = 16, glints = 0, lashes = 0, tear_film_patches = 0;
   uint32_t seed = 1;
-  // The surface imaged for the configuration, the sphere radius (0: none) and the ball's vertex, as the command
-  // line's --sphere-radius-mm and --ball-at define it; empty: the configuration's cornea.
-  std::function<model::Surface(const model::Config&, double sphere_radius_mm, const std::vector<double>& ball_at_mm)>
-      surface_to_image;
-  // Throws util::InputError for a sigma that folds the configuration's image (the command line's --sigma check);
-  // empty: no check.
-  std::function<void(double sigma_per_mm2, const model::Config&, const std::string& config_path)>
-      require_fold_free_sigma;
 };
 
 // Writes the image and the truth together and says so on `out`; spots not imaged or off the sensor on `warnings`.

@@ -9,6 +9,7 @@
 #include "model/spots_csv.h"
 #include "topo/sweep.h"
 #include "util/io.h"
+#include "pipeline/simulation_surface.h"
 
 namespace topocal::pipeline {
 
@@ -20,9 +21,8 @@ void RunSimulate(const SimulateRequest& a, std::ostream& out, std::ostream& warn
   }
   if (at_sigma && !std::isfinite(a.sigma_per_mm2)) throw util::InputError("--sigma: must be a finite number");
   const auto cfg = model::LoadConfig(a.config_path);
-  if (at_sigma && a.require_fold_free_sigma) a.require_fold_free_sigma(a.sigma_per_mm2, cfg, a.config_path);
-  const model::Surface surface = a.surface_to_image ? a.surface_to_image(cfg, a.sphere_radius_mm, a.ball_at_mm)
-                                                    : model::Surface(model::Biconic{cfg.cornea});
+  if (at_sigma) RequireFoldFreeSigma(a.sigma_per_mm2, cfg, a.config_path);
+  const model::Surface surface = SurfaceToImage(cfg, a.sphere_radius_mm, a.ball_at_mm);
   model::SyntheticImage image;
   if (a.device_path.empty()) {
     image = topo::SimulateSpots(cfg, a.sigma_per_mm2);

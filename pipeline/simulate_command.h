@@ -2,7 +2,6 @@
 // `topocal simulate`: the (distorted) spot positions of the configured cornea on the detection plane, at a Seidel
 // sigma of the configuration's design or through an as-built device (which may image a reference ball instead).
 #include <cmath>
-#include <functional>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -19,14 +18,6 @@ struct SimulateRequest {
   double sphere_radius_mm = 0;     // with a device: image a reference ball of this radius instead (0: the cornea)
   std::vector<double> ball_at_mm;  // its vertex (x, y, z); empty: the origin
   std::string out_path;            // the spots CSV
-  // The surface imaged for the configuration, the sphere radius and the ball's vertex, as the command line's
-  // --sphere-radius-mm and --ball-at define it; empty: the configuration's cornea.
-  std::function<model::Surface(const model::Config&, double sphere_radius_mm, const std::vector<double>& ball_at_mm)>
-      surface_to_image;
-  // Throws util::InputError for a sigma that folds the configuration's image (the command line's --sigma check);
-  // empty: no check.
-  std::function<void(double sigma_per_mm2, const model::Config&, const std::string& config_path)>
-      require_fold_free_sigma;
 };
 
 // Writes the spots CSV and says so on `out`; the spots not imaged on `warnings`. util::InputError for bad input;

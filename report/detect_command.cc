@@ -76,8 +76,6 @@ void RunDetect(const DetectRequest& a, std::ostream& out) {
     checked =
         pipeline::DetectThroughSurface(image, imaging, device || !a.calibration_path.empty(),
                                        pipeline::AnalysisOf(device ? &*device : nullptr, cfg, nullptr), cfg, options);
-  } catch (const std::invalid_argument& e) {
-    throw util::InputError(fmt::format("{}: {}", a.image_path, e.what()));
   } catch (const util::InputError& e) {
     throw util::InputError(fmt::format("{}: {}", a.image_path, e.what()));
   } catch (const util::MeasurementRefused& e) {

@@ -28,6 +28,7 @@
 #include "topo/analysis.h"
 #include "util/io.h"
 #include "util/json_section.h"
+#include "util/new_directory_guard.h"
 
 namespace topocal::report {
 namespace {
@@ -163,8 +164,6 @@ pipeline::SpotMeasurement MeasureImage(const cv::Mat& image, const model::Topogr
     throw util::InputError(fmt::format("{}: {}", in.image_path, e.what()));
   } catch (const util::MeasurementRefused& e) {
     throw util::MeasurementRefused(fmt::format("{}: {}", in.image_path, e.what()));
-  } catch (const std::invalid_argument& e) {
-    throw util::InputError(fmt::format("{}: {}", in.image_path, e.what()));
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(fmt::format("{}: {}", in.image_path, e.what()));
   }
@@ -240,17 +239,11 @@ std::vector<topo::MeasuredSpot> ReadMeasurement(const ReconstructRequest& in, co
   *imaging = model::NominalDevice(camera);
   if (distortion) imaging->distortion = *distortion;
   if (in.uncertainty_samples > 0) {
-    const auto draw = [&] {
+    try {
+      const auto shown = util::StartProgress(in.progress, fmt::format("{} uncertainty draws", in.uncertainty_samples));
       *uncertainty = pipeline::PropagateCalibrationUncertainty(
           m.detected, cal->camera, calib::ParameterCovarianceOf(*cal), camera, cfg, in.uncertainty_samples, in.seed);
-    };
-    try {
-      if (!in.with_progress) {
-        draw();
-      } else {
-        in.with_progress(fmt::format("topocal reconstruct: {} uncertainty draws", in.uncertainty_samples), draw);
-      }
-    } catch (const std::invalid_argument& e) {
+    } catch (const util::InputError& e) {
       throw util::InputError(fmt::format("{}: {}", in.calibration_path, e.what()));
     }
   }
@@ -393,6 +386,7 @@ void AddMaps(util::StagedOutputs& outputs, const std::string& maps, const Recons
 }  // namespace
 
 void RunReconstruct(const ReconstructRequest& request, std::ostream& out) {
+  const util::NewDirectoryGuard maps_guard(request.maps_dir);  // a failed run leaves no empty --maps folder
   const plot::MapScaleRequest power_scale = PowerScaleOf(request);  // bad options refused before any work
   auto cfg = ReconstructionConfig(request);
   ReconstructRequest in = request;

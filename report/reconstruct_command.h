@@ -8,6 +8,7 @@
 #include <string>
 
 #include "model/config.h"
+#include "util/progress_display.h"
 
 namespace topocal::report {
 
@@ -28,9 +29,8 @@ struct ReconstructRequest {
   bool truth = false;                    // compare with the configuration's cornea
   // Applied to the configuration once loaded (the command line's --biconic-fit and --surface-model); may be empty.
   std::function<void(model::Config*)> override_config;
-  // Runs `work` (the calibration's uncertainty draws, which can take seconds) while showing `what` as progress;
-  // empty: `work` just runs.
-  std::function<void(const std::string& what, const std::function<void()>& work)> with_progress;
+  // Shows the calibration's uncertainty draws (which can take seconds) as they run; empty: nothing shown.
+  util::ShowProgress progress;
 };
 
 // Prints the measurement, its fit and clinical numbers to `out` and publishes the JSON and maps together. Throws

@@ -9,6 +9,7 @@
 #include "model/device.h"
 #include "model/topographer_camera.h"
 #include "report/analysis_json.h"
+#include "util/new_directory_guard.h"
 
 namespace topocal::report {
 namespace {
@@ -107,6 +108,7 @@ void PrintTableV(std::ostream& out, const topo::SweepResult& r) {
 }  // namespace
 
 void RunSweep(const SweepRequest& a, std::ostream& out) {
+  const util::NewDirectoryGuard maps_guard(a.maps);  // a failed run leaves no empty --maps folder
   if ((a.correct || !a.maps.empty()) && !a.image_stages) {
     throw std::logic_error("sweep: --correct and --maps need the image stages (OpenCV)");
   }

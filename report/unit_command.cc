@@ -8,6 +8,7 @@
 #include "report/unit_record_writer.h"
 #include "util/file_glob.h"
 #include "util/shard.h"
+#include "util/new_directory_guard.h"
 
 namespace topocal::report {
 namespace {
@@ -25,6 +26,7 @@ void FillDefaults(pipeline::UnitRequest* r, const BundledDataDir& data_dir) {
 }  // namespace
 
 void RunUnitCalibrate(const UnitCalibrateRequest& a, std::ostream& out) {
+  const util::NewDirectoryGuard out_guard(a.unit.out);  // a failed unit leaves no empty units/ behind
   pipeline::UnitRequest request = a.unit;
   FillDefaults(&request, a.bundled_data_dir);
   request.images = util::Glob(a.images);
@@ -34,6 +36,7 @@ void RunUnitCalibrate(const UnitCalibrateRequest& a, std::ostream& out) {
 }
 
 void RunUnitCalibrateBatch(const UnitBatchRequest& a, std::ostream& out) {
+  const util::NewDirectoryGuard out_guard(a.batch.out);
   pipeline::UnitBatchOptions options = a.batch;
   FillDefaults(&options.defaults, a.bundled_data_dir);
   pipeline::UnitBatchCallbacks callbacks = a.progress;

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "tools/commands.h"
-#include "tools/progress.h"
+#include "util/terminal_progress.h"
 #include "util/allocator.h"
 #include "util/build_info.h"
 #include "util/io.h"
@@ -52,7 +52,7 @@ void SetUpApp(CLI::App& app) {
   app.fallthrough();
   app.parse_complete_callback([quiet, &app] {
     RefuseEmptyValues(app);
-    SetQuiet(*quiet);
+    util::SetQuiet(*quiet);
   });
 }
 

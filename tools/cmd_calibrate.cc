@@ -3,7 +3,7 @@
 
 #include "pipeline/calibrate_command.h"
 #include "tools/commands.h"
-#include "tools/library_hooks.h"
+#include "util/terminal_progress.h"
 
 namespace topocal::tools {
 
@@ -42,7 +42,7 @@ void AddCalibrateCommand(CLI::App& app) {
   cmd->add_option("--cross-validate", a->cross_validate_svg,
                   "Also fit two interleaved halves of the views and compare them over the image (homography "
                   "removed): the difference as a number, and its map as an SVG to this file");
-  a->log = LogOnStderr("topocal calibrate: ");
+  a->log = util::LogOnStderr("topocal calibrate: ");
   cmd->callback([a] { pipeline::RunCalibrate(*a, std::cout); });
 }
 

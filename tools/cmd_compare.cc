@@ -4,7 +4,6 @@
 
 #include "pipeline/compare_command.h"
 #include "tools/commands.h"
-#include "tools/output_dir.h"
 
 namespace topocal::tools {
 
@@ -19,7 +18,6 @@ void AddCompareCommand(CLI::App& app) {
   cmd->add_option("--maps", a->maps_dir, "Write the change maps (CSV and PNG) into this directory");
   cmd->add_option("--json", a->json_path, "Also write the comparison as JSON");
   cmd->callback([a] {
-    const NewDirectoryGuard guard(a->maps_dir);  // a failed comparison leaves no empty --maps folder
     pipeline::RunCompare(*a, std::cout);
   });
 }

@@ -3,7 +3,7 @@
 
 #include "pipeline/design_command.h"
 #include "tools/commands.h"
-#include "tools/library_hooks.h"
+#include "util/terminal_progress.h"
 
 namespace topocal::tools {
 
@@ -23,8 +23,8 @@ void AddDesignCommand(CLI::App& app) {
   cmd->add_option("--jobs", a->jobs, "Threads of --optimize (the result does not depend on it)")
       ->capture_default_str()
       ->needs(optimize);
-  a->log = LogOnStderr("topocal design: ");
-  a->progress = ProgressOnStderr("topocal design --optimize: ");
+  a->log = util::LogOnStderr("topocal design: ");
+  a->progress = util::ProgressOnStderr("topocal design --optimize: ");
   cmd->callback([a] { pipeline::RunDesign(*a, std::cout); });
 }
 

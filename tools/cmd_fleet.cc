@@ -5,7 +5,7 @@
 
 #include "report/fleet_command.h"
 #include "tools/commands.h"
-#include "tools/library_hooks.h"
+#include "util/terminal_progress.h"
 
 namespace topocal::tools {
 
@@ -23,7 +23,7 @@ void AddFleetCommand(CLI::App& app) {
   ingest->add_flag("--recompute", ia->recompute,
                    "Also recompute every check of each record from its files, as `topocal report` does (its Monte "
                    "Carlo again: seconds a record)");
-  ia->log = LogOnStderr("");
+  ia->log = util::LogOnStderr("");
   ingest->callback([ia] { report::RunFleetIngest(*ia, std::cout); });
 
   auto ra = std::make_shared<report::FleetReportRequest>();

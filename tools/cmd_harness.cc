@@ -5,8 +5,7 @@
 
 #include "harness/harness_command.h"
 #include "tools/commands.h"
-#include "tools/library_hooks.h"
-#include "tools/output_dir.h"
+#include "util/terminal_progress.h"
 
 namespace topocal::tools {
 
@@ -22,8 +21,8 @@ void AddHarnessCommand(CLI::App& app) {
   cmd->add_option("--jobs", a->jobs, "Threads in this process (the results do not depend on it; default: the cores available)")
       ->capture_default_str()
       ->check(CLI::Range(1, 256));
-  a->progress = ProgressOnStderr("topocal harness: ");
-  a->log = LogOnStderr("topocal harness: ");
+  a->progress = util::ProgressOnStderr("topocal harness: ");
+  a->log = util::LogOnStderr("topocal harness: ");
 
   auto* merge = cmd->add_subcommand("merge", "Merge the shard files of one configuration into the outputs of a "
                                              "single run");
@@ -31,13 +30,11 @@ void AddHarnessCommand(CLI::App& app) {
   merge->add_option("--out", m->out, "Output directory (created if missing)")->required();
   merge->add_option("shards", m->shards, "Shard files, or directories holding shard-<i>-of-<N>.json files")->required();
   merge->callback([m] {
-    const NewDirectoryGuard out_guard(m->out);  // a failed merge leaves no empty folder
     harness::RunHarnessMerge(*m, std::cout);
   });
 
   cmd->callback([a, merge] {
     if (merge->parsed()) return;
-    const NewDirectoryGuard out_guard(a->out);  // a failed run leaves no empty folder
     harness::RunHarnessCommand(*a, std::cout);
   });
 }

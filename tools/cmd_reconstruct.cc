@@ -6,8 +6,7 @@
 
 #include "report/reconstruct_command.h"
 #include "tools/commands.h"
-#include "tools/output_dir.h"
-#include "tools/progress.h"
+#include "util/terminal_progress.h"
 #include "tools/surface_option.h"
 
 namespace topocal::tools {
@@ -53,12 +52,8 @@ void AddReconstructCommand(CLI::App& app) {
   overrides->AddTo(cmd);
   cmd->add_flag("--truth", in->truth, "Compare with the configuration's cornea (pv and rms of the height difference)");
   in->override_config = [overrides](model::Config* config) { overrides->ApplyTo(config); };
-  in->with_progress = [](const std::string& what, const std::function<void()>& work) {
-    const Progress progress(what);
-    work();
-  };
+  in->progress = util::ProgressOnStderr("topocal reconstruct: ");
   cmd->callback([in] {
-    const NewDirectoryGuard maps_guard(in->maps_dir);  // a failed run leaves no empty --maps folder
     report::RunReconstruct(*in, std::cout);
   });
 }

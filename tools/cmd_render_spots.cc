@@ -4,7 +4,6 @@
 
 #include "pipeline/render_spots_command.h"
 #include "tools/commands.h"
-#include "tools/surface_option.h"
 
 namespace topocal::tools {
 
@@ -52,8 +51,6 @@ void AddRenderSpotsCommand(CLI::App& app) {
   cmd->add_option("--motion-blur-deg", a->motion_blur_deg, "Direction of the smear from the image's +u axis, degrees");
   cmd->add_option("--tear-film", a->tear_film_patches, "Tear-film break-up: dry patches (spots in them lost or smeared), count")
       ->check(CLI::Range(0, 50));
-  a->surface_to_image = SurfaceToImage;
-  a->require_fold_free_sigma = RequireFoldFreeSigma;
   cmd->callback([a] { pipeline::RunRenderSpots(*a, std::cout, std::cerr); });
 }
 

@@ -4,7 +4,7 @@
 
 #include "pipeline/render_target_command.h"
 #include "tools/commands.h"
-#include "tools/library_hooks.h"
+#include "util/terminal_progress.h"
 
 namespace topocal::tools {
 
@@ -60,7 +60,7 @@ void AddRenderTargetCommand(CLI::App& app) {
   g_render->add_option("--white", a->render.white_grey, "Grey level of the paper")->capture_default_str();
   g_render->add_option("--background", a->render.background_grey, "Grey level beyond the paper")
       ->capture_default_str();
-  a->progress = ProgressOnStderr("topocal render-target: ");
+  a->progress = util::ProgressOnStderr("topocal render-target: ");
   cmd->callback([a] { pipeline::RunRenderTarget(*a, std::cout); });
 }
 

@@ -4,7 +4,6 @@
 
 #include "pipeline/simulate_command.h"
 #include "tools/commands.h"
-#include "tools/surface_option.h"
 
 namespace topocal::tools {
 
@@ -22,8 +21,6 @@ void AddSimulateCommand(CLI::App& app) {
   cmd->add_option("--ball-at", a->ball_at_mm, "Vertex of the reference ball: x y z, mm (default 0 0 0)")->expected(3);
   cmd->add_option("--out", a->out_path, "Spots CSV on the detection plane (distorted): ring,index,x_mm,y_mm")
       ->required();
-  a->surface_to_image = SurfaceToImage;
-  a->require_fold_free_sigma = RequireFoldFreeSigma;
   cmd->callback([a] { pipeline::RunSimulate(*a, std::cout, std::cerr); });
 }
 

@@ -5,8 +5,7 @@
 #include "report/sweep_command.h"
 #include "tools/cli_app.h"
 #include "tools/commands.h"
-#include "tools/library_hooks.h"
-#include "tools/output_dir.h"
+#include "util/terminal_progress.h"
 #include "tools/surface_option.h"
 
 namespace topocal::tools {
@@ -29,10 +28,9 @@ void AddSweepCommand(CLI::App& app, const SweepImageStages* image_stages) {
                   "is printed beside them");
   a->adjust_config = [overrides](model::Config* config) { overrides->ApplyTo(config); };
   a->image_stages = image_stages;
-  a->log = LogOnStderr("topocal sweep: ");
+  a->log = util::LogOnStderr("topocal sweep: ");
   cmd->callback([a] {
     if ((a->correct || !a->maps.empty()) && !a->image_stages) throw NeedsFullCli{};  // before any work or output
-    const NewDirectoryGuard maps_guard(a->maps);  // a failed run leaves no empty --maps folder
     report::RunSweep(*a, std::cout);
   });
 }

@@ -8,8 +8,7 @@
 #include "report/unit_command.h"
 #include "tools/commands.h"
 #include "tools/data_dir.h"
-#include "tools/output_dir.h"
-#include "tools/progress.h"
+#include "util/terminal_progress.h"
 
 namespace topocal::tools {
 namespace {
@@ -43,7 +42,7 @@ void AddCommonOptions(CLI::App* cmd, UnitRequest* r) {
 
 // The batch's progress on stderr: a redrawn bar on a terminal; one line per unit in logs or with --quiet.
 pipeline::UnitBatchCallbacks BatchProgress() {
-  const bool tty = ProgressEnabled();
+  const bool tty = util::ProgressEnabled();
   const auto draw_bar = [](size_t finished, size_t failed, size_t total, const std::string& last) {
     const int filled = static_cast<int>(kProgressBarWidth * finished / total);
     fmt::print(stderr, "\r[{}{}] {}/{} units, {} failed  {:<24.24}", std::string(static_cast<size_t>(filled), '#'),
@@ -97,8 +96,7 @@ void AddUnitCommand(CLI::App& app) {
   AddCommonOptions(cal, r);
   c->bundled_data_dir = DataDir;
   cal->callback([c] {
-    const NewDirectoryGuard out_guard(c->unit.out);  // a failed unit leaves no empty units/ behind
-    Progress progress("topocal unit calibrate: " + c->unit.serial);
+    util::Progress progress("topocal unit calibrate: " + c->unit.serial);
     report::UnitCalibrateRequest request = *c;
     request.log = [&progress](const std::string& line) { progress.Line("topocal unit: " + line); };
     report::RunUnitCalibrate(request, std::cout);
@@ -116,7 +114,6 @@ void AddUnitCommand(CLI::App& app) {
   AddCommonOptions(batch, &b->defaults);
   q->bundled_data_dir = DataDir;
   batch->callback([q] {
-    const NewDirectoryGuard out_guard(q->batch.out);
     report::UnitBatchRequest request = *q;
     request.progress = BatchProgress();
     report::RunUnitCalibrateBatch(request, std::cout);

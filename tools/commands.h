@@ -3,17 +3,8 @@
 // A command's callback throws util::ConfigError / util::InputError for bad input (exit 2) and
 // std::runtime_error for a computation that failed (exit 1); main() turns them into one line on stderr.
 #include <CLI/CLI.hpp>
-#include <opencv2/core/mat.hpp>
-#include <stdexcept>
 
-#include "model/config.h"
-#include "model/topographer_camera.h"
-#include <nlohmann/json.hpp>
-
-#include "pipeline/capture_quality.h"
-#include "pipeline/closed_loop.h"
 #include "report/sweep_command.h"
-#include "topo/sweep.h"
 #include "util/io.h"
 #include "util/verdict.h"
 

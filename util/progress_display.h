@@ -1,6 +1,6 @@
 #pragma once
 // How library code that runs for seconds lets its caller show that it is working, without knowing where it is
-// shown: the command line redraws one line on stderr (tools/progress.h); a test or a binding may show nothing.
+// shown: the command line redraws one line on stderr (util/terminal_progress.h); a test or a binding may show nothing.
 // Also the one type for the diagnostic lines a run reports beside its result (skipped inputs, warnings).
 #include <cstddef>
 #include <functional>

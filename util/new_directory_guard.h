@@ -9,7 +9,7 @@
 #include <system_error>
 #include <vector>
 
-namespace topocal::tools {
+namespace topocal::util {
 
 class NewDirectoryGuard {
  public:
@@ -39,4 +39,4 @@ class NewDirectoryGuard {
   std::vector<std::filesystem::path> missing_;  // deepest first
 };
 
-}  // namespace topocal::tools
+}  // namespace topocal::util

@@ -1,12 +1,14 @@
-#include "tools/progress.h"
+#include "util/terminal_progress.h"
 
 #include <unistd.h>
 
 #include <cstdio>
+#include <memory>
+#include <utility>
 
 #include <fmt/format.h>
 
-namespace topocal::tools {
+namespace topocal::util {
 namespace {
 
 std::atomic<bool> g_quiet{false};
@@ -64,4 +66,12 @@ void Progress::Loop() {
   } while (!wake_.wait_for(lock, kRedraw, [this] { return stop_; }));
 }
 
-}  // namespace topocal::tools
+ShowProgress ProgressOnStderr(std::string prefix) {
+  return [prefix = std::move(prefix)](const std::string& what) { return std::make_unique<Progress>(prefix + what); };
+}
+
+LogLine LogOnStderr(std::string prefix) {
+  return [prefix = std::move(prefix)](const std::string& line) { fmt::print(stderr, "{}{}\n", prefix, line); };
+}
+
+}  // namespace topocal::util
