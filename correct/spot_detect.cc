@@ -298,22 +298,6 @@ void FlagUnlikeNeighbours(int label_count, std::vector<Component>* comps) {
 
 }  // namespace
 
-CentroidMethod CentroidMethodFromName(const std::string& name) {
-  if (name == "centroid") return CentroidMethod::kIntensityWeighted;
-  if (name == "gaussian") return CentroidMethod::kGaussianFit;
-  if (name == "psf") return CentroidMethod::kWeightedPsfFit;
-  throw util::InputError(fmt::format("unknown estimator '{}' (centroid, gaussian or psf)", name));
-}
-
-const char* CentroidMethodName(CentroidMethod method) noexcept {
-  switch (method) {
-    case CentroidMethod::kIntensityWeighted: return "centroid";
-    case CentroidMethod::kGaussianFit: return "gaussian";
-    case CentroidMethod::kWeightedPsfFit: return "psf";
-  }
-  return "?";
-}
-
 std::string SpotFlagsText(unsigned flags) {
   std::string out;
   const auto add = [&out](const char* s) { out += out.empty() ? s : std::string("|") + s; };

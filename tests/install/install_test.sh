@@ -52,6 +52,10 @@ msg=$("$prefix/bin/topocal" unit calibrate --serial SN-1 --target "$prefix/share
       --images 'none*.png' --out "$work/unit/SN-1/" 2>&1)
 set -e
 case "$msg" in *"no file matches"*|*"none*.png"*) ;; *) echo "installed unit calibrate: $msg" >&2; exit 1 ;; esac
+# topocal-sweep links no OpenCV (docs/startup.md): an object of the sweep's that pulled in an OpenCV caller of a
+# library module would load OpenCV's 23 libraries for every sweep.
+needed=$(readelf -d "$prefix/libexec/topocal-sweep")
+if grep -i opencv <<< "$needed"; then echo "topocal-sweep links OpenCV" >&2; exit 1; fi
 # Without topocal-full: `--version` and the sweep still run (topocal-sweep); every other verb fails with one line
 # naming the missing program, and writes nothing.
 mv "$prefix/libexec/topocal-full" "$work/full"
