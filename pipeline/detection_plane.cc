@@ -16,7 +16,7 @@ constexpr int kErrorGridSteps = 16;
 
 }  // namespace
 
-DetectionPlaneModel DetectionPlaneModelOf(const model::CameraModel& c, const model::TopographerCamera& sensor) {
+DetectionPlaneModel DetectionPlaneModelUnverified(const model::CameraModel& c, const model::TopographerCamera& sensor) {
   DetectionPlaneModel result;
   result.camera = sensor;
   if (c.fx_px > 0 && c.fy_px > 0) result.camera.pixel_aspect = c.fx_px / c.fy_px;  // else BrownFromOpenCv says why
@@ -24,13 +24,21 @@ DetectionPlaneModel DetectionPlaneModelOf(const model::CameraModel& c, const mod
     result.message = fmt::format("fx / fy = {:.6f}: {}", c.fx_px / c.fy_px, *why);
     return result;
   }
-  const auto& camera = result.camera;
-  const auto brown = correct::BrownFromOpenCv(c, camera);
+  const auto brown = correct::BrownFromOpenCv(c, result.camera);
   if (!brown.ok) {
     result.message = brown.message;
     return result;
   }
   result.distortion = model::Distortion{brown.brown};
+  result.ok = true;
+  return result;
+}
+
+DetectionPlaneModel DetectionPlaneModelOf(const model::CameraModel& c, const model::TopographerCamera& sensor) {
+  DetectionPlaneModel result = DetectionPlaneModelUnverified(c, sensor);
+  if (!result.ok) return result;
+  result.ok = false;
+  const auto& camera = result.camera;
   for (int j = 0; j <= kErrorGridSteps; ++j) {
     for (int i = 0; i <= kErrorGridSteps; ++i) {
       const Eigen::Vector2d px((camera.width_px - 1.0) * i / kErrorGridSteps,

@@ -39,6 +39,13 @@ struct DetectionPlaneModel {
 // caller's to say; an uncertainty draw counts it as a failed draw.
 DetectionPlaneModel DetectionPlaneModelOf(const model::CameraModel& calibrated, const model::TopographerCamera& camera);
 
+// The conversion without the model-error grid (model_error_px left 0): for the uncertainty draws of a calibration
+// whose own conversion DetectionPlaneModelOf verified. The conversion is exact for any distortion parameters, which
+// the draws change; the grid (two inversions at 17 x 17 sensor pixels) confirmed ~1e-9 px in every draw and cost a
+// tenth of a unit's CPU. Still !ok for a pixel aspect or a distortion the detection plane cannot hold.
+DetectionPlaneModel DetectionPlaneModelUnverified(const model::CameraModel& calibrated,
+                                                  const model::TopographerCamera& camera);
+
 // A lens calibration file given beside a camera file (`--camera CAM --calibration cal.yaml`) on the detection plane:
 // DetectionPlaneModelOf, ok. Throws util::InputError naming the calibration file when it was made on a sensor of
 // another size or cannot be expressed on the detection plane.

@@ -72,12 +72,11 @@ Eigen::MatrixXd DrawFactor(const calib::ParameterCovariance& covariance, const s
 // (the incidence points' refinement begins there, not on the design sphere) and its fit (Gauss-Newton steps).
 // Draws read only the biconic parameters and the power maps: no standard deviations, adequacy or clinical indices.
 std::optional<topo::Analysis> NominalAnalysis(const std::vector<MeasuredImageSpot>& spots,
-                                              const model::CameraModel& calibrated,
-                                              const model::TopographerCamera& camera,
+                                              const DetectionPlaneModel& on_plane,
                                               const std::vector<model::TargetPoint>& targets,
                                               const model::Config& config) {
   std::optional<topo::Analysis> nominal;
-  if (const auto on_plane = DetectionPlaneModelOf(calibrated, camera); on_plane.ok) {
+  if (on_plane.ok) {
     topo::AnalysisOptions o;
     o.stddev = o.adequacy = o.clinical = false;
     try {
@@ -148,7 +147,10 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
   const Eigen::MatrixXd factor = DrawFactor(covariance, drawn_index);
 
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
-  const std::optional<topo::Analysis> nominal = NominalAnalysis(spots, calibrated, camera, design.targets, config);
+  // The nominal calibration's conversion, verified on the sensor grid; the draws then convert without the grid.
+  const DetectionPlaneModel nominal_on_plane = DetectionPlaneModelOf(calibrated, camera);
+  const bool nominal_verified = nominal_on_plane.ok;
+  const std::optional<topo::Analysis> nominal = NominalAnalysis(spots, nominal_on_plane, design.targets, config);
   topo::AnalysisOptions draw_options;
   draw_options.stddev = draw_options.adequacy = draw_options.clinical = false;
   draw_options.start = nominal ? &*nominal : nullptr;
@@ -167,7 +169,7 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
     for (Eigen::Index k = 0; k < m; ++k) z(k) = normal(rng);
     const Eigen::VectorXd delta = factor * z;
     for (Eigen::Index k = 0; k < m; ++k) *Parameter(c, u.drawn[static_cast<size_t>(k)]) += delta(k);
-    const auto on_plane = DetectionPlaneModelOf(c, camera);
+    const auto on_plane = nominal_verified ? DetectionPlaneModelUnverified(c, camera) : DetectionPlaneModelOf(c, camera);
     if (!on_plane.ok) return;  // counted as failed below
     const model::Distortion* distortion = &on_plane.distortion;
     try {
