@@ -102,7 +102,7 @@ std::vector<correct::SpotToRender> CapturedSpots(const RenderSpotsRequest& a,
 
 }  // namespace
 
-void RunRenderSpots(const RenderSpotsRequest& a, std::ostream& out, std::ostream& warnings) {
+void RunRenderSpots(const RenderSpotsRequest& a, std::ostream& out) {
   Validate(a);
   const auto cfg = model::LoadConfig(a.config_path);
   const model::Surface surface = SurfaceToImage(cfg, a.sphere_radius_mm, a.ball_at_mm);
@@ -112,12 +112,12 @@ void RunRenderSpots(const RenderSpotsRequest& a, std::ostream& out, std::ostream
   const auto truth = correct::SpotsOnSensor(surface, cfg.ideal_image, cfg.topographer, device);
   if (truth.spots.empty()) throw std::runtime_error(fmt::format("{}: the surface images no spot", a.config_path));
   for (const auto& f : truth.failures) {
-    warnings << fmt::format("topocal render-spots: spot ({}, {}): {}\n", f.id.ring, f.id.index, f.reason);
+    util::Log(a.log, fmt::format("spot ({}, {}): {}", f.id.ring, f.id.index, f.reason));
   }
   const auto spots = CapturedSpots(a, truth.spots, &o);
   int off_sensor = 0;
   for (const auto& s : spots) off_sensor += !camera.OnSensor(s.centre_px);
-  if (off_sensor > 0) warnings << fmt::format("topocal render-spots: {} spots fall off the sensor\n", off_sensor);
+  if (off_sensor > 0) util::Log(a.log, fmt::format("{} spots fall off the sensor", off_sensor));
 
   const cv::Mat image = correct::RenderSpotImage(spots, camera.width_px, camera.height_px, o);
   const auto png = imageio::EncodePng(image, a.out_path);

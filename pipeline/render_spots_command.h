@@ -10,6 +10,7 @@
 
 #include "model/config.h"
 #include "model/surface.h"
+#include "util/progress_display.h"
 
 namespace topocal::pipeline {
 
@@ -27,10 +28,11 @@ struct RenderSpotsRequest {
   double lid_skin_dn = 0, iris_dn = 0, defocus_rim_px = 0, motion_blur_px = 0, motion_blur_deg = 0;
   int bits = 16, glints = 0, lashes = 0, tear_film_patches = 0;
   uint32_t seed = 1;
+  util::LogLine log;  // warnings beside the result: spots not imaged or off the sensor
 };
 
-// Writes the image and the truth together and says so on `out`; spots not imaged or off the sensor on `warnings`.
+// Writes the image and the truth together and says so on `out`; spots not imaged or off the sensor on `log`.
 // util::InputError for bad input; std::runtime_error when the surface images no spot.
-void RunRenderSpots(const RenderSpotsRequest& request, std::ostream& out, std::ostream& warnings);
+void RunRenderSpots(const RenderSpotsRequest& request, std::ostream& out);
 
 }  // namespace topocal::pipeline

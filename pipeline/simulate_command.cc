@@ -13,7 +13,7 @@
 
 namespace topocal::pipeline {
 
-void RunSimulate(const SimulateRequest& a, std::ostream& out, std::ostream& warnings) {
+void RunSimulate(const SimulateRequest& a, std::ostream& out) {
   const bool at_sigma = !std::isnan(a.sigma_per_mm2);
   if (at_sigma == !a.device_path.empty()) throw util::InputError("simulate: give one of --sigma or --device");
   if (a.device_path.empty() && (a.sphere_radius_mm != 0 || !a.ball_at_mm.empty())) {
@@ -34,7 +34,7 @@ void RunSimulate(const SimulateRequest& a, std::ostream& out, std::ostream& warn
     for (auto& s : image.spots) s.position_mm = model::Distort(device.distortion, s.position_mm);
   }
   for (const auto& f : image.failures) {
-    warnings << fmt::format("topocal simulate: spot ({}, {}): {}\n", f.id.ring, f.id.index, f.reason);
+    util::Log(a.log, fmt::format("spot ({}, {}): {}", f.id.ring, f.id.index, f.reason));
   }
   if (image.spots.empty()) throw std::runtime_error(fmt::format("{}: the surface images no spot", a.config_path));
   util::WriteFileAtomic(a.out_path, model::SpotsCsv(image.spots));

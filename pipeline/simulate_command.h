@@ -8,6 +8,7 @@
 
 #include "model/config.h"
 #include "model/surface.h"
+#include "util/progress_display.h"
 
 namespace topocal::pipeline {
 
@@ -18,10 +19,11 @@ struct SimulateRequest {
   double sphere_radius_mm = 0;     // with a device: image a reference ball of this radius instead (0: the cornea)
   std::vector<double> ball_at_mm;  // its vertex (x, y, z); empty: the origin
   std::string out_path;            // the spots CSV
+  util::LogLine log;  // warnings beside the result: the spots not imaged
 };
 
-// Writes the spots CSV and says so on `out`; the spots not imaged on `warnings`. util::InputError for bad input;
+// Writes the spots CSV and says so on `out`; the spots not imaged on `log`. util::InputError for bad input;
 // std::runtime_error when the surface images no spot.
-void RunSimulate(const SimulateRequest& request, std::ostream& out, std::ostream& warnings);
+void RunSimulate(const SimulateRequest& request, std::ostream& out);
 
 }  // namespace topocal::pipeline

@@ -43,7 +43,8 @@ model::TopographerCamera CameraFor(const std::string& camera_path, const std::st
   return c;
 }
 
-void UndistortSpots(const UndistortRequest& a, const Undistortion& c, std::ostream& out, std::ostream& warnings) {
+void UndistortSpots(const UndistortRequest& a, const Undistortion& c, std::ostream& out) {
+  const util::LogLine& log = a.log;
   if (!c.has_pitch) {
     throw util::InputError(
         fmt::format("--spots: {} has no pixel_pitch_um; give --camera to map its pixels to mm", a.calibration_path));
@@ -53,8 +54,8 @@ void UndistortSpots(const UndistortRequest& a, const Undistortion& c, std::ostre
   for (const auto& r : rows) mm.emplace_back(r.x_mm, r.y_mm);
   const auto result = correct::UndistortPoints(c.distortion, mm);
   for (const auto& f : result.failures) {
-    warnings << fmt::format("topocal undistort: spot ({}, {}): {}\n", rows[f.index].id.ring, rows[f.index].id.index,
-                            f.reason);
+    util::Log(log, fmt::format("spot ({}, {}): {}", rows[f.index].id.ring, rows[f.index].id.index,
+                            f.reason));
   }
   // Beyond the fold an inverse may converge, but to one of two answers: such a spot is refused, with the reason.
   size_t outside = 0;
@@ -65,11 +66,11 @@ void UndistortSpots(const UndistortRequest& a, const Undistortion& c, std::ostre
     inside[i] = false;
     if (!result.ok[i]) continue;  // already reported
     ++outside;
-    warnings << fmt::format(
-        "topocal undistort: spot ({}, {}): at {:.0f} px from {}, beyond the {:.0f} px within which {}'s "
-        "distortion model is invertible ({}): refused\n",
+    util::Log(log, fmt::format(
+        "spot ({}, {}): at {:.0f} px from {}, beyond the {:.0f} px within which {}'s "
+        "distortion model is invertible ({}): refused",
         rows[i].id.ring, rows[i].id.index, (px - c.valid_centre_px).norm(), c.centre_name, c.valid_radius_px, c.source,
-        c.region_name);
+        c.region_name));
   }
   std::vector<model::ImageSpot> undistorted;
   for (size_t i = 0; i < rows.size(); ++i) {
@@ -89,25 +90,25 @@ void UndistortSpots(const UndistortRequest& a, const Undistortion& c, std::ostre
 }
 
 // Why pixels of the undistorted image are black: beyond the model's fold, or looking where the sensor did not.
-void SayWhatIsBlack(const correct::UndistortCoverage& coverage, const Undistortion& c, std::ostream& warnings) {
+void SayWhatIsBlack(const correct::UndistortCoverage& coverage, const Undistortion& c, const util::LogLine& log) {
   const auto percent = [&](int n) { return 100.0 * n / std::max(1, coverage.total_px); };
   if (coverage.beyond_fold_px > 0) {
-    warnings << fmt::format(
-        "topocal undistort: {:.1f} % of the output ({} px) left black: beyond the fold of {}'s distortion "
+    util::Log(log, fmt::format(
+        "{:.1f} % of the output ({} px) left black: beyond the fold of {}'s distortion "
         "model, which is monotonic and invertible only within {:.0f} px of {} ({}; the sensor reaches {:.0f} "
-        "px), so no unique source pixel exists there\n",
+        "px), so no unique source pixel exists there",
         percent(coverage.beyond_fold_px), coverage.beyond_fold_px, c.source, c.valid_radius_px, c.centre_name,
-        c.region_name, c.farthest_px);
+        c.region_name, c.farthest_px));
   }
   if (coverage.outside_sensor_px > 0) {
-    warnings << fmt::format(
-        "topocal undistort: {:.1f} % of the output ({} px) left black: they look at directions the sensor did "
-        "not see (the undistorted frame keeps the sensor's size and camera matrix)\n",
-        percent(coverage.outside_sensor_px), coverage.outside_sensor_px);
+    util::Log(log, fmt::format(
+        "{:.1f} % of the output ({} px) left black: they look at directions the sensor did "
+        "not see (the undistorted frame keeps the sensor's size and camera matrix)",
+        percent(coverage.outside_sensor_px), coverage.outside_sensor_px));
   }
 }
 
-void UndistortImageFile(const UndistortRequest& a, const Undistortion& c, std::ostream& out, std::ostream& warnings) {
+void UndistortImageFile(const UndistortRequest& a, const Undistortion& c, std::ostream& out) {
   if (a.out_path.size() < 4 || a.out_path.substr(a.out_path.size() - 4) != ".png") {
     throw util::InputError(fmt::format("--out: {}: the output image must be a .png file", a.out_path));
   }
@@ -123,7 +124,7 @@ void UndistortImageFile(const UndistortRequest& a, const Undistortion& c, std::o
   const auto png = imageio::EncodePng(undistorted, a.out_path);
   util::WriteFileAtomic(a.out_path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   out << fmt::format("undistorted {} x {} image -> {}\n", image.cols, image.rows, a.out_path);
-  SayWhatIsBlack(coverage, c, warnings);
+  SayWhatIsBlack(coverage, c, a.log);
 }
 
 }  // namespace
@@ -173,7 +174,7 @@ Undistortion UndistortionFromDevice(const std::string& device_path) {
   return c;
 }
 
-void RunUndistort(const UndistortRequest& request, std::ostream& out, std::ostream& warnings) {
+void RunUndistort(const UndistortRequest& request, std::ostream& out) {
   if (request.spots_path.empty() == request.image_path.empty()) {
     throw util::InputError("undistort: give exactly one of --spots or --image");
   }
@@ -187,9 +188,9 @@ void RunUndistort(const UndistortRequest& request, std::ostream& out, std::ostre
                              ? UndistortionFromCalibration(request.calibration_path, request.camera_path)
                              : UndistortionFromDevice(request.device_path);
   if (!request.spots_path.empty()) {
-    UndistortSpots(request, c, out, warnings);
+    UndistortSpots(request, c, out);
   } else {
-    UndistortImageFile(request, c, out, warnings);
+    UndistortImageFile(request, c, out);
   }
 }
 

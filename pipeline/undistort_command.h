@@ -9,6 +9,7 @@
 
 #include "model/distortion.h"
 #include "model/topographer_camera.h"
+#include "util/progress_display.h"
 
 namespace topocal::pipeline {
 
@@ -42,11 +43,12 @@ struct UndistortRequest {
   std::string camera_path;  // with a calibration: the camera (needed for spots unless the calibration has a pitch)
   std::string spots_path, image_path;  // exactly one: what is corrected
   std::string out_path;                // spots CSV, or a .png for an image
+  util::LogLine log;  // warnings beside the result: spots refused, black pixels and why
 };
 
 // Writes the corrected spots or image and says so on `out`; what could not be corrected (spots beyond the invertible
-// region, black pixels) is said on `warnings`. util::InputError for bad input; std::runtime_error when no spot
+// region, black pixels) is said on `log`. util::InputError for bad input; std::runtime_error when no spot
 // could be undistorted.
-void RunUndistort(const UndistortRequest& request, std::ostream& out, std::ostream& warnings);
+void RunUndistort(const UndistortRequest& request, std::ostream& out);
 
 }  // namespace topocal::pipeline

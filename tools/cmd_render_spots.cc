@@ -4,6 +4,7 @@
 
 #include "pipeline/render_spots_command.h"
 #include "tools/commands.h"
+#include "util/terminal_progress.h"
 
 namespace topocal::tools {
 
@@ -51,7 +52,8 @@ void AddRenderSpotsCommand(CLI::App& app) {
   cmd->add_option("--motion-blur-deg", a->motion_blur_deg, "Direction of the smear from the image's +u axis, degrees");
   cmd->add_option("--tear-film", a->tear_film_patches, "Tear-film break-up: dry patches (spots in them lost or smeared), count")
       ->check(CLI::Range(0, 50));
-  cmd->callback([a] { pipeline::RunRenderSpots(*a, std::cout, std::cerr); });
+  a->log = util::LogOnStderr("topocal render-spots: ");
+  cmd->callback([a] { pipeline::RunRenderSpots(*a, std::cout); });
 }
 
 }  // namespace topocal::tools

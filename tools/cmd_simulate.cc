@@ -4,6 +4,7 @@
 
 #include "pipeline/simulate_command.h"
 #include "tools/commands.h"
+#include "util/terminal_progress.h"
 
 namespace topocal::tools {
 
@@ -21,7 +22,8 @@ void AddSimulateCommand(CLI::App& app) {
   cmd->add_option("--ball-at", a->ball_at_mm, "Vertex of the reference ball: x y z, mm (default 0 0 0)")->expected(3);
   cmd->add_option("--out", a->out_path, "Spots CSV on the detection plane (distorted): ring,index,x_mm,y_mm")
       ->required();
-  cmd->callback([a] { pipeline::RunSimulate(*a, std::cout, std::cerr); });
+  a->log = util::LogOnStderr("topocal simulate: ");
+  cmd->callback([a] { pipeline::RunSimulate(*a, std::cout); });
 }
 
 }  // namespace topocal::tools

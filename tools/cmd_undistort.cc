@@ -4,6 +4,7 @@
 
 #include "pipeline/undistort_command.h"
 #include "tools/commands.h"
+#include "util/terminal_progress.h"
 
 namespace topocal::tools {
 
@@ -19,7 +20,8 @@ void AddUndistortCommand(CLI::App& app) {
   cmd->add_option("--out", a->out_path, "Output: spots CSV or .png image")->required();
   cmd->add_option("--camera", a->camera_path, "Topographer camera (JSON); needed for --spots unless the calibration "
                                               "records its pixel pitch");
-  cmd->callback([a] { pipeline::RunUndistort(*a, std::cout, std::cerr); });
+  a->log = util::LogOnStderr("topocal undistort: ");
+  cmd->callback([a] { pipeline::RunUndistort(*a, std::cout); });
 }
 
 }  // namespace topocal::tools
