@@ -1,5 +1,4 @@
 // topocal reconstruct: the options of report/reconstruct_command.h.
-#include <functional>
 #include <iostream>
 #include <memory>
 #include <string>
