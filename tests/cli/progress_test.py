@@ -23,9 +23,10 @@ shutil.rmtree(WORK, ignore_errors=True)
 os.makedirs(WORK)
 with open(os.path.join(WORK, "board.yaml"), "w") as f:
     f.write("target_type: checkerboard\ntargetCols: 9\ntargetRows: 7\nrowSpacingMeters: 0.002\ncolSpacingMeters: 0.002\n")
-# A render of a few seconds: longer than the 1 s before the first progress line.
-render = [TOPOCAL, "render-target", "--target", "board.yaml", "--width", "2400", "--height", "1800", "--focal-mm",
-          "5.2", "--pixel-pitch-um", "3", "--distance-mm", "70", "--supersampling", "12", "--out", "view.png"]
+# A render of ~3 s of wall time on 2 cores (the edges sub-sampled 24 x 24): well beyond the 1 s before the first
+# progress line (the 2400 x 1800 render this replaced took 0.9 s once rendering got faster, and the test flickered).
+render = [TOPOCAL, "render-target", "--target", "board.yaml", "--width", "4000", "--height", "3000", "--focal-mm",
+          "5.2", "--pixel-pitch-um", "3", "--distance-mm", "70", "--supersampling", "24", "--out", "view.png"]
 
 
 def stderr_on_terminal(args):
@@ -48,7 +49,7 @@ def stderr_on_terminal(args):
 
 
 out, err = stderr_on_terminal(render)
-check("topocal render-target: rendering 2400 x 1800 ..." in err, f"progress drawn on a terminal: {err!r}")
+check("topocal render-target: rendering 4000 x 3000 ..." in err, f"progress drawn on a terminal: {err!r}")
 check(err.rstrip().endswith("\x1b[K") or "\r\x1b[K" in err, f"progress line erased at the end: {err!r}")
 check("view.png" in out and "rendering" not in out, f"stdout unchanged: {out!r}")
 out_quiet, err_quiet = stderr_on_terminal(render[:1] + ["--quiet"] + render[1:])
