@@ -11,6 +11,7 @@
 #include "calib/detect.h"
 #include "calib/render_target.h"
 #include "calib/target.h"
+#include "model/distortion.h"
 
 namespace topocal::calib {
 namespace {

@@ -23,7 +23,7 @@ struct Scene {
   cv::Mat spots16;  // raw spot image, 16-bit
   cv::Mat grey8;    // a textured 8-bit frame for the remap comparison
   model::CameraModel lens;
-  model::BrownParams brown;
+  model::LensParams brown;
 };
 
 const Scene& GetScene() {
@@ -46,7 +46,7 @@ const Scene& GetScene() {
               .cx_px = s.camera.principal_point_px.x() + 4,
               .cy_px = s.camera.principal_point_px.y() - 3,
               .dist = {-0.12, 0.25, 8e-4, -5e-4, -0.1}};
-    s.brown = correct::BrownFromOpenCv(s.lens, s.camera).brown;
+    s.brown = correct::LensFromOpenCv(s.lens, s.camera).lens;
     return s;
   }();
   return scene;

@@ -6,6 +6,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <opencv2/calib3d.hpp>
 
 #include "calib/calibrate_solve.h"
@@ -21,13 +22,15 @@ using internal::UsedView;
 using enum internal::ParamIndex;
 
 FreeMask ComputeFreeMask(const CalibrationOptions& o, bool single_view) {
-  FreeMask free;
-  free.fill(true);
-  for (int i = 0; i < kNumCameraParameters; ++i) {
-    if (o.fixed.count(std::string(kParameterNames[i]))) free[i] = false;
+  const auto names = CameraParameterNames(o.model);
+  FreeMask free(names.size(), true);
+  for (size_t i = 0; i < names.size(); ++i) {
+    if (o.fixed.count(names[i])) free[i] = false;
   }
-  if (o.model == DistortionModelKind::kSeidel) free[kK2] = free[kP1] = free[kP2] = free[kK3] = false;
-  if (!o.fit_distortion_centre) free[kEx] = free[kEy] = false;
+  const int centre = internal::CentreIndex(o.model.lens);
+  // Seidel: k1 alone of the lens model.
+  if (o.model.seidel) std::fill(free.begin() + kDist + 1, free.begin() + centre, false);
+  if (!o.fit_distortion_centre) free[static_cast<size_t>(centre)] = free[static_cast<size_t>(centre) + 1] = false;
   if (single_view) free[kFx] = free[kFy] = free[kCx] = free[kCy] = false;
   return free;
 }
@@ -213,14 +216,23 @@ std::array<double, kNumPose> InitialSingleViewPose(const ViewObservations& view,
 
 }  // namespace
 
-std::string_view ToString(DistortionModelKind model) noexcept {
-  return model == DistortionModelKind::kSeidel ? "seidel" : "brown5";
+std::string_view ToString(const DistortionModelKind& model) noexcept {
+  return model.seidel ? "seidel" : model::LensModelName(model.lens);
 }
 
 std::optional<DistortionModelKind> ParseDistortionModel(std::string_view name) noexcept {
   if (name == "seidel") return DistortionModelKind::kSeidel;
-  if (name == "brown5") return DistortionModelKind::kBrown5;
+  if (const auto lens = model::LensModelFromName(name)) return DistortionModelKind{false, *lens};
   return std::nullopt;
+}
+
+std::string DistortionModelNames() { return "seidel, " + model::LensModelNames(); }
+
+std::vector<std::string> CameraParameterNames(const DistortionModelKind& model) {
+  std::vector<std::string> names = {"fx", "fy", "cx", "cy"};
+  for (const auto name : model::LensParameterNames(model.lens)) names.emplace_back(name);
+  names.insert(names.end(), {"ex", "ey"});
+  return names;
 }
 
 std::string_view ToString(RobustLoss loss) noexcept {
@@ -258,12 +270,19 @@ bool CalibrationOptions::IsValid(std::string* why) const {
     if (why) *why = std::move(reason);
     return false;
   };
+  const auto names = CameraParameterNames(model);
   for (const auto& name : fixed) {
-    if (std::find(std::begin(kParameterNames), std::end(kParameterNames), name) == std::end(kParameterNames)) {
-      return fail(fmt::format("unknown parameter '{}' to fix (one of fx, fy, cx, cy, k1, k2, p1, p2, k3, ex, ey)", name));
+    if (std::find(names.begin(), names.end(), name) == names.end()) {
+      return fail(fmt::format("unknown parameter '{}' to fix for model {} (one of {})", name, ToString(model),
+                              fmt::join(names, ", ")));
     }
   }
-  if (fit_distortion_centre && model == DistortionModelKind::kBrown5 && !(fixed.count("p1") && fixed.count("p2"))) {
+  if (fit_distortion_centre && !model.seidel && !std::holds_alternative<model::BrownConrady>(model.lens)) {
+    return fail(fmt::format("a distortion centre is fitted with seidel or brown5, not {}: its OpenCV equivalent is "
+                            "found for those only",
+                            ToString(model)));
+  }
+  if (fit_distortion_centre && !model.seidel && !(fixed.count("p1") && fixed.count("p2"))) {
     return fail("a free distortion centre and free p1, p2 are the same distortion to second order: fix p1,p2 or "
                 "the centre");
   }
@@ -310,6 +329,7 @@ CalibrationResult CalibrateMultiView(const std::vector<ViewObservations>& views,
   const ZhangInitialisation init = InitialiseZhang(usable);
   if (!init.ok) return Failure(CalibrationStatus::kDegenerate, init.message);
   Parameters p = InitialMultiViewParameters(init, usable, options);
+  p.lens = options.model.lens;
 
   std::vector<UsedView> used;
   for (size_t v = 0; v < usable.size(); ++v) {
@@ -331,6 +351,7 @@ CalibrationResult CalibrateSingleView(const ViewObservations& view, const Calibr
   if (!options.IsValid(&why)) return Failure(CalibrationStatus::kInvalidOptions, why);
   if (CalibrationResult failure; !CheckSingleView(view, options, &failure)) return failure;
   Parameters p;
+  p.lens = options.model.lens;
   const double f_px = options.focal_mm / (options.pixel_pitch_um * 1e-3);
   p.intrinsics = {f_px, f_px, 0.5 * (view.image_width - 1), 0.5 * (view.image_height - 1)};
   p.poses.push_back(InitialSingleViewPose(view, options, p, f_px));

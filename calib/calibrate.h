@@ -18,8 +18,9 @@
 //    Brown's p1, p2 and a free distortion centre are the same thing to second order (p1 = -k1 e_y, p2 = -k1 e_x),
 //    so the options refuse to fit both.
 //
-// Models: kSeidel = k1 alone (paper Eq. 18, sigma = k1 M_T^3 / f_mm^2, model/distortion.h), optionally about a
-// fitted centre; kBrown5 = OpenCV's k1, k2, p1, p2, k3.
+// Models: "seidel" = Brown's k1 alone (paper Eq. 18, sigma = k1 M_T^3 / f_mm^2, model/distortion.h), optionally
+// about a fitted centre; or any lens model of model/lens_model.h by its name ("brown5" = OpenCV's k1, k2, p1, p2, k3,
+// "rational8" = OpenCV's CALIB_RATIONAL_MODEL).
 //
 // Residuals are predicted - observed, px. RMS is OpenCV's: sqrt(sum over corners |r|^2 / corners).
 // Parameter standard deviations: sqrt(diag(sigma^2 (J'J)^-1)) (calib/jacobian_covariance.h) with the residual variance
@@ -37,24 +38,37 @@
 
 namespace topocal::calib {
 
-enum class DistortionModelKind { kSeidel, kBrown5 };
-std::string_view ToString(DistortionModelKind model) noexcept;
+// The distortion a calibration fits: a lens model, or the paper's Seidel distortion (Brown-Conrady's k1 alone).
+struct DistortionModelKind {
+  bool seidel = false;
+  model::LensModelId lens;  // Brown-Conrady when seidel
+
+  static const DistortionModelKind kSeidel;
+  static const DistortionModelKind kBrown5;
+  friend bool operator==(const DistortionModelKind&, const DistortionModelKind&) = default;
+};
+inline const DistortionModelKind DistortionModelKind::kSeidel{true, model::BrownConrady{}};
+inline const DistortionModelKind DistortionModelKind::kBrown5{false, model::BrownConrady{}};
+
+std::string_view ToString(const DistortionModelKind& model) noexcept;
 std::optional<DistortionModelKind> ParseDistortionModel(std::string_view name) noexcept;
+// "seidel, brown5, rational8": what ParseDistortionModel accepts, for messages and --help.
+std::string DistortionModelNames();
 
 enum class RobustLoss { kNone, kHuber, kCauchy };
 std::string_view ToString(RobustLoss loss) noexcept;
 std::optional<RobustLoss> ParseRobustLoss(std::string_view name) noexcept;
 
-// Names of the camera parameters, in the order the result reports them.
-inline constexpr std::string_view kParameterNames[] = {"fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "ex", "ey"};
-inline constexpr int kNumCameraParameters = 11;
+// Names of the camera parameters of a model, in the order the result reports them: fx, fy, cx, cy, the lens model's
+// coefficients, ex, ey (the distortion centre).
+std::vector<std::string> CameraParameterNames(const DistortionModelKind& model);
 
 // Transverse magnification of the paper's topographer (Table IV), for the Seidel sigma.
 inline constexpr double kPaperMagnification = -0.065;
 
 struct CalibrationOptions {
   DistortionModelKind model = DistortionModelKind::kBrown5;
-  // Parameters held at their initial value (names from kParameterNames). Seidel always fixes k2, p1, p2, k3 = 0;
+  // Parameters held at their initial value (names from CameraParameterNames). Seidel fixes all but k1 at 0;
   // ex, ey are fixed at 0 unless fit_distortion_centre.
   std::set<std::string> fixed;
   bool fit_distortion_centre = false;
@@ -152,8 +166,8 @@ struct CalibrationResult {
   DistortionModelKind model = DistortionModelKind::kBrown5;
   bool single_view = false;
   model::CameraModel camera;
-  std::vector<ParameterEstimate> parameters;   // kParameterNames order
-  // Covariance of the camera parameters, kNumCameraParameters square in kParameterNames order (px, normalised
+  std::vector<ParameterEstimate> parameters;   // CameraParameterNames(model) order
+  // Covariance of the camera parameters, square in CameraParameterNames(model) order (px, normalised
   // units), sigma^2 (J'J)^-1 with the poses marginalised; rows and columns of fixed parameters are zero.
   Eigen::MatrixXd covariance;
   std::optional<SeidelEstimate> seidel;        // Seidel model with a known focal length in mm

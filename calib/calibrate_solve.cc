@@ -75,12 +75,13 @@ class FixedAspectManifold final : public ceres::Manifold {
   std::vector<std::array<double, kNumIntrinsics>> basis_;
 };
 
-// Adds a block to the problem holding the entries whose mask is false fixed (whole block constant if all are).
-void AddBlock(ceres::Problem& problem, double* block, int size, const bool* free) {
+// Adds a block to the problem holding the entries whose mask (from free[first]) is false fixed (whole block constant
+// if all are).
+void AddBlock(ceres::Problem& problem, double* block, int size, const FreeMask& free, int first) {
   problem.AddParameterBlock(block, size);
   std::vector<int> fixed;
   for (int i = 0; i < size; ++i) {
-    if (!free[i]) fixed.push_back(i);
+    if (!free[static_cast<size_t>(first + i)]) fixed.push_back(i);
   }
   if (static_cast<int>(fixed.size()) == size) {
     problem.SetParameterBlockConstant(block);
@@ -104,10 +105,10 @@ void BuildProblem(ceres::Problem& problem, Parameters& p, const std::vector<Used
     problem.AddParameterBlock(p.intrinsics.data(), kNumIntrinsics,
                               new FixedAspectManifold(o.fixed_aspect_ratio, free[kCx], free[kCy]));
   } else {
-    AddBlock(problem, p.intrinsics.data(), kNumIntrinsics, &free[kFx]);
+    AddBlock(problem, p.intrinsics.data(), kNumIntrinsics, free, kFx);
   }
-  AddBlock(problem, p.dist.data(), kNumDistortion, &free[kK1]);
-  AddBlock(problem, p.centre.data(), kNumCentre, &free[kEx]);
+  AddBlock(problem, p.dist.data(), model::LensParameterCount(p.lens), free, kDist);
+  AddBlock(problem, p.centre.data(), kNumCentre, free, CentreIndex(p.lens));
   problem.AddParameterBlock(p.warp.data(), kNumWarp);
   if (!o.fit_board_warp) problem.SetParameterBlockConstant(p.warp.data());
   for (size_t v = 0; v < views.size(); ++v) {
@@ -115,19 +116,28 @@ void BuildProblem(ceres::Problem& problem, Parameters& p, const std::vector<Used
     const auto& corners = views[v].view->corners;
     for (size_t c = 0; c < corners.size(); ++c) {
       if (!views[v].inlier[c]) continue;
-      problem.AddResidualBlock(
-          ReprojectionCost::Create(corners[c].image_px, corners[c].target_mm, p.warp_geometry), MakeLoss(o),
-          p.intrinsics.data(), p.dist.data(), p.centre.data(), p.poses[v].data(), p.warp.data());
+      ceres::CostFunction* cost = std::visit(
+          [&](auto lens) {
+            return ReprojectionCost<decltype(lens)>::Create(corners[c].image_px, corners[c].target_mm,
+                                                           p.warp_geometry);
+          },
+          p.lens);
+      problem.AddResidualBlock(cost, MakeLoss(o), p.intrinsics.data(), p.dist.data(), p.centre.data(),
+                               p.poses[v].data(), p.warp.data());
     }
   }
 }
 
 std::optional<Eigen::Vector2d> Residual(const Parameters& p, const std::array<double, kNumPose>& pose,
                                         const CornerObservation& corner) {
-  const ReprojectionCost cost(corner.image_px, corner.target_mm, p.warp_geometry);
   Eigen::Vector2d r;
-  if (!cost(p.intrinsics.data(), p.dist.data(), p.centre.data(), pose.data(), p.warp.data(), r.data()) ||
-      !r.allFinite()) {
+  const bool ok = std::visit(
+      [&](auto lens) {
+        const ReprojectionCost<decltype(lens)> cost(corner.image_px, corner.target_mm, p.warp_geometry);
+        return cost(p.intrinsics.data(), p.dist.data(), p.centre.data(), pose.data(), p.warp.data(), r.data());
+      },
+      p.lens);
+  if (!ok || !r.allFinite()) {
     return std::nullopt;
   }
   return r;
@@ -275,7 +285,7 @@ bool FillResiduals(const Parameters& p, const std::vector<UsedView>& views, int 
 // A camera parameter block the result reports.
 struct Reported {
   double* block;
-  int first;  // index of its first component in kParameterNames
+  int first;  // index of its first component in the parameter table
   int size;
 };
 
@@ -301,15 +311,16 @@ bool PlusJacobian(const ceres::Problem& problem, const std::vector<const Reporte
 // Covariance of the camera parameters at the solution into result (and the board warp's estimate), their standard
 // deviations into stddev. False with the failure in result.
 bool ComputeCovariance(Parameters& p, const FreeMask& free, const std::vector<UsedView>& views,
-                       const CalibrationOptions& o, std::array<double, kNumCameraParameters>* stddev,
-                       CalibrationResult* result) {
+                       const CalibrationOptions& o, std::vector<double>* stddev, CalibrationResult* result) {
   // The poses take part in J but are not reported. Every pair of reported parameters, cross terms included: the
   // covariance is what carries the calibration's uncertainty to the clinic (pipeline/uncertainty.h), and k1, k2, k3
   // are strongly correlated.
   ceres::Problem problem;
   BuildProblem(problem, p, views, free, o);
-  const Reported reported[] = {
-      {p.intrinsics.data(), kFx, kNumIntrinsics}, {p.dist.data(), kK1, kNumDistortion}, {p.centre.data(), kEx, kNumCentre}};
+  const int table = static_cast<int>(free.size());
+  const Reported reported[] = {{p.intrinsics.data(), kFx, kNumIntrinsics},
+                               {p.dist.data(), kDist, model::LensParameterCount(p.lens)},
+                               {p.centre.data(), CentreIndex(p.lens), kNumCentre}};
   std::vector<double*> blocks;
   std::vector<const Reported*> reported_blocks;
   int next_row = 0;
@@ -336,14 +347,15 @@ bool ComputeCovariance(Parameters& p, const FreeMask& free, const std::vector<Us
                                   covariance.message));
     return false;
   }
-  Eigen::MatrixXd plus_jacobian = Eigen::MatrixXd::Zero(kNumCameraParameters, camera_rows);
+  Eigen::MatrixXd plus_jacobian = Eigen::MatrixXd::Zero(table, camera_rows);
   if (!PlusJacobian(problem, reported_blocks, covariance, &plus_jacobian)) {
     *result = Failure(CalibrationStatus::kCovarianceFailed, "internal: a parameter block's Jacobian failed");
     return false;
   }
   result->covariance = plus_jacobian * covariance.matrix.topLeftCorner(camera_rows, camera_rows) *
                        plus_jacobian.transpose() * result->residual_variance_px2;
-  for (int i = 0; i < kNumCameraParameters; ++i) {
+  stddev->assign(free.size(), 0.0);
+  for (int i = 0; i < table; ++i) {
     const double var = result->covariance(i, i);
     (*stddev)[static_cast<size_t>(i)] = free[static_cast<size_t>(i)] && var > 0 ? std::sqrt(var) : 0.0;
   }
@@ -367,20 +379,21 @@ bool ComputeCovariance(Parameters& p, const FreeMask& free, const std::vector<Us
 
 // The parameters with their standard deviations, the camera and the views' poses into result. False with the
 // failure in result.
-bool FillParameters(const Parameters& p, const FreeMask& free, const std::array<double, kNumCameraParameters>& stddev,
+bool FillParameters(const Parameters& p, const FreeMask& free, const std::vector<double>& stddev,
                     const std::vector<UsedView>& views, CalibrationResult* result) {
-  const std::array<double, kNumCameraParameters> values = {
-      p.intrinsics[0], p.intrinsics[1], p.intrinsics[2], p.intrinsics[3], p.dist[0], p.dist[1],
-      p.dist[2],       p.dist[3],       p.dist[4],       p.centre[0],     p.centre[1]};
-  for (int i = 0; i < kNumCameraParameters; ++i) {
-    if (!std::isfinite(stddev[static_cast<size_t>(i)])) {
+  std::vector<double> values(p.intrinsics.begin(), p.intrinsics.end());
+  values.insert(values.end(), p.dist.begin(), p.dist.begin() + model::LensParameterCount(p.lens));
+  values.insert(values.end(), p.centre.begin(), p.centre.end());
+  const auto names = CameraParameterNames(result->model);
+  for (size_t i = 0; i < names.size(); ++i) {
+    if (!std::isfinite(stddev[i])) {
       *result = Failure(CalibrationStatus::kCovarianceFailed, "non-finite parameter covariance");
       return false;
     }
-    result->parameters.push_back({std::string(kParameterNames[i]), values[static_cast<size_t>(i)],
-                                  stddev[static_cast<size_t>(i)], !free[static_cast<size_t>(i)]});
+    result->parameters.push_back({names[i], values[i], stddev[i], !free[i]});
   }
   auto& cam = result->camera;
+  cam.lens = p.lens;
   cam.fx_px = p.intrinsics[0];
   cam.fy_px = p.intrinsics[1];
   cam.cx_px = p.intrinsics[2];
@@ -398,7 +411,7 @@ bool FillParameters(const Parameters& p, const FreeMask& free, const std::array<
 
 // The focal length in mm (given, or from the fit and the pixel pitch) and the Seidel sigma where it is known.
 void FillFocalAndSeidel(const FreeMask& free, const CalibrationOptions& o,
-                        const std::array<double, kNumCameraParameters>& stddev, CalibrationResult* result) {
+                        const std::vector<double>& stddev, CalibrationResult* result) {
   const auto& cam = result->camera;
   if (o.fixed_aspect_ratio > 0 && free[kFx] && free[kFy]) result->fixed_aspect_ratio = o.fixed_aspect_ratio;
   result->pixel_pitch_um = o.pixel_pitch_um;
@@ -408,14 +421,14 @@ void FillFocalAndSeidel(const FreeMask& free, const CalibrationOptions& o,
     result->focal_mm = 0.5 * (cam.fx_px + cam.fy_px) * o.pixel_pitch_um * 1e-3;
   }
   // Seidel sigma where the focal length in mm is known (paper Eq. 18; k1 = sigma f^2 / M_T^3).
-  if (o.model == DistortionModelKind::kSeidel && result->focal_mm > 0) {
+  if (o.model.seidel && result->focal_mm > 0) {
     SeidelEstimate s;
     s.magnification = o.magnification;
     s.pixel_pitch_um = o.pixel_pitch_um;
     // With the pitch known, the fitted focal length in mm is the one the normalised k1 refers to.
     s.focal_mm = result->focal_mm;
     s.sigma_per_mm2 = model::BrownK1ToSeidelSigma(cam.dist[0], s.magnification, s.focal_mm);
-    s.sigma_stddev_per_mm2 = std::abs(model::BrownK1ToSeidelSigma(stddev[kK1], s.magnification, s.focal_mm));
+    s.sigma_stddev_per_mm2 = std::abs(model::BrownK1ToSeidelSigma(stddev[kDist], s.magnification, s.focal_mm));
     result->seidel = s;
   }
 }
@@ -427,7 +440,7 @@ CalibrationResult SolveAndReport(Parameters& p, std::vector<UsedView>& views, co
   const int free_parameters = CountFree(free, views.size(), o) + (o.fit_board_warp ? kNumWarp : 0);
   if (!SolveRejectingOutliers(p, views, free, o, free_parameters, &result)) return result;
   if (!FillResiduals(p, views, free_parameters, &result)) return result;
-  std::array<double, kNumCameraParameters> stddev{};
+  std::vector<double> stddev;
   if (!ComputeCovariance(p, free, views, o, &stddev, &result)) return result;
   if (!FillParameters(p, free, stddev, views, &result)) return result;
   FillFocalAndSeidel(free, o, stddev, &result);

@@ -11,11 +11,15 @@
 
 namespace topocal::calib::internal {
 
-enum ParamIndex : int { kFx, kFy, kCx, kCy, kK1, kK2, kP1, kP2, kK3, kEx, kEy };
+// Indices into the parameter table (CameraParameterNames): the intrinsics, then the lens model's coefficients from
+// kDist, then the centre's two at CentreIndex(lens).
+enum ParamIndex : int { kFx, kFy, kCx, kCy, kDist };
+inline int CentreIndex(const model::LensModelId& lens) { return kDist + model::LensParameterCount(lens); }
 
 struct Parameters {
+  model::LensModelId lens;
   std::array<double, kNumIntrinsics> intrinsics{};
-  std::array<double, kNumDistortion> dist{};
+  model::LensCoefficients dist{};
   std::array<double, kNumCentre> centre{};
   std::vector<std::array<double, kNumPose>> poses;  // one per used view
   std::array<double, kNumWarp> warp{};                // sag_x, sag_y mm (held at 0 unless fitted)
@@ -29,7 +33,8 @@ struct UsedView {
   std::vector<bool> inlier;
 };
 
-using FreeMask = std::array<bool, kNumCameraParameters>;
+// Per entry of the parameter table: fitted (true) or held.
+using FreeMask = std::vector<bool>;
 
 inline CalibrationResult Failure(CalibrationStatus status, std::string message) {
   CalibrationResult r;

@@ -24,8 +24,11 @@ namespace {
 cv::Mat CameraMatrix(const model::CameraModel& c) {
   return (cv::Mat_<double>(3, 3) << c.fx_px, 0, c.cx_px, 0, c.fy_px, c.cy_px, 0, 0, 1);
 }
+// OpenCV's distCoeffs of the camera's lens model: 1 x 5 (brown5), 1 x 8 (rational8).
 cv::Mat DistortionRow(const model::CameraModel& c) {
-  return (cv::Mat_<double>(1, 5) << c.dist[0], c.dist[1], c.dist[2], c.dist[3], c.dist[4]);
+  cv::Mat row(1, model::LensParameterCount(c.lens), CV_64F);
+  for (int i = 0; i < row.cols; ++i) row.at<double>(i) = c.dist[static_cast<size_t>(i)];
+  return row;
 }
 
 std::optional<double> SingleViewDistance(const CalibrationResult& r) {
@@ -49,13 +52,17 @@ void SetIntrinsics(const cv::Mat& k, YamlSection& yaml, const std::string& key, 
 
 CalibrationFile ReadCalibration(YamlSection& yaml);
 
+// The coefficients (a row or column) into the camera, with the smallest lens model that holds them.
 void SetDistortion(const cv::Mat& d, model::CameraModel& cam) {
-  for (int i = 0; i < 5; ++i) cam.dist[static_cast<size_t>(i)] = d.at<double>(i);
+  cam.dist = {};
+  for (int i = 0; i < static_cast<int>(d.total()); ++i) cam.dist[static_cast<size_t>(i)] = d.at<double>(i);
+  cam.lens = model::SmallestLensModelFor(cam.dist);
 }
 
 // OpenCV writes 4, 5, 8, 12 or 14 distortion coefficients (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]) depending
-// on the calibration flags of the tool that made the file. topocal's model holds the first five: a shorter vector
-// means k3 = 0, a longer one is accepted only when the rational, thin-prism and tilt terms are all zero.
+// on the calibration flags of the tool that made the file. topocal's lens models hold the first eight (brown5 the
+// first five, rational8 all eight): a shorter vector means the later ones are 0, a longer one is accepted only when
+// the thin-prism and tilt terms are all zero. Returned as a row of at most kMaxLensParams.
 cv::Mat ReadOpenCvDistortion(YamlSection& yaml, const std::string& key) {
   const cv::FileNode node = yaml.Node(key);
   cv::Mat d;
@@ -70,18 +77,18 @@ cv::Mat ReadOpenCvDistortion(YamlSection& yaml, const std::string& key) {
   }
   if (n == 5) return yaml.Matrix(key, 1, 5);
   d.convertTo(d, CV_64F);
-  cv::Mat five = cv::Mat::zeros(1, 5, CV_64F);
+  cv::Mat held = cv::Mat::zeros(1, std::min(n, model::kMaxLensParams), CV_64F);
   for (int i = 0; i < n; ++i) {
     const double v = d.at<double>(i);
     if (!std::isfinite(v)) yaml.Fail(key, "non-finite value");
-    if (i < 5) {
-      five.at<double>(i) = v;
+    if (i < model::kMaxLensParams) {
+      held.at<double>(i) = v;
     } else if (v != 0) {
-      yaml.Fail(key, fmt::format("coefficient {} is {} but topocal's model ends at k3 (OpenCV's rational, thin-prism "
-                                 "and tilt terms must be 0)", i + 1, v));
+      yaml.Fail(key, fmt::format("coefficient {} is {} but topocal's lens models end at k6 (OpenCV's thin-prism and "
+                                 "tilt terms must be 0)", i + 1, v));
     }
   }
-  return five;
+  return held;
 }
 
 }  // namespace
@@ -197,15 +204,22 @@ Eigen::MatrixXd ReadCovariance(YamlSection& yaml, int n) {
 }
 
 // The fields only topocal writes: its model, the exact camera, the fit's quality, parameters and provenance.
-void ReadTopocalFields(YamlSection& yaml, const model::CameraModel& cv_cam, CalibrationFile& out) {
+void ReadTopocalFields(YamlSection& yaml, CalibrationFile& out) {
+  const model::CameraModel& cv_cam = out.opencv_camera;
   out.model = yaml.OptionalString("model").value_or("");
   if (out.model.empty()) yaml.Fail("model", "missing");
-  if (!ParseDistortionModel(out.model)) yaml.Fail("model", "'" + out.model + "' is not seidel or brown5");
+  const auto kind = ParseDistortionModel(out.model);
+  if (!kind) yaml.Fail("model", fmt::format("'{}' is not one of {}", out.model, DistortionModelNames()));
+  if (model::LensParameterCount(cv_cam.lens) > model::LensParameterCount(kind->lens)) {
+    yaml.Fail("distortion_coefficients", fmt::format("more coefficients than model {} has", out.model));
+  }
+  out.opencv_camera.lens = out.camera.lens = kind->lens;
   const cv::Mat centre = yaml.Matrix("distortion_centre", 1, 2);
   if (centre.at<double>(0) != 0 || centre.at<double>(1) != 0) {
-    model::CameraModel exact = cv_cam;
+    model::CameraModel exact = out.camera;
     SetIntrinsics(yaml.Matrix("topocal_camera_matrix", 3, 3), yaml, "topocal_camera_matrix", exact);
-    SetDistortion(yaml.Matrix("topocal_distortion_coefficients", 1, 5), exact);
+    SetDistortion(yaml.Matrix("topocal_distortion_coefficients", 1, model::LensParameterCount(kind->lens)), exact);
+    exact.lens = kind->lens;
     exact.distortion_centre = {centre.at<double>(0), centre.at<double>(1)};
     out.camera = exact;
   }
@@ -273,7 +287,7 @@ CalibrationFile ReadCalibration(YamlSection& yaml) {
   out.opencv_camera = cv_cam;
   out.camera = cv_cam;
 
-  if (out.written_by_topocal) ReadTopocalFields(yaml, cv_cam, out);
+  if (out.written_by_topocal) ReadTopocalFields(yaml, out);
   ReadValidRegion(yaml, out);
   return out;
 }
@@ -329,7 +343,7 @@ std::string CalibrationReportJson(const CalibrationResult& result, const Calibra
   j["image_height"] = c.height_px;
   j["rms_px"] = result.rms_px;
   j["camera_matrix"] = {{c.fx_px, 0.0, c.cx_px}, {0.0, c.fy_px, c.cy_px}, {0.0, 0.0, 1.0}};
-  j["dist_coeffs"] = c.dist;
+  j["dist_coeffs"] = std::vector<double>(c.dist.begin(), c.dist.begin() + model::LensParameterCount(c.lens));
   j["distortion_centre"] = {c.distortion_centre.x(), c.distortion_centre.y()};
   j["stddev"] = json::object();
   j["fixed"] = json::array();

@@ -7,19 +7,19 @@
 //   calibration_tool: topocal              # absent in plain OpenCV files, which LoadCalibrationFile also accepts
 //   tool_version: "0.1.0"
 //   calibration_date: "2026-11-25T16:40:00Z"
-//   model: seidel | brown5
+//   model: seidel | brown5 | rational8       # calib::DistortionModelNames
 //   single_view: 0 | 1
 //   image_width: 1600                      # px
 //   image_height: 1200
 //   camera_matrix: !!opencv-matrix         # 3x3 [fx 0 cx; 0 fy cy; 0 0 1], px
-//   distortion_coefficients: !!opencv-matrix   # 1x5 k1 k2 p1 p2 k3 (OpenCV order)
+//   distortion_coefficients: !!opencv-matrix   # 1x5 k1 k2 p1 p2 k3, or 1x8 with k4 k5 k6 (OpenCV order)
 //   distortion_centre: !!opencv-matrix     # 1x2 e (normalised units) of the topocal model; [0 0] = OpenCV's model
 //   # only when e != 0: the exact topocal model; camera_matrix / distortion_coefficients then hold the closest
 //   # OpenCV model (calib/opencv_equivalent.h), opencv_equivalent_max_error_px says how close over the image.
 //   topocal_camera_matrix, topocal_distortion_coefficients, opencv_equivalent_max_error_px
-//   parameter_names: [fx, fy, cx, cy, k1, k2, p1, p2, k3, ex, ey]
-//   parameter_values / parameter_stddev: 1x11 (stddev 0 = fixed)
-//   parameter_covariance: 11x11, same order (rows/columns of fixed parameters zero)
+//   parameter_names: [fx, fy, cx, cy, k1, k2, p1, p2, k3, ex, ey]   # calib::CameraParameterNames of the model
+//   parameter_values / parameter_stddev: 1xN (stddev 0 = fixed)
+//   parameter_covariance: NxN, same order (rows/columns of fixed parameters zero)
 //   rms_px, per_view_rms_px (sequence), views_used, images (sequence), outliers (count)
 //   seidel_sigma_per_mm2, seidel_sigma_stddev_per_mm2, magnification   # Seidel with a known focal length in mm
 //   focal_mm, pixel_pitch_um               # whenever known (given, or fitted f_px x pitch)

@@ -46,7 +46,8 @@ std::string MrcalCameraModelText(const model::CameraModel& camera, const Distort
 // cv::FileStorage, cv::undistort and LoadCalibrationFile read; `imported_from` is recorded beside them.
 std::string OpenCvCalibrationText(const model::CameraModel& camera, const std::string& imported_from);
 
-// The largest pixel shift over the image border from setting k3 to zero (what a radtan export loses).
+// The largest pixel shift over the image border from setting k3 (and the rational model's k4..k6) to zero: what a
+// radtan export loses.
 double DropK3ShiftPx(const model::CameraModel& camera);
 
 // Reads camera `camera_key` (cam0, cam1, ...) of a Kalibr camchain YAML: camera_model pinhole, distortion_model

@@ -11,6 +11,7 @@
 #include <limits>
 #include <opencv2/core.hpp>
 #include <set>
+#include <tuple>
 #include <string>
 #include <utility>
 #include <vector>
@@ -117,16 +118,17 @@ std::vector<double> ReadRosMatrix(YamlSection& root, const std::string& key, int
 }
 
 // The distortion models of ROS (sensor_msgs/distortion_models.h) that are OpenCV's: plumb_bob (k1 k2 t1 t2 k3) and
-// rational_polynomial (k1 k2 t1 t2 k3 k4 k5 k6), the latter only when k4..k6 are 0.
-std::array<double, 5> ReadRosDistortion(YamlSection& root) {
+// rational_polynomial (k1 k2 t1 t2 k3 k4 k5 k6). The coefficients, and the smallest lens model that holds them.
+std::pair<model::LensModelId, model::LensCoefficients> ReadRosDistortion(YamlSection& root) {
   const std::string model_name = root.String("distortion_model");
-  const int n = model_name == "plumb_bob" ? 5 : model_name == "rational_polynomial" ? 8 : 0;
-  if (n == 0) {
+  const auto named = model::LensModelFromRosName(model_name);
+  if (!named) {
     root.Fail("distortion_model",
-              fmt::format("'{}': topocal's model is OpenCV's k1 k2 p1 p2 k3: plumb_bob, or rational_polynomial with k4 = "
-                    "k5 = k6 = 0 (equidistant is a fisheye model topocal does not fit)",
-                    Shown(model_name)));
+              fmt::format("'{}': topocal's lens models are OpenCV's: {} (equidistant is a fisheye model topocal does "
+                          "not fit)",
+                          Shown(model_name), model::LensModelNames(" or ", model::LensModelRosName)));
   }
+  const int n = model::LensParameterCount(*named);
   const std::string key = "distortion_coefficients";
   const cv::FileNode node = root.Has(key) ? root.Node(key) : cv::FileNode();
   if (!node.empty() && node.isMap() && !node["data"].empty() && node["data"].isSeq() &&
@@ -134,15 +136,9 @@ std::array<double, 5> ReadRosDistortion(YamlSection& root) {
     root.Fail(key + ".data", fmt::format("{} has {} coefficients, found {}", model_name, n, node["data"].size()));
   }
   const std::vector<double> d = ReadRosMatrix(root, key, 1, n);
-  for (int i = 5; i < n; ++i) {
-    if (d[static_cast<size_t>(i)] != 0) {
-      root.Fail(key,
-                fmt::format("k{} = {} but topocal's model ends at k3 (rational_polynomial is accepted with k4 "
-                      "= k5 = k6 = 0)",
-                      i - 1, d[static_cast<size_t>(i)]));
-    }
-  }
-  return {d[0], d[1], d[2], d[3], d[4]};
+  model::LensCoefficients k{};
+  std::copy(d.begin(), d.end(), k.begin());
+  return {model::SmallestLensModelFor(k), k};
 }
 
 // ---- mrcal .cameramodel: a Python literal --------------------------------------------------------------------------
@@ -395,12 +391,12 @@ std::vector<double> MrcalNumbers(const PyValue& root, const std::string& path, c
   return out;
 }
 
-// The number of distortion coefficients of the mrcal lens models topocal's Brown model holds; -1 for the others.
+// The number of distortion coefficients of the mrcal lens models of OpenCV's family; -1 for the others. The pinhole
+// and OPENCV4 (Brown without k3) are held by the smallest lens model too.
 int MrcalDistortionCount(const std::string& lensmodel) {
   if (lensmodel == "LENSMODEL_PINHOLE") return 0;
   if (lensmodel == "LENSMODEL_OPENCV4") return 4;
-  if (lensmodel == "LENSMODEL_OPENCV5") return 5;
-  if (lensmodel == "LENSMODEL_OPENCV8") return 8;
+  if (const auto lens = model::LensModelFromMrcalName(lensmodel)) return model::LensParameterCount(*lens);
   return -1;
 }
 
@@ -466,7 +462,7 @@ model::CameraModel ReadRosCameraInfo(const std::string& path) {
     c.cx_px = k[2];
     c.cy_px = k[5];
     RequirePhysicalCamera(c, path, "camera_matrix");
-    c.dist = ReadRosDistortion(root);
+    std::tie(c.lens, c.dist) = ReadRosDistortion(root);
     return c;
   });
 }
@@ -484,23 +480,15 @@ model::CameraModel ReadMrcalCameraModel(const std::string& path) {
   const int n = MrcalDistortionCount(lens.text);
   if (n < 0) {
     Bad(path, "lensmodel",
-        fmt::format("'{}' is not a model topocal holds (OpenCV's k1 k2 p1 p2 k3): accepted are LENSMODEL_PINHOLE, "
-                    "LENSMODEL_OPENCV4, LENSMODEL_OPENCV5, and LENSMODEL_OPENCV8 with k4 = k5 = k6 = 0",
-                    Shown(lens.text)));
+        fmt::format("'{}' is not a model topocal holds (OpenCV's): accepted are LENSMODEL_PINHOLE, "
+                    "LENSMODEL_OPENCV4, {}",
+                    Shown(lens.text), model::LensModelNames(", ", model::LensModelMrcalName)));
   }
   const std::vector<double> in = MrcalNumbers(root, path, "intrinsics");
   if (in.size() != static_cast<size_t>(4 + n)) {
     Bad(path, "intrinsics",
         fmt::format("{} has {} numbers (fx fy cx cy and {} distortion coefficients), found {}", lens.text, 4 + n, n,
                     in.size()));
-  }
-  for (int i = 9; i < 4 + n; ++i) {
-    if (in[static_cast<size_t>(i)] != 0) {
-      Bad(path, "intrinsics",
-          fmt::format("k{} = {} but topocal's model ends at k3 (LENSMODEL_OPENCV8 is accepted "
-                      "with k4 = k5 = k6 = 0)",
-                      i - 5, in[static_cast<size_t>(i)]));
-    }
   }
   const PyValue& size = MrcalKey(root, path, "imagersize");
   const bool size_ok = size.kind == PyValue::Kind::kSequence && size.items.size() == 2 &&
@@ -516,7 +504,8 @@ model::CameraModel ReadMrcalCameraModel(const std::string& path) {
   c.fy_px = in[1];
   c.cx_px = in[2];
   c.cy_px = in[3];
-  for (int i = 0; i < std::min(n, 5); ++i) c.dist[static_cast<size_t>(i)] = in[static_cast<size_t>(4 + i)];
+  for (int i = 0; i < n; ++i) c.dist[static_cast<size_t>(i)] = in[static_cast<size_t>(4 + i)];
+  c.lens = model::SmallestLensModelFor(c.dist);
   RequirePhysicalCamera(c, path, "intrinsics");
   return c;
 }

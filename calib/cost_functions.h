@@ -5,12 +5,13 @@
 //
 //   corner_in_cam = R(cam_from_target[0..2]) * corner_in_target_mm + cam_from_target[3..5]     (angle-axis, mm)
 //   u             = (X / Z, Y / Z)                                                               (normalised)
-//   predicted_px  = CameraModel::NormalizedToPixel(intrinsics, dist, centre, u)                 (calib/camera.h)
+//   predicted_px  = CameraModel::NormalizedToPixel<Lens>(intrinsics, dist, centre, u)    (model/camera_model.h)
 //   residual_px   = predicted_px - observed_px
 //
-// Parameter blocks: intrinsics [fx, fy, cx, cy] px; dist [k1, k2, p1, p2, k3]; centre [e_x, e_y] normalised;
-// cam_from_target [angle-axis (rad), translation (mm)]; warp [sag_x, sag_y] mm (BoardWarp, held at 0 unless fitted). A corner behind the camera (Z <= 0) makes the evaluation
-// fail, which Ceres treats as an infeasible step rather than a NaN.
+// Parameter blocks: intrinsics [fx, fy, cx, cy] px; dist [the lens model's coefficients, OpenCV's order]; centre
+// [e_x, e_y] normalised; cam_from_target [angle-axis (rad), translation (mm)]; warp [sag_x, sag_y] mm (BoardWarp,
+// held at 0 unless fitted). A corner behind the camera (Z <= 0) makes the evaluation fail, which Ceres treats as an
+// infeasible step rather than a NaN.
 #include <ceres/autodiff_cost_function.h>
 #include <ceres/rotation.h>
 
@@ -21,7 +22,6 @@
 namespace topocal::calib {
 
 inline constexpr int kNumIntrinsics = 4;
-inline constexpr int kNumDistortion = 5;
 inline constexpr int kNumCentre = 2;
 inline constexpr int kNumPose = 6;
 inline constexpr int kNumWarp = 2;
@@ -41,6 +41,7 @@ struct BoardWarp {
   }
 };
 
+template <model::LensModel Lens>
 struct ReprojectionCost {
   ReprojectionCost(const Eigen::Vector2d& observed_px, const Eigen::Vector3d& corner_in_target_mm,
                    const BoardWarp& warp_geometry = {})
@@ -58,7 +59,7 @@ struct ReprojectionCost {
     if (!(corner_in_cam[2] > T(0))) return false;
     const T u[2] = {corner_in_cam[0] / corner_in_cam[2], corner_in_cam[1] / corner_in_cam[2]};
     T px[2];
-    model::CameraModel::NormalizedToPixel(intrinsics, dist, centre, u, px);
+    model::CameraModel::NormalizedToPixel<Lens>(intrinsics, dist, centre, u, px);
     residual_px[0] = px[0] - T(observed_px_.x());
     residual_px[1] = px[1] - T(observed_px_.y());
     return true;
@@ -66,8 +67,8 @@ struct ReprojectionCost {
 
   static ceres::CostFunction* Create(const Eigen::Vector2d& observed_px, const Eigen::Vector3d& corner_in_target_mm,
                                      const BoardWarp& warp_geometry) {
-    return new ceres::AutoDiffCostFunction<ReprojectionCost, 2, kNumIntrinsics, kNumDistortion, kNumCentre, kNumPose,
-                                           kNumWarp>(
+    return new ceres::AutoDiffCostFunction<ReprojectionCost, 2, kNumIntrinsics, Lens::kNumParams, kNumCentre,
+                                           kNumPose, kNumWarp>(
         new ReprojectionCost(observed_px, corner_in_target_mm, warp_geometry));
   }
 

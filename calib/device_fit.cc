@@ -9,6 +9,7 @@
 #include <ceres/ceres.h>
 #include <ceres/normal_prior.h>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "calib/jacobian_covariance.h"
 #include "util/io.h"
@@ -70,7 +71,7 @@ struct Blocks {
   double radial_scale = 1;
   std::array<double, 2> principal{};
   double a = 0;
-  std::vector<double> distortion;   // 1 (Seidel sigma) or 5 (Brown)
+  std::vector<double> distortion;   // 1 (Seidel sigma) or the lens model's coefficients
   std::vector<std::array<double, 3>> balls;
 };
 
@@ -136,19 +137,28 @@ namespace {
 
 // One fit of a device to ball images: its parameter blocks, the identified spots and the two Ceres stages. Each step
 // is a member so that FitDevice reads as the sequence it is.
+// A lens model's k1 and k2 are what ball images determine; its later coefficients (p1, p2, k3, ...) are held.
+constexpr int kFittedLensCoefficients = 2;
+
 class DeviceFitter {
  public:
   DeviceFitter(const model::Device& nominal, const model::TopographerParams& design, const std::vector<BallView>& balls,
                const DeviceFitOptions& options)
       : nominal_(nominal), design_(design), balls_(balls), options_(options),
-        brown_(std::holds_alternative<model::BrownParams>(nominal.distortion)),
-        setup_(model::ProjectionSetupOf(nominal, design)), inv_sigma_(1.0 / options.spot_sigma_px) {
+        setup_(model::ProjectionSetupOf(nominal, design)), lens_(setup_.lens), inv_sigma_(1.0 / options.spot_sigma_px) {
     solver_.linear_solver_type = ceres::DENSE_QR;
     solver_.max_num_iterations = options.max_iterations;
     solver_.num_threads = 1;  // deterministic whatever the machine
     solver_.function_tolerance = 1e-12;
     solver_.parameter_tolerance = 1e-12;
     solver_.gradient_tolerance = 1e-12;
+  }
+
+  // The held components of the lens model's block: every coefficient after k1, k2.
+  std::vector<int> HeldLensComponents() const {
+    std::vector<int> held;
+    for (int i = kFittedLensCoefficients; i < model::LensParameterCount(*lens_); ++i) held.push_back(i);
+    return held;
   }
 
   std::optional<std::string> CollectSpots(const std::vector<model::TargetPoint>& designed_targets, DeviceFit* fit);
@@ -177,8 +187,8 @@ class DeviceFitter {
   const model::TopographerParams& design_;
   const std::vector<BallView>& balls_;
   const DeviceFitOptions& options_;
-  const bool brown_;
   const model::DeviceProjectionSetup setup_;
+  const std::optional<model::LensModelId> lens_;  // the distortion block's lens model; empty: Seidel
   const double inv_sigma_;
   ceres::Solver::Options solver_;
   std::vector<Observation> observations_;
@@ -215,9 +225,9 @@ void DeviceFitter::StartBlocks() {
   blk_.radial_scale = nominal_.screen.radial_scale;
   blk_.principal = {nominal_.camera.principal_point_px.x(), nominal_.camera.principal_point_px.y()};
   blk_.a = nominal_.camera.a_mm;
-  if (brown_) {
-    const auto& k = std::get<model::BrownParams>(nominal_.distortion).k;
-    blk_.distortion.assign(k.begin(), k.end());
+  if (lens_) {
+    const auto& k = std::get<model::LensParams>(nominal_.distortion).k;
+    blk_.distortion.assign(k.begin(), k.begin() + model::LensParameterCount(*lens_));
   } else {
     blk_.distortion = {std::get<model::SeidelParams>(nominal_.distortion).sigma_per_mm2};
   }
@@ -232,7 +242,9 @@ void DeviceFitter::AddSpot(ceres::Problem& problem, const Observation& o) {
                           o.target->on_sphere_mm.head<2>(), o.px, inv_sigma_};
     return MakeSpotCost<N>(r);
   };
-  ceres::CostFunction* cost = brown_ ? make(std::integral_constant<int, 5>{}) : make(std::integral_constant<int, 1>{});
+  ceres::CostFunction* cost =
+      lens_ ? std::visit([&](auto m) { return make(std::integral_constant<int, decltype(m)::kNumParams>{}); }, *lens_)
+            : make(std::integral_constant<int, 1>{});
   problem.AddResidualBlock(cost, nullptr, {blk_.pose.data(), &blk_.radial_scale, blk_.principal.data(), &blk_.a,
                                            blk_.distortion.data(), blk_.balls[o.ball].data()});
 }
@@ -277,7 +289,7 @@ void DeviceFitter::AddPriors(ceres::Problem& problem) {
                                  Eigen::VectorXd::Constant(1, tol.radial_scale)),
                            nullptr, &blk_.radial_scale);
   Eigen::VectorXd dm = Eigen::Map<const Eigen::VectorXd>(blk_.distortion.data(), n_dist);
-  Eigen::VectorXd dsd = Eigen::VectorXd::Constant(n_dist, brown_ ? tol.brown_k : tol.sigma_per_mm2);
+  Eigen::VectorXd dsd = Eigen::VectorXd::Constant(n_dist, lens_ ? tol.brown_k : tol.sigma_per_mm2);
   problem.AddResidualBlock(Prior(dm, dsd), nullptr, blk_.distortion.data());
   for (size_t b = 0; b < balls_.size(); ++b) {
     const Eigen::Vector3d start(blk_.balls[b][0], blk_.balls[b][1], blk_.balls[b][2]);
@@ -296,11 +308,14 @@ std::optional<std::string> DeviceFitter::SolveAll(DeviceFit* fit) {
   if (!options_.fit_radial_scale) problem_.SetParameterBlockConstant(&blk_.radial_scale);
   if (!options_.fit_distortion) {
     problem_.SetParameterBlockConstant(blk_.distortion.data());
-  } else if (brown_) {
-    problem_.SetManifold(blk_.distortion.data(), new ceres::SubsetManifold(5, {2, 3, 4}));
-    fit->notes.push_back(
-        "Brown p1, p2 and k3 held at their nominal values: ball images alone cannot separate decentring distortion "
-        "from a screen tilt; calibrate them from target views");
+  } else if (lens_) {
+    problem_.SetManifold(blk_.distortion.data(),
+                         new ceres::SubsetManifold(static_cast<int>(blk_.distortion.size()), HeldLensComponents()));
+    const auto names = model::LensParameterNames(*lens_).subspan(kFittedLensCoefficients);
+    fit->notes.push_back(fmt::format(
+        "{} {} and {} held at their nominal values: ball images alone cannot separate decentring distortion "
+        "from a screen tilt; calibrate them from target views",
+        model::LensModelName(*lens_), fmt::join(names.first(names.size() - 1), ", "), names.back()));
   }
   ceres::Solver::Summary summary;
   ceres::Solve(solver_, &problem_, &summary);
@@ -353,10 +368,13 @@ std::vector<DeviceFitter::Entry> DeviceFitter::ReportedEntries() const {
   entries.push_back({"principal_point_v_px", blk_.principal.data(), 1, nominal_.camera.principal_point_px.y()});
   entries.push_back({"a_mm", &blk_.a, 0, nominal_.camera.a_mm});
   if (!options_.fit_distortion) return entries;
-  if (brown_) {
-    const auto& k = std::get<model::BrownParams>(nominal_.distortion).k;
-    entries.push_back({"k1", blk_.distortion.data(), 0, k[0]});
-    entries.push_back({"k2", blk_.distortion.data(), 1, k[1]});
+  if (lens_) {
+    const auto& k = std::get<model::LensParams>(nominal_.distortion).k;
+    const auto names = model::LensParameterNames(*lens_);
+    for (int i = 0; i < kFittedLensCoefficients; ++i) {
+      entries.push_back({std::string(names[static_cast<size_t>(i)]), blk_.distortion.data(), i,
+                         k[static_cast<size_t>(i)]});
+    }
   } else {
     entries.push_back({"sigma_per_mm2", blk_.distortion.data(), 0,
                        std::get<model::SeidelParams>(nominal_.distortion).sigma_per_mm2});
@@ -372,7 +390,7 @@ std::map<const double*, std::vector<int>> DeviceFitter::FreeComponents(const std
     const int size = problem_.ParameterBlockSize(b);
     std::vector<int> held;
     if (b == blk_.balls[options_.datum_ball].data()) held = {2};
-    if (brown_ && b == blk_.distortion.data()) held = {2, 3, 4};
+    if (lens_ && b == blk_.distortion.data()) held = HeldLensComponents();
     std::vector<int> cols(size, -1);
     for (int i = 0; i < size; ++i) {
       if (std::find(held.begin(), held.end(), i) == held.end()) cols[i] = col++;
@@ -433,8 +451,8 @@ void DeviceFitter::FittedDevice(DeviceFit* fit) const {
   fit->device.screen = model::ScreenPose::FromArray(blk_.pose.data(), blk_.radial_scale);
   fit->device.camera.principal_point_px = {blk_.principal[0], blk_.principal[1]};
   fit->device.camera.a_mm = blk_.a;
-  if (brown_) {
-    auto b = std::get<model::BrownParams>(nominal_.distortion);
+  if (lens_) {
+    auto b = std::get<model::LensParams>(nominal_.distortion);
     std::copy(blk_.distortion.begin(), blk_.distortion.end(), b.k.begin());
     b.focal_mm = blk_.a;
     fit->device.distortion = b;

@@ -18,12 +18,12 @@ struct RayPoint {
 
 RayPoint Evaluate(const model::CameraModel& c, const Eigen::Vector2d& u) {
   const Jet2 in[4] = {Jet2(c.fx_px), Jet2(c.fy_px), Jet2(c.cx_px), Jet2(c.cy_px)};
-  Jet2 dist[5];
-  for (int i = 0; i < 5; ++i) dist[i] = Jet2(c.dist[static_cast<size_t>(i)]);
+  Jet2 dist[model::kMaxLensParams];
+  for (int i = 0; i < model::kMaxLensParams; ++i) dist[i] = Jet2(c.dist[static_cast<size_t>(i)]);
   const Jet2 centre[2] = {Jet2(c.distortion_centre.x()), Jet2(c.distortion_centre.y())};
   const Jet2 uj[2] = {Jet2(u.x(), 0), Jet2(u.y(), 1)};
   Jet2 px[2];
-  model::CameraModel::NormalizedToPixel(in, dist, centre, uj, px);
+  model::CameraModel::NormalizedToPixel(c.lens, in, dist, centre, uj, px);
   return {{px[0].a, px[1].a}, px[0].v[0] * px[1].v[1] - px[0].v[1] * px[1].v[0]};
 }
 

@@ -19,7 +19,7 @@ struct OpenCvFitCost {
     const T zero[2] = {T(0), T(0)};
     const T u[2] = {T(u_.x()), T(u_.y())};
     T px[2];
-    model::CameraModel::NormalizedToPixel(intrinsics, dist, zero, u, px);
+    model::CameraModel::NormalizedToPixel<model::BrownConrady>(intrinsics, dist, zero, u, px);
     residual[0] = px[0] - T(px_.x());
     residual[1] = px[1] - T(px_.y());
     return true;
@@ -36,6 +36,8 @@ std::optional<OpenCvEquivalent> ToOpenCvModel(const model::CameraModel& camera) 
   OpenCvEquivalent out;
   out.camera = camera;
   if (camera.distortion_centre.isZero(0)) return out;
+  // A distortion centre is fitted with Brown-Conrady's coefficients only (calib::CalibrationOptions).
+  if (!std::holds_alternative<model::BrownConrady>(camera.lens)) return std::nullopt;
 
   std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> samples;  // (u, px)
   for (int i = 0; i <= kGridSteps; ++i) {
@@ -71,6 +73,7 @@ std::optional<OpenCvEquivalent> ToOpenCvModel(const model::CameraModel& camera) 
   out.camera.fy_px = intrinsics[1];
   out.camera.cx_px = intrinsics[2];
   out.camera.cy_px = intrinsics[3];
+  out.camera.dist = {};
   std::copy(dist.begin(), dist.end(), out.camera.dist.begin());
   out.camera.distortion_centre.setZero();
   for (const auto& [u, px] : samples) {

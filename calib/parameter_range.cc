@@ -31,6 +31,10 @@ double PlausibleHalfRange(std::string_view name, const model::CameraModel& camer
   if (name == "k1") return std::pow(rc, -2.0);
   if (name == "k2") return std::pow(rc, -4.0);
   if (name == "k3") return std::pow(rc, -6.0);
+  // The rational model's denominator: the same bounds as the numerator's terms of the same order.
+  if (name == "k4") return std::pow(rc, -2.0);
+  if (name == "k5") return std::pow(rc, -4.0);
+  if (name == "k6") return std::pow(rc, -6.0);
   if (name == "p1" || name == "p2") return 1.0 / (3.0 * rc);
   if (name == "ex" || name == "ey") return rc;
   return 0;

@@ -10,6 +10,7 @@
 //   cx, cy     +- half the image width / height (the principal point anywhere on the sensor)
 //   k1, k2, k3 +- 1 / r_c^2, 1 / r_c^4, 1 / r_c^6 (the term alone moves the image corner by its own distance from
 //              the principal point: beyond that the model folds the image onto itself)
+//   k4, k5, k6 the same as k1, k2, k3 (the rational model's denominator, term for term)
 //   p1, p2     +- 1 / (3 r_c) (the tangential terms' largest displacement at the corner, 3 p r_c^2, the same bound)
 //   ex, ey     +- r_c (the distortion centre anywhere on the image)
 #include <string>
@@ -26,11 +27,11 @@ struct UndeterminedParameter {
   double plausible_half_range = 0;  // in the parameter's own units
 };
 
-// The plausible half range of parameter `name` (kParameterNames) for `camera`; 0 for an unknown name.
+// The plausible half range of parameter `name` (CameraParameterNames) for `camera`; 0 for an unknown name.
 double PlausibleHalfRange(std::string_view name, const model::CameraModel& camera);
 
 // The free parameters of a successful calibration whose standard deviation exceeds their plausible half range, in
-// kParameterNames order; empty when every free parameter is determined (or the calibration failed).
+// the result's parameter order; empty when every free parameter is determined (or the calibration failed).
 std::vector<UndeterminedParameter> UndeterminedParameters(const CalibrationResult& result);
 
 // One line: "k3 = -22.5 +- 266 (plausible +-5.6)[, ...]: the views do not determine it; hold it fixed (--fix k3) or

@@ -6,9 +6,9 @@
 
 namespace topocal::correct {
 
-BrownOnDetectionPlane BrownFromOpenCv(const model::CameraModel& k, const model::TopographerCamera& camera) {
+LensOnDetectionPlane LensFromOpenCv(const model::CameraModel& k, const model::TopographerCamera& camera) {
   const auto fail = [](std::string m) {
-    BrownOnDetectionPlane failed;
+    LensOnDetectionPlane failed;
     failed.message = std::move(m);
     return failed;
   };
@@ -19,29 +19,33 @@ BrownOnDetectionPlane BrownFromOpenCv(const model::CameraModel& k, const model::
   for (const double d : k.dist) {
     if (!std::isfinite(d)) return fail("distortion coefficients must be finite");
   }
-  BrownOnDetectionPlane out;
+  LensOnDetectionPlane out;
   const Eigen::Matrix2d mt = camera.Orientation().transpose();
   const Eigen::Vector2d p = camera.PitchesMm();
   // The focal length in mm along each pixel axis, f_x p_u and f_y p_v: one distance a when the camera's pixel aspect
   // is the calibration's f_x / f_y.
   const double focal_u_mm = k.fx_px * p.x(), focal_v_mm = k.fy_px * p.y();
-  out.brown.focal_mm = std::sqrt(focal_u_mm * focal_v_mm);
+  out.lens.focal_mm = std::sqrt(focal_u_mm * focal_v_mm);
   if (!k.distortion_centre.allFinite()) return fail("distortion centre must be finite");
   const Eigen::Vector2d centre_mm =
       mt * Eigen::Vector2d(k.cx_px - camera.principal_point_px.x() + k.fx_px * k.distortion_centre.x(),
                            k.cy_px - camera.principal_point_px.y() + k.fy_px * k.distortion_centre.y())
                .cwiseProduct(p);
-  out.brown.centre_x_mm = centre_mm.x();
-  out.brown.centre_y_mm = centre_mm.y();
+  out.lens.centre_x_mm = centre_mm.x();
+  out.lens.centre_y_mm = centre_mm.y();
   // The tangential terms are r^2 q + 2 (n.q) n with q = (p2, p1): q turns with the frame, q_mm = M^T q_cv.
+  // Every lens model of the list shares the tangential pair (model/lens_model.h); its radial terms are unchanged.
   const Eigen::Vector2d q_mm = mt * Eigen::Vector2d(k.dist[3], k.dist[2]);
-  out.brown.k = {k.dist[0], k.dist[1], q_mm.y(), q_mm.x(), k.dist[4]};
+  out.lens.model = k.lens;
+  out.lens.k = k.dist;
+  out.lens.k[2] = q_mm.y();
+  out.lens.k[3] = q_mm.x();
   out.aspect_error = std::abs(focal_u_mm / focal_v_mm - 1.0);
   out.ok = true;
   return out;
 }
 
-model::CameraModel OpenCvFromBrown(const model::BrownParams& brown, const model::TopographerCamera& camera) {
+model::CameraModel OpenCvFromLens(const model::LensParams& brown, const model::TopographerCamera& camera) {
   model::CameraModel k;
   k.width_px = camera.width_px;
   k.height_px = camera.height_px;
@@ -53,9 +57,12 @@ model::CameraModel OpenCvFromBrown(const model::BrownParams& brown, const model:
       camera.principal_point_px + (m * Eigen::Vector2d(brown.centre_x_mm, brown.centre_y_mm)).cwiseQuotient(p);
   k.cx_px = c.x();
   k.cy_px = c.y();
-  // BrownFromOpenCv's q_mm = M^T q_cv with q = (p2, p1), turned back.
+  // LensFromOpenCv's q_mm = M^T q_cv with q = (p2, p1), turned back.
   const Eigen::Vector2d q_cv = m * Eigen::Vector2d(brown.k[3], brown.k[2]);
-  k.dist = {brown.k[0], brown.k[1], q_cv.y(), q_cv.x(), brown.k[4]};
+  k.lens = brown.model;
+  k.dist = brown.k;
+  k.dist[2] = q_cv.y();
+  k.dist[3] = q_cv.x();
   return k;
 }
 

@@ -1,6 +1,7 @@
 #pragma once
-// An OpenCV calibration (camera matrix K and distCoeffs, in this camera's pixels) as a model::BrownParams on the
-// detection plane, so that points and images of the topographer can be undistorted in millimetres.
+// An OpenCV calibration (camera matrix K and distCoeffs of any lens model, in this camera's pixels) as a
+// model::LensParams on the detection plane, so that points and images of the topographer can be undistorted in
+// millimetres.
 //
 // With x_mm = M^T P (u - c_cam) (model/topographer_camera.h; M the image orientation, P = diag(pitch_u, pitch_v))
 // and OpenCV's x_n = (u - c_x) / f_x, y_n = (v - c_y) / f_y, the distortion acting on v = x_n - e (e the distortion
@@ -10,7 +11,7 @@
 // The radial terms are unchanged by M; the tangential ones, r^2 q + 2 (n.q) n with q = (p2, p1), turn with it:
 // q_mm = M^T q (for a 180 deg rotation p1, p2 change sign).
 // The two focal lengths in mm agree when the camera's pixel_aspect is the calibration's f_x / f_y (what
-// pipeline::DetectionPlaneModelOf gives it). For any other camera model::BrownParams' one focal length is
+// pipeline::DetectionPlaneModelOf gives it). For any other camera model::LensParams' one focal length is
 // sqrt(f_x pitch_u f_y pitch_v), and the error this makes, |f_x pitch_u / (f_y pitch_v) - 1| / 2 times the distortion
 // displacement, is reported as `aspect_error` so callers can refuse it.
 #include <optional>
@@ -22,20 +23,20 @@
 
 namespace topocal::correct {
 
-struct BrownOnDetectionPlane {
+struct LensOnDetectionPlane {
   bool ok = false;
   std::string message;  // why not, when !ok
-  model::BrownParams brown;
+  model::LensParams lens;
   double aspect_error = 0;  // |f_x pitch_u / (f_y pitch_v) - 1|
 };
 
 // !ok with the reason in `message` for a non-positive focal length or a value that
 // is not finite (the camera file's content: the caller names the file and turns it into bad input).
-BrownOnDetectionPlane BrownFromOpenCv(const model::CameraModel& cv_camera, const model::TopographerCamera& camera);
+LensOnDetectionPlane LensFromOpenCv(const model::CameraModel& cv_camera, const model::TopographerCamera& camera);
 
-// The inverse view: a Brown distortion on the detection plane as the OpenCV camera (K with fx / fy the camera's pixel
-// aspect, distCoeffs k1, k2, p1, p2, k3, no distortion centre) that maps the same undistorted rays to the same
-// pixels. Exact.
-model::CameraModel OpenCvFromBrown(const model::BrownParams& brown, const model::TopographerCamera& camera);
+// The inverse view: a lens distortion on the detection plane as the OpenCV camera (K with fx / fy the camera's pixel
+// aspect, the lens model's distCoeffs, no distortion centre) that maps the same undistorted rays to the same pixels.
+// Exact.
+model::CameraModel OpenCvFromLens(const model::LensParams& brown, const model::TopographerCamera& camera);
 
 }  // namespace topocal::correct

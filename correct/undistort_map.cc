@@ -89,15 +89,20 @@ void WithKernel(const model::Distortion& distortion, const Fill& fill) {
       *oy = out[1];
     });
   } else {
-    const auto b = std::get<model::BrownParams>(distortion);
+    const auto b = std::get<model::LensParams>(distortion);
     const double inv_f = 1.0 / b.focal_mm;  // a multiply per pixel instead of a divide
-    fill([b, inv_f](double x, double y, double* ox, double* oy) {
-      const double xn[2] = {(x - b.centre_x_mm) * inv_f, (y - b.centre_y_mm) * inv_f};
-      double xd[2];
-      model::BrownConrady::DistortNormalized(b.k.data(), xn, xd);
-      *ox = b.centre_x_mm + b.focal_mm * xd[0];
-      *oy = b.centre_y_mm + b.focal_mm * xd[1];
-    });
+    std::visit(
+        [&](auto lens) {
+          using Lens = decltype(lens);  // the model chosen here too, not per pixel
+          fill([b, inv_f](double x, double y, double* ox, double* oy) {
+            const double xn[2] = {(x - b.centre_x_mm) * inv_f, (y - b.centre_y_mm) * inv_f};
+            double xd[2];
+            Lens::DistortNormalized(b.k.data(), xn, xd);
+            *ox = b.centre_x_mm + b.focal_mm * xd[0];
+            *oy = b.centre_y_mm + b.focal_mm * xd[1];
+          });
+        },
+        b.model);
   }
 }
 

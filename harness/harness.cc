@@ -48,7 +48,7 @@ model::Distortion DistortionOf(const model::Config& design, DistortionFamily fam
   if (family == DistortionFamily::kSeidelSigma) {
     return design.distortion.SeidelAt(coefficient);
   }
-  model::BrownParams b;
+  model::LensParams b;  // Brown-Conrady
   b.focal_mm = design.topographer.a_mm;  // OpenCV's normalised coordinates are x / a (docs/camera-conventions.md)
   b.centre_x_mm = design.distortion.centre_x_mm;
   b.centre_y_mm = design.distortion.centre_y_mm;

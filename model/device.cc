@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 #include <stdexcept>
@@ -64,12 +65,11 @@ DeviceProjectionSetup ProjectionSetupOf(const Device& device, const TopographerP
   s.pixel_aspect = device.camera.pixel_aspect;
   s.orientation = device.camera.Orientation();
   if (const auto* seidel = std::get_if<SeidelParams>(&device.distortion)) {
-    s.brown = false;
     s.magnification = seidel->magnification;
     s.distortion_centre_mm = {seidel->centre_x_mm, seidel->centre_y_mm};
   } else {
-    const auto& b = std::get<BrownParams>(device.distortion);
-    s.brown = true;
+    const auto& b = std::get<LensParams>(device.distortion);
+    s.lens = b.model;
     s.distortion_centre_mm = {b.centre_x_mm, b.centre_y_mm};
   }
   return s;
@@ -122,11 +122,13 @@ Distortion ParseDistortion(util::JsonSection s, double a_mm) {
     s.RejectUnknown();
     return p;
   }
-  if (model == "brown") {
-    BrownParams p;
-    p.focal_mm = a_mm;  // Brown acts on x1 / a: its focal length is the device's a
-    const auto k = s.Numbers("k", 5);
-    for (int i = 0; i < 5; ++i) {
+  if (const auto lens = LensModelFromDeviceName(model)) {
+    LensParams p;
+    p.model = *lens;
+    p.focal_mm = a_mm;  // a lens model acts on x1 / a: its focal length is the device's a
+    const int n = LensParameterCount(*lens);
+    const auto k = s.Numbers("k", n);
+    for (int i = 0; i < n; ++i) {
       if (std::abs(k[i]) > 100) s.Fail(s.Key("k"), fmt::format("coefficient {} is {}: not a lens", i + 1, k[i]));
       p.k[i] = k[i];
     }
@@ -136,7 +138,8 @@ Distortion ParseDistortion(util::JsonSection s, double a_mm) {
     s.RejectUnknown();
     return p;
   }
-  s.Fail(s.Key("model"), fmt::format("must be \"seidel\" or \"brown\" (got \"{}\")", model.substr(0, 60)));
+  s.Fail(s.Key("model"), fmt::format("must be \"seidel\" or a lens model ({}) (got \"{}\")",
+                                     LensModelNames(", ", LensModelDeviceName), model.substr(0, 60)));
 }
 
 ScreenPose ParseScreenPose(util::JsonSection s) {
@@ -206,9 +209,9 @@ std::string DeviceToJson(const Device& device, const json& calibration) {
                        {"magnification", s->magnification},
                        {"centre_mm", {s->centre_x_mm, s->centre_y_mm}}};
   } else {
-    const auto& b = std::get<BrownParams>(device.distortion);
-    j["distortion"] = {{"model", "brown"},
-                       {"k", {b.k[0], b.k[1], b.k[2], b.k[3], b.k[4]}},
+    const auto& b = std::get<LensParams>(device.distortion);
+    j["distortion"] = {{"model", LensModelDeviceName(b.model)},
+                       {"k", std::vector<double>(b.k.begin(), b.k.begin() + LensParameterCount(b.model))},
                        {"centre_mm", {b.centre_x_mm, b.centre_y_mm}}};
   }
   const auto& p = device.screen;
@@ -235,13 +238,10 @@ double* DeviceParameter(Device* d, const std::string& name) {
   if (name == "principal_point_v_px") return &d->camera.principal_point_px.y();
   if (name == "a_mm") return &d->camera.a_mm;
   if (auto* s = std::get_if<SeidelParams>(&d->distortion)) return name == "sigma_per_mm2" ? &s->sigma_per_mm2 : nullptr;
-  auto& b = std::get<BrownParams>(d->distortion);
-  if (name == "k1") return &b.k[0];
-  if (name == "k2") return &b.k[1];
-  if (name == "p1") return &b.k[2];
-  if (name == "p2") return &b.k[3];
-  if (name == "k3") return &b.k[4];
-  return nullptr;
+  auto& b = std::get<LensParams>(d->distortion);
+  const auto names = LensParameterNames(b.model);
+  const auto it = std::find(names.begin(), names.end(), name);
+  return it == names.end() ? nullptr : &b.k[static_cast<size_t>(it - names.begin())];
 }
 
 }  // namespace
@@ -251,7 +251,7 @@ void ShiftDeviceParameter(Device* device, const std::string& name, double delta)
   if (!p) throw util::InputError(fmt::format("'{}' is not a parameter of this device", name));
   *p += delta;
   if (name == "a_mm") {
-    if (auto* b = std::get_if<BrownParams>(&device->distortion)) b->focal_mm = device->camera.a_mm;
+    if (auto* b = std::get_if<LensParams>(&device->distortion)) b->focal_mm = device->camera.a_mm;
   }
 }
 
@@ -277,15 +277,24 @@ std::optional<DeviceCovariance> DeviceCovarianceOf(const json& calibration, cons
   const json& matrix = c.at("matrix");
   if (!names.is_array() || names.empty()) fail(".parameters", "must be a non-empty array of names");
   DeviceCovariance out;
-  Device probe;
-  probe.distortion = SeidelParams{};
-  Device brown_probe;
-  brown_probe.distortion = BrownParams{};
+  // A name is a device parameter if it is one of a Seidel device or of a device of any lens model.
+  const auto known = [](const std::string& name) {
+    Device probe;
+    probe.distortion = SeidelParams{};
+    bool found = DeviceParameter(&probe, name) != nullptr;
+    ForEachLensModel([&](auto m) {
+      LensParams lens;
+      lens.model = m;
+      probe.distortion = lens;
+      found = found || DeviceParameter(&probe, name) != nullptr;
+    });
+    return found;
+  };
   std::set<std::string> seen;
   for (const auto& n : names) {
     if (!n.is_string()) fail(".parameters", fmt::format("{} is not a name", util::QuoteJsonValue(n)));
     const std::string name = n.get<std::string>();
-    if (!DeviceParameter(&probe, name) && !DeviceParameter(&brown_probe, name)) {
+    if (!known(name)) {
       fail(".parameters", fmt::format("'{}' is not a device parameter", name));
     }
     if (!seen.insert(name).second) fail(".parameters", fmt::format("'{}' is given twice", name));

@@ -103,7 +103,8 @@ struct DeviceProjectionSetup {
   double pixel_pitch_mm = 1.12e-3;  // along u
   double pixel_aspect = 1.0;         // pitch along v / pitch along u (model/topographer_camera.h)
   Eigen::Matrix2d orientation = Eigen::Matrix2d::Identity();
-  bool brown = false;              // distortion block: Seidel [sigma] or Brown [k1, k2, p1, p2, k3]
+  // The distortion block: a lens model's coefficients (model/lens_model.h), or Seidel [sigma] when empty.
+  std::optional<LensModelId> lens;
   double magnification = -0.065;   // M_T of the Seidel model
   Eigen::Vector2d distortion_centre_mm = Eigen::Vector2d::Zero();  // on the detection plane
 };
@@ -115,7 +116,7 @@ DeviceProjectionSetup ProjectionSetupOf(const Device& device, const TopographerP
 // through a device given as parameter blocks — the model the device calibration fits (calib/device_fit.h), written
 // once for simulation (T = double) and autodiff (T = ceres::Jet):
 //   pose[6] (ScreenPose order), radial_scale[1], principal_point_px[2], a_mm[1],
-//   distortion[1 or 5] (Seidel sigma per mm^2, or Brown k1, k2, p1, p2, k3 on x1 / a).
+//   distortion[1 or the lens model's count] (Seidel sigma per mm^2, or the lens model's coefficients on x1 / a).
 // The reflection point is solved by Newton in double (SolveReflectionPointOn) and then moved by one Newton step in
 // T, which carries its exact first derivatives (implicit function theorem) without differentiating the iterations.
 // `initial_xy_mm`: a start for the reflection point (e.g. the designed point on the reference sphere plus the ball's
@@ -135,7 +136,7 @@ struct DeviceFile {
 DeviceFile LoadDevice(const std::string& path);
 // The covariance of a calibrated device's parameters, as `device calibrate` stores it (calibration.covariance): the
 // fit's names (rx_deg, ry_deg, rz_deg, tx_mm, ty_mm, tz_mm, radial_scale, principal_point_u_px,
-// principal_point_v_px, a_mm, sigma_per_mm2 or k1, k2) and the matrix in their order and units.
+// principal_point_v_px, a_mm, sigma_per_mm2 or the lens model's k1, k2) and the matrix in their order and units.
 struct DeviceCovariance {
   std::vector<std::string> names;
   Eigen::MatrixXd matrix;
@@ -145,7 +146,7 @@ struct DeviceCovariance {
 // the matrix not square over the names, not finite, not symmetric, or a negative variance.
 std::optional<DeviceCovariance> DeviceCovarianceOf(const nlohmann::json& calibration, const std::string& origin);
 // Adds `delta` to the named parameter of `device` (the names above; a_mm moves Brown's focal length with it: they
-// are one distance). Throws util::InputError for a name that is not a device parameter, or a Brown name on a
+// are one distance). Throws util::InputError for a name that is not a device parameter, or a lens model's name on a
 // Seidel device and the reverse.
 void ShiftDeviceParameter(Device* device, const std::string& name, double delta);
 // The named parameter's value (the same names). Throws util::InputError like ShiftDeviceParameter.
@@ -196,10 +197,10 @@ bool ProjectBallSpot(const DeviceProjectionSetup& setup, const T* pose, const T*
   T undistorted[2];
   ImageOfPoint(a_mm[0], setup.b_mm, on_ball, undistorted);
   T distorted[2];
-  if (setup.brown) {
+  if (setup.lens) {
     const auto& c = setup.distortion_centre_mm;
     const T normalised[2] = {(undistorted[0] - c.x()) / a_mm[0], (undistorted[1] - c.y()) / a_mm[0]};
-    BrownConrady::DistortNormalized(distortion, normalised, distorted);
+    DistortNormalized(*setup.lens, distortion, normalised, distorted);
     distorted[0] = c.x() + distorted[0] * a_mm[0];
     distorted[1] = c.y() + distorted[1] * a_mm[0];
   } else {

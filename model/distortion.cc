@@ -3,45 +3,11 @@
 #include <cmath>
 #include <limits>
 
-#include <ceres/jet.h>
+#include <type_traits>
+
 #include <fmt/format.h>
 
 namespace topocal::model {
-namespace {
-
-// Newton's method on a 2-D map with its Jacobian taken by forward-mode jets. Written by hand because each call is a
-// 2x2 solve on a hot path (every spot, every image pixel of a remap table); a ceres::Problem per point would cost
-// ~100x more in set-up than the solve itself.
-template <typename Map>
-bool InvertByNewton(const Map& forward, const double* target, double* solution, double tolerance) noexcept {
-  using Jet = ceres::Jet<double, 2>;
-  double x[2] = {target[0], target[1]};  // distortion is a small perturbation: start at the distorted point
-  for (int it = 0; it < kInverseMaxIterations; ++it) {
-    Jet in[2] = {Jet(x[0], 0), Jet(x[1], 1)};
-    Jet out[2];
-    forward(in, out);
-    const double rx = out[0].a - target[0];
-    const double ry = out[1].a - target[1];
-    if (!std::isfinite(rx) || !std::isfinite(ry)) return false;
-    // |r| <= tolerance, squared: std::hypot (which guards against overflow and underflow that cannot matter for a
-    // comparison with a tolerance of 1e-16..1e-6) was ~3 % of a harness case. The two tests differ only when |r|
-    // is within a few ulps of the tolerance (the harness' 1620 cases and the paper sweep: the same numbers).
-    if (rx * rx + ry * ry <= tolerance * tolerance) {
-      solution[0] = x[0];
-      solution[1] = x[1];
-      return true;
-    }
-    const double j00 = out[0].v[0], j01 = out[0].v[1], j10 = out[1].v[0], j11 = out[1].v[1];
-    const double det = j00 * j11 - j01 * j10;
-    // A vanishing Jacobian determinant is the fold of the map: no unique preimage there.
-    if (!(std::abs(det) > 1e-12)) return false;
-    x[0] -= (j11 * rx - j01 * ry) / det;
-    x[1] -= (-j10 * rx + j00 * ry) / det;
-  }
-  return false;
-}
-
-}  // namespace
 
 bool SeidelRadial::Undistort(const double* params, const double* distorted_mm, double* undistorted_mm) noexcept {
   const auto forward = [params](const auto* in, auto* out) {
@@ -66,15 +32,6 @@ double SeidelRadial::MaxFoldFreeSigmaPerMm2(double magnification, double radius_
   return m * m * m / (3 * radius_mm * radius_mm);
 }
 
-bool BrownConrady::UndistortNormalized(const double* k, const double* xd, double* xn, double tolerance) noexcept {
-  const auto forward = [k](const auto* in, auto* out) {
-    using T = std::remove_cv_t<std::remove_reference_t<decltype(in[0])>>;
-    const T kk[kNumParams] = {T(k[0]), T(k[1]), T(k[2]), T(k[3]), T(k[4])};
-    DistortNormalized(kk, in, out);
-  };
-  return InvertByNewton(forward, xd, xn, tolerance);
-}
-
 namespace {
 struct ForwardVisitor {
   const Eigen::Vector2d& p;
@@ -84,10 +41,10 @@ struct ForwardVisitor {
     SeidelRadial::Distort(params.data(), p.data(), out.data());
     return out;
   }
-  Eigen::Vector2d operator()(const BrownParams& b) const {
+  Eigen::Vector2d operator()(const LensParams& b) const {
     const double xn[2] = {(p.x() - b.centre_x_mm) / b.focal_mm, (p.y() - b.centre_y_mm) / b.focal_mm};
     double xd[2];
-    BrownConrady::DistortNormalized(b.k.data(), xn, xd);
+    DistortNormalized(b.model, b.k.data(), xn, xd);
     return {b.centre_x_mm + b.focal_mm * xd[0], b.centre_y_mm + b.focal_mm * xd[1]};
   }
 };
@@ -99,10 +56,10 @@ struct InverseVisitor {
     if (!SeidelRadial::Undistort(params.data(), p.data(), out.data())) return std::nullopt;
     return out;
   }
-  std::optional<Eigen::Vector2d> operator()(const BrownParams& b) const {
+  std::optional<Eigen::Vector2d> operator()(const LensParams& b) const {
     const double xd[2] = {(p.x() - b.centre_x_mm) / b.focal_mm, (p.y() - b.centre_y_mm) / b.focal_mm};
     double xn[2];
-    if (!BrownConrady::UndistortNormalized(b.k.data(), xd, xn, kInverseToleranceMm / b.focal_mm)) return std::nullopt;
+    if (!UndistortNormalized(b.model, b.k.data(), xd, xn, kInverseToleranceMm / b.focal_mm)) return std::nullopt;
     return Eigen::Vector2d(b.centre_x_mm + b.focal_mm * xn[0], b.centre_y_mm + b.focal_mm * xn[1]);
   }
 };
@@ -110,7 +67,7 @@ struct InverseVisitor {
 
 Eigen::Vector2d DistortionCentreMm(const Distortion& distortion) noexcept {
   if (const auto* s = std::get_if<SeidelParams>(&distortion)) return {s->centre_x_mm, s->centre_y_mm};
-  const auto& b = std::get<BrownParams>(distortion);
+  const auto& b = std::get<LensParams>(distortion);
   return {b.centre_x_mm, b.centre_y_mm};
 }
 
@@ -130,19 +87,20 @@ double BrownK1ToSeidelSigma(double k1, double magnification, double focal_mm) no
   return k1 * magnification * magnification * magnification / (focal_mm * focal_mm);
 }
 
-BrownParams SeidelToBrown(const SeidelParams& seidel, double focal_mm) noexcept {
-  BrownParams b;
+LensParams SeidelToBrown(const SeidelParams& seidel, double focal_mm) noexcept {
+  LensParams b;
   b.focal_mm = focal_mm;
   b.centre_x_mm = seidel.centre_x_mm;
   b.centre_y_mm = seidel.centre_y_mm;
-  b.k = {SeidelSigmaToBrownK1(seidel.sigma_per_mm2, seidel.magnification, focal_mm), 0.0, 0.0, 0.0, 0.0};
+  b.model = BrownConrady{};
+  b.k = {SeidelSigmaToBrownK1(seidel.sigma_per_mm2, seidel.magnification, focal_mm)};
   return b;
 }
 
 namespace {
 
-// First s in [0, s_max] where g(s) <= level, by a scan fine enough not to step over a root of a cubic in s (1000
-// steps) and bisection to machine precision; +inf if g stays above.
+// First s in [0, s_max] where g(s) <= level, by a scan fine enough not to step over a root of a low-order polynomial
+// or rational function in s (1000 steps) and bisection to machine precision; +inf if g stays above.
 template <typename G>
 double FirstRootOf(const G& g, double level, double s_max) {
   constexpr int kSteps = 1000;
@@ -172,9 +130,8 @@ double FoldRadiusMm(const Distortion& distortion, double max_radius_mm, double r
         std::sqrt(SeidelRadial::FoldRadiusSquaredMm2(SeidelRadial::Coefficient(params.data()), radial_derivative));
     return r < max_radius_mm ? r : kInf;
   }
-  const auto& b = std::get<BrownParams>(distortion);
-  const double k1 = b.k[BrownConrady::kK1], k2 = b.k[BrownConrady::kK2], k3 = b.k[BrownConrady::kK3];
-  const auto g = [&](double s) { return 1.0 + s * (3.0 * k1 + s * (5.0 * k2 + s * 7.0 * k3)); };
+  const auto& b = std::get<LensParams>(distortion);
+  const auto g = [&](double s) { return RadialSlope(b.model, b.k.data(), s); };
   const double s_max = std::pow(max_radius_mm / b.focal_mm, 2);
   const double s_fold = FirstRootOf(g, radial_derivative, s_max);
   return std::isfinite(s_fold) ? b.focal_mm * std::sqrt(s_fold) : kInf;
@@ -185,9 +142,12 @@ std::string DescribeDistortion(const Distortion& distortion) {
     return fmt::format("seidel sigma={:.6g}/mm^2 M_T={:.6g} centre=({:.6g}, {:.6g}) mm", s->sigma_per_mm2,
                        s->magnification, s->centre_x_mm, s->centre_y_mm);
   }
-  const auto& b = std::get<BrownParams>(distortion);
-  return fmt::format("brown f={:.6g} mm centre=({:.6g}, {:.6g}) mm k1={:.6g} k2={:.6g} p1={:.6g} p2={:.6g} k3={:.6g}",
-                     b.focal_mm, b.centre_x_mm, b.centre_y_mm, b.k[0], b.k[1], b.k[2], b.k[3], b.k[4]);
+  const auto& b = std::get<LensParams>(distortion);
+  std::string out = fmt::format("{} f={:.6g} mm centre=({:.6g}, {:.6g}) mm", LensModelDeviceName(b.model), b.focal_mm,
+                                b.centre_x_mm, b.centre_y_mm);
+  const auto names = LensParameterNames(b.model);
+  for (size_t i = 0; i < names.size(); ++i) out += fmt::format(" {}={:.6g}", names[i], b.k[i]);
+  return out;
 }
 
 }  // namespace topocal::model

@@ -10,13 +10,11 @@
 //    Only sigma/M_T^3 matters; M_T is carried so that sigma keeps the paper's meaning. sigma > 0 with M_T < 0 is
 //    barrel (the image shrinks); sigma < 0 is pincushion.
 //
-//  * BrownConrady — radial-tangential distortion in OpenCV's convention, on normalised coordinates
-//    (x_n = (x - c_x) / f):
-//        x_d = x_n (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x_n y_n + p2 (r^2 + 2 x_n^2)
-//        y_d = y_n (1 + k1 r^2 + k2 r^4 + k3 r^6) + p1 (r^2 + 2 y_n^2) + 2 p2 x_n y_n
-//    Coefficient order k1, k2, p1, p2, k3 as in cv::calibrateCamera's distCoeffs.
+//  * a lens model of OpenCV's distCoeffs family (model/lens_model.h: Brown-Conrady, the rational model) on the
+//    detection plane, on x_n = (x - c) / f with f the pinhole-to-detection-plane distance a and c the principal point
+//    (mm): LensParams.
 //
-// Both inverses are Newton iterations with a residual check: they return false (never a silent guess) when the
+// Every inverse is a Newton iteration (model/invert_by_newton.h) with a residual check: they return false (never a silent guess) when the
 // point lies outside the model's invertible domain (e.g. beyond the fold of strong barrel distortion) or the
 // iteration does not reach the tolerance.
 #include <array>
@@ -26,12 +24,10 @@
 
 #include <Eigen/Core>
 
-namespace topocal::model {
+#include "model/invert_by_newton.h"
+#include "model/lens_model.h"
 
-// Largest distance between Distort(Undistort(p)) and p accepted as a converged inverse, mm. Newton reaches
-// ~1e-16 mm in a few steps on the paper's 0.5 mm field; 1e-12 mm leaves room for larger fields in px-scale units.
-inline constexpr double kInverseToleranceMm = 1e-12;
-inline constexpr int kInverseMaxIterations = 50;
+namespace topocal::model {
 
 struct SeidelRadial {
   static constexpr int kNumParams = 4;
@@ -69,22 +65,6 @@ struct SeidelRadial {
   static bool Undistort(const double* params, const double* distorted_mm, double* undistorted_mm) noexcept;
 };
 
-struct BrownConrady {
-  static constexpr int kNumParams = 5;
-  enum Index : int { kK1 = 0, kK2 = 1, kP1 = 2, kP2 = 3, kK3 = 4 };
-
-  template <typename T>
-  static void DistortNormalized(const T* k, const T* xn, T* xd) noexcept {
-    const T x = xn[0], y = xn[1];
-    const T r2 = x * x + y * y;
-    const T radial = T(1) + r2 * (k[kK1] + r2 * (k[kK2] + r2 * k[kK3]));
-    xd[0] = x * radial + T(2) * k[kP1] * x * y + k[kP2] * (r2 + T(2) * x * x);
-    xd[1] = y * radial + k[kP1] * (r2 + T(2) * y * y) + T(2) * k[kP2] * x * y;
-  }
-  // Inverts DistortNormalized to kInverseToleranceMm / scale; false when it does not converge.
-  static bool UndistortNormalized(const double* k, const double* xd, double* xn, double tolerance = 1e-14) noexcept;
-};
-
 // Parameters of each model as used on the detection plane (mm).
 struct SeidelParams {
   double sigma_per_mm2 = 0.0;
@@ -96,15 +76,16 @@ struct SeidelParams {
   }
 };
 
-struct BrownParams {
+struct LensParams {
   double focal_mm = 5.2;        // pinhole-to-detection-plane distance (the paper's a)
   double centre_x_mm = 0.0;     // principal point on the detection plane
   double centre_y_mm = 0.0;
-  std::array<double, BrownConrady::kNumParams> k{};  // k1, k2, p1, p2, k3
+  LensModelId model{};          // Brown-Conrady unless set
+  LensCoefficients k{};         // the model's coefficients in OpenCV's order (k1, k2, p1, p2, k3, ...)
 };
 
 // The distortion of a camera, chosen at run time.
-using Distortion = std::variant<SeidelParams, BrownParams>;
+using Distortion = std::variant<SeidelParams, LensParams>;
 
 // The centre the model's radial part is symmetric about, on the detection plane (mm): Seidel's centre, Brown's
 // principal point.
@@ -119,14 +100,14 @@ std::optional<Eigen::Vector2d> Undistort(const Distortion& distortion, const Eig
 // focal distance f from the pinhole: sigma / M_T^3 * r_mm^2 = k1 * (r_mm / f)^2  =>  k1 = sigma f^2 / M_T^3.
 double SeidelSigmaToBrownK1(double sigma_per_mm2, double magnification, double focal_mm) noexcept;
 double BrownK1ToSeidelSigma(double k1, double magnification, double focal_mm) noexcept;
-// The Brown parameters equivalent to a Seidel distortion (k2 = p1 = p2 = k3 = 0).
-BrownParams SeidelToBrown(const SeidelParams& seidel, double focal_mm) noexcept;
+// The Brown-Conrady parameters equivalent to a Seidel distortion (k2 = p1 = p2 = k3 = 0).
+LensParams SeidelToBrown(const SeidelParams& seidel, double focal_mm) noexcept;
 
 // Radius about the distortion centre (detection plane, mm) where the radial derivative d r_d / d r of the model
 // first falls to `radial_derivative` (0: the fold, beyond which the map is not one-to-one), searched within
 // max_radius_mm; +infinity if it does not fall there. Seidel: SeidelRadial::FoldRadiusSquaredMm2 (closed form).
-// Brown: d r_d / d r = 1 + 3 k1 s + 5 k2 s^2 + 7 k3 s^3, s = (r / f)^2 (the tangential terms are not radial),
-// whose first root is found by a scan and bisection.
+// A lens model: d r_d / d r = g(s) + 2 s g'(s), s = (r / f)^2 (model::RadialSlope; the tangential terms are not
+// radial), whose first root is found by a scan and bisection.
 double FoldRadiusMm(const Distortion& distortion, double max_radius_mm, double radial_derivative);
 
 std::string DescribeDistortion(const Distortion& distortion);

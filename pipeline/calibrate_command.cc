@@ -77,7 +77,9 @@ void RequireCompatible(const CalibrateRequest& a) {
 // The fit's options from the request, checked against each other.
 calib::CalibrationOptions OptionsOf(const CalibrateRequest& a) {
   const auto model = calib::ParseDistortionModel(a.model);
-  if (!model) throw util::InputError(fmt::format("--model: '{}' is not seidel or brown5", a.model));
+  if (!model) {
+    throw util::InputError(fmt::format("--model: '{}' is not one of {}", a.model, calib::DistortionModelNames()));
+  }
   calib::CalibrationOptions options;
   options.model = *model;
   options.fixed = {a.fixed.begin(), a.fixed.end()};

@@ -14,7 +14,7 @@ namespace topocal::pipeline {
 struct CalibrateRequest {
   std::string target;      // target description (Kalibr-style YAML)
   std::string images;      // glob(3) pattern of the images
-  std::string model = "brown5";  // seidel or brown5
+  std::string model = "brown5";  // calib::DistortionModelNames
   std::string out;         // calibration file (OpenCV FileStorage YAML)
   std::string json;        // also a JSON report when not empty
   std::string cross_validate_svg;  // also fit two halves of the views and map their difference here

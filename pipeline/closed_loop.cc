@@ -34,7 +34,7 @@ model::CameraModel CameraThrough(const model::TopographerCamera& roi, const mode
   cam.cy_px = roi.principal_point_px.y();
   // OpenCV's normalised coordinates are x1 / a on the detection plane (docs/camera-conventions.md), so the Seidel
   // distortion is Brown's k1 = sigma a^2 / M_T^3 about the principal point.
-  cam.dist = {model::SeidelSigmaToBrownK1(sigma, config.distortion.magnification, roi.a_mm), 0, 0, 0, 0};
+  cam.dist = {model::SeidelSigmaToBrownK1(sigma, config.distortion.magnification, roi.a_mm)};
   return cam;
 }
 

@@ -19,17 +19,17 @@ constexpr int kErrorGridSteps = 16;
 DetectionPlaneModel DetectionPlaneModelUnverified(const model::CameraModel& c, const model::TopographerCamera& sensor) {
   DetectionPlaneModel result;
   result.camera = sensor;
-  if (c.fx_px > 0 && c.fy_px > 0) result.camera.pixel_aspect = c.fx_px / c.fy_px;  // else BrownFromOpenCv says why
+  if (c.fx_px > 0 && c.fy_px > 0) result.camera.pixel_aspect = c.fx_px / c.fy_px;  // else LensFromOpenCv says why
   if (const auto why = result.camera.Invalid()) {
     result.message = fmt::format("fx / fy = {:.6f}: {}", c.fx_px / c.fy_px, *why);
     return result;
   }
-  const auto brown = correct::BrownFromOpenCv(c, result.camera);
+  const auto brown = correct::LensFromOpenCv(c, result.camera);
   if (!brown.ok) {
     result.message = brown.message;
     return result;
   }
-  result.distortion = model::Distortion{brown.brown};
+  result.distortion = model::Distortion{brown.lens};
   result.ok = true;
   return result;
 }

@@ -18,15 +18,27 @@
 namespace topocal::pipeline {
 namespace {
 
-// The distortion parameters of model::CameraModel by the names the calibration file uses.
+// The distortion parameters of model::CameraModel (its lens model's and the centre) by the names the calibration
+// file uses; nullptr for another name.
 double* Parameter(model::CameraModel& c, const std::string& name) {
-  static const char* kDist[] = {"k1", "k2", "p1", "p2", "k3"};
-  for (int i = 0; i < 5; ++i) {
-    if (name == kDist[i]) return &c.dist[i];
+  const auto names = model::LensParameterNames(c.lens);
+  if (const auto it = std::find(names.begin(), names.end(), name); it != names.end()) {
+    return &c.dist[static_cast<size_t>(it - names.begin())];
   }
   if (name == "ex") return &c.distortion_centre.x();
   if (name == "ey") return &c.distortion_centre.y();
   return nullptr;
+}
+
+// Whether `name` is a distortion parameter of a camera of any lens model.
+bool IsDistortionParameter(const std::string& name) {
+  bool found = false;
+  model::ForEachLensModel([&](auto lens) {
+    model::CameraModel probe;
+    probe.lens = lens;
+    found = found || Parameter(probe, name) != nullptr;
+  });
+  return found;
 }
 
 // The quantities of ClinicalUncertainty, in the order a draw stores them.
@@ -44,11 +56,12 @@ void RequireShape(const calib::ParameterCovariance& covariance) {
 // Indices into `covariance` of the distortion parameters with a spread.
 std::vector<Eigen::Index> DrawnIndices(const calib::ParameterCovariance& covariance) {
   RequireShape(covariance);
-  model::CameraModel probe;
   std::vector<Eigen::Index> drawn;
   for (Eigen::Index i = 0; i < covariance.matrix.rows(); ++i) {
     const double var = covariance.matrix(i, i);
-    if (var > 0 && std::isfinite(var) && Parameter(probe, covariance.names[static_cast<size_t>(i)])) drawn.push_back(i);
+    if (var > 0 && std::isfinite(var) && IsDistortionParameter(covariance.names[static_cast<size_t>(i)])) {
+      drawn.push_back(i);
+    }
   }
   return drawn;
 }
@@ -142,6 +155,15 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredIm
   for (const Eigen::Index i : drawn_index) u.drawn.push_back(covariance.names[static_cast<size_t>(i)]);
   if (u.drawn.empty()) {
     throw util::InputError("uncertainty: the calibration reports no standard deviation for a distortion parameter");
+  }
+  {
+    model::CameraModel probe = calibrated;
+    for (const auto& name : u.drawn) {
+      if (!Parameter(probe, name)) {
+        throw util::InputError(fmt::format("uncertainty: the covariance names {}, not a parameter of the {} camera",
+                                           name, model::LensModelName(calibrated.lens)));
+      }
+    }
   }
   const auto m = static_cast<Eigen::Index>(drawn_index.size());
   const Eigen::MatrixXd factor = DrawFactor(covariance, drawn_index);

@@ -3,6 +3,7 @@
 #include "pipeline/measurement_uncertainty.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
@@ -127,7 +128,9 @@ void ValidateRequest(const UnitRequest& r) {
 void SetCalibrationOptions(const UnitRequest& r, LoadedInputs* loaded) {
   LoadedInputs& in = *loaded;
   const auto model_kind = calib::ParseDistortionModel(r.model);
-  if (!model_kind) throw util::InputError(fmt::format("--model: '{}' is not seidel or brown5", r.model));
+  if (!model_kind) {
+    throw util::InputError(fmt::format("--model: '{}' is not one of {}", r.model, calib::DistortionModelNames()));
+  }
   auto& o = in.options;
   o.model = *model_kind;
   o.fit_distortion_centre = r.fit_centre;
@@ -138,11 +141,10 @@ void SetCalibrationOptions(const UnitRequest& r, LoadedInputs* loaded) {
   o.pixel_pitch_um = in.camera.pixel_pitch_um;
   o.distance_mm = in.config.topographer.b_mm;
   o.magnification = in.config.distortion.magnification;
+  const auto names = calib::CameraParameterNames(o.model);
   for (const auto& f : r.fixed) {
-    if (std::find(std::begin(calib::kParameterNames), std::end(calib::kParameterNames), f) ==
-        std::end(calib::kParameterNames)) {
-      throw util::InputError(
-          fmt::format("--fix: '{}' is not a camera parameter (fx fy cx cy k1 k2 p1 p2 k3 ex ey)", f));
+    if (std::find(names.begin(), names.end(), f) == names.end()) {
+      throw util::InputError(fmt::format("--fix: '{}' is not a camera parameter ({})", f, fmt::join(names, " ")));
     }
   }
   std::string why;
@@ -473,7 +475,7 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
   // The checks use the calibration as the record stores it: the exact model and its full covariance.
   UnitCalibration unit;
   unit.camera = c.result.camera;
-  unit.covariance.names.assign(std::begin(calib::kParameterNames), std::end(calib::kParameterNames));
+  unit.covariance.names = calib::CameraParameterNames(c.result.model);
   unit.covariance.matrix = c.result.covariance;
   unit.covariance.full = true;
   u.check = CheckOptions{r.uncertainty_samples, r.seed, r.jobs};

@@ -44,7 +44,7 @@ struct UnitRequest {
   std::string device;                 // nominal device (JSON); empty = the camera with no distortion, screen nominal
   std::string model = "seidel";       // seidel | brown5
   bool fit_centre = false;
-  std::vector<std::string> fixed;     // parameters held at their initial value (calib::kParameterNames)
+  std::vector<std::string> fixed;     // parameters held at their initial value (calib::CameraParameterNames)
   double fixed_aspect_ratio = 0;      // fx / fy held during a multi-view fit (calib::CalibrationOptions); 0 = free
   // A calibration with a parameter the views do not determine (calib/parameter_range.h) is refused unless this is
   // set; the record then lists the parameter under calibration.undetermined.

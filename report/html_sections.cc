@@ -103,7 +103,7 @@ DistortionPlot DistortionField(const model::CameraModel& cam, const PixelRegion&
   auto displacement = [&](double x, double y) {
     const double u[2] = {(x - cam.cx_px) / cam.fx_px, (y - cam.cy_px) / cam.fy_px};
     double px[2];
-    model::CameraModel::NormalizedToPixel(in, cam.dist.data(), cam.distortion_centre.data(), u, px);
+    model::CameraModel::NormalizedToPixel(cam.lens, in, cam.dist.data(), cam.distortion_centre.data(), u, px);
     const Eigen::Vector2d d(px[0] - x, px[1] - y);
     if (!d.allFinite()) throw std::runtime_error("the calibration's distortion is not finite over the image");
     return d;

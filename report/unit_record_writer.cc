@@ -330,9 +330,9 @@ json CalibrationJson(const pipeline::UnitCameraCalibration& c, const pipeline::D
   // (otherwise refused): their values are not to be used.
   cal["undetermined"] = json::array();
   for (const auto& u : calib::UndeterminedParameters(result)) cal["undetermined"].push_back(u.name);
-  // The covariance of the free parameters only (the calibration file holds the full 11 x 11).
+  // The covariance of the free parameters only (the calibration file holds the full one).
   std::vector<int> free_index;
-  for (int i = 0; i < calib::kNumCameraParameters; ++i) {
+  for (int i = 0; i < static_cast<int>(result.parameters.size()); ++i) {
     if (!result.parameters[static_cast<size_t>(i)].fixed) free_index.push_back(i);
   }
   json names = json::array(), rows = json::array();

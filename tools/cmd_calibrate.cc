@@ -1,6 +1,9 @@
 // topocal calibrate: detect a planar target in a set of images and fit the camera (pipeline/calibrate_command.h).
 #include <memory>
 
+#include <fmt/format.h>
+
+#include "calib/calibrate.h"
 #include "pipeline/calibrate_command.h"
 #include "tools/commands.h"
 #include "util/terminal_progress.h"
@@ -12,7 +15,11 @@ void AddCalibrateCommand(CLI::App& app) {
   auto a = std::make_shared<pipeline::CalibrateRequest>();
   cmd->add_option("--target", a->target, "Target description (Kalibr-style YAML)")->required();
   cmd->add_option("--images", a->images, "Images, a glob(3) pattern (quote it)")->required();
-  cmd->add_option("--model", a->model, "Distortion model: seidel (k1 [+ centre]) or brown5 (k1,k2,p1,p2,k3)");
+  cmd->add_option("--model", a->model,
+                  fmt::format("Distortion model, one of {}: seidel is k1 [+ centre] (paper Eq. 18), the others "
+                              "OpenCV's distCoeffs models (brown5 its default, rational8 CALIB_RATIONAL_MODEL)",
+                              calib::DistortionModelNames()))
+      ->capture_default_str();
   cmd->add_flag("--single-view", a->single_view,
                 "One image of the target at the cornea position; needs --focal-mm, --pixel-pitch-um, --distance-mm");
   cmd->add_option("--focal-mm", a->focal_mm, "Lens focal distance, mm (single view; Seidel sigma)");
@@ -20,7 +27,7 @@ void AddCalibrateCommand(CLI::App& app) {
   cmd->add_option("--distance-mm", a->distance_mm, "Nominal target distance from the pinhole, mm (single view)");
   cmd->add_option("--magnification", a->magnification, "Transverse magnification M_T for the Seidel sigma")
       ->capture_default_str();
-  cmd->add_option("--fix", a->fixed, "Parameters to hold fixed (spaces or commas): fx fy cx cy k1 k2 p1 p2 k3 ex ey")
+  cmd->add_option("--fix", a->fixed, "Parameters to hold fixed (spaces or commas): fx fy cx cy, the model's (k1 k2 p1 p2 k3 ...), ex ey")
       ->delimiter(',');
   cmd->add_option("--fix-aspect", a->fixed_aspect_ratio,
                   "Hold fx / fy at this ratio during a multi-view fit (e.g. 1 for square pixels; 0 = free); OpenCV's "

@@ -5,6 +5,7 @@
 #include <memory>
 #include <string>
 
+#include "calib/calibrate.h"
 #include "report/unit_command.h"
 #include "tools/commands.h"
 #include "tools/data_dir.h"
@@ -20,7 +21,9 @@ constexpr int kProgressBarWidth = 30;
 void AddCommonOptions(CLI::App* cmd, UnitRequest* r) {
   cmd->add_option("--config", r->config, "Topographer design (JSON) [bundled data/paper.json]");
   cmd->add_option("--camera", r->camera, "Topographer camera (JSON) [bundled data/camera.json]");
-  cmd->add_option("--model", r->model, "Distortion model: seidel or brown5")->check(CLI::IsMember({"seidel", "brown5"}));
+  cmd->add_option("--model", r->model,
+                  fmt::format("Distortion model, one of {} (as calibrate)", calib::DistortionModelNames()))
+      ->capture_default_str();
   cmd->add_flag("--fit-centre", r->fit_centre, "Fit the distortion centre (seidel)");
   cmd->add_option("--fix", r->fixed, "Hold these parameters at their initial value (e.g. --fix k3 p1 p2)");
   cmd->add_option("--fix-aspect", r->fixed_aspect_ratio,

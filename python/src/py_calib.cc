@@ -77,7 +77,7 @@ py::dict Calibrate(const py::object& target_path, const py::object& images, cons
                    const py::object& image_size, const std::string& model, const std::vector<std::string>& fix,
                    double fix_aspect, bool board_warp) {
   const auto kind = calib::ParseDistortionModel(model);
-  if (!kind) throw util::InputError(fmt::format("model: '{}' is not seidel or brown5", model));
+  if (!kind) throw util::InputError(fmt::format("model: '{}' is not one of {}", model, calib::DistortionModelNames()));
   calib::CalibrationOptions options;
   options.model = *kind;
   options.fixed = {fix.begin(), fix.end()};

@@ -13,11 +13,11 @@
 namespace topocal::python {
 namespace {
 
-// The device's distortion as an OpenCV camera (exact: the Brown model on the detection plane is OpenCV's with
-// fx = fy; a Seidel distortion is its Brown equivalent, k1 only).
+// The device's distortion as an OpenCV camera (exact: a lens model on the detection plane is OpenCV's with
+// fx / fy the pixel aspect; a Seidel distortion is its Brown equivalent, k1 only).
 model::CameraModel OpenCvView(const model::Device& device) {
-  const model::BrownParams brown = std::visit(
-      [&](const auto& d) -> model::BrownParams {
+  const model::LensParams brown = std::visit(
+      [&](const auto& d) -> model::LensParams {
         if constexpr (std::is_same_v<std::decay_t<decltype(d)>, model::SeidelParams>) {
           return model::SeidelToBrown(d, device.camera.a_mm);
         } else {
@@ -25,7 +25,7 @@ model::CameraModel OpenCvView(const model::Device& device) {
         }
       },
       device.distortion);
-  return correct::OpenCvFromBrown(brown, device.camera);
+  return correct::OpenCvFromLens(brown, device.camera);
 }
 
 py::tuple OpenCvViewTuple(const model::DeviceFile& f) {
@@ -36,8 +36,9 @@ py::tuple OpenCvViewTuple(const model::DeviceFile& f) {
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) m(r, c) = values[r][c];
   }
-  py::array_t<double> dist(5);
-  for (int i = 0; i < 5; ++i) dist.mutable_at(i) = k.dist[static_cast<size_t>(i)];
+  const int n = model::LensParameterCount(k.lens);
+  py::array_t<double> dist(n);
+  for (int i = 0; i < n; ++i) dist.mutable_at(i) = k.dist[static_cast<size_t>(i)];
   return py::make_tuple(matrix, dist);
 }
 

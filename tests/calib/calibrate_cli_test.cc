@@ -292,7 +292,7 @@ TEST_F(CalibrateCli, BadInputIsExitTwo) {
   r = RunTopocal("calibrate --target " + Path("board.yaml") + " --images '" + kDataDir + "left0*.jpg' --model tps --out " +
                  Path("cal.yaml"));
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_EQ(r.output, "topocal: --model: 'tps' is not seidel or brown5\n");
+  EXPECT_EQ(r.output, "topocal: --model: 'tps' is not one of seidel, brown5, rational8\n");
   r = RunTopocal("calibrate --target " + Path("board.yaml") + " --images '" + kDataDir + "left0*.jpg' --fix k9 --out " +
                  Path("cal.yaml"));
   EXPECT_EQ(r.exit_code, 2);

@@ -139,7 +139,8 @@ TEST_F(CalibrationFileTest, CovarianceRoundTripsAndOlderFilesFallBackToTheDiagon
   WriteCalibrationFile(Path("cal.yaml"), r, {"board.yaml", {}, "2026-11-25T00:00:00Z"});
   const auto loaded = LoadCalibrationFile(Path("cal.yaml"));
   ASSERT_TRUE(loaded.covariance.has_value());
-  ASSERT_EQ(loaded.parameter_names.size(), static_cast<size_t>(kNumCameraParameters));
+  ASSERT_EQ(loaded.parameter_names, CameraParameterNames(DistortionModelKind::kBrown5));
+  ASSERT_EQ(loaded.parameter_names.size(), 11u);  // fx fy cx cy, k1 k2 p1 p2 k3, ex ey
   EXPECT_TRUE(loaded.covariance->isApprox(r.covariance, kYamlRoundTrip));
   const auto full = ParameterCovarianceOf(loaded);
   EXPECT_TRUE(full.full);
@@ -206,14 +207,23 @@ TEST_F(CalibrationFileTest, BadFilesAreOneLineNamingFileAndKey) {
                           "   data: [ -0.1, 0.01, 0. ]\n");
   EXPECT_EQ(message("three.yaml"), Path("three.yaml") + ": distortion_coefficients: expected 4, 5, 8, 12 or 14 "
                                                         "coefficients in a row or column, found 1x3");
-  // The rational model (8 coefficients) is accepted only when k4..k6 are 0: topocal's model cannot hold them.
+  // Eight coefficients: OpenCV's rational model, brown5 when k4..k6 are 0 and rational8 otherwise; twelve only with
+  // the thin-prism terms 0.
   const std::string d8 = "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 8\n   dt: d\n"
                          "   data: [ -0.1, 0.01, 0., 0., 0.002, ";
   Write("eight_zero.yaml", "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n" + k + d8 + "0., 0., 0. ]\n");
   EXPECT_EQ(LoadCalibrationFile(Path("eight_zero.yaml")).camera.dist[4], 0.002);
+  EXPECT_TRUE(std::holds_alternative<model::BrownConrady>(LoadCalibrationFile(Path("eight_zero.yaml")).camera.lens));
   Write("rational.yaml", "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n" + k + d8 + "0.3, 0., 0. ]\n");
-  EXPECT_NE(message("rational.yaml").find(Path("rational.yaml") + ": distortion_coefficients: coefficient 6 is 0.3"),
-            std::string::npos) << message("rational.yaml");
+  const auto rational = LoadCalibrationFile(Path("rational.yaml")).camera;
+  EXPECT_TRUE(std::holds_alternative<model::RationalPolynomial>(rational.lens));
+  EXPECT_EQ(rational.dist[5], 0.3);
+  Write("prism.yaml", "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n" + k +
+                          "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 12\n   dt: d\n"
+                          "   data: [ -0.1, 0.01, 0., 0., 0.002, 0., 0., 0., 0.001, 0., 0., 0. ]\n");
+  EXPECT_EQ(message("prism.yaml"), Path("prism.yaml") + ": distortion_coefficients: coefficient 9 is 0.001 but "
+                                                        "topocal's lens models end at k6 (OpenCV's thin-prism and "
+                                                        "tilt terms must be 0)");
   Write("other.yaml", "%YAML:1.0\n---\nfoo: 1\n");
   EXPECT_EQ(message("other.yaml"),
             Path("other.yaml") + ": camera_matrix: missing: not a topocal or OpenCV calibration file");

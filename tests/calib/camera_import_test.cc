@@ -188,10 +188,6 @@ TEST_F(CameraImportTest, MrcalModelsTopocalCannotHoldAreRefusedNamingTheModel) {
                 "'LENSMODEL_CAHVOR'");
   ExpectRefused(read, "opencv12.cameramodel", Replaced(base, "LENSMODEL_OPENCV5", "LENSMODEL_OPENCV12"), "lensmodel",
                 "'LENSMODEL_OPENCV12'");
-  ExpectRefused(
-      read, "rational.cameramodel",
-      Replaced(Replaced(base, "'LENSMODEL_OPENCV5'", "'LENSMODEL_OPENCV8'"), "-0.0195,]", "-0.0195, 0, 0.004, 0]"),
-      "intrinsics", "k5 = 0.004 but topocal's model ends at k3");
 }
 
 TEST_F(CameraImportTest, MrcalMalformedOrNonPhysicalFilesAreRefusedNamingTheKey) {
@@ -312,10 +308,6 @@ TEST_F(CameraImportTest, RosMalformedOrNonPhysicalFilesAreRefusedNamingTheKey) {
   const std::string py = kPyYamlWritten;
   const auto read = [](const std::string& p) { return ReadRosCameraInfo(p); };
   ExpectRefused(read, "fisheye.yaml", Replaced(base, "plumb_bob", "equidistant"), "distortion_model", "'equidistant'");
-  const std::string rational =
-      Replaced(Replaced(Replaced(py, "plumb_bob", "rational_polynomial"), "  cols: 5", "  cols: 8"), "  - -0.0195\n",
-               "  - -0.0195\n  - 0.0\n  - 0.25\n  - 0.0\n");
-  ExpectRefused(read, "rational.yaml", rational, "distortion_coefficients", "k5 = 0.25 but topocal's model ends at k3");
   ExpectRefused(read, "four.yaml", Replaced(py, "  - -0.0195\n", ""), "distortion_coefficients.data",
                 "plumb_bob has 5 coefficients, found 4");
   ExpectRefused(read, "cols.yaml", Replaced(py, "  cols: 5", "  cols: 4"), "distortion_coefficients",
@@ -375,6 +367,28 @@ TEST_F(CameraImportTest, AnImportedCameraOtherVerbsWouldRefuseIsNotWritten) {
   // The same camera with an ordinary k1 imports.
   const std::string fine = Write("fine.yaml", Replaced(util::ReadFile(path), "1e308", "-0.2"));
   EXPECT_NO_THROW((void)ImportCalibrationText("kalibr", fine));
+}
+
+TEST_F(CameraImportTest, MrcalAndRosRationalModelsAreTheRationalLensModel) {
+  const model::CameraModel mrcal = ReadMrcalCameraModel(Write(
+      "rational.cameramodel", Replaced(Replaced(kMrcalWritten, "'LENSMODEL_OPENCV5'", "'LENSMODEL_OPENCV8'"),
+                                       "-0.0195,]", "-0.0195, 0, 0.004, 0]")));
+  EXPECT_TRUE(std::holds_alternative<model::RationalPolynomial>(mrcal.lens));
+  EXPECT_EQ(mrcal.dist[4], -0.0195);
+  EXPECT_EQ(mrcal.dist[6], 0.004);
+  const std::string ros =
+      Replaced(Replaced(Replaced(kPyYamlWritten, "plumb_bob", "rational_polynomial"), "  cols: 5", "  cols: 8"),
+               "  - -0.0195\n", "  - -0.0195\n  - 0.0\n  - 0.25\n  - 0.0\n");
+  const model::CameraModel from_ros = ReadRosCameraInfo(Write("rational-k5.yaml", ros));
+  EXPECT_TRUE(std::holds_alternative<model::RationalPolynomial>(from_ros.lens));
+  EXPECT_EQ(from_ros.dist[6], 0.25);
+  // Out and back through each format: the same eight numbers and the same model.
+  const model::CameraModel via_ros = ReadRosCameraInfo(Write("out.yaml", RosCameraInfoYaml(from_ros, "cam")));
+  EXPECT_TRUE(std::holds_alternative<model::RationalPolynomial>(via_ros.lens));
+  EXPECT_EQ(via_ros.dist, from_ros.dist);
+  const model::CameraModel via_mrcal = ReadMrcalCameraModel(Write("out.cameramodel", MrcalCameraModelText(mrcal, nullptr)));
+  EXPECT_TRUE(std::holds_alternative<model::RationalPolynomial>(via_mrcal.lens));
+  EXPECT_EQ(via_mrcal.dist, mrcal.dist);
 }
 
 }  // namespace topocal::calib

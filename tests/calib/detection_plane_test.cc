@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "correct/opencv_brown.h"
 #include "pipeline/detection_plane.h"
 
 namespace topocal::pipeline {
@@ -43,6 +44,31 @@ TEST(DetectionPlane, AspectRatioBecomesThePixelAspectWithoutModelError) {
                                  m.camera.DetectionPlaneFromPixel(sensor.principal_point_px);
     EXPECT_NEAR(step.norm(), sensor.PitchMm() * fx_over_fy, 1e-15);
   }
+}
+
+// Every lens model carries to the detection plane the same way: the rational model's calibration undistorts there as
+// the calibration itself does, and the OpenCV view of the plane's model is the calibration again.
+TEST(DetectionPlane, EveryLensModelCarriesWithoutModelError) {
+  const model::TopographerCamera sensor;
+  model::ForEachLensModel([&](auto lens) {
+    model::CameraModel c = UnitCamera(sensor, 0.999788, -0.05);
+    c.lens = lens;
+    if (model::LensParameterCount(lens) > 5) c.dist[5] = 0.02, c.dist[6] = -0.004, c.dist[7] = 1e-3;
+    const auto m = DetectionPlaneModelOf(c, sensor);
+    SCOPED_TRACE(std::string(decltype(lens)::kName));
+    ASSERT_TRUE(m.ok) << m.message;
+    const auto& on_plane = std::get<model::LensParams>(m.distortion);
+    EXPECT_EQ(on_plane.model.index(), c.lens.index());
+    std::printf("%s: model error %.2e px\n", std::string(decltype(lens)::kName).c_str(), m.model_error_px);
+    EXPECT_LT(m.model_error_px, kMaxModelErrorPx);  // acceptance
+    // Regression: measured 8.4e-7 (rational8) and 1.0e-6 px (brown5), the 1e-6 px tolerance of the inverse.
+    EXPECT_LT(m.model_error_px, 2e-6);
+    const model::CameraModel back = correct::OpenCvFromLens(on_plane, m.camera);
+    EXPECT_EQ(back.lens.index(), c.lens.index());
+    for (int i = 0; i < model::kMaxLensParams; ++i) EXPECT_NEAR(back.dist[i], c.dist[i], 1e-15) << i;
+    EXPECT_NEAR(back.fx_px, c.fx_px, 1e-9 * c.fx_px);
+    EXPECT_NEAR(back.cy_px, c.cy_px, 1e-9);
+  });
 }
 
 TEST(DetectionPlane, AnAspectNoSensorHasIsRefusedWithTheNumber) {

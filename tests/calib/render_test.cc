@@ -9,6 +9,7 @@
 #include "calib/detect.h"
 #include "calib/distortion_valid_region.h"
 #include "calib/render_target.h"
+#include "model/distortion.h"
 #include "detection_fixtures.h"
 
 namespace topocal::calib {

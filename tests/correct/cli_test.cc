@@ -151,9 +151,9 @@ TEST_F(CorrectCli, RenderSpotsBadInputIsOneLineExitTwoNoOutput) {
 TEST_F(CorrectCli, UndistortSpotsInvertsTheCalibratedLens) {
   const auto k = Lens();
   WriteCalibration("cal.yaml", k, camera_.width_px, camera_.height_px);
-  const auto brown = BrownFromOpenCv(k, camera_);
+  const auto brown = LensFromOpenCv(k, camera_);
   ASSERT_TRUE(brown.ok) << brown.message;
-  const auto truth = WriteDistortedGrid("in.csv", brown.brown);
+  const auto truth = WriteDistortedGrid("in.csv", brown.lens);
   const auto r = RunTopocal("undistort --calibration " + Path("cal.yaml") + " --camera " + Path("cam.json") +
                             " --spots " + Path("in.csv") + " --out " + Path("out.csv"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -185,7 +185,7 @@ TEST_F(CorrectCli, UndistortImageMatchesTheLibrary) {
                             Path("out.png") + " --camera " + Path("cam.json"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const cv::Mat out = cv::imread(Path("out.png"), cv::IMREAD_UNCHANGED);
-  const auto expected = UndistortImage(img, BuildUndistortMap(BrownFromOpenCv(k, camera_).brown, camera_));
+  const auto expected = UndistortImage(img, BuildUndistortMap(LensFromOpenCv(k, camera_).lens, camera_));
   ASSERT_EQ(out.size(), expected.size());
   EXPECT_EQ(cv::norm(out, expected, cv::NORM_INF), 0.0);
   // Without --camera the calibration's own geometry is used: the same image in pixels.

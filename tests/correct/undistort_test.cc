@@ -23,8 +23,8 @@ constexpr double kPointRoundTripMm = 1e-10;
 constexpr double kFloatMapPx = 5e-4;
 
 // A realistic smartphone lens: moderate barrel, a little tangential, the distortion centre off the principal point.
-model::BrownParams SmartphoneBrown() {
-  model::BrownParams b;
+model::LensParams SmartphoneBrown() {
+  model::LensParams b;
   b.focal_mm = 5.2;
   b.centre_x_mm = 0.012;
   b.centre_y_mm = -0.008;
@@ -119,30 +119,37 @@ TEST(UndistortMap, InvertsThePointUndistortionEverywhere) {
   }
 }
 
-TEST(UndistortMap, BrownAgreesWithOpenCv) {
+TEST(UndistortMap, EveryLensModelAgreesWithOpenCv) {
   const auto camera = testing::DefaultCamera();
   const double f = camera.FocalPx();
-  const model::CameraModel k{.fx_px = f,
-                             .fy_px = f,
-                             .cx_px = camera.principal_point_px.x() + 13.0,
-                             .cy_px = camera.principal_point_px.y() - 7.0,
-                             .dist = {-0.12, 0.25, 8e-4, -5e-4, -0.1}};
-  const auto brown = BrownFromOpenCv(k, camera);
-  ASSERT_TRUE(brown.ok) << brown.message;
-  const auto ours = BuildUndistortMap(brown.brown, camera);
-  const cv::Matx33d kk(f, 0, k.cx_px, 0, f, k.cy_px, 0, 0, 1);
-  // What cv::undistort(src, dst, K, dist) applies: the same K for the output.
-  cv::Mat mx, my;
-  cv::initUndistortRectifyMap(kk, k.dist, cv::Mat(), kk, cv::Size(camera.width_px, camera.height_px), CV_32FC1,
-                              mx, my);
-  double worst = 0;
-  for (int v = 0; v < camera.height_px; v += 7) {
-    for (int u = 0; u < camera.width_px; u += 7) {
-      worst = std::max({worst, static_cast<double>(std::abs(mx.at<float>(v, u) - ours.map_x.at<float>(v, u))),
-                        static_cast<double>(std::abs(my.at<float>(v, u) - ours.map_y.at<float>(v, u)))});
+  model::ForEachLensModel([&](auto lens) {
+    SCOPED_TRACE(std::string(decltype(lens)::kName));
+    model::CameraModel k{.fx_px = f,
+                         .fy_px = f,
+                         .cx_px = camera.principal_point_px.x() + 13.0,
+                         .cy_px = camera.principal_point_px.y() - 7.0,
+                         .dist = {-0.12, 0.25, 8e-4, -5e-4, -0.1}};
+    k.lens = lens;
+    // The rational model's denominator, where it has one.
+    for (int i = 5; i < model::LensParameterCount(lens); ++i) k.dist[static_cast<size_t>(i)] = 0.02 * (i - 4);
+    const auto on_plane = LensFromOpenCv(k, camera);
+    ASSERT_TRUE(on_plane.ok) << on_plane.message;
+    const auto ours = BuildUndistortMap(on_plane.lens, camera);
+    const cv::Matx33d kk(f, 0, k.cx_px, 0, f, k.cy_px, 0, 0, 1);
+    // What cv::undistort(src, dst, K, dist) applies: the same K for the output, the model's own coefficients.
+    const cv::Mat dist(1, model::LensParameterCount(lens), CV_64F, k.dist.data());
+    cv::Mat mx, my;
+    cv::initUndistortRectifyMap(kk, dist, cv::Mat(), kk, cv::Size(camera.width_px, camera.height_px), CV_32FC1, mx,
+                                my);
+    double worst = 0;
+    for (int v = 0; v < camera.height_px; v += 7) {
+      for (int u = 0; u < camera.width_px; u += 7) {
+        worst = std::max({worst, static_cast<double>(std::abs(mx.at<float>(v, u) - ours.map_x.at<float>(v, u))),
+                          static_cast<double>(std::abs(my.at<float>(v, u) - ours.map_y.at<float>(v, u)))});
+      }
     }
-  }
-  EXPECT_LT(worst, 2 * kFloatMapPx);
+    EXPECT_LT(worst, 2 * kFloatMapPx);
+  });
 }
 
 TEST(UndistortMap, RemapOfARenderedPatternMatchesTheTruth) {
@@ -215,7 +222,7 @@ namespace topocal::correct {
 namespace {
 
 // The pixel-space camera of a calibration file (OpenCV's Brown model with an optional radial centre e): the
-// calibration's own projection, which BrownFromOpenCv must reproduce on the detection plane.
+// calibration's own projection, which LensFromOpenCv must reproduce on the detection plane.
 Eigen::Vector2d ProjectOpenCv(const model::CameraModel& k, const Eigen::Vector2d& normalised) {
   return k.Project(Eigen::Vector3d(normalised.x(), normalised.y(), 1.0));
 }
@@ -223,7 +230,7 @@ Eigen::Vector2d ProjectOpenCv(const model::CameraModel& k, const Eigen::Vector2d
 // Exact agreement: the conversion is algebra, only rounding separates the two paths.
 constexpr double kSameModelPx = 1e-9;
 
-TEST(BrownFromOpenCv, SameDistortionInPixelsForEveryOrientationAndCentre) {
+TEST(LensFromOpenCv, SameDistortionInPixelsForEveryOrientationAndCentre) {
   for (int o = 0; o < 8; ++o) {
     for (const double e : {0.0, 0.01}) {
       const auto orientation = static_cast<model::ImageOrientation>(o);
@@ -237,7 +244,7 @@ TEST(BrownFromOpenCv, SameDistortionInPixelsForEveryOrientationAndCentre) {
                                  .cy_px = camera.principal_point_px.y() - 9.0,
                                  .dist = {-0.12, 0.25, 8e-4, -5e-4, -0.1},
                                  .distortion_centre = {e, -0.5 * e}};
-      const auto b = BrownFromOpenCv(k, camera);
+      const auto b = LensFromOpenCv(k, camera);
       ASSERT_TRUE(b.ok) << b.message;
       for (int v = 0; v < camera.height_px; v += 250) {
         for (int u = 0; u < camera.width_px; u += 250) {
@@ -246,7 +253,7 @@ TEST(BrownFromOpenCv, SameDistortionInPixelsForEveryOrientationAndCentre) {
           const Eigen::Vector2d px(u, v);
           const Eigen::Vector2d cv_px = ProjectOpenCv(k, {(u - k.cx_px) / k.fx_px, (v - k.cy_px) / k.fy_px});
           const Eigen::Vector2d ours =
-              camera.PixelFromDetectionPlane(model::Distort(b.brown, camera.DetectionPlaneFromPixel(px)));
+              camera.PixelFromDetectionPlane(model::Distort(b.lens, camera.DetectionPlaneFromPixel(px)));
           EXPECT_LT((cv_px - ours).norm(), kSameModelPx) << u << ", " << v;
         }
       }
@@ -256,20 +263,20 @@ TEST(BrownFromOpenCv, SameDistortionInPixelsForEveryOrientationAndCentre) {
 
 // More than 5 coefficients never reach the conversion: the calibration file's reader refuses a non-zero k4..
 // (tests/calib/calibration_file_test.cc), and CameraModel holds exactly 5.
-TEST(BrownFromOpenCv, RejectsWhatItCannotRepresent) {
+TEST(LensFromOpenCv, RejectsWhatItCannotRepresent) {
   const auto camera = testing::DefaultCamera();
   const auto lens = [](double fx, double fy) {
     return model::CameraModel{.fx_px = fx, .fy_px = fy, .cx_px = 10, .cy_px = 10, .dist = {0.1, 0, 0, 0, 0}};
   };
-  const auto no_focal = BrownFromOpenCv(lens(0, 1000), camera);
+  const auto no_focal = LensFromOpenCv(lens(0, 1000), camera);
   EXPECT_FALSE(no_focal.ok);
   EXPECT_NE(no_focal.message.find("focal lengths must be > 0"), std::string::npos);
   auto bad_centre = lens(1000, 1000);
   bad_centre.distortion_centre.x() = std::numeric_limits<double>::quiet_NaN();
-  const auto nan_centre = BrownFromOpenCv(bad_centre, camera);
+  const auto nan_centre = LensFromOpenCv(bad_centre, camera);
   EXPECT_FALSE(nan_centre.ok);
   EXPECT_NE(nan_centre.message.find("distortion centre must be finite"), std::string::npos);
-  const auto b = BrownFromOpenCv(lens(1000, 1001), camera);
+  const auto b = LensFromOpenCv(lens(1000, 1001), camera);
   ASSERT_TRUE(b.ok) << b.message;
   EXPECT_NEAR(b.aspect_error, 1e-3, 1e-6);
 }

@@ -92,10 +92,16 @@ check((w, h) == (W, H), "import opencv: image size")
 write_opencv("opencv8.yaml", K, np.hstack([D5, np.zeros((1, 3))]), W, H)
 topocal("import", "--from", "opencv", "opencv8.yaml", "--out", "cal8.yaml")
 close(read_opencv("cal8.yaml")[1], D5, "import opencv (8 coefficients): distortion_coefficients")
-write_opencv("rational.yaml", K, np.hstack([D5, [[0.1, 0, 0]]]), W, H)
-r = topocal("import", "--from", "opencv", "rational.yaml", "--out", "rational-cal.yaml", expect=2)
-check("distortion_coefficients" in r.stderr and "rational" in r.stderr, f"rational model refused with why: {r.stderr}")
-check(not os.path.exists(os.path.join(WORK, "rational-cal.yaml")), "refused import leaves no file")
+# OpenCV's rational model (CALIB_RATIONAL_MODEL) with k4..k6 set is topocal's rational8: all eight come back.
+D8 = np.hstack([D5, [[0.1, -0.013, 0.0021]]])
+write_opencv("rational.yaml", K, D8, W, H)
+topocal("import", "--from", "opencv", "rational.yaml", "--out", "rational-cal.yaml")
+close(read_opencv("rational-cal.yaml")[1], D8, "import opencv (rational): distortion_coefficients")
+# Twelve coefficients: the thin-prism terms are not a topocal model; refused naming the coefficient.
+write_opencv("prism.yaml", K, np.hstack([D8, [[0.001, 0, 0, 0]]]), W, H)
+r = topocal("import", "--from", "opencv", "prism.yaml", "--out", "prism-cal.yaml", expect=2)
+check("distortion_coefficients" in r.stderr and "coefficient 9" in r.stderr, f"thin prism refused with why: {r.stderr}")
+check(not os.path.exists(os.path.join(WORK, "prism-cal.yaml")), "refused import leaves no file")
 
 # ---- ROS camera_info: PyYAML reads it as ROS' camera_calibration_parsers does ------------------------------------
 topocal("export", "--calibration", "cal5.yaml", "--to", "ros", "--out", "camera.yaml", "--camera-name", "topo_cam")
@@ -178,6 +184,13 @@ close(intrinsics, [K[0, 0], K[1, 1], K[0, 2], K[1, 2], *D5.ravel()], "mrcal: int
 check(list(model.imagersize()) == [W, H], "mrcal: imagersize")
 # Same formula evaluated by two libraries: agreement to rounding (1e-9 px is far above double rounding at 1000 px).
 close(mrcal.project(points, lensmodel, intrinsics), cv_project(K, D5), "mrcal.project vs cv2.projectPoints", rel=1e-12)
+# The rational model out: LENSMODEL_OPENCV8, projecting in mrcal as cv2 projects the source file.
+topocal("export", "--calibration", "rational-cal.yaml", "--to", "mrcal", "--out", "rational.cameramodel")
+lensmodel, intrinsics = mrcal.cameramodel(os.path.join(WORK, "rational.cameramodel")).intrinsics()
+check(lensmodel == "LENSMODEL_OPENCV8", f"mrcal (rational): lens model {lensmodel}")
+close(intrinsics, [K[0, 0], K[1, 1], K[0, 2], K[1, 2], *D8.ravel()], "mrcal (rational): intrinsics")
+close(mrcal.project(points, lensmodel, intrinsics), cv_project(K, D8), "mrcal.project vs cv2.projectPoints (rational)",
+      rel=1e-12)
 
 # ---- mrcal in: mrcal.cameramodel(...).write writes the model, topocal imports it ----------------------------------
 def mrcal_write(name, lensmodel, intrinsics, **kwargs):
@@ -245,13 +258,15 @@ topocal("import", "--from", "mrcal", "mrcal-solved.cameramodel", "--out", "from-
 k, d, w, h = read_opencv("from-mrcal-solved.yaml")
 close([k[0, 0], k[1, 1], k[0, 2], k[1, 2], *d.ravel()], solved, "import mrcal (a solve): intrinsics")
 check((w, h) == (W, H), "import mrcal (a solve): image size")
-# Lens models topocal's model cannot hold: refused naming the model (or the coefficient), no file written.
+# OPENCV8 with k5 set: the rational model, all eight coefficients.
 mrcal_write("mrcal-rational.cameramodel", "LENSMODEL_OPENCV8", [*CORE, *D5.ravel(), 0, 0.004, 0])
+topocal("import", "--from", "mrcal", "mrcal-rational.cameramodel", "--out", "from-mrcal-rational.yaml")
+close(read_opencv("from-mrcal-rational.yaml")[1], [[*D5.ravel(), 0, 0.004, 0]], "import mrcal (rational): coefficients")
+# Lens models topocal cannot hold: refused naming the model, no file written.
 splined = "LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=16_Ny=12_fov_x_deg=100"
 mrcal_write("mrcal-splined.cameramodel", splined, [*CORE, *np.zeros(mrcal.lensmodel_num_params(splined) - 4)])
 mrcal_write("mrcal-stereographic.cameramodel", "LENSMODEL_STEREOGRAPHIC", CORE)
-for name, words in [("rational", ["intrinsics", "k5 = 0.004"]), ("splined", ["lensmodel", splined]),
-                    ("stereographic", ["lensmodel", "LENSMODEL_STEREOGRAPHIC"])]:
+for name, words in [("splined", ["lensmodel", splined]), ("stereographic", ["lensmodel", "LENSMODEL_STEREOGRAPHIC"])]:
     r = topocal("import", "--from", "mrcal", f"mrcal-{name}.cameramodel", "--out", f"from-mrcal-{name}.yaml", expect=2)
     check(all(word in r.stderr for word in [f"mrcal-{name}.cameramodel", *words]) and r.stderr.count("\n") == 1,
           f"import mrcal {name}: one line naming the file, key and model: {r.stderr}")
@@ -290,8 +305,6 @@ for name, distortion_model, distortion, style in [("plumb-bob", "plumb_bob", D5.
     check((w, h) == (W, H), f"import ros {name}: image size")
 for name, info, words in [
         ("equidistant", camera_info(K, "equidistant", [0.1, 0.01, 0.001, 0.0001]), ["distortion_model", "equidistant"]),
-        ("rational-k4", camera_info(K, "rational_polynomial", [*D5.ravel(), 0.3, 0, 0]),
-         ["distortion_coefficients", "k4 = 0.3"]),
         ("nan", camera_info(K, "plumb_bob", [*D5.ravel()[:4], float("nan")]), ["distortion_coefficients.data"]),
         ("cx-outside", camera_info(K + [[0, 0, 900], [0, 0, 0], [0, 0, 0]], "plumb_bob", D5.ravel()),
          ["camera_matrix", "principal point"])]:
@@ -300,6 +313,16 @@ for name, info, words in [
     check(all(word in r.stderr for word in [f"ros-{name}.yaml", *words]) and r.stderr.count("\n") == 1,
           f"import ros {name}: one line naming the file and key: {r.stderr}")
     check(not os.path.exists(os.path.join(WORK, f"from-ros-{name}.yaml")), f"import ros {name}: no file written")
+# rational_polynomial with k4..k6 set: the rational model, out to ROS and back to the last bit.
+yaml_write("ros-rational-k4.yaml", camera_info(K, "rational_polynomial", D8.ravel()))
+topocal("import", "--from", "ros", "ros-rational-k4.yaml", "--out", "from-ros-rational-k4.yaml")
+close(read_opencv("from-ros-rational-k4.yaml")[1], D8, "import ros rational_polynomial: coefficients")
+topocal("export", "--calibration", "rational-cal.yaml", "--to", "ros", "--out", "rational-camera.yaml")
+with open(os.path.join(WORK, "rational-camera.yaml")) as f:
+    ros8 = yaml.safe_load(f)
+check(ros8["distortion_model"] == "rational_polynomial" and ros8["distortion_coefficients"]["cols"] == 8,
+      "ros (rational): rational_polynomial, 8 coefficients")
+close(ros8["distortion_coefficients"]["data"], D8, "ros (rational): distortion_coefficients", rel=1e-12)
 # topocal's own export comes back to the last bit.
 topocal("import", "--from", "ros", "camera.yaml", "--out", "cal5-via-ros.yaml")
 k, d, w, h = read_opencv("cal5-via-ros.yaml")

@@ -37,7 +37,7 @@ TEST(Seidel, RoundTripZeroMildStrong) {
 }
 
 TEST(Brown, RoundTripZeroMildStrong) {
-  BrownParams b;
+  LensParams b;
   ExpectRoundTrip(b);
   b.k = {-2.0, 10.0, 1e-3, -2e-3, 0.0};
   ExpectRoundTrip(b);
@@ -86,7 +86,7 @@ TEST(Seidel, TheFoldIsWhereTheRadialDerivativeVanishesInEveryForm) {
 
 TEST(Conversion, SeidelAndBrownAgree) {
   const SeidelParams s{-6.3e-5, -0.065, 0.01, 0.0};
-  const BrownParams b = SeidelToBrown(s, 5.2);
+  const LensParams b = SeidelToBrown(s, 5.2);
   EXPECT_NEAR(BrownK1ToSeidelSigma(b.k[0], -0.065, 5.2), s.sigma_per_mm2, 1e-20);
   for (double x : {-0.4, 0.1, 0.35}) {
     const Eigen::Vector2d p(x, 0.5 * x);

@@ -153,7 +153,24 @@ TEST(DeviceFile, RoundTripsAndRefusesBadInput) {
   EXPECT_EQ(error_of(bad.dump()), "dev.json: camera: missing");
   bad = j;
   bad["distortion"]["model"] = "fisheye";
-  EXPECT_NE(error_of(bad.dump()).find("distortion.model: must be \"seidel\" or \"brown\""), std::string::npos);
+  EXPECT_EQ(error_of(bad.dump()),
+            "dev.json: distortion.model: must be \"seidel\" or a lens model (brown, rational8) (got \"fisheye\")");
+  // A lens model's coefficient count is its own: eight for the rational model, which round-trips whole.
+  model::Device rational = device;
+  model::LensParams lens;
+  lens.model = model::RationalPolynomial{};
+  lens.focal_mm = rational.camera.a_mm;
+  lens.k = {-0.02, 0.004, 1e-4, -2e-4, -1e-3, 0.01, 0.002, -5e-4};
+  rational.distortion = lens;
+  const auto rational_text = model::DeviceToJson(rational);
+  const auto rational_read = model::ParseDevice(rational_text, "rational.json").device;
+  const auto& read_lens = std::get<model::LensParams>(rational_read.distortion);
+  EXPECT_TRUE(std::holds_alternative<model::RationalPolynomial>(read_lens.model));
+  EXPECT_EQ(read_lens.k, lens.k);
+  EXPECT_EQ(model::DeviceToJson(rational_read), rational_text);
+  bad = nlohmann::json::parse(rational_text);
+  bad["distortion"]["k"] = {1.0, 2.0, 3.0, 4.0, 5.0};
+  EXPECT_NE(error_of(bad.dump()).find("distortion.k"), std::string::npos) << error_of(bad.dump());
   EXPECT_NE(error_of("{\"format\": \"topocal-device\", \"format_version\": 1e999}").find("beyond the range of a double"),
             std::string::npos);
   // Input that could crash or fool a parser: nesting beyond the limit (a stack overflow in nlohmann's recursion),

@@ -60,11 +60,11 @@ TEST(DeviceCovariance, ParametersShiftByName) {
   EXPECT_DOUBLE_EQ(std::get<model::SeidelParams>(d.distortion).sigma_per_mm2, 1e-5);
   EXPECT_THROW(model::ShiftDeviceParameter(&d, "k1", 0.1), util::InputError);  // a Seidel device has no k1
   model::Device brown = NominalDevice();
-  model::BrownParams b;
+  model::LensParams b;
   b.focal_mm = brown.camera.a_mm;
   brown.distortion = b;
   model::ShiftDeviceParameter(&brown, "a_mm", 0.01);  // one distance: Brown's normalisation moves with a
-  EXPECT_DOUBLE_EQ(std::get<model::BrownParams>(brown.distortion).focal_mm, brown.camera.a_mm);
+  EXPECT_DOUBLE_EQ(std::get<model::LensParams>(brown.distortion).focal_mm, brown.camera.a_mm);
   EXPECT_THROW(model::DeviceParameterOf(brown, "sigma_per_mm2"), util::InputError);
 }
 

@@ -82,7 +82,7 @@ inline const FixtureChecks& ComputeChecks() {
     const auto camera = model::LoadTopographerCamera(std::string(TOPOCAL_SOURCE_DIR) + "/data/camera.json");
     pipeline::UnitCalibration unit;
     unit.camera = r.camera;
-    unit.covariance.names.assign(std::begin(calib::kParameterNames), std::end(calib::kParameterNames));
+    unit.covariance.names = calib::CameraParameterNames(r.model);
     unit.covariance.matrix = r.covariance;
     unit.covariance.full = true;
     const pipeline::CheckOptions check{kFixtureDraws, 1, 0};
