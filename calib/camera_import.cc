@@ -121,12 +121,12 @@ std::vector<double> ReadRosMatrix(YamlSection& root, const std::string& key, int
 // rational_polynomial (k1 k2 t1 t2 k3 k4 k5 k6). The coefficients, and the smallest lens model that holds them.
 std::pair<model::LensModelId, model::LensCoefficients> ReadRosDistortion(YamlSection& root) {
   const std::string model_name = root.String("distortion_model");
-  const auto named = model::LensModelFromRosName(model_name);
+  const auto named = model::LensModelFromName(model_name, model::LensNaming::kRos);
   if (!named) {
     root.Fail("distortion_model",
               fmt::format("'{}': topocal's lens models are OpenCV's: {} (equidistant is a fisheye model topocal does "
                           "not fit)",
-                          Shown(model_name), model::LensModelNames(" or ", model::LensModelRosName)));
+                          Shown(model_name), model::LensModelNames(" or ", model::LensNaming::kRos)));
   }
   const int n = model::LensParameterCount(*named);
   const std::string key = "distortion_coefficients";
@@ -396,7 +396,7 @@ std::vector<double> MrcalNumbers(const PyValue& root, const std::string& path, c
 int MrcalDistortionCount(const std::string& lensmodel) {
   if (lensmodel == "LENSMODEL_PINHOLE") return 0;
   if (lensmodel == "LENSMODEL_OPENCV4") return 4;
-  if (const auto lens = model::LensModelFromMrcalName(lensmodel)) return model::LensParameterCount(*lens);
+  if (const auto lens = model::LensModelFromName(lensmodel, model::LensNaming::kMrcal)) return model::LensParameterCount(*lens);
   return -1;
 }
 
@@ -482,7 +482,7 @@ model::CameraModel ReadMrcalCameraModel(const std::string& path) {
     Bad(path, "lensmodel",
         fmt::format("'{}' is not a model topocal holds (OpenCV's): accepted are LENSMODEL_PINHOLE, "
                     "LENSMODEL_OPENCV4, {}",
-                    Shown(lens.text), model::LensModelNames(", ", model::LensModelMrcalName)));
+                    Shown(lens.text), model::LensModelNames(", ", model::LensNaming::kMrcal)));
   }
   const std::vector<double> in = MrcalNumbers(root, path, "intrinsics");
   if (in.size() != static_cast<size_t>(4 + n)) {

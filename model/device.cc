@@ -122,7 +122,7 @@ Distortion ParseDistortion(util::JsonSection s, double a_mm) {
     s.RejectUnknown();
     return p;
   }
-  if (const auto lens = LensModelFromDeviceName(model)) {
+  if (const auto lens = LensModelFromName(model, LensNaming::kDevice)) {
     LensParams p;
     p.model = *lens;
     p.focal_mm = a_mm;  // a lens model acts on x1 / a: its focal length is the device's a
@@ -139,7 +139,7 @@ Distortion ParseDistortion(util::JsonSection s, double a_mm) {
     return p;
   }
   s.Fail(s.Key("model"), fmt::format("must be \"seidel\" or a lens model ({}) (got \"{}\")",
-                                     LensModelNames(", ", LensModelDeviceName), model.substr(0, 60)));
+                                     LensModelNames(", ", LensNaming::kDevice), model.substr(0, 60)));
 }
 
 ScreenPose ParseScreenPose(util::JsonSection s) {
@@ -210,7 +210,7 @@ std::string DeviceToJson(const Device& device, const json& calibration) {
                        {"centre_mm", {s->centre_x_mm, s->centre_y_mm}}};
   } else {
     const auto& b = std::get<LensParams>(device.distortion);
-    j["distortion"] = {{"model", LensModelDeviceName(b.model)},
+    j["distortion"] = {{"model", LensModelName(b.model, LensNaming::kDevice)},
                        {"k", std::vector<double>(b.k.begin(), b.k.begin() + LensParameterCount(b.model))},
                        {"centre_mm", {b.centre_x_mm, b.centre_y_mm}}};
   }

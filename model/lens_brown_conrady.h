@@ -9,12 +9,19 @@
 
 namespace topocal::model {
 
-// OpenCV's tangential (decentring) terms, shared by every model of its distCoeffs family: d += (2 p1 x y +
-// p2 (r^2 + 2 x^2), p1 (r^2 + 2 y^2) + 2 p2 x y).
-template <typename T>
-inline void AddOpenCvTangential(const T& p1, const T& p2, const T& x, const T& y, const T& r2, T* d) noexcept {
-  d[0] = d[0] + T(2) * p1 * x * y + p2 * (r2 + T(2) * x * x);  // (radial + a) + b, as OpenCV rounds it
-  d[1] = d[1] + p1 * (r2 + T(2) * y * y) + T(2) * p2 * x * y;
+// The distortion of every model of OpenCV's distCoeffs family, given its radial factor g (M::RadialFactor) and its
+// tangential pair at k[2], k[3]:
+//   x_d = x g(r^2) + 2 p1 x y + p2 (r^2 + 2 x^2),   y_d = y g(r^2) + p1 (r^2 + 2 y^2) + 2 p2 x y
+// summed as OpenCV sums it ((radial + a) + b).
+template <class M, typename T>
+inline void DistortOpenCvFamily(const T* k, const T* xn, T* xd) noexcept {
+  const T x = xn[0], y = xn[1];
+  const T r2 = x * x + y * y;
+  const T radial = M::RadialFactor(k, r2);
+  const T& p1 = k[2];
+  const T& p2 = k[3];
+  xd[0] = x * radial + T(2) * p1 * x * y + p2 * (r2 + T(2) * x * x);
+  xd[1] = y * radial + p1 * (r2 + T(2) * y * y) + T(2) * p2 * x * y;
 }
 
 struct BrownConrady {
@@ -33,12 +40,7 @@ struct BrownConrady {
   }
   template <typename T>
   static void DistortNormalized(const T* k, const T* xn, T* xd) noexcept {
-    const T x = xn[0], y = xn[1];
-    const T r2 = x * x + y * y;
-    const T radial = RadialFactor(k, r2);
-    xd[0] = x * radial;
-    xd[1] = y * radial;
-    AddOpenCvTangential(k[kP1], k[kP2], x, y, r2, xd);
+    DistortOpenCvFamily<BrownConrady>(k, xn, xd);
   }
 };
 

@@ -8,61 +8,36 @@
 namespace topocal::model {
 namespace {
 
-// Runs f(M{}) for the first model of the list whose `key` is `name`; false when none is.
-template <typename F, typename Key>
-bool ForModelNamed(std::string_view name, Key key, F&& f) {
-  return [&]<typename... Ms>(LensModelList<Ms...>*) {
-    return ((key(Ms{}) == name ? (f(Ms{}), true) : false) || ...);
-  }(static_cast<LensModels*>(nullptr));
+template <LensModel M>
+std::string_view NameOf(LensNaming naming) noexcept {
+  switch (naming) {
+    case LensNaming::kDevice: return M::kDeviceName;
+    case LensNaming::kRos: return M::kRosName;
+    case LensNaming::kMrcal: return M::kMrcalName;
+    case LensNaming::kTopocal: break;
+  }
+  return M::kName;
 }
 
 }  // namespace
 
-std::string_view LensModelName(const LensModelId& lens) noexcept {
-  return std::visit([](auto m) { return std::string_view(decltype(m)::kName); }, lens);
+std::string_view LensModelName(const LensModelId& lens, LensNaming naming) noexcept {
+  return std::visit([naming](auto m) { return NameOf<decltype(m)>(naming); }, lens);
 }
 
-std::string_view LensModelDeviceName(const LensModelId& lens) noexcept {
-  return std::visit([](auto m) { return std::string_view(decltype(m)::kDeviceName); }, lens);
-}
-
-std::string_view LensModelRosName(const LensModelId& lens) noexcept {
-  return std::visit([](auto m) { return std::string_view(decltype(m)::kRosName); }, lens);
-}
-
-std::string_view LensModelMrcalName(const LensModelId& lens) noexcept {
-  return std::visit([](auto m) { return std::string_view(decltype(m)::kMrcalName); }, lens);
-}
-
-std::optional<LensModelId> LensModelFromName(std::string_view name) noexcept {
+std::optional<LensModelId> LensModelFromName(std::string_view name, LensNaming naming) noexcept {
   std::optional<LensModelId> out;
-  ForModelNamed(name, [](auto m) { return decltype(m)::kName; }, [&](auto m) { out = m; });
+  ForEachLensModel([&](auto m) {
+    if (!out && NameOf<decltype(m)>(naming) == name) out = m;
+  });
   return out;
 }
 
-std::optional<LensModelId> LensModelFromDeviceName(std::string_view name) noexcept {
-  std::optional<LensModelId> out;
-  ForModelNamed(name, [](auto m) { return decltype(m)::kDeviceName; }, [&](auto m) { out = m; });
-  return out;
-}
-
-std::optional<LensModelId> LensModelFromRosName(std::string_view name) noexcept {
-  std::optional<LensModelId> out;
-  ForModelNamed(name, [](auto m) { return decltype(m)::kRosName; }, [&](auto m) { out = m; });
-  return out;
-}
-
-std::optional<LensModelId> LensModelFromMrcalName(std::string_view name) noexcept {
-  std::optional<LensModelId> out;
-  ForModelNamed(name, [](auto m) { return decltype(m)::kMrcalName; }, [&](auto m) { out = m; });
-  return out;
-}
-
-std::string LensModelNames(std::string_view separator, std::string_view (*name)(const LensModelId&) noexcept) {
+std::string LensModelNames(std::string_view separator, LensNaming naming) {
   std::string out;
   ForEachLensModel([&](auto m) {
     if (!out.empty()) out += separator;
-    out += name(m);
+    out += NameOf<decltype(m)>(naming);
   });
   return out;
 }

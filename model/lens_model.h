@@ -47,7 +47,6 @@ template <LensModel... Ms>
 struct LensModelList {
   using Variant = std::variant<Ms...>;
   static constexpr int kMaxParams = std::max({Ms::kNumParams...});
-  static constexpr std::array<std::string_view, sizeof...(Ms)> kNames = {Ms::kName...};
 };
 
 // The list. The first entry is the default (OpenCV's default model).
@@ -64,18 +63,13 @@ void ForEachLensModel(F&& f) {
   [&]<typename... Ms>(LensModelList<Ms...>*) { (f(Ms{}), ...); }(static_cast<LensModels*>(nullptr));
 }
 
-std::string_view LensModelName(const LensModelId& lens) noexcept;
-std::string_view LensModelDeviceName(const LensModelId& lens) noexcept;
-std::string_view LensModelRosName(const LensModelId& lens) noexcept;
-std::string_view LensModelMrcalName(const LensModelId& lens) noexcept;
-std::optional<LensModelId> LensModelFromName(std::string_view name) noexcept;
-std::optional<LensModelId> LensModelFromDeviceName(std::string_view name) noexcept;
-std::optional<LensModelId> LensModelFromRosName(std::string_view name) noexcept;
-std::optional<LensModelId> LensModelFromMrcalName(std::string_view name) noexcept;
-// The names of the list joined by `separator` ("brown5, rational8"), for messages and --help; `name` picks which
-// (LensModelName, LensModelDeviceName, ...).
-std::string LensModelNames(std::string_view separator = ", ",
-                           std::string_view (*name)(const LensModelId&) noexcept = LensModelName);
+// Which of a model's names: topocal's (calibration files, --model), a device file's, ROS camera_info's, mrcal's.
+enum class LensNaming { kTopocal, kDevice, kRos, kMrcal };
+
+std::string_view LensModelName(const LensModelId& lens, LensNaming naming = LensNaming::kTopocal) noexcept;
+std::optional<LensModelId> LensModelFromName(std::string_view name, LensNaming naming = LensNaming::kTopocal) noexcept;
+// The names of the list joined by `separator` ("brown5, rational8"), for messages and --help.
+std::string LensModelNames(std::string_view separator = ", ", LensNaming naming = LensNaming::kTopocal);
 int LensParameterCount(const LensModelId& lens) noexcept;
 std::span<const std::string_view> LensParameterNames(const LensModelId& lens) noexcept;
 // The model with the fewest coefficients that holds `k` exactly (its later entries zero): how a distCoeffs vector read

@@ -27,12 +27,7 @@ struct RationalPolynomial {
   }
   template <typename T>
   static void DistortNormalized(const T* k, const T* xn, T* xd) noexcept {
-    const T x = xn[0], y = xn[1];
-    const T r2 = x * x + y * y;
-    const T radial = RadialFactor(k, r2);
-    xd[0] = x * radial;
-    xd[1] = y * radial;
-    AddOpenCvTangential(k[kP1], k[kP2], x, y, r2, xd);
+    DistortOpenCvFamily<RationalPolynomial>(k, xn, xd);
   }
 };
 
