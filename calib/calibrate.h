@@ -35,6 +35,7 @@
 #include "calib/observations.h"
 #include "calib/zhang.h"
 #include "model/camera_model.h"
+#include "model/paper_topographer.h"
 
 namespace topocal::calib {
 
@@ -62,9 +63,6 @@ std::optional<RobustLoss> ParseRobustLoss(std::string_view name) noexcept;
 // Names of the camera parameters of a model, in the order the result reports them: fx, fy, cx, cy, the lens model's
 // coefficients, ex, ey (the distortion centre).
 std::vector<std::string> CameraParameterNames(const DistortionModelKind& model);
-
-// Transverse magnification of the paper's topographer (Table IV), for the Seidel sigma.
-inline constexpr double kPaperMagnification = -0.065;
 
 struct CalibrationOptions {
   DistortionModelKind model = DistortionModelKind::kBrown5;
@@ -95,7 +93,7 @@ struct CalibrationOptions {
   double focal_mm = 0;
   double pixel_pitch_um = 0;
   double distance_mm = 0;
-  double magnification = kPaperMagnification;
+  double magnification = model::kPaperMagnification;
 
   // Empty when valid; otherwise *why says what is wrong.
   bool IsValid(std::string* why) const;
@@ -144,7 +142,7 @@ struct SkippedView {
 struct SeidelEstimate {
   double sigma_per_mm2 = 0;
   double sigma_stddev_per_mm2 = 0;  // from k1's standard deviation, focal length taken as exact
-  double magnification = kPaperMagnification;
+  double magnification = model::kPaperMagnification;
   double focal_mm = 0;
   double pixel_pitch_um = 0;
 };

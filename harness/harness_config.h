@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "model/config.h"
+#include "model/paper_topographer.h"
 
 namespace topocal::harness {
 
@@ -65,7 +66,8 @@ struct HarnessLimits {
 
 struct HarnessConfig {
   model::Config design;          // the topographer (ideal image, geometry, M_T, distortion centre, reconstruction)
-  double pixel_pitch_um = 1.12;  // of the camera: noise is given in px, residuals are also reported in px
+  // Of the camera: noise is given in px, residuals are also reported in px.
+  double pixel_pitch_um = model::kPaperPixelPitchUm;
   std::uint64_t seed = 1;
   // The distortion axes, each a list of coefficients of its family (any may be empty).
   std::vector<double> seidel_sigma_per_mm2;

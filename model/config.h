@@ -13,6 +13,7 @@
 
 #include "model/distortion.h"
 #include "util/io.h"
+#include "model/paper_topographer.h"
 
 namespace topocal::model {
 
@@ -30,7 +31,7 @@ struct IdealImageParams {
 };
 
 struct TopographerParams {
-  double a_mm = 5.2;                   // pinhole to detection plane
+  double a_mm = kPaperAMm;             // pinhole to detection plane
   double b_mm = 70.0;                  // pinhole to corneal vertex
   double re_mm = 7.8;                  // radius of the reference sphere the null screen is designed for
   double cone_semi_angle_deg = 10.79;  // phi_c
@@ -54,7 +55,7 @@ struct BiconicParams {
 
 struct DistortionSweep {
   std::string model = "seidel";
-  double magnification = -0.065;  // M_T
+  double magnification = kPaperMagnification;  // M_T
   double centre_x_mm = 0.0;
   double centre_y_mm = 0.0;
   std::vector<double> sigmas_per_mm2;

@@ -33,6 +33,7 @@
 #include "model/null_screen.h"
 #include "model/topographer_camera.h"
 #include "util/io.h"
+#include "model/paper_topographer.h"
 
 namespace topocal::model {
 
@@ -100,12 +101,12 @@ SyntheticImage SynthesizeImage(const Surface& surface, const Device& device, con
 // Fixed (not fitted) quantities of the device projection below.
 struct DeviceProjectionSetup {
   double b_mm = 70.0;              // pinhole to the nominal corneal vertex: the pivot is (0, 0, -b)
-  double pixel_pitch_mm = 1.12e-3;  // along u
+  double pixel_pitch_mm = kPaperPixelPitchUm * 1e-3;  // along u
   double pixel_aspect = 1.0;         // pitch along v / pitch along u (model/topographer_camera.h)
   Eigen::Matrix2d orientation = Eigen::Matrix2d::Identity();
   // The distortion block: a lens model's coefficients (model/lens_model.h), or Seidel [sigma] when empty.
   std::optional<LensModelId> lens;
-  double magnification = -0.065;   // M_T of the Seidel model
+  double magnification = kPaperMagnification;  // M_T of the Seidel model
   Eigen::Vector2d distortion_centre_mm = Eigen::Vector2d::Zero();  // on the detection plane
 };
 

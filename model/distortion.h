@@ -14,9 +14,9 @@
 //    detection plane, on x_n = (x - c) / f with f the pinhole-to-detection-plane distance a and c the principal point
 //    (mm): LensParams.
 //
-// Every inverse is a Newton iteration (model/invert_by_newton.h) with a residual check: they return false (never a silent guess) when the
-// point lies outside the model's invertible domain (e.g. beyond the fold of strong barrel distortion) or the
-// iteration does not reach the tolerance.
+// Every inverse is a Newton iteration (model/invert_by_newton.h) with a residual check: it returns false (never a
+// silent guess) when the point lies outside the model's invertible domain (e.g. beyond the fold of strong barrel
+// distortion) or the iteration does not reach the tolerance.
 #include <array>
 #include <optional>
 #include <string>
@@ -26,6 +26,7 @@
 
 #include "model/invert_by_newton.h"
 #include "model/lens_model.h"
+#include "model/paper_topographer.h"
 
 namespace topocal::model {
 
@@ -68,7 +69,7 @@ struct SeidelRadial {
 // Parameters of each model as used on the detection plane (mm).
 struct SeidelParams {
   double sigma_per_mm2 = 0.0;
-  double magnification = -0.065;  // M_T, paper Table IV
+  double magnification = kPaperMagnification;  // M_T
   double centre_x_mm = 0.0;
   double centre_y_mm = 0.0;
   std::array<double, SeidelRadial::kNumParams> AsArray() const {
@@ -77,7 +78,7 @@ struct SeidelParams {
 };
 
 struct LensParams {
-  double focal_mm = 5.2;        // pinhole-to-detection-plane distance (the paper's a)
+  double focal_mm = kPaperAMm;  // pinhole-to-detection-plane distance (the paper's a)
   double centre_x_mm = 0.0;     // principal point on the detection plane
   double centre_y_mm = 0.0;
   LensModelId model{};          // Brown-Conrady unless set

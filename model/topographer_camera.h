@@ -22,6 +22,8 @@
 #include <Eigen/Core>
 #include <nlohmann/json_fwd.hpp>
 
+#include "model/paper_topographer.h"
+
 namespace topocal::model {
 
 // How the delivered image is turned or mirrored relative to the default mapping (u = c_u + x1/pitch_u,
@@ -39,12 +41,12 @@ const char* OrientationName(ImageOrientation o) noexcept;
 std::optional<ImageOrientation> OrientationFromName(const std::string& name) noexcept;
 
 struct TopographerCamera {
-  double pixel_pitch_um = 1.12;  // along u (image columns)
+  double pixel_pitch_um = kPaperPixelPitchUm;  // along u (image columns)
   double pixel_aspect = 1.0;     // pitch along v / pitch along u = OpenCV's fx / fy
   int width_px = 4000;
   int height_px = 3000;
   Eigen::Vector2d principal_point_px{1999.5, 1499.5};  // where the optical axis meets the sensor
-  double a_mm = 5.2;          // pinhole to detection plane (config topographer.a_mm)
+  double a_mm = kPaperAMm;    // pinhole to detection plane (config topographer.a_mm)
   ImageOrientation orientation = ImageOrientation::kIdentity;
 
   double PitchMm() const noexcept { return pixel_pitch_um * 1e-3; }  // along u

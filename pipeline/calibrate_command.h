@@ -23,7 +23,7 @@ struct CalibrateRequest {
   bool fit_centre = false;   // fit the radial distortion centre
   bool board_warp = false;   // fit the board's parabolic sag (multi-view)
   double focal_mm = 0, pixel_pitch_um = 0, distance_mm = 0;
-  double magnification = calib::kPaperMagnification;  // M_T of the Seidel sigma
+  double magnification = model::kPaperMagnification;  // M_T of the Seidel sigma
   double fixed_aspect_ratio = 0;                      // fx / fy held in a multi-view fit; 0 = free
   std::vector<std::string> fixed;                     // parameters held fixed: fx fy cx cy k1 k2 p1 p2 k3 ex ey
   std::string loss = "huber";                         // with robust: huber or cauchy

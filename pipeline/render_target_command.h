@@ -28,7 +28,7 @@ struct RenderTargetRequest {
   // The distortion: Brown-Conrady coefficients (unset = 0), or a Seidel sigma (needs focal_mm and pixel_pitch_um).
   std::optional<double> k1, k2, p1, p2, k3;
   std::optional<double> sigma_per_mm2;
-  double magnification = calib::kPaperMagnification;  // M_T of the Seidel sigma
+  double magnification = model::kPaperMagnification;  // M_T of the Seidel sigma
 
   // The pose: the target facing the camera at distance_mm, turned and shifted; or an explicit cam_from_target.
   std::optional<double> distance_mm;

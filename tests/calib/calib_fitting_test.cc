@@ -179,7 +179,7 @@ TEST(MultiView, SeidelWithCentreRecoversItsParameters) {
   EXPECT_EQ(*Param(r, "k2"), 0.0);
   ASSERT_TRUE(r.seidel);
   const double f_mm = 0.5 * (r.camera.fx_px + r.camera.fy_px) * 3e-3;
-  EXPECT_NEAR(r.seidel->sigma_per_mm2, model::BrownK1ToSeidelSigma(-0.3, kPaperMagnification, f_mm), 1e-12);
+  EXPECT_NEAR(r.seidel->sigma_per_mm2, model::BrownK1ToSeidelSigma(-0.3, model::kPaperMagnification, f_mm), 1e-12);
 }
 
 TEST(MultiView, OutliersAreRejectedAndReported) {
@@ -256,7 +256,7 @@ struct Topographer {
     cam.fx_px = cam.fy_px = kFocalMm / (kPitchUm * 1e-3);
     cam.cx_px = 0.5 * (cam.width_px - 1);
     cam.cy_px = 0.5 * (cam.height_px - 1);
-    cam.dist = {model::SeidelSigmaToBrownK1(sigma_per_mm2, kPaperMagnification, kFocalMm), 0, 0, 0, 0};
+    cam.dist = {model::SeidelSigmaToBrownK1(sigma_per_mm2, model::kPaperMagnification, kFocalMm), 0, 0, 0, 0};
     cam.distortion_centre = centre;
     return cam;
   }

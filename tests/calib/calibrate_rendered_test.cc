@@ -151,7 +151,7 @@ TEST_P(RenderedSingleView, RecoversSigmaAtTheTopographerGeometry) {
   camera.height_px = 1000;
   camera.fx_px = camera.fy_px = kFocalMm / (kPitchUm * 1e-3);
   camera.cx_px = camera.cy_px = 499.5;
-  camera.dist = {model::SeidelSigmaToBrownK1(sigma, kPaperMagnification, kFocalMm), 0, 0, 0, 0};
+  camera.dist = {model::SeidelSigmaToBrownK1(sigma, model::kPaperMagnification, kFocalMm), 0, 0, 0, 0};
   const auto target = ParseTargetDescription(fmt::format("target_type: checkerboard\ntargetCols: {0}\ntargetRows: {0}\n"
                                                          "rowSpacingMeters: 0.001\ncolSpacingMeters: 0.001\n",
                                                          corners),

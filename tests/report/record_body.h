@@ -43,7 +43,7 @@ inline calib::CalibrationResult FixtureCalibration() {
   cam.cx_px = (kWidthPx - 1) / 2.0;
   cam.cy_px = (kHeightPx - 1) / 2.0;
   // sigma = k1 M_T^3 / f_mm^2 (model/distortion.h)
-  cam.dist[0] = kSigmaPerMm2 * kFocalMm * kFocalMm / std::pow(calib::kPaperMagnification, 3);
+  cam.dist[0] = kSigmaPerMm2 * kFocalMm * kFocalMm / std::pow(model::kPaperMagnification, 3);
   calib::testing::GridTarget grid{13, 13, 0.9};
   std::mt19937 rng(7);
   const auto pose = calib::testing::MakePose(2, -3, 1, {0.3, -0.2, kDistanceMm}, grid);
