@@ -396,7 +396,9 @@ std::vector<double> MrcalNumbers(const PyValue& root, const std::string& path, c
 int MrcalDistortionCount(const std::string& lensmodel) {
   if (lensmodel == "LENSMODEL_PINHOLE") return 0;
   if (lensmodel == "LENSMODEL_OPENCV4") return 4;
-  if (const auto lens = model::LensModelFromName(lensmodel, model::LensNaming::kMrcal)) return model::LensParameterCount(*lens);
+  if (const auto lens = model::LensModelFromName(lensmodel, model::LensNaming::kMrcal)) {
+    return model::LensParameterCount(*lens);
+  }
   return -1;
 }
 

@@ -275,8 +275,8 @@ struct Sampler {
       du_dpx.col(1) = (1 - s) * (u01 - u00) + s * (u11 - u10);
       for (int step = 0; step < kSubSampleNewtonSteps; ++step) {
         Eigen::Vector2d px;
-        model::CameraModel::NormalizedToPixel(camera.lens, intrinsics, camera.dist.data(), camera.distortion_centre.data(),
-                                              u.data(), px.data());
+        model::CameraModel::NormalizedToPixel(camera.lens, intrinsics, camera.dist.data(),
+                                              camera.distortion_centre.data(), u.data(), px.data());
         u += du_dpx * (target_px - px);
       }
       sum += scene.GreyOfRay(u);

@@ -143,8 +143,8 @@ std::string DescribeDistortion(const Distortion& distortion) {
                        s->magnification, s->centre_x_mm, s->centre_y_mm);
   }
   const auto& b = std::get<LensParams>(distortion);
-  std::string out = fmt::format("{} f={:.6g} mm centre=({:.6g}, {:.6g}) mm", LensModelName(b.model, LensNaming::kDevice), b.focal_mm,
-                                b.centre_x_mm, b.centre_y_mm);
+  std::string out = fmt::format("{} f={:.6g} mm centre=({:.6g}, {:.6g}) mm",
+                                LensModelName(b.model, LensNaming::kDevice), b.focal_mm, b.centre_x_mm, b.centre_y_mm);
   const auto names = LensParameterNames(b.model);
   for (size_t i = 0; i < names.size(); ++i) out += fmt::format(" {}={:.6g}", names[i], b.k[i]);
   return out;

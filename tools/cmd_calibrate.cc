@@ -27,7 +27,8 @@ void AddCalibrateCommand(CLI::App& app) {
   cmd->add_option("--distance-mm", a->distance_mm, "Nominal target distance from the pinhole, mm (single view)");
   cmd->add_option("--magnification", a->magnification, "Transverse magnification M_T for the Seidel sigma")
       ->capture_default_str();
-  cmd->add_option("--fix", a->fixed, "Parameters to hold fixed (spaces or commas): fx fy cx cy, the model's (k1 k2 p1 p2 k3 ...), ex ey")
+  cmd->add_option("--fix", a->fixed,
+                  "Parameters to hold fixed (spaces or commas): fx fy cx cy, the model's (k1 k2 p1 p2 k3 ...), ex ey")
       ->delimiter(',');
   cmd->add_option("--fix-aspect", a->fixed_aspect_ratio,
                   "Hold fx / fy at this ratio during a multi-view fit (e.g. 1 for square pixels; 0 = free); OpenCV's "

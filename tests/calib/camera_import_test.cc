@@ -386,7 +386,8 @@ TEST_F(CameraImportTest, MrcalAndRosRationalModelsAreTheRationalLensModel) {
   const model::CameraModel via_ros = ReadRosCameraInfo(Write("out.yaml", RosCameraInfoYaml(from_ros, "cam")));
   EXPECT_TRUE(std::holds_alternative<model::RationalPolynomial>(via_ros.lens));
   EXPECT_EQ(via_ros.dist, from_ros.dist);
-  const model::CameraModel via_mrcal = ReadMrcalCameraModel(Write("out.cameramodel", MrcalCameraModelText(mrcal, nullptr)));
+  const model::CameraModel via_mrcal =
+      ReadMrcalCameraModel(Write("out.cameramodel", MrcalCameraModelText(mrcal, nullptr)));
   EXPECT_TRUE(std::holds_alternative<model::RationalPolynomial>(via_mrcal.lens));
   EXPECT_EQ(via_mrcal.dist, mrcal.dist);
 }

@@ -105,7 +105,8 @@ TEST(LensModels, NamesAndParameterTablesComeFromTheList) {
     EXPECT_FALSE(kind->seidel);
     EXPECT_EQ(ToString(*kind), decltype(lens)::kName);
     EXPECT_EQ(CameraParameterNames(*kind).size(), static_cast<size_t>(4 + decltype(lens)::kNumParams + 2));
-    EXPECT_EQ(model::LensModelFromName(decltype(lens)::kDeviceName, model::LensNaming::kDevice)->index(), model::LensModelId(lens).index());
+    EXPECT_EQ(model::LensModelFromName(decltype(lens)::kDeviceName, model::LensNaming::kDevice)->index(),
+              model::LensModelId(lens).index());
   });
   EXPECT_EQ(CameraParameterNames(*ParseDistortionModel("rational8")),
             (std::vector<std::string>{"fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "ex",
