@@ -144,6 +144,37 @@ void BM_SolveOpenCv(benchmark::State& state) {
 }
 BENCHMARK(BM_SolveOpenCv)->Unit(benchmark::kMillisecond);
 
+// OpenCV's rational lens model (k1..k6, p1, p2) on the same corners: topocal's rational8 and
+// cv::calibrateCamera(CALIB_RATIONAL_MODEL) with its default termination, side by side.
+void BM_SolveTopocalRational(benchmark::State& state) {
+  if (!HaveData(state)) return;
+  topocal::calib::CalibrationOptions options;
+  options.model = *topocal::calib::ParseDistortionModel("rational8");
+  options.max_iterations = 1000;
+  topocal::calib::CalibrationResult r;
+  for (auto _ : state) r = topocal::calib::CalibrateMultiView(SharedCorners().views, options);
+  state.counters["rms_px"] = r.rms_px;
+  state.counters["fx_px"] = r.camera.fx_px;
+  state.counters["iterations"] = r.solver.iterations;
+  state.SetLabel(r.ok() ? "rational8" : "rational8: " + r.message);
+}
+BENCHMARK(BM_SolveTopocalRational)->Unit(benchmark::kMillisecond);
+
+void BM_SolveOpenCvRational(benchmark::State& state) {
+  if (!HaveData(state)) return;
+  const auto& c = SharedCorners();
+  double rms = 0;
+  cv::Mat k, d;
+  for (auto _ : state) {
+    std::vector<cv::Mat> rvecs, tvecs;
+    rms = cv::calibrateCamera(c.object, c.image, c.size, k, d, rvecs, tvecs, cv::CALIB_RATIONAL_MODEL);
+  }
+  state.counters["rms_px"] = rms;
+  state.counters["fx_px"] = k.at<double>(0, 0);
+  state.SetLabel("cv::calibrateCamera, CALIB_RATIONAL_MODEL");
+}
+BENCHMARK(BM_SolveOpenCvRational)->Unit(benchmark::kMillisecond);
+
 // The whole job, image files to camera, each tool with its own detector: what `topocal calibrate` does (images
 // read and detected on every available core, Arg 0, or on one, Arg 1) against OpenCV's classic recipe as its
 // samples write it (one image after the other).

@@ -221,9 +221,12 @@ bool SolveRejectingOutliers(Parameters& p, std::vector<UsedView>& views, const F
     result->solver.message = summary.message;
     result->outlier_rounds = round;
     if (!result->solver.converged || !std::isfinite(summary.final_cost) || !AllFinite(p)) {
+      // A fit that runs out of iterations usually crawls along parameters the views do not separate (a rational
+      // model's numerator against its denominator): say what to do about it.
       *result = Failure(CalibrationStatus::kSolverFailed,
-                        fmt::format("the solver did not converge after {} iterations: {}", result->solver.iterations,
-                                    summary.message));
+                        fmt::format("the solver did not converge after {} iterations: {} (hold fixed what the views "
+                                    "cannot determine, or fit a model with fewer coefficients)",
+                                    result->solver.iterations, summary.message));
       return false;
     }
     if (!o.reject_outliers || round >= o.max_outlier_rounds) break;
