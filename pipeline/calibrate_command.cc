@@ -13,6 +13,8 @@
 #include "calib/detect.h"
 #include "calib/parameter_range.h"
 #include "calib/target.h"
+#include "model/device.h"
+#include "pipeline/lens_device.h"
 #include "util/file_glob.h"
 #include "util/io.h"
 
@@ -50,6 +52,7 @@ void PrintCalibration(std::ostream& out, const calib::CalibrationResult& result,
                w.sag_x_mm, w.sag_x_stddev_mm, w.sag_y_mm, w.sag_y_stddev_mm);
   }
   fmt::print(out, "  -> {}\n", a.out);
+  if (!a.device_out.empty()) fmt::print(out, "  -> {} (the lens calibration applied to {})\n", a.device_out, a.device);
   if (cross) {
     fmt::print(out, "cross-validation: halves of {} and {} views differ by RMS {:.4f} px, max {:.4f} px over the image "
                "(homography removed) -> {}\n",
@@ -170,6 +173,12 @@ calib::CalibrationResult Calibrate(const DetectedViews& d, const std::vector<std
 
 void RunCalibrate(const CalibrateRequest& a, std::ostream& out) {
   const calib::CalibrationOptions options = OptionsOf(a);
+  if (a.device.empty() != a.device_out.empty()) {
+    throw util::InputError("--device and --device-out go together: the nominal device the lens calibration is "
+                           "applied to, and the device file to write");
+  }
+  const std::optional<model::Device> nominal =
+      a.device.empty() ? std::nullopt : std::optional<model::Device>(model::LoadDevice(a.device).device);
   const auto target = calib::LoadTargetDescription(a.target);
   const auto paths = util::Glob(a.images);
   if (a.single_view && paths.size() != 1) {
@@ -191,10 +200,16 @@ void RunCalibrate(const CalibrateRequest& a, std::ostream& out) {
   // All texts are complete before any file is written, so a failure leaves none behind.
   const std::string cal_text = calib::CalibrationFileText(result, provenance);
   const std::string json_text = a.json.empty() ? std::string() : calib::CalibrationReportJson(result, provenance);
+  std::string device_text;
+  if (nominal) {
+    const model::DeviceFile device = LensCalibratedDevice(result, *nominal, a.out);
+    device_text = model::DeviceToJson(device.device, device.calibration);
+  }
   util::StagedOutputs outputs;  // published together or not at all
   outputs.AddFile(a.out, cal_text);
   if (!a.json.empty()) outputs.AddFile(a.json, json_text);
   if (cross) outputs.AddFile(a.cross_validate_svg, cross_svg);
+  if (nominal) outputs.AddFile(a.device_out, device_text);
   outputs.Commit();
   PrintCalibration(out, result, a, cross);
 }

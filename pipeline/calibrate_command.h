@@ -18,6 +18,8 @@ struct CalibrateRequest {
   std::string out;         // calibration file (OpenCV FileStorage YAML)
   std::string json;        // also a JSON report when not empty
   std::string cross_validate_svg;  // also fit two halves of the views and map their difference here
+  std::string device;      // the unit's nominal device: with device_out, the lens calibration applied to it
+  std::string device_out;  // also the device file of the lens calibration (pipeline/lens_device.h)
   bool single_view = false;  // one image at the cornea position; needs focal_mm, pixel_pitch_um, distance_mm
   bool robust = false;       // robust loss and iterative outlier rejection
   bool fit_centre = false;   // fit the radial distortion centre

@@ -35,6 +35,10 @@ void AddCalibrateCommand(CLI::App& app) {
                   "CALIB_FIX_ASPECT_RATIO")
       ->capture_default_str();
   cmd->add_flag("--fit-centre", a->fit_centre, "Fit the radial distortion centre (Seidel; brown5 needs --fix p1,p2)");
+  cmd->add_option("--device", a->device, "The unit's nominal device (docs/device.md), for --device-out");
+  cmd->add_option("--device-out", a->device_out,
+                  "Also write the device file of this lens calibration applied to --device (its principal point, a, "
+                  "pixel aspect and lens, with their covariance; the screen pose stays nominal)");
   cmd->add_flag("--robust", a->robust, "Robust loss and iterative outlier rejection");
   cmd->add_flag("--board-warp", a->board_warp,
                 "Fit the target's parabolic sag with the camera (a printed board that is not flat; multi-view)");

@@ -318,6 +318,51 @@ TEST_F(CalibrateCli, SingleViewRuns) {
   EXPECT_LT(j["rms_px"].get<double>(), 0.5);
 }
 
+// --device-out: the lens calibration applied to a nominal device of the same sensor (640 x 480 px of 6 um here), with
+// the calibration's k1 and its standard deviation; a device of another sensor is refused and nothing is written.
+TEST_F(CalibrateCli, DeviceOutIsTheLensCalibrationAppliedToTheNominalDevice) {
+  const std::string device =
+      R"({"format": "topocal-device", "format_version": 1,
+          "camera": {"pixel_pitch_um": 6.0, "width_px": 640, "height_px": 480, "principal_point_px": [319.5, 239.5],
+                     "a_mm": 3.2, "orientation": "identity"},
+          "distortion": {"model": "seidel", "sigma_per_mm2": 0.0, "magnification": -0.065, "centre_mm": [0.0, 0.0]},
+          "screen_pose": {"rx_deg": 0.0, "ry_deg": 0.0, "rz_deg": 0.0, "tx_mm": 0.0, "ty_mm": 0.0, "tz_mm": 0.0,
+                          "radial_scale": 1.0}})";
+  std::ofstream(Path("nominal.json")) << device;
+  const std::string single = "calibrate --target " + Path("board.yaml") + " --images '" + kDataDir +
+                             "left01.jpg' --model seidel --single-view --focal-mm 3.216 --pixel-pitch-um 6 "
+                             "--distance-mm 400 --out " + Path("cal.yaml") + " --json " + Path("report.json");
+  auto r = RunTopocal(single + " --device " + Path("nominal.json") + " --device-out " + Path("device.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(Path("device.json"));
+  const auto d = nlohmann::json::parse(in);
+  std::ifstream report_in(Path("report.json"));
+  const auto report = nlohmann::json::parse(report_in);
+  // The single view holds f = 3.216 mm, so a is that; the lens is the calibration's k1 (Brown on x1 / a).
+  EXPECT_NEAR(d["camera"]["a_mm"].get<double>(), 3.216, 1e-9);
+  EXPECT_EQ(d["distortion"]["model"], "brown");
+  EXPECT_DOUBLE_EQ(d["distortion"]["k"][0].get<double>(), report["dist_coeffs"][0].get<double>());
+  EXPECT_EQ(d["calibration"]["covariance"]["parameters"], nlohmann::json::array({"k1"}));
+  const double k1_sd = report["stddev"]["k1"].get<double>();
+  EXPECT_NEAR(std::sqrt(d["calibration"]["covariance"]["matrix"][0][0].get<double>()), k1_sd, 1e-12 * k1_sd);
+  // Another sensor: refused naming the calibration and both sizes; no calibration file, report or device either.
+  fs::remove(Path("cal.yaml"));
+  fs::remove(Path("report.json"));
+  fs::remove(Path("device.json"));
+  r = RunTopocal(single + " --device " + std::string(TOPOCAL_SOURCE_DIR) + "/data/device.json --device-out " +
+                 Path("device.json"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_EQ(CountLines(r.output), 1) << r.output;
+  EXPECT_NE(r.output.find("calibrated at 640 x 480 px but the nominal device's sensor is 4000 x 3000 px"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(Path("cal.yaml")));
+  EXPECT_FALSE(fs::exists(Path("device.json")));
+  r = RunTopocal(single + " --device-out " + Path("device.json"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--device and --device-out go together"), std::string::npos) << r.output;
+}
+
 // The calibration file's date honours SOURCE_DATE_EPOCH (the reproducible-builds convention), as the unit
 // record's does; a malformed value is bad input naming the variable, and nothing is written.
 TEST_F(CalibrateCli, SourceDateEpochSetsTheCalibrationDate) {

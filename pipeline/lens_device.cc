@@ -1,0 +1,121 @@
+#include "pipeline/lens_device.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include <Eigen/Core>
+#include <fmt/format.h>
+
+#include "pipeline/detection_plane.h"
+#include "util/io.h"
+
+namespace topocal::pipeline {
+namespace {
+
+// Index of `name` in `names`; -1 when absent.
+int IndexOf(const std::vector<std::string>& names, const std::string& name) {
+  const auto it = std::find(names.begin(), names.end(), name);
+  return it == names.end() ? -1 : static_cast<int>(it - names.begin());
+}
+
+// d(device parameter) / d(calibration parameter), rows in `device_names` order, columns in the calibration's. The
+// tangential pair turns with the image orientation M as correct::LensFromOpenCv turns it: (p2, p1)_mm = M^T (p2, p1).
+Eigen::MatrixXd MappingJacobian(const std::vector<std::string>& device_names,
+                                const std::vector<std::string>& calibration_names,
+                                const model::TopographerCamera& camera) {
+  Eigen::MatrixXd j = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(device_names.size()),
+                                            static_cast<Eigen::Index>(calibration_names.size()));
+  const Eigen::Matrix2d mt = camera.Orientation().transpose();
+  const int p1 = IndexOf(calibration_names, "p1"), p2 = IndexOf(calibration_names, "p2");
+  for (int r = 0; r < static_cast<int>(device_names.size()); ++r) {
+    const std::string& name = device_names[static_cast<size_t>(r)];
+    if (name == "principal_point_u_px") {
+      j(r, IndexOf(calibration_names, "cx")) = 1.0;
+    } else if (name == "principal_point_v_px") {
+      j(r, IndexOf(calibration_names, "cy")) = 1.0;
+    } else if (name == "a_mm") {
+      j(r, IndexOf(calibration_names, "fx")) = camera.PitchMm();
+    } else if (name == "p2") {  // (M^T q)_x with q = (p2, p1)
+      j(r, p2) = mt(0, 0);
+      j(r, p1) = mt(0, 1);
+    } else if (name == "p1") {  // (M^T q)_y
+      j(r, p2) = mt(1, 0);
+      j(r, p1) = mt(1, 1);
+    } else {
+      j(r, IndexOf(calibration_names, name)) = 1.0;  // a radial coefficient: the same number
+    }
+  }
+  return j;
+}
+
+// The device parameters the calibration determines: those whose source parameter it fitted.
+std::vector<std::string> DeviceNames(const calib::CalibrationResult& calibration) {
+  const auto fitted = [&](const std::string& name) {
+    for (const auto& p : calibration.parameters) {
+      if (p.name == name) return !p.fixed;
+    }
+    return false;
+  };
+  std::vector<std::string> names;
+  if (fitted("cx")) names.push_back("principal_point_u_px");
+  if (fitted("cy")) names.push_back("principal_point_v_px");
+  if (fitted("fx")) names.push_back("a_mm");
+  for (const auto name : model::LensParameterNames(calibration.camera.lens)) {
+    // The tangential pair turns as a pair: both are carried when either was fitted.
+    const bool tangential = name == "p1" || name == "p2";
+    if (fitted(std::string(name)) || (tangential && (fitted("p1") || fitted("p2")))) names.emplace_back(name);
+  }
+  return names;
+}
+
+}  // namespace
+
+model::DeviceFile LensCalibratedDevice(const calib::CalibrationResult& calibration, const model::Device& nominal,
+                                       const std::string& calibration_name) {
+  const model::CameraModel& k = calibration.camera;
+  if (k.width_px != nominal.camera.width_px || k.height_px != nominal.camera.height_px) {
+    throw util::InputError(fmt::format("{}: calibrated at {} x {} px but the nominal device's sensor is {} x {} px",
+                                       calibration_name, k.width_px, k.height_px, nominal.camera.width_px,
+                                       nominal.camera.height_px));
+  }
+  for (const auto& p : calibration.parameters) {
+    if ((p.name == "ex" || p.name == "ey") && !p.fixed) {
+      throw util::InputError(fmt::format("{}: a fitted distortion centre has no device parameter to carry its "
+                                         "uncertainty; calibrate without --fit-centre to write a device",
+                                         calibration_name));
+    }
+  }
+  model::TopographerCamera sensor = nominal.camera;
+  sensor.principal_point_px = {k.cx_px, k.cy_px};
+  const DetectionPlaneModel on_plane = DetectionPlaneModelOf(k, sensor);
+  if (!on_plane.ok) throw util::InputError(fmt::format("{}: {}", calibration_name, on_plane.message));
+  model::DeviceFile out;
+  out.device = nominal;
+  out.device.camera = on_plane.camera;
+  out.device.camera.a_mm = k.fx_px * on_plane.camera.PitchMm();
+  out.device.distortion = on_plane.distortion;
+  if (const auto why = out.device.Invalid()) throw util::InputError(fmt::format("{}: {}", calibration_name, *why));
+
+  std::vector<std::string> calibration_names;
+  for (const auto& p : calibration.parameters) calibration_names.push_back(p.name);
+  const std::vector<std::string> names = DeviceNames(calibration);
+  const Eigen::MatrixXd j = MappingJacobian(names, calibration_names, out.device.camera);
+  const Eigen::MatrixXd covariance = j * calibration.covariance * j.transpose();
+  nlohmann::json matrix = nlohmann::json::array();
+  for (Eigen::Index r = 0; r < covariance.rows(); ++r) {
+    nlohmann::json row = nlohmann::json::array();
+    for (Eigen::Index c = 0; c < covariance.cols(); ++c) row.push_back(covariance(r, c));
+    matrix.push_back(row);
+  }
+  out.calibration = {
+      {"method", fmt::format("lens calibration {} ({}, RMS {:.4f} px over {} corners): the screen pose is the "
+                             "nominal device's, not calibrated",
+                             calibration_name, calib::ToString(calibration.model), calibration.rms_px,
+                             calibration.corners_used)},
+      {"model_error_px", on_plane.model_error_px},
+      {"covariance", {{"parameters", names}, {"matrix", matrix}}}};
+  return out;
+}
+
+}  // namespace topocal::pipeline
