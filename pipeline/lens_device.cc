@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <vector>
 
 #include <Eigen/Core>
@@ -13,10 +14,12 @@
 namespace topocal::pipeline {
 namespace {
 
-// Index of `name` in `names`; -1 when absent.
+// Index of `name` in `names` (the calibration's parameter table, calib::CameraParameterNames, which has every name
+// asked for here).
 int IndexOf(const std::vector<std::string>& names, const std::string& name) {
   const auto it = std::find(names.begin(), names.end(), name);
-  return it == names.end() ? -1 : static_cast<int>(it - names.begin());
+  if (it == names.end()) throw std::logic_error("lens device: the calibration has no parameter " + name);
+  return static_cast<int>(it - names.begin());
 }
 
 // d(device parameter) / d(calibration parameter), rows in `device_names` order, columns in the calibration's. The
@@ -27,7 +30,6 @@ Eigen::MatrixXd MappingJacobian(const std::vector<std::string>& device_names,
   Eigen::MatrixXd j = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(device_names.size()),
                                             static_cast<Eigen::Index>(calibration_names.size()));
   const Eigen::Matrix2d mt = camera.Orientation().transpose();
-  const int p1 = IndexOf(calibration_names, "p1"), p2 = IndexOf(calibration_names, "p2");
   for (int r = 0; r < static_cast<int>(device_names.size()); ++r) {
     const std::string& name = device_names[static_cast<size_t>(r)];
     if (name == "principal_point_u_px") {
@@ -36,12 +38,10 @@ Eigen::MatrixXd MappingJacobian(const std::vector<std::string>& device_names,
       j(r, IndexOf(calibration_names, "cy")) = 1.0;
     } else if (name == "a_mm") {
       j(r, IndexOf(calibration_names, "fx")) = camera.PitchMm();
-    } else if (name == "p2") {  // (M^T q)_x with q = (p2, p1)
-      j(r, p2) = mt(0, 0);
-      j(r, p1) = mt(0, 1);
-    } else if (name == "p1") {  // (M^T q)_y
-      j(r, p2) = mt(1, 0);
-      j(r, p1) = mt(1, 1);
+    } else if (name == "p1" || name == "p2") {  // p2_mm = (M^T q)_x, p1_mm = (M^T q)_y with q = (p2, p1)
+      const int row = name == "p2" ? 0 : 1;
+      j(r, IndexOf(calibration_names, "p2")) = mt(row, 0);
+      j(r, IndexOf(calibration_names, "p1")) = mt(row, 1);
     } else {
       j(r, IndexOf(calibration_names, name)) = 1.0;  // a radial coefficient: the same number
     }

@@ -16,6 +16,13 @@
 namespace topocal::pipeline {
 namespace {
 
+double StddevOf(const calib::CalibrationResult& calibration, const std::string& name) {
+  for (const auto& p : calibration.parameters) {
+    if (p.name == name) return p.stddev;
+  }
+  return -1.0;
+}
+
 calib::CalibrationResult UnitCalibration(const model::TopographerCamera& sensor) {
   model::CameraModel truth;
   truth.width_px = sensor.width_px;
@@ -56,17 +63,35 @@ TEST(LensCalibratedDevice, ImagesAsTheCalibrationAndCarriesItsCovariance) {
   std::printf("device against its calibration: %.2e px\n", worst);
   EXPECT_LT(worst, 1e-6);   // acceptance: the same camera (an error here would misplace every spot)
   EXPECT_LT(worst, 1e-9);   // regression bound: measured 9.4e-13 px (2026-12-07)
+  // A camera rolled by 90 or 180 deg: the tangential pair turns with it, its variances with it.
+  for (const auto orientation : {model::ImageOrientation::kRotate180, model::ImageOrientation::kRotate90}) {
+    model::Device rolled = nominal;
+    rolled.camera.orientation = orientation;
+    const model::DeviceFile turned = LensCalibratedDevice(calibration, rolled, "cal.yaml");
+    double turned_worst = 0;
+    for (double x = -0.4; x <= 0.4; x += 0.1) {
+      for (double y = -0.3; y <= 0.3; y += 0.1) {
+        const Eigen::Vector2d undistorted_px(k.cx_px + k.fx_px * x, k.cy_px + k.fy_px * y);
+        const Eigen::Vector2d px =
+            turned.device.PixelOf(turned.device.camera.DetectionPlaneFromPixel(undistorted_px));
+        turned_worst = std::max(turned_worst, (px - k.Project({x, y, 1.0})).norm());
+      }
+    }
+    EXPECT_LT(turned_worst, 1e-9) << model::OrientationName(orientation);
+    const auto turned_covariance = model::DeviceCovarianceOf(turned.calibration, "device.json");
+    ASSERT_TRUE(turned_covariance.has_value());
+    // p1, p2 at rows 5, 6: for a quarter turn they swap (up to sign), for a half turn they keep their variances.
+    const bool quarter = orientation == model::ImageOrientation::kRotate90;
+    const double sd_p1 = std::sqrt(turned_covariance->matrix(5, 5)), sd_p2 = std::sqrt(turned_covariance->matrix(6, 6));
+      EXPECT_NEAR(sd_p1, quarter ? StddevOf(calibration, "p2") : StddevOf(calibration, "p1"), 1e-9 * sd_p1);
+    EXPECT_NEAR(sd_p2, quarter ? StddevOf(calibration, "p1") : StddevOf(calibration, "p2"), 1e-9 * sd_p2);
+  }
   // The covariance, carried: a = fx pitch, the principal point and the radial terms as they are.
   const auto covariance = model::DeviceCovarianceOf(file.calibration, "device.json");
   ASSERT_TRUE(covariance.has_value());
   EXPECT_EQ(covariance->names, (std::vector<std::string>{"principal_point_u_px", "principal_point_v_px", "a_mm", "k1",
                                                          "k2", "p1", "p2", "k3"}));
-  const auto sd = [&](const std::string& name) {
-    for (const auto& p : calibration.parameters) {
-      if (p.name == name) return p.stddev;
-    }
-    return -1.0;
-  };
+  const auto sd = [&](const std::string& name) { return StddevOf(calibration, name); };
   const double pitch = nominal.camera.PitchMm();
   EXPECT_NEAR(std::sqrt(covariance->matrix(2, 2)), pitch * sd("fx"), 1e-9 * pitch * sd("fx"));
   EXPECT_NEAR(std::sqrt(covariance->matrix(0, 0)), sd("cx"), 1e-9 * sd("cx"));
