@@ -128,20 +128,23 @@ void BM_SolveTopocal(benchmark::State& state) {
 }
 BENCHMARK(BM_SolveTopocal)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
-void BM_SolveOpenCv(benchmark::State& state) {
+// cv::calibrateCamera with `flags` on the shared corners.
+void SolveOpenCv(benchmark::State& state, int flags, const char* label) {
   if (!HaveData(state)) return;
   const auto& c = SharedCorners();
   double rms = 0;
   cv::Mat k, d;
   for (auto _ : state) {
     std::vector<cv::Mat> rvecs, tvecs;
-    rms = cv::calibrateCamera(c.object, c.image, c.size, k, d, rvecs, tvecs);
+    rms = cv::calibrateCamera(c.object, c.image, c.size, k, d, rvecs, tvecs, flags);
   }
   state.counters["rms_px"] = rms;
   state.counters["fx_px"] = k.at<double>(0, 0);
   state.counters["fy_px"] = k.at<double>(1, 1);
-  state.SetLabel("cv::calibrateCamera, default flags");
+  state.SetLabel(label);
 }
+
+void BM_SolveOpenCv(benchmark::State& state) { SolveOpenCv(state, 0, "cv::calibrateCamera, default flags"); }
 BENCHMARK(BM_SolveOpenCv)->Unit(benchmark::kMillisecond);
 
 // OpenCV's rational lens model (k1..k6, p1, p2) on the same corners: topocal's rational8 and
@@ -161,17 +164,7 @@ void BM_SolveTopocalRational(benchmark::State& state) {
 BENCHMARK(BM_SolveTopocalRational)->Unit(benchmark::kMillisecond);
 
 void BM_SolveOpenCvRational(benchmark::State& state) {
-  if (!HaveData(state)) return;
-  const auto& c = SharedCorners();
-  double rms = 0;
-  cv::Mat k, d;
-  for (auto _ : state) {
-    std::vector<cv::Mat> rvecs, tvecs;
-    rms = cv::calibrateCamera(c.object, c.image, c.size, k, d, rvecs, tvecs, cv::CALIB_RATIONAL_MODEL);
-  }
-  state.counters["rms_px"] = rms;
-  state.counters["fx_px"] = k.at<double>(0, 0);
-  state.SetLabel("cv::calibrateCamera, CALIB_RATIONAL_MODEL");
+  SolveOpenCv(state, cv::CALIB_RATIONAL_MODEL, "cv::calibrateCamera, CALIB_RATIONAL_MODEL");
 }
 BENCHMARK(BM_SolveOpenCvRational)->Unit(benchmark::kMillisecond);
 
