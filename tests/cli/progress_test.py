@@ -24,7 +24,7 @@ os.makedirs(WORK)
 with open(os.path.join(WORK, "board.yaml"), "w") as f:
     f.write("target_type: checkerboard\ntargetCols: 9\ntargetRows: 7\nrowSpacingMeters: 0.002\ncolSpacingMeters: 0.002\n")
 # A render of ~3 s of wall time on 2 cores (the edges sub-sampled 24 x 24): well beyond the 1 s before the first
-# progress line (the 2400 x 1800 render this replaced took 0.9 s once rendering got faster, and the test flickered).
+# progress line even on a faster machine (a render near 1 s would draw the line only under load).
 render = [TOPOCAL, "render-target", "--target", "board.yaml", "--width", "4000", "--height", "3000", "--focal-mm",
           "5.2", "--pixel-pitch-um", "3", "--distance-mm", "70", "--supersampling", "24", "--out", "view.png"]
 
