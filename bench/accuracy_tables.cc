@@ -261,7 +261,7 @@ void DiagnoseTable(const model::Config& config, const std::string& only) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"Accuracy tables of issue 18: freeform corneas, eyes off the axis"};
+  CLI::App app{"Accuracy tables: freeform corneas, eyes off the axis"};
   app.require_subcommand(1);
   auto* freeform = app.add_subcommand("freeform", "topocal's freeform test set against the truth");
   auto* apex_cmd = app.add_subcommand("apex", "eyes off the axis and tilted: paper and free-apex biconic fits");

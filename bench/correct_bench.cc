@@ -11,6 +11,7 @@
 #include "correct/spot_truth.h"
 #include "correct/undistort_map.h"
 #include "model/config.h"
+#include "model/device.h"
 #include "model/topographer_camera.h"
 
 namespace {
@@ -30,7 +31,7 @@ const Scene& GetScene() {
   static const Scene scene = [] {
     Scene s;
     s.config = model::LoadConfig(TOPOCAL_PAPER_CONFIG);
-    s.camera = model::LoadTopographerCamera(std::string(TOPOCAL_SOURCE_DIR) + "/data/camera.json");
+    s.camera = model::LoadDevice(std::string(TOPOCAL_SOURCE_DIR) + "/data/device.json").device.camera;
     model::SeidelParams seidel;
     seidel.sigma_per_mm2 = 6.3e-5;
     seidel.magnification = s.config.distortion.magnification;

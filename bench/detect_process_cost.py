@@ -66,16 +66,16 @@ def main():
     os.environ.setdefault("TOPOCAL_DATA_DIR", os.path.join(ROOT, "data"))
     work = os.path.join(ROOT, "build/detect-bench")
     os.makedirs(work, exist_ok=True)
-    camera, config = os.path.join(ROOT, "data/camera.json"), os.path.join(ROOT, "data/paper.json")
+    device, config = os.path.join(ROOT, "data/device.json"), os.path.join(ROOT, "data/paper.json")
     spots, blank = os.path.join(work, "spots.png"), os.path.join(work, "blank.png")
     if not os.path.exists(spots):
-        subprocess.run([args.topocal, "render-spots", "--config", config, "--camera", camera, "--sigma", "0",
+        subprocess.run([args.topocal, "render-spots", "--config", config, "--device", device, "--sigma", "0",
                         "--out", spots], check=True, stdout=subprocess.DEVNULL)
     if not os.path.exists(blank):  # the same sensor, nothing in front of it: the background level, 16-bit
         cv2.imwrite(blank, np.full((3000, 4000), 1000, np.uint16))
 
     def detect(binary, image, ok_codes):
-        return [binary, "detect", "--image", image, "--camera", camera, "--config", config,
+        return [binary, "detect", "--image", image, "--device", device, "--config", config,
                 "--out", os.path.join(work, "out.csv"), "--json", os.path.join(work, "out.json")], ok_codes
 
     figures = {"/bin/true": (["/bin/true"], (0,)),

@@ -10,6 +10,7 @@
 #include "correct/spot_truth.h"
 #include "model/config.h"
 #include "model/distortion.h"
+#include "model/device.h"
 #include "model/topographer_camera.h"
 #include "pipeline/unit_verification.h"
 
@@ -31,7 +32,7 @@ const Scene& GetScene() {
   static const Scene scene = [] {
     Scene s;
     s.config = model::LoadConfig(TOPOCAL_PAPER_CONFIG);
-    s.camera = model::LoadTopographerCamera(std::string(TOPOCAL_SOURCE_DIR) + "/data/camera.json");
+    s.camera = model::LoadDevice(std::string(TOPOCAL_SOURCE_DIR) + "/data/device.json").device.camera;
     model::SeidelParams seidel;
     seidel.sigma_per_mm2 = kSigma;
     seidel.magnification = s.config.distortion.magnification;

@@ -23,7 +23,7 @@ if [ ! -f "$demo/target.png" ] || [ ! -f "$demo/sphere.png" ]; then
   mkdir -p "$demo"
   "$topocal" render-target --target data/target-topographer.yaml --out "$demo/target.png" --width 4000 --height 3000 \
     --focal-mm 5.2 --pixel-pitch-um 1.12 --sigma 6.3e-5 --distance-mm 70 --supersampling 4 --noise 1 >/dev/null
-  "$topocal" render-spots --config data/paper.json --camera data/camera.json --sigma 6.3e-5 \
+  "$topocal" render-spots --config data/paper.json --device data/device.json --sigma 6.3e-5 \
     --sphere-radius-mm 7.8 --out "$demo/sphere.png" >/dev/null
 fi
 

@@ -48,7 +48,7 @@ def main():
             i = a.inputs
             p = subprocess.Popen([a.topocal, "unit", "calibrate", "--serial", "SN", "--target", f"{i}/target.yaml",
                                   "--images", f"{i}/view.png", "--reference-sphere", f"{i}/sphere.png",
-                                  "--sphere-radius-mm", "7.8", "--camera", f"{i}/camera.json", "--uncertainty", "8",
+                                  "--sphere-radius-mm", "7.8", "--device", f"{i}/device.json", "--uncertainty", "8",
                                   "--out", out], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
             if a.anytime:
                 time.sleep(rng.uniform(0, 2.0))

@@ -9,7 +9,6 @@
 
 #include "model/config.h"
 #include "model/device.h"
-#include "model/topographer_camera.h"
 #include "pipeline/uncertainty_coverage.h"
 
 namespace {
@@ -26,11 +25,11 @@ void PrintRows(const char* title, const std::vector<pipeline::CoverageRow>& rows
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"Coverage of the reported U over seeded devices and eyes (issue 32, item 2)"};
+  CLI::App app{"Coverage of the reported U over seeded devices and eyes"};
   pipeline::CoverageOptions o;
   o.cases = 120;
   std::string config_path = TOPOCAL_PAPER_CONFIG;
-  std::string camera_path = std::string(TOPOCAL_SOURCE_DIR) + "/data/camera.json";
+  std::string device_path = std::string(TOPOCAL_SOURCE_DIR) + "/data/device.json";
   app.add_option("--cases", o.cases, "Seeded cases (device x eye)")->capture_default_str();
   app.add_option("--seed", o.seed, "Seed of every draw")->capture_default_str();
   app.add_option("--noise-px", o.spot_noise_px, "Spot-centre noise, px per axis")->capture_default_str();
@@ -39,10 +38,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"biconic", "keratoconus", "ablation", "irregular"}));
   app.add_option("--jobs", o.jobs, "Threads (0: every core)")->capture_default_str();
   app.add_option("--config", config_path, "Topographer configuration")->capture_default_str();
-  app.add_option("--camera", camera_path, "Camera of the nominal device")->capture_default_str();
+  app.add_option("--device", device_path, "The nominal device")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   const auto config = model::LoadConfig(config_path);
-  const auto nominal = model::NominalDevice(model::LoadTopographerCamera(camera_path));
+  const auto nominal = model::LoadDevice(device_path).device;
   const auto r = pipeline::RunUncertaintyCoverage(config, nominal, o);
   fmt::print("{} cases (seed {}, spot noise {} px, {} spot draws), {} failed\n", r.cases, o.seed, o.spot_noise_px,
              o.spot_draws, r.failed);

@@ -89,7 +89,7 @@ struct ReconstructionSettings {
   int power_map_meridians = 360;
   int power_map_radial_samples = 100;
   double spot_uncertainty_um = 0.045;        // spot-centre uncertainty on the detection plane (0.04 px of the
-                                             // 1.12 um pixel of data/camera.json): the noise the model-adequacy
+                                             // 1.12 um pixel of data/device.json): the noise the model-adequacy
                                              // figure compares the slope residual with
   std::string surface_model = "polynomial";  // "polynomial" (Psi alone, the paper's Eq. 21), "spline" (Psi plus
                                              // a bicubic P-spline residual, REML-smoothed: freeform corneas;

@@ -127,10 +127,6 @@ TopographerCamera ParseTopographerCamera(const std::string& json_text, const std
   return CameraFromJson(j, origin, "");
 }
 
-TopographerCamera LoadTopographerCamera(const std::string& path) {
-  return ParseTopographerCamera(util::ReadFile(path), path);
-}
-
 std::string TopographerCameraToJson(const TopographerCamera& c) { return CameraToJson(c).dump(2) + "\n"; }
 
 }  // namespace topocal::model

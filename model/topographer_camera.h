@@ -72,13 +72,12 @@ struct TopographerCamera {
   std::optional<std::string> Invalid() const;
 };
 
-// Strict loading of the camera file (JSON, docs/camera-conventions.md): unknown, missing or mistyped keys and
-// non-physical values throw InputError "FILE: key: problem". A device file (model/device.h) is accepted too: its
-// camera section is returned (a device's pose and distortion then need LoadDevice).
-TopographerCamera LoadTopographerCamera(const std::string& path);
+// Strict parsing of a camera object (a device file's "camera" section, docs/camera-conventions.md): unknown, missing
+// or mistyped keys and non-physical values throw InputError "ORIGIN: key: problem". A whole device file
+// (model/device.h) is accepted too: its camera section is returned.
 TopographerCamera ParseTopographerCamera(const std::string& json_text, const std::string& origin);
 std::string TopographerCameraToJson(const TopographerCamera& camera);
-// The camera object itself (the camera file, or a device file's "camera" section); key_prefix names it in errors.
+// The camera object itself (a device file's "camera" section); key_prefix names it in errors.
 TopographerCamera CameraFromJson(const nlohmann::json& j, const std::string& origin, const std::string& key_prefix);
 nlohmann::json CameraToJson(const TopographerCamera& camera);
 

@@ -46,7 +46,7 @@ DetectionPlaneModel DetectionPlaneModelOf(const model::CameraModel& calibrated, 
 DetectionPlaneModel DetectionPlaneModelUnverified(const model::CameraModel& calibrated,
                                                   const model::TopographerCamera& camera);
 
-// A lens calibration file given beside a camera file (`--camera CAM --calibration cal.yaml`) on the detection plane:
+// A lens calibration file given beside a device (`--device D --calibration cal.yaml`) on its camera's detection plane:
 // DetectionPlaneModelOf, ok. Throws util::InputError naming the calibration file when it was made on a sensor of
 // another size or cannot be expressed on the detection plane.
 DetectionPlaneModel CalibrationOnDetectionPlane(const calib::CalibrationFile& calibration,

@@ -9,6 +9,7 @@
 // a_mm and the lens coefficients) by the Jacobian of that mapping, so that `reconstruct --device --uncertainty`
 // propagates it. The pixel aspect's own uncertainty (fy against fx) is not a device parameter and is not carried;
 // a fitted distortion centre is refused (its uncertainty has no device parameter to go to).
+#include <optional>
 #include <string>
 
 #include "calib/calibrate.h"
@@ -21,5 +22,19 @@ namespace topocal::pipeline {
 // expressed on the detection plane (the reason and the model error).
 model::DeviceFile LensCalibratedDevice(const calib::CalibrationResult& calibration, const model::Device& nominal,
                                        const std::string& calibration_name);
+
+// The device a measuring verb (detect, reconstruct --image) images through: `--device D`, or with
+// `--calibration C` the device D with C's lens on its camera, as above (what `calibrate --device D --device-out`
+// would write). The covariance is the device file's, or the one C's covariance maps to; when there is none, why
+// (a hand-written device; a calibration file without a covariance, or with a fitted distortion centre): the
+// device's part of every uncertainty is then unknown and said so, never taken as zero.
+struct MeasuringDevice {
+  model::Device device;
+  std::optional<model::DeviceCovariance> covariance;
+  std::string no_covariance;  // why covariance is empty
+  std::string name;           // for messages: "D" or "D with the lens of C"
+};
+// Throws util::InputError / util::ConfigError naming the file that is missing, malformed or does not fit.
+MeasuringDevice LoadMeasuringDevice(const std::string& device_path, const std::string& calibration_path);
 
 }  // namespace topocal::pipeline

@@ -54,6 +54,7 @@ struct QuantityUncertainty {
 
 struct MeasurementUncertainty {
   bool device_covariance = false;    // false: the device file has none; the device's part is unknown, not zero
+  std::string no_device_covariance;  // why there is none (set by the caller, who knows where the device came from)
   std::vector<std::string> device_parameters;  // the covariance's parameters
   int device_directions = 0;         // eigen-directions with a spread, each one analysis
   bool device_monte_carlo = false;   // the device's part by Monte Carlo draws (UncertaintyOptions::device_draws)

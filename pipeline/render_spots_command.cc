@@ -12,7 +12,6 @@
 #include "correct/spot_truth.h"
 #include "imageio/image_file.h"
 #include "model/device.h"
-#include "model/topographer_camera.h"
 #include "util/io.h"
 #include "pipeline/simulation_surface.h"
 
@@ -28,7 +27,7 @@ void RequirePng(const std::string& path, const char* option) {
 // The request's numbers that need no file, checked before any is read.
 void Validate(const RenderSpotsRequest& a) {
   RequirePng(a.out_path, "--out");
-  if (!std::isfinite(a.sigma_per_mm2)) throw util::InputError("--sigma: must be a finite number");
+  if (a.sigma_per_mm2 && !std::isfinite(*a.sigma_per_mm2)) throw util::InputError("--sigma: must be a finite number");
   if (!(a.drop_fraction >= 0 && a.drop_fraction < 1)) {
     throw util::InputError(fmt::format("--drop: must be in [0, 1) (got {})", a.drop_fraction));
   }
@@ -37,21 +36,20 @@ void Validate(const RenderSpotsRequest& a) {
     if (!(v >= 0 && v < 1)) throw util::InputError(fmt::format("{}: must be in [0, 1) (got {})", name, v));
   }
   if (a.glints < 0) throw util::InputError(fmt::format("--glints: must be >= 0 (got {})", a.glints));
-  if (a.camera_path.empty() == a.device_path.empty()) {
-    throw util::InputError("render-spots: give one of --camera or --device");
-  }
+  if (a.device_path.empty()) throw util::InputError("render-spots: give --device");
 }
 
-// The as-built device, or the camera's nominal device with the configuration's Seidel distortion at sigma.
+// The device, with the configuration's Seidel distortion at sigma in place of its own when --sigma is given (the
+// configuration's Seidel model assumes its a, which the device must then have).
 model::Device DeviceOf(const RenderSpotsRequest& a, const model::Config& cfg) {
-  if (!a.device_path.empty()) return model::LoadDevice(a.device_path).device;
-  model::Device device = model::NominalDevice(model::LoadTopographerCamera(a.camera_path));
+  model::Device device = model::LoadDevice(a.device_path).device;
+  if (!a.sigma_per_mm2) return device;
   if (std::abs(device.camera.a_mm - cfg.topographer.a_mm) > 1e-9) {
     throw util::InputError(fmt::format("{}: a_mm: {} differs from the configuration's topographer.a_mm = {} ({})",
-                                       a.camera_path, device.camera.a_mm, cfg.topographer.a_mm, a.config_path));
+                                       a.device_path, device.camera.a_mm, cfg.topographer.a_mm, a.config_path));
   }
-  RequireFoldFreeSigma(a.sigma_per_mm2, cfg, a.config_path);
-  device.distortion = cfg.distortion.SeidelAt(a.sigma_per_mm2);
+  RequireFoldFreeSigma(*a.sigma_per_mm2, cfg, a.config_path);
+  device.distortion = cfg.distortion.SeidelAt(*a.sigma_per_mm2);
   return device;
 }
 

@@ -4,6 +4,7 @@
 // capture on request, and its truth. Conventions: docs/camera-conventions.md.
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -16,11 +17,11 @@ namespace topocal::pipeline {
 
 struct RenderSpotsRequest {
   std::string config_path;
-  std::string camera_path, device_path;  // exactly one: the camera (with sigma) or an as-built device
+  std::string device_path;               // the device imaged through
   std::string out_path;                  // the image (.png)
   std::string truth_path;                // truth CSV; empty: none
   std::string spot = "ellipse";          // spot model: ellipse or psf
-  double sigma_per_mm2 = 0;              // Seidel distortion with a camera
+  std::optional<double> sigma_per_mm2;   // the configuration's Seidel distortion at sigma instead of the device's
   double psf_px = 1.0, drop_fraction = 0, sphere_radius_mm = 0, upper_lid_fraction = 0, lower_lid_fraction = 0;
   std::vector<double> ball_at_mm;  // vertex of the reference ball (x, y, z); empty: the origin
   // NaN: the bit depth's default (a well-exposed frame with realistic read and shot noise).

@@ -34,7 +34,7 @@ struct ScreenDesignGoal {
   std::string surface_model = "spline";        // reconstruction.surface_model the candidates are measured with
   double steepest_radius_mm = 6.5;             // apex radii of the corneas every spot must resolve on
   double flattest_radius_mm = 9.5;
-  double pixel_pitch_um = model::kPaperPixelPitchUm;  // the sensor's (data/camera.json)
+  double pixel_pitch_um = model::kPaperPixelPitchUm;  // the sensor's (data/device.json)
   double min_gap_px = 3.0;           // gap the detector needs between neighbouring spot images
   double max_spot_radius_um = 8.0;   // ideal-image spot radius: the paper's, and the largest tried
   double min_spot_radius_um = 4.0;   // below it a candidate is refused (a quarter of the paper's light)

@@ -23,13 +23,13 @@
 namespace topocal::pipeline {
 namespace {
 
-model::TopographerCamera CameraFor(const std::string& camera_path, const std::string& calibration_path,
+model::TopographerCamera CameraFor(const std::string& device_path, const std::string& calibration_path,
                                    const calib::CalibrationFile& cal) {
-  if (!camera_path.empty()) {
-    const auto camera = model::LoadTopographerCamera(camera_path);
+  if (!device_path.empty()) {
+    const auto camera = model::LoadDevice(device_path).device.camera;
     if (camera.width_px != cal.camera.width_px || camera.height_px != cal.camera.height_px) {
       throw util::InputError(fmt::format("{}: the camera is {} x {} px but the calibration {} is for {} x {} px",
-                                         camera_path, camera.width_px, camera.height_px, calibration_path,
+                                         device_path, camera.width_px, camera.height_px, calibration_path,
                                          cal.camera.width_px, cal.camera.height_px));
     }
     return camera;
@@ -47,7 +47,7 @@ void UndistortSpots(const UndistortRequest& a, const Undistortion& c, std::ostre
   const util::LogLine& log = a.log;
   if (!c.has_pitch) {
     throw util::InputError(
-        fmt::format("--spots: {} has no pixel_pitch_um; give --camera to map its pixels to mm", a.calibration_path));
+        fmt::format("--spots: {} has no pixel_pitch_um; give --device to map its pixels to mm", a.calibration_path));
   }
   const auto rows = model::ReadSpotsCsv(a.spots_path);
   std::vector<Eigen::Vector2d> mm;
@@ -129,10 +129,10 @@ void UndistortImageFile(const UndistortRequest& a, const Undistortion& c, std::o
 
 }  // namespace
 
-Undistortion UndistortionFromCalibration(const std::string& calibration_path, const std::string& camera_path) {
+Undistortion UndistortionFromCalibration(const std::string& calibration_path, const std::string& device_path) {
   const auto cal = calib::LoadCalibrationFile(calibration_path);
   const auto on_plane =
-      CalibrationOnDetectionPlane(cal, calibration_path, CameraFor(camera_path, calibration_path, cal), camera_path);
+      CalibrationOnDetectionPlane(cal, calibration_path, CameraFor(device_path, calibration_path, cal), device_path);
   Undistortion c;
   c.distortion = on_plane.distortion;
   c.camera = on_plane.camera;
@@ -143,7 +143,7 @@ Undistortion UndistortionFromCalibration(const std::string& calibration_path, co
   c.inside = [region = cal.valid_region, camera = cal.camera](const Eigen::Vector2d& px) {
     return calib::InsideValidRegion(region, camera, px);
   };
-  c.has_pitch = !camera_path.empty() || cal.pixel_pitch_um.has_value();
+  c.has_pitch = !device_path.empty() || cal.pixel_pitch_um.has_value();
   return c;
 }
 
@@ -178,15 +178,12 @@ void RunUndistort(const UndistortRequest& request, std::ostream& out) {
   if (request.spots_path.empty() == request.image_path.empty()) {
     throw util::InputError("undistort: give exactly one of --spots or --image");
   }
-  if (request.calibration_path.empty() == request.device_path.empty()) {
-    throw util::InputError("undistort: give exactly one of --calibration or --device");
+  if (request.calibration_path.empty() && request.device_path.empty()) {
+    throw util::InputError("undistort: give --calibration (with --device for its camera) or --device");
   }
-  if (!request.device_path.empty() && !request.camera_path.empty()) {
-    throw util::InputError("--camera: not with --device (the device file holds its camera)");
-  }
-  const Undistortion c = request.device_path.empty()
-                             ? UndistortionFromCalibration(request.calibration_path, request.camera_path)
-                             : UndistortionFromDevice(request.device_path);
+  const Undistortion c = request.calibration_path.empty()
+                             ? UndistortionFromDevice(request.device_path)
+                             : UndistortionFromCalibration(request.calibration_path, request.device_path);
   if (!request.spots_path.empty()) {
     UndistortSpots(request, c, out);
   } else {

@@ -28,11 +28,12 @@ struct Undistortion {
   const char* region_name = "valid_radius_px";
 };
 
-// The calibration on the detection plane. With `camera_path`, that camera (checked against the calibration's image
+// The calibration on the detection plane. With `device_path`, that device's camera (checked against the
+// calibration's image
 // size); without, one derived from the calibration itself: principal point and focal length from its camera matrix,
 // the pixel pitch the file's when it has one, else 1 um (it cancels out for images). util::InputError naming the
 // file for a mismatch or a calibration the detection plane cannot express.
-Undistortion UndistortionFromCalibration(const std::string& calibration_path, const std::string& camera_path);
+Undistortion UndistortionFromCalibration(const std::string& calibration_path, const std::string& device_path);
 
 // A device's distortion, invertible within its fold: a distorted point closer to the centre than the fold's image
 // has its one preimage inside the fold (the radial map rises monotonically up to it).
@@ -40,7 +41,8 @@ Undistortion UndistortionFromDevice(const std::string& device_path);
 
 struct UndistortRequest {
   std::string calibration_path, device_path;  // exactly one: what corrects
-  std::string camera_path;  // with a calibration: the camera (needed for spots unless the calibration has a pitch)
+  // With a calibration, device_path (optional) is the device whose camera maps pixels to mm (needed for spots
+  // unless the calibration has a pitch); alone, the device's own distortion corrects.
   std::string spots_path, image_path;  // exactly one: what is corrected
   std::string out_path;                // spots CSV, or a .png for an image
   util::LogLine log;  // warnings beside the result: spots refused, black pixels and why

@@ -25,7 +25,7 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
   util::JsonSection s(j, path, "");
   // Unknown keys first: a misspelt key is the likelier cause of whatever would fail next.
   for (const char* key : {"serial", "target", "images", "reference_sphere", "sphere_radius_mm", "model", "fit_centre",
-                          "fix", "fix_aspect", "allow_undetermined", "config", "camera", "uncertainty_samples", "seed",
+                          "fix", "fix_aspect", "allow_undetermined", "config", "device", "uncertainty_samples", "seed",
                           "sphere_repeats"}) {
     s.MarkSeen(key);
   }
@@ -65,7 +65,7 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
   }
   if (const auto v = str("model", false)) r.model = *v;
   if (const auto v = str("config", false)) r.config = relative(*v);
-  if (const auto v = str("camera", false)) r.camera = relative(*v);
+  if (const auto v = str("device", false)) r.device = relative(*v);
   if (s.Has("fit_centre")) {
     const json& v = s.Get("fit_centre");
     if (!v.is_boolean()) s.Fail("fit_centre", fmt::format("expected true or false (got {})", util::QuoteJsonValue(v)));

@@ -76,7 +76,7 @@ struct LoadedInputs {
 };
 
 void CheckImageSize(const cv::Mat& image, const std::string& path, const LoadedInputs& in, const UnitRequest& r) {
-  imageio::RequireSize(image, path, in.camera.width_px, in.camera.height_px, r.camera);
+  imageio::RequireSize(image, path, in.camera.width_px, in.camera.height_px, r.device);
 }
 
 // The record's folder is named after the unit (a record of SN-0111 in units/SN-9999/ would be filed under another
@@ -117,7 +117,6 @@ void ValidateRequest(const UnitRequest& r) {
     throw util::InputError(fmt::format("--radii-mm: {} radii for {} ball images (one certified radius per image)",
                                        r.ball_radii_mm.size(), r.balls.size()));
   }
-  if (!r.device.empty() && r.balls.empty()) throw util::InputError("--device: goes with --balls (the device stage)");
   if (fs::exists(r.out) && !fs::exists(fs::path(r.out) / "unit.json")) {
     throw util::InputError(fmt::format("--out {}: exists and is not a unit record; not overwriting it", r.out));
   }
@@ -158,18 +157,8 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
   ValidateRequest(r);
   LoadedInputs in;
   in.config = model::LoadConfig(r.config);
-  in.camera = model::LoadTopographerCamera(r.camera);
-  if (!r.device.empty()) {
-    in.nominal_device = model::LoadDevice(r.device).device;
-    if (in.nominal_device.camera.width_px != in.camera.width_px ||
-        in.nominal_device.camera.height_px != in.camera.height_px) {
-      throw util::InputError(fmt::format("{}: the device's sensor is {} x {} px but {} says {} x {} px", r.device,
-                                         in.nominal_device.camera.width_px, in.nominal_device.camera.height_px,
-                                         r.camera, in.camera.width_px, in.camera.height_px));
-    }
-  } else {
-    in.nominal_device = model::NominalDevice(in.camera);
-  }
+  in.nominal_device = model::LoadDevice(r.device).device;
+  in.camera = in.nominal_device.camera;
   in.target = calib::LoadTargetDescription(r.target);
   SetCalibrationOptions(r, &in);
 
@@ -186,7 +175,7 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
     return image;
   };
   add("config", r.config);
-  add("camera", r.camera);
+  add("device", r.device);
   add("target", r.target);
   for (const auto& path : r.images) {
     in.view_bytes.push_back(imageio::ReadImageBytes(path));
@@ -201,7 +190,6 @@ LoadedInputs LoadInputs(const UnitRequest& r) {
     in.repeat_bytes.push_back(imageio::ReadImageBytes(path));
     in.provenance.push_back({"reference_sphere_repeat", path, util::Sha256Hex(in.repeat_bytes.back())});
   }
-  if (!r.device.empty()) add("device", r.device);
   for (size_t i = 0; i < r.balls.size(); ++i) {
     // Checked before the image is read (pipeline::CalibrateDevice checks it too).
     if (!(r.ball_radii_mm[i] >= kMinBallRadiusMm && r.ball_radii_mm[i] <= kMaxBallRadiusMm)) {

@@ -30,7 +30,6 @@ struct UnitRequest {
   std::string target;                 // target description (Kalibr YAML)
   std::vector<std::string> images;    // target images, in order (one = single-view calibration)
   std::string config;                 // topographer design (JSON)
-  std::string camera;                 // topographer camera (JSON)
   std::string reference_sphere;       // raw spot image of the reference sphere; empty = no verification
   double sphere_radius_mm = 0;
   // Further images of the same reference sphere, the ball taken out and seated again between captures: each is
@@ -41,7 +40,7 @@ struct UnitRequest {
   // The reference sphere, when given, is then a held-out ball measured through the calibrated device too.
   std::vector<std::string> balls;
   std::vector<double> ball_radii_mm;
-  std::string device;                 // nominal device (JSON); empty = the camera with no distortion, screen nominal
+  std::string device;                 // the unit's nominal device (JSON): its camera, and where the device stage starts
   std::string model = "seidel";       // seidel | brown5
   bool fit_centre = false;
   std::vector<std::string> fixed;     // parameters held at their initial value (calib::CameraParameterNames)
@@ -70,7 +69,7 @@ std::filesystem::path RecordHistoryDir(const std::filesystem::path& record);
 
 // One input file of the unit and its SHA-256 (the record's provenance).
 struct UnitInputDigest {
-  std::string role;  // config, camera, target, image, reference_sphere, reference_sphere_repeat, device, ball
+  std::string role;  // config, device, target, image, reference_sphere, reference_sphere_repeat, ball
   std::string path, sha256;
 };
 

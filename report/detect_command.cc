@@ -8,13 +8,11 @@
 
 #include <nlohmann/json.hpp>
 
-#include "calib/calibration_file.h"
 #include "correct/detect_and_index.h"
 #include "correct/detected_spots_csv.h"
 #include "model/device.h"
-#include "model/topographer_camera.h"
 #include "pipeline/capture_quality.h"
-#include "pipeline/detection_plane.h"
+#include "pipeline/lens_device.h"
 #include "pipeline/measure_spots.h"
 #include "report/analysis_json.h"
 #include "util/io.h"
@@ -29,19 +27,6 @@ void WriteRefusal(const DetectRequest& a, const nlohmann::json& j) {
   util::StagedOutputs outputs;
   outputs.AddFile(a.json_path, util::JsonFileText(j));
   outputs.Commit();
-}
-
-// As reconstruct --image: through the device, or the camera's nominal device with the calibration's distortion (and
-// pixel aspect), the spots undistorted only when one of them says how.
-model::Device ImagingDevice(const DetectRequest& a, const std::optional<model::Device>& device) {
-  model::Device imaging = device ? *device : model::NominalDevice(model::LoadTopographerCamera(a.camera_path));
-  if (!a.calibration_path.empty()) {
-    const auto on_plane = pipeline::CalibrationOnDetectionPlane(calib::LoadCalibrationFile(a.calibration_path),
-                                                                a.calibration_path, imaging.camera, a.camera_path);
-    imaging.camera = on_plane.camera;
-    imaging.distortion = on_plane.distortion;
-  }
-  return imaging;
 }
 
 // Identities the data cannot support are not written: the JSON says why, the spots file is not made.
@@ -59,23 +44,19 @@ model::Device ImagingDevice(const DetectRequest& a, const std::optional<model::D
 }  // namespace
 
 void RunDetect(const DetectRequest& a, std::ostream& out) {
-  if (a.camera_path.empty() == a.device_path.empty())
-    throw util::InputError("detect: give one of --camera or --device");
+  if (a.device_path.empty()) throw util::InputError("detect: give --device (the device the image was taken through)");
   auto cfg = model::LoadConfig(a.config_path);
   if (a.override_config) a.override_config(&cfg);
   cfg = pipeline::ForEyes(cfg);
-  std::optional<model::Device> device;
-  if (!a.device_path.empty()) device = model::LoadDevice(a.device_path).device;
-  const model::Device imaging = ImagingDevice(a, device);
-  const std::string& camera_file = a.device_path.empty() ? a.camera_path : a.device_path;
+  // As reconstruct --image: through the device, with the calibration's lens on it when one is given.
+  const model::Device imaging = pipeline::LoadMeasuringDevice(a.device_path, a.calibration_path).device;
   correct::DetectAndIndexOptions options;
   options.detection.method = correct::CentroidMethodFromName(a.estimator);
-  const cv::Mat image = pipeline::ReadSpotImage(a.image_path, imaging.camera, camera_file);
+  const cv::Mat image = pipeline::ReadSpotImage(a.image_path, imaging.camera, a.device_path);
   pipeline::CheckedSpots checked;
   try {
     checked =
-        pipeline::DetectThroughSurface(image, imaging, device || !a.calibration_path.empty(),
-                                       pipeline::AnalysisOf(device ? &*device : nullptr, cfg, nullptr), cfg, options);
+        pipeline::DetectThroughSurface(image, imaging, true, pipeline::AnalysisOf(&imaging, cfg, nullptr), cfg, options);
   } catch (const util::InputError& e) {
     throw util::InputError(fmt::format("{}: {}", a.image_path, e.what()));
   } catch (const util::MeasurementRefused& e) {

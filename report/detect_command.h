@@ -12,8 +12,9 @@ namespace topocal::report {
 
 struct DetectRequest {
   std::string image_path;  // the raw sensor image
-  // Exactly one of a camera (with an optional lens calibration) and a device: the pixels' camera.
-  std::string camera_path, calibration_path, device_path;
+  // The device the image was taken through, and optionally a lens calibration put on its camera
+  // (pipeline::LoadMeasuringDevice).
+  std::string device_path, calibration_path;
   std::string config_path;        // the topographer configuration (JSON)
   std::string out_path;           // the spots CSV
   std::string json_path;          // the summary JSON; empty: none

@@ -10,19 +10,16 @@
 
 #include <nlohmann/json.hpp>
 
-#include "calib/calibration_file.h"
 #include "correct/detect_and_index.h"
 #include "model/device.h"
 #include "model/null_screen.h"
 #include "model/spots_csv.h"
-#include "model/topographer_camera.h"
 #include "pipeline/capture_quality.h"
-#include "pipeline/detection_plane.h"
+#include "pipeline/lens_device.h"
 #include "pipeline/map_output.h"
 #include "pipeline/measure_spots.h"
 #include "pipeline/measurement_uncertainty.h"
 #include "pipeline/surface_labelling.h"
-#include "pipeline/uncertainty.h"
 #include "plot/map_image.h"
 #include "report/analysis_json.h"
 #include "topo/analysis.h"
@@ -64,7 +61,7 @@ class Printer {
 void PrintUncertaintySources(const pipeline::MeasurementUncertainty& u, std::ostream& out) {
   out << fmt::format("uncertainties below are U (k = 2) from: ");
   if (!u.device_covariance) {
-    out << fmt::format("NOT the device (its file has no calibration covariance: a hand-written device), ");
+    out << fmt::format("NOT the device ({}), ", u.no_device_covariance);
   } else if (u.device_monte_carlo) {
     out << fmt::format("the device's covariance ({} Monte Carlo draws of {} parameters), ", u.device_analyses,
                        u.device_parameters.size());
@@ -176,77 +173,32 @@ pipeline::SpotMeasurement MeasureImage(const cv::Mat& image, const model::Topogr
   return m;
 }
 
-// Spots from a CSV, or detected, indexed and (with a calibration) undistorted in a raw image.
-// From an image, *from_image is the measurement and *imaging the device it was measured through (the calibrated
-// device, or the camera with the calibration's distortion, if any): the surface's labelling needs both.
+// Spots from a CSV, or detected, indexed and undistorted in a raw image through the measuring device.
+// From an image, *from_image is the measurement (the device it was measured through is `device`).
 std::vector<topo::MeasuredSpot> ReadMeasurement(const ReconstructRequest& in, const model::Config& cfg,
-                                                const std::optional<model::Device>& device, nlohmann::json* info,
-                                                std::optional<pipeline::ClinicalUncertainty>* uncertainty,
+                                                const pipeline::MeasuringDevice* device, nlohmann::json* info,
                                                 std::optional<pipeline::SpotMeasurement>* from_image,
-                                                model::Device* imaging, std::ostream& out) {
+                                                std::ostream& out) {
   std::vector<topo::MeasuredSpot> measured;
   if (!in.spots_path.empty()) {
-    if (!in.camera_path.empty() || !in.calibration_path.empty() || !in.device_path.empty()) {
-      throw util::InputError("--camera, --device and --calibration go with --image (a spots CSV is already in mm)");
-    }
     for (const auto& r : model::ReadSpotsCsv(in.spots_path))
       measured.push_back({r.id, Eigen::Vector2d(r.x_mm, r.y_mm)});
     (*info)["spots_read"] = measured.size();
     return measured;
   }
-  if (in.camera_path.empty() == in.device_path.empty()) {
-    throw util::InputError(
-        "--image: needs --camera (pixel pitch, principal point) or --device (the calibrated device)");
-  }
-  auto camera = in.device_path.empty() ? model::LoadTopographerCamera(in.camera_path) : device->camera;
-  const std::string& camera_file = in.device_path.empty() ? in.camera_path : in.device_path;
-  const cv::Mat image = pipeline::ReadSpotImage(in.image_path, camera, camera_file);
-  if (device) {
-    const auto m = MeasureImage(image, device->camera, cfg.ideal_image, device->distortion, in, out);
-    out << fmt::format(
-        "image: {} spots indexed, {} unassigned detections, {} designed spots missing, measured through the "
-        "device {} ({} outside its distortion's domain)\n",
-        m.indexed, m.unassigned, m.missing, in.device_path, m.undistort_failures);
-    (*info)["image"] = {{"indexed", m.indexed},
-                        {"unassigned", m.unassigned},
-                        {"missing", m.missing},
-                        {"device", in.device_path},
-                        {"undistort_failures", m.undistort_failures}};
-    *from_image = m;
-    *imaging = *device;
-    return m.spots;
-  }
-  std::optional<model::Distortion> distortion;
-  std::optional<calib::CalibrationFile> cal;
-  if (!in.calibration_path.empty()) {
-    cal = calib::LoadCalibrationFile(in.calibration_path);
-    const auto on_plane = pipeline::CalibrationOnDetectionPlane(*cal, in.calibration_path, camera, in.camera_path);
-    distortion = on_plane.distortion;
-    camera = on_plane.camera;  // with the calibration's pixel aspect, fx / fy
-  }
-  const auto m = MeasureImage(image, camera, cfg.ideal_image, distortion, in, out);
-  out << fmt::format("image: {} spots indexed, {} unassigned detections, {} designed spots missing{}\n", m.indexed,
-                     m.unassigned, m.missing,
-                     distortion ? fmt::format(", undistorted with {} ({} outside its domain)", in.calibration_path,
-                                              m.undistort_failures)
-                                : std::string(", NOT undistorted (no --calibration)"));
+  const cv::Mat image = pipeline::ReadSpotImage(in.image_path, device->device.camera, in.device_path);
+  const auto m = MeasureImage(image, device->device.camera, cfg.ideal_image, device->device.distortion, in, out);
+  out << fmt::format(
+      "image: {} spots indexed, {} unassigned detections, {} designed spots missing, measured through the "
+      "device {} ({} outside its distortion's domain)\n",
+      m.indexed, m.unassigned, m.missing, device->name, m.undistort_failures);
   (*info)["image"] = {{"indexed", m.indexed},
                       {"unassigned", m.unassigned},
                       {"missing", m.missing},
-                      {"undistorted", distortion.has_value()},
+                      {"device", in.device_path},
                       {"undistort_failures", m.undistort_failures}};
+  if (!in.calibration_path.empty()) (*info)["image"]["calibration"] = in.calibration_path;
   *from_image = m;
-  *imaging = model::NominalDevice(camera);
-  if (distortion) imaging->distortion = *distortion;
-  if (in.uncertainty_samples > 0) {
-    try {
-      const auto shown = util::StartProgress(in.progress, fmt::format("{} uncertainty draws", in.uncertainty_samples));
-      *uncertainty = pipeline::PropagateCalibrationUncertainty(
-          m.detected, cal->camera, calib::ParameterCovarianceOf(*cal), camera, cfg, in.uncertainty_samples, in.seed);
-    } catch (const util::InputError& e) {
-      throw util::InputError(fmt::format("{}: {}", in.calibration_path, e.what()));
-    }
-  }
   return m.spots;
 }
 
@@ -289,41 +241,22 @@ plot::MapScaleRequest PowerScaleOf(const ReconstructRequest& in) {
   return plot::StandardPowerScale();
 }
 
-// The lens calibration's uncertainty carried by Monte Carlo (--calibration --uncertainty N): printed, and its JSON.
-nlohmann::json PrintCalibrationUncertainty(const pipeline::ClinicalUncertainty& uncertainty, std::ostream& out) {
-  out << fmt::format(
-      "calibration uncertainty carried through ({} draws of {}, {}; {} failed; {} spot(s) not undistorted "
-      "in {} draw(s)), mean +- U (k = 2):\n",
-      uncertainty.samples, fmt::join(uncertainty.drawn, ", "),
-      uncertainty.correlated ? "with their covariance" : "independent (the file has no covariance)",
-      uncertainty.failed_samples, uncertainty.undistort_failures, uncertainty.draws_with_undistort_failures);
-  for (const auto& [name, q] : uncertainty.quantities) {
-    out << fmt::format("  {:<16} {:>12.6f} +- {:.3g}\n", name, q.mean, q.expanded_k2);
-  }
-  nlohmann::json u;
-  u["samples"] = uncertainty.samples;
-  u["failed_samples"] = uncertainty.failed_samples;
-  u["undistort_failures"] = uncertainty.undistort_failures;
-  u["draws_with_undistort_failures"] = uncertainty.draws_with_undistort_failures;
-  u["drawn"] = uncertainty.drawn;
-  u["correlated"] = uncertainty.correlated;
-  u["coverage_factor"] = 2;
-  for (const auto& [name, q] : uncertainty.quantities) u[name] = {{"mean", q.mean}, {"expanded", q.expanded_k2}};
-  return u;
-}
-
 // The U of every number measured through a device (its "uncertainty" JSON block in `info`); the measurement is
 // refused when the U cannot be evaluated or leaves no clinical reading (pipeline::UncertaintyRefusal).
 pipeline::MeasurementUncertainty UncertaintyOrRefusal(
-    const ReconstructRequest& in, const std::vector<pipeline::MeasuredImageSpot>& detected, const model::Device& device,
-    const std::optional<model::DeviceCovariance>& covariance, const model::Config& cfg, const topo::Analysis& analysis,
+    const ReconstructRequest& in, const std::vector<pipeline::MeasuredImageSpot>& detected,
+    const pipeline::MeasuringDevice& device, const model::Config& cfg, const topo::Analysis& analysis,
     nlohmann::json* info, const std::string& json_out, std::ostream& out) {
   pipeline::UncertaintyOptions u_options;
   u_options.device_draws = in.uncertainty_samples;
   u_options.seed = in.seed;
   pipeline::MeasurementUncertainty u;
   try {
-    u = pipeline::PropagateMeasurementUncertainty(detected, device, covariance, cfg, analysis, u_options);
+    const auto shown = util::StartProgress(in.uncertainty_samples > 0 ? in.progress : util::ShowProgress(),
+                                           fmt::format("{} device draws", in.uncertainty_samples));
+    u = pipeline::PropagateMeasurementUncertainty(detected, device.device, device.covariance, cfg, analysis,
+                                                  u_options);
+    u.no_device_covariance = device.no_covariance;
   } catch (const std::runtime_error& e) {
     RefuseMeasurement(in.image_path, {false, {fmt::format("its uncertainty cannot be evaluated: {}", e.what())}}, *info,
                       json_out, &out);
@@ -396,35 +329,32 @@ void RunReconstruct(const ReconstructRequest& request, std::ostream& out) {
   const bool truth = in.truth;
   if (in.spots_path.empty() == in.image_path.empty())
     throw util::InputError("reconstruct: give one of --spots or --image");
-  if (in.uncertainty_samples > 0 &&
-      (in.image_path.empty() || (in.calibration_path.empty() && in.device_path.empty()))) {
-    throw util::InputError("--uncertainty needs --image and --calibration or --device");
+  if (!in.spots_path.empty() && (!in.device_path.empty() || !in.calibration_path.empty())) {
+    throw util::InputError("--device and --calibration go with --image (a spots CSV is already in mm)");
   }
+  if (!in.image_path.empty() && in.device_path.empty()) {
+    throw util::InputError("--image: needs --device (the camera, distortion and screen pose it was taken through)");
+  }
+  if (in.uncertainty_samples > 0 && in.image_path.empty()) throw util::InputError("--uncertainty needs --image");
   nlohmann::json info;
   if (!in.eye.empty()) info["eye"] = in.eye;
-  std::optional<pipeline::ClinicalUncertainty> uncertainty;
-  std::optional<model::Device> device;
-  std::optional<model::DeviceCovariance> device_covariance;
-  if (!in.device_path.empty()) {
-    const auto file = model::LoadDevice(in.device_path);
-    device = file.device;
-    device_covariance = model::DeviceCovarianceOf(file.calibration, in.device_path);
-  }
+  std::optional<pipeline::MeasuringDevice> device;
+  if (!in.device_path.empty()) device = pipeline::LoadMeasuringDevice(in.device_path, in.calibration_path);
   std::optional<pipeline::SpotMeasurement> from_image;
-  model::Device imaging;
   std::vector<topo::MeasuredSpot> measured;
   try {
-    measured = ReadMeasurement(in, cfg, device, &info, &uncertainty, &from_image, &imaging, out);
+    measured = ReadMeasurement(in, cfg, device ? &*device : nullptr, &info, &from_image, out);
   } catch (const util::MeasurementRefused& e) {  // the spots could not be identified: the JSON says so too
     RefuseMeasurement(in.image_path, {false, {e.what()}}, info, json_out, nullptr);
   }
-  const auto analyze = pipeline::AnalysisOf(device ? &*device : nullptr, cfg, truth ? &cfg.cornea : nullptr);
+  const auto analyze =
+      pipeline::AnalysisOf(device ? &device->device : nullptr, cfg, truth ? &cfg.cornea : nullptr);
   // From an image, every spot is checked against the surface the others give, and the surface identifies the
   // detections the pattern's lattice left free (capture-quality line: rejected, identified through it).
   topo::Analysis analysis;
   pipeline::MeasurementVerdict verdict;
   if (from_image) {
-    verdict = pipeline::LabelAndJudge(&*from_image, imaging, cfg, analyze, &analysis);
+    verdict = pipeline::LabelAndJudge(&*from_image, device->device, cfg, analyze, &analysis);
   } else {
     analysis = analyze(measured);
   }
@@ -434,11 +364,9 @@ void RunReconstruct(const ReconstructRequest& request, std::ostream& out) {
   // fit's residual (pipeline/measurement_uncertainty.h).
   std::optional<pipeline::MeasurementUncertainty> measurement_u;
   if (device && capture) {
-    measurement_u =
-        UncertaintyOrRefusal(in, from_image->detected, *device, device_covariance, cfg, analysis, &info, json_out, out);
+    measurement_u = UncertaintyOrRefusal(in, from_image->detected, *device, cfg, analysis, &info, json_out, out);
   }
   PrintAnalysis(analysis, measurement_u ? &*measurement_u : nullptr, out);
-  if (uncertainty) info["uncertainty"] = PrintCalibrationUncertainty(*uncertainty, out);
   util::StagedOutputs outputs;  // the JSON and the maps are published together or not at all
   if (!json_out.empty()) {
     nlohmann::json j = info;

@@ -16,20 +16,21 @@ struct ReconstructRequest {
   std::string config_path;  // the topographer configuration (JSON)
   // The measurement: exactly one of a spots CSV (detection-plane mm) and a raw image.
   std::string spots_path, image_path;
-  // For an image: a camera (with an optional lens calibration) or a calibrated device.
-  std::string camera_path, calibration_path, device_path;
+  // For an image: the device it was taken through, and optionally a lens calibration put on its camera
+  // (pipeline::LoadMeasuringDevice).
+  std::string device_path, calibration_path;
   std::string estimator = "psf";         // spot centre estimator: psf, centroid or gaussian
   std::string eye;                       // OD or OS; empty: the configuration's
   std::string power_scale = "standard";  // the maps' power scale: standard, extended or fit
   double power_step_D = 0;               // with power_scale "fit"; 0: 0.5 D
-  int uncertainty_samples = 0;           // Monte Carlo draws of the calibration or the device; 0: none
+  int uncertainty_samples = 0;           // Monte Carlo draws of the device's parameters; 0: linear
   unsigned seed = 1;                     // of those draws
   std::string json_path;                 // empty: no JSON
   std::string maps_dir;                  // empty: no maps
   bool truth = false;                    // compare with the configuration's cornea
   // Applied to the configuration once loaded (the command line's --biconic-fit and --surface-model); may be empty.
   std::function<void(model::Config*)> override_config;
-  // Shows the calibration's uncertainty draws (which can take seconds) as they run; empty: nothing shown.
+  // Shows long uncertainty draws as they run; empty: nothing shown.
   util::ShowProgress progress;
 };
 

@@ -7,7 +7,6 @@
 #include <stdexcept>
 
 #include "model/device.h"
-#include "model/topographer_camera.h"
 #include "report/analysis_json.h"
 #include "util/new_directory_guard.h"
 
@@ -114,19 +113,14 @@ void RunSweep(const SweepRequest& a, std::ostream& out) {
   }
   auto cfg = model::LoadConfig(a.config);
   if (a.adjust_config) a.adjust_config(&cfg);
-  if (!a.camera.empty() && !a.correct) throw util::InputError("--camera goes with --correct");
   if (!a.device.empty() && a.correct) {
     throw util::InputError("--device: not with --correct (the closed loop calibrates a rendered camera, not a device)");
   }
   std::optional<model::Device> as_built;
   if (!a.device.empty()) as_built = model::LoadDevice(a.device).device;
-  // Inputs are checked before any work: a bad camera file fails at once, not after the sweep.
+  // The closed loop's camera: the paper's sensor (model/paper_topographer.h), a from the configuration.
   pipeline::ClosedLoopOptions options;
-  if (!a.camera.empty()) {
-    options.camera = model::LoadTopographerCamera(a.camera);
-  } else {
-    options.camera.a_mm = cfg.topographer.a_mm;
-  }
+  options.camera.a_mm = cfg.topographer.a_mm;
   const auto result = topo::RunSweep(cfg, 0, as_built ? &*as_built : nullptr);
   for (const auto& f : result.synthesis_failures) {
     util::Log(a.log, fmt::format("spot ({}, {}) not imaged: {}", f.id.ring, f.id.index, f.reason));

@@ -31,7 +31,6 @@ struct SweepRequest {
   std::string json;    // the sweep as JSON, when not empty
   std::string maps;    // every sigma's power, height and difference maps (CSV + PNG) in this directory; needs stages
   bool correct = false;  // close the loop at every sigma; needs stages
-  std::string camera;    // topographer camera (JSON) of correct; empty: 1.12 um pitch, a from the configuration
   std::string device;    // sweep through this as-built device (JSON); not with correct
   // Changes to the loaded configuration before the sweep (the command line's reconstruction overrides).
   std::function<void(model::Config*)> adjust_config;

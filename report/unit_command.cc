@@ -13,10 +13,10 @@
 namespace topocal::report {
 namespace {
 
-// The bundled design and camera, the defaults of config and camera; the record names them "bundled:<file>", not the
-// tree they lie in.
+// The bundled design and nominal device, the defaults of config and device; the record names them "bundled:<file>",
+// not the tree they lie in.
 void FillDefaults(pipeline::UnitRequest* r, const BundledDataDir& data_dir) {
-  for (auto [path, name] : {std::pair{&r->config, "paper.json"}, std::pair{&r->camera, "camera.json"}}) {
+  for (auto [path, name] : {std::pair{&r->config, "paper.json"}, std::pair{&r->device, "device.json"}}) {
     if (!path->empty()) continue;
     *path = data_dir() + "/" + name;
     r->input_names[*path] = std::string("bundled:") + name;

@@ -13,8 +13,8 @@
 
 namespace topocal::report {
 
-// Where the bundled design and camera lie (data/paper.json, data/camera.json), asked only when the request leaves
-// its config or camera empty; throws util::InputError when there is none.
+// Where the bundled design and device lie (data/paper.json, data/device.json), asked only when the request leaves
+// its config or device empty; throws util::InputError when there is none.
 using BundledDataDir = std::function<std::string()>;
 
 struct UnitCalibrateRequest {

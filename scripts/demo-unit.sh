@@ -23,7 +23,7 @@ for u in "${units[@]}"; do
       --focal-mm 5.2 --pixel-pitch-um 1.12 --sigma "$sigma" --distance-mm 70 --supersampling 4 --noise 1
   fi
   if [ ! -f "$dir/sphere.png" ]; then
-    "$topocal" render-spots --config data/paper.json --camera data/camera.json --sigma "$sigma" \
+    "$topocal" render-spots --config data/paper.json --device data/device.json --sigma "$sigma" \
       --sphere-radius-mm 7.8 --out "$dir/sphere.png"
   fi
   cat > "$dir/unit-inputs.json" <<JSON

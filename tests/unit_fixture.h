@@ -15,6 +15,7 @@
 #include <utility>
 
 #include "tests/cli_harness.h"
+#include "tests/device_file.h"
 #include "util/io.h"
 
 namespace topocal::testing_cli {
@@ -22,20 +23,20 @@ namespace topocal::testing_cli {
 inline constexpr double kUnitSigmaPerMm2 = 6.3e-5;  // paper Table IV
 inline constexpr double kUnitSphereRadiusMm = 7.8;  // a common reference ball (the paper's design radius re_mm)
 
-// The directory with camera.json, target.yaml, view.png, sphere.png, blank.png (a grey frame: no target) and
+// The directory with device.json (the nominal device of a 1120 x 1120 px sensor), target.yaml, view.png, sphere.png, blank.png (a grey frame: no target) and
 // views/*.png (view.png and the target turned by 12 degrees about x and about y: a multi-view calibration).
 // Built under a temporary name and renamed
 // into place, so that tests running in parallel (ctest -j) never see a half-written set.
 inline std::string UnitInputsDir() {
   namespace fs = std::filesystem;
-  const fs::path dir = fs::path(TOPOCAL_BINARY_DIR) / "test-data" / "unit-inputs-v2";
+  const fs::path dir = fs::path(TOPOCAL_BINARY_DIR) / "test-data" / "unit-inputs-v3";
   if (fs::exists(dir)) return dir.string();
   const fs::path tmp = dir.string() + fmt::format(".tmp-{}", ::getpid());
   fs::remove_all(tmp);
   fs::create_directories(tmp);
-  util::WriteFileAtomic((tmp / "camera.json").string(),
-                        R"({"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120,)"
-                        R"( "principal_point_px": [559.5, 559.5], "a_mm": 5.2, "rotated_180": false})");
+  util::WriteFileAtomic((tmp / "device.json").string(),
+                        NominalDeviceText(R"({"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120,)"
+                                          R"( "principal_point_px": [559.5, 559.5], "a_mm": 5.2})"));
   util::WriteFileAtomic((tmp / "target.yaml").string(),
                         "target_type: checkerboard\ntargetCols: 13\ntargetRows: 13\nrowSpacingMeters: 0.0009\n"
                         "colSpacingMeters: 0.0009\n");
@@ -46,7 +47,7 @@ inline std::string UnitInputsDir() {
       t, kUnitSigmaPerMm2));
   if (target.exit_code != 0) throw std::runtime_error("rendering the unit's target failed: " + target.output);
   const auto sphere = RunTopocal(fmt::format(
-      "render-spots --config {0}/data/paper.json --camera {1}/camera.json --sigma {2} --sphere-radius-mm {3} "
+      "render-spots --config {0}/data/paper.json --device {1}/device.json --sigma {2} --sphere-radius-mm {3} "
       "--out {1}/sphere.png",
       TOPOCAL_SOURCE_DIR, t, kUnitSigmaPerMm2, kUnitSphereRadiusMm));
   if (sphere.exit_code != 0) throw std::runtime_error("rendering the unit's reference sphere failed: " + sphere.output);

@@ -14,13 +14,12 @@ void AddDetectCommand(CLI::App& app) {
                                  "surface the others give (CSV + JSON summary; exit 4 and no CSV when refused)");
   auto a = std::make_shared<report::DetectRequest>();
   cmd->add_option("--image", a->image_path, "Raw sensor image of the spots")->required();
-  auto* camera = cmd->add_option("--camera", a->camera_path, "Topographer camera (JSON, docs/camera-conventions.md)");
-  auto* device = cmd->add_option("--device", a->device_path, "Device (JSON, docs/device.md): its camera is used");
-  auto* calibration = cmd->add_option("--calibration", a->calibration_path,
-                                      "Lens calibration (YAML) of the --camera: the spots are checked undistorted, as "
-                                      "reconstruct --calibration measures them");
-  camera->excludes(device);
-  calibration->needs(camera);
+  cmd->add_option("--device", a->device_path,
+                  "Device (JSON, docs/device.md) the image was taken through (data/device.json: the nominal unit)")
+      ->required();
+  cmd->add_option("--calibration", a->calibration_path,
+                  "Lens calibration (YAML) put on the device's camera: the spots are checked undistorted, as "
+                  "reconstruct --calibration measures them");
   cmd->add_option("--config", a->config_path, "Topographer configuration (JSON)")->required();
   cmd->add_option("--out", a->out_path, "Spots CSV: ring,index,x_mm,y_mm,u_px,v_px,flags (ring 0: unassigned blob)")
       ->required();

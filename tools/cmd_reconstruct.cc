@@ -17,17 +17,16 @@ void AddReconstructCommand(CLI::App& app) {
   auto* spots_opt = cmd->add_option("--spots", in->spots_path, "Spots CSV (ring,index,x_mm,y_mm on the detection plane)");
   auto* image_opt = cmd->add_option("--image", in->image_path, "Raw sensor image of the spots (detected and indexed)");
   spots_opt->excludes(image_opt);
-  cmd->add_option("--camera", in->camera_path, "Topographer camera (JSON) for --image");
-  auto* calibration_opt =
-      cmd->add_option("--calibration", in->calibration_path, "Calibration file (YAML) to undistort the --image spots with");
-  auto* device_opt = cmd->add_option("--device", in->device_path,
-                                     "Calibrated device (JSON, `device calibrate`): measure the --image through it "
-                                     "(its camera, distortion, screen pose and a)");
-  device_opt->excludes(calibration_opt);
+  cmd->add_option("--device", in->device_path,
+                  "Device (JSON, docs/device.md) the --image was taken through: its camera, distortion, screen pose "
+                  "and a (data/device.json: the nominal unit; `device calibrate` or `calibrate --device-out`: a "
+                  "calibrated one)");
+  cmd->add_option("--calibration", in->calibration_path,
+                  "Lens calibration (YAML) put on the --device's camera, as `calibrate --device-out` would: the "
+                  "--image spots are undistorted with it and its covariance carried to every U");
   cmd->add_option("--uncertainty", in->uncertainty_samples,
-                  "Monte Carlo draws of the calibration's parameters carried to the clinical numbers (with "
-                  "--image and --calibration: mean +- U, k = 2; with --device: the device's part of every U by "
-                  "draws instead of linear propagation, a cross-check)")
+                  "The device's part of every U by this many seeded Monte Carlo draws of its parameters instead of "
+                  "linear propagation (a cross-check)")
       ->check(CLI::Range(2, 100000))
       ->default_str("");  // not given: no draws (0 is not a value a user types)
   cmd->add_option("--seed", in->seed, "Seed of the --uncertainty draws")->capture_default_str();

@@ -12,13 +12,13 @@ void AddRenderSpotsCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("render-spots", "Render the raw sensor image of the configured cornea's spot pattern");
   auto a = std::make_shared<pipeline::RenderSpotsRequest>();
   cmd->add_option("--config", a->config_path, "Topographer configuration (JSON)")->required();
-  auto* camera = cmd->add_option("--camera", a->camera_path, "Topographer camera (JSON, docs/camera-conventions.md)");
-  auto* device = cmd->add_option("--device", a->device_path,
-                                 "As-built device (JSON, docs/device.md): camera, distortion and screen pose");
-  camera->excludes(device);
-  auto* sigma = cmd->add_option("--sigma", a->sigma_per_mm2, "Seidel distortion coefficient sigma, mm^-2 (paper Eq. 18), "
-                                                     "with --camera");
-  sigma->excludes(device);
+  cmd->add_option("--device", a->device_path,
+                  "Device (JSON, docs/device.md): camera, distortion and screen pose (data/device.json: the nominal "
+                  "unit)")
+      ->required();
+  cmd->add_option("--sigma", a->sigma_per_mm2,
+                  "Seidel distortion coefficient sigma, mm^-2 (paper Eq. 18): the configuration's Seidel distortion "
+                  "at sigma instead of the device's own");
   cmd->add_option("--out", a->out_path, "Output image (.png)")->required();
   cmd->add_option("--sphere-radius-mm", a->sphere_radius_mm,
                   "Image a reference sphere of this radius instead of the configured cornea, mm");

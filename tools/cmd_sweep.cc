@@ -21,7 +21,6 @@ void AddSweepCommand(CLI::App& app, const SweepImageStages* image_stages) {
   cmd->add_flag("--correct", a->correct,
                 "Close the loop for every sigma: calibrate from a rendered target, detect the spots in a rendered "
                 "sensor image, undistort, reconstruct; print before and after side by side");
-  cmd->add_option("--camera", a->camera, "Topographer camera (JSON) for --correct; default: 1.12 um pitch, a from the config");
   cmd->add_option("--device", a->device,
                   "Sweep through this as-built device (docs/device.md): its screen pose and a image the cornea, its own "
                   "distortion replaced by each sigma; the rows are the unit uncalibrated, and its calibrated answer "

@@ -20,7 +20,9 @@ constexpr int kProgressBarWidth = 30;
 
 void AddCommonOptions(CLI::App* cmd, UnitRequest* r) {
   cmd->add_option("--config", r->config, "Topographer design (JSON) [bundled data/paper.json]");
-  cmd->add_option("--camera", r->camera, "Topographer camera (JSON) [bundled data/camera.json]");
+  cmd->add_option("--device", r->device,
+                  "The unit's nominal device (JSON, docs/device.md): its camera, and where the device stage "
+                  "starts [bundled data/device.json]");
   cmd->add_option("--model", r->model,
                   fmt::format("Distortion model, one of {} (as calibrate)", calib::DistortionModelNames()))
       ->capture_default_str();
@@ -94,7 +96,6 @@ void AddUnitCommand(CLI::App& app) {
                   "Reference-ball images for the device stage (screen pose, principal point, a, distortion; "
                   "docs/device.md); the reference sphere is then a held-out ball");
   cal->add_option("--radii-mm", r->ball_radii_mm, "Certified radius of each ball, in the order of --balls, mm");
-  cal->add_option("--device", r->device, "Nominal device (JSON) the device stage starts from [the camera, nominal]");
   cal->add_option("--out", r->out, "Unit record directory (e.g. units/SN/)")->required();
   AddCommonOptions(cal, r);
   c->bundled_data_dir = DataDir;

@@ -18,11 +18,11 @@ const std::map<std::string, std::string>& Examples() {
       {"design", "topocal design --config data/paper.json --out targets.csv --svg screen.svg"},
       {"simulate", "topocal simulate --config data/paper.json --sigma 6.3e-5 --out spots.csv"},
       {"sweep", "topocal sweep --config data/paper.json --correct"},
-      {"reconstruct", "topocal reconstruct --config data/paper.json --image spots.png --camera data/camera.json "
+      {"reconstruct", "topocal reconstruct --config data/paper.json --image spots.png --device data/device.json "
                       "--calibration cal.yaml --truth"},
-      {"render-spots", "topocal render-spots --config data/paper.json --camera data/camera.json --sigma 6.3e-5 "
+      {"render-spots", "topocal render-spots --config data/paper.json --device data/device.json --sigma 6.3e-5 "
                        "--out spots.png"},
-      {"detect", "topocal detect --image spots.png --camera data/camera.json --config data/paper.json "
+      {"detect", "topocal detect --image spots.png --device data/device.json --config data/paper.json "
                  "--out detected.csv"},
       {"undistort", "topocal undistort --calibration cal.yaml --image view.png --out view-undistorted.png"},
       {"calibrate", "topocal calibrate --target board.yaml --images 'shots/*.png' --model brown5 --out cal.yaml"},

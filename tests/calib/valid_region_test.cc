@@ -13,6 +13,7 @@
 #include "calib/camera_exchange.h"
 #include "calib/distortion_valid_region.h"
 #include "tests/cli_harness.h"
+#include "tests/device_file.h"
 #include "util/io.h"
 
 namespace topocal::calib {
@@ -115,11 +116,11 @@ TEST_F(ValidRegionFile, UndistortSaysWhyPixelsAreBlack) {
 
   // Spots beyond the region are refused, named, with the reason; the others are corrected.
   // The same camera with a 1 um pitch: 1 mm on the detection plane is 1000 px.
-  std::ofstream(Path("camera.json")) << R"({"pixel_pitch_um": 1.0, "width_px": 1600, "height_px": 1200,
-    "principal_point_px": [799.5, 599.5], "a_mm": 1.0, "rotated_180": false})";
+  std::ofstream(Path("device.json")) << testing_cli::NominalDeviceText(R"({"pixel_pitch_um": 1.0, "width_px": 1600,
+    "height_px": 1200, "principal_point_px": [799.5, 599.5], "a_mm": 1.0, "rotated_180": false})");
   std::ofstream(Path("spots.csv")) << "ring,index,x_mm,y_mm\n1,0,0.01,0.0\n2,0,0.9,0.6\n";
   const auto spots = testing_cli::RunTopocal(
-      fmt::format("undistort --calibration {} --camera {} --spots {} --out {}", Path("cal.yaml"), Path("camera.json"),
+      fmt::format("undistort --calibration {} --device {} --spots {} --out {}", Path("cal.yaml"), Path("device.json"),
                   Path("spots.csv"), Path("out.csv")));
   EXPECT_EQ(spots.exit_code, 0) << spots.output;
   EXPECT_NE(spots.output.find("spot (2, 0)"), std::string::npos) << spots.output;

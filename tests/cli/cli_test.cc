@@ -116,9 +116,9 @@ TEST_F(Cli, SweepCorrectPrintsBeforeAndAfterAndWritesTheCorrectedRows) {
   for (const char* key : {"\"corrected\"", "\"calibration\"", "\"sigma_estimated_per_mm2\"", "\"residual_rms_px\""}) {
     EXPECT_NE(json.find(key), std::string::npos) << key;
   }
-  // A camera file that does not exist is bad input, and nothing is written.
-  const auto bad = RunTopocal("sweep --config " + Path("two.json") + " --correct --camera " + Path("none.json") +
-                              " --json " + Path("t.json"));
+  // A device file that does not exist is bad input, and nothing is written.
+  const auto bad = RunTopocal("sweep --config " + Path("two.json") + " --device " + Path("none.json") + " --json " +
+                              Path("t.json"));
   EXPECT_EQ(bad.exit_code, 2) << bad.output;
   EXPECT_EQ(bad.output.find("Table V"), std::string::npos) << "bad input must fail before any work";
   EXPECT_FALSE(fs::exists(Path("t.json")));
@@ -149,26 +149,37 @@ TEST_F(Cli, ReconstructFromSimulatedSpotsWritesJsonAndMaps) {
 }
 
 TEST_F(Cli, ReconstructFromARawImageDetectsIndexesAndReconstructs) {
-  const std::string camera = std::string(TOPOCAL_SOURCE_DIR) + "/data/camera.json";
-  ASSERT_EQ(RunTopocal("render-spots --config " + paper_ + " --camera " + camera + " --sigma 0 --out " +
+  const std::string device = std::string(TOPOCAL_SOURCE_DIR) + "/data/device.json";
+  ASSERT_EQ(RunTopocal("render-spots --config " + paper_ + " --device " + device + " --sigma 0 --out " +
                        Path("spots.png")).exit_code, 0);
-  const auto r = RunTopocal("reconstruct --config " + paper_ + " --image " + Path("spots.png") + " --camera " +
-                            camera + " --truth --json " + Path("r.json"));
+  const auto r = RunTopocal("reconstruct --config " + paper_ + " --image " + Path("spots.png") + " --device " +
+                            device + " --truth --json " + Path("r.json"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("624 spots indexed"), std::string::npos) << r.output;
-  // Centroids within ~0.02 px keep the undistorted camera's cornea within 0.001 mm / 0.005 in k.
-  EXPECT_NE(r.output.find("rx = 8.350"), std::string::npos) << r.output;
-  // --uncertainty needs a calibration to draw from.
-  const auto no_cal = RunTopocal("reconstruct --config " + paper_ + " --image " + Path("spots.png") + " --camera " +
-                                 camera + " --uncertainty 10");
-  EXPECT_EQ(no_cal.exit_code, 2);
-  EXPECT_NE(no_cal.output.find("--uncertainty needs --image and --calibration"), std::string::npos) << no_cal.output;
-  // --image needs a camera; --camera does not go with --spots.
-  EXPECT_EQ(RunTopocal("reconstruct --config " + paper_ + " --image " + Path("spots.png")).exit_code, 2);
+  // Centroids within ~0.02 px keep the undistorted camera's cornea within 0.001 mm / 0.005 in k (measured: rx
+  // -0.000004 mm, kx +0.000003).
+  const auto fit = nlohmann::json::parse(std::ifstream(Path("r.json")))["surface_fit"];
+  EXPECT_NEAR(fit["rx_mm"].get<double>(), 8.35, 0.001);
+  EXPECT_NEAR(fit["kx"].get<double>(), -0.43, 0.005);
+  EXPECT_NEAR(fit["rx_mm"].get<double>(), 8.35, 5e-5);
+  EXPECT_NEAR(fit["kx"].get<double>(), -0.43, 5e-5);
+  // The bundled nominal device has no calibration covariance: every U says it leaves the device's part out.
+  EXPECT_NE(r.output.find("NOT the device (its file has no calibration covariance"), std::string::npos) << r.output;
+  // --image needs a device; --device does not go with --spots; --camera is gone from the measuring verbs.
+  const auto no_device = RunTopocal("reconstruct --config " + paper_ + " --image " + Path("spots.png"));
+  EXPECT_EQ(no_device.exit_code, 2);
+  EXPECT_NE(no_device.output.find("--image: needs --device"), std::string::npos) << no_device.output;
   Write("s.csv", "ring,index,x_mm,y_mm\n");
-  const auto mixed = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("s.csv") + " --camera " + camera);
+  const auto mixed = RunTopocal("reconstruct --config " + paper_ + " --spots " + Path("s.csv") + " --device " + device);
   EXPECT_EQ(mixed.exit_code, 2);
-  EXPECT_NE(mixed.output.find("--camera, --device and --calibration go with --image"), std::string::npos) << mixed.output;
+  EXPECT_NE(mixed.output.find("--device and --calibration go with --image"), std::string::npos) << mixed.output;
+  for (const char* verb : {"reconstruct", "detect", "render-spots", "undistort", "sweep", "unit calibrate",
+                           "unit calibrate-batch"}) {
+    const auto help = RunTopocal(std::string(verb) + " --help");
+    EXPECT_EQ(help.exit_code, 0) << verb;
+    EXPECT_NE(help.output.find("--device"), std::string::npos) << help.output;
+    EXPECT_EQ(help.output.find("--camera"), std::string::npos) << help.output;
+  }
 }
 
 TEST_F(Cli, ReconstructRejectsBadSpotsFiles) {
@@ -384,32 +395,22 @@ TEST_F(Cli, SweepBiconicFitAndSurfaceModelOverrideTheConfig) {
   EXPECT_EQ(plain["rows"][3]["surface_fit"]["mode"], "free-apex");
 }
 
-TEST_F(Cli, DetectTakesTheCameraOfADeviceFile) {
-  // data/device.json with a 1120 x 1120 px sensor (the spots span about +-400 px): the same camera as a camera file.
+TEST_F(Cli, DetectThroughADeviceWhosePrincipalPointMovedRefusesTheIdentities) {
+  // data/device.json with a 1120 x 1120 px sensor (the spots span about +-400 px).
   auto device_json = ReadJson(std::string(TOPOCAL_SOURCE_DIR) + "/data/device.json");
   device_json["camera"]["width_px"] = 1120;
   device_json["camera"]["height_px"] = 1120;
   device_json["camera"]["principal_point_px"] = {559.5, 559.5};
-  const std::string device = Path("device.json"), camera = Path("camera.json");
+  const std::string device = Path("device.json");
   std::ofstream(device) << device_json.dump(2);
-  Write("camera.json",
-        R"({"pixel_pitch_um": 1.12, "width_px": 1120, "height_px": 1120, "principal_point_px": [559.5, 559.5],)"
-        R"( "a_mm": 5.2, "rotated_180": false})");
   ASSERT_EQ(
-      RunTopocal("render-spots --config " + paper_ + " --camera " + camera + " --sigma 0 --out " + Path("spots.png"))
+      RunTopocal("render-spots --config " + paper_ + " --device " + device + " --sigma 0 --out " + Path("spots.png"))
           .exit_code,
       0);
-  const auto detect = [&](const std::string& name, const std::string& extra) {
-    const auto r = RunTopocal("detect --image " + Path("spots.png") + " --config " + paper_ + " --out " + Path(name) +
-                              " " + extra);
-    EXPECT_EQ(r.exit_code, 0) << r.output;
-    EXPECT_NE(r.output.find("624 spots indexed"), std::string::npos) << r.output;
-    std::ifstream in(Path(name));
-    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  };
-  // The device holds the camera file's camera and no distortion: the same spots to the byte.
-  const std::string by_camera = detect("camera.csv", "--camera " + camera);
-  EXPECT_EQ(detect("device.csv", "--device " + device), by_camera);
+  const auto r = RunTopocal("detect --image " + Path("spots.png") + " --config " + paper_ + " --out " +
+                            Path("device.csv") + " --device " + device);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("624 spots indexed"), std::string::npos) << r.output;
   // A device whose principal point sits 3 px right and 2 px down does not image this pattern: every spot moves on
   // the detection plane by -3 and -2 pixels of 1.12 um, the screen does not, and the surface the identities give
   // does not represent them (slope residual 6.3 x the noise): detect refuses them as reconstruct would, no file.
@@ -421,8 +422,8 @@ TEST_F(Cli, DetectTakesTheCameraOfADeviceFile) {
   EXPECT_EQ(refused.exit_code, 4) << refused.output;
   EXPECT_NE(refused.output.find("does not represent the identified spots"), std::string::npos) << refused.output;
   EXPECT_FALSE(fs::exists(Path("moved.csv")));
-  EXPECT_EQ(RunTopocal("detect --image " + Path("spots.png") + " --config " + paper_ + " --camera " + camera +
-                       " --device " + device + " --out " + Path("x.csv"))
+  // Without a device, detect does not guess one.
+  EXPECT_EQ(RunTopocal("detect --image " + Path("spots.png") + " --config " + paper_ + " --out " + Path("x.csv"))
                 .exit_code,
             2);
 }

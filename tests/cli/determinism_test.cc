@@ -21,14 +21,14 @@ class Determinism : public topocal::testing_cli::TempDirTest {
 
 TEST_F(Determinism, DetectIsByteIdenticalWhateverTheThreads) {
   // A clinical-looking capture: lid with skin, an iris, glints (the local-background and deblending paths).
-  ASSERT_EQ(RunTopocal("render-spots --config " + paper_ + " --camera " + data_ + "camera.json --sigma 0 " +
+  ASSERT_EQ(RunTopocal("render-spots --config " + paper_ + " --device " + data_ + "device.json --sigma 0 " +
                        "--upper-lid 0.2 --lid-skin 2000 --iris 1500 --glints 3 --seed 4 --out " + Path("eye.png"))
                 .exit_code,
             0);
   std::string csv[3], json[3];
   const char* threads[3] = {"1", "4", "4"};
   for (int i = 0; i < 3; ++i) {
-    const auto r = RunTopocal("detect --config " + paper_ + " --camera " + data_ + "camera.json --image " +
+    const auto r = RunTopocal("detect --config " + paper_ + " --device " + data_ + "device.json --image " +
                                   Path("eye.png") + " --out " + Path("d.csv") + " --json " + Path("d.json"),
                               std::string("OPENCV_FOR_THREADS_NUM=") + threads[i]);
     ASSERT_EQ(r.exit_code, 0) << r.output;

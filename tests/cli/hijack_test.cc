@@ -64,12 +64,12 @@ TEST_F(Hijack, AnOutputThatIsOneOfTheRunsInputsIsRefused) {
   EXPECT_EQ(Bytes("c.json"), before);
   // detect --out naming its own image.
   const std::string data = std::string(TOPOCAL_SOURCE_DIR) + "/data/";
-  ASSERT_EQ(RunTopocal("render-spots --config " + paper_ + " --camera " + data + "camera.json --bits 8 --out " +
+  ASSERT_EQ(RunTopocal("render-spots --config " + paper_ + " --device " + data + "device.json --bits 8 --out " +
                        Path("eye.png"))
                 .exit_code,
             0);
   const std::string image = Bytes("eye.png");
-  const auto d = RunTopocal("detect --config " + paper_ + " --camera " + data + "camera.json --image " +
+  const auto d = RunTopocal("detect --config " + paper_ + " --device " + data + "device.json --image " +
                             Path("eye.png") + " --out " + Path("eye.png"));
   EXPECT_EQ(d.exit_code, 2) << d.output;
   EXPECT_NE(d.output.find("eye.png: is also an input of this run"), std::string::npos) << d.output;
@@ -80,15 +80,15 @@ TEST_F(Hijack, AnOutputThatIsOneOfTheRunsInputsIsRefused) {
 TEST_F(Hijack, AVerbsOutputsArePublishedTogetherOrNotAtAll) {
   // The second output cannot be written (its directory is missing): the first, written on its own before, is absent.
   const std::string data = std::string(TOPOCAL_SOURCE_DIR) + "/data/";
-  const auto render = RunTopocal("render-spots --config " + paper_ + " --camera " + data + "camera.json --bits 8 " +
+  const auto render = RunTopocal("render-spots --config " + paper_ + " --device " + data + "device.json --bits 8 " +
                                  "--out " + Path("eye.png") + " --truth " + Path("missing/truth.csv"));
   EXPECT_EQ(render.exit_code, 2) << render.output;
   EXPECT_FALSE(fs::exists(Path("eye.png")));
-  ASSERT_EQ(RunTopocal("render-spots --config " + paper_ + " --camera " + data + "camera.json --bits 8 --out " +
+  ASSERT_EQ(RunTopocal("render-spots --config " + paper_ + " --device " + data + "device.json --bits 8 --out " +
                        Path("eye.png"))
                 .exit_code,
             0);
-  const auto detect = RunTopocal("detect --config " + paper_ + " --camera " + data + "camera.json --image " +
+  const auto detect = RunTopocal("detect --config " + paper_ + " --device " + data + "device.json --image " +
                                  Path("eye.png") + " --out " + Path("d.csv") + " --json " + Path("missing/d.json"));
   EXPECT_EQ(detect.exit_code, 2) << detect.output;
   EXPECT_NE(detect.output.find("missing/d.json"), std::string::npos) << detect.output;

@@ -224,8 +224,8 @@ TEST_F(Robustness, AMissingCodecsPluginIsOneLineNamingItAndOnlyImageVerbsNeedIt)
   const auto run_with_plugin = [&](const std::string& plugin, const std::string& args) {
     return RunTopocal(args, "TOPOCAL_IMGCODECS_PLUGIN=" + plugin);
   };
-  const std::string render = "render-spots --config " + paper_ + " --camera " + TOPOCAL_SOURCE_DIR +
-                             "/data/camera.json --sigma 6.3e-5 --out " + Path("s.png");
+  const std::string render = "render-spots --config " + paper_ + " --device " + TOPOCAL_SOURCE_DIR +
+                             "/data/device.json --sigma 6.3e-5 --out " + Path("s.png");
   const topocal::testing_cli::Run missing = run_with_plugin(Path("nowhere/libtopocal_imgcodecs.so"), render);
   EXPECT_EQ(missing.exit_code, 1) << missing.output;
   EXPECT_NE(missing.output.find("libtopocal_imgcodecs.so is not installed: not found at " +

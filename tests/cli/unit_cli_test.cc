@@ -48,7 +48,7 @@ class UnitCli : public topocal::testing_cli::TempDirTest {
   std::string Calibrate(const std::string& serial, const std::string& out, const std::string& extra = "") const {
     return fmt::format(
         "unit calibrate --serial {0} --target {1}/target.yaml --images {1}/view.png --reference-sphere {1}/sphere.png "
-        "--sphere-radius-mm {2} --camera {1}/camera.json --uncertainty {3} --out {4} {5}",
+        "--sphere-radius-mm {2} --device {1}/device.json --uncertainty {3} --out {4} {5}",
         serial, in_, kUnitSphereRadiusMm, kDraws, out, extra);
   }
   // Nothing but the record itself may be left in its parent: no staging directory, no half record.
@@ -85,6 +85,37 @@ class UnitCli : public topocal::testing_cli::TempDirTest {
   }
   std::string in_;
 };
+
+// A lens calibration put on the unit's nominal device (`reconstruct --device D --calibration C`, what `calibrate
+// --device-out` writes): the reference sphere's spots are undistorted with C and its radius comes back within the
+// acceptance bound (measured: +0.000011 mm); C's covariance is the device's part of every U. Through D alone the
+// same image is measured distorted, 0.0014 mm short, and every U says the device's part is missing.
+TEST_F(UnitCli, ReconstructThroughTheDeviceWithALensCalibrationCarriesItsCovariance) {
+  const std::string cal = (dir_ / "cal.yaml").string();
+  auto r = RunTopocal(fmt::format("calibrate --target {0}/target.yaml --images {0}/view.png --model seidel "
+                                  "--single-view --focal-mm 5.2 --pixel-pitch-um 1.12 --distance-mm 70 --out {1}",
+                                  in_, cal));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto measure = [&](const std::string& extra, const std::string& name) {
+    const std::string out = (dir_ / name).string();
+    const auto m = RunTopocal(fmt::format("reconstruct --config {0}/data/paper.json --image {1}/sphere.png --device "
+                                          "{1}/device.json {2} --json {3}",
+                                          TOPOCAL_SOURCE_DIR, in_, extra, out));
+    EXPECT_EQ(m.exit_code, 0) << m.output;
+    return std::pair{m.output, json::parse(util::ReadFile(out))};
+  };
+  const auto [with_text, with] = measure("--calibration " + cal, "with.json");
+  const auto [without_text, without] = measure("", "without.json");
+  EXPECT_NE(with_text.find("with the lens of " + cal), std::string::npos) << with_text;
+  EXPECT_TRUE(with["uncertainty"]["device_covariance"].get<bool>());
+  EXPECT_FALSE(with["uncertainty"]["device_parameters"].empty());
+  EXPECT_FALSE(without["uncertainty"]["device_covariance"].get<bool>());
+  EXPECT_NE(without_text.find("NOT the device"), std::string::npos) << without_text;
+  const double error_mm = std::abs(with["surface_fit"]["rx_mm"].get<double>() - kUnitSphereRadiusMm);
+  EXPECT_LT(error_mm, kRadiusErrorMm);
+  EXPECT_LT(error_mm, 1e-4);
+  EXPECT_GT(std::abs(without["surface_fit"]["rx_mm"].get<double>() - kUnitSphereRadiusMm), kCorrectionGain * error_mm);
+}
 
 TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
   const auto out = (dir_ / "units" / "SN-0001").string();
@@ -170,7 +201,7 @@ TEST_F(UnitCli, RepeatedImagesOfTheSphereAreTheBudgetsRepeatability) {
   std::string repeats;
   for (const auto& [seed, x, y, z] : {std::tuple{2, "0.005", "-0.004", "0.003"}, std::tuple{3, "-0.004", "0.006", "-0.005"}}) {
     const std::string png = (dir_ / fmt::format("repeat-{}.png", seed)).string();
-    const auto b = RunTopocal(fmt::format("render-spots --config {}/data/paper.json --camera {}/camera.json --sigma {} "
+    const auto b = RunTopocal(fmt::format("render-spots --config {}/data/paper.json --device {}/device.json --sigma {} "
                                           "--sphere-radius-mm {} --ball-at {} {} {} --seed {} --out {}",
                                           TOPOCAL_SOURCE_DIR, in_, kUnitSigmaPerMm2, kUnitSphereRadiusMm, x, y, z,
                                           seed, png));
@@ -221,7 +252,7 @@ TEST_F(UnitCli, BrokenUnitsFailOnThePhysicalCheckThatTheFirstPageNames) {
                                               std::tuple{"SN-BALL", kUnitSigmaPerMm2, 7.7}}) {
     SCOPED_TRACE(serial);
     const std::string sphere = (dir_ / fmt::format("{}.png", serial)).string();
-    ASSERT_EQ(RunTopocal(fmt::format("render-spots --config {}/data/paper.json --camera {}/camera.json --sigma {} "
+    ASSERT_EQ(RunTopocal(fmt::format("render-spots --config {}/data/paper.json --device {}/device.json --sigma {} "
                                      "--sphere-radius-mm {} --out {}",
                                      TOPOCAL_SOURCE_DIR, in_, sigma, radius, sphere))
                   .exit_code,
@@ -229,7 +260,7 @@ TEST_F(UnitCli, BrokenUnitsFailOnThePhysicalCheckThatTheFirstPageNames) {
     const auto out = (dir_ / "units" / serial).string();
     const auto r = RunTopocal(fmt::format(
         "unit calibrate --serial {0} --target {1}/target.yaml --images {1}/view.png --reference-sphere {2} "
-        "--sphere-radius-mm 7.8 --camera {1}/camera.json --uncertainty {3} --out {4}",
+        "--sphere-radius-mm 7.8 --device {1}/device.json --uncertainty {3} --out {4}",
         serial, in_, sphere, kDraws, out));
     ASSERT_EQ(r.exit_code, 0) << r.output;
     const std::string html_path = (dir_ / fmt::format("{}.html", serial)).string();
@@ -253,7 +284,7 @@ TEST_F(UnitCli, TheDeviceStageFromBallsFixesWhatTheLensCalibrationCannot) {
   const std::string held_out = (dir_ / "ball-7.8-0.10.png").string();
   const auto out = (dir_ / "D-1").string() + "/";
   const auto r = RunTopocal(fmt::format(
-      "unit calibrate --serial D-1 --target {0}/target.yaml --images {0}/view.png --camera {0}/camera.json "
+      "unit calibrate --serial D-1 --target {0}/target.yaml --images {0}/view.png --device {0}/device.json "
       "--reference-sphere {1} --sphere-radius-mm 7.8 --balls{2} --radii-mm{3} --uncertainty {4} --out {5}",
       in_, held_out, balls, radii, kDraws, out));
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -316,7 +347,7 @@ TEST_F(UnitCli, SeveralImagesAreAMultiViewCalibrationThatAlsoPasses) {
   const auto out = (dir_ / "SN-MV").string();
   const auto r = RunTopocal(fmt::format(
       "unit calibrate --serial SN-MV --target {0}/target.yaml --images '{0}/views/*.png' --reference-sphere "
-      "{0}/sphere.png --sphere-radius-mm {1} --camera {0}/camera.json --uncertainty {2} --out {3}",
+      "{0}/sphere.png --sphere-radius-mm {1} --device {0}/device.json --uncertainty {2} --out {3}",
       in_, kUnitSphereRadiusMm, kDraws, out));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("multi-view calibration, 4 view(s)"), std::string::npos) << r.output;
@@ -359,47 +390,47 @@ TEST_F(UnitCli, BadInputIsOneLineAndLeavesNoRecord) {
   };
   const std::vector<Case> cases = {
       {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images '{0}/none*.png' "
-                   "--camera {0}/camera.json --out {1}",
+                   "--device {0}/device.json --out {1}",
                    in_, out),
        2, "no file matches"},
       {Calibrate("bad/serial", out), 2, "--serial"},
       {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png "
-                   "--sphere-radius-mm 7.8 --camera {0}/camera.json --out {1}",
+                   "--sphere-radius-mm 7.8 --device {0}/device.json --out {1}",
                    in_, out),
        2, "--reference-sphere and --sphere-radius-mm go together"},
       // An image without the target.
       {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png "
-                   "--sphere-repeats {0}/sphere.png --camera {0}/camera.json --out {1}",
+                   "--sphere-repeats {0}/sphere.png --device {0}/device.json --out {1}",
                    in_, out),
        2, "--sphere-repeats: repeated images of the reference sphere go with --reference-sphere"},
       {Calibrate("SN-0003", out, fmt::format("--sphere-repeats {}/sphere.png {}/absent.png", in_, in_)), 2,
        "absent.png: cannot be opened"},
       {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/blank.png "
-                   "--camera {0}/camera.json --uncertainty 0 --out {1}",
+                   "--device {0}/device.json --uncertainty 0 --out {1}",
                    in_, out),
        1, "no target found"},
       // The bundled full-size camera (4000 x 3000) does not match the 1120 x 1120 images.
       {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png --out {1}", in_, out),
        2, "1120 x 1120 px"},
       {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png "
-                   "--reference-sphere {0}/sphere.png --sphere-radius-mm 0.5 --camera {0}/camera.json --out {1}",
+                   "--reference-sphere {0}/sphere.png --sphere-radius-mm 0.5 --device {0}/device.json --out {1}",
                    in_, out),
        2, "sphere radius 0.5 mm is outside"},
       // Options the calibration cannot honour are bad input, found before any image is read.
       {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png "
-                   "--camera {0}/camera.json --model brown5 --fit-centre --out {1}",
+                   "--device {0}/device.json --model brown5 --fit-centre --out {1}",
                    in_, out),
        2, "fix p1,p2 or the centre"},
       {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png "
-                   "--camera {0}/camera.json --fix k9 --out {1}",
+                   "--device {0}/device.json --fix k9 --out {1}",
                    in_, out),
        2, "--fix: 'k9' is not a camera parameter"},
       {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png "
-                   "--camera {0}/camera.json --fix-aspect 1 --out {1}",
+                   "--device {0}/device.json --fix-aspect 1 --out {1}",
                    in_, out),
        2, "--fix-aspect: applies to multi-view fits"},
       {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png "
-                   "--camera {0}/camera.json --fix-aspect 7 --out {1}",
+                   "--device {0}/device.json --fix-aspect 7 --out {1}",
                    in_, out),
        2, "fixed aspect ratio fx / fy = 7 is not a camera's"},
   };
@@ -424,7 +455,7 @@ TEST_F(UnitCli, AFailedRerunLeavesTheEarlierRecordWhole) {
   ASSERT_EQ(RunTopocal(Calibrate("SN-0004", out)).exit_code, 0);
   const std::string before = util::ReadFile(out + "/unit.json");
   const auto r = RunTopocal(fmt::format("unit calibrate --serial SN-0004 --target {0}/target.yaml --images {0}/blank.png "
-                                        "--camera {0}/camera.json --force --out {1}",
+                                        "--device {0}/device.json --force --out {1}",
                                         in_, out));
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_EQ(util::ReadFile(out + "/unit.json"), before);
@@ -487,7 +518,7 @@ TEST_F(UnitCli, BatchCalibratesEveryGoodUnitAndListsTheFailures) {
   };
   const auto good = [&](const std::string& serial) {
     return fmt::format(R"({{"serial": "{0}", "target": "{1}/target.yaml", "images": "{1}/view.png",)"
-                       R"( "reference_sphere": "{1}/sphere.png", "sphere_radius_mm": {2}, "camera": "{1}/camera.json"}})",
+                       R"( "reference_sphere": "{1}/sphere.png", "sphere_radius_mm": {2}, "device": "{1}/device.json"}})",
                        serial, in_, kUnitSphereRadiusMm);
   };
   write_unit("a", good("SN-A"));
@@ -519,7 +550,7 @@ TEST_F(UnitCli, BatchSeedIsTheSeedOfEveryUnitsDraws) {
   util::WriteFileAtomic((batch / "a" / "unit-inputs.json").string(),
                         fmt::format(R"({{"serial": "SN-S", "target": "{0}/target.yaml", "images": "{0}/view.png",)"
                                     R"( "reference_sphere": "{0}/sphere.png", "sphere_radius_mm": {1},)"
-                                    R"( "camera": "{0}/camera.json"}})",
+                                    R"( "device": "{0}/device.json"}})",
                                     in_, kUnitSphereRadiusMm));
   const auto radius_u = [](const std::string& record) {
     return json::parse(
@@ -566,8 +597,8 @@ TEST_F(UnitCli, AParameterTheViewsDoNotDetermineIsRefusedUnlessAllowed) {
                 .exit_code,
             0);
   const auto unit = [&](const std::string& extra) {
-    return RunTopocal(fmt::format("unit calibrate --serial F-1 --target {0}/target.yaml --images {1} --camera "
-                                  "{0}/camera.json --model brown5 --uncertainty 0 --out {2} {3}",
+    return RunTopocal(fmt::format("unit calibrate --serial F-1 --target {0}/target.yaml --images {1} --device "
+                                  "{0}/device.json --model brown5 --uncertainty 0 --out {2} {3}",
                                   in_, far, (dir_ / "units" / "F-1").string(), extra));
   };
   fs::create_directories(dir_ / "units");
@@ -589,7 +620,7 @@ TEST_F(UnitCli, AParameterTheViewsDoNotDetermineIsRefusedUnlessAllowed) {
     fs::create_directories(batch / "f");
     util::WriteFileAtomic((batch / "f" / "unit-inputs.json").string(),
                           fmt::format(R"({{"serial": "F-2", "target": "{0}/target.yaml", "images": "{1}",)"
-                                      R"( "camera": "{0}/camera.json", "model": "brown5", "uncertainty_samples": 0,)"
+                                      R"( "device": "{0}/device.json", "model": "brown5", "uncertainty_samples": 0,)"
                                       R"( "fix_aspect": 0{2}}})",
                                       in_, far, extra_keys));
   };
@@ -616,7 +647,7 @@ TEST_F(UnitCli, TheDeviceStageIsByteIdenticalWhateverTheThreads) {
     const auto out = dir_ / fmt::format("threads-{}", threads[i]) / "T";
     fs::create_directories(out.parent_path());
     const auto r = RunTopocal(
-        fmt::format("unit calibrate --serial T --target {0}/target.yaml --images {0}/view.png --camera {0}/camera.json "
+        fmt::format("unit calibrate --serial T --target {0}/target.yaml --images {0}/view.png --device {0}/device.json "
                     "--reference-sphere {1} --sphere-radius-mm 7.8 --balls{2} --radii-mm{3} --uncertainty {4} "
                     "--out {5}",
                     in_, (dir_ / "ball-7.8-0.10.png").string(), balls, radii, kDraws, out.string()),
@@ -645,7 +676,7 @@ TEST_F(UnitCli, BatchRecordsAreByteIdenticalWhateverTheJobs) {
     util::WriteFileAtomic((batch / serial / "unit-inputs.json").string(),
                           fmt::format(R"({{"serial": "{0}", "target": "{1}/target.yaml", "images": "{1}/view.png",)"
                                       R"( "reference_sphere": "{1}/sphere.png", "sphere_radius_mm": {2},)"
-                                      R"( "camera": "{1}/camera.json"}})",
+                                      R"( "device": "{1}/device.json"}})",
                                       serial, in_, kUnitSphereRadiusMm));
   }
   const auto files_of = [&](const std::string& out, int jobs) {
@@ -677,15 +708,15 @@ TEST_F(UnitCli, BatchRecordsAreByteIdenticalWhateverTheJobs) {
 TEST_F(UnitCli, RealPhotographsWithNonSquarePixelsCalibrateWithoutFixingTheAspect) {
   const std::string photos = "/usr/share/doc/opencv-doc/examples/data/";
   ASSERT_TRUE(fs::exists(photos + "left01.jpg")) << "opencv-doc's left*.jpg are not installed (scripts/setup.sh test)";
-  const std::string board = (dir_ / "board.yaml").string(), camera = (dir_ / "camera.json").string();
+  const std::string board = (dir_ / "board.yaml").string(), camera = (dir_ / "device.json").string();
   util::WriteFileAtomic(board, "target_type: checkerboard\ntargetCols: 9\ntargetRows: 6\nrowSpacingMeters: 0.025\n"
                                "colSpacingMeters: 0.025\n");
   // A 640 x 480 sensor of 6 um pixels behind a 3.2 mm lens (fx ~ 536 px).
-  util::WriteFileAtomic(camera, R"({"pixel_pitch_um": 6.0, "width_px": 640, "height_px": 480,
-                                    "principal_point_px": [319.5, 239.5], "a_mm": 3.216})");
+  util::WriteFileAtomic(camera, NominalDeviceText(R"({"pixel_pitch_um": 6.0, "width_px": 640, "height_px": 480,
+                                    "principal_point_px": [319.5, 239.5], "a_mm": 3.216})"));
   const fs::path out = dir_ / "units" / "SN-LEFT";
   const auto r = RunTopocal(fmt::format("unit calibrate --serial SN-LEFT --target {} --images '{}left[0-9][0-9].jpg' "
-                                        "--model brown5 --camera {} --out {}",
+                                        "--model brown5 --device {} --out {}",
                                         board, photos, camera, out.string()));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const json record = json::parse(util::ReadFile((out / "unit.json").string()));

@@ -41,7 +41,7 @@ class UnitRecordSize : public TempDirTest {
     const std::string in = UnitInputsDir();
     return fmt::format(
         "unit calibrate --serial SN-0001 --target {0}/target.yaml --images {0}/view.png --reference-sphere "
-        "{0}/sphere.png --sphere-radius-mm {1} --camera {0}/camera.json --uncertainty 4 --out {2} {3}",
+        "{0}/sphere.png --sphere-radius-mm {1} --device {0}/device.json --uncertainty 4 --out {2} {3}",
         in, kUnitSphereRadiusMm, out, extra);
   }
 };
@@ -99,7 +99,7 @@ TEST_F(UnitRecordSize, BatchMapCsvReachesEveryUnit) {
     util::WriteFileAtomic((batch / serial / "unit-inputs.json").string(),
                           fmt::format(R"({{"serial": "{0}", "target": "{1}/target.yaml", "images": "{1}/view.png",)"
                                       R"( "reference_sphere": "{1}/sphere.png", "sphere_radius_mm": {2},)"
-                                      R"( "camera": "{1}/camera.json"}})",
+                                      R"( "device": "{1}/device.json"}})",
                                       serial, in, kUnitSphereRadiusMm));
   }
   for (const bool csv : {true, false}) {

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/cli_harness.h"
+#include "tests/device_file.h"
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -47,7 +48,7 @@ class CorrectCli : public topocal::testing_cli::TempDirTest {
     cam.height_px = 1000;
     cam.principal_point_px = {499.5, 499.5};
     camera_ = cam;
-    Write("cam.json", model::TopographerCameraToJson(cam));
+    Write("cam.json", testing_cli::NominalDeviceText(cam));
   }
   // A plain OpenCV calibration file for the crop camera.
   void WriteCalibration(const std::string& name, const model::CameraModel& k, int width, int height) const {
@@ -83,7 +84,7 @@ class CorrectCli : public topocal::testing_cli::TempDirTest {
 };
 
 TEST_F(CorrectCli, RenderSpotsWritesAnImageThatDetectsBackToItsTruth) {
-  const auto r = RunTopocal("render-spots --config " + paper_ + " --camera " + Path("cam.json") +
+  const auto r = RunTopocal("render-spots --config " + paper_ + " --device " + Path("cam.json") +
                             " --sigma 2e-4 --drop 0.1 --glints 4 --seed 5 --out " + Path("s.png") + " --truth " +
                             Path("t.csv"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -123,7 +124,7 @@ TEST_F(CorrectCli, RenderSpotsWritesAnImageThatDetectsBackToItsTruth) {
 }
 
 TEST_F(CorrectCli, RenderSpotsEightBit) {
-  const auto r = RunTopocal("render-spots --config " + paper_ + " --camera " + Path("cam.json") +
+  const auto r = RunTopocal("render-spots --config " + paper_ + " --device " + Path("cam.json") +
                             " --sigma 0 --bits 8 --spot psf --psf-px 1.5 --out " + Path("s.png"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(cv::imread(Path("s.png"), cv::IMREAD_UNCHANGED).type(), CV_8UC1);
@@ -132,14 +133,14 @@ TEST_F(CorrectCli, RenderSpotsEightBit) {
 TEST_F(CorrectCli, RenderSpotsBadInputIsOneLineExitTwoNoOutput) {
   const std::string base = "render-spots --config " + paper_ + " --sigma 0 --out " + Path("s.png");
   for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
-           {base + " --camera " + Path("missing.json"), "missing.json"},
-           {base + " --camera " + Path("cam.json") + " --drop 1.5", "--drop: must be in [0, 1)"},
-           {"render-spots --config " + paper_ + " --sigma 0 --camera " + Path("cam.json") + " --out " + Path("s.jpg"),
+           {base + " --device " + Path("missing.json"), "missing.json"},
+           {base + " --device " + Path("cam.json") + " --drop 1.5", "--drop: must be in [0, 1)"},
+           {"render-spots --config " + paper_ + " --sigma 0 --device " + Path("cam.json") + " --out " + Path("s.jpg"),
             "must be a .png"},
-           {base + " --camera " + Path("bad.json"), "bad.json: a_mm: 4 differs from the configuration"}}) {
+           {base + " --device " + Path("bad.json"), "bad.json: a_mm: 4 differs from the configuration"}}) {
     SCOPED_TRACE(args);
-    Write("bad.json", R"({"pixel_pitch_um": 1.12, "width_px": 100, "height_px": 100, "principal_point_px": [50, 50],
-                          "a_mm": 4})");
+    Write("bad.json", testing_cli::NominalDeviceText(R"({"pixel_pitch_um": 1.12, "width_px": 100, "height_px": 100,
+                          "principal_point_px": [50, 50], "a_mm": 4})"));
     const auto r = RunTopocal(args);
     EXPECT_EQ(r.exit_code, 2) << r.output;
     EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
@@ -154,7 +155,7 @@ TEST_F(CorrectCli, UndistortSpotsInvertsTheCalibratedLens) {
   const auto brown = LensFromOpenCv(k, camera_);
   ASSERT_TRUE(brown.ok) << brown.message;
   const auto truth = WriteDistortedGrid("in.csv", brown.lens);
-  const auto r = RunTopocal("undistort --calibration " + Path("cal.yaml") + " --camera " + Path("cam.json") +
+  const auto r = RunTopocal("undistort --calibration " + Path("cal.yaml") + " --device " + Path("cam.json") +
                             " --spots " + Path("in.csv") + " --out " + Path("out.csv"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::ifstream in(Path("out.csv"));
@@ -182,13 +183,13 @@ TEST_F(CorrectCli, UndistortImageMatchesTheLibrary) {
   cv::randu(img, 0, 255);
   cv::imwrite(Path("in.png"), img);
   const auto r = RunTopocal("undistort --calibration " + Path("cal.yaml") + " --image " + Path("in.png") + " --out " +
-                            Path("out.png") + " --camera " + Path("cam.json"));
+                            Path("out.png") + " --device " + Path("cam.json"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const cv::Mat out = cv::imread(Path("out.png"), cv::IMREAD_UNCHANGED);
   const auto expected = UndistortImage(img, BuildUndistortMap(LensFromOpenCv(k, camera_).lens, camera_));
   ASSERT_EQ(out.size(), expected.size());
   EXPECT_EQ(cv::norm(out, expected, cv::NORM_INF), 0.0);
-  // Without --camera the calibration's own geometry is used: the same image in pixels.
+  // Without --device the calibration's own geometry is used: the same image in pixels.
   const auto r2 = RunTopocal("undistort --calibration " + Path("cal.yaml") + " --image " + Path("in.png") + " --out " +
                              Path("out2.png"));
   ASSERT_EQ(r2.exit_code, 0) << r2.output;
@@ -249,15 +250,13 @@ TEST_F(CorrectCli, UndistortBadInputIsOneLineExitTwoNoOutput) {
             "exactly one of --spots or --image"},
            {"undistort --calibration " + Path("none.yaml") + " --spots " + Path("in.csv") + " --out " + Path("o.csv"),
             "none.yaml"},
-           {"undistort" + cal + " --spots " + Path("in.csv") + " --out " + Path("o.csv"), "give --camera"},
-           {"undistort --calibration " + Path("small.yaml") + " --camera " + Path("cam.json") + " --spots " +
+           {"undistort" + cal + " --spots " + Path("in.csv") + " --out " + Path("o.csv"), "give --device"},
+           {"undistort --calibration " + Path("small.yaml") + " --device " + Path("cam.json") + " --spots " +
                 Path("in.csv") + " --out " + Path("o.csv"),
             "is for 640 x 480 px"},
-           // One of --calibration and --device; a device holds its own camera.
-           {"undistort --spots " + Path("in.csv") + " --out " + Path("o.csv"), "exactly one of --calibration or --device"},
-           {"undistort --device " + Path("device.json") + " --camera " + Path("cam.json") + " --spots " +
-                Path("in.csv") + " --out " + Path("o.csv"),
-            "--camera: not with --device"}}) {
+           // A calibration (with a device for its camera) or a device.
+           {"undistort --spots " + Path("in.csv") + " --out " + Path("o.csv"),
+            "give --calibration (with --device for its camera) or --device"}}) {
     SCOPED_TRACE(args);
     const auto r = RunTopocal(args);
     EXPECT_EQ(r.exit_code, 2) << r.output;
@@ -273,11 +272,11 @@ TEST_F(CorrectCli, UndistortBadInputIsOneLineExitTwoNoOutput) {
 // clinical number, no maps.
 TEST_F(CorrectCli, ALidIsMeasuredOverWhatIsVisibleAndOneHidingTheSimKZoneIsRefused) {
   const std::string cfg = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
-  auto r = RunTopocal(fmt::format("render-spots --config {} --camera {} --sigma 0 --upper-lid 0.25 --lower-lid 0.1 "
+  auto r = RunTopocal(fmt::format("render-spots --config {} --device {} --sigma 0 --upper-lid 0.25 --lower-lid 0.1 "
                                   "--lid-skin 8000 --glints 2 --out {}",
                                   cfg, Path("cam.json"), Path("lid.png")));
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  r = RunTopocal(fmt::format("reconstruct --config {} --image {} --camera {} --truth --json {}", cfg, Path("lid.png"),
+  r = RunTopocal(fmt::format("reconstruct --config {} --image {} --device {} --truth --json {}", cfg, Path("lid.png"),
                              Path("cam.json"), Path("lid.json")));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("at the image's top (upper lid?)"), std::string::npos) << r.output;
@@ -297,10 +296,10 @@ TEST_F(CorrectCli, ALidIsMeasuredOverWhatIsVisibleAndOneHidingTheSimKZoneIsRefus
   }
   EXPECT_TRUE(j.contains("clinical"));
 
-  r = RunTopocal(fmt::format("render-spots --config {} --camera {} --sigma 0 --upper-lid 0.45 --out {}", cfg,
+  r = RunTopocal(fmt::format("render-spots --config {} --device {} --sigma 0 --upper-lid 0.45 --out {}", cfg,
                              Path("cam.json"), Path("lid60.png")));
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  r = RunTopocal(fmt::format("reconstruct --config {} --image {} --camera {} --json {} --maps {}", cfg,
+  r = RunTopocal(fmt::format("reconstruct --config {} --image {} --device {} --json {} --maps {}", cfg,
                              Path("lid60.png"), Path("cam.json"), Path("lid60.json"), Path("maps60")));
   EXPECT_EQ(r.exit_code, 4) << r.output;
   EXPECT_NE(r.output.find("measurement REFUSED"), std::string::npos) << r.output;
@@ -314,17 +313,17 @@ TEST_F(CorrectCli, ALidIsMeasuredOverWhatIsVisibleAndOneHidingTheSimKZoneIsRefus
   EXPECT_FALSE(j.contains("surface_fit"));
 
   // A lid over the pattern's centre: no identity can be anchored; refused at identification, the JSON says so.
-  r = RunTopocal(fmt::format("render-spots --config {} --camera {} --sigma 0 --upper-lid 0.7 --out {}", cfg,
+  r = RunTopocal(fmt::format("render-spots --config {} --device {} --sigma 0 --upper-lid 0.7 --out {}", cfg,
                              Path("cam.json"), Path("lid70.png")));
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  r = RunTopocal(fmt::format("reconstruct --config {} --image {} --camera {} --json {}", cfg, Path("lid70.png"),
+  r = RunTopocal(fmt::format("reconstruct --config {} --image {} --device {} --json {}", cfg, Path("lid70.png"),
                              Path("cam.json"), Path("lid70.json")));
   EXPECT_EQ(r.exit_code, 4) << r.output;
   EXPECT_NE(r.output.find("measurement refused: spot identification"), std::string::npos) << r.output;
   j = nlohmann::json::parse(std::ifstream(Path("lid70.json")));
   EXPECT_FALSE(j["valid"].get<bool>());
   EXPECT_FALSE(j.contains("clinical"));
-  r = RunTopocal(fmt::format("detect --image {} --camera {} --config {} --out {}", Path("lid70.png"),
+  r = RunTopocal(fmt::format("detect --image {} --device {} --config {} --out {}", Path("lid70.png"),
                              Path("cam.json"), cfg, Path("lid70.csv")));
   EXPECT_EQ(r.exit_code, 4) << r.output;
   EXPECT_FALSE(fs::exists(Path("lid70.csv")));
@@ -345,12 +344,12 @@ TEST_F(CorrectCli, SmallerPixelsMeasureEverySpot) {
     cam.pixel_pitch_um = pitch_um;
     cam.width_px = cam.height_px = static_cast<int>(std::ceil(1000 * 1.12 / pitch_um));
     cam.principal_point_px = Eigen::Vector2d::Constant(0.5 * (cam.width_px - 1));
-    Write("small.json", model::TopographerCameraToJson(cam));
+    Write("small.json", testing_cli::NominalDeviceText(cam));
     const std::string spot = pitch_um > 3 ? "--spot psf --psf-px 1.2" : "";
-    auto r = RunTopocal(fmt::format("render-spots --config {} --camera {} --sigma 0 {} --out {}", cfg,
+    auto r = RunTopocal(fmt::format("render-spots --config {} --device {} --sigma 0 {} --out {}", cfg,
                                     Path("small.json"), spot, Path("small.png")));
     ASSERT_EQ(r.exit_code, 0) << r.output;
-    r = RunTopocal(fmt::format("reconstruct --config {} --image {} --camera {} --json {}", cfg, Path("small.png"),
+    r = RunTopocal(fmt::format("reconstruct --config {} --image {} --device {} --json {}", cfg, Path("small.png"),
                                Path("small.json"), Path("small-fit.json")));
     ASSERT_EQ(r.exit_code, 0) << r.output;
     const auto j = nlohmann::json::parse(std::ifstream(Path("small-fit.json")));
@@ -374,12 +373,12 @@ TEST_F(CorrectCli, SmallerPixelsMeasureEverySpot) {
 TEST_F(CorrectCli, AClinicalCaptureIsMeasuredWithWhatTheSurfaceRejectedCounted) {
   const std::string cfg = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
   auto r = RunTopocal(fmt::format(
-      "render-spots --config {} --camera {} --sigma 0 --upper-lid 0.2 --lid-skin 8000 --lashes 4 --iris 2500 "
+      "render-spots --config {} --device {} --sigma 0 --upper-lid 0.2 --lid-skin 8000 --lashes 4 --iris 2500 "
       "--psf-px 1.5 --defocus-rim-px 3 --motion-blur-px 1.5 --motion-blur-deg 30 --tear-film 2 --glints 2 --seed 5 "
       "--out {}",
       cfg, Path("cam.json"), Path("clinical.png")));
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  r = RunTopocal(fmt::format("reconstruct --config {} --image {} --camera {} --json {}", cfg, Path("clinical.png"),
+  r = RunTopocal(fmt::format("reconstruct --config {} --image {} --device {} --json {}", cfg, Path("clinical.png"),
                              Path("cam.json"), Path("clinical.json")));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("spots rejected by the reconstructed surface"), std::string::npos) << r.output;

@@ -11,6 +11,7 @@
 #include "model/null_screen_layout.h"
 #include "synthetic.h"
 #include "tests/cli_harness.h"
+#include "tests/device_file.h"
 
 namespace topocal::correct {
 namespace {
@@ -28,9 +29,9 @@ class DetectCli : public topocal::testing_cli::TempDirTest {
     cam.width_px = 1000;
     cam.height_px = 1000;
     cam.principal_point_px = {499.5, 499.5};
-    Write("identity.json", model::TopographerCameraToJson(cam));
+    Write("identity.json", testing_cli::NominalDeviceText(cam));
     cam.orientation = model::ImageOrientation::kFlipV;
-    Write("flip_v.json", model::TopographerCameraToJson(cam));
+    Write("flip_v.json", testing_cli::NominalDeviceText(cam));
     auto cfg = testing::PaperConfig();
     cfg.ideal_image.orientation_key = true;
     Write("keyed.json", model::ConfigToJson(cfg));
@@ -67,12 +68,12 @@ std::map<std::pair<int, int>, Row> ReadRows(const std::string& path, std::vector
 // Acceptance: 100 % indexing with 5 % missing spots and 6 glints, no glint accepted; a mirrored image
 // measured when declared, refused when not (keyed screen).
 TEST_F(DetectCli, IndexesEverySpotAcceptsNoGlintAndRefusesAnUndeclaredMirror) {
-  const auto render = RunTopocal("render-spots --config " + Path("keyed.json") + " --camera " + Path("flip_v.json") +
+  const auto render = RunTopocal("render-spots --config " + Path("keyed.json") + " --device " + Path("flip_v.json") +
                                  " --spot psf --psf-px 2 --bits 8 --background 4 --peak 160 --noise 1 --gain 1" +
                                  " --drop 0.05 --glints 6 --seed 3 --out " + Path("img.png") + " --truth " +
                                  Path("truth.csv"));
   ASSERT_EQ(render.exit_code, 0) << render.output;
-  const auto r = RunTopocal("detect --image " + Path("img.png") + " --camera " + Path("flip_v.json") + " --config " +
+  const auto r = RunTopocal("detect --image " + Path("img.png") + " --device " + Path("flip_v.json") + " --config " +
                             Path("keyed.json") + " --out " + Path("spots.csv") + " --json " + Path("spots.json"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("orientation: confirmed"), std::string::npos) << r.output;
@@ -94,7 +95,7 @@ TEST_F(DetectCli, IndexesEverySpotAcceptsNoGlintAndRefusesAnUndeclaredMirror) {
   EXPECT_EQ(j["estimator"], "psf");
 
   // The same image with the camera file that does not declare the mirror: refused, no output.
-  const auto wrong = RunTopocal("detect --image " + Path("img.png") + " --camera " + Path("identity.json") +
+  const auto wrong = RunTopocal("detect --image " + Path("img.png") + " --device " + Path("identity.json") +
                                 " --config " + Path("keyed.json") + " --out " + Path("wrong.csv"));
   EXPECT_EQ(wrong.exit_code, 2) << wrong.output;
   EXPECT_NE(wrong.output.find("orientation refused"), std::string::npos) << wrong.output;
@@ -103,29 +104,29 @@ TEST_F(DetectCli, IndexesEverySpotAcceptsNoGlintAndRefusesAnUndeclaredMirror) {
 
   // reconstruct --image takes the estimator and states the orientation.
   const auto rec = RunTopocal("reconstruct --config " + Path("keyed.json") + " --image " + Path("img.png") +
-                              " --camera " + Path("flip_v.json") + " --estimator centroid");
+                              " --device " + Path("flip_v.json") + " --estimator centroid");
   EXPECT_EQ(rec.exit_code, 0) << rec.output;
   EXPECT_NE(rec.output.find("orientation: confirmed"), std::string::npos) << rec.output;
   const auto rec_wrong = RunTopocal("reconstruct --config " + Path("keyed.json") + " --image " + Path("img.png") +
-                                    " --camera " + Path("identity.json"));
+                                    " --device " + Path("identity.json"));
   EXPECT_EQ(rec_wrong.exit_code, 2) << rec_wrong.output;
   EXPECT_NE(rec_wrong.output.find("orientation refused"), std::string::npos) << rec_wrong.output;
 }
 
 TEST_F(DetectCli, AnUnkeyedScreenSaysTheRiskAndBadInputIsOneLine) {
   const std::string paper = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
-  ASSERT_EQ(RunTopocal("render-spots --config " + paper + " --camera " + Path("identity.json") + " --out " +
+  ASSERT_EQ(RunTopocal("render-spots --config " + paper + " --device " + Path("identity.json") + " --out " +
                        Path("img.png")).exit_code, 0);
-  const auto r = RunTopocal("detect --image " + Path("img.png") + " --camera " + Path("identity.json") + " --config " +
+  const auto r = RunTopocal("detect --image " + Path("img.png") + " --device " + Path("identity.json") + " --config " +
                             paper + " --out " + Path("spots.csv") + " --estimator centroid");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("orientation: NOT verifiable"), std::string::npos) << r.output;
-  const auto bad = RunTopocal("detect --image " + Path("missing.png") + " --camera " + Path("identity.json") +
+  const auto bad = RunTopocal("detect --image " + Path("missing.png") + " --device " + Path("identity.json") +
                               " --config " + paper + " --out " + Path("x.csv"));
   EXPECT_EQ(bad.exit_code, 2) << bad.output;
   EXPECT_NE(bad.output.find("missing.png"), std::string::npos) << bad.output;
   EXPECT_FALSE(fs::exists(Path("x.csv")));
-  const auto est = RunTopocal("detect --image " + Path("img.png") + " --camera " + Path("identity.json") +
+  const auto est = RunTopocal("detect --image " + Path("img.png") + " --device " + Path("identity.json") +
                               " --config " + paper + " --out " + Path("x.csv") + " --estimator median");
   EXPECT_NE(est.exit_code, 0);
   EXPECT_FALSE(fs::exists(Path("x.csv")));
@@ -138,15 +139,15 @@ TEST_F(DetectCli, AnUnkeyedScreenSaysTheRiskAndBadInputIsOneLine) {
 TEST_F(DetectCli, EveryIdentityIsCheckedAgainstTheSurfaceAsReconstructChecksIt) {
   const std::string paper = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
   const auto render = RunTopocal(
-      "render-spots --config " + paper + " --camera " + Path("identity.json") +
+      "render-spots --config " + paper + " --device " + Path("identity.json") +
       " --sigma 0 --upper-lid 0.2 --lid-skin 8000 --lashes 4 --iris 2500 --psf-px 1.5 --defocus-rim-px 3 "
       "--motion-blur-px 1.5 --motion-blur-deg 30 --tear-film 2 --glints 2 --seed 5 --out " + Path("clinical.png") +
       " --truth " + Path("truth.csv"));
   ASSERT_EQ(render.exit_code, 0) << render.output;
-  const auto det = RunTopocal("detect --image " + Path("clinical.png") + " --camera " + Path("identity.json") +
+  const auto det = RunTopocal("detect --image " + Path("clinical.png") + " --device " + Path("identity.json") +
                               " --config " + paper + " --out " + Path("spots.csv") + " --json " + Path("spots.json"));
   ASSERT_EQ(det.exit_code, 0) << det.output;
-  const auto rec = RunTopocal("reconstruct --image " + Path("clinical.png") + " --camera " + Path("identity.json") +
+  const auto rec = RunTopocal("reconstruct --image " + Path("clinical.png") + " --device " + Path("identity.json") +
                               " --config " + paper + " --json " + Path("cornea.json"));
   ASSERT_EQ(rec.exit_code, 0) << rec.output;
   const auto dj = nlohmann::json::parse(std::ifstream(Path("spots.json")));
@@ -185,9 +186,9 @@ TEST_F(DetectCli, EveryIdentityIsCheckedAgainstTheSurfaceAsReconstructChecksIt) 
 // exits 4 as reconstruct does, writes no spots file, and its JSON is marked invalid with the reason.
 TEST_F(DetectCli, IdentitiesTheDataCannotSupportAreRefusedWithoutASpotsFile) {
   const std::string paper = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
-  ASSERT_EQ(RunTopocal("render-spots --config " + paper + " --camera " + Path("identity.json") +
+  ASSERT_EQ(RunTopocal("render-spots --config " + paper + " --device " + Path("identity.json") +
                        " --upper-lid 0.45 --out " + Path("lid45.png")).exit_code, 0);
-  const auto det = RunTopocal("detect --image " + Path("lid45.png") + " --camera " + Path("identity.json") +
+  const auto det = RunTopocal("detect --image " + Path("lid45.png") + " --device " + Path("identity.json") +
                               " --config " + paper + " --out " + Path("spots.csv") + " --json " + Path("spots.json"));
   EXPECT_EQ(det.exit_code, 4) << det.output;
   EXPECT_NE(det.output.find("REFUSED"), std::string::npos) << det.output;
@@ -196,7 +197,7 @@ TEST_F(DetectCli, IdentitiesTheDataCannotSupportAreRefusedWithoutASpotsFile) {
   const auto j = nlohmann::json::parse(std::ifstream(Path("spots.json")));
   EXPECT_FALSE(j["valid"].get<bool>());
   ASSERT_FALSE(j["refused"].empty());
-  const auto rec = RunTopocal("reconstruct --image " + Path("lid45.png") + " --camera " + Path("identity.json") +
+  const auto rec = RunTopocal("reconstruct --image " + Path("lid45.png") + " --device " + Path("identity.json") +
                               " --config " + paper);
   EXPECT_EQ(rec.exit_code, 4) << rec.output;
 }

@@ -4,6 +4,7 @@
 
 #include "correct/spot_truth.h"
 #include "model/config.h"
+#include "model/device.h"
 #include "model/topographer_camera.h"
 
 namespace topocal::correct::testing {
@@ -11,7 +12,7 @@ namespace topocal::correct::testing {
 inline model::Config PaperConfig() { return model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json"); }
 
 inline model::TopographerCamera DefaultCamera() {
-  return model::LoadTopographerCamera(std::string(TOPOCAL_SOURCE_DIR) + "/data/camera.json");
+  return model::LoadDevice(std::string(TOPOCAL_SOURCE_DIR) + "/data/device.json").device.camera;
 }
 
 inline model::SeidelParams Seidel(const model::Config& c, double sigma_per_mm2) {

@@ -1,4 +1,5 @@
 // The topographer's camera: pixel <-> detection-plane mapping, its orientation, and strict loading.
+#include "model/device.h"
 #include "model/topographer_camera.h"
 
 #include <gtest/gtest.h>
@@ -11,8 +12,8 @@ namespace {
 // Round trip of two affine maps in double: a few ulps of a 4000 px coordinate.
 constexpr double kRoundTripPx = 1e-9;
 
-TEST(TopographerCamera, DefaultFileFitsThePaperPattern) {
-  const auto c = LoadTopographerCamera(std::string(TOPOCAL_SOURCE_DIR) + "/data/camera.json");
+TEST(TopographerCamera, TheBundledDevicesCameraFitsThePaperPattern) {
+  const auto c = model::LoadDevice(std::string(TOPOCAL_SOURCE_DIR) + "/data/device.json").device.camera;
   EXPECT_FALSE(c.Invalid().has_value());
   // The paper's spot image spans about +-0.45 mm (Table V semi-axes ~0.39 mm, plus the strongest pincushion):
   // all of it must land on the sensor.
@@ -74,7 +75,6 @@ TEST(TopographerCamera, StrictLoadingNamesFileKeyAndProblem) {
                        "a_mm": 5.2, "rotated_180": "yes"})").find("rotated_180: must be true or false"),
             std::string::npos);
   EXPECT_NE(ErrorOf("{nope").find("cam.json: not valid JSON"), std::string::npos);
-  EXPECT_THROW(LoadTopographerCamera("/nonexistent/cam.json"), util::InputError);
 }
 
 // Non-square pixels (OpenCV's fx != fy): the pitch along v is pitch_u x pixel_aspect, in every orientation; the

@@ -28,15 +28,15 @@ mkdir unit && cd unit
 # Images: the installed CLI writes a PNG and reads it back through its codec plugin (<prefix>/lib/topocal), loaded
 # only by the verbs that touch an image.
 data="$prefix/share/topocal/data"
-"$prefix/bin/topocal" render-spots --config "$data/paper.json" --camera "$data/camera.json" --sigma 0 \
+"$prefix/bin/topocal" render-spots --config "$data/paper.json" --device "$data/device.json" --sigma 0 \
   --out spots.png >/dev/null
-"$prefix/bin/topocal" detect --image spots.png --camera "$data/camera.json" --config "$data/paper.json" \
+"$prefix/bin/topocal" detect --image spots.png --device "$data/device.json" --config "$data/paper.json" \
   --out detected.csv >/dev/null
 test -s detected.csv
 # Without the plugin: the image verbs fail with one line naming it, write nothing, and the others still run.
 mv "$prefix/lib/topocal/libtopocal_imgcodecs.so" "$work/plugin.so"
 set +e
-msg=$("$prefix/bin/topocal" render-spots --config "$data/paper.json" --camera "$data/camera.json" --sigma 0 \
+msg=$("$prefix/bin/topocal" render-spots --config "$data/paper.json" --device "$data/device.json" --sigma 0 \
       --out missing.png 2>&1)
 code=$?
 set -e

@@ -12,7 +12,7 @@ namespace topocal::pipeline::testing {
 inline model::Config PaperConfig() { return model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json"); }
 
 inline model::Device NominalDevice() {
-  return model::NominalDevice(model::LoadTopographerCamera(std::string(TOPOCAL_SOURCE_DIR) + "/data/camera.json"));
+  return model::LoadDevice(std::string(TOPOCAL_SOURCE_DIR) + "/data/device.json").device;
 }
 
 // A device drawn within the assembly tolerances (pipeline::DrawAssembledDevice).

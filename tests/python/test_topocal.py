@@ -332,7 +332,7 @@ def unit_record(work):
     run("render-target", "--target", target, "--width", "4000", "--height", "3000", "--focal-mm", "5.2",
         "--pixel-pitch-um", "1.12", "--sigma", "6.3e-5", "--distance-mm", "70", "--supersampling", "2", "--noise", "1",
         "--out", str(work / "target.png"))
-    run("render-spots", "--config", PAPER, "--camera", os.path.join(DATA, "camera.json"), "--sigma", "6.3e-5",
+    run("render-spots", "--config", PAPER, "--device", os.path.join(DATA, "device.json"), "--sigma", "6.3e-5",
         "--sphere-radius-mm", "7.8", "--out", str(work / "sphere.png"))
     record = work / "units" / "SN-0001"
     run("unit", "calibrate", "--serial", "SN-0001", "--target", target, "--images", str(work / "target.png"),

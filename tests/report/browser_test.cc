@@ -161,7 +161,7 @@ TEST(ReportInBrowser, AUnitCalibratedFromImagesReportsAndRendersEndToEnd) {
   const std::string unit = work + "/units/SN-E2E-0001", html = work + "/SN-E2E-0001.html";
   const auto calibrated = RunTopocal(fmt::format(
       "unit calibrate --serial SN-E2E-0001 --target {0}/target.yaml --images {0}/view.png --reference-sphere "
-      "{0}/sphere.png --sphere-radius-mm {1} --camera {0}/camera.json --uncertainty 8 --out {2}",
+      "{0}/sphere.png --sphere-radius-mm {1} --device {0}/device.json --uncertainty 8 --out {2}",
       in, topocal::testing_cli::kUnitSphereRadiusMm, unit));
   ASSERT_EQ(calibrated.exit_code, 0) << calibrated.output;
   const auto reported = RunTopocal("report --unit " + unit + " --out " + html);

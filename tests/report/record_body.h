@@ -18,6 +18,7 @@
 #include "model/config.h"
 #include "model/null_screen.h"
 #include "model/spots_csv.h"
+#include "model/device.h"
 #include "model/topographer_camera.h"
 #include "pipeline/detection_plane.h"
 #include "pipeline/unit_verification.h"
@@ -29,7 +30,7 @@ namespace topocal::report::testing {
 
 using nlohmann::json;
 
-// The topographer camera of data/camera.json and the paper's Seidel sigma (Table IV) at the cornea position.
+// The topographer camera of data/device.json and the paper's Seidel sigma (Table IV) at the cornea position.
 inline constexpr int kWidthPx = 4000, kHeightPx = 3000;
 inline constexpr double kFocalMm = 5.2, kPitchUm = 1.12, kDistanceMm = 70, kSigmaPerMm2 = 6.3e-5;
 inline constexpr double kCornerNoisePx = 0.05;  // gives a covariance (noise-free corners would make it ~0)
@@ -79,7 +80,7 @@ inline const FixtureChecks& ComputeChecks() {
   static const FixtureChecks checks = [] {
     const calib::CalibrationResult r = FixtureCalibration();
     const auto config = model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json");
-    const auto camera = model::LoadTopographerCamera(std::string(TOPOCAL_SOURCE_DIR) + "/data/camera.json");
+    const auto camera = model::LoadDevice(std::string(TOPOCAL_SOURCE_DIR) + "/data/device.json").device.camera;
     pipeline::UnitCalibration unit;
     unit.camera = r.camera;
     unit.covariance.names = calib::CameraParameterNames(r.model);
@@ -136,7 +137,7 @@ inline json RecordBody(const calib::CalibrationResult& r, const std::string& ser
         {"seed", 1}}},
       {"inputs",
        {{{"role", "config"}, {"path", "data/paper.json"}, {"sha256", util::Sha256Hex("config")}},
-        {{"role", "camera"}, {"path", "data/camera.json"}, {"sha256", util::Sha256Hex("camera")}},
+        {{"role", "device"}, {"path", "data/device.json"}, {"sha256", util::Sha256Hex("device")}},
         {{"role", "target"}, {"path", "data/target-topographer.yaml"}, {"sha256", util::Sha256Hex("target")}},
         {{"role", "image"}, {"path", "views/v1.png"}, {"sha256", util::Sha256Hex("v1")}},
         {{"role", "reference_sphere"}, {"path", "sphere.png"}, {"sha256", zero_hash}}}},

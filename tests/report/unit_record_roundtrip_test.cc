@@ -121,7 +121,7 @@ TEST(UnitRecordRoundTrip, EveryFieldTheWorkflowComputedIsReadBackUnchanged) {
   r.target = in + "/target.yaml";
   r.images = {in + "/view.png"};
   r.config = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
-  r.camera = in + "/camera.json";
+  r.device = in + "/device.json";
   r.sphere_radius_mm = 7.8;
   r.uncertainty_samples = kDraws;
   r.seed = 3;
