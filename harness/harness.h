@@ -146,6 +146,8 @@ class HarnessCaseRunner {
 // file and key. The cases are one array per line under "case_columns" (docs/harness.md): a shard's size and reading
 // time grow with its cases, ~265 bytes each.
 std::string HarnessShardJson(const HarnessRun& run);
+// The truth reconstructions as the shard and the report's JSON both write them.
+nlohmann::json HarnessTruthJson(const std::vector<HarnessTruth>& truth);
 HarnessRun ParseHarnessShard(const std::string& json_text, const std::string& origin);
 // The shard files one `harness merge` argument names: the file itself, or the shard-*.json files of a directory,
 // sorted. Throws util::InputError naming the argument when it does not exist, cannot be listed or holds no shard.

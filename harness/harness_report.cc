@@ -131,22 +131,7 @@ std::string SummaryJson(const HarnessRun& run, const InverseAnswer& a) {
   j["limits"] = {{"dk", run.config.limits.dk}, {"dP_D", run.config.limits.dP_D}, {"dP_maps", MapsName(run)}};
   if (run.config.HasDistortion()) j["answer"] = AnswerJson(run, a);
   if (run.config.HasAssembly()) j["assembly_answer"] = AssemblyAnswerJson(run, a);
-  json truth = json::array();
-  for (const auto& t : run.truth) {
-    truth.push_back({{"cornea", t.cornea},
-                     {"fit",
-                      {{"rx_mm", t.fit.rx_mm},
-                       {"ry_mm", t.fit.ry_mm},
-                       {"kx", t.fit.kx},
-                       {"ky", t.fit.ky},
-                       {"alpha_deg", t.fit.alpha_deg}}},
-                     {"covered_radius_mm", t.covered_radius_mm},
-                     {"spot_field_radius_mm", t.spot_field_radius_mm},
-                     {"spots", t.spots},
-                     {"pv_axial_D", t.pv_axial_D},
-                     {"pv_tangential_D", t.pv_tangential_D}});
-  }
-  j["truth"] = truth;
+  j["truth"] = HarnessTruthJson(run.truth);
   if (a.limiting_case >= 0) j["limiting_case"] = CaseJson(run, a.limiting_case);
   return util::JsonFileText(j);
 }

@@ -34,6 +34,24 @@ json BiconicJson(const model::BiconicParams& p) {
           {"ky", p.ky},       {"alpha_deg", p.alpha_deg}, {"z0_mm", p.z0_mm}};
 }
 
+}  // namespace
+
+json HarnessTruthJson(const std::vector<HarnessTruth>& truth) {
+  json out = json::array();
+  for (const auto& t : truth) {
+    out.push_back({{"cornea", t.cornea},
+                   {"fit", BiconicJson(t.fit)},
+                   {"covered_radius_mm", t.covered_radius_mm},
+                   {"spot_field_radius_mm", t.spot_field_radius_mm},
+                   {"spots", t.spots},
+                   {"pv_axial_D", t.pv_axial_D},
+                   {"pv_tangential_D", t.pv_tangential_D}});
+  }
+  return out;
+}
+
+namespace {
+
 // Every integer of a shard is a count or an index well inside int; beyond it is a corrupt shard, not a wrap.
 int Count(util::JsonSection& s, const char* key) { return s.IntegerInRange(key, 0, std::numeric_limits<int>::max()); }
 
@@ -240,17 +258,7 @@ std::string HarnessShardJson(const HarnessRun& run) {
   j["config"] = json::parse(CanonicalHarnessJson(run.config));
   j["shard"] = {{"index", run.shard.index}, {"count", run.shard.count}};
   j["total_cases"] = run.total_cases;
-  json truth = json::array();
-  for (const auto& t : run.truth) {
-    truth.push_back({{"cornea", t.cornea},
-                     {"fit", BiconicJson(t.fit)},
-                     {"covered_radius_mm", t.covered_radius_mm},
-                     {"spot_field_radius_mm", t.spot_field_radius_mm},
-                     {"spots", t.spots},
-                     {"pv_axial_D", t.pv_axial_D},
-                     {"pv_tangential_D", t.pv_tangential_D}});
-  }
-  j["truth"] = truth;
+  j["truth"] = HarnessTruthJson(run.truth);
   j["case_columns"] = kCaseColumns;
   // The cases last, one row per line (the header's dump ends in "\n}").
   std::string text = j.dump(1);
