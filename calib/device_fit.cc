@@ -7,63 +7,28 @@
 #include <stdexcept>
 
 #include <ceres/ceres.h>
-#include <ceres/normal_prior.h>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <opencv2/calib3d.hpp>
 
+#include "calib/device_fit_residuals.h"
 #include "calib/jacobian_covariance.h"
 #include "util/io.h"
 
 namespace topocal::calib {
 namespace {
 
+using device_fit::BallSpotResidual;
+using device_fit::CornerResidual;
+using device_fit::MakeCornerCost;
+using device_fit::MakeSpotCost;
+using device_fit::Prior;
+
 // Minimum identified spots per ball image: below ~a ring's worth the ball's three coordinates and the device share
 // too little; the paper's design images 624.
 constexpr int kMinSpotsPerBall = 24;
-
-// One spot of one ball image: predicted - observed pixel, divided by the spot noise.
-template <int kDistortionParams>
-struct BallSpotResidual {
-  model::DeviceProjectionSetup setup;
-  double radius_mm;
-  double reference_radius_mm;
-  Eigen::Vector3d designed_target_mm;
-  Eigen::Vector2d designed_on_sphere_mm;
-  Eigen::Vector2d observed_px;
-  double inv_sigma_px;
-
-  template <typename T>
-  bool operator()(const T* pose, const T* radial_scale, const T* principal, const T* a, const T* distortion,
-                  const T* ball, T* residual) const {
-    const auto value = [](const T& v) -> double {
-      if constexpr (std::is_same_v<T, double>) return v; else return v.a;
-    };
-    // Newton start: the reflection point on a ball of another radius has about the same normal as on the
-    // reference sphere, so it sits at centre + (R / r_e) (designed point - reference centre) laterally.
-    const Eigen::Vector2d initial = designed_on_sphere_mm * (radius_mm / reference_radius_mm) +
-                                    Eigen::Vector2d(value(ball[0]), value(ball[1]));
-    T px[2];
-    if (!model::ProjectBallSpot(setup, pose, radial_scale, principal, a, distortion, ball, radius_mm,
-                                designed_target_mm.data(), initial, px)) {
-      return false;
-    }
-    residual[0] = (px[0] - observed_px.x()) * inv_sigma_px;
-    residual[1] = (px[1] - observed_px.y()) * inv_sigma_px;
-    return true;
-  }
-};
-
-template <int N>
-ceres::CostFunction* MakeSpotCost(const BallSpotResidual<N>& r) {
-  return new ceres::AutoDiffCostFunction<BallSpotResidual<N>, 2, model::ScreenPose::kNumParams, 1, 2, 1, N, 3>(
-      new BallSpotResidual<N>(r));
-}
-
-// A diagonal Gaussian prior: (x - mean) / sigma per component.
-ceres::CostFunction* Prior(const Eigen::VectorXd& mean, const Eigen::VectorXd& sigma) {
-  const Eigen::MatrixXd a = sigma.cwiseInverse().asDiagonal();
-  return new ceres::NormalPrior(a, mean);
-}
+// Minimum corners per target view: a board pose (6 numbers) and some redundancy.
+constexpr int kMinCornersPerView = 12;
 
 // The parameter blocks of the fit.
 struct Blocks {
@@ -73,11 +38,18 @@ struct Blocks {
   double a = 0;
   std::vector<double> distortion;   // 1 (Seidel sigma) or the lens model's coefficients
   std::vector<std::array<double, 3>> balls;
+  std::vector<std::array<double, 6>> boards;  // per target view: angle-axis (rad), translation (mm)
 };
 
 struct Observation {
   int ball;
   const model::TargetPoint* target;
+  Eigen::Vector2d px;
+};
+
+struct CornerSeen {
+  int view;
+  Eigen::Vector3d board_mm;
   Eigen::Vector2d px;
 };
 
@@ -102,6 +74,10 @@ bool DeviceFitOptions::IsValid(std::string* why) const {
   if (!priors.IsValid(why)) return false;
   if (!(spot_sigma_px > 0) || !std::isfinite(spot_sigma_px)) {
     if (why) *why = fmt::format("spot_sigma_px must be > 0 (got {})", spot_sigma_px);
+    return false;
+  }
+  if (!(corner_sigma_px > 0) || !std::isfinite(corner_sigma_px)) {
+    if (why) *why = fmt::format("corner_sigma_px must be > 0 (got {})", corner_sigma_px);
     return false;
   }
   if (datum_ball < 0) {
@@ -143,9 +119,10 @@ constexpr int kFittedLensCoefficients = 2;
 class DeviceFitter {
  public:
   DeviceFitter(const model::Device& nominal, const model::TopographerParams& design, const std::vector<BallView>& balls,
-               const DeviceFitOptions& options)
-      : nominal_(nominal), design_(design), balls_(balls), options_(options),
-        setup_(model::ProjectionSetupOf(nominal, design)), lens_(setup_.lens), inv_sigma_(1.0 / options.spot_sigma_px) {
+               const std::vector<ViewObservations>& views, const DeviceFitOptions& options)
+      : nominal_(nominal), design_(design), balls_(balls), views_(views), options_(options),
+        setup_(model::ProjectionSetupOf(nominal, design)), lens_(setup_.lens), inv_sigma_(1.0 / options.spot_sigma_px),
+        inv_corner_sigma_(1.0 / options.corner_sigma_px) {
     solver_.linear_solver_type = ceres::DENSE_QR;
     solver_.max_num_iterations = options.max_iterations;
     solver_.num_threads = 1;  // deterministic whatever the machine
@@ -154,18 +131,25 @@ class DeviceFitter {
     solver_.gradient_tolerance = 1e-12;
   }
 
-  // The held components of the lens model's block: every coefficient after k1, k2.
+  // The lens model's coefficients the fit determines: k1, k2 from balls alone, every one with target views.
+  int FittedLensCoefficients() const {
+    return views_.empty() ? kFittedLensCoefficients : model::LensParameterCount(*lens_);
+  }
+  // The held components of the lens model's block: the coefficients after those.
   std::vector<int> HeldLensComponents() const {
     std::vector<int> held;
-    for (int i = kFittedLensCoefficients; i < model::LensParameterCount(*lens_); ++i) held.push_back(i);
+    for (int i = FittedLensCoefficients(); i < model::LensParameterCount(*lens_); ++i) held.push_back(i);
     return held;
   }
 
   std::optional<std::string> CollectSpots(const std::vector<model::TargetPoint>& designed_targets, DeviceFit* fit);
   void StartBlocks();
+  std::optional<std::string> CollectCorners(DeviceFit* fit);
   std::optional<std::string> LocateBalls();
+  std::optional<std::string> LocateBoards();
   std::optional<std::string> SolveAll(DeviceFit* fit);
   std::optional<std::string> SpotResiduals(DeviceFit* fit) const;
+  std::optional<std::string> CornerResiduals(DeviceFit* fit, double* chi2) const;
   std::optional<std::string> Covariance(DeviceFit* fit);
   void FittedDevice(DeviceFit* fit) const;
   size_t spots() const { return observations_.size(); }
@@ -179,6 +163,9 @@ class DeviceFitter {
     double nominal;
   };
   void AddSpot(ceres::Problem& problem, const Observation& o);
+  void AddCorner(ceres::Problem& problem, const CornerSeen& c);
+  std::vector<double*> DeviceBlocks() { return {blk_.pose.data(), &blk_.radial_scale, blk_.principal.data(), &blk_.a,
+                                                blk_.distortion.data()}; }
   void AddPriors(ceres::Problem& problem);
   std::vector<Entry> ReportedEntries() const;
   std::map<const double*, std::vector<int>> FreeComponents(const std::vector<double*>& blocks) const;
@@ -186,12 +173,14 @@ class DeviceFitter {
   const model::Device& nominal_;
   const model::TopographerParams& design_;
   const std::vector<BallView>& balls_;
+  const std::vector<ViewObservations>& views_;
   const DeviceFitOptions& options_;
   const model::DeviceProjectionSetup setup_;
   const std::optional<model::LensModelId> lens_;  // the distortion block's lens model; empty: Seidel
-  const double inv_sigma_;
+  const double inv_sigma_, inv_corner_sigma_;
   ceres::Solver::Options solver_;
   std::vector<Observation> observations_;
+  std::vector<CornerSeen> corners_;
   Blocks blk_;
   ceres::Problem problem_;  // stage 2: everything together, kept for the covariance
 };
@@ -220,6 +209,27 @@ std::optional<std::string> DeviceFitter::CollectSpots(const std::vector<model::T
   return std::nullopt;
 }
 
+std::optional<std::string> DeviceFitter::CollectCorners(DeviceFit* fit) {
+  for (size_t v = 0; v < views_.size(); ++v) {
+    const auto& view = views_[v];
+    if (view.image_width != nominal_.camera.width_px || view.image_height != nominal_.camera.height_px) {
+      return fmt::format("{}: {} x {} px, but the device's sensor is {} x {} px", view.image_path, view.image_width,
+                         view.image_height, nominal_.camera.width_px, nominal_.camera.height_px);
+    }
+    int used = 0;
+    for (const auto& c : view.corners) {
+      if (!c.image_px.allFinite() || !c.target_mm.allFinite()) continue;
+      corners_.push_back({static_cast<int>(v), c.target_mm, c.image_px});
+      ++used;
+    }
+    if (used < kMinCornersPerView) {
+      return fmt::format("{}: {} target corners, at least {} needed", view.image_path, used, kMinCornersPerView);
+    }
+    fit->view_corners.push_back(used);
+  }
+  return std::nullopt;
+}
+
 void DeviceFitter::StartBlocks() {
   blk_.pose = nominal_.screen.AsArray();
   blk_.radial_scale = nominal_.screen.radial_scale;
@@ -232,6 +242,58 @@ void DeviceFitter::StartBlocks() {
     blk_.distortion = {std::get<model::SeidelParams>(nominal_.distortion).sigma_per_mm2};
   }
   blk_.balls.assign(balls_.size(), {0.0, 0.0, options_.datum_z_mm});
+  blk_.boards.assign(views_.size(), {});
+}
+
+void DeviceFitter::AddCorner(ceres::Problem& problem, const CornerSeen& c) {
+  const auto make = [&](auto tag) {
+    constexpr int N = decltype(tag)::value;
+    return MakeCornerCost<N>(CornerResidual<N>{setup_, c.board_mm, c.px, inv_corner_sigma_});
+  };
+  ceres::CostFunction* cost =
+      lens_ ? std::visit([&](auto m) { return make(std::integral_constant<int, decltype(m)::kNumParams>{}); }, *lens_)
+            : make(std::integral_constant<int, 1>{});
+  problem.AddResidualBlock(cost, nullptr,
+                           {blk_.boards[c.view].data(), blk_.principal.data(), &blk_.a, blk_.distortion.data()});
+}
+
+// Stage 1 for the target views: each board's pose with the nominal device. The start is OpenCV's PnP through the
+// nominal pinhole without distortion: the device maps a point to the pixel principal + M (-a x / depth) / pitch, so
+// the observed pixels, turned back by the orientation M and mirrored about the principal point, are a plain
+// pinhole's with fx = a / pitch_u, fy = a / pitch_v in the frame whose origin is the pinhole (z + b).
+std::optional<std::string> DeviceFitter::LocateBoards() {
+  const auto& cam = nominal_.camera;
+  const Eigen::Vector2d pp = cam.principal_point_px;
+  const cv::Matx33d k(cam.a_mm / setup_.pixel_pitch_mm, 0, pp.x(), 0,
+                      cam.a_mm / (setup_.pixel_pitch_mm * setup_.pixel_aspect), pp.y(), 0, 0, 1);
+  for (size_t v = 0; v < views_.size(); ++v) {
+    std::vector<cv::Point3d> object;
+    std::vector<cv::Point2d> image;
+    for (const auto& c : corners_) {
+      if (c.view != static_cast<int>(v)) continue;
+      const Eigen::Vector2d q = pp - setup_.orientation.transpose() * (c.px - pp);
+      object.emplace_back(c.board_mm.x(), c.board_mm.y(), c.board_mm.z());
+      image.emplace_back(q.x(), q.y());
+    }
+    cv::Vec3d rvec, tvec;
+    if (!cv::solvePnP(object, image, k, cv::noArray(), rvec, tvec) || !(tvec[2] > 0)) {
+      return fmt::format("{}: the target's pose could not be found", views_[v].image_path);
+    }
+    blk_.boards[v] = {rvec[0], rvec[1], rvec[2], tvec[0], tvec[1], tvec[2] - setup_.b_mm};
+    ceres::Problem problem;
+    for (const auto& c : corners_) {
+      if (c.view == static_cast<int>(v)) AddCorner(problem, c);
+    }
+    for (double* block : {blk_.principal.data(), &blk_.a, blk_.distortion.data()}) {
+      problem.SetParameterBlockConstant(block);
+    }
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver_, &problem, &summary);
+    if (!summary.IsSolutionUsable()) {
+      return fmt::format("{}: the target's pose could not be found ({})", views_[v].image_path, summary.message);
+    }
+  }
+  return std::nullopt;
 }
 
 void DeviceFitter::AddSpot(ceres::Problem& problem, const Observation& o) {
@@ -257,10 +319,7 @@ std::optional<std::string> DeviceFitter::LocateBalls() {
     for (const auto& o : observations_) {
       if (o.ball == static_cast<int>(b)) AddSpot(problem, o);
     }
-    for (double* block :
-         {blk_.pose.data(), &blk_.radial_scale, blk_.principal.data(), &blk_.a, blk_.distortion.data()}) {
-      problem.SetParameterBlockConstant(block);
-    }
+    for (double* block : DeviceBlocks()) problem.SetParameterBlockConstant(block);
     ceres::Solver::Summary summary;
     ceres::Solve(solver_, &problem, &summary);
     if (!summary.IsSolutionUsable()) {
@@ -301,6 +360,7 @@ void DeviceFitter::AddPriors(ceres::Problem& problem) {
 // Stage 2: everything together, with the priors and the datum.
 std::optional<std::string> DeviceFitter::SolveAll(DeviceFit* fit) {
   for (const auto& o : observations_) AddSpot(problem_, o);
+  for (const auto& c : corners_) AddCorner(problem_, c);
   AddPriors(problem_);
   // The datum: the vertex z of one ball. Its stage-1 estimate is replaced by the datum value.
   blk_.balls[options_.datum_ball][2] = options_.datum_z_mm;
@@ -308,6 +368,10 @@ std::optional<std::string> DeviceFitter::SolveAll(DeviceFit* fit) {
   if (!options_.fit_radial_scale) problem_.SetParameterBlockConstant(&blk_.radial_scale);
   if (!options_.fit_distortion) {
     problem_.SetParameterBlockConstant(blk_.distortion.data());
+  } else if (lens_ && !views_.empty()) {
+    fit->notes.push_back(fmt::format("{} {} fitted with the screen pose from {} ball and {} target views",
+                                     model::LensModelName(*lens_), fmt::join(model::LensParameterNames(*lens_), ", "),
+                                     balls_.size(), views_.size()));
   } else if (lens_) {
     problem_.SetManifold(blk_.distortion.data(),
                          new ceres::SubsetManifold(static_cast<int>(blk_.distortion.size()), HeldLensComponents()));
@@ -326,7 +390,8 @@ std::optional<std::string> DeviceFitter::SolveAll(DeviceFit* fit) {
   return std::nullopt;
 }
 
-// Residuals per ball and chi^2 of the spots alone (the priors excluded); the degrees of freedom.
+// Residuals per ball (and per target view) and chi^2 of the spots and corners (the priors excluded); the degrees of
+// freedom.
 std::optional<std::string> DeviceFitter::SpotResiduals(DeviceFit* fit) const {
   std::vector<double> ssr(balls_.size(), 0.0);
   double chi2 = 0;
@@ -346,13 +411,32 @@ std::optional<std::string> DeviceFitter::SpotResiduals(DeviceFit* fit) const {
     chi2 += r2 * inv_sigma_ * inv_sigma_;
   }
   for (size_t b = 0; b < balls_.size(); ++b) fit->ball_rms_px.push_back(std::sqrt(ssr[b] / fit->ball_spots[b]));
-  // The reported parameters, and 3 coordinates per ball less the datum.
-  const int free_params = static_cast<int>(ReportedEntries().size()) +
-                          3 * static_cast<int>(balls_.size()) - 1;
-  fit->dof = 2 * static_cast<int>(observations_.size()) - free_params;
-  if (fit->dof < 1) return fmt::format("{} spot coordinates for {} parameters", 2 * observations_.size(), free_params);
+  if (auto e = CornerResiduals(fit, &chi2)) return e;
+  // The reported parameters, 3 coordinates per ball less the datum, 6 per board.
+  const int free_params = static_cast<int>(ReportedEntries().size()) + 3 * static_cast<int>(balls_.size()) - 1 +
+                          6 * static_cast<int>(views_.size());
+  const int coordinates = 2 * static_cast<int>(observations_.size() + corners_.size());
+  fit->dof = coordinates - free_params;
+  if (fit->dof < 1) return fmt::format("{} spot and corner coordinates for {} parameters", coordinates, free_params);
   fit->chi2_per_dof = chi2 / fit->dof;
   fit->stddev_scale = std::max(1.0, std::sqrt(fit->chi2_per_dof));
+  return std::nullopt;
+}
+
+// Residuals per target view; their chi^2 added to *chi2.
+std::optional<std::string> DeviceFitter::CornerResiduals(DeviceFit* fit, double* chi2) const {
+  std::vector<double> ssr(views_.size(), 0.0);
+  for (const auto& c : corners_) {
+    double r[2];  // the residual in pixels (the model's operator() does not depend on the block size)
+    if (!CornerResidual<1>{setup_, c.board_mm, c.px, 1.0}(blk_.boards[c.view].data(), blk_.principal.data(), &blk_.a,
+                                                          blk_.distortion.data(), r)) {
+      return fmt::format("{}: a target corner no longer images through the fitted device", views_[c.view].image_path);
+    }
+    const double r2 = r[0] * r[0] + r[1] * r[1];
+    ssr[c.view] += r2;
+    *chi2 += r2 * inv_corner_sigma_ * inv_corner_sigma_;
+  }
+  for (size_t v = 0; v < views_.size(); ++v) fit->view_rms_px.push_back(std::sqrt(ssr[v] / fit->view_corners[v]));
   return std::nullopt;
 }
 
@@ -371,7 +455,7 @@ std::vector<DeviceFitter::Entry> DeviceFitter::ReportedEntries() const {
   if (lens_) {
     const auto& k = std::get<model::LensParams>(nominal_.distortion).k;
     const auto names = model::LensParameterNames(*lens_);
-    for (int i = 0; i < kFittedLensCoefficients; ++i) {
+    for (int i = 0; i < FittedLensCoefficients(); ++i) {
       entries.push_back({std::string(names[static_cast<size_t>(i)]), blk_.distortion.data(), i,
                          k[static_cast<size_t>(i)]});
     }
@@ -407,6 +491,7 @@ std::optional<std::string> DeviceFitter::Covariance(DeviceFit* fit) {
   if (options_.fit_radial_scale) blocks.push_back(&blk_.radial_scale);
   if (options_.fit_distortion) blocks.push_back(blk_.distortion.data());
   for (auto& b : blk_.balls) blocks.push_back(b.data());
+  for (auto& b : blk_.boards) blocks.push_back(b.data());
   const TangentCovarianceResult covariance = TangentCovariance(problem_, blocks);
   if (!covariance.ok) {
     return "the device fit's covariance failed: " + covariance.message +
@@ -471,7 +556,7 @@ void DeviceFitter::FittedDevice(DeviceFit* fit) const {
 
 DeviceFit FitDevice(const model::Device& nominal, const model::TopographerParams& design,
                     const std::vector<model::TargetPoint>& designed_targets, const std::vector<BallView>& balls,
-                    const DeviceFitOptions& options) {
+                    const DeviceFitOptions& options, const std::vector<ViewObservations>& views) {
   std::string why;
   if (!options.IsValid(&why)) throw util::InputError(why);
   DeviceFit fit;
@@ -485,10 +570,12 @@ DeviceFit FitDevice(const model::Device& nominal, const model::TopographerParams
   if (options.datum_ball >= static_cast<int>(balls.size())) {
     return fail(fmt::format("datum ball {} but only {} ball images", options.datum_ball + 1, balls.size()));
   }
-  DeviceFitter fitter(nominal, design, balls, options);
+  DeviceFitter fitter(nominal, design, balls, views, options);
   if (auto e = fitter.CollectSpots(designed_targets, &fit)) return fail(std::move(*e));
+  if (auto e = fitter.CollectCorners(&fit)) return fail(std::move(*e));
   fitter.StartBlocks();
   if (auto e = fitter.LocateBalls()) return fail(std::move(*e));
+  if (auto e = fitter.LocateBoards()) return fail(std::move(*e));
   if (auto e = fitter.SolveAll(&fit)) return fail(std::move(*e));
   if (auto e = fitter.SpotResiduals(&fit)) return fail(std::move(*e));
   if (auto e = fitter.Covariance(&fit)) return fail(std::move(*e));
@@ -496,8 +583,9 @@ DeviceFit FitDevice(const model::Device& nominal, const model::TopographerParams
   if (const auto invalid = fit.device.Invalid()) return fail("the fitted device is not physical: " + *invalid);
   fit.model_adequate = fit.chi2_per_dof <= options.max_chi2_per_dof;
   fit.ok = true;
-  fit.message = fmt::format("{} balls, {} spots, chi2/dof {:.3g}, {} iterations{}", balls.size(), fitter.spots(),
-                            fit.chi2_per_dof, fit.iterations,
+  fit.message = fmt::format("{} balls, {} spots{}, chi2/dof {:.3g}, {} iterations{}", balls.size(), fitter.spots(),
+                            views.empty() ? "" : fmt::format(", {} target views", views.size()), fit.chi2_per_dof,
+                            fit.iterations,
                             fit.model_adequate ? ""
                                                : fmt::format(" — chi2/dof above {}: the device model does not "
                                                              "describe these images (non-conical screen? wrong radius? "

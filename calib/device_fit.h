@@ -18,14 +18,18 @@
 // one ball (the datum ball) is held at datum_z_mm (0: the nominal corneal vertex), which is also the reference the
 // reconstruction measures from.
 //
-// Brown p1, p2 (and k3) are held at their nominal values: balls alone cannot separate decentring distortion from a
-// screen tilt. They need target views (calibrate); the fit says so in its notes.
+// Balls alone cannot separate a lens model's decentring distortion (p1, p2) and its higher radial terms from a screen
+// tilt: without target views they are held at their nominal values, and the fit says so in its notes. With target
+// views (a planar target's corners, calib/observations.h, as `calibrate` detects them) every corner is a residual of
+// the same fit through the same camera (model::ProjectPoint), each view's board pose a nuisance block, and every
+// coefficient of the lens model is fitted with the pose.
 #include <optional>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "calib/observations.h"
 #include "model/config.h"
 #include "model/device.h"
 #include "model/null_screen.h"
@@ -58,6 +62,7 @@ struct DeviceTolerances {
 struct DeviceFitOptions {
   DeviceTolerances priors;
   double spot_sigma_px = 0.04;       // noise of one spot centre, per axis
+  double corner_sigma_px = 0.05;     // noise of one target corner, per axis (with target views)
   int datum_ball = 0;                // the ball whose vertex z is held at datum_z_mm
   double datum_z_mm = 0.0;
   bool fit_radial_scale = false;
@@ -85,6 +90,8 @@ struct DeviceFit {
   std::vector<Eigen::Vector3d> ball_vertex_stddev_mm;
   std::vector<double> ball_rms_px;             // per image: rms of |predicted - observed|
   std::vector<int> ball_spots;                 // per image: spots used
+  std::vector<double> view_rms_px;             // per target view: rms of |predicted - observed| corner
+  std::vector<int> view_corners;               // per target view: corners used
   double chi2_per_dof = 0;                     // spot residuals only (priors excluded)
   int dof = 0;
   double stddev_scale = 1;                     // max(1, sqrt(chi2/dof)): applied to the standard deviations
@@ -100,8 +107,9 @@ struct DeviceFit {
 
 // Fits the device. Never throws for data: too few balls or spots, or a solver failure give ok = false and a message.
 // Throws util::InputError for invalid options.
+// `views`: target views through the same camera (may be empty).
 DeviceFit FitDevice(const model::Device& nominal, const model::TopographerParams& design,
                     const std::vector<model::TargetPoint>& designed_targets, const std::vector<BallView>& balls,
-                    const DeviceFitOptions& options = {});
+                    const DeviceFitOptions& options = {}, const std::vector<ViewObservations>& views = {});
 
 }  // namespace topocal::calib

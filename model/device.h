@@ -113,6 +113,14 @@ struct DeviceProjectionSetup {
 // The fixed part of a device's projection (b from the design).
 DeviceProjectionSetup ProjectionSetupOf(const Device& device, const TopographerParams& design);
 
+// The pixel at which the device's camera images a point (mm, the topographer's frame: pinhole at (0, 0, -b), the
+// corneal vertex at the origin): Eq. 14a + 16 onto the detection plane, the distortion (Eq. 18 or the lens model on
+// x1 / a), the camera's pixel mapping. Blocks as ProjectBallSpot's below; written once for the balls' spots and the
+// target views' corners of the device fit (T = double or ceres::Jet).
+template <typename T>
+void ProjectPoint(const DeviceProjectionSetup& setup, const T* principal_px, const T* a_mm, const T* distortion,
+                  const T* point_mm, T* pixel);
+
 // The pixel at which a reference ball (a sphere of radius_mm, vertex at ball_vertex_mm) images one designed target,
 // through a device given as parameter blocks — the model the device calibration fits (calib/device_fit.h), written
 // once for simulation (T = double) and autodiff (T = ceres::Jet):
@@ -193,10 +201,17 @@ bool ProjectBallSpot(const DeviceProjectionSetup& setup, const T* pose, const T*
   const T y = p2->y() - (-fj[1].v[0] * f[0] + fj[0].v[0] * f[1]) / det;
   T z, zx, zy;
   if (!ball_sag(ball_vertex_mm)(x, y, &z, &zx, &zy)) return false;
-  // Eq. 14a + 16: the spot on the detection plane, undistorted.
   const T on_ball[3] = {x, y, z};
+  ProjectPoint(setup, principal_px, a_mm, distortion, on_ball, pixel);
+  return true;
+}
+
+template <typename T>
+void ProjectPoint(const DeviceProjectionSetup& setup, const T* principal_px, const T* a_mm, const T* distortion,
+                  const T* point_mm, T* pixel) {
+  // Eq. 14a + 16: the point on the detection plane, undistorted.
   T undistorted[2];
-  ImageOfPoint(a_mm[0], setup.b_mm, on_ball, undistorted);
+  ImageOfPoint(a_mm[0], setup.b_mm, point_mm, undistorted);
   T distorted[2];
   if (setup.lens) {
     const auto& c = setup.distortion_centre_mm;
@@ -213,7 +228,6 @@ bool ProjectBallSpot(const DeviceProjectionSetup& setup, const T* pose, const T*
   pixel[0] = principal_px[0] + (m(0, 0) * distorted[0] + m(0, 1) * distorted[1]) / setup.pixel_pitch_mm;
   pixel[1] = principal_px[1] + (m(1, 0) * distorted[0] + m(1, 1) * distorted[1]) /
                                    (setup.pixel_pitch_mm * setup.pixel_aspect);
-  return true;
 }
 
 }  // namespace topocal::model

@@ -43,7 +43,8 @@ void RequireDistinctImages(const std::vector<BallImage>& balls) {
 }  // namespace
 
 DeviceCalibration CalibrateDevice(const std::vector<BallImage>& balls, const model::Device& nominal,
-                                  const model::Config& config, const calib::DeviceFitOptions& options) {
+                                  const model::Config& config, const calib::DeviceFitOptions& options,
+                                  const std::vector<calib::ViewObservations>& target_views) {
   for (const auto& b : balls) {
     if (!(b.radius_mm >= kMinBallRadiusMm && b.radius_mm <= kMaxBallRadiusMm)) {
       throw util::InputError(fmt::format("{}: radius {} mm is not a reference-ball radius ({}-{} mm)", b.name,
@@ -57,8 +58,9 @@ DeviceCalibration CalibrateDevice(const std::vector<BallImage>& balls, const mod
     out.detections.push_back(DetectBall(b, nominal, config.ideal_image));
     views.push_back(out.detections.back().view);
   }
+  for (const auto& v : target_views) out.view_names.push_back(v.image_path);
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
-  out.fit = calib::FitDevice(nominal, config.topographer, design.targets, views, options);
+  out.fit = calib::FitDevice(nominal, config.topographer, design.targets, views, options, target_views);
   return out;
 }
 
@@ -78,8 +80,12 @@ nlohmann::json DeviceCalibrationJson(const DeviceCalibration& c) {
                      {"missing", d.missing},
                      {"rms_px", f.ball_rms_px[b]},
                      {"vertex_mm", {f.ball_vertex_mm[b].x(), f.ball_vertex_mm[b].y(), f.ball_vertex_mm[b].z()}},
-                     {"vertex_stddev_mm",
-                      {f.ball_vertex_stddev_mm[b].x(), f.ball_vertex_stddev_mm[b].y(), f.ball_vertex_stddev_mm[b].z()}}});
+                     {"vertex_stddev_mm", {f.ball_vertex_stddev_mm[b].x(), f.ball_vertex_stddev_mm[b].y(),
+                                           f.ball_vertex_stddev_mm[b].z()}}});
+  }
+  nlohmann::json target_views = nlohmann::json::array();
+  for (size_t v = 0; v < f.view_rms_px.size(); ++v) {
+    target_views.push_back({{"image", c.view_names[v]}, {"corners", f.view_corners[v]}, {"rms_px", f.view_rms_px[v]}});
   }
   nlohmann::json names = nlohmann::json::array();
   for (const auto& p : f.parameters) names.push_back(p.name);
@@ -89,8 +95,11 @@ nlohmann::json DeviceCalibrationJson(const DeviceCalibration& c) {
     for (int j = 0; j < f.covariance.cols(); ++j) row.push_back(f.covariance(i, j));
     cov.push_back(row);
   }
-  return {{"method", "reference balls: Ceres bundle adjustment of the screen pose, principal point, a, distortion and "
-                     "ball positions (docs/device.md)"},
+  nlohmann::json out = {
+          {"method", fmt::format("reference balls{}: Ceres bundle adjustment of the screen pose, principal point, a, "
+                                 "distortion and ball positions{} (docs/device.md)",
+                                 c.view_names.empty() ? "" : " and target views",
+                                 c.view_names.empty() ? "" : " and target poses")},
           {"parameters", parameters},
           {"covariance", {{"parameters", names}, {"matrix", cov}}},
           {"chi2_per_dof", f.chi2_per_dof},
@@ -101,6 +110,8 @@ nlohmann::json DeviceCalibrationJson(const DeviceCalibration& c) {
           {"notes", f.notes},
           {"iterations", f.iterations},
           {"balls", balls}};
+  if (!target_views.empty()) out["target_views"] = target_views;
+  return out;
 }
 
 BallSpots SimulateBall(const model::Device& device, const model::Config& config, double radius_mm,

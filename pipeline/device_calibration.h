@@ -32,6 +32,7 @@ BallDetection DetectBall(const BallImage& ball, const model::Device& nominal, co
 
 struct DeviceCalibration {
   std::vector<BallDetection> detections;
+  std::vector<std::string> view_names;  // the target views fitted with the balls, if any
   calib::DeviceFit fit;
 };
 
@@ -41,9 +42,10 @@ inline constexpr double kMinBallRadiusMm = 3.0, kMaxBallRadiusMm = 20.0;
 // Detects every ball and fits the device. Throws util::InputError when a radius is not a reference ball's
 // (kMinBallRadiusMm to kMaxBallRadiusMm), when two balls are the same image (identical
 // pixels: no new information, yet it would shrink the standard deviations), like DetectBall otherwise; a fit that
-// fails comes back with fit.ok = false.
+// fails comes back with fit.ok = false. `views`: target views through the same camera (calib::FitDevice).
 DeviceCalibration CalibrateDevice(const std::vector<BallImage>& balls, const model::Device& nominal,
-                                  const model::Config& config, const calib::DeviceFitOptions& options);
+                                  const model::Config& config, const calib::DeviceFitOptions& options,
+                                  const std::vector<calib::ViewObservations>& views = {});
 
 // The calibration section of the device file (model::DeviceToJson): every fitted parameter with its standard
 // deviation and nominal value, chi^2/dof, per-image residuals and detection counts, ball positions, the gauge and

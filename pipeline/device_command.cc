@@ -5,10 +5,13 @@
 
 #include <stdexcept>
 
+#include "calib/detect.h"
+#include "calib/target.h"
 #include "imageio/image_file.h"
 #include "model/config.h"
 #include "model/device.h"
 #include "pipeline/device_calibration.h"
+#include "util/file_glob.h"
 #include "util/io.h"
 #include "util/sha256.h"
 #include "util/verdict.h"
@@ -33,6 +36,9 @@ void RequireConsistent(const DeviceCalibrateRequest& a) {
                                          a.ball_radii_mm[i], a.balls[i], kMinBallRadiusMm, kMaxBallRadiusMm));
     }
   }
+  if (a.target.empty() != a.targets.empty()) {
+    throw util::InputError("--target and --targets go together: the target description and its views");
+  }
   if (a.datum_ball_number < 1 || a.datum_ball_number > static_cast<int>(a.balls.size())) {
     throw util::InputError(
         fmt::format("--datum: must name one of the {} balls (1..{})", a.balls.size(), a.balls.size()));
@@ -50,6 +56,11 @@ nlohmann::json ReportOf(const DeviceCalibration& result, const DeviceCalibrateRe
   for (size_t i = 0; i < a.balls.size(); ++i) {
     report["balls"][i]["sha256"] = util::Sha256HexOfFile(a.balls[i]);
   }
+  for (size_t i = 0; i < result.view_names.size(); ++i) {
+    report["target_views"][i]["sha256"] = util::Sha256HexOfFile(result.view_names[i]);
+  }
+  if (!a.target.empty()) report["inputs"]["target"] = {{"path", a.target}, {"sha256", util::Sha256HexOfFile(a.target)}};
+  if (!result.view_names.empty()) report["corner_sigma_px"] = options.corner_sigma_px;
   report["spot_sigma_px"] = options.spot_sigma_px;
   return report;
 }
@@ -63,12 +74,33 @@ void PrintFit(std::ostream& out, const DeviceCalibration& result, const std::str
     fmt::print(out, "  {} (R {} mm): {} spots, rms {:.4f} px, vertex ({:+.4f}, {:+.4f}, {:+.4f}) mm\n", d.view.name,
                d.view.radius_mm, d.view.spots_px.size(), fit.ball_rms_px[b], v.x(), v.y(), v.z());
   }
+  for (size_t v = 0; v < result.view_names.size(); ++v) {
+    fmt::print(out, "  {} (target): {} corners, rms {:.4f} px\n", result.view_names[v], fit.view_corners[v],
+               fit.view_rms_px[v]);
+  }
   for (const auto& p : fit.parameters) {
     fmt::print(out, "  {:<22} {:>14.7g} +- {:<10.3g} (nominal {:.7g})\n", p.name, p.value, p.stddev, p.nominal);
   }
   fmt::print(out, "  gauge: {}\n", fit.gauge);
   for (const auto& n : fit.notes) fmt::print(out, "  note: {}\n", n);
   fmt::print(out, "-> {}\n", out_path);
+}
+
+// The target views' corners, every view named by --targets required: a view without the target is bad input here
+// (the user chose it for this unit), not a view to skip.
+std::vector<calib::ViewObservations> DetectTargetViews(const DeviceCalibrateRequest& a) {
+  if (a.targets.empty()) return {};
+  const auto target = calib::LoadTargetDescription(a.target);
+  std::vector<calib::ViewObservations> views;
+  for (auto& f : calib::DetectTargetInFiles(target, util::Glob(a.targets, "--targets"), {})) {
+    if (!f.skipped.empty()) throw util::InputError(fmt::format("{}: {}", f.path, f.skipped));
+    if (!f.detection.view) {
+      throw util::InputError(fmt::format("{}: no target found (target description {}){}", f.path, a.target,
+                                         f.detection.message.empty() ? "" : ": " + f.detection.message));
+    }
+    views.push_back(std::move(*f.detection.view));
+  }
+  return views;
 }
 
 }  // namespace
@@ -81,6 +113,7 @@ void RunDeviceCalibrate(const DeviceCalibrateRequest& a, std::ostream& out) {
   if (!options.IsValid(&why)) throw util::InputError(why);
   const auto cfg = model::LoadConfig(a.config);
   const auto nominal = model::LoadDevice(a.nominal_device);
+  const auto target_views = DetectTargetViews(a);
   std::vector<BallImage> images;
   for (size_t i = 0; i < a.balls.size(); ++i) {
     BallImage b{a.balls[i], imageio::ReadImage(a.balls[i], imageio::Channels::kAsStored), a.ball_radii_mm[i]};
@@ -89,7 +122,7 @@ void RunDeviceCalibrate(const DeviceCalibrateRequest& a, std::ostream& out) {
     images.push_back(std::move(b));
   }
   // An image the spot detector cannot use is bad input (util::InputError, exit 2).
-  const DeviceCalibration result = CalibrateDevice(images, nominal.device, cfg, options);
+  const DeviceCalibration result = CalibrateDevice(images, nominal.device, cfg, options, target_views);
   const auto& fit = result.fit;
   if (!fit.ok) throw std::runtime_error(fmt::format("device calibration failed: {}", fit.message));
   util::WriteFileAtomic(a.out, model::DeviceToJson(fit.device, ReportOf(result, a, options)));

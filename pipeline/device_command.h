@@ -15,6 +15,8 @@ struct DeviceCalibrateRequest {
   std::string out;             // calibrated device file (JSON)
   std::vector<std::string> balls;     // raw images of the reference balls
   std::vector<double> ball_radii_mm;  // certified radius of each ball, in the order of balls
+  std::string target;                 // target description (YAML) of the target views; with targets
+  std::string targets;                // target views through the same camera, a glob(3) pattern; empty: none
   int datum_ball_number = 1;          // the ball whose vertex defines z = 0, 1-based
   calib::DeviceFitOptions options;    // its datum_ball is set from datum_ball_number
   bool quiet = false;                 // print nothing to `out`

@@ -21,6 +21,12 @@ void AddDeviceCommand(CLI::App& app) {
   cmd->add_option("--balls", a->balls, "Raw images of the reference balls (space separated)")->required();
   cmd->add_option("--radii-mm", a->ball_radii_mm, "Certified radius of each ball, in the order of --balls, mm")
       ->required();
+  cmd->add_option("--target", a->target, "Target description (YAML) of the --targets views");
+  cmd->add_option("--targets", a->targets,
+                  "Views of the target through the same camera, a glob(3) pattern (quote it): their corners join "
+                  "the fit, so every lens coefficient (p1, p2, k3, ...) is fitted with the screen pose");
+  cmd->add_option("--corner-sigma-px", a->options.corner_sigma_px, "Noise of one target corner per axis, px")
+      ->capture_default_str();
   cmd->add_option("--out", a->out, "Calibrated device file (JSON)")->required();
   cmd->add_option("--datum", a->datum_ball_number, "The ball whose vertex defines z = 0 (the axial gauge), 1-based")
       ->capture_default_str();

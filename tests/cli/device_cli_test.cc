@@ -197,6 +197,58 @@ TEST_F(DeviceCli, FlagsAScreenTheModelDoesNotDescribe) {
   EXPECT_NEAR(device["screen_pose"]["radial_scale"].get<double>(), 1.01, 3e-4);
 }
 
+// Target views join the fit (--target, --targets): two views of a 13 x 13 board of 0.9 mm squares at the cornea
+// position, rendered through the same camera (the unit's a, principal point and sigma as render-target takes them).
+// Their corners are fitted with the balls: each view's RMS is the corners' noise (measured 0.039 px), and the device
+// comes back within the bounds. A view without the target, or a description without views, is refused.
+TEST_F(DeviceCli, TargetViewsJoinTheFit) {
+  RenderBalls(UnitDevice());
+  std::ofstream(Path("board.yaml")) << "target_type: checkerboard\ntargetCols: 13\ntargetRows: 13\n"
+                                       "rowSpacingMeters: 0.0009\ncolSpacingMeters: 0.0009\n";
+  for (const std::string tilt : {"0", "15"}) {
+    const auto r = RunTopocal(fmt("render-target --target {} --width 1120 --height 1120 --focal-mm 5.23 "
+                                  "--pixel-pitch-um 1.12 --cx 567.9 --cy 552.3 --sigma 6.3e-5 --distance-mm 70 "
+                                  "--tilt-x-deg {} --supersampling 4 --noise 1 --out {}",
+                                  Path("board.yaml"), tilt, Path("view-" + tilt + ".png")));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+  }
+  const std::string base = "device calibrate --config " + paper_ + " --device " + nominal_ + " " + Balls();
+  const auto r = RunTopocal(base + " --target " + Path("board.yaml") + " --targets '" + Path("view-*.png") +
+                            "' --corner-sigma-px 0.05 --out " + Path("joint.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("2 target views"), std::string::npos) << r.output;
+  const auto device = nlohmann::json::parse(std::ifstream(Path("joint.json")));
+  const auto& views = device["calibration"]["target_views"];
+  ASSERT_EQ(views.size(), 2u);
+  for (const auto& v : views) {
+    EXPECT_EQ(v["corners"].get<int>(), 169);
+    EXPECT_LT(v["rms_px"].get<double>(), 0.1);
+  }
+  EXPECT_EQ(device["calibration"]["corner_sigma_px"].get<double>(), 0.05);
+  // Acceptance: the (tilt 0.01 deg, principal point 1e-4 mm = 0.09 px, sigma 2e-7); regression bounds near
+  // the errors measured: tilt 4.5e-4 and 1.3e-3 deg, principal point 0.025 and 0.009 px, sigma 9.8e-9 (the corners'
+  // 0.04 px noise now weighs in beside the spots' 0.003 px).
+  for (const auto& [key, truth] : {std::pair{"rx_deg", 0.6}, std::pair{"ry_deg", -0.4}}) {
+    EXPECT_NEAR(device["screen_pose"][key].get<double>(), truth, 0.01) << key;
+    EXPECT_NEAR(device["screen_pose"][key].get<double>(), truth, 0.003) << key;
+  }
+  for (const auto& [i, truth] : {std::pair{size_t{0}, 567.9}, std::pair{size_t{1}, 552.3}}) {
+    EXPECT_NEAR(device["camera"]["principal_point_px"][i].get<double>(), truth, 0.09) << i;
+    EXPECT_NEAR(device["camera"]["principal_point_px"][i].get<double>(), truth, 0.05) << i;
+  }
+  EXPECT_NEAR(device["distortion"]["sigma_per_mm2"].get<double>(), 6.3e-5, 2e-7);
+  EXPECT_NEAR(device["distortion"]["sigma_per_mm2"].get<double>(), 6.3e-5, 3e-8);
+
+  auto bad = RunTopocal(base + " --target " + Path("board.yaml") + " --out " + Path("x.json"));
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("--target and --targets go together"), std::string::npos) << bad.output;
+  bad = RunTopocal(base + " --target " + Path("board.yaml") + " --targets " + Path("b7.8.png") + " --out " +
+                   Path("x.json"));
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("b7.8.png: no target found (target description"), std::string::npos) << bad.output;
+  EXPECT_FALSE(fs::exists(Path("x.json")));
+}
+
 TEST_F(DeviceCli, RefusesBadInputWithOneLineAndNoOutput) {
   RenderBalls(UnitDevice());
   const auto out = Path("out.json");
