@@ -38,6 +38,7 @@ struct Blocks {
   double a = 0;
   std::vector<double> distortion;   // 1 (Seidel sigma) or the lens model's coefficients
   std::vector<std::array<double, 3>> balls;
+  double z_offset = 0;  // added to every ball's z: fitted with stage steps, held at 0 with the datum
   std::vector<std::array<double, 6>> boards;  // per target view: angle-axis (rad), translation (mm)
 };
 
@@ -52,64 +53,6 @@ struct CornerSeen {
   Eigen::Vector3d board_mm;
   Eigen::Vector2d px;
 };
-
-}  // namespace
-
-bool DeviceTolerances::IsValid(std::string* why) const {
-  const std::pair<const char*, double> all[] = {
-      {"tilt_deg", tilt_deg},       {"roll_deg", roll_deg},          {"lateral_mm", lateral_mm},
-      {"axial_mm", axial_mm},       {"principal_point_mm", principal_point_mm},
-      {"a_relative", a_relative},   {"radial_scale", radial_scale},  {"sigma_per_mm2", sigma_per_mm2},
-      {"brown_k", brown_k},         {"ball_placement_mm", ball_placement_mm}};
-  for (const auto& [name, v] : all) {
-    if (!(v > 0) || !std::isfinite(v)) {
-      if (why) *why = fmt::format("tolerance {} must be > 0 and finite (got {})", name, v);
-      return false;
-    }
-  }
-  return true;
-}
-
-bool DeviceFitOptions::IsValid(std::string* why) const {
-  if (!priors.IsValid(why)) return false;
-  if (!(spot_sigma_px > 0) || !std::isfinite(spot_sigma_px)) {
-    if (why) *why = fmt::format("spot_sigma_px must be > 0 (got {})", spot_sigma_px);
-    return false;
-  }
-  if (!(corner_sigma_px > 0) || !std::isfinite(corner_sigma_px)) {
-    if (why) *why = fmt::format("corner_sigma_px must be > 0 (got {})", corner_sigma_px);
-    return false;
-  }
-  if (datum_ball < 0) {
-    if (why) *why = "datum_ball must be >= 0";
-    return false;
-  }
-  if (!std::isfinite(datum_z_mm) || std::abs(datum_z_mm) > 10) {
-    if (why) *why = fmt::format("datum_z_mm must be within +-10 mm (got {})", datum_z_mm);
-    return false;
-  }
-  if (!(max_chi2_per_dof > 0) || max_iterations < 1) {
-    if (why) *why = "max_chi2_per_dof must be > 0 and max_iterations >= 1";
-    return false;
-  }
-  return true;
-}
-
-model::DeviceCovariance DeviceFit::Covariance() const {
-  model::DeviceCovariance c;
-  for (const auto& p : parameters) c.names.push_back(p.name);
-  c.matrix = covariance;
-  return c;
-}
-
-std::optional<DeviceParameterEstimate> DeviceFit::Parameter(const std::string& name) const {
-  for (const auto& p : parameters) {
-    if (p.name == name) return p;
-  }
-  return std::nullopt;
-}
-
-namespace {
 
 // One fit of a device to ball images: its parameter blocks, the identified spots and the two Ceres stages. Each step
 // is a member so that FitDevice reads as the sequence it is.
@@ -148,6 +91,8 @@ class DeviceFitter {
   std::optional<std::string> LocateBalls();
   std::optional<std::string> LocateBoards();
   std::optional<std::string> SolveAll(DeviceFit* fit);
+  bool Steps() const { return !options_.ball_steps_mm.empty(); }
+  void HoldTheGauge();
   std::optional<std::string> SpotResiduals(DeviceFit* fit) const;
   std::optional<std::string> CornerResiduals(DeviceFit* fit, double* chi2) const;
   std::optional<std::string> Covariance(DeviceFit* fit);
@@ -308,7 +253,7 @@ void DeviceFitter::AddSpot(ceres::Problem& problem, const Observation& o) {
       lens_ ? std::visit([&](auto m) { return make(std::integral_constant<int, decltype(m)::kNumParams>{}); }, *lens_)
             : make(std::integral_constant<int, 1>{});
   problem.AddResidualBlock(cost, nullptr, {blk_.pose.data(), &blk_.radial_scale, blk_.principal.data(), &blk_.a,
-                                           blk_.distortion.data(), blk_.balls[o.ball].data()});
+                                           blk_.distortion.data(), blk_.balls[o.ball].data(), &blk_.z_offset});
 }
 
 // Stage 1: each ball's position with the nominal device (the balls are placed by hand; start them where their own
@@ -320,6 +265,7 @@ std::optional<std::string> DeviceFitter::LocateBalls() {
       if (o.ball == static_cast<int>(b)) AddSpot(problem, o);
     }
     for (double* block : DeviceBlocks()) problem.SetParameterBlockConstant(block);
+    problem.SetParameterBlockConstant(&blk_.z_offset);
     ceres::Solver::Summary summary;
     ceres::Solve(solver_, &problem, &summary);
     if (!summary.IsSolutionUsable()) {
@@ -357,14 +303,34 @@ void DeviceFitter::AddPriors(ceres::Problem& problem) {
   }
 }
 
-// Stage 2: everything together, with the priors and the datum.
+// The axial gauge. The datum: one ball's vertex z, its stage-1 estimate replaced by the datum value, the offset held
+// at 0. The stage steps: every ball's z held at its step, the offset free (starting where stage 1 put the balls on
+// average) with the balls' weak placement prior.
+void DeviceFitter::HoldTheGauge() {
+  if (!Steps()) {
+    blk_.balls[options_.datum_ball][2] = options_.datum_z_mm;
+    problem_.SetManifold(blk_.balls[options_.datum_ball].data(), new ceres::SubsetManifold(3, {2}));
+    problem_.SetParameterBlockConstant(&blk_.z_offset);
+    return;
+  }
+  double offset = 0;
+  for (size_t b = 0; b < balls_.size(); ++b) offset += blk_.balls[b][2] - options_.ball_steps_mm[b];
+  blk_.z_offset = offset / static_cast<double>(balls_.size());
+  for (size_t b = 0; b < balls_.size(); ++b) {
+    blk_.balls[b][2] = options_.ball_steps_mm[b];
+    problem_.SetManifold(blk_.balls[b].data(), new ceres::SubsetManifold(3, {2}));
+  }
+  problem_.AddResidualBlock(Prior(Eigen::VectorXd::Constant(1, blk_.z_offset),
+                                  Eigen::VectorXd::Constant(1, options_.priors.ball_placement_mm)),
+                            nullptr, &blk_.z_offset);
+}
+
+// Stage 2: everything together, with the priors and the gauge.
 std::optional<std::string> DeviceFitter::SolveAll(DeviceFit* fit) {
   for (const auto& o : observations_) AddSpot(problem_, o);
   for (const auto& c : corners_) AddCorner(problem_, c);
   AddPriors(problem_);
-  // The datum: the vertex z of one ball. Its stage-1 estimate is replaced by the datum value.
-  blk_.balls[options_.datum_ball][2] = options_.datum_z_mm;
-  problem_.SetManifold(blk_.balls[options_.datum_ball].data(), new ceres::SubsetManifold(3, {2}));
+  HoldTheGauge();
   if (!options_.fit_radial_scale) problem_.SetParameterBlockConstant(&blk_.radial_scale);
   if (!options_.fit_distortion) {
     problem_.SetParameterBlockConstant(blk_.distortion.data());
@@ -400,8 +366,10 @@ std::optional<std::string> DeviceFitter::SpotResiduals(DeviceFit* fit) const {
     double px[2];
     const Eigen::Vector2d initial = o.target->on_sphere_mm.head<2>() * (ball.radius_mm / design_.re_mm) +
                                     Eigen::Vector2d(blk_.balls[o.ball][0], blk_.balls[o.ball][1]);
+    const auto& b = blk_.balls[o.ball];
+    const double vertex[3] = {b[0], b[1], b[2] + blk_.z_offset};
     if (!model::ProjectBallSpot(setup_, blk_.pose.data(), &blk_.radial_scale, blk_.principal.data(), &blk_.a,
-                                blk_.distortion.data(), blk_.balls[o.ball].data(), ball.radius_mm,
+                                blk_.distortion.data(), vertex, ball.radius_mm,
                                 o.target->on_cone_mm.data(), initial, px)) {
       return fmt::format("{}: spot ({}, {}) no longer images through the fitted device", ball.name,
                          o.target->id.ring, o.target->id.index);
@@ -412,9 +380,11 @@ std::optional<std::string> DeviceFitter::SpotResiduals(DeviceFit* fit) const {
   }
   for (size_t b = 0; b < balls_.size(); ++b) fit->ball_rms_px.push_back(std::sqrt(ssr[b] / fit->ball_spots[b]));
   if (auto e = CornerResiduals(fit, &chi2)) return e;
-  // The reported parameters, 3 coordinates per ball less the datum, 6 per board.
-  const int free_params = static_cast<int>(ReportedEntries().size()) + 3 * static_cast<int>(balls_.size()) - 1 +
-                          6 * static_cast<int>(views_.size());
+  // The reported parameters, 3 coordinates per ball less the datum (or with steps: 2 per ball and the offset), 6 per
+  // board.
+  const int ball_params = Steps() ? 2 * static_cast<int>(balls_.size()) + 1 : 3 * static_cast<int>(balls_.size()) - 1;
+  const int free_params =
+      static_cast<int>(ReportedEntries().size()) + ball_params + 6 * static_cast<int>(views_.size());
   const int coordinates = 2 * static_cast<int>(observations_.size() + corners_.size());
   fit->dof = coordinates - free_params;
   if (fit->dof < 1) return fmt::format("{} spot and corner coordinates for {} parameters", coordinates, free_params);
@@ -473,7 +443,8 @@ std::map<const double*, std::vector<int>> DeviceFitter::FreeComponents(const std
   for (double* b : blocks) {
     const int size = problem_.ParameterBlockSize(b);
     std::vector<int> held;
-    if (b == blk_.balls[options_.datum_ball].data()) held = {2};
+    const bool ball = std::any_of(blk_.balls.begin(), blk_.balls.end(), [b](const auto& x) { return x.data() == b; });
+    if (ball && (Steps() || b == blk_.balls[options_.datum_ball].data())) held = {2};
     if (lens_ && b == blk_.distortion.data()) held = HeldLensComponents();
     std::vector<int> cols(size, -1);
     for (int i = 0; i < size; ++i) {
@@ -491,6 +462,7 @@ std::optional<std::string> DeviceFitter::Covariance(DeviceFit* fit) {
   if (options_.fit_radial_scale) blocks.push_back(&blk_.radial_scale);
   if (options_.fit_distortion) blocks.push_back(blk_.distortion.data());
   for (auto& b : blk_.balls) blocks.push_back(b.data());
+  if (Steps()) blocks.push_back(&blk_.z_offset);
   for (auto& b : blk_.boards) blocks.push_back(b.data());
   const TangentCovarianceResult covariance = TangentCovariance(problem_, blocks);
   if (!covariance.ok) {
@@ -522,10 +494,11 @@ std::optional<std::string> DeviceFitter::Covariance(DeviceFit* fit) {
   for (size_t b = 0; b < balls_.size(); ++b) {
     Eigen::Vector3d sd;
     for (int k = 0; k < 3; ++k) {
-      const int i = free_components.at(blk_.balls[b].data())[k];
+      int i = free_components.at(blk_.balls[b].data())[k];
+      if (k == 2 && Steps()) i = free_components.at(&blk_.z_offset)[0];  // z = offset + the known step
       sd[k] = i < 0 ? 0.0 : fit->stddev_scale * std::sqrt(std::max(0.0, tangent_cov(i, i)));
     }
-    fit->ball_vertex_mm.emplace_back(blk_.balls[b][0], blk_.balls[b][1], blk_.balls[b][2]);
+    fit->ball_vertex_mm.emplace_back(blk_.balls[b][0], blk_.balls[b][1], blk_.balls[b][2] + blk_.z_offset);
     fit->ball_vertex_stddev_mm.push_back(sd);
   }
   return std::nullopt;
@@ -545,6 +518,14 @@ void DeviceFitter::FittedDevice(DeviceFit* fit) const {
     auto s = std::get<model::SeidelParams>(nominal_.distortion);
     s.sigma_per_mm2 = blk_.distortion[0];
     fit->device.distortion = s;
+  }
+  if (Steps()) {
+    fit->gauge = fmt::format(
+        "axial gauge (balls and screen along the axis with a in proportion) fixed by the balls' known stage steps "
+        "({} mm): ball 1 ({}) vertex at z = {:.4f} +- {:.2g} mm",
+        fmt::join(options_.ball_steps_mm, ", "), balls_[0].name, fit->ball_vertex_mm[0].z(),
+        fit->ball_vertex_stddev_mm[0].z());
+    return;
   }
   fit->gauge = fmt::format(
       "axial gauge (balls and screen along the axis with a in proportion) fixed by the datum: ball {} ({}) vertex "
@@ -567,6 +548,10 @@ DeviceFit FitDevice(const model::Device& nominal, const model::TopographerParams
     return fit;
   };
   if (balls.empty()) return fail("no ball images");
+  if (!options.ball_steps_mm.empty() && options.ball_steps_mm.size() != balls.size()) {
+    return fail(fmt::format("{} stage steps for {} ball images (one per ball, in their order)",
+                            options.ball_steps_mm.size(), balls.size()));
+  }
   if (options.datum_ball >= static_cast<int>(balls.size())) {
     return fail(fmt::format("datum ball {} but only {} ball images", options.datum_ball + 1, balls.size()));
   }

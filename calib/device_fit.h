@@ -16,7 +16,8 @@
 // Gauge (docs/device.md): moving the balls and the cone together along the axis while a grows in proportion leaves
 // every image (almost) unchanged, so one axial coordinate is not observable. It is fixed by a datum: the vertex z of
 // one ball (the datum ball) is held at datum_z_mm (0: the nominal corneal vertex), which is also the reference the
-// reconstruction measures from.
+// reconstruction measures from. Or by known stage steps between the balls (ball_steps_mm): how the images change
+// with a known axial step depends on the distance from the pinhole, which the steps then measure.
 //
 // Balls alone cannot separate a lens model's decentring distortion (p1, p2) and its higher radial terms from a screen
 // tilt: without target views they are held at their nominal values, and the fit says so in its notes. With target
@@ -65,6 +66,10 @@ struct DeviceFitOptions {
   double corner_sigma_px = 0.05;     // noise of one target corner, per axis (with target views)
   int datum_ball = 0;                // the ball whose vertex z is held at datum_z_mm
   double datum_z_mm = 0.0;
+  // The alternative axial gauge: each ball's known position along the axis (a stage's readings, mm, in the order of
+  // the balls; only their differences matter). The balls' vertices are then z = offset + step, the offset fitted,
+  // and no ball's vertex is assumed to sit at the working position. Empty: the datum.
+  std::vector<double> ball_steps_mm;
   bool fit_radial_scale = false;
   bool fit_distortion = true;
   // chi^2/dof above this: the model does not describe the images (e.g. an elliptical cone) — flagged, not hidden.

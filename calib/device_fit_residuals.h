@@ -13,7 +13,9 @@
 
 namespace topocal::calib::device_fit {
 
-// One spot of one ball image: predicted - observed pixel, divided by the spot noise.
+// One spot of one ball image: predicted - observed pixel, divided by the spot noise. The ball's vertex is ball[0..2]
+// with z_offset added to its z: the shared offset of the balls' stage positions when they are known (ball_steps_mm),
+// held at 0 otherwise.
 template <int kDistortionParams>
 struct BallSpotResidual {
   model::DeviceProjectionSetup setup;
@@ -26,7 +28,7 @@ struct BallSpotResidual {
 
   template <typename T>
   bool operator()(const T* pose, const T* radial_scale, const T* principal, const T* a, const T* distortion,
-                  const T* ball, T* residual) const {
+                  const T* ball, const T* z_offset, T* residual) const {
     const auto value = [](const T& v) -> double {
       if constexpr (std::is_same_v<T, double>) return v; else return v.a;
     };
@@ -34,8 +36,9 @@ struct BallSpotResidual {
     // reference sphere, so it sits at centre + (R / r_e) (designed point - reference centre) laterally.
     const Eigen::Vector2d initial = designed_on_sphere_mm * (radius_mm / reference_radius_mm) +
                                     Eigen::Vector2d(value(ball[0]), value(ball[1]));
+    const T vertex[3] = {ball[0], ball[1], ball[2] + z_offset[0]};
     T px[2];
-    if (!model::ProjectBallSpot(setup, pose, radial_scale, principal, a, distortion, ball, radius_mm,
+    if (!model::ProjectBallSpot(setup, pose, radial_scale, principal, a, distortion, vertex, radius_mm,
                                 designed_target_mm.data(), initial, px)) {
       return false;
     }
@@ -47,7 +50,7 @@ struct BallSpotResidual {
 
 template <int N>
 ceres::CostFunction* MakeSpotCost(const BallSpotResidual<N>& r) {
-  return new ceres::AutoDiffCostFunction<BallSpotResidual<N>, 2, model::ScreenPose::kNumParams, 1, 2, 1, N, 3>(
+  return new ceres::AutoDiffCostFunction<BallSpotResidual<N>, 2, model::ScreenPose::kNumParams, 1, 2, 1, N, 3, 1>(
       new BallSpotResidual<N>(r));
 }
 

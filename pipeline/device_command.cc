@@ -36,6 +36,10 @@ void RequireConsistent(const DeviceCalibrateRequest& a) {
                                          a.ball_radii_mm[i], a.balls[i], kMinBallRadiusMm, kMaxBallRadiusMm));
     }
   }
+  if (!a.options.ball_steps_mm.empty() && a.options.ball_steps_mm.size() != a.balls.size()) {
+    throw util::InputError(fmt::format("--ball-steps-mm: {} steps for {} ball images (one per ball, in their order)",
+                                       a.options.ball_steps_mm.size(), a.balls.size()));
+  }
   if (a.target.empty() != a.targets.empty()) {
     throw util::InputError("--target and --targets go together: the target description and its views");
   }

@@ -28,8 +28,13 @@ void AddDeviceCommand(CLI::App& app) {
   cmd->add_option("--corner-sigma-px", a->options.corner_sigma_px, "Noise of one target corner per axis, px")
       ->capture_default_str();
   cmd->add_option("--out", a->out, "Calibrated device file (JSON)")->required();
-  cmd->add_option("--datum", a->datum_ball_number, "The ball whose vertex defines z = 0 (the axial gauge), 1-based")
-      ->capture_default_str();
+  auto* datum =
+      cmd->add_option("--datum", a->datum_ball_number, "The ball whose vertex defines z = 0 (the axial gauge), 1-based")
+          ->capture_default_str();
+  cmd->add_option("--ball-steps-mm", a->options.ball_steps_mm,
+                  "The alternative axial gauge: each ball's known position along the axis (a stage's readings, mm, "
+                  "in the order of --balls; only differences matter): no ball is assumed at the working position")
+      ->excludes(datum);
   cmd->add_option("--spot-sigma-px", a->options.spot_sigma_px, "Noise of one spot centre per axis, px")
       ->capture_default_str();
   cmd->add_option("--tol-tilt-deg", a->options.priors.tilt_deg, "Prior: screen tilt tolerance (1 sigma), deg")

@@ -249,6 +249,51 @@ TEST_F(DeviceCli, TargetViewsJoinTheFit) {
   EXPECT_FALSE(fs::exists(Path("x.json")));
 }
 
+// Known stage steps as the axial gauge (--ball-steps-mm): the three balls sit 0.3 mm behind, 0.7 mm in front of and
+// 1.3 mm behind the working position, 1 mm apart on the stage. The datum (ball 1 at z = 0) is then wrong by 0.3 mm,
+// and a and tz follow it along the gauge (measured: a 5.2089 mm for 5.23, 64 of its standard deviations). The steps
+// measure the distance instead: ball 1 at z = 0.3002 +- 0.025 mm, tz 0.3003 +- 0.025 mm, a 5.230002 +- 0.0018 mm.
+TEST_F(DeviceCli, BallStepsAreTheAlternativeAxialGauge) {
+  std::ofstream(Path("unit.json")) << UnitDevice().dump(2);
+  const char* balls[][4] = {{"6.5", "0.12", "-0.20", "0.30"}, {"7.8", "-0.25", "0.10", "-0.70"},
+                            {"9.0", "0.20", "0.22", "1.30"}};
+  for (const auto& b : balls) {
+    const auto r = RunTopocal(fmt("render-spots --config {} --device {} --sphere-radius-mm {} --ball-at {} {} {} "
+                                  "--seed 3 --out {}",
+                                  paper_, Path("unit.json"), b[0], b[1], b[2], b[3],
+                                  Path(std::string("b") + b[0] + ".png")));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+  }
+  const std::string base = "device calibrate --config " + paper_ + " --device " + nominal_ + " " + Balls();
+  const auto steps = RunTopocal(base + " --ball-steps-mm 0 -1 1 --out " + Path("steps.json"));
+  ASSERT_EQ(steps.exit_code, 0) << steps.output;
+  EXPECT_NE(steps.output.find("fixed by the balls' known stage steps"), std::string::npos) << steps.output;
+  const auto datum = RunTopocal(base + " --out " + Path("datum.json"));
+  ASSERT_EQ(datum.exit_code, 0) << datum.output;
+  const auto s = nlohmann::json::parse(std::ifstream(Path("steps.json")));
+  const auto d = nlohmann::json::parse(std::ifstream(Path("datum.json")));
+  const auto& sp = s["calibration"]["parameters"];
+  // Within 3 standard deviations (acceptance), and regression bounds near the errors measured.
+  EXPECT_LT(std::abs(sp["a_mm"]["value"].get<double>() - 5.23), 3 * sp["a_mm"]["stddev"].get<double>());
+  EXPECT_LT(std::abs(sp["tz_mm"]["value"].get<double>() - 0.3), 3 * sp["tz_mm"]["stddev"].get<double>());
+  EXPECT_NEAR(sp["a_mm"]["value"].get<double>(), 5.23, 2e-4);
+  EXPECT_NEAR(sp["tz_mm"]["value"].get<double>(), 0.3, 0.01);
+  const auto& first = s["calibration"]["balls"][0];
+  EXPECT_NEAR(first["vertex_mm"][2].get<double>(), 0.3, 3 * first["vertex_stddev_mm"][2].get<double>());
+  EXPECT_NEAR(s["calibration"]["balls"][1]["vertex_mm"][2].get<double>() - first["vertex_mm"][2].get<double>(), -1.0,
+              1e-12);
+  // The datum's a is off by many of its standard deviations.
+  const auto& dp = d["calibration"]["parameters"];
+  EXPECT_GT(std::abs(dp["a_mm"]["value"].get<double>() - 5.23), 10 * dp["a_mm"]["stddev"].get<double>());
+
+  auto bad = RunTopocal(base + " --ball-steps-mm 0 1 --out " + Path("x.json"));
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("--ball-steps-mm: 2 steps for 3 ball images"), std::string::npos) << bad.output;
+  bad = RunTopocal(base + " --ball-steps-mm 0 -1 1 --datum 2 --out " + Path("x.json"));
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_FALSE(fs::exists(Path("x.json")));
+}
+
 TEST_F(DeviceCli, RefusesBadInputWithOneLineAndNoOutput) {
   RenderBalls(UnitDevice());
   const auto out = Path("out.json");
