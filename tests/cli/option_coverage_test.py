@@ -4,7 +4,7 @@
 The options come from each verb's --help (CLI11's listing, so a new option is seen without editing this file); a
 (verb, option) pair counts as tested when one test source under tests/ names both the verb and the option, e.g. a
 C++ test running "reconstruct --image ... --calibration ..." or a Python test passing ["sweep", "--maps", ...].
-This is a floor, not proof: the test that names the option must also assert its effect (see issue 14).
+This is a floor, not proof: the test that names the option must also assert its effect.
 
 usage: option_coverage_test.py TOPOCAL_EXE TESTS_DIR [--list]
   --list   print every (verb, option) pair and whether a test uses it

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""No verb that writes a folder leaves one behind when it fails (issue 13: a failed `unit calibrate --out
+"""No verb that writes a folder leaves one behind when it fails (a failed `unit calibrate --out
 units/SN/` left an empty folder that made every rerun fail). Each verb fails here after its output folder could
 have been made; the folder is given with a trailing slash and relative to the working directory, two levels deep,
 so that neither `new/` nor `new/out/` may remain. A rerun after the failure must not be refused because of it.

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Every relative Markdown link and every backticked repository path in README.md and docs/*.md names a file or
-directory that exists (issue 14, item 6). Fails with one line per dead link: FILE:LINE: the link and why.
+directory that exists. Fails with one line per dead link: FILE:LINE: the link and why.
 
 Checked:
   - [text](target) links that are not URLs (http, https, mailto) or in-page anchors: the target (without its
