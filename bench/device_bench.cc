@@ -2,6 +2,8 @@
 // images in memory: detect + index each ball, then the bundle adjustment), on one core. Target <= 1 s.
 // The peer in the same run: OpenCV's cv::calibrateCamera on the same number of points (three views of a 624-point
 // planar pattern), the closest thing a general camera-calibration library does with comparable data.
+// The same fit with five target views added (845 corners: every lens coefficient fitted with the pose), beside
+// cv::calibrateCamera on those views alone.
 // A measurement of an eye through the calibrated device (detect, index, reconstruct, reject
 // outliers, judge) without and with the U of every number (linear propagation of the device's covariance + 16 draws
 // of the spot noise), on one core and on every core: process CPU time, the figure bounded at +50 %.
@@ -11,6 +13,7 @@
 // Run: build/bench/bench_device --benchmark_min_time=1
 #include <benchmark/benchmark.h>
 
+#include <Eigen/Geometry>
 #include <opencv2/calib3d.hpp>
 
 #include "correct/spot_render.h"
@@ -89,6 +92,65 @@ void BM_DeviceFitOnlyThreeBalls(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_DeviceFitOnlyThreeBalls)->Unit(benchmark::kMillisecond);
+
+// Five views of a 13 x 13 board of 0.9 mm squares at the cornea position (0, +-15 deg about x and y), imaged exactly
+// through the unit: the corners a target view gives the joint fit.
+std::vector<calib::ViewObservations> BoardViews(const Scene& s) {
+  const auto setup = model::ProjectionSetupOf(s.unit, s.config.topographer);
+  const double sigma = std::get<model::SeidelParams>(s.unit.distortion).sigma_per_mm2;
+  const double pp[2] = {s.unit.camera.principal_point_px.x(), s.unit.camera.principal_point_px.y()};
+  std::vector<calib::ViewObservations> views;
+  for (const auto& [tx, ty] : {std::pair{0.0, 0.0}, {0.26, 0.0}, {-0.26, 0.0}, {0.0, 0.26}, {0.0, -0.26}}) {
+    const Eigen::Matrix3d r = (Eigen::AngleAxisd(tx, Eigen::Vector3d::UnitX()) *
+                               Eigen::AngleAxisd(ty, Eigen::Vector3d::UnitY())).toRotationMatrix();
+    calib::ViewObservations v{"board", s.unit.camera.width_px, s.unit.camera.height_px, {}};
+    for (int i = 0; i < 169; ++i) {
+      const Eigen::Vector3d on_board((i % 13 - 6) * 0.9, (i / 13 - 6) * 0.9, 0.0);
+      const Eigen::Vector3d point = r * on_board;
+      double px[2];
+      model::ProjectPoint(setup, pp, &s.unit.camera.a_mm, &sigma, point.data(), px);
+      v.corners.push_back({i, Eigen::Vector2d(px[0], px[1]), on_board});
+    }
+    views.push_back(v);
+  }
+  return views;
+}
+
+// The joint fit: the three balls and the five board views (845 corners) in one problem.
+void BM_DeviceFitThreeBallsAndFiveTargetViews(benchmark::State& state) {
+  const auto& s = GetScene();
+  std::vector<calib::BallView> balls;
+  for (const auto& b : s.balls) balls.push_back(pipeline::DetectBall(b, s.nominal, s.config.ideal_image).view);
+  const auto design = model::DesignNullScreen(s.config.ideal_image, s.config.topographer);
+  const auto views = BoardViews(s);
+  for (auto _ : state) {
+    const auto fit = calib::FitDevice(s.nominal, s.config.topographer, design.targets, balls, {}, views);
+    if (!fit.ok) state.SkipWithError(fit.message.c_str());
+    benchmark::DoNotOptimize(fit.parameters.data());
+  }
+}
+BENCHMARK(BM_DeviceFitThreeBallsAndFiveTargetViews)->Unit(benchmark::kMillisecond);
+
+// Peer of the joint fit: cv::calibrateCamera on the same five views' corners (intrinsics, 5 coefficients, 5 poses).
+void BM_OpenCvCalibrateCameraFiveTargetViews(benchmark::State& state) {
+  const auto views = BoardViews(GetScene());
+  std::vector<std::vector<cv::Point3f>> objects;
+  std::vector<std::vector<cv::Point2f>> images;
+  for (const auto& v : views) {
+    objects.emplace_back();
+    images.emplace_back();
+    for (const auto& c : v.corners) {
+      objects.back().emplace_back(c.target_mm.x(), c.target_mm.y(), 0.0f);
+      images.back().emplace_back(c.image_px.x(), c.image_px.y());
+    }
+  }
+  for (auto _ : state) {
+    cv::Mat camera, dist;
+    std::vector<cv::Mat> r, tv;
+    benchmark::DoNotOptimize(cv::calibrateCamera(objects, images, cv::Size(4000, 3000), camera, dist, r, tv));
+  }
+}
+BENCHMARK(BM_OpenCvCalibrateCameraFiveTargetViews)->Unit(benchmark::kMillisecond);
 
 // Peer: cv::calibrateCamera, three views of a planar 624-point pattern (the spots' ideal image, scaled to a 26 x 26
 // mm target 100 mm away), intrinsics + 5 distortion coefficients + three poses.
