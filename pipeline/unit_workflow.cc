@@ -270,12 +270,15 @@ std::future<SphereImage> StartSphere(const UnitRequest& r, LoadedInputs& in) {
   });
 }
 
+// The device from the balls and, in the same fit, the target views the camera calibration used (their corners through
+// the same camera: with a lens model, every coefficient is fitted with the screen pose).
 std::optional<UnitDeviceStage> CalibrateDeviceStage(const UnitRequest& r, const LoadedInputs& in,
-                                                    const cv::Mat& sphere_image, const DetectionPlaneModel& lens) {
+                                                    const UnitCameraCalibration& camera, const cv::Mat& sphere_image,
+                                                    const DetectionPlaneModel& lens) {
   if (in.balls.empty()) return std::nullopt;
   UnitDeviceStage d;
   try {
-    d.calibration = pipeline::CalibrateDevice(in.balls, in.nominal_device, in.config, {});
+    d.calibration = pipeline::CalibrateDevice(in.balls, in.nominal_device, in.config, {}, camera.views_used);
   } catch (const util::InputError& e) {  // bad input stays bad input (it is a runtime_error too)
     throw util::InputError(fmt::format("{}: {}", r.serial, e.what()));
   } catch (const std::runtime_error& e) {
@@ -331,6 +334,7 @@ UnitCameraCalibration CalibrateViews(const UnitRequest& r, LoadedInputs& in,
   for (const auto& s : c.result.skipped_views) {
     log(fmt::format("{}: not used {}: {}", r.serial, c.view_paths[static_cast<size_t>(s.view)], s.reason));
   }
+  for (const int v : c.result.views_used) c.views_used.push_back(views[static_cast<size_t>(v)]);
   if (!c.result.ok()) {
     throw std::runtime_error(fmt::format("{}: calibration failed ({}): {}", r.serial,
                                          calib::ToString(c.result.status), c.result.message));
@@ -498,7 +502,7 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
       throw std::runtime_error(
           fmt::format("{}: the calibration cannot be put on the detection plane: {}", r.serial, lens.message));
     }
-    u.device = CalibrateDeviceStage(r, in, sphere.image, lens);
+    u.device = CalibrateDeviceStage(r, in, c, sphere.image, lens);
   }
   u.config = std::move(in.config);
   u.camera = std::move(in.camera);

@@ -77,6 +77,7 @@ struct UnitInputDigest {
 struct UnitCameraCalibration {
   calib::CalibrationResult result;
   std::vector<std::string> view_paths;  // parallel to the views the calibration was given
+  std::vector<calib::ViewObservations> views_used;  // the corners of the views it used: the device stage fits them too
   bool single_view = false;
 };
 
