@@ -63,11 +63,12 @@ void PrintUncertaintySources(const pipeline::MeasurementUncertainty& u, std::ost
   if (!u.device_covariance) {
     out << fmt::format("NOT the device ({}), ", u.no_device_covariance);
   } else if (u.device_monte_carlo) {
-    out << fmt::format("the device's covariance ({} Monte Carlo draws of {} parameters), ", u.device_analyses,
-                       u.device_parameters.size());
+    out << fmt::format("the device's covariance ({} Monte Carlo draws of {} parameter{}), ", u.device_analyses,
+                       u.device_parameters.size(), u.device_parameters.size() == 1 ? "" : "s");
   } else {
-    out << fmt::format("the device's covariance ({} parameters, linear along {} directions), ",
-                       u.device_parameters.size(), u.device_directions);
+    const size_t n = u.device_parameters.size();
+    out << fmt::format("the device's covariance ({} parameter{}, linear along {} direction{}), ", n,
+                       n == 1 ? "" : "s", u.device_directions, u.device_directions == 1 ? "" : "s");
   }
   out << fmt::format(
       "the spot-centre noise measured in this image ({:.3g} um = {:.2f} x the configured {:.3g} um, what the "
