@@ -11,6 +11,7 @@
 
 #include "calib/file_storage.h"
 #include "calib/yaml_section.h"
+#include "calib/opencv_camera.h"
 #include "calib/opencv_equivalent.h"
 #include "calib/parameter_range.h"
 #include "util/io.h"
@@ -20,16 +21,6 @@
 
 namespace topocal::calib {
 namespace {
-
-cv::Mat CameraMatrix(const model::CameraModel& c) {
-  return (cv::Mat_<double>(3, 3) << c.fx_px, 0, c.cx_px, 0, c.fy_px, c.cy_px, 0, 0, 1);
-}
-// OpenCV's distCoeffs of the camera's lens model: 1 x 5 (brown5), 1 x 8 (rational8).
-cv::Mat DistortionRow(const model::CameraModel& c) {
-  cv::Mat row(1, model::LensParameterCount(c.lens), CV_64F);
-  for (int i = 0; i < row.cols; ++i) row.at<double>(i) = c.dist[static_cast<size_t>(i)];
-  return row;
-}
 
 std::optional<double> SingleViewDistance(const CalibrationResult& r) {
   if (!r.single_view || r.cam_from_target.empty()) return std::nullopt;
@@ -108,13 +99,13 @@ std::string CalibrationFileText(const CalibrationResult& result, const Calibrati
   fs << "single_view" << (result.single_view ? 1 : 0);
   fs << "image_width" << result.camera.width_px;
   fs << "image_height" << result.camera.height_px;
-  fs << "camera_matrix" << CameraMatrix(equivalent->camera);
-  fs << "distortion_coefficients" << DistortionRow(equivalent->camera);
+  fs << "camera_matrix" << cv::Mat(OpenCvCameraMatrix(equivalent->camera));
+  fs << "distortion_coefficients" << OpenCvDistCoeffs(equivalent->camera);
   fs << "distortion_centre"
      << (cv::Mat_<double>(1, 2) << result.camera.distortion_centre.x(), result.camera.distortion_centre.y());
   if (!result.camera.distortion_centre.isZero(0)) {
-    fs << "topocal_camera_matrix" << CameraMatrix(result.camera);
-    fs << "topocal_distortion_coefficients" << DistortionRow(result.camera);
+    fs << "topocal_camera_matrix" << cv::Mat(OpenCvCameraMatrix(result.camera));
+    fs << "topocal_distortion_coefficients" << OpenCvDistCoeffs(result.camera);
     fs << "opencv_equivalent_max_error_px" << equivalent->max_error_px;
   }
   fs << "parameter_names" << "[";

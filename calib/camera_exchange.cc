@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "calib/distortion_valid_region.h"
+#include "calib/opencv_camera.h"
 #include "util/io.h"
 
 namespace topocal::calib {
@@ -123,8 +124,8 @@ std::string OpenCvCalibrationText(const model::CameraModel& c, const std::string
   cv::FileStorage fs(".yml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
   fs << "image_width" << c.width_px;
   fs << "image_height" << c.height_px;
-  fs << "camera_matrix" << (cv::Mat_<double>(3, 3) << c.fx_px, 0, c.cx_px, 0, c.fy_px, c.cy_px, 0, 0, 1);
-  fs << "distortion_coefficients" << cv::Mat(Coefficients(c), true).reshape(1, 1);
+  fs << "camera_matrix" << cv::Mat(OpenCvCameraMatrix(c));
+  fs << "distortion_coefficients" << OpenCvDistCoeffs(c);
   const DistortionValidRegion region = ValidRegionOf(c);
   fs << "valid_radius_px" << region.radius_px;
   fs << "valid_region_covers_sensor" << (region.covers_sensor ? 1 : 0);

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "calib/calibrate.h"
+#include "calib/opencv_camera.h"
 #include "calib/parameter_range.h"
 #include "model/camera_model.h"
 #include "model/lens_model.h"
@@ -32,15 +33,6 @@ model::CameraModel CameraOf(const model::LensModelId& lens) {
   return cam;
 }
 
-cv::Mat CvMatrix(const model::CameraModel& c) {
-  return (cv::Mat_<double>(3, 3) << c.fx_px, 0, c.cx_px, 0, c.fy_px, c.cy_px, 0, 0, 1);
-}
-
-cv::Mat CvCoefficients(const model::CameraModel& c) {
-  cv::Mat d(1, model::LensParameterCount(c.lens), CV_64F);
-  for (int i = 0; i < d.cols; ++i) d.at<double>(i) = c.dist[static_cast<size_t>(i)];
-  return d;
-}
 
 // Normalised rays across the 640 x 480 image and a little beyond (|x_n| <= 0.65, |y_n| <= 0.5).
 std::vector<cv::Point3d> Rays() {
@@ -56,7 +48,7 @@ TEST(LensModels, EachProjectsAsCvProjectPoints) {
     const model::CameraModel cam = CameraOf(lens);
     const auto rays = Rays();
     std::vector<cv::Point2d> cv_px;
-    cv::projectPoints(rays, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), CvMatrix(cam), CvCoefficients(cam), cv_px);
+    cv::projectPoints(rays, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), cv::Mat(calib::OpenCvCameraMatrix(cam)), calib::OpenCvDistCoeffs(cam), cv_px);
     double worst = 0;
     for (size_t i = 0; i < rays.size(); ++i) {
       const Eigen::Vector2d px = cam.Project({rays[i].x, rays[i].y, rays[i].z});
@@ -74,9 +66,9 @@ TEST(LensModels, EachUndistortsAsCvUndistortPoints) {
     const model::CameraModel cam = CameraOf(lens);
     const auto rays = Rays();
     std::vector<cv::Point2d> distorted, cv_rays;
-    cv::projectPoints(rays, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), CvMatrix(cam), CvCoefficients(cam), distorted);
+    cv::projectPoints(rays, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), cv::Mat(calib::OpenCvCameraMatrix(cam)), calib::OpenCvDistCoeffs(cam), distorted);
     // OpenCV's iteration run to convergence (its default stops after 5 steps).
-    cv::undistortPoints(distorted, cv_rays, CvMatrix(cam), CvCoefficients(cam), cv::noArray(), cv::noArray(),
+    cv::undistortPoints(distorted, cv_rays, cv::Mat(calib::OpenCvCameraMatrix(cam)), calib::OpenCvDistCoeffs(cam), cv::noArray(), cv::noArray(),
                         cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 200, 1e-15));
     double worst_truth = 0, worst_cv = 0;
     for (size_t i = 0; i < rays.size(); ++i) {
