@@ -109,6 +109,7 @@ model::DeviceFile LensOnDevice(const LensSource& lens, const model::Device& nomi
   if (!lens.covariance) return out;
 
   const std::vector<std::string> names = DeviceNames(lens);
+  if (names.empty()) return out;  // nothing of the device's was fitted: no covariance to carry
   const Eigen::MatrixXd j = MappingJacobian(names, lens.names, out.device.camera);
   const Eigen::MatrixXd covariance = j * *lens.covariance * j.transpose();
   nlohmann::json matrix = nlohmann::json::array();
@@ -155,6 +156,11 @@ MeasuringDevice LoadMeasuringDevice(const std::string& device_path, const std::s
     if (!out.covariance) out.no_covariance = "its file has no calibration covariance: a hand-written device";
     return out;
   }
+  if (!file.calibration.is_null()) {
+    throw util::InputError(fmt::format("{}: a calibrated device carries its own lens (its calibration section); "
+                                       "--calibration puts a lens calibration on a nominal device",
+                                       device_path));
+  }
   const calib::CalibrationFile cal = calib::LoadCalibrationFile(calibration_path);
   LensSource lens{cal.camera, cal.parameter_names, {}, std::nullopt, {}};
   for (const auto& n : cal.parameter_names) {
@@ -173,7 +179,11 @@ MeasuringDevice LoadMeasuringDevice(const std::string& device_path, const std::s
   }
   const model::DeviceFile on = LensOnDevice(lens, file.device, calibration_path);
   out.device = on.device;
-  if (lens.covariance) out.covariance = model::DeviceCovarianceOf(on.calibration, calibration_path);
+  if (lens.covariance && !on.calibration.is_null()) {
+    out.covariance = model::DeviceCovarianceOf(on.calibration, calibration_path);
+  } else if (lens.covariance) {
+    out.no_covariance = fmt::format("{} fitted none of the device's parameters", calibration_path);
+  }
   out.name = fmt::format("{} with the lens of {}", device_path, calibration_path);
   return out;
 }

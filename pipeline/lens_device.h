@@ -34,7 +34,8 @@ struct MeasuringDevice {
   std::string no_covariance;  // why covariance is empty
   std::string name;           // for messages: "D" or "D with the lens of C"
 };
-// Throws util::InputError / util::ConfigError naming the file that is missing, malformed or does not fit.
+// Throws util::InputError / util::ConfigError naming the file that is missing, malformed or does not fit, and for
+// a calibration put on a device that is itself calibrated (its own lens and covariance would be silently replaced).
 MeasuringDevice LoadMeasuringDevice(const std::string& device_path, const std::string& calibration_path);
 
 }  // namespace topocal::pipeline

@@ -91,21 +91,23 @@ class UnitCli : public topocal::testing_cli::TempDirTest {
 // acceptance bound (measured: +0.000011 mm); C's covariance is the device's part of every U. Through D alone the
 // same image is measured distorted, 0.0014 mm short, and every U says the device's part is missing.
 TEST_F(UnitCli, ReconstructThroughTheDeviceWithALensCalibrationCarriesItsCovariance) {
-  const std::string cal = (dir_ / "cal.yaml").string();
+  const std::string cal = (dir_ / "cal.yaml").string(), lens_device = (dir_ / "lens-device.json").string();
   auto r = RunTopocal(fmt::format("calibrate --target {0}/target.yaml --images {0}/view.png --model seidel "
-                                  "--single-view --focal-mm 5.2 --pixel-pitch-um 1.12 --distance-mm 70 --out {1}",
-                                  in_, cal));
+                                  "--single-view --focal-mm 5.2 --pixel-pitch-um 1.12 --distance-mm 70 --out {1} "
+                                  "--device {0}/device.json --device-out {2}",
+                                  in_, cal, lens_device));
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  const auto measure = [&](const std::string& extra, const std::string& name) {
+  const auto measure = [&](const std::string& through, const std::string& name) {
     const std::string out = (dir_ / name).string();
     const auto m = RunTopocal(fmt::format("reconstruct --config {0}/data/paper.json --image {1}/sphere.png --device "
-                                          "{1}/device.json {2} --json {3}",
-                                          TOPOCAL_SOURCE_DIR, in_, extra, out));
+                                          "{2} --json {3}",
+                                          TOPOCAL_SOURCE_DIR, in_, through, out));
     EXPECT_EQ(m.exit_code, 0) << m.output;
     return std::pair{m.output, json::parse(util::ReadFile(out))};
   };
-  const auto [with_text, with] = measure("--calibration " + cal, "with.json");
-  const auto [without_text, without] = measure("", "without.json");
+  const std::string nominal = in_ + "/device.json";
+  const auto [with_text, with] = measure(nominal + " --calibration " + cal, "with.json");
+  const auto [without_text, without] = measure(nominal, "without.json");
   EXPECT_NE(with_text.find("with the lens of " + cal), std::string::npos) << with_text;
   EXPECT_TRUE(with["uncertainty"]["device_covariance"].get<bool>());
   EXPECT_FALSE(with["uncertainty"]["device_parameters"].empty());
@@ -115,6 +117,16 @@ TEST_F(UnitCli, ReconstructThroughTheDeviceWithALensCalibrationCarriesItsCovaria
   EXPECT_LT(error_mm, kRadiusErrorMm);
   EXPECT_LT(error_mm, 1e-4);
   EXPECT_GT(std::abs(without["surface_fit"]["rx_mm"].get<double>() - kUnitSphereRadiusMm), kCorrectionGain * error_mm);
+  // The device calibrate wrote from the same calibration measures the same sphere; a calibrated device carries its own
+  // lens and covariance, so a second lens put on it is refused rather than silently replacing them.
+  const auto [device_text, through_device] = measure(lens_device, "through-device.json");
+  EXPECT_EQ(through_device["surface_fit"]["rx_mm"].get<double>(), with["surface_fit"]["rx_mm"].get<double>());
+  EXPECT_EQ(through_device["uncertainty"]["device_parameters"], with["uncertainty"]["device_parameters"]);
+  r = RunTopocal(fmt::format("reconstruct --config {0}/data/paper.json --image {1}/sphere.png --device {2} "
+                             "--calibration {3}",
+                             TOPOCAL_SOURCE_DIR, in_, lens_device, cal));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("a calibrated device carries its own lens"), std::string::npos) << r.output;
 }
 
 TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
