@@ -198,7 +198,7 @@ void DiagnoseTable(const model::Config& config, const std::string& only) {
     if (only.empty() ? c.kind != "ablation" : c.name != only) continue;
     const model::Surface truth = c.surface;
     const auto image = model::SynthesizeImage(truth, model::Topographer{config.topographer}, design.targets);
-    std::vector<topo::MeasuredSpot> spots;
+    std::vector<model::PlaneSpot> spots;
     std::vector<Eigen::Vector2d> true_points;
     for (const auto& s : image.spots) {
       spots.push_back({s.id, s.position_mm});

@@ -193,7 +193,7 @@ void BM_MeasureAblationUnderLids(benchmark::State& state) {
   const auto& s = GetScene();
   const auto& device = s.calibrated.fit.device;
   if (!s.calibrated.fit.ok) state.SkipWithError(s.calibrated.fit.message.c_str());
-  const auto analyze = [&](const std::vector<topo::MeasuredSpot>& spots) {
+  const auto analyze = [&](const std::vector<model::PlaneSpot>& spots) {
     return pipeline::AnalyzeThroughDevice(spots, device, s.measure, nullptr);
   };
   int identified = 0;

@@ -37,7 +37,7 @@ BENCHMARK(BM_PaperSweepOneThread)->Unit(benchmark::kMillisecond);
 struct OneSigma {
   model::Config config = model::LoadConfig(TOPOCAL_PAPER_CONFIG);
   model::NullScreenDesign design = model::DesignNullScreen(config.ideal_image, config.topographer);
-  std::vector<topo::MeasuredSpot> spots;
+  std::vector<model::PlaneSpot> spots;
   OneSigma() {
     for (const auto& s : topo::SimulateSpots(config, 6.3e-5).spots) spots.push_back({s.id, s.position_mm});
   }
@@ -57,7 +57,7 @@ BENCHMARK(BM_Reconstruct)->Unit(benchmark::kMillisecond);
 struct Keratoconus {
   model::Config config = model::LoadConfig(TOPOCAL_PAPER_CONFIG);
   model::NullScreenDesign design = model::DesignNullScreen(config.ideal_image, config.topographer);
-  std::vector<topo::MeasuredSpot> spots;
+  std::vector<model::PlaneSpot> spots;
   Keratoconus() {
     const auto cornea = model::FreeformTestSubset({"kc-33um-0.85mm"}).front();
     const auto image = model::SynthesizeImage(cornea.surface, model::Topographer{config.topographer}, design.targets);
@@ -120,7 +120,7 @@ void BM_FitReferenceSphere(benchmark::State& state) {
   d.config.cornea.kx = d.config.cornea.ky = d.config.cornea.alpha_deg = 0.0;
   std::mt19937 rng(1);
   std::normal_distribution<double> noise_mm(0.0, d.config.reconstruction.spot_uncertainty_um * 1e-3);
-  std::vector<topo::MeasuredSpot> spots;
+  std::vector<model::PlaneSpot> spots;
   for (const auto& s : topo::SimulateSpots(d.config, 0.0).spots) {
     spots.push_back({s.id, s.position_mm + Eigen::Vector2d(noise_mm(rng), noise_mm(rng))});
   }

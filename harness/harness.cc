@@ -204,8 +204,7 @@ HarnessCaseRunner::HarnessCaseRunner(const HarnessConfig& config)
                                       design.targets)
                    .spots;
     for (const auto& s : d->spots) d->spot_mm.emplace(s.id, s.position_mm);
-    std::vector<topo::MeasuredSpot> measured;
-    for (const auto& s : d->spots) measured.push_back({s.id, s.position_mm});
+    const std::vector<model::PlaneSpot> measured = model::PlaneSpotsOf(d->spots);
     try {
       d->truth = topo::AnalyzeSpots(measured, design.targets, d->config, nullptr);
     } catch (const std::runtime_error& e) {
@@ -258,7 +257,7 @@ HarnessCaseResult HarnessCaseRunner::RunDistortion(const HarnessCaseSpec& spec) 
       DistortionOf(config_.design, spec.family, spec.coefficient * (1.0 + spec.calibration_error));
   const double pitch_mm = config_.pixel_pitch_um * 1e-3;
   NormalPairs noise(spec.seed);
-  std::vector<topo::MeasuredSpot> measured;
+  std::vector<model::PlaneSpot> measured;
   measured.reserve(d.spots.size());
   double sum2 = 0;
   int residual_spots = 0;
@@ -302,7 +301,7 @@ HarnessCaseResult HarnessCaseRunner::RunAssembly(const HarnessCaseSpec& spec) co
   const auto image = model::SynthesizeImage(model::Biconic{config_.corneas[spec.cornea].params}, device,
                                             config_.design.topographer, *targets_);
   NormalPairs noise(spec.seed);
-  std::vector<topo::MeasuredSpot> measured;
+  std::vector<model::PlaneSpot> measured;
   measured.reserve(image.spots.size());
   double sum2 = 0;
   int residual_spots = 0;

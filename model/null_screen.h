@@ -170,6 +170,23 @@ std::optional<Eigen::Vector3d> SolveReflectionPointOn(const Sag& sag, const Eige
   return std::nullopt;
 }
 
+// An identified spot on the detection plane: its identity and position (mm). The one record of a spot from detection
+// (distorted, as the camera recorded it) through undistortion to reconstruction, and a spots CSV's row; whether the
+// position is distorted is its container's to say.
+struct PlaneSpot {
+  SpotId id;
+  Eigen::Vector2d position_mm = Eigen::Vector2d::Zero();
+};
+
+// The identities and positions of any spot records that carry them (a synthetic image's, a detection's).
+template <typename Spots>
+std::vector<PlaneSpot> PlaneSpotsOf(const Spots& spots) {
+  std::vector<PlaneSpot> out;
+  out.reserve(spots.size());
+  for (const auto& s : spots) out.push_back({s.id, s.position_mm});
+  return out;
+}
+
 struct ImageSpot {
   SpotId id;
   Eigen::Vector2d position_mm;    // on the detection plane (undistorted)

@@ -10,13 +10,13 @@
 
 namespace topocal::model {
 
-std::vector<SpotRow> ReadSpotsCsv(const std::string& path) {
+std::vector<model::PlaneSpot> ReadSpotsCsv(const std::string& path) {
   const std::string text = util::ReadFile(path);
   std::istringstream in(text);
   std::string line;
   int line_no = 0;
   bool header = false;
-  std::vector<SpotRow> rows;
+  std::vector<model::PlaneSpot> rows;
   std::set<model::SpotId> seen;
   while (std::getline(in, line)) {
     ++line_no;
@@ -29,16 +29,17 @@ std::vector<SpotRow> ReadSpotsCsv(const std::string& path) {
       header = true;
       continue;
     }
-    SpotRow r;
+    model::PlaneSpot r;
     char c1 = 0, c2 = 0, c3 = 0;
     std::istringstream ls(line);
     // Judged before the rest is read: a number out of range (1e309) sets failbit and reads as the largest double,
     // and reaching the line's end must not excuse it.
-    const bool numbers = !(ls >> r.id.ring >> c1 >> r.id.index >> c2 >> r.x_mm >> c3 >> r.y_mm).fail();
+    const bool numbers =
+        !(ls >> r.id.ring >> c1 >> r.id.index >> c2 >> r.position_mm.x() >> c3 >> r.position_mm.y()).fail();
     std::string rest;
     ls >> rest;
-    if (!numbers || c1 != ',' || c2 != ',' || c3 != ',' || !rest.empty() || !std::isfinite(r.x_mm) ||
-        !std::isfinite(r.y_mm)) {
+    if (!numbers || c1 != ',' || c2 != ',' || c3 != ',' || !rest.empty() || !std::isfinite(r.position_mm.x()) ||
+        !std::isfinite(r.position_mm.y())) {
       throw util::InputError(fmt::format("{}:{}: expected 'ring,index,x_mm,y_mm' numbers", path, line_no));
     }
     if (r.id.ring < 1 || r.id.index < 0) {

@@ -9,13 +9,8 @@
 
 namespace topocal::model {
 
-struct SpotRow {
-  model::SpotId id;
-  double x_mm = 0, y_mm = 0;
-};
-
 // Reads a spots file with header `ring,index,x_mm,y_mm`; throws util::InputError naming file and line.
-std::vector<SpotRow> ReadSpotsCsv(const std::string& path);
+std::vector<PlaneSpot> ReadSpotsCsv(const std::string& path);
 std::string SpotsCsv(const std::vector<model::ImageSpot>& spots);
 
 }  // namespace topocal::model

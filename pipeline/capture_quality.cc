@@ -122,13 +122,13 @@ std::set<model::SpotId> SlopeOutliers(const topo::Reconstruction& r) {
 }  // namespace
 
 topo::Analysis RejectSurfaceOutliers(
-    std::vector<topo::MeasuredSpot> spots,
-    const std::function<topo::Analysis(const std::vector<topo::MeasuredSpot>&)>& analyze, CaptureQuality* capture) {
+    std::vector<model::PlaneSpot> spots,
+    const std::function<topo::Analysis(const std::vector<model::PlaneSpot>&)>& analyze, CaptureQuality* capture) {
   topo::Analysis analysis = analyze(spots);
   for (int pass = 0; pass < kSurfaceOutlierPasses && analysis.reconstruction.ok; ++pass) {
     const auto outliers = SlopeOutliers(analysis.reconstruction);
     if (outliers.empty()) break;
-    std::erase_if(spots, [&](const topo::MeasuredSpot& s) { return outliers.count(s.id) > 0; });
+    std::erase_if(spots, [&](const model::PlaneSpot& s) { return outliers.count(s.id) > 0; });
     if (capture) {
       capture->surface_outliers.insert(capture->surface_outliers.end(), outliers.begin(), outliers.end());
       capture->usable -= static_cast<int>(outliers.size());

@@ -56,8 +56,8 @@ struct MeasurementVerdict {
 inline constexpr double kSurfaceOutlierSigmas = 6.0, kMaxSurfaceOutlierShare = 0.10;
 inline constexpr int kSurfaceOutlierPasses = 3;
 topo::Analysis RejectSurfaceOutliers(
-    std::vector<topo::MeasuredSpot> spots,
-    const std::function<topo::Analysis(const std::vector<topo::MeasuredSpot>&)>& analyze, CaptureQuality* capture);
+    std::vector<model::PlaneSpot> spots,
+    const std::function<topo::Analysis(const std::vector<model::PlaneSpot>&)>& analyze, CaptureQuality* capture);
 
 // A measurement from an image is refused when too few spots are identified, the clinical indices cannot be computed
 // from the data (the sim-K zone not covered in every direction) or the surface model does not represent the

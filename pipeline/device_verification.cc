@@ -18,7 +18,7 @@ constexpr double kMaxRadiusMm = 11.0;
 
 StageResult Stage(const std::vector<std::pair<model::SpotId, Eigen::Vector2d>>& pixels, const model::Device& device,
                   const model::Config& config, const model::BiconicParams* truth, const char* what) {
-  std::vector<topo::MeasuredSpot> spots;
+  std::vector<model::PlaneSpot> spots;
   for (const auto& [id, px] : pixels) {
     if (const auto mm = device.UndistortedOf(px)) spots.push_back({id, *mm});
   }
@@ -61,7 +61,7 @@ HeldOutBall VerifyHeldOutBall(const cv::Mat& image, double radius_mm, const mode
   // Detected and indexed once, through the nominal camera; each stage maps the same pixels its own way.
   const auto raw = MeasureSpots(image, nominal.camera, ball.ideal_image, std::nullopt);
   std::vector<std::pair<model::SpotId, Eigen::Vector2d>> pixels;
-  for (const auto& s : raw.detected) pixels.emplace_back(s.id, nominal.camera.PixelFromDetectionPlane(s.distorted_mm));
+  for (const auto& s : raw.detected) pixels.emplace_back(s.id, nominal.camera.PixelFromDetectionPlane(s.position_mm));
   HeldOutBall v;
   v.radius_true_mm = radius_mm;
   v.power_true_D = model::PowerFromCurvatureD(1.0 / radius_mm);  // Eq. 25

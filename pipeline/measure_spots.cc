@@ -16,14 +16,14 @@
 
 namespace topocal::pipeline {
 
-std::vector<topo::MeasuredSpot> UndistortSpots(const std::vector<MeasuredImageSpot>& detected,
+std::vector<model::PlaneSpot> UndistortSpots(const std::vector<model::PlaneSpot>& detected,
                                                const model::Distortion& distortion, int* failures) {
   std::vector<Eigen::Vector2d> distorted;
   distorted.reserve(detected.size());
-  for (const auto& s : detected) distorted.push_back(s.distorted_mm);
+  for (const auto& s : detected) distorted.push_back(s.position_mm);
   const auto undistorted = correct::UndistortPoints(distortion, distorted);
   if (failures) *failures = static_cast<int>(undistorted.failures.size());
-  std::vector<topo::MeasuredSpot> spots;
+  std::vector<model::PlaneSpot> spots;
   spots.reserve(detected.size());
   for (size_t i = 0; i < detected.size(); ++i) {
     if (undistorted.ok[i]) spots.push_back({detected[i].id, undistorted.points_mm[i]});
@@ -77,9 +77,9 @@ SpotMeasurement MeasurementOf(const IdentifiedSpots& identified, const std::opti
       m.free_mm.push_back(s.position_mm);
     }
   }
-  for (const auto& s : located.spots) m.detected.push_back({s.id, s.position_mm});
+  m.detected = model::PlaneSpotsOf(located.spots);
   if (!distortion) {
-    for (const auto& s : located.spots) m.spots.push_back({s.id, s.position_mm});
+    m.spots = m.detected;
     return m;
   }
   m.spots = UndistortSpots(m.detected, *distortion, &m.undistort_failures);
@@ -118,12 +118,12 @@ model::Config ForEyes(model::Config config) {
 
 SpotAnalysis AnalysisOf(const model::Device* device, const model::Config& config, const model::BiconicParams* truth) {
   if (device) {
-    return [device = *device, config, truth](const std::vector<topo::MeasuredSpot>& spots) {
+    return [device = *device, config, truth](const std::vector<model::PlaneSpot>& spots) {
       return AnalyzeThroughDevice(spots, device, config, truth);
     };
   }
   return [design = model::DesignNullScreen(config.ideal_image, config.topographer), config,
-          truth](const std::vector<topo::MeasuredSpot>& spots) {
+          truth](const std::vector<model::PlaneSpot>& spots) {
     return topo::AnalyzeSpots(spots, design.targets, config, truth);
   };
 }
@@ -159,7 +159,7 @@ correct::DetectAndIndexResult WithSurfaceIdentities(const correct::DetectAndInde
   for (const auto& s : located.spots) before.insert(s.id);
   for (const auto& d : labelled.detected) {
     if (before.count(d.id)) continue;
-    const int k = FindAt(out.unassigned, d.distorted_mm);
+    const int k = FindAt(out.unassigned, d.position_mm);
     if (k < 0) continue;  // cannot happen: every surface identity is a free detection's position
     correct::LocatedSpot s = out.unassigned[k];
     s.id = d.id;
@@ -214,16 +214,16 @@ int CheckFlaggedIdentities(correct::DetectAndIndexResult* located, const topo::R
   for (const auto& s : located->excluded) {
     const PredictedSpot* nearest = nullptr;
     for (const auto& p : predictions) {
-      if (!nearest || (p.distorted_mm - s.position_mm).squaredNorm() <
-                          (nearest->distorted_mm - s.position_mm).squaredNorm()) {
+      if (!nearest || (p.position_mm - s.position_mm).squaredNorm() <
+                          (nearest->position_mm - s.position_mm).squaredNorm()) {
         nearest = &p;
       }
     }
     double spacing = std::numeric_limits<double>::infinity();  // from its prediction to the next one
     for (const auto& p : predictions) {
-      if (nearest && &p != nearest) spacing = std::min(spacing, (p.distorted_mm - nearest->distorted_mm).norm());
+      if (nearest && &p != nearest) spacing = std::min(spacing, (p.position_mm - nearest->position_mm).norm());
     }
-    if (nearest && nearest->id == s.id && (nearest->distorted_mm - s.position_mm).norm() <= kGateSpacings * spacing) {
+    if (nearest && nearest->id == s.id && (nearest->position_mm - s.position_mm).norm() <= kGateSpacings * spacing) {
       kept.push_back(s);
       continue;
     }

@@ -21,15 +21,10 @@
 
 namespace topocal::pipeline {
 
-// A detected and identified spot as the camera saw it (distorted), on the detection plane.
-struct MeasuredImageSpot {
-  model::SpotId id;
-  Eigen::Vector2d distorted_mm;
-};
-
+// The spots of one image: detected and identified (model::PlaneSpot, distorted as the camera saw them), undistorted.
 struct SpotMeasurement {
-  std::vector<MeasuredImageSpot> detected;  // every identified spot, distorted, by id
-  std::vector<topo::MeasuredSpot> spots;  // identified (and undistorted, if a distortion was given), by id
+  std::vector<model::PlaneSpot> detected;  // every identified spot, distorted, by id
+  std::vector<model::PlaneSpot> spots;     // identified (and undistorted, if a distortion was given), by id
   int indexed = 0;
   int unassigned = 0;                      // detections without identity (glints)
   int missing = 0;                         // designed spots not found
@@ -70,7 +65,7 @@ SpotMeasurement MeasurementOf(const IdentifiedSpots& identified, const std::opti
 
 // The detected (distorted) spots undistorted with `distortion`. Spots outside its invertible domain are left out;
 // *failures (if given) counts them.
-std::vector<topo::MeasuredSpot> UndistortSpots(const std::vector<MeasuredImageSpot>& detected,
+std::vector<model::PlaneSpot> UndistortSpots(const std::vector<model::PlaneSpot>& detected,
                                                const model::Distortion& distortion, int* failures = nullptr);
 
 // IdentifySpots, then the identified spots on the detection plane. Throws what IdentifySpots throws.
@@ -93,7 +88,7 @@ model::Config ForEyes(model::Config config);
 
 // The analysis of undistorted spots as a measurement makes it: through `device` (AnalyzeThroughDevice) or, without
 // one (a camera alone), through the configuration's design (topo::AnalyzeSpots with the designed targets).
-using SpotAnalysis = std::function<topo::Analysis(const std::vector<topo::MeasuredSpot>&)>;
+using SpotAnalysis = std::function<topo::Analysis(const std::vector<model::PlaneSpot>&)>;
 SpotAnalysis AnalysisOf(const model::Device* device, const model::Config& config, const model::BiconicParams* truth);
 
 // Every identity of *m checked against the surface the others give and the free detections identified through it

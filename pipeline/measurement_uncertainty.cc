@@ -47,10 +47,10 @@ double Difference(double a, double b, bool axis) {
 }
 
 // The spots the nominal analysis used, as measured.
-std::vector<MeasuredImageSpot> UsedSpots(const std::vector<MeasuredImageSpot>& detected, const topo::Analysis& a) {
+std::vector<model::PlaneSpot> UsedSpots(const std::vector<model::PlaneSpot>& detected, const topo::Analysis& a) {
   std::set<model::SpotId> used;
   for (const auto& p : a.reconstruction.points) used.insert(p.id);
-  std::vector<MeasuredImageSpot> out;
+  std::vector<model::PlaneSpot> out;
   for (const auto& s : detected) {
     if (used.count(s.id)) out.push_back(s);
   }
@@ -113,21 +113,23 @@ model::Device ShiftedDevice(const model::Device& device, const std::vector<std::
 }
 
 // The spots as `moved` sees them: each keeps its pixel on the sensor, the device moves under it.
-std::vector<MeasuredImageSpot> SpotsUnder(const model::Device& moved, const model::Device& device,
-                                          std::vector<MeasuredImageSpot> spots) {
-  for (auto& s : spots) s.distorted_mm = moved.camera.DetectionPlaneFromPixel(device.camera.PixelFromDetectionPlane(s.distorted_mm));
+std::vector<model::PlaneSpot> SpotsUnder(const model::Device& moved, const model::Device& device,
+                                          std::vector<model::PlaneSpot> spots) {
+  for (auto& s : spots) {
+    s.position_mm = moved.camera.DetectionPlaneFromPixel(device.camera.PixelFromDetectionPlane(s.position_mm));
+  }
   return spots;
 }
 
 // Spot draw `i`: the spots with normal noise of `sigma_um` per axis, seeded by (seed, i).
-std::vector<MeasuredImageSpot> NoisySpots(std::vector<MeasuredImageSpot> spots, double sigma_um, std::uint32_t seed,
+std::vector<model::PlaneSpot> NoisySpots(std::vector<model::PlaneSpot> spots, double sigma_um, std::uint32_t seed,
                                           std::uint32_t i) {
   std::seed_seq seq{seed, i};
   std::mt19937 rng(seq);
   std::normal_distribution<double> normal(0.0, sigma_um * 1e-3);
   for (auto& s : spots) {
-    s.distorted_mm.x() += normal(rng);
-    s.distorted_mm.y() += normal(rng);
+    s.position_mm.x() += normal(rng);
+    s.position_mm.y() += normal(rng);
   }
   return spots;
 }
@@ -299,7 +301,7 @@ std::vector<NamedQuantity> ReportedQuantities(const topo::Analysis& a) {
   return q;
 }
 
-MeasurementUncertainty PropagateMeasurementUncertainty(const std::vector<MeasuredImageSpot>& detected,
+MeasurementUncertainty PropagateMeasurementUncertainty(const std::vector<model::PlaneSpot>& detected,
                                                        const model::Device& device,
                                                        const std::optional<model::DeviceCovariance>& covariance,
                                                        const model::Config& config, const topo::Analysis& nominal,
@@ -307,7 +309,7 @@ MeasurementUncertainty PropagateMeasurementUncertainty(const std::vector<Measure
   if (options.spot_draws < 2) throw util::InputError("uncertainty: at least 2 spot-noise draws are needed");
   MeasurementUncertainty u;
   const std::vector<NamedQuantity> reference = ReportedQuantities(nominal);
-  const std::vector<MeasuredImageSpot> used = UsedSpots(detected, nominal);
+  const std::vector<model::PlaneSpot> used = UsedSpots(detected, nominal);
   // Every analysis below keeps the surface model the measurement chose ("auto" deciding again on a draw would
   // jump between models) and starts from the measurement's analysis.
   model::Config fixed = config;
@@ -316,7 +318,8 @@ MeasurementUncertainty PropagateMeasurementUncertainty(const std::vector<Measure
   draw_options.stddev = draw_options.adequacy = false;
   draw_options.start = &nominal;
   // One analysis of `spots` (distorted, on `d`'s detection plane) through `d`.
-  const auto analyze = [&](const model::Device& d, const std::vector<MeasuredImageSpot>& spots) -> std::optional<Reading> {
+  const auto analyze = [&](const model::Device& d,
+                           const std::vector<model::PlaneSpot>& spots) -> std::optional<Reading> {
     try {
       const auto a = AnalyzeThroughDevice(UndistortSpots(spots, d.distortion), d, fixed, nullptr, draw_options);
       return ReadingOf(a, reference);

@@ -93,7 +93,7 @@ std::vector<NamedQuantity> ReportedQuantities(const topo::Analysis& analysis);
 // measurement's analysis of them (AnalyzeThroughDevice after RejectSurfaceOutliers: only the spots it used are
 // drawn). `covariance` nullopt: the device's part is left out and said so (device_covariance = false). Throws
 // util::InputError for spot_draws < 2 and std::runtime_error when more than half of the analyses fail.
-MeasurementUncertainty PropagateMeasurementUncertainty(const std::vector<MeasuredImageSpot>& detected,
+MeasurementUncertainty PropagateMeasurementUncertainty(const std::vector<model::PlaneSpot>& detected,
                                                        const model::Device& device,
                                                        const std::optional<model::DeviceCovariance>& covariance,
                                                        const model::Config& config, const topo::Analysis& nominal,

@@ -82,7 +82,7 @@ int NearestAnchor(const Eigen::Vector2d& p, const std::vector<IdentifiedAnchor>&
   int best = -1;
   *distance = std::numeric_limits<double>::infinity();
   for (size_t k = 0; k < anchors.size(); ++k) {
-    const double d = (anchors[k].distorted_mm - p).norm();
+    const double d = (anchors[k].position_mm - p).norm();
     if (d < *distance) *distance = d, best = static_cast<int>(k);
   }
   return best;
@@ -92,35 +92,36 @@ int NearestAnchor(const Eigen::Vector2d& p, const std::vector<IdentifiedAnchor>&
 double NearestPrediction(const Eigen::Vector2d& p, const std::vector<PredictedSpot>& predictions, size_t skip) {
   double best = std::numeric_limits<double>::infinity();
   for (size_t k = 0; k < predictions.size(); ++k) {
-    if (k != skip) best = std::min(best, (predictions[k].distorted_mm - p).norm());
+    if (k != skip) best = std::min(best, (predictions[k].position_mm - p).norm());
   }
   return best;
 }
 
 // The identified spots with the distance at which the surface images each from where it was detected.
-std::vector<IdentifiedAnchor> Anchors(const topo::Reconstruction& surface, const std::vector<MeasuredImageSpot>& detected,
-                                      const model::Device& device, const model::Config& config) {
+std::vector<IdentifiedAnchor> Anchors(const topo::Reconstruction& surface,
+                                      const std::vector<model::PlaneSpot>& detected, const model::Device& device,
+                                      const model::Config& config) {
   std::vector<model::SpotId> ids;
   for (const auto& s : detected) ids.push_back(s.id);
   std::map<model::SpotId, Eigen::Vector2d> predicted;
-  for (const auto& p : PredictSpots(surface, ids, device, config)) predicted[p.id] = p.distorted_mm;
+  for (const auto& p : PredictSpots(surface, ids, device, config)) predicted[p.id] = p.position_mm;
   std::vector<IdentifiedAnchor> out;
   for (const auto& s : detected) {
     const auto it = predicted.find(s.id);
-    out.push_back({s.distorted_mm, it == predicted.end() ? std::numeric_limits<double>::infinity()
-                                                         : (it->second - s.distorted_mm).norm()});
+    out.push_back({s.position_mm, it == predicted.end() ? std::numeric_limits<double>::infinity()
+                                                         : (it->second - s.position_mm).norm()});
   }
   return out;
 }
 
 // The pattern's centre in the image: the mean of the innermost identified ring's spots.
-Eigen::Vector2d PatternCentre(const std::vector<MeasuredImageSpot>& detected) {
+Eigen::Vector2d PatternCentre(const std::vector<model::PlaneSpot>& detected) {
   int innermost = std::numeric_limits<int>::max();
   for (const auto& s : detected) innermost = std::min(innermost, s.id.ring);
   Eigen::Vector2d sum = Eigen::Vector2d::Zero();
   int n = 0;
   for (const auto& s : detected) {
-    if (s.id.ring == innermost) sum += s.distorted_mm, ++n;
+    if (s.id.ring == innermost) sum += s.position_mm, ++n;
   }
   return n > 0 ? Eigen::Vector2d(sum / n) : sum;
 }
@@ -154,7 +155,7 @@ namespace {
 // used at all (an identified spot within kReachSpacings s whose own prediction is within kTrustSpacings s); 0 when not.
 double UsableSpacing(const std::vector<PredictedSpot>& predictions, size_t j,
                      const std::vector<IdentifiedAnchor>& identified) {
-  const Eigen::Vector2d& p = predictions[j].distorted_mm;
+  const Eigen::Vector2d& p = predictions[j].position_mm;
   double to_identified;
   const int anchor = NearestAnchor(p, identified, &to_identified);
   const double spacing = std::min(to_identified, NearestPrediction(p, predictions, j));
@@ -191,7 +192,7 @@ std::vector<SurfaceLabel> LabelFromPredictions(const std::vector<PredictedSpot>&
   for (size_t j = 0; j < predictions.size(); ++j) {
     const double spacing = UsableSpacing(predictions, j, identified);
     if (!(spacing > 0)) continue;
-    const Eigen::Vector2d& p = predictions[j].distorted_mm;
+    const Eigen::Vector2d& p = predictions[j].position_mm;
     double e1, e2;
     const int nearest = NearestFree(p, free_mm, &e1, &e2);
     if (nearest < 0 || e1 > kGateSpacings * spacing || e1 > kAmbiguityRatio * e2) continue;
@@ -221,7 +222,7 @@ std::vector<SurfaceLabel> GrowFromPredictions(std::vector<PredictedSpot> predict
                                                       [&](const PredictedSpot& p) { return p.id == l.id; }) -
                                          predictions.begin());
       const Eigen::Vector2d& d = remaining[l.free_index];
-      identified.push_back({d, (predictions[j].distorted_mm - d).norm()});
+      identified.push_back({d, (predictions[j].position_mm - d).norm()});
       used_prediction[j] = used_free[l.free_index] = 1;
       out.push_back({l.id, original[l.free_index]});
     }
@@ -257,7 +258,7 @@ std::vector<SurfaceLabel> LabelShiftedRing(const std::vector<PredictedSpot>& pre
     std::nth_element(s.begin(), s.begin() + s.size() / 2, s.end());
     const double step = kRingShiftStep * s[s.size() / 2];
     const auto shifted = [&](size_t j, double delta) -> Eigen::Vector2d {
-      const Eigen::Vector2d& p = predictions[j].distorted_mm;
+      const Eigen::Vector2d& p = predictions[j].position_mm;
       return p + delta * (p - centre_mm).normalized();
     };
     // Matches per shift: predictions with a free detection within the gate.
@@ -283,7 +284,7 @@ std::vector<SurfaceLabel> LabelShiftedRing(const std::vector<PredictedSpot>& pre
     }
     if (matches[best] < kRingShiftShare * members.size() || matches[best] < kRingShiftRivalRatio * rival) continue;
     std::vector<PredictedSpot> moved = predictions;
-    for (size_t j : members) moved[j].distorted_mm = shifted(j, (best - n_steps) * step);
+    for (size_t j : members) moved[j].position_mm = shifted(j, (best - n_steps) * step);
     std::vector<SurfaceLabel> out;
     for (const auto& l : GrowFromPredictions(moved, identified, free_mm)) {
       if (l.id.ring == ring) out.push_back(l);
@@ -341,7 +342,7 @@ struct Labelled {
 }  // namespace
 
 topo::Analysis LabelThroughSurface(SpotMeasurement* m, const model::Device& device, const model::Config& config,
-                                   const std::function<topo::Analysis(const std::vector<topo::MeasuredSpot>&)>& analyze) {
+                                   const std::function<topo::Analysis(const std::vector<model::PlaneSpot>&)>& analyze) {
   Labelled now{*m, m->capture, {}};
   now.analysis = RejectSurfaceOutliers(now.m.spots, analyze, &now.m.capture);
   // The last state whose surface represents every identified spot: a blend zone may make the model miss while its

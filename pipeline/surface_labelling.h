@@ -27,7 +27,7 @@ namespace topocal::pipeline {
 // camera records.
 struct PredictedSpot {
   model::SpotId id;
-  Eigen::Vector2d distorted_mm = Eigen::Vector2d::Zero();
+  Eigen::Vector2d position_mm = Eigen::Vector2d::Zero();  // distorted
 };
 
 // The spots `ids` as `surface` images them through `device` (the targets where its screen puts them, the as-built
@@ -39,7 +39,7 @@ std::vector<PredictedSpot> PredictSpots(const topo::Reconstruction& surface, con
 // (infinite where the surface does not image it): where the surface does not reproduce its own data, its
 // predictions are not trusted.
 struct IdentifiedAnchor {
-  Eigen::Vector2d distorted_mm = Eigen::Vector2d::Zero();
+  Eigen::Vector2d position_mm = Eigen::Vector2d::Zero();  // distorted
   double prediction_error_mm = 0;
 };
 
@@ -90,6 +90,6 @@ std::vector<SurfaceLabel> LabelShiftedRing(const std::vector<PredictedSpot>& pre
 // m->capture.surface_labelled, until a round adds none, withdraws its labels, or kMaxLabellingRounds. Returns the
 // analysis of the final identities. Throws what `analyze` throws.
 topo::Analysis LabelThroughSurface(SpotMeasurement* m, const model::Device& device, const model::Config& config,
-                                   const std::function<topo::Analysis(const std::vector<topo::MeasuredSpot>&)>& analyze);
+                                   const std::function<topo::Analysis(const std::vector<model::PlaneSpot>&)>& analyze);
 
 }  // namespace topocal::pipeline

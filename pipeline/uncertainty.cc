@@ -84,7 +84,7 @@ Eigen::MatrixXd DrawFactor(const calib::ParameterCovariance& covariance, const s
 // each draw starts from it: its slope-fit factor (no draw factorises the least-squares matrix anew), its surface
 // (the incidence points' refinement begins there, not on the design sphere) and its fit (Gauss-Newton steps).
 // Draws read only the biconic parameters and the power maps: no standard deviations, adequacy or clinical indices.
-std::optional<topo::Analysis> NominalAnalysis(const std::vector<MeasuredImageSpot>& spots,
+std::optional<topo::Analysis> NominalAnalysis(const std::vector<model::PlaneSpot>& spots,
                                               const DetectionPlaneModel& on_plane,
                                               const std::vector<model::TargetPoint>& targets,
                                               const model::Config& config) {
@@ -143,7 +143,7 @@ std::vector<std::string> DistortionParametersToDraw(const calib::ParameterCovari
   return names;
 }
 
-ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredImageSpot>& spots,
+ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<model::PlaneSpot>& spots,
                                                     const model::CameraModel& calibrated,
                                                     const calib::ParameterCovariance& covariance,
                                                     const model::TopographerCamera& camera, const model::Config& config,

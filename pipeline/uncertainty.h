@@ -58,7 +58,7 @@ std::vector<std::string> DistortionParametersToDraw(const calib::ParameterCovari
 // Throws util::InputError for samples < 2, a covariance whose size does not match its names, or no distortion
 // parameter with a positive variance;
 // std::runtime_error when more than half of the draws fail.
-ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<MeasuredImageSpot>& spots,
+ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<model::PlaneSpot>& spots,
                                                     const model::CameraModel& calibrated,
                                                     const calib::ParameterCovariance& covariance,
                                                     const model::TopographerCamera& camera, const model::Config& config,

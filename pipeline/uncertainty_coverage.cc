@@ -97,7 +97,7 @@ CaseOutcome RunCase(const model::Config& config, const model::Device& nominal,
   }
   const auto noisy_px = Noisy(exact_px, o.spot_noise_px, rng);
   const auto through = [&](const model::Device& d, const std::vector<Eigen::Vector2d>& px) {
-    std::vector<MeasuredImageSpot> spots;
+    std::vector<model::PlaneSpot> spots;
     for (size_t k = 0; k < px.size(); ++k) spots.push_back({ids[k], d.camera.DetectionPlaneFromPixel(px[k])});
     return spots;
   };

@@ -51,7 +51,7 @@ void UndistortSpots(const UndistortRequest& a, const Undistortion& c, std::ostre
   }
   const auto rows = model::ReadSpotsCsv(a.spots_path);
   std::vector<Eigen::Vector2d> mm;
-  for (const auto& r : rows) mm.emplace_back(r.x_mm, r.y_mm);
+  for (const auto& r : rows) mm.push_back(r.position_mm);
   const auto result = correct::UndistortPoints(c.distortion, mm);
   for (const auto& f : result.failures) {
     util::Log(log, fmt::format("spot ({}, {}): {}", rows[f.index].id.ring, rows[f.index].id.index,

@@ -25,7 +25,7 @@ namespace {
 constexpr double kMinSphereRadiusMm = 5.0;
 constexpr double kMaxSphereRadiusMm = 11.0;
 
-StageResult Analyze(const std::vector<topo::MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
+StageResult Analyze(const std::vector<model::PlaneSpot>& spots, const std::vector<model::TargetPoint>& targets,
                     const model::Config& config, const model::BiconicParams& truth, const char* what) {
   StageResult r;
   try {
@@ -41,7 +41,7 @@ StageResult Analyze(const std::vector<topo::MeasuredSpot>& spots, const std::vec
 // e.g. all fixed: the record says so by leaving the uncertainty out). Anything else that stops the propagation — a
 // covariance that does not match its names, too few samples, most draws failing — is a computation error of this
 // check: one line naming it (std::runtime_error), never a silently missing uncertainty.
-std::optional<ClinicalUncertainty> Uncertainty(const std::vector<MeasuredImageSpot>& detected,
+std::optional<ClinicalUncertainty> Uncertainty(const std::vector<model::PlaneSpot>& detected,
                                                const UnitCalibration& unit, const model::TopographerCamera& camera,
                                                const model::Config& config, const CheckOptions& options,
                                                const char* what) {
@@ -142,16 +142,13 @@ SphereVerification VerifyOnReferenceSphere(SphereVerification v, double radius_m
   // The spots were located before the calibration was known: put them in the millimetres of the calibrated pixel
   // aspect (fx / fy), through the pixels they were found at.
   for (auto& s : v.detected) {
-    s.distorted_mm = on_plane.camera.DetectionPlaneFromPixel(camera.PixelFromDetectionPlane(s.distorted_mm));
+    s.position_mm = on_plane.camera.DetectionPlaneFromPixel(camera.PixelFromDetectionPlane(s.position_mm));
   }
   v.radius_true_mm = radius_mm;
   v.power_true_D = model::PowerFromCurvatureD(1.0 / radius_mm);  // Eq. 25
-  std::vector<topo::MeasuredSpot> uncorrected;
-  uncorrected.reserve(v.detected.size());
-  for (const auto& s : v.detected) uncorrected.push_back({s.id, s.distorted_mm});
   v.undistort_failures = 0;
   const auto corrected = UndistortSpots(v.detected, distortion, &v.undistort_failures);
-  v.uncorrected = Analyze(uncorrected, design.targets, sphere, sphere.cornea, "reference sphere, uncorrected");
+  v.uncorrected = Analyze(v.detected, design.targets, sphere, sphere.cornea, "reference sphere, uncorrected");
   v.corrected = Analyze(corrected, design.targets, sphere, sphere.cornea, "reference sphere, corrected");
   v.uncertainty = Uncertainty(v.detected, unit, camera, sphere, options, "reference sphere");
   return v;
@@ -169,8 +166,8 @@ SimulatedCornea SimulateThroughCalibratedCamera(const UnitCalibration& unit, con
 
   SimulatedCornea out;
   out.truth = config.cornea;
-  std::vector<topo::MeasuredSpot> distorted;
-  std::vector<MeasuredImageSpot> detected;
+  std::vector<model::PlaneSpot> distorted;
+  std::vector<model::PlaneSpot> detected;
   for (size_t i = 0; i < ideal.spots.size(); ++i) {
     distorted.push_back({ideal.spots[i].id, distorted_mm[i]});
     detected.push_back({ideal.spots[i].id, distorted_mm[i]});

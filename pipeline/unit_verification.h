@@ -57,7 +57,7 @@ struct StageResult {
 
 struct SphereVerification {
   double radius_true_mm = 0;
-  std::vector<MeasuredImageSpot> detected;  // the identified spots as the camera saw them (the record keeps them)
+  std::vector<model::PlaneSpot> detected;  // the identified spots as the camera saw them (the record keeps them)
   double power_true_D = 0;  // (n_k - 1) / R, n_k = topo::kKeratometricIndex
   int spots_indexed = 0, spots_unassigned = 0, spots_missing = 0, undistort_failures = 0;
   StageResult uncorrected, corrected;

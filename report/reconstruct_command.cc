@@ -176,14 +176,12 @@ pipeline::SpotMeasurement MeasureImage(const cv::Mat& image, const model::Topogr
 
 // Spots from a CSV, or detected, indexed and undistorted in a raw image through the measuring device.
 // From an image, *from_image is the measurement (the device it was measured through is `device`).
-std::vector<topo::MeasuredSpot> ReadMeasurement(const ReconstructRequest& in, const model::Config& cfg,
+std::vector<model::PlaneSpot> ReadMeasurement(const ReconstructRequest& in, const model::Config& cfg,
                                                 const pipeline::MeasuringDevice* device, nlohmann::json* info,
                                                 std::optional<pipeline::SpotMeasurement>* from_image,
                                                 std::ostream& out) {
-  std::vector<topo::MeasuredSpot> measured;
   if (!in.spots_path.empty()) {
-    for (const auto& r : model::ReadSpotsCsv(in.spots_path))
-      measured.push_back({r.id, Eigen::Vector2d(r.x_mm, r.y_mm)});
+    auto measured = model::ReadSpotsCsv(in.spots_path);
     (*info)["spots_read"] = measured.size();
     return measured;
   }
@@ -245,7 +243,7 @@ plot::MapScaleRequest PowerScaleOf(const ReconstructRequest& in) {
 // The U of every number measured through a device (its "uncertainty" JSON block in `info`); the measurement is
 // refused when the U cannot be evaluated or leaves no clinical reading (pipeline::UncertaintyRefusal).
 pipeline::MeasurementUncertainty UncertaintyOrRefusal(
-    const ReconstructRequest& in, const std::vector<pipeline::MeasuredImageSpot>& detected,
+    const ReconstructRequest& in, const std::vector<model::PlaneSpot>& detected,
     const pipeline::MeasuringDevice& device, const model::Config& cfg, const topo::Analysis& analysis,
     nlohmann::json* info, const std::string& json_out, std::ostream& out) {
   pipeline::UncertaintyOptions u_options;
@@ -342,7 +340,7 @@ void RunReconstruct(const ReconstructRequest& request, std::ostream& out) {
   std::optional<pipeline::MeasuringDevice> device;
   if (!in.device_path.empty()) device = pipeline::LoadMeasuringDevice(in.device_path, in.calibration_path);
   std::optional<pipeline::SpotMeasurement> from_image;
-  std::vector<topo::MeasuredSpot> measured;
+  std::vector<model::PlaneSpot> measured;
   try {
     measured = ReadMeasurement(in, cfg, device ? &*device : nullptr, &info, &from_image, out);
   } catch (const util::MeasurementRefused& e) {  // the spots could not be identified: the JSON says so too

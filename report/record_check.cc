@@ -145,7 +145,7 @@ void RecomputeRecordNumbers(const UnitRecord& rec, const RecordCheckOptions& opt
     }
     const auto sphere = rerun("verification", sources, [&] {
       pipeline::SphereVerification v;
-      for (const auto& s : rec.verification->detected) v.detected.push_back({s.id, {s.x_mm, s.y_mm}});
+      v.detected = rec.verification->detected;
       v.spots_indexed = static_cast<int>(v.detected.size());
       v.spots_unassigned = rec.verification->spots_unassigned;
       v.spots_missing = rec.verification->spots_missing;

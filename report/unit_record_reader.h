@@ -89,7 +89,7 @@ struct SphereVerification {
   int spots_unassigned = 0, spots_missing = 0;
   // sphere_spots.csv: the identified spots as the camera saw them (detection-plane mm, distorted), from which the
   // report recomputes the check (report/record_check.h); empty when the record does not list the file.
-  std::vector<model::SpotRow> detected;
+  std::vector<model::PlaneSpot> detected;
   double radius_true_mm = 0, power_true_D = 0, keratometric_index = 0;
   StageValues uncorrected, corrected;
   std::optional<UncertaintyBlock> uncertainty;

@@ -448,7 +448,7 @@ void WriteUnitRecord(const pipeline::UnitResult& u) {
     // (report/record_check.h). Shortest round-trip decimals, so the recomputation starts from the same doubles.
     std::vector<model::ImageSpot> spots;
     spots.reserve(u.sphere->detected.size());
-    for (const auto& d : u.sphere->detected) spots.push_back({d.id, d.distorted_mm, Eigen::Vector3d::Zero()});
+    for (const auto& d : u.sphere->detected) spots.push_back({d.id, d.position_mm, Eigen::Vector3d::Zero()});
     util::WriteFileAtomic((dir / kSphereSpotsCsv).string(), model::SpotsCsv(spots));
   }
   if (u.device) {

@@ -167,7 +167,7 @@ void AddWarnings(const model::Config& config, const AnalysisOptions& options, An
 
 }  // namespace
 
-Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
+Analysis AnalyzeSpots(const std::vector<model::PlaneSpot>& spots, const std::vector<model::TargetPoint>& targets,
                       const model::Config& config, const model::BiconicParams* truth,
                       const AnalysisOptions& options) {
   Analysis a;

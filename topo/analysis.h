@@ -64,7 +64,7 @@ struct AnalysisOptions {
 };
 
 // Runs reconstruction, fit and maps. Throws std::runtime_error (one line) when the reconstruction or the fit fails.
-Analysis AnalyzeSpots(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
+Analysis AnalyzeSpots(const std::vector<model::PlaneSpot>& spots, const std::vector<model::TargetPoint>& targets,
                       const model::Config& config, const model::BiconicParams* truth,
                       const AnalysisOptions& options = {});
 

@@ -4,7 +4,7 @@
 
 namespace topocal::topo {
 
-Analysis AnalyzeThroughDevice(const std::vector<MeasuredSpot>& spots, const model::Device& device,
+Analysis AnalyzeThroughDevice(const std::vector<model::PlaneSpot>& spots, const model::Device& device,
                               const model::Config& config, const model::BiconicParams* truth,
                               const AnalysisOptions& options) {
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);

@@ -12,7 +12,7 @@
 namespace topocal::topo {
 
 // Throws std::runtime_error like AnalyzeSpots.
-Analysis AnalyzeThroughDevice(const std::vector<MeasuredSpot>& spots, const model::Device& device,
+Analysis AnalyzeThroughDevice(const std::vector<model::PlaneSpot>& spots, const model::Device& device,
                               const model::Config& config, const model::BiconicParams* truth,
                               const AnalysisOptions& options = {});
 

@@ -29,7 +29,7 @@ struct Prepared {
   std::vector<model::SpotId> unmatched;
 };
 
-Prepared Prepare(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
+Prepared Prepare(const std::vector<model::PlaneSpot>& spots, const std::vector<model::TargetPoint>& targets,
                  const model::Topographer& topo) {
   std::map<model::SpotId, const model::TargetPoint*> by_id;
   for (const auto& t : targets) by_id[t.id] = &t;
@@ -41,7 +41,7 @@ Prepared Prepare(const std::vector<MeasuredSpot>& spots, const std::vector<model
       p.unmatched.push_back(s.id);
       continue;
     }
-    p.rays.push_back({s.id, s.image_mm, topo.IncidentDirection(s.image_mm), it->second->on_cone_mm});
+    p.rays.push_back({s.id, s.position_mm, topo.IncidentDirection(s.position_mm), it->second->on_cone_mm});
   }
   // Ring order (then index) makes the zonal integration paths and all outputs deterministic.
   std::sort(p.rays.begin(), p.rays.end(), [](const Ray& a, const Ray& b) { return a.id < b.id; });
@@ -352,14 +352,14 @@ bool ModelFitsData(const Reconstruction& r) {
   return r.adequacy_ratio <= kAdequacyWarningRatio && r.structured_residual_ratio <= kStructuredResidualWarningRatio;
 }
 
-Reconstruction ReconstructAt(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
+Reconstruction ReconstructAt(const std::vector<model::PlaneSpot>& spots, const std::vector<model::TargetPoint>& targets,
                              const model::TopographerParams& topographer,
                              const model::ReconstructionSettings& settings, double t_mm, bool iterate) {
   const Prepared prep = Prepare(spots, targets, model::Topographer{topographer});
   return Solve(prep, topographer, settings, t_mm, iterate);
 }
 
-Reconstruction Reconstruct(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
+Reconstruction Reconstruct(const std::vector<model::PlaneSpot>& spots, const std::vector<model::TargetPoint>& targets,
                            const model::TopographerParams& topographer, const model::ReconstructionSettings& settings,
                            const ReconstructOptions& options) {
   const Prepared prep = Prepare(spots, targets, model::Topographer{topographer});

@@ -28,11 +28,6 @@
 
 namespace topocal::topo {
 
-struct MeasuredSpot {
-  model::SpotId id;
-  Eigen::Vector2d image_mm;  // on the detection plane
-};
-
 struct ReconstructedPoint {
   model::SpotId id;
   Eigen::Vector3d point_mm;   // (x, y, Psi(x, y)): the incidence point on the recovered surface
@@ -112,12 +107,12 @@ struct ReconstructOptions {
 
 // Reconstructs from any subset of spots (unordered, some missing). Fails (ok = false, message) with fewer spots
 // than the polynomial needs, or when a ray misses the surface estimate.
-Reconstruction Reconstruct(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
+Reconstruction Reconstruct(const std::vector<model::PlaneSpot>& spots, const std::vector<model::TargetPoint>& targets,
                            const model::TopographerParams& topographer, const model::ReconstructionSettings& settings,
                            const ReconstructOptions& options = {});
 
 // One evaluation at a fixed vertex offset t (exposed for tests and the investigation in docs/reconstruction.md).
-Reconstruction ReconstructAt(const std::vector<MeasuredSpot>& spots, const std::vector<model::TargetPoint>& targets,
+Reconstruction ReconstructAt(const std::vector<model::PlaneSpot>& spots, const std::vector<model::TargetPoint>& targets,
                              const model::TopographerParams& topographer,
                              const model::ReconstructionSettings& settings, double t_mm, bool iterate);
 

@@ -87,9 +87,7 @@ SweepResult RunSweep(const model::Config& config, int jobs, const model::Device*
     row.image_ellipse = *ellipse;
     row.area_change_pct = 100.0 * (ellipse->AreaMm2() / reference->AreaMm2() - 1.0);
     row.spots_imaged = static_cast<int>(image.spots.size());
-    std::vector<MeasuredSpot> measured;
-    measured.reserve(image.spots.size());
-    for (const auto& s : image.spots) measured.push_back({s.id, s.position_mm});
+    const std::vector<model::PlaneSpot> measured = model::PlaneSpotsOf(image.spots);
     const auto t_analysis = std::chrono::steady_clock::now();
     try {
       row.analysis = AnalyzeSpots(measured, design.targets, config, &config.cornea);
@@ -104,8 +102,7 @@ SweepResult RunSweep(const model::Config& config, int jobs, const model::Device*
   }
   for (const double ms : analysis_ms) result.timing.analysis_ms += ms;
   if (device) {
-    std::vector<MeasuredSpot> exact;
-    for (const auto& s : undistorted.spots) exact.push_back({s.id, s.position_mm});
+    const std::vector<model::PlaneSpot> exact = model::PlaneSpotsOf(undistorted.spots);
     try {
       result.through_device = AnalyzeThroughDevice(exact, *device, config, &config.cornea);
     } catch (const std::runtime_error& e) {

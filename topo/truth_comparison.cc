@@ -109,7 +109,7 @@ SimulatedMeasurement MeasureSimulatedCornea(const model::Surface& truth, const m
   const auto image = model::SynthesizeImage(truth, model::Topographer{config.topographer}, design.targets);
   std::mt19937 rng(seed);
   std::normal_distribution<double> noise(0.0, 1.0);
-  std::vector<MeasuredSpot> spots;
+  std::vector<model::PlaneSpot> spots;
   spots.reserve(image.spots.size());
   for (const auto& s : image.spots) {
     Eigen::Vector2d p = s.position_mm;

@@ -86,7 +86,7 @@ py::object Detect(const py::array& image, const py::object& device, const py::ob
 // ring 0 (blobs without identity) are left out, as the CLI's spots CSV reader leaves them, and so are rows whose
 // flags (when the table has them) leave the spot out of a measurement: flagged near a blob, truncated, a flux
 // outlier, on an uneven background or rejected by the surface.
-std::vector<topo::MeasuredSpot> SpotsFrom(const py::array& spots) {
+std::vector<model::PlaneSpot> SpotsFrom(const py::array& spots) {
   const py::object names = spots.dtype().attr("names");
   if (names.is_none()) throw util::InputError("spots: need a structured array with fields ring, index, x_mm, y_mm");
   for (const char* field : {"ring", "index", "x_mm", "y_mm"}) {
@@ -104,7 +104,7 @@ std::vector<topo::MeasuredSpot> SpotsFrom(const py::array& spots) {
   const auto flags = flagged ? column("flags", np.attr("uint32")).cast<py::array_t<std::uint32_t>>()
                              : py::array_t<std::uint32_t>(ring.size());
   const unsigned left_out = correct::DetectAndIndexOptions{}.exclude_flags | correct::kSurfaceOutlier;
-  std::vector<topo::MeasuredSpot> out;
+  std::vector<model::PlaneSpot> out;
   for (py::ssize_t i = 0; i < ring.size(); ++i) {
     if (ring.at(i) == 0 || (flagged && (flags.at(i) & left_out))) continue;
     if (ring.at(i) < 0 || index.at(i) < 0 || !std::isfinite(x.at(i)) || !std::isfinite(y.at(i))) {
@@ -223,7 +223,7 @@ py::dict Reconstruct(const py::object& config, const py::object& device, const p
     if (!eye.empty()) out["result"]["eye"] = eye;
     return out;
   }
-  const std::vector<topo::MeasuredSpot> measured = SpotsFrom(spots.cast<py::array>());
+  const std::vector<model::PlaneSpot> measured = SpotsFrom(spots.cast<py::array>());
   std::optional<model::DeviceFile> dev;
   if (!device.is_none()) dev = DeviceArg(device);
   topo::Analysis a;

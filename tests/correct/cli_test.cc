@@ -210,7 +210,7 @@ TEST_F(CorrectCli, UndistortWithADeviceInvertsItsDistortion) {
   const auto rows = model::ReadSpotsCsv(Path("out.csv"));
   ASSERT_EQ(rows.size(), truth.size());
   for (const auto& row : rows) {
-    EXPECT_LT((Eigen::Vector2d(row.x_mm, row.y_mm) - truth[row.id.index]).norm(), kCsvRoundTripMm);
+    EXPECT_LT((row.position_mm - truth[row.id.index]).norm(), kCsvRoundTripMm);
   }
   cv::Mat img(camera_.height_px, camera_.width_px, CV_8UC1);
   cv::randu(img, 0, 255);
@@ -232,10 +232,10 @@ TEST_F(CorrectCli, UndistortWithADeviceInvertsItsDistortion) {
   // What is kept is the preimage inside the fold: distorted again, it lands on its input spot.
   const auto input = model::ReadSpotsCsv(Path("in.csv"));
   for (const auto& row : kept) {
-    const Eigen::Vector2d back = model::Distort(device.distortion, {row.x_mm, row.y_mm});
+    const Eigen::Vector2d back = model::Distort(device.distortion, row.position_mm);
     const auto& in_row = input[row.id.index];
-    EXPECT_LT((back - Eigen::Vector2d(in_row.x_mm, in_row.y_mm)).norm(), kCsvRoundTripMm);
-    EXPECT_LT(std::hypot(row.x_mm, row.y_mm), std::sqrt(-std::pow(-0.065, 3) / (3 * 3e-4)));
+    EXPECT_LT((back - in_row.position_mm).norm(), kCsvRoundTripMm);
+    EXPECT_LT(row.position_mm.norm(), std::sqrt(-std::pow(-0.065, 3) / (3 * 3e-4)));
   }
 }
 

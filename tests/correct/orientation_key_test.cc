@@ -46,7 +46,7 @@ cv::Mat Render(const SpotTruth& truth, const model::TopographerCamera& camera) {
 
 // The biconic fit of the measured spots (no distortion in these renders: positions go straight in).
 topo::Analysis Analyse(const DetectAndIndexResult& r, const model::Config& cfg) {
-  std::vector<topo::MeasuredSpot> m;
+  std::vector<model::PlaneSpot> m;
   for (const auto& s : r.spots) m.push_back({s.id, s.position_mm});
   const auto design = model::DesignNullScreen(cfg.ideal_image, cfg.topographer);
   return topo::AnalyzeSpots(m, design.targets, cfg, &cfg.cornea);

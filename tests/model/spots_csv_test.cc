@@ -31,8 +31,8 @@ TEST(SpotsCsv, ASimulatedImageIsReadBackExactly) {
   ASSERT_EQ(rows.size(), image.spots.size());
   for (size_t i = 0; i < rows.size(); ++i) {
     EXPECT_EQ(rows[i].id, image.spots[i].id) << i;
-    EXPECT_EQ(rows[i].x_mm, image.spots[i].position_mm.x()) << i;
-    EXPECT_EQ(rows[i].y_mm, image.spots[i].position_mm.y()) << i;
+    EXPECT_EQ(rows[i].position_mm.x(), image.spots[i].position_mm.x()) << i;
+    EXPECT_EQ(rows[i].position_mm.y(), image.spots[i].position_mm.y()) << i;
   }
 }
 
@@ -51,7 +51,7 @@ TEST(SpotsCsv, MalformedRowsAreRefusedNamingTheLine) {
     }
   }
   util::WriteFileAtomic(path, "ring,index,x_mm,y_mm\n1,1,0.1,1e300\n");  // large but a double: read
-  EXPECT_EQ(ReadSpotsCsv(path).at(0).y_mm, 1e300);
+  EXPECT_EQ(ReadSpotsCsv(path).at(0).position_mm.y(), 1e300);
   std::filesystem::remove(path);
 }
 

@@ -169,7 +169,7 @@ Outcome Measure(const Capture& cap, uint32_t seed, bool with_uncertainty = false
   topo::Analysis analysis;
   MeasurementVerdict verdict = LabelAndJudge(&m, device, config, AnalysisOf(&device, config, nullptr), &analysis);
   out.identified = m.capture.identified;
-  for (const auto& d : m.detected) out.wrong += WrongIdentity(where_mm, d.id, d.distorted_mm);
+  for (const auto& d : m.detected) out.wrong += WrongIdentity(where_mm, d.id, d.position_mm);
   std::set<model::SpotId> ids;
   for (const auto& d : m.detected) ids.insert(d.id);
   out.duplicates = static_cast<int>(m.detected.size() - ids.size());
@@ -286,7 +286,7 @@ TEST(ClinicalCapture, DetectionGivesTheIdentitiesTheMeasurementUses) {
     const std::set<model::SpotId> outliers(m.capture.surface_outliers.begin(), m.capture.surface_outliers.end());
     std::set<std::pair<model::SpotId, std::pair<double, double>>> measured, detected;
     for (const auto& d : m.detected) {
-      if (!outliers.count(d.id)) measured.insert({d.id, {d.distorted_mm.x(), d.distorted_mm.y()}});
+      if (!outliers.count(d.id)) measured.insert({d.id, {d.position_mm.x(), d.position_mm.y()}});
     }
     for (const auto& s : checked.located.spots) detected.insert({s.id, {s.position_mm.x(), s.position_mm.y()}});
     EXPECT_EQ(detected, measured);

@@ -66,7 +66,7 @@ struct Clinical {
 // Measure recorded pixels through a device (its camera, its distortion undone, its screen and a).
 Clinical MeasureThrough(const model::Device& device, const model::Config& config,
                         const std::vector<std::pair<model::SpotId, Eigen::Vector2d>>& pixels) {
-  std::vector<topo::MeasuredSpot> spots;
+  std::vector<model::PlaneSpot> spots;
   for (const auto& [id, px] : pixels) {
     const auto mm = device.UndistortedOf(px);
     if (mm) spots.push_back({id, *mm});

@@ -29,7 +29,7 @@ TEST(MapOutput, TheFilesAreTheSameWhateverTheThreadCount) {
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
   std::vector<topo::Analysis> analyses;
   for (const double sigma : {0.0, 6.3e-5}) {
-    std::vector<topo::MeasuredSpot> spots;
+    std::vector<model::PlaneSpot> spots;
     for (const auto& s : topo::SimulateSpots(config, sigma).spots) spots.push_back({s.id, s.position_mm});
     analyses.push_back(topo::AnalyzeSpots(spots, design.targets, config, nullptr));
   }
@@ -95,7 +95,7 @@ TEST(MapOutput, SimKAxesOnlyWhereThereIsACylinder) {
   for (const bool sphere : {false, true}) {
     if (sphere) config.cornea = {7.8, 7.8, 0.0, 0.0, 0.0};
     const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
-    std::vector<topo::MeasuredSpot> spots;
+    std::vector<model::PlaneSpot> spots;
     for (const auto& s : topo::SimulateSpots(config, 0.0).spots) spots.push_back({s.id, s.position_mm});
     const topo::Analysis a = topo::AnalyzeSpots(spots, design.targets, config, nullptr);
     ASSERT_TRUE(a.clinical_ok);
@@ -118,7 +118,7 @@ TEST(MapOutput, SimKAxesOnlyWhereThereIsACylinder) {
 TEST(MapOutput, TheOverviewPageCarriesTheMapsAndTheClinicalNumbers) {
   const model::Config config = model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json");
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
-  std::vector<topo::MeasuredSpot> spots;
+  std::vector<model::PlaneSpot> spots;
   for (const auto& s : topo::SimulateSpots(config, 0.0).spots) spots.push_back({s.id, s.position_mm});
   const topo::Analysis a = topo::AnalyzeSpots(spots, design.targets, config, nullptr);
   ASSERT_TRUE(a.clinical_ok);

@@ -81,7 +81,7 @@ TEST(MeasurementUncertainty, PrintsAsGumAsks) {
 struct Measured {
   model::Device truth, device;
   model::DeviceCovariance covariance;
-  std::vector<MeasuredImageSpot> detected;
+  std::vector<model::PlaneSpot> detected;
   topo::Analysis analysis;
   model::Config config = PaperConfig();
 };

@@ -47,7 +47,7 @@ Case RunCase(const std::vector<correct::SpotToRender>& detections, const model::
       &m, device, config, [&](const auto& s) { return AnalyzeThroughDevice(s, device, config, nullptr); });
   c.reconstructed = analysis.reconstruction.ok;
   for (const auto& d : m.detected) {
-    const model::SpotId& id = truth.at({d.distorted_mm.x(), d.distorted_mm.y()});
+    const model::SpotId& id = truth.at({d.position_mm.x(), d.position_mm.y()});
     if (id == d.id) ++c.labelled;
     else ++c.wrong;
   }
@@ -62,7 +62,7 @@ TEST(SurfaceLabelling, TheRecoveredSurfacePredictsTheSpotsItWasRecoveredFrom) {
   for (const auto& eye : correct::testing::Eyes()) {
     const model::Device device = correct::testing::AssembledDevice(1);
     const auto truth = correct::SpotsOnSensor(eye.surface, config.ideal_image, config.topographer, device);
-    std::vector<MeasuredImageSpot> detected;
+    std::vector<model::PlaneSpot> detected;
     std::vector<model::SpotId> ids;
     for (size_t i = 0; i < truth.spots.size(); ++i) {
       detected.push_back({truth.spots[i].id, truth.position_mm[i]});
@@ -74,7 +74,7 @@ TEST(SurfaceLabelling, TheRecoveredSurfacePredictsTheSpotsItWasRecoveredFrom) {
     double worst_um = 0;
     for (size_t i = 0, k = 0; i < predicted.size(); ++i) {
       while (!(detected[k].id == predicted[i].id)) ++k;
-      worst_um = std::max(worst_um, 1e3 * (predicted[i].distorted_mm - detected[k].distorted_mm).norm());
+      worst_um = std::max(worst_um, 1e3 * (predicted[i].position_mm - detected[k].position_mm).norm());
     }
     EXPECT_EQ(predicted.size(), ids.size()) << eye.name;
     // The labelling's trust limit is kTrustSpacings of a spacing (~20 um here): 5 um. Measured worst 0.484 um (the

@@ -18,7 +18,7 @@ struct Fixture {
   model::Config config = model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json");
   model::TopographerCamera camera;
   model::CameraModel calibrated;
-  std::vector<MeasuredImageSpot> spots;
+  std::vector<model::PlaneSpot> spots;
   static constexpr double kSigma = 6.3e-5;
   Fixture() {
     camera.a_mm = config.topographer.a_mm;

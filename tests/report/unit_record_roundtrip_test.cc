@@ -223,8 +223,8 @@ TEST(UnitRecordRoundTrip, EveryFieldTheWorkflowComputedIsReadBackUnchanged) {
   ASSERT_FALSE(s.detected.empty());
   for (std::size_t i = 0; i < s.detected.size(); ++i) {
     EXPECT_EQ(v.detected[i].id, s.detected[i].id) << i;
-    EXPECT_EQ(v.detected[i].x_mm, s.detected[i].distorted_mm.x()) << i;
-    EXPECT_EQ(v.detected[i].y_mm, s.detected[i].distorted_mm.y()) << i;
+    EXPECT_EQ(v.detected[i].position_mm.x(), s.detected[i].position_mm.x()) << i;
+    EXPECT_EQ(v.detected[i].position_mm.y(), s.detected[i].position_mm.y()) << i;
   }
   EXPECT_EQ(v.spots_unassigned, s.spots_unassigned);
   EXPECT_EQ(v.spots_missing, s.spots_missing);

@@ -35,7 +35,7 @@ Analysis AnalyzeEye(const model::BiconicParams& eye, const std::string& fit) {
   c.reconstruction.biconic_fit = fit;
   const auto design = model::DesignNullScreen(c.ideal_image, c.topographer);
   const auto image = model::SynthesizeImage(model::Biconic{eye}, model::Topographer{c.topographer}, design.targets);
-  std::vector<MeasuredSpot> spots;
+  std::vector<model::PlaneSpot> spots;
   for (const auto& s : image.spots) spots.push_back({s.id, s.position_mm});
   return AnalyzeSpots(spots, design.targets, c, &c.cornea);
 }

@@ -158,7 +158,7 @@ TEST(Freeform, AutoTakesTheSplineWhereThePolynomialDoesNotFit) {
   auto config = with("auto");
   const auto cornea = model::FreeformTestSubset({"kc-33um-0.85mm"}).front();
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
-  std::vector<MeasuredSpot> spots;
+  std::vector<model::PlaneSpot> spots;
   for (const auto& s :
        model::SynthesizeImage(cornea.surface, model::Topographer{config.topographer}, design.targets).spots) {
     spots.push_back({s.id, s.position_mm});

@@ -35,7 +35,7 @@ TEST(PowerMaps, ReconstructedSphereGives43_27EverywhereItIsMeasured) {
   // The rays reach rho = 4.82 mm on this sphere: map the zone they cover instead of extrapolating to 5.3 mm.
   c.reconstruction.power_map_radius_mm = 4.8;
   const auto design = model::DesignNullScreen(c.ideal_image, c.topographer);
-  std::vector<MeasuredSpot> spots;
+  std::vector<model::PlaneSpot> spots;
   for (const auto& s : SimulateSpots(c, 0.0).spots) spots.push_back({s.id, s.position_mm});
   const auto a = AnalyzeSpots(spots, design.targets, c, &c.cornea);
   EXPECT_NEAR(a.covered_radius_mm, 4.82, 0.01);
@@ -61,7 +61,7 @@ TEST(PowerMaps, Equation23PolynomialAgreesWithExactDerivativesOnPsi) {
   constexpr double kMethodAgreementD = 0.05;
   auto c = model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json");
   const auto design = model::DesignNullScreen(c.ideal_image, c.topographer);
-  std::vector<MeasuredSpot> spots;
+  std::vector<model::PlaneSpot> spots;
   for (const auto& s : SimulateSpots(c, 6.3e-5).spots) spots.push_back({s.id, s.position_mm});
   const auto exact = AnalyzeSpots(spots, design.targets, c, nullptr);
   c.reconstruction.power_map_method = "polynomial";

@@ -46,14 +46,14 @@ constexpr double kTableVIAlphaRegressionDeg = 2e-3;
 
 model::Config PaperConfig() { return model::LoadConfig(std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json"); }
 
-std::vector<MeasuredSpot> Spots(const model::SyntheticImage& image) {
-  std::vector<MeasuredSpot> out;
+std::vector<model::PlaneSpot> Spots(const model::SyntheticImage& image) {
+  std::vector<model::PlaneSpot> out;
   for (const auto& s : image.spots) out.push_back({s.id, s.position_mm});
   return out;
 }
 
 Analysis AnalyzeCornea(const model::Config& base, const model::BiconicParams& cornea, double sigma,
-                       std::vector<MeasuredSpot>* spots_out = nullptr) {
+                       std::vector<model::PlaneSpot>* spots_out = nullptr) {
   model::Config c = base;
   c.cornea = cornea;
   const auto design = model::DesignNullScreen(c.ideal_image, c.topographer);
@@ -222,8 +222,8 @@ WarmAndCold WarmAndColdDraw(double move_mm) {
   const model::Config config = PaperConfig();
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
   const auto nominal_spots = Spots(SimulateSpots(config, 6.3e-5));
-  std::vector<MeasuredSpot> moved = nominal_spots;
-  for (auto& s : moved) s.image_mm *= 1.0 + move_mm / std::max(1e-3, s.image_mm.norm());
+  std::vector<model::PlaneSpot> moved = nominal_spots;
+  for (auto& s : moved) s.position_mm *= 1.0 + move_mm / std::max(1e-3, s.position_mm.norm());
   AnalysisOptions draw;
   draw.stddev = draw.adequacy = draw.clinical = false;
   const Analysis nominal = AnalyzeSpots(nominal_spots, design.targets, config, nullptr, draw);

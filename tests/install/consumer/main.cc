@@ -13,7 +13,7 @@ int main() {
   const auto device = model::LoadDevice(std::string(TOPOCAL_DATA) + "/device.json").device;
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
   const auto image = model::SynthesizeImage(model::Biconic{config.cornea}, device, config.topographer, design.targets);
-  std::vector<topo::MeasuredSpot> spots;
+  std::vector<model::PlaneSpot> spots;
   for (const auto& s : image.spots) spots.push_back({s.id, s.position_mm});
   const auto a = pipeline::AnalyzeThroughDevice(spots, device, config, nullptr);
   std::printf("topocal %s: rx %.4f mm kx %.4f\n", kVersion, a.surface_fit.params.rx_mm, a.surface_fit.params.kx);
