@@ -7,6 +7,7 @@
 #include <ceres/ceres.h>
 #include <fmt/format.h>
 
+#include "calib/estimate_table.h"
 #include "calib/jacobian_covariance.h"
 #include "model/distortion.h"
 
@@ -285,30 +286,23 @@ bool FillResiduals(const Parameters& p, const std::vector<UsedView>& views, int 
   return true;
 }
 
-// A camera parameter block the result reports.
-struct Reported {
-  double* block;
-  int first;  // index of its first component in the parameter table
-  int size;
-};
-
-// From tangent to parameter coordinates: cov = P C P^T with P each block's plus-Jacobian (a selection of the free
-// entries, or fx and fy moving together under a fixed aspect ratio). Parameters held fixed have zero rows.
-bool PlusJacobian(const ceres::Problem& problem, const std::vector<const Reported*>& reported_blocks,
-                  const TangentCovarianceResult& covariance, Eigen::MatrixXd* plus_jacobian) {
-  for (size_t b = 0; b < reported_blocks.size(); ++b) {
-    const Reported& r = *reported_blocks[b];
-    const int tangent = covariance.tangent_size[b];
-    const ceres::Manifold* manifold = problem.GetManifold(r.block);
-    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> jacobian(r.size, tangent);
-    if (manifold == nullptr) {
-      jacobian.setIdentity();
-    } else if (!manifold->PlusJacobian(r.block, jacobian.data())) {
-      return false;
+// The camera parameters the result reports, in CameraParameterNames order: fx, fy, cx, cy, the lens model's
+// coefficients, ex, ey.
+EstimateTable CameraTable(const Parameters& p, const DistortionModelKind& model) {
+  const auto names = CameraParameterNames(model);
+  EstimateTable table;
+  const int centre = CentreIndex(p.lens);
+  for (int i = 0; i < static_cast<int>(names.size()); ++i) {
+    const std::string& name = names[static_cast<size_t>(i)];
+    if (i < kDist) {
+      table.Add(name, p.intrinsics.data(), i);
+    } else if (i < centre) {
+      table.Add(name, p.dist.data(), i - kDist);
+    } else {
+      table.Add(name, p.centre.data(), i - centre);
     }
-    plus_jacobian->block(r.first, covariance.offset[b], r.size, tangent) = jacobian;
   }
-  return true;
+  return table;
 }
 
 // Covariance of the camera parameters at the solution into result (and the board warp's estimate), their standard
@@ -320,26 +314,11 @@ bool ComputeCovariance(Parameters& p, const FreeMask& free, const std::vector<Us
   // are strongly correlated.
   ceres::Problem problem;
   BuildProblem(problem, p, views, free, o);
-  const int table = static_cast<int>(free.size());
-  const Reported reported[] = {{p.intrinsics.data(), kFx, kNumIntrinsics},
-                               {p.dist.data(), kDist, model::LensParameterCount(p.lens)},
-                               {p.centre.data(), CentreIndex(p.lens), kNumCentre}};
   std::vector<double*> blocks;
-  std::vector<const Reported*> reported_blocks;
-  int next_row = 0;
-  for (const auto& r : reported) {
-    if (problem.IsParameterBlockConstant(r.block)) continue;
-    blocks.push_back(r.block);
-    reported_blocks.push_back(&r);
-    next_row += problem.ParameterBlockTangentSize(r.block);
+  for (double* b : {p.intrinsics.data(), p.dist.data(), p.centre.data()}) {
+    if (!problem.IsParameterBlockConstant(b)) blocks.push_back(b);
   }
-  const int camera_rows = next_row;
-  int warp_row = -1;
-  if (o.fit_board_warp) {
-    blocks.push_back(p.warp.data());
-    warp_row = next_row;
-    next_row += kNumWarp;
-  }
+  if (o.fit_board_warp) blocks.push_back(p.warp.data());
   for (auto& pose : p.poses) blocks.push_back(pose.data());
   const TangentCovarianceResult covariance = TangentCovariance(problem, blocks);
   if (!covariance.ok) {
@@ -350,29 +329,29 @@ bool ComputeCovariance(Parameters& p, const FreeMask& free, const std::vector<Us
                                   covariance.message));
     return false;
   }
-  Eigen::MatrixXd plus_jacobian = Eigen::MatrixXd::Zero(table, camera_rows);
-  if (!PlusJacobian(problem, reported_blocks, covariance, &plus_jacobian)) {
-    *result = Failure(CalibrationStatus::kCovarianceFailed, "internal: a parameter block's Jacobian failed");
+  std::string why;
+  const auto camera = CameraTable(p, result->model).Covariance(problem, blocks, covariance,
+                                                               result->residual_variance_px2, &why);
+  if (!camera) {
+    *result = Failure(CalibrationStatus::kCovarianceFailed, why);
     return false;
   }
-  result->covariance = plus_jacobian * covariance.matrix.topLeftCorner(camera_rows, camera_rows) *
-                       plus_jacobian.transpose() * result->residual_variance_px2;
-  stddev->assign(free.size(), 0.0);
-  for (int i = 0; i < table; ++i) {
-    const double var = result->covariance(i, i);
-    (*stddev)[static_cast<size_t>(i)] = free[static_cast<size_t>(i)] && var > 0 ? std::sqrt(var) : 0.0;
-  }
-  if (!result->covariance.allFinite()) {
-    *result = Failure(CalibrationStatus::kCovarianceFailed, "non-finite parameter covariance");
-    return false;
-  }
+  result->covariance = *camera;
+  *stddev = EstimateTable::StandardDeviations(result->covariance);  // a fixed parameter's row is zero: 0
   if (o.fit_board_warp) {
-    const auto& warp_cov = covariance.matrix;
+    EstimateTable warp;
+    warp.AddBlock({"sag_x_mm", "sag_y_mm"}, p.warp.data());
+    const auto warp_cov = warp.Covariance(problem, blocks, covariance, result->residual_variance_px2, &why);
+    if (!warp_cov) {
+      *result = Failure(CalibrationStatus::kCovarianceFailed, why);
+      return false;
+    }
+    const auto sd = EstimateTable::StandardDeviations(*warp_cov);
     BoardWarpEstimate w;
     w.sag_x_mm = p.warp[0];
     w.sag_y_mm = p.warp[1];
-    w.sag_x_stddev_mm = std::sqrt(std::max(0.0, warp_cov(warp_row, warp_row) * result->residual_variance_px2));
-    w.sag_y_stddev_mm = std::sqrt(std::max(0.0, warp_cov(warp_row + 1, warp_row + 1) * result->residual_variance_px2));
+    w.sag_x_stddev_mm = sd[0];
+    w.sag_y_stddev_mm = sd[1];
     w.centre_mm = p.warp_geometry.centre_mm;
     w.half_size_mm = p.warp_geometry.half_size_mm;
     result->board_warp = w;
@@ -384,10 +363,9 @@ bool ComputeCovariance(Parameters& p, const FreeMask& free, const std::vector<Us
 // failure in result.
 bool FillParameters(const Parameters& p, const FreeMask& free, const std::vector<double>& stddev,
                     const std::vector<UsedView>& views, CalibrationResult* result) {
-  std::vector<double> values(p.intrinsics.begin(), p.intrinsics.end());
-  values.insert(values.end(), p.dist.begin(), p.dist.begin() + model::LensParameterCount(p.lens));
-  values.insert(values.end(), p.centre.begin(), p.centre.end());
-  const auto names = CameraParameterNames(result->model);
+  const EstimateTable table = CameraTable(p, result->model);
+  const auto names = table.Names();
+  const auto values = table.Values();
   for (size_t i = 0; i < names.size(); ++i) {
     if (!std::isfinite(stddev[i])) {
       *result = Failure(CalibrationStatus::kCovarianceFailed, "non-finite parameter covariance");

@@ -4,7 +4,6 @@
 #include <cmath>
 #include <map>
 #include <memory>
-#include <stdexcept>
 
 #include <ceres/ceres.h>
 #include <fmt/format.h>
@@ -12,8 +11,8 @@
 #include <opencv2/calib3d.hpp>
 
 #include "calib/device_fit_residuals.h"
+#include "calib/estimate_table.h"
 #include "calib/jacobian_covariance.h"
-#include "util/io.h"
 
 namespace topocal::calib {
 namespace {
@@ -100,20 +99,12 @@ class DeviceFitter {
   size_t spots() const { return observations_.size(); }
 
  private:
-  // A reported device parameter: its block, index and nominal value.
-  struct Entry {
-    std::string name;
-    const double* block;
-    int index;
-    double nominal;
-  };
   void AddSpot(ceres::Problem& problem, const Observation& o);
   void AddCorner(ceres::Problem& problem, const CornerSeen& c);
   std::vector<double*> DeviceBlocks() { return {blk_.pose.data(), &blk_.radial_scale, blk_.principal.data(), &blk_.a,
                                                 blk_.distortion.data()}; }
   void AddPriors(ceres::Problem& problem);
-  std::vector<Entry> ReportedEntries() const;
-  std::map<const double*, std::vector<int>> FreeComponents(const std::vector<double*>& blocks) const;
+  EstimateTable ReportedTable(std::vector<double>* nominal) const;
 
   const model::Device& nominal_;
   const model::TopographerParams& design_;
@@ -384,7 +375,7 @@ std::optional<std::string> DeviceFitter::SpotResiduals(DeviceFit* fit) const {
   // board.
   const int ball_params = Steps() ? 2 * static_cast<int>(balls_.size()) + 1 : 3 * static_cast<int>(balls_.size()) - 1;
   const int free_params =
-      static_cast<int>(ReportedEntries().size()) + ball_params + 6 * static_cast<int>(views_.size());
+      ReportedTable(nullptr).size() + ball_params + 6 * static_cast<int>(views_.size());
   const int coordinates = 2 * static_cast<int>(observations_.size() + corners_.size());
   fit->dof = coordinates - free_params;
   if (fit->dof < 1) return fmt::format("{} spot and corner coordinates for {} parameters", coordinates, free_params);
@@ -410,53 +401,38 @@ std::optional<std::string> DeviceFitter::CornerResiduals(DeviceFit* fit, double*
   return std::nullopt;
 }
 
-// The device parameters reported, in order.
-std::vector<DeviceFitter::Entry> DeviceFitter::ReportedEntries() const {
+// The device parameters reported, in order, and (if asked) their nominal values.
+EstimateTable DeviceFitter::ReportedTable(std::vector<double>* nominal) const {
   const auto& screen = nominal_.screen;
-  std::vector<Entry> entries = {
-      {"rx_deg", blk_.pose.data(), 0, screen.rx_deg}, {"ry_deg", blk_.pose.data(), 1, screen.ry_deg},
-      {"rz_deg", blk_.pose.data(), 2, screen.rz_deg}, {"tx_mm", blk_.pose.data(), 3, screen.tx_mm},
-      {"ty_mm", blk_.pose.data(), 4, screen.ty_mm},   {"tz_mm", blk_.pose.data(), 5, screen.tz_mm}};
-  if (options_.fit_radial_scale) entries.push_back({"radial_scale", &blk_.radial_scale, 0, screen.radial_scale});
-  entries.push_back({"principal_point_u_px", blk_.principal.data(), 0, nominal_.camera.principal_point_px.x()});
-  entries.push_back({"principal_point_v_px", blk_.principal.data(), 1, nominal_.camera.principal_point_px.y()});
-  entries.push_back({"a_mm", &blk_.a, 0, nominal_.camera.a_mm});
-  if (!options_.fit_distortion) return entries;
-  if (lens_) {
+  EstimateTable table;
+  std::vector<double> nominals;
+  const auto add = [&](std::string name, const double* block, int index, double value) {
+    table.Add(std::move(name), block, index);
+    nominals.push_back(value);
+  };
+  const char* pose_names[] = {"rx_deg", "ry_deg", "rz_deg", "tx_mm", "ty_mm", "tz_mm"};
+  const auto pose = screen.AsArray();
+  for (int i = 0; i < model::ScreenPose::kNumParams; ++i) add(pose_names[i], blk_.pose.data(), i, pose[i]);
+  if (options_.fit_radial_scale) add("radial_scale", &blk_.radial_scale, 0, screen.radial_scale);
+  add("principal_point_u_px", blk_.principal.data(), 0, nominal_.camera.principal_point_px.x());
+  add("principal_point_v_px", blk_.principal.data(), 1, nominal_.camera.principal_point_px.y());
+  add("a_mm", &blk_.a, 0, nominal_.camera.a_mm);
+  if (options_.fit_distortion && lens_) {
     const auto& k = std::get<model::LensParams>(nominal_.distortion).k;
     const auto names = model::LensParameterNames(*lens_);
     for (int i = 0; i < FittedLensCoefficients(); ++i) {
-      entries.push_back({std::string(names[static_cast<size_t>(i)]), blk_.distortion.data(), i,
-                         k[static_cast<size_t>(i)]});
+      add(std::string(names[static_cast<size_t>(i)]), blk_.distortion.data(), i, k[static_cast<size_t>(i)]);
     }
-  } else {
-    entries.push_back({"sigma_per_mm2", blk_.distortion.data(), 0,
-                       std::get<model::SeidelParams>(nominal_.distortion).sigma_per_mm2});
+  } else if (options_.fit_distortion) {
+    add("sigma_per_mm2", blk_.distortion.data(), 0, std::get<model::SeidelParams>(nominal_.distortion).sigma_per_mm2);
   }
-  return entries;
+  if (nominal) *nominal = std::move(nominals);
+  return table;
 }
 
-// Which ambient components of each block are free, as columns of the tangent covariance (-1: held).
-std::map<const double*, std::vector<int>> DeviceFitter::FreeComponents(const std::vector<double*>& blocks) const {
-  std::map<const double*, std::vector<int>> free_components;
-  int col = 0;
-  for (double* b : blocks) {
-    const int size = problem_.ParameterBlockSize(b);
-    std::vector<int> held;
-    const bool ball = std::any_of(blk_.balls.begin(), blk_.balls.end(), [b](const auto& x) { return x.data() == b; });
-    if (ball && (Steps() || b == blk_.balls[options_.datum_ball].data())) held = {2};
-    if (lens_ && b == blk_.distortion.data()) held = HeldLensComponents();
-    std::vector<int> cols(size, -1);
-    for (int i = 0; i < size; ++i) {
-      if (std::find(held.begin(), held.end(), i) == held.end()) cols[i] = col++;
-    }
-    free_components[b] = cols;
-  }
-  return free_components;
-}
-
-// Covariance of the free parameters: (J^T J)^-1 from the Jacobian of every residual (spots and priors) in the
-// tangent space of the blocks (calib/jacobian_covariance.h says why not ceres::Covariance), scaled by stddev_scale^2.
+// Covariance of the reported parameters and the balls' vertices: (J^T J)^-1 from the Jacobian of every residual
+// (spots, corners and priors) in the tangent space of the blocks (calib/jacobian_covariance.h says why not
+// ceres::Covariance), scaled by stddev_scale^2.
 std::optional<std::string> DeviceFitter::Covariance(DeviceFit* fit) {
   std::vector<double*> blocks = {blk_.pose.data(), blk_.principal.data(), &blk_.a};
   if (options_.fit_radial_scale) blocks.push_back(&blk_.radial_scale);
@@ -469,37 +445,38 @@ std::optional<std::string> DeviceFitter::Covariance(DeviceFit* fit) {
     return "the device fit's covariance failed: " + covariance.message +
            " (a parameter is not determined by these images)";
   }
-  const Eigen::MatrixXd& tangent_cov = covariance.matrix;
-  const auto free_components = FreeComponents(blocks);
-  int columns = 0;
-  for (const auto& [block, cols] : free_components) {
-    columns += static_cast<int>(std::count_if(cols.begin(), cols.end(), [](int c) { return c >= 0; }));
+  std::vector<double> nominal;
+  const EstimateTable table = ReportedTable(&nominal);
+  std::string why;
+  const auto cov = table.Covariance(problem_, blocks, covariance, fit->stddev_scale * fit->stddev_scale, &why);
+  if (!cov) return "the device fit's covariance failed: " + why;
+  fit->covariance = *cov;
+  const auto names = table.Names();
+  const auto values = table.Values();
+  const auto sd = EstimateTable::StandardDeviations(fit->covariance);
+  for (int i = 0; i < table.size(); ++i) {
+    const auto k = static_cast<size_t>(i);
+    fit->parameters.push_back({names[k], values[k], sd[k], nominal[k]});
   }
-  if (columns != tangent_cov.rows()) return "internal: the covariance's columns do not match the parameters";
-  const auto entries = ReportedEntries();
-  const auto cov_entry = [&](const Entry& a, const Entry& b) {
-    const int i = free_components.at(a.block)[a.index], j = free_components.at(b.block)[b.index];
-    return (i < 0 || j < 0) ? 0.0 : tangent_cov(i, j);
-  };
-  const int n = static_cast<int>(entries.size());
-  fit->covariance.resize(n, n);
-  const double scale2 = fit->stddev_scale * fit->stddev_scale;
-  for (int i = 0; i < n; ++i) {
-    for (int j = 0; j < n; ++j) fit->covariance(i, j) = scale2 * cov_entry(entries[i], entries[j]);
-  }
-  for (int i = 0; i < n; ++i) {
-    const auto& e = entries[i];
-    fit->parameters.push_back({e.name, e.block[e.index], std::sqrt(std::max(0.0, fit->covariance(i, i))), e.nominal});
-  }
-  for (size_t b = 0; b < balls_.size(); ++b) {
-    Eigen::Vector3d sd;
-    for (int k = 0; k < 3; ++k) {
-      int i = free_components.at(blk_.balls[b].data())[k];
-      if (k == 2 && Steps()) i = free_components.at(&blk_.z_offset)[0];  // z = offset + the known step
-      sd[k] = i < 0 ? 0.0 : fit->stddev_scale * std::sqrt(std::max(0.0, tangent_cov(i, i)));
+  // Each ball's vertex; with stage steps its z is the fitted offset plus the known step.
+  EstimateTable vertices;
+  for (auto& b : blk_.balls) {
+    vertices.Add("x_mm", b.data(), 0);
+    vertices.Add("y_mm", b.data(), 1);
+    if (Steps()) {
+      vertices.Add("z_mm", &blk_.z_offset, 0);
+    } else {
+      vertices.Add("z_mm", b.data(), 2);
     }
+  }
+  const auto vertex_cov = vertices.Covariance(problem_, blocks, covariance, 1.0, &why);
+  if (!vertex_cov) return "the device fit's covariance failed: " + why;
+  const auto vertex_sd = EstimateTable::StandardDeviations(*vertex_cov);
+  for (size_t b = 0; b < balls_.size(); ++b) {
     fit->ball_vertex_mm.emplace_back(blk_.balls[b][0], blk_.balls[b][1], blk_.balls[b][2] + blk_.z_offset);
-    fit->ball_vertex_stddev_mm.push_back(sd);
+    fit->ball_vertex_stddev_mm.emplace_back(fit->stddev_scale * vertex_sd[3 * b],
+                                            fit->stddev_scale * vertex_sd[3 * b + 1],
+                                            fit->stddev_scale * vertex_sd[3 * b + 2]);
   }
   return std::nullopt;
 }
@@ -538,8 +515,6 @@ void DeviceFitter::FittedDevice(DeviceFit* fit) const {
 DeviceFit FitDevice(const model::Device& nominal, const model::TopographerParams& design,
                     const std::vector<model::TargetPoint>& designed_targets, const std::vector<BallView>& balls,
                     const DeviceFitOptions& options, const std::vector<ViewObservations>& views) {
-  std::string why;
-  if (!options.IsValid(&why)) throw util::InputError(why);
   DeviceFit fit;
   fit.device = nominal;
   const auto fail = [&fit](std::string m) {
@@ -547,6 +522,8 @@ DeviceFit FitDevice(const model::Device& nominal, const model::TopographerParams
     fit.message = std::move(m);
     return fit;
   };
+  std::string why;
+  if (!options.IsValid(&why)) return fail("invalid options: " + why);
   if (balls.empty()) return fail("no ball images");
   if (!options.ball_steps_mm.empty() && options.ball_steps_mm.size() != balls.size()) {
     return fail(fmt::format("{} stage steps for {} ball images (one per ball, in their order)",

@@ -110,8 +110,8 @@ struct DeviceFit {
   model::DeviceCovariance Covariance() const;
 };
 
-// Fits the device. Never throws for data: too few balls or spots, or a solver failure give ok = false and a message.
-// Throws util::InputError for invalid options.
+// Fits the device. Never throws: invalid options (the message starts "invalid options: "), too few balls or spots,
+// or a solver failure give ok = false and a message, as the camera fit (calib/calibrate.h) reports its own.
 // `views`: target views through the same camera (may be empty).
 DeviceFit FitDevice(const model::Device& nominal, const model::TopographerParams& design,
                     const std::vector<model::TargetPoint>& designed_targets, const std::vector<BallView>& balls,

@@ -119,5 +119,22 @@ TEST(DeviceTargetViews, FitTheDecentringDistortionWithTheScreenPose) {
   }
 }
 
+// One options policy for both fits: invalid options are a failed result naming the option (as
+// calib::CalibrateMultiView's kInvalidOptions), never an exception from inside the fit.
+TEST(DeviceTargetViews, InvalidOptionsAreAFailedFitNamingTheOption) {
+  const auto config = PaperConfig();
+  const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
+  calib::DeviceFitOptions bad;
+  bad.corner_sigma_px = 0;
+  calib::DeviceFit fit;
+  EXPECT_NO_THROW(fit = calib::FitDevice(NominalDevice(), config.topographer, design.targets, {}, bad));
+  EXPECT_FALSE(fit.ok);
+  EXPECT_EQ(fit.message.rfind("invalid options: corner_sigma_px must be > 0", 0), 0u) << fit.message;
+  // Valid options, no balls: the data's failure, not the options'.
+  fit = calib::FitDevice(NominalDevice(), config.topographer, design.targets, {});
+  EXPECT_FALSE(fit.ok);
+  EXPECT_EQ(fit.message, "no ball images");
+}
+
 }  // namespace
 }  // namespace topocal::pipeline
