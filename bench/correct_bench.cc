@@ -6,7 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "correct/detect_and_index.h"
-#include "correct/opencv_brown.h"
+#include "model/opencv_view.h"
 #include "correct/spot_render.h"
 #include "correct/spot_truth.h"
 #include "correct/undistort_map.h"
@@ -47,7 +47,7 @@ const Scene& GetScene() {
               .cx_px = s.camera.principal_point_px.x() + 4,
               .cy_px = s.camera.principal_point_px.y() - 3,
               .dist = {-0.12, 0.25, 8e-4, -5e-4, -0.1}};
-    s.brown = correct::LensFromOpenCv(s.lens, s.camera).lens;
+    s.brown = model::LensFromOpenCv(s.lens, s.camera).lens;
     return s;
   }();
   return scene;

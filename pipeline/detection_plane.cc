@@ -4,7 +4,7 @@
 
 #include <fmt/format.h>
 
-#include "correct/opencv_brown.h"
+#include "model/opencv_view.h"
 #include "util/io.h"
 
 namespace topocal::pipeline {
@@ -24,7 +24,7 @@ DetectionPlaneModel DetectionPlaneModelUnverified(const model::CameraModel& c, c
     result.message = fmt::format("fx / fy = {:.6f}: {}", c.fx_px / c.fy_px, *why);
     return result;
   }
-  const auto brown = correct::LensFromOpenCv(c, result.camera);
+  const auto brown = model::LensFromOpenCv(c, result.camera);
   if (!brown.ok) {
     result.message = brown.message;
     return result;

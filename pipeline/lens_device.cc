@@ -35,7 +35,7 @@ int IndexOf(const std::vector<std::string>& names, const std::string& name) {
 }
 
 // d(device parameter) / d(calibration parameter), rows in `device_names` order, columns in the calibration's. The
-// tangential pair turns with the image orientation M as correct::LensFromOpenCv turns it: (p2, p1)_mm = M^T (p2, p1).
+// tangential pair turns with the image orientation M as model::LensFromOpenCv turns it: (p2, p1)_mm = M^T (p2, p1).
 Eigen::MatrixXd MappingJacobian(const std::vector<std::string>& device_names,
                                 const std::vector<std::string>& calibration_names,
                                 const model::TopographerCamera& camera) {

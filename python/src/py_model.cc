@@ -5,7 +5,7 @@
 #include <cmath>
 #include <limits>
 
-#include "correct/opencv_brown.h"
+#include "model/opencv_view.h"
 #include "model/distortion.h"
 #include "python/src/py_common.h"
 #include "util/io.h"
@@ -13,23 +13,8 @@
 namespace topocal::python {
 namespace {
 
-// The device's distortion as an OpenCV camera (exact: a lens model on the detection plane is OpenCV's with
-// fx / fy the pixel aspect; a Seidel distortion is its Brown equivalent, k1 only).
-model::CameraModel OpenCvView(const model::Device& device) {
-  const model::LensParams brown = std::visit(
-      [&](const auto& d) -> model::LensParams {
-        if constexpr (std::is_same_v<std::decay_t<decltype(d)>, model::SeidelParams>) {
-          return model::SeidelToBrown(d, device.camera.a_mm);
-        } else {
-          return d;
-        }
-      },
-      device.distortion);
-  return correct::OpenCvFromLens(brown, device.camera);
-}
-
 py::tuple OpenCvViewTuple(const model::DeviceFile& f) {
-  const model::CameraModel k = OpenCvView(f.device);
+  const model::CameraModel k = model::OpenCvView(f.device);
   py::array_t<double> matrix({3, 3});
   auto m = matrix.mutable_unchecked<2>();
   const double values[3][3] = {{k.fx_px, 0, k.cx_px}, {0, k.fy_px, k.cy_px}, {0, 0, 1}};

@@ -5,7 +5,7 @@
 
 #include <cmath>
 
-#include "correct/opencv_brown.h"
+#include "model/opencv_view.h"
 #include "pipeline/detection_plane.h"
 
 namespace topocal::pipeline {
@@ -63,7 +63,7 @@ TEST(DetectionPlane, EveryLensModelCarriesWithoutModelError) {
     EXPECT_LT(m.model_error_px, kMaxModelErrorPx);  // acceptance
     // Regression: measured 8.4e-7 (rational8) and 1.0e-6 px (brown5), the 1e-6 px tolerance of the inverse.
     EXPECT_LT(m.model_error_px, 2e-6);
-    const model::CameraModel back = correct::OpenCvFromLens(on_plane, m.camera);
+    const model::CameraModel back = model::OpenCvFromLens(on_plane, m.camera);
     EXPECT_EQ(back.lens.index(), c.lens.index());
     for (int i = 0; i < model::kMaxLensParams; ++i) EXPECT_NEAR(back.dist[i], c.dist[i], 1e-15) << i;
     EXPECT_NEAR(back.fx_px, c.fx_px, 1e-9 * c.fx_px);

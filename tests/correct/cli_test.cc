@@ -18,7 +18,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "correct/detect_and_index.h"
-#include "correct/opencv_brown.h"
+#include "model/opencv_view.h"
 #include "correct/undistort_map.h"
 #include "model/device.h"
 #include "model/spots_csv.h"

@@ -8,7 +8,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "correct/opencv_brown.h"
+#include "model/opencv_view.h"
 #include "correct/undistort_map.h"
 #include "correct/undistort_points.h"
 #include "synthetic.h"

@@ -1,12 +1,16 @@
-#include "correct/opencv_brown.h"
+#include "model/opencv_view.h"
 
 #include <cmath>
+#include <type_traits>
+#include <variant>
 
 #include <fmt/format.h>
 
-namespace topocal::correct {
+#include "model/device.h"
 
-LensOnDetectionPlane LensFromOpenCv(const model::CameraModel& k, const model::TopographerCamera& camera) {
+namespace topocal::model {
+
+LensOnDetectionPlane LensFromOpenCv(const CameraModel& k, const TopographerCamera& camera) {
   const auto fail = [](std::string m) {
     LensOnDetectionPlane failed;
     failed.message = std::move(m);
@@ -45,8 +49,8 @@ LensOnDetectionPlane LensFromOpenCv(const model::CameraModel& k, const model::To
   return out;
 }
 
-model::CameraModel OpenCvFromLens(const model::LensParams& brown, const model::TopographerCamera& camera) {
-  model::CameraModel k;
+CameraModel OpenCvFromLens(const LensParams& brown, const TopographerCamera& camera) {
+  CameraModel k;
   k.width_px = camera.width_px;
   k.height_px = camera.height_px;
   const Eigen::Matrix2d m = camera.Orientation();
@@ -66,4 +70,17 @@ model::CameraModel OpenCvFromLens(const model::LensParams& brown, const model::T
   return k;
 }
 
-}  // namespace topocal::correct
+CameraModel OpenCvView(const Device& device) {
+  const LensParams lens = std::visit(
+      [&](const auto& d) -> LensParams {
+        if constexpr (std::is_same_v<std::decay_t<decltype(d)>, SeidelParams>) {
+          return SeidelToBrown(d, device.camera.a_mm);
+        } else {
+          return d;
+        }
+      },
+      device.distortion);
+  return OpenCvFromLens(lens, device.camera);
+}
+
+}  // namespace topocal::model
