@@ -157,7 +157,11 @@ double DropK3ShiftPx(const model::CameraModel& camera) {
 
 std::string ExportCalibration(const CalibrationFile& calibration, ExportFormat format, const std::string& source,
                               const ExportOptions& options) {
-  const model::CameraModel& c = calibration.opencv_camera;
+  return ExportCamera(calibration.opencv_camera, calibration.valid_region, format, source, options);
+}
+
+std::string ExportCamera(const model::CameraModel& c, const DistortionValidRegion& valid_region, ExportFormat format,
+                         const std::string& source, const ExportOptions& options) {
   switch (format) {
     case ExportFormat::kRos:
       return RosCameraInfoYaml(c, options.camera_name);
@@ -173,7 +177,7 @@ std::string ExportCalibration(const CalibrationFile& calibration, ExportFormat f
       return KalibrCamchainYaml(c, options.ros_topic);
     }
     case ExportFormat::kMrcal:
-      return MrcalCameraModelText(c, calibration.valid_region.covers_sensor ? nullptr : &calibration.valid_region);
+      return MrcalCameraModelText(c, valid_region.covers_sensor ? nullptr : &valid_region);
     case ExportFormat::kOpenCv:
       return OpenCvCalibrationText(c, source);
   }

@@ -35,6 +35,10 @@ struct ExportOptions {
 // camera (Kalibr with a significant k3).
 std::string ExportCalibration(const CalibrationFile& calibration, ExportFormat format, const std::string& source,
                               const ExportOptions& options = {});
+// The same for any camera in OpenCV's model (no distortion centre): a calibration's opencv_camera, or a device's
+// model::OpenCvView (model/opencv_view.h), with its valid region (calib/distortion_valid_region.h).
+std::string ExportCamera(const model::CameraModel& camera, const DistortionValidRegion& valid_region,
+                         ExportFormat format, const std::string& source, const ExportOptions& options = {});
 
 // Individual writers (the camera must have a zero distortion centre; util::InputError otherwise).
 std::string RosCameraInfoYaml(const model::CameraModel& camera, const std::string& camera_name);

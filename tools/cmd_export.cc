@@ -8,10 +8,12 @@
 namespace topocal::tools {
 
 void AddExportCommands(CLI::App& app) {
-  auto* ex = app.add_subcommand("export", "Write a calibration as ROS camera_info, Kalibr camchain, mrcal "
-                                          ".cameramodel or plain OpenCV YAML (docs/exchange.md)");
+  auto* ex = app.add_subcommand("export", "Write a calibration or a device's camera as ROS camera_info, Kalibr "
+                                          "camchain, mrcal .cameramodel or plain OpenCV YAML (docs/exchange.md)");
   auto e = std::make_shared<pipeline::ExportRequest>();
-  ex->add_option("--calibration", e->calibration_path, "Calibration file (topocal or OpenCV YAML)")->required();
+  auto* calibration = ex->add_option("--calibration", e->calibration_path, "Calibration file (topocal or OpenCV YAML)");
+  ex->add_option("--device", e->device_path, "Or a device file: its camera and lens as OpenCV's K and distCoeffs")
+      ->excludes(calibration);
   ex->add_option("--to", e->format, "Format: ros | kalibr | mrcal | opencv")->required();
   ex->add_option("--out", e->out_path, "Output file")->required();
   ex->add_option("--camera-name", e->camera_name, "camera_name of the ROS camera_info")->capture_default_str();

@@ -11,6 +11,7 @@
 
 usage: exchange_test.py TOPOCAL_EXE WORK_DIR
 """
+import json
 import os
 import shutil
 import subprocess
@@ -357,6 +358,45 @@ check((model.valid_intrinsics_region() is None) == covers5, "mrcal: a valid regi
 topocal("export", "--calibration", "fitted.yaml", "--to", "ros", "--out", "fitted-ros.yaml")
 with open(os.path.join(WORK, "fitted-ros.yaml")) as f:
     close(yaml.safe_load(f)["distortion_coefficients"]["data"], d, "ros (fitted): distortion_coefficients")
+
+# ---- A device file leaves through its OpenCV view (model/opencv_view.h) -------------------------------------------
+# A Brown lens with a centre, on a camera rolled by 180 deg with non-square pixels: K and distCoeffs follow from the
+# conventions of docs/camera-conventions.md alone (M = -I, P = diag(p, p aspect)): fx = a / p_u, fy = a / p_v,
+# c = pp + M centre / P, (p1, p2) turned by M, k1, k2, k3 unchanged.
+A_MM, PITCH_UM, ASPECT, PP, CENTRE = 5.23, 1.12, 1.0004, (801.5, 597.25), (0.004, -0.003)
+KD = [-0.021, 0.0046, 0.00031, -0.00022, -0.0011]
+device = {"format": "topocal-device", "format_version": 1,
+          "camera": {"pixel_pitch_um": PITCH_UM, "pixel_aspect": ASPECT, "width_px": W, "height_px": H,
+                     "principal_point_px": list(PP), "a_mm": A_MM, "orientation": "rotate_180"},
+          "distortion": {"model": "brown", "k": KD, "centre_mm": list(CENTRE)},
+          "screen_pose": {"rx_deg": 0.5, "ry_deg": 0, "rz_deg": 0, "tx_mm": 0, "ty_mm": 0, "tz_mm": 0,
+                          "radial_scale": 1.0}}
+with open(os.path.join(WORK, "lens-device.json"), "w") as f:
+    json.dump(device, f)
+p_u = PITCH_UM * 1e-3
+p_v = p_u * ASPECT
+K_DEV = np.array([[A_MM / p_u, 0, PP[0] - CENTRE[0] / p_u], [0, A_MM / p_v, PP[1] - CENTRE[1] / p_v], [0, 0, 1]])
+D_DEV = np.array([[KD[0], KD[1], -KD[2], -KD[3], KD[4]]])
+r = topocal("export", "--device", "lens-device.json", "--to", "opencv", "--out", "device-cal.yaml")
+check("screen pose" in r.stdout, f"export --device says the screen pose stays behind: {r.stdout}")
+k_read, d_read, w_read, h_read = read_opencv("device-cal.yaml")
+close(k_read, K_DEV, "device -> opencv: camera_matrix")
+close(d_read, D_DEV, "device -> opencv: distortion_coefficients")
+check((w_read, h_read) == (W, H), f"device -> opencv: image size {w_read} x {h_read}")
+topocal("export", "--device", "lens-device.json", "--to", "mrcal", "--out", "device.cameramodel")
+lensmodel, intrinsics = mrcal.cameramodel(os.path.join(WORK, "device.cameramodel")).intrinsics()
+close(mrcal.project(points, lensmodel, intrinsics), cv_project(K_DEV, D_DEV), "device -> mrcal: projection", rel=1e-12)
+# A Seidel device: Brown's k1 = sigma a^2 / M_T^3 (paper Eq. 18), no other coefficient.
+DEMO_DEVICE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "data", "demo-unit-device.json")
+topocal("export", "--device", DEMO_DEVICE, "--to", "ros", "--out", "demo-ros.yaml")
+with open(os.path.join(WORK, "demo-ros.yaml")) as f:
+    demo = yaml.safe_load(f)
+close(demo["distortion_coefficients"]["data"], [6.3e-05 * 5.23 ** 2 / (-0.065) ** 3, 0, 0, 0, 0],
+      "device (seidel) -> ros: k1 = sigma a^2 / M_T^3", rel=1e-12)
+close(demo["camera_matrix"]["data"][0], 5.23 / 1.12e-3, "device (seidel) -> ros: fx = a / pitch", rel=1e-12)
+r = topocal("export", "--to", "ros", "--out", "neither.yaml", expect=2)
+check("--calibration" in r.stderr and "--device" in r.stderr, f"export without a source says what it needs: {r.stderr}")
+check(not os.path.exists(os.path.join(WORK, "neither.yaml")), "refused export leaves no file")
 
 if failures:
     print(f"{len(failures)} check(s) failed", file=sys.stderr)
