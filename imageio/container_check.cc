@@ -1,7 +1,7 @@
 #include "imageio/container_check.h"
 
 #include <fmt/format.h>
-#include <zlib.h>
+#include <libdeflate.h>
 
 #include <cstdint>
 
@@ -34,9 +34,8 @@ void CheckPng(std::string_view b, const std::string& name) {
                                          "the end of the file, {} bytes)",
                                          name, type, at, b.size()));
     }
-    // crc32 takes a uInt length: a chunk is at most 2^31 - 1 bytes, within it.
-    const auto* p = reinterpret_cast<const Bytef*>(b.data() + at + 4);
-    const std::uint32_t crc = static_cast<std::uint32_t>(crc32(0L, p, static_cast<uInt>(4 + length)));
+    // libdeflate's CRC-32 (the PNG one), several times zlib's speed on a 17 MB image's chunks.
+    const std::uint32_t crc = libdeflate_crc32(0, b.data() + at + 4, static_cast<std::size_t>(4 + length));
     if (crc != BigEndian32(b, at + 8 + length)) {
       throw util::InputError(fmt::format("{}: cannot be read as an image (damaged PNG: chunk {} at byte {} fails its CRC)", name, type, at));
     }

@@ -1,12 +1,14 @@
 #pragma once
 // The PNGs topocal reads and writes — 8- or 16-bit grey, colour or colour with alpha, not interlaced, with neither
-// palette, transparency, EXIF nor animation chunks — decoded by libpng in this process. Loading OpenCV's codecs
-// (the plugin, imgcodecs_abi.h) costs a process ~0.1 s of dynamic loading for the 112 libraries behind Debian's
-// libopencv_imgcodecs (docs/performance.md, "Start-up"); for these files the decoder is OpenCV's own: the same
-// libpng, called as OpenCV 4.6's PngDecoder calls it (readHeader, then readData) for the same cv::imread flags, so
-// the pixels, libpng's messages on stderr and an empty result on a libpng error are cv::imdecode's
-// (ImageFile.CommonPngDecodesAsOpenCvDoes compares the two over every type and flag). Every other image, and every
-// PNG whose header or chunks fall outside that list, is left to OpenCV through the plugin.
+// palette, transparency, EXIF nor animation chunks — decoded in this process. Loading OpenCV's codecs (the plugin,
+// imgcodecs_abi.h) costs a process ~0.1 s of dynamic loading for the 112 libraries behind Debian's
+// libopencv_imgcodecs (docs/performance.md, "Start-up"). A plain file (IHDR, IDAT and IEND only, a valid stream of
+// the image's size) is inflated by libdeflate and unfiltered here (png_decode.cc says why); any other goes to
+// libpng, called as OpenCV 4.6's PngDecoder calls it (readHeader, then readData) for the same cv::imread flags.
+// Either way the pixels are cv::imdecode's, and on data libpng refuses so are its messages on stderr and the empty
+// result (ImageFile.CommonPngDecodesAsOpenCvDoes and EveryRowFilterAndPixelSizeDecodesAsOpenCvDoes compare the two).
+// Every other image, and every PNG whose header or chunks fall outside that list, is left to OpenCV through the
+// plugin.
 #include <optional>
 #include <string_view>
 

@@ -10,10 +10,12 @@ case "$mode" in run|test|build) ;; *) echo "usage: scripts/setup.sh run|test|bui
 
 pkgs=(cmake g++ make pkg-config libopencv-dev libceres-dev libeigen3-dev libapriltag-dev libcli11-dev
       nlohmann-json3-dev libfmt-dev libssl-dev libsqlite3-dev zlib1g-dev libgtest-dev libgmock-dev libbenchmark-dev
-      fonts-dejavu-core libopencv-contrib-dev liblapack-dev pybind11-dev python3-dev python3-numpy)
+      fonts-dejavu-core libopencv-contrib-dev liblapack-dev pybind11-dev python3-dev python3-numpy libdeflate-dev
+      libpng-dev)
 # fonts-dejavu-core: the maps' text (µm, mm², °) is drawn in DejaVu Sans through OpenCV's FreeType module.
 # libopencv-contrib-dev: OpenCV aruco (Kalibr AprilGrids: calib/kalibr_grid_detector.cc).
 # pybind11-dev, python3-dev, python3-numpy: the Python package (python/, docs/python.md).
+# libdeflate-dev, libpng-dev: PNGs decoded in process (imageio/png_decode.cc).
 # liblapack-dev: the spline fit's band Cholesky (topo/band_cholesky.h; Ceres' own dependencies bring it too).
 # The real chessboard photographs the calibration tests compare against cv::calibrateCamera.
 [ "$mode" = test ] && pkgs+=(opencv-doc)

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -86,6 +87,85 @@ std::string WithChunk(const std::string& png, const std::string& type, const std
   for (int i = 0; i < 4; ++i) chunk += static_cast<char>((crc >> (24 - 8 * i)) & 0xFF);
   if (type == "IHDR") return png.substr(0, 8) + chunk + png.substr(33);
   return png.substr(0, 33) + chunk + png.substr(33);
+}
+
+// A PNG written here by the specification, not by libpng: every row filtered with filter (row mod 5) — none, sub,
+// up, average, Paeth — the zlib stream split over three IDAT chunks. `image` as OpenCV holds it (B G R, native
+// 16-bit); nothing but IHDR, IDAT and IEND.
+std::string SpecPng(const cv::Mat& image) {
+  const int channels = image.channels(), bytes = image.depth() == CV_16U ? 2 : 1;
+  const std::size_t bpp = static_cast<std::size_t>(channels * bytes), row_bytes = image.cols * bpp;
+  std::vector<std::uint8_t> raw, prev(row_bytes, 0);
+  for (int y = 0; y < image.rows; ++y) {
+    std::vector<std::uint8_t> row(row_bytes);  // R G B (A), big-endian samples
+    for (int x = 0; x < image.cols; ++x) {
+      for (int c = 0; c < channels; ++c) {
+        const int from = channels >= 3 && c < 3 ? 2 - c : c;
+        const std::size_t at = (static_cast<std::size_t>(x) * channels + c) * bytes;
+        if (bytes == 2) {
+          const std::uint16_t v = image.ptr<std::uint16_t>(y)[x * channels + from];
+          row[at] = static_cast<std::uint8_t>(v >> 8);
+          row[at + 1] = static_cast<std::uint8_t>(v & 0xFF);
+        } else {
+          row[at] = image.ptr<std::uint8_t>(y)[x * channels + from];
+        }
+      }
+    }
+    const int filter = y % 5;
+    raw.push_back(static_cast<std::uint8_t>(filter));
+    for (std::size_t i = 0; i < row_bytes; ++i) {
+      const int a = i >= bpp ? row[i - bpp] : 0, b = prev[i], c = i >= bpp ? prev[i - bpp] : 0;
+      const int p = a + b - c, pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
+      const int paeth = pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
+      const int predictor[5] = {0, a, b, (a + b) / 2, paeth};
+      raw.push_back(static_cast<std::uint8_t>(row[i] - predictor[filter]));
+    }
+    prev = row;
+  }
+  uLongf size = compressBound(static_cast<uLong>(raw.size()));
+  std::string stream(size, '\0');
+  EXPECT_EQ(compress2(reinterpret_cast<Bytef*>(stream.data()), &size, raw.data(), static_cast<uLong>(raw.size()), 6),
+            Z_OK);
+  stream.resize(size);
+  std::string ihdr(13, '\0');
+  for (int i = 0; i < 4; ++i) {
+    ihdr[i] = static_cast<char>((image.cols >> (24 - 8 * i)) & 0xFF);
+    ihdr[4 + i] = static_cast<char>((image.rows >> (24 - 8 * i)) & 0xFF);
+  }
+  ihdr[8] = static_cast<char>(bytes * 8);
+  ihdr[9] = static_cast<char>(channels == 1 ? 0 : channels == 3 ? 2 : 6);
+  // Chunks are inserted after the IHDR: the last IDAT first, then IHDR rewritten.
+  std::string png = std::string("\x89PNG\r\n\x1a\n", 8) + std::string(25, '\0') +
+                    std::string("\0\0\0\0IEND\xAE\x42\x60\x82", 12);
+  const std::size_t third = stream.size() / 3;
+  png = WithChunk(png, "IDAT", stream.substr(2 * third));
+  png = WithChunk(png, "IDAT", stream.substr(third, third));
+  png = WithChunk(png, "IDAT", stream.substr(0, third));
+  return WithChunk(png, "IHDR", ihdr);
+}
+
+// Every filter type at every pixel size (1, 2, 3, 4, 6, 8 bytes), in a stream over several IDATs: the pixels
+// cv::imdecode gives, with both flags.
+TEST(ImageFile, EveryRowFilterAndPixelSizeDecodesAsOpenCvDoes) {
+  for (const int type : {CV_8UC1, CV_16UC1, CV_8UC3, CV_8UC4, CV_16UC3, CV_16UC4}) {
+    cv::Mat image(57, 203, type);
+    cv::randu(image, 0, CV_MAT_DEPTH(type) == CV_16U ? 65536 : 256);
+    image.rowRange(0, 20) /= 64;  // smoother rows: the predictors matter
+    const std::string png = SpecPng(image);
+    for (const int flags : {cv::IMREAD_UNCHANGED, cv::IMREAD_GRAYSCALE}) {
+      SCOPED_TRACE(fmt::format("type {} flags {}", type, flags));
+      const auto bytes = cv::Mat(1, static_cast<int>(png.size()), CV_8UC1, const_cast<char*>(png.data()));
+      const cv::Mat opencv = cv::imdecode(bytes, flags);
+      ASSERT_FALSE(opencv.empty());
+      if (flags == cv::IMREAD_UNCHANGED) EXPECT_EQ(cv::norm(opencv, image, cv::NORM_INF), 0.0);
+      const std::optional<cv::Mat> here = DecodeCommonPng(png, flags);
+      ASSERT_TRUE(here.has_value());
+      ASSERT_EQ(here->type(), opencv.type());
+      ASSERT_EQ(here->size(), opencv.size());
+      ASSERT_TRUE(here->isContinuous());
+      EXPECT_EQ(std::memcmp(here->data, opencv.data, opencv.total() * opencv.elemSize()), 0);
+    }
+  }
 }
 
 // The common PNGs are decoded in this process (png_decode.h), by the same libpng calls as OpenCV's decoder: every
