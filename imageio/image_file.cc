@@ -274,6 +274,8 @@ void WritePng(const std::string& path, const cv::Mat& image) {
   util::WriteFileAtomic(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
 }
 
+bool DecodesWithoutCodecs(std::string_view bytes) noexcept { return IsInProcessPng(bytes); }
+
 std::future<void> LoadCodecsInBackground() {
   return std::async(std::launch::async, [] { Loaded(); });
 }

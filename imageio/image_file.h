@@ -90,6 +90,9 @@ class CodecsUnavailable : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+// Whether DecodeImage decodes these bytes without OpenCV's codecs (a PNG of the kinds png_decode.h decodes): a caller
+// that would load the codecs ahead of its images needs them only when one is not.
+bool DecodesWithoutCodecs(std::string_view bytes) noexcept;
 // Starts loading the codecs on a thread of its own, for a caller with other work to do before its first image
 // (~0.1 s of dynamic loading, mostly relocations). Never throws: a failure is reported by the first image
 // operation. The returned future waits for the load when destroyed.

@@ -328,6 +328,8 @@ std::optional<cv::Mat> DecodePlainPng(std::string_view bytes, int imread_flags) 
 
 }  // namespace
 
+bool IsInProcessPng(std::string_view bytes) noexcept { return IsCommonPng(bytes); }
+
 std::optional<cv::Mat> DecodeCommonPng(std::string_view bytes, int imread_flags) {
   static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "ReadPixels swaps 16-bit samples as OpenCV does here");
   if ((imread_flags != cv::IMREAD_UNCHANGED && imread_flags != cv::IMREAD_GRAYSCALE) || !IsCommonPng(bytes)) {

@@ -20,5 +20,7 @@ namespace topocal::imageio {
 // returns for it (IMREAD_UNCHANGED or IMREAD_GRAYSCALE; other flags give nullopt): the image, or an empty Mat when
 // libpng refuses the data. Throws cv::Exception where cv::imdecode would (the image's memory cannot be had).
 std::optional<cv::Mat> DecodeCommonPng(std::string_view bytes, int imread_flags);
+// Whether DecodeCommonPng decodes these bytes (rather than returning nullopt) for the flags above.
+bool IsInProcessPng(std::string_view bytes) noexcept;
 
 }  // namespace topocal::imageio

@@ -75,6 +75,14 @@ struct LoadedInputs {
   std::vector<UnitInputDigest> provenance;
 };
 
+// Whether an image still to be decoded needs OpenCV's codecs (a JPEG, a palette PNG, ...).
+bool NeedsCodecs(const LoadedInputs& in) {
+  const auto needs = [](const imageio::ImageBytes& b) { return !imageio::DecodesWithoutCodecs(b.view()); };
+  return std::any_of(in.view_bytes.begin(), in.view_bytes.end(), needs) ||
+         (!in.sphere_bytes.view().empty() && needs(in.sphere_bytes)) ||
+         std::any_of(in.repeat_bytes.begin(), in.repeat_bytes.end(), needs);
+}
+
 void CheckImageSize(const cv::Mat& image, const std::string& path, const LoadedInputs& in, const UnitRequest& r) {
   imageio::RequireSize(image, path, in.camera.width_px, in.camera.height_px, r.device);
 }
@@ -448,9 +456,11 @@ bool IsValidSerial(const std::string& serial) {
 }
 
 UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const std::string&)>& log) {
-  // OpenCV's image codecs are loaded (~0.1 s of dynamic linking) while the inputs are read and hashed.
-  const auto codecs = imageio::LoadCodecsInBackground();
   LoadedInputs in = LoadInputs(r);  // everything read and checked before any work or output, the images undecoded
+  // OpenCV's image codecs (~0.15 s of CPU in dynamic linking) are loaded, in the background while the other images
+  // are decoded, only when an image needs them: the PNGs a line writes are decoded without them (png_decode.h).
+  std::future<void> codecs;
+  if (NeedsCodecs(in)) codecs = imageio::LoadCodecsInBackground();
   UnitResult u;
   u.request = r;
   auto sphere_image = StartSphere(r, in);
