@@ -67,9 +67,16 @@ std::vector<Bgr> MapPalette(int width_px, const std::vector<std::uint8_t>& bgr, 
 std::vector<std::uint8_t> Indices(const std::vector<std::uint8_t>& bgr, const std::vector<Bgr>& palette) {
   std::unordered_map<std::uint32_t, std::uint8_t> index_of;
   std::vector<std::uint8_t> out(bgr.size() / 3);
+  // A map is runs of one colour: the previous pixel's answer is reused without a lookup.
+  std::uint32_t last_key = 0xFFFFFFFFu;
+  std::uint8_t last_index = 0;
   for (std::size_t k = 0; k < out.size(); ++k) {
     const std::uint8_t* p = &bgr[3 * k];
     const std::uint32_t key = (std::uint32_t{p[0]} << 16) | (std::uint32_t{p[1]} << 8) | p[2];
+    if (key == last_key) {
+      out[k] = last_index;
+      continue;
+    }
     auto it = index_of.find(key);
     if (it == index_of.end()) {
       int best = 0, best_d = 1 << 30;
@@ -80,7 +87,8 @@ std::vector<std::uint8_t> Indices(const std::vector<std::uint8_t>& bgr, const st
       }
       it = index_of.emplace(key, static_cast<std::uint8_t>(best)).first;
     }
-    out[k] = it->second;
+    out[k] = last_index = it->second;
+    last_key = key;
   }
   return out;
 }
