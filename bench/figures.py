@@ -34,6 +34,8 @@ IN_PROCESS = [
     ("bench_device", "BM_MeasureEyeWithUncertainty/1/process_time/real_time",
      "a measurement through a device with every number's U (CPU)", "BM_MeasureEyeThroughDevice/process_time/real_time",
      None, 1.5),
+    ("bench_imageio", "BM_DecodePng_Topocal/2", "decoding a noisy 4000 x 3000 16-bit PNG in process",
+     "BM_DecodePng_OpenCvImdecode/2", None, 1.0),
 ]
 
 
