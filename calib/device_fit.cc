@@ -200,14 +200,14 @@ void DeviceFitter::AddCorner(ceres::Problem& problem, const CornerSeen& c) {
 std::optional<std::string> DeviceFitter::LocateBoards() {
   const auto& cam = nominal_.camera;
   const Eigen::Vector2d pp = cam.principal_point_px;
-  const cv::Matx33d k(cam.a_mm / setup_.pixel_pitch_mm, 0, pp.x(), 0,
-                      cam.a_mm / (setup_.pixel_pitch_mm * setup_.pixel_aspect), pp.y(), 0, 0, 1);
+  const Eigen::Vector2d pitches_mm = cam.PitchesMm();
+  const cv::Matx33d k(cam.a_mm / pitches_mm.x(), 0, pp.x(), 0, cam.a_mm / pitches_mm.y(), pp.y(), 0, 0, 1);
   for (size_t v = 0; v < views_.size(); ++v) {
     std::vector<cv::Point3d> object;
     std::vector<cv::Point2d> image;
     for (const auto& c : corners_) {
       if (c.view != static_cast<int>(v)) continue;
-      const Eigen::Vector2d q = pp - setup_.orientation.transpose() * (c.px - pp);
+      const Eigen::Vector2d q = pp - cam.Orientation().transpose() * (c.px - pp);
       object.emplace_back(c.board_mm.x(), c.board_mm.y(), c.board_mm.z());
       image.emplace_back(q.x(), q.y());
     }

@@ -61,9 +61,7 @@ Device NominalDevice(const TopographerCamera& camera) {
 DeviceProjectionSetup ProjectionSetupOf(const Device& device, const TopographerParams& design) {
   DeviceProjectionSetup s;
   s.b_mm = design.b_mm;
-  s.pixel_pitch_mm = device.camera.PitchMm();
-  s.pixel_aspect = device.camera.pixel_aspect;
-  s.orientation = device.camera.Orientation();
+  s.camera = device.camera;
   if (const auto* seidel = std::get_if<SeidelParams>(&device.distortion)) {
     s.magnification = seidel->magnification;
     s.distortion_centre_mm = {seidel->centre_x_mm, seidel->centre_y_mm};

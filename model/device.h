@@ -101,9 +101,8 @@ SyntheticImage SynthesizeImage(const Surface& surface, const Device& device, con
 // Fixed (not fitted) quantities of the device projection below.
 struct DeviceProjectionSetup {
   double b_mm = 70.0;              // pinhole to the nominal corneal vertex: the pivot is (0, 0, -b)
-  double pixel_pitch_mm = kPaperPixelPitchUm * 1e-3;  // along u
-  double pixel_aspect = 1.0;         // pitch along v / pitch along u (model/topographer_camera.h)
-  Eigen::Matrix2d orientation = Eigen::Matrix2d::Identity();
+  // The pixel mapping (pitch, pixel aspect, orientation); its principal point and a are the fitted blocks instead.
+  TopographerCamera camera;
   // The distortion block: a lens model's coefficients (model/lens_model.h), or Seidel [sigma] when empty.
   std::optional<LensModelId> lens;
   double magnification = kPaperMagnification;  // M_T of the Seidel model
@@ -224,10 +223,7 @@ void ProjectPoint(const DeviceProjectionSetup& setup, const T* principal_px, con
                                                 T(setup.distortion_centre_mm.x()), T(setup.distortion_centre_mm.y())};
     SeidelRadial::Distort(seidel, undistorted, distorted);  // Eq. 18
   }
-  const auto& m = setup.orientation;
-  pixel[0] = principal_px[0] + (m(0, 0) * distorted[0] + m(0, 1) * distorted[1]) / setup.pixel_pitch_mm;
-  pixel[1] = principal_px[1] + (m(1, 0) * distorted[0] + m(1, 1) * distorted[1]) /
-                                   (setup.pixel_pitch_mm * setup.pixel_aspect);
+  setup.camera.PixelFromDetectionPlane(principal_px, distorted, pixel);
 }
 
 }  // namespace topocal::model

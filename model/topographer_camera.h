@@ -57,8 +57,18 @@ struct TopographerCamera {
   // Focal length in pixels along u, a / pitch_u: the fx of the equivalent OpenCV camera matrix (fy = fx / aspect).
   double FocalPx() const noexcept { return a_mm / PitchMm(); }
 
+  // The camera's one pixel mapping, for any T (double, or a Ceres jet when the principal point is fitted), with the
+  // principal point given: (u, v) = c + P^-1 M x.
+  template <typename T>
+  void PixelFromDetectionPlane(const T* principal_px, const T* point_mm, T* pixel) const noexcept {
+    const Eigen::Matrix2d m = Orientation();
+    pixel[0] = principal_px[0] + (m(0, 0) * point_mm[0] + m(0, 1) * point_mm[1]) / PitchMm();
+    pixel[1] = principal_px[1] + (m(1, 0) * point_mm[0] + m(1, 1) * point_mm[1]) / (PitchMm() * pixel_aspect);
+  }
   Eigen::Vector2d PixelFromDetectionPlane(const Eigen::Vector2d& point_mm) const noexcept {
-    return principal_point_px + (Orientation() * point_mm).cwiseQuotient(PitchesMm());
+    Eigen::Vector2d pixel;
+    PixelFromDetectionPlane(principal_point_px.data(), point_mm.data(), pixel.data());
+    return pixel;
   }
   Eigen::Vector2d DetectionPlaneFromPixel(const Eigen::Vector2d& point_px) const noexcept {
     return Orientation().transpose() * (point_px - principal_point_px).cwiseProduct(PitchesMm());
