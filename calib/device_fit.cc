@@ -63,7 +63,7 @@ class DeviceFitter {
   DeviceFitter(const model::Device& nominal, const model::TopographerParams& design, const std::vector<BallView>& balls,
                const std::vector<ViewObservations>& views, const DeviceFitOptions& options)
       : nominal_(nominal), design_(design), balls_(balls), views_(views), options_(options),
-        setup_(model::ProjectionSetupOf(nominal, design)), lens_(setup_.lens), inv_sigma_(1.0 / options.spot_sigma_px),
+        setup_(model::ProjectionSetupOf(nominal, design)), lens_(setup_.Lens()), inv_sigma_(1.0 / options.spot_sigma_px),
         inv_corner_sigma_(1.0 / options.corner_sigma_px) {
     solver_.linear_solver_type = ceres::DENSE_QR;
     solver_.max_num_iterations = options.max_iterations;

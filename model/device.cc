@@ -62,14 +62,7 @@ DeviceProjectionSetup ProjectionSetupOf(const Device& device, const TopographerP
   DeviceProjectionSetup s;
   s.b_mm = design.b_mm;
   s.camera = device.camera;
-  if (const auto* seidel = std::get_if<SeidelParams>(&device.distortion)) {
-    s.magnification = seidel->magnification;
-    s.distortion_centre_mm = {seidel->centre_x_mm, seidel->centre_y_mm};
-  } else {
-    const auto& b = std::get<LensParams>(device.distortion);
-    s.lens = b.model;
-    s.distortion_centre_mm = {b.centre_x_mm, b.centre_y_mm};
-  }
+  s.distortion = device.distortion;
   return s;
 }
 

@@ -103,10 +103,13 @@ struct DeviceProjectionSetup {
   double b_mm = 70.0;              // pinhole to the nominal corneal vertex: the pivot is (0, 0, -b)
   // The pixel mapping (pitch, pixel aspect, orientation); its principal point and a are the fitted blocks instead.
   TopographerCamera camera;
-  // The distortion block: a lens model's coefficients (model/lens_model.h), or Seidel [sigma] when empty.
-  std::optional<LensModelId> lens;
-  double magnification = kPaperMagnification;  // M_T of the Seidel model
-  Eigen::Vector2d distortion_centre_mm = Eigen::Vector2d::Zero();  // on the detection plane
+  // The device's distortion: its model, centre and (Seidel) M_T; its coefficients are the fitted block instead.
+  Distortion distortion = SeidelParams{};
+  // The distortion block's lens model (model/lens_model.h); empty: Seidel [sigma].
+  std::optional<LensModelId> Lens() const noexcept {
+    if (const auto* lens = std::get_if<LensParams>(&distortion)) return lens->model;
+    return std::nullopt;
+  }
 };
 
 // The fixed part of a device's projection (b from the design).
@@ -212,15 +215,16 @@ void ProjectPoint(const DeviceProjectionSetup& setup, const T* principal_px, con
   T undistorted[2];
   ImageOfPoint(a_mm[0], setup.b_mm, point_mm, undistorted);
   T distorted[2];
-  if (setup.lens) {
-    const auto& c = setup.distortion_centre_mm;
-    const T normalised[2] = {(undistorted[0] - c.x()) / a_mm[0], (undistorted[1] - c.y()) / a_mm[0]};
-    DistortNormalized(*setup.lens, distortion, normalised, distorted);
-    distorted[0] = c.x() + distorted[0] * a_mm[0];
-    distorted[1] = c.y() + distorted[1] * a_mm[0];
+  if (const auto* lens = std::get_if<LensParams>(&setup.distortion)) {
+    const double cx = lens->centre_x_mm, cy = lens->centre_y_mm;
+    const T normalised[2] = {(undistorted[0] - cx) / a_mm[0], (undistorted[1] - cy) / a_mm[0]};
+    DistortNormalized(lens->model, distortion, normalised, distorted);
+    distorted[0] = cx + distorted[0] * a_mm[0];
+    distorted[1] = cy + distorted[1] * a_mm[0];
   } else {
-    const T seidel[SeidelRadial::kNumParams] = {distortion[0], T(setup.magnification),
-                                                T(setup.distortion_centre_mm.x()), T(setup.distortion_centre_mm.y())};
+    const auto& s = std::get<SeidelParams>(setup.distortion);
+    const T seidel[SeidelRadial::kNumParams] = {distortion[0], T(s.magnification), T(s.centre_x_mm),
+                                                T(s.centre_y_mm)};
     SeidelRadial::Distort(seidel, undistorted, distorted);  // Eq. 18
   }
   setup.camera.PixelFromDetectionPlane(principal_px, distorted, pixel);
