@@ -8,6 +8,8 @@
 #include <Eigen/LU>
 #include <ceres/ceres.h>
 #include <fmt/format.h>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
 
 #include "calib/apriltag_raii.h"
 
@@ -215,6 +217,80 @@ std::optional<std::array<Eigen::Vector2d, 4>> RefineTag(const cv::Mat& gray, con
 
 }  // namespace
 
+namespace {
+
+// Corner k of tag t on the board (mm), as TargetDescription::CornerMm places it (calib/target.h).
+cv::Point2d TagCornerMm(const AprilGridLayout& g, int t, int k) {
+  const Eigen::Vector2d origin = g.TagOriginMm(t);
+  const double s = g.tag_size_mm;
+  const double dx[4] = {0, s, s, 0}, dy[4] = {s, s, 0, 0};
+  return {origin.x() + dx[k], origin.y() + dy[k]};
+}
+
+// Neighbours a tag is judged by: the other tags within this many grid steps, and at least this many of them.
+constexpr int kNeighbourSteps = 2;
+constexpr int kMinNeighbourTags = 3;
+// A corner further than this fraction of the tag's side from where its neighbours put it: the tag is not where the
+// grid puts its id. A wrong id puts it at least one pitch (1 + tagSpacing sides) away.
+constexpr double kMaxOffGridFraction = 1.0 / 3.0;
+
+// The tags whose corners sit where the grid does not put their id — a tag misread as another id, or a stray quad
+// decoded as a tag — dropped with the reason. Each tag is predicted from its neighbours: a homography from the board
+// to the image fitted (RANSAC, so that one wrong neighbour does not decide) to the found corners of the other tags
+// within two grid steps; local, so that lens distortion across the image does not matter. A tag with fewer than
+// three such neighbours is kept: there is nothing to judge it by.
+void DropTagsOffTheGrid(const AprilGridLayout& grid, AprilGridDetections* result) {
+  std::vector<bool> off(result->tags.size(), false);
+  for (size_t i = 0; i < result->tags.size(); ++i) {
+    const TagDetection& tag = result->tags[i];
+    const int col = tag.tag_index % grid.tag_cols, row = tag.tag_index / grid.tag_cols;
+    std::vector<cv::Point2d> board, image;
+    int neighbours = 0;
+    for (size_t j = 0; j < result->tags.size(); ++j) {
+      const TagDetection& other = result->tags[j];
+      const int dc = other.tag_index % grid.tag_cols - col, dr = other.tag_index / grid.tag_cols - row;
+      if (j == i || std::max(std::abs(dc), std::abs(dr)) > kNeighbourSteps) continue;
+      ++neighbours;
+      for (int k = 0; k < 4; ++k) {
+        if (!other.corner_found[static_cast<size_t>(k)]) continue;
+        board.push_back(TagCornerMm(grid, other.tag_index, k));
+        image.emplace_back(other.corners_px[static_cast<size_t>(k)].x(), other.corners_px[static_cast<size_t>(k)].y());
+      }
+    }
+    if (neighbours < kMinNeighbourTags || board.size() < 8) continue;
+    double side_px = 0;
+    for (size_t k = 0; k < 4; ++k) side_px += 0.25 * (tag.corners_px[(k + 1) % 4] - tag.corners_px[k]).norm();
+    const cv::Mat h = cv::findHomography(board, image, cv::RANSAC, 0.1 * side_px);
+    if (h.empty()) continue;
+    std::vector<cv::Point2d> own_board, predicted;
+    for (int k = 0; k < 4; ++k) own_board.push_back(TagCornerMm(grid, tag.tag_index, k));
+    cv::perspectiveTransform(own_board, predicted, h);
+    double worst_px = 0;
+    for (size_t k = 0; k < 4; ++k) {
+      if (!tag.corner_found[k]) continue;
+      worst_px = std::max(worst_px, std::hypot(predicted[k].x - tag.corners_px[k].x(),
+                                               predicted[k].y - tag.corners_px[k].y()));
+    }
+    if (worst_px > kMaxOffGridFraction * side_px) {
+      off[i] = true;
+      result->reasons.push_back(fmt::format("tag id {}: {:.0f} px from where its {} neighbours put it (a misread id?), "
+                                            "left out",
+                                            tag.tag_index + grid.first_tag_id, worst_px, neighbours));
+    }
+  }
+  std::vector<TagDetection> kept;
+  for (size_t i = 0; i < result->tags.size(); ++i) {
+    if (off[i]) {
+      ++result->rejected;
+    } else {
+      kept.push_back(result->tags[i]);
+    }
+  }
+  result->tags = std::move(kept);
+}
+
+}  // namespace
+
 void FinishAprilGridDetections(const AprilGridLayout& grid, AprilGridDetections* detections) {
   auto& result = *detections;
   std::sort(result.tags.begin(), result.tags.end(),
@@ -233,6 +309,7 @@ void FinishAprilGridDetections(const AprilGridLayout& grid, AprilGridDetections*
     }
   }
   result.tags = std::move(unique);
+  DropTagsOffTheGrid(grid, &result);
   result.message = fmt::format("{}/{} tags ({} rejected)", result.tags.size(), grid.NumTags(), result.rejected);
 }
 

@@ -48,7 +48,8 @@ struct AprilGridDetections {
 AprilGridDetections DetectAprilGrid(const cv::Mat& gray, const AprilGridLayout& grid, const DetectionOptions& options);
 
 // The last step of both AprilGrid detectors (libapriltag's and the Kalibr-print one): tags sorted by index, a tag
-// id seen twice dropped (both: a misdetection of one of them, which is not guessed) with its reason, the summary.
+// id seen twice dropped (both: a misdetection of one of them, which is not guessed) with its reason, a tag whose
+// corners are not where its neighbours put its id (a misread id) dropped with its reason, the summary.
 void FinishAprilGridDetections(const AprilGridLayout& grid, AprilGridDetections* detections);
 
 }  // namespace topocal::calib

@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
+#include <optional>
 #include <map>
 
 #include <opencv2/core.hpp>
@@ -134,6 +136,52 @@ TEST(AprilGrid, TagsOfAnotherGridAreRejected) {
   EXPECT_FALSE(result.view.has_value());
   EXPECT_EQ(result.tags_rejected, 30);
   EXPECT_TRUE(DetectTarget(other, view.image).has_value());
+}
+
+// Detections of a 6 x 6 grid seen obliquely through a lens with strong barrel distortion (the border pulled in by
+// ~4 % of the image), as the detectors hand them to FinishAprilGridDetections; `misread` (if set) carries the id of a
+// tag that is not in the image.
+AprilGridDetections SyntheticDetections(const AprilGridLayout& grid, std::optional<int> misread = std::nullopt) {
+  AprilGridDetections d;
+  const double f = 900, cx = 640, cy = 480, k1 = -0.25;
+  for (int t = 0; t < grid.NumTags(); ++t) {
+    if (t == 35) continue;  // out of view: its id is the misread one's
+    TagDetection tag;
+    tag.tag_index = misread && t == 14 ? *misread : t;
+    const Eigen::Vector2d origin = grid.TagOriginMm(t);
+    const double dx[4] = {0, grid.tag_size_mm, grid.tag_size_mm, 0}, dy[4] = {grid.tag_size_mm, grid.tag_size_mm, 0, 0};
+    for (int k = 0; k < 4; ++k) {
+      // The board 500 mm away, turned 25 deg about y, centred on the axis; then Brown k1 on normalised coordinates.
+      const double x = origin.x() + dx[k] - 125, y = origin.y() + dy[k] - 125;
+      const double c = std::cos(25 * M_PI / 180), s = std::sin(25 * M_PI / 180);
+      const double X = c * x, Z = 500 + s * x;
+      const double u = X / Z, v = y / Z, r2 = u * u + v * v;
+      tag.corners_px[static_cast<size_t>(k)] = {cx + f * u * (1 + k1 * r2), cy + f * v * (1 + k1 * r2)};
+    }
+    d.tags.push_back(tag);
+  }
+  return d;
+}
+
+TEST(AprilGrid, ATagNotWhereItsNeighboursPutItsIdIsLeftOutWithTheReason) {
+  AprilGridLayout grid;
+  grid.tag_cols = grid.tag_rows = 6;
+  grid.tag_size_mm = 40;
+  grid.tag_spacing_ratio = 0.3;
+  // Every tag where the grid puts it: none is dropped, whatever the distortion.
+  auto clean = SyntheticDetections(grid);
+  FinishAprilGridDetections(grid, &clean);
+  EXPECT_EQ(clean.tags.size(), 35u) << (clean.reasons.empty() ? "" : clean.reasons.front());
+  EXPECT_EQ(clean.rejected, 0);
+  // Tag 14 read as 35 (a tag out of view): the one tag left out, named, its neighbours kept.
+  auto misread = SyntheticDetections(grid, 35);
+  FinishAprilGridDetections(grid, &misread);
+  ASSERT_EQ(misread.tags.size(), 34u);
+  EXPECT_EQ(misread.rejected, 1);
+  for (const auto& tag : misread.tags) EXPECT_NE(tag.tag_index, 35);
+  ASSERT_EQ(misread.reasons.size(), 1u);
+  EXPECT_NE(misread.reasons[0].find("tag id 35"), std::string::npos) << misread.reasons[0];
+  EXPECT_NE(misread.reasons[0].find("misread"), std::string::npos) << misread.reasons[0];
 }
 
 TEST(AprilGrid, NoGridIsNotFoundWithoutCrashing) {
