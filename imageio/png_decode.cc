@@ -122,9 +122,8 @@ struct PngReadStructs {
 // ---- The fast path: libdeflate and the PNG filters, for the files that leave nothing to libpng's judgement --------
 //
 // Why by hand: libpng inflates through zlib; libdeflate inflates the same stream in a fraction of the time, and no
-// PNG library in Debian 12 inflates through it (libpng and libspng both use zlib). Measured (bench/imageio_bench.cc,
-// the demo unit's own files): the 17 MB 16-bit sphere image 137 -> 89 ms, the 4 MB target view 79 -> 39 ms. What
-// remains of a PNG decoder is the chunk walk and the five row filters of the PNG specification (ISO/IEC 15948,
+// PNG library in Debian 12 inflates through it (libpng and libspng both use zlib). bench/imageio_bench.cc times this
+// path against cv::imdecode on the same bytes (docs/performance.md has the figures). What remains of a PNG decoder is the chunk walk and the five row filters of the PNG specification (ISO/IEC 15948,
 // section 9), below. The pixels are the specification's, so the same as libpng's (ImageFile tests compare them with
 // cv::imdecode over every type, flag, filter and pixel size). Whatever this path does
 // not accept outright — an ancillary chunk (libpng may warn about it), a zlib header with a small window, a stream
