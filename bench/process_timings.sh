@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Whole-process timings: wall time, CPU time and peak RSS of `/bin/true` (the peer: what any process costs
 # here), `topocal --version`, `--help`, `sweep` of the paper, `unit calibrate` of the demo unit (SN-DEMO-0001 of
-# scripts/demo-unit.sh: 4000 x 3000 target and reference sphere, 200 uncertainty draws) and the README's harness runs
+# scripts/demo-unit.sh: 4000 x 3000 target and reference sphere; its uncertainty by linear propagation, the default,
+# and by 200 Monte Carlo draws, the cross-check; the peer, OpenCV's calibration of the same target view by
+# bench/opencv_unit_peer.py) and the README's harness runs
 # (data/harness.json on one thread and on every core, data/harness-assembly.json), each the median of N runs by
 # /usr/bin/time -v: wall time (nanosecond clock), CPU time (user + system, in 10 ms steps; the figure that holds when
 # other processes share the cores) and peak RSS. Given a second binary (BEFORE, e.g. main's build), the two run interleaved — before, after, before,
@@ -70,9 +72,15 @@ figure "/bin/true (peer)" /bin/true
 figure "topocal --version" topocal --version
 figure "topocal --help" topocal --help
 figure "topocal sweep --config data/paper.json" topocal sweep --config data/paper.json
-figure "topocal unit calibrate (demo unit, 200 draws)" topocal unit calibrate --serial SN-DEMO-0001 \
+figure "topocal unit calibrate (demo unit)" topocal unit calibrate --serial SN-DEMO-0001 \
   --target data/target-topographer.yaml --images "$demo/target.png" --reference-sphere "$demo/sphere.png" \
   --sphere-radius-mm 7.8 --out "$work/out/SN-DEMO-0001"
+# The peer: OpenCV's calibration of the same target view alone (bench/opencv_unit_peer.py), in its own process.
+figure "OpenCV calibration of the unit's target view (peer)" /usr/bin/python3 bench/opencv_unit_peer.py \
+  "$demo/target.png"
+figure "topocal unit calibrate (demo unit, 200 Monte Carlo draws)" topocal unit calibrate --serial SN-DEMO-0001 \
+  --target data/target-topographer.yaml --images "$demo/target.png" --reference-sphere "$demo/sphere.png" \
+  --sphere-radius-mm 7.8 --uncertainty 200 --out "$work/out/SN-DEMO-0001"
 # The README's harness runs: the residual-distortion sweep on one thread and on every core, the assembly sweep.
 figure "topocal harness --config data/harness.json --jobs 1" topocal harness --config data/harness.json \
   --out "$work/out" --jobs 1 --quiet

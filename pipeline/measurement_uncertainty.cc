@@ -2,7 +2,6 @@
 
 #include <fmt/format.h>
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -53,19 +52,6 @@ std::vector<model::PlaneSpot> UsedSpots(const std::vector<model::PlaneSpot>& det
   std::vector<model::PlaneSpot> out;
   for (const auto& s : detected) {
     if (used.count(s.id)) out.push_back(s);
-  }
-  return out;
-}
-
-// The eigen-directions of the covariance scaled by their standard deviations: sqrt(l_j) v_j, those with a spread.
-std::vector<Eigen::VectorXd> ScaledDirections(const model::DeviceCovariance& c) {
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(c.matrix);
-  if (eigen.info() != Eigen::Success) throw std::runtime_error("uncertainty: the device covariance cannot be factored");
-  std::vector<Eigen::VectorXd> out;
-  const double largest = eigen.eigenvalues().cwiseAbs().maxCoeff();
-  for (Eigen::Index j = 0; j < eigen.eigenvalues().size(); ++j) {
-    const double l = eigen.eigenvalues()(j);
-    if (l > 1e-14 * largest && l > 0) out.push_back(std::sqrt(l) * eigen.eigenvectors().col(j));
   }
   return out;
 }
@@ -339,7 +325,7 @@ MeasurementUncertainty PropagateMeasurementUncertainty(const std::vector<model::
   if (covariance) {
     u.device_covariance = true;
     u.device_parameters = covariance->names;
-    directions = ScaledDirections(*covariance);
+    directions = ScaledEigenDirections(covariance->matrix);
     u.device_directions = static_cast<int>(directions.size());
     u.device_monte_carlo = options.device_draws > 0;
     if (options.device_draws > 0) directions = DeviceDraws(directions, options);

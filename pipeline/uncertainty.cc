@@ -5,6 +5,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
+#include <charconv>
 #include <cmath>
 #include <optional>
 #include <random>
@@ -66,16 +67,25 @@ std::vector<Eigen::Index> DrawnIndices(const calib::ParameterCovariance& covaria
   return drawn;
 }
 
-// The drawn parameters' joint covariance and its factor L (L L' = S): a draw is mean + L z, z ~ N(0, I).
-// A symmetric eigendecomposition rather than a Cholesky factor, so that a covariance that is only positive
-// semi-definite (rounding in a stored file) still factors; negative rounding-level eigenvalues are clamped to 0.
-Eigen::MatrixXd DrawFactor(const calib::ParameterCovariance& covariance, const std::vector<Eigen::Index>& drawn_index) {
+// The drawn parameters' joint covariance.
+Eigen::MatrixXd DrawnCovariance(const calib::ParameterCovariance& covariance,
+                                const std::vector<Eigen::Index>& drawn_index) {
   const auto m = static_cast<Eigen::Index>(drawn_index.size());
   Eigen::MatrixXd drawn_covariance(m, m);
   for (Eigen::Index a = 0; a < m; ++a) {
-    for (Eigen::Index b = 0; b < m; ++b) drawn_covariance(a, b) = covariance.matrix(drawn_index[static_cast<size_t>(a)], drawn_index[static_cast<size_t>(b)]);
+    for (Eigen::Index b = 0; b < m; ++b) {
+      drawn_covariance(a, b) =
+          covariance.matrix(drawn_index[static_cast<size_t>(a)], drawn_index[static_cast<size_t>(b)]);
+    }
   }
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(drawn_covariance);
+  return drawn_covariance;
+}
+
+// Its factor L (L L' = S): a draw is mean + L z, z ~ N(0, I).
+// A symmetric eigendecomposition rather than a Cholesky factor, so that a covariance that is only positive
+// semi-definite (rounding in a stored file) still factors; negative rounding-level eigenvalues are clamped to 0.
+Eigen::MatrixXd DrawFactor(const calib::ParameterCovariance& covariance, const std::vector<Eigen::Index>& drawn_index) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(DrawnCovariance(covariance, drawn_index));
   if (eigen.info() != Eigen::Success) throw util::InputError("uncertainty: the covariance cannot be factored");
   return eigen.eigenvectors() * eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
 }
@@ -102,6 +112,76 @@ std::optional<topo::Analysis> NominalAnalysis(const std::vector<model::PlaneSpot
 }
 
 using DrawnQuantities = std::array<double, kQuantities.size()>;
+
+DrawnQuantities QuantitiesOf(const topo::Analysis& a) {
+  const auto& p = a.surface_fit.params;
+  return {p.rx_mm, p.ry_mm, p.kx, p.ky, p.alpha_deg, a.power.pv_tangential_D, a.power.pv_axial_D,
+          0.5 * (p.rx_mm + p.ry_mm), topo::MeanAxialPowerD(a.power, kCentralPowerRadiusMm)};
+}
+
+// What every analysis of a moved calibration shares.
+struct MovedAnalyses {
+  const std::vector<model::PlaneSpot>& spots;
+  const model::CameraModel& calibrated;
+  const std::vector<std::string>& names;  // the moved parameters
+  const model::TopographerCamera& camera;
+  const model::Config& config;
+  const std::vector<model::TargetPoint>& targets;
+  topo::AnalysisOptions options;  // started from the nominal analysis
+  bool nominal_verified = false;  // the nominal conversion was verified on the sensor grid: the moved ones are not
+
+  // The quantities of the spots analysed with the named parameters moved by `delta`; nullopt when the moved
+  // calibration cannot be put on the detection plane or the analysis fails. Spots it cannot undistort are counted
+  // into `undistort_failures`.
+  std::optional<DrawnQuantities> Analyse(const Eigen::VectorXd& delta, int* undistort_failures) const {
+    model::CameraModel moved = calibrated;
+    for (Eigen::Index k = 0; k < delta.size(); ++k) *Parameter(moved, names[static_cast<size_t>(k)]) += delta(k);
+    const auto on_plane = nominal_verified ? DetectionPlaneModelUnverified(moved, camera)
+                                           : DetectionPlaneModelOf(moved, camera);
+    if (!on_plane.ok) return std::nullopt;
+    try {
+      const auto undistorted = UndistortSpots(spots, on_plane.distortion, undistort_failures);
+      return QuantitiesOf(topo::AnalyzeSpots(undistorted, targets, config, nullptr, options));
+    } catch (const std::runtime_error&) {
+      return std::nullopt;
+    }
+  }
+};
+
+// Linear propagation into u: central differences along each scaled eigen-direction of the moved parameters'
+// covariance, two analyses per direction on `jobs` threads, summed in direction order (bit-identical whatever
+// `jobs` is). Every analysis must succeed: a sum missing a direction would understate U.
+void PropagateLinearly(const MovedAnalyses& analyses, const topo::Analysis& nominal, const Eigen::MatrixXd& covariance,
+                       int jobs, ClinicalUncertainty* u) {
+  const auto directions = ScaledEigenDirections(covariance);
+  std::vector<std::optional<DrawnQuantities>> moved(2 * directions.size());
+  std::vector<int> undistort_failures(moved.size(), 0);
+  util::ParallelFor(moved.size(), std::max(0, jobs), [&](size_t i) {
+    moved[i] = analyses.Analyse((i % 2 == 0 ? 1.0 : -1.0) * directions[i / 2], &undistort_failures[i]);
+  });
+  DrawnQuantities variance{};
+  for (size_t j = 0; j < directions.size(); ++j) {
+    if (!moved[2 * j] || !moved[2 * j + 1]) {
+      throw std::runtime_error(fmt::format("uncertainty: the analysis with the calibration moved by one standard "
+                                           "deviation along eigen-direction {} of {} failed",
+                                           j + 1, directions.size()));
+    }
+    for (size_t q = 0; q < kQuantities.size(); ++q) {
+      const double half_difference = 0.5 * ((*moved[2 * j])[q] - (*moved[2 * j + 1])[q]);
+      variance[q] += half_difference * half_difference;
+    }
+  }
+  for (const int f : undistort_failures) {
+    u->undistort_failures += f;
+    u->draws_with_undistort_failures += f > 0;
+  }
+  const DrawnQuantities centre = QuantitiesOf(nominal);
+  u->linear = true;
+  u->samples = static_cast<int>(directions.size());
+  for (size_t q = 0; q < kQuantities.size(); ++q) {
+    u->quantities[kQuantities[q]] = {centre[q], 2.0 * std::sqrt(variance[q])};
+  }
+}
 
 // The draws' statistics into u: failures counted, then the mean and expanded uncertainty (k = 2) of each quantity
 // over the draws that reconstructed, summed in draw order.
@@ -137,6 +217,49 @@ void Summarise(const std::vector<std::optional<DrawnQuantities>>& per_draw,
 
 }  // namespace
 
+UncertaintySetting UncertaintySetting::Parse(const std::string& text, const std::string& key) {
+  if (text == "linear") return {};
+  if (text == "none") return {Method::kNone, 0};
+  int draws = -1;
+  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), draws);
+  if (error != std::errc() || end != text.data() + text.size() || draws == 1 || draws < 0 ||
+      draws > kMaxUncertaintySamples) {
+    throw util::InputError(fmt::format("{}: \"{}\" is not linear, none (or 0) or a number of Monte Carlo draws, "
+                                       "2 to {}", key, text, kMaxUncertaintySamples));
+  }
+  if (draws == 0) return {Method::kNone, 0};
+  return {Method::kMonteCarlo, draws};
+}
+
+std::string UncertaintySetting::MethodName() const {
+  switch (method) {
+    case Method::kNone: return "none";
+    case Method::kLinear: return "linear";
+    case Method::kMonteCarlo: return "monte-carlo";
+  }
+  return "none";
+}
+
+UncertaintySetting UncertaintySetting::FromName(const std::string& method, int draws, const std::string& key) {
+  if (method == "monte-carlo" && draws >= 2 && draws <= kMaxUncertaintySamples) return {Method::kMonteCarlo, draws};
+  if (method == "linear" && draws == 0) return {Method::kLinear, 0};
+  if (method == "none" && draws == 0) return {Method::kNone, 0};
+  throw util::InputError(fmt::format("{}: \"{}\" with {} draws is not an uncertainty setting (linear or none with 0, "
+                                     "monte-carlo with 2 to {})", key, method, draws, kMaxUncertaintySamples));
+}
+
+std::vector<Eigen::VectorXd> ScaledEigenDirections(const Eigen::MatrixXd& covariance) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(covariance);
+  if (eigen.info() != Eigen::Success) throw std::runtime_error("uncertainty: the covariance cannot be factored");
+  std::vector<Eigen::VectorXd> out;
+  const double largest = eigen.eigenvalues().cwiseAbs().maxCoeff();
+  for (Eigen::Index j = 0; j < eigen.eigenvalues().size(); ++j) {
+    const double l = eigen.eigenvalues()(j);
+    if (l > 1e-14 * largest && l > 0) out.push_back(std::sqrt(l) * eigen.eigenvectors().col(j));
+  }
+  return out;
+}
+
 std::vector<std::string> DistortionParametersToDraw(const calib::ParameterCovariance& covariance) {
   std::vector<std::string> names;
   for (const Eigen::Index i : DrawnIndices(covariance)) names.push_back(covariance.names[static_cast<size_t>(i)]);
@@ -148,7 +271,9 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<model::Pla
                                                     const calib::ParameterCovariance& covariance,
                                                     const model::TopographerCamera& camera, const model::Config& config,
                                                     int samples, std::uint32_t seed, int jobs) {
-  if (samples < 2) throw util::InputError("uncertainty: at least 2 samples are needed");
+  if (samples < 0 || samples == 1) {
+    throw util::InputError("uncertainty: 0 samples (linear propagation) or at least 2 Monte Carlo draws are needed");
+  }
   ClinicalUncertainty u;
   u.correlated = covariance.full;
   const std::vector<Eigen::Index> drawn_index = DrawnIndices(covariance);
@@ -165,45 +290,33 @@ ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<model::Pla
       }
     }
   }
-  const auto m = static_cast<Eigen::Index>(drawn_index.size());
-  const Eigen::MatrixXd factor = DrawFactor(covariance, drawn_index);
-
   const auto design = model::DesignNullScreen(config.ideal_image, config.topographer);
   // The nominal calibration's conversion, verified on the sensor grid; the draws then convert without the grid.
   const DetectionPlaneModel nominal_on_plane = DetectionPlaneModelOf(calibrated, camera);
   const bool nominal_verified = nominal_on_plane.ok;
   const std::optional<topo::Analysis> nominal = NominalAnalysis(spots, nominal_on_plane, design.targets, config);
-  topo::AnalysisOptions draw_options;
-  draw_options.stddev = draw_options.adequacy = draw_options.clinical = false;
-  draw_options.start = nominal ? &*nominal : nullptr;
-
+  if (samples == 0 && !nominal) throw std::runtime_error("uncertainty: the calibration's own analysis failed");
+  MovedAnalyses analyses{spots, calibrated, u.drawn, camera, config, design.targets, {}, nominal_verified};
+  analyses.options.stddev = analyses.options.adequacy = analyses.options.clinical = false;
+  analyses.options.start = nominal ? &*nominal : nullptr;
+  if (samples == 0) {
+    PropagateLinearly(analyses, *nominal, DrawnCovariance(covariance, drawn_index), jobs, &u);
+    return u;
+  }
   // Each draw's normals come from its own generator seeded by (seed, draw index) and each draw writes only its own
   // slot, so the draws are the same whatever the number of threads and the statistics (summed in draw order below)
   // are bit-identical.
+  const auto m = static_cast<Eigen::Index>(drawn_index.size());
+  const Eigen::MatrixXd factor = DrawFactor(covariance, drawn_index);
   std::vector<std::optional<DrawnQuantities>> per_draw(static_cast<size_t>(samples));
   std::vector<int> per_draw_undistort_failures(static_cast<size_t>(samples), 0);
   util::ParallelFor(static_cast<size_t>(samples), std::max(0, jobs), [&](size_t i) {
     std::seed_seq seq{seed, static_cast<std::uint32_t>(i)};
     std::mt19937 rng(seq);
     std::normal_distribution<double> normal(0.0, 1.0);
-    model::CameraModel c = calibrated;
     Eigen::VectorXd z(m);
     for (Eigen::Index k = 0; k < m; ++k) z(k) = normal(rng);
-    const Eigen::VectorXd delta = factor * z;
-    for (Eigen::Index k = 0; k < m; ++k) *Parameter(c, u.drawn[static_cast<size_t>(k)]) += delta(k);
-    const auto on_plane = nominal_verified ? DetectionPlaneModelUnverified(c, camera) : DetectionPlaneModelOf(c, camera);
-    if (!on_plane.ok) return;  // counted as failed below
-    const model::Distortion* distortion = &on_plane.distortion;
-    try {
-      const auto undistorted = UndistortSpots(spots, *distortion, &per_draw_undistort_failures[i]);
-      const auto a = topo::AnalyzeSpots(undistorted, design.targets, config, nullptr, draw_options);
-      const auto& p = a.surface_fit.params;
-      per_draw[i] = DrawnQuantities{
-          p.rx_mm, p.ry_mm, p.kx, p.ky, p.alpha_deg, a.power.pv_tangential_D, a.power.pv_axial_D,
-          0.5 * (p.rx_mm + p.ry_mm), topo::MeanAxialPowerD(a.power, kCentralPowerRadiusMm)};
-    } catch (const std::runtime_error&) {
-      // counted as failed below
-    }
+    per_draw[i] = analyses.Analyse(factor * z, &per_draw_undistort_failures[i]);
   });
   Summarise(per_draw, per_draw_undistort_failures, samples, &u);
   return u;

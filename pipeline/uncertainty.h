@@ -1,12 +1,20 @@
 #pragma once
-// Calibration uncertainty carried to the clinical numbers, by seeded Monte Carlo: draw the
-// calibrated distortion parameters from their reported standard deviations, undistort the measured spots with each
-// draw, reconstruct, fit, map — and report each clinical number as mean +- expanded uncertainty U = 2 s (k = 2).
+// Calibration uncertainty carried to the clinical numbers: move the calibrated distortion parameters within their
+// covariance, undistort the measured spots with each moved calibration, reconstruct, fit, map — and report each
+// clinical number with its expanded uncertainty U = 2 u (k = 2). Two methods (GUM, JCGM 100:2008 Sec. 5.1, and its
+// Supplement 1, JCGM 101:2008):
 //
-// The draws are joint normals with the calibration's parameter covariance (calibration files since topocal 0.1.0
+//   linear       u^2 = J S J', evaluated without forming J: along each eigen-direction v_j of S with a spread, the
+//                spots are analysed with the calibration moved by +sqrt(l_j) v_j and by -sqrt(l_j) v_j, and
+//                u^2 = sum_j ((q+ - q-) / 2)^2 (central differences: the curvature of q cancels). Two analyses per
+//                direction; the reported mean is the calibration's own value. The default.
+//   Monte Carlo  N seeded draws of joint normals with the covariance; mean and U = 2 s over the draws. A cross-check
+//                of the linear result, and the method for a reading far from linear over the covariance.
+//
+// The parameters are moved jointly with the calibration's covariance (calibration files since topocal 0.1.0
 // store it; for an older file calib::ParameterCovarianceOf gives the diagonal and `correlated` is false). Only the
-// distortion parameters (k1..k3, p1, p2, ex, ey) are drawn; the intrinsics enter the detection-plane distortion
-// only through its scale, which the topographer's camera description fixes. The result says what was drawn.
+// distortion parameters (k1..k3, p1, p2, ex, ey) are moved; the intrinsics enter the detection-plane distortion
+// only through its scale, which the topographer's camera description fixes. The result says what was moved.
 #include <Eigen/Core>
 #include <cstdint>
 #include <map>
@@ -23,23 +31,46 @@
 
 namespace topocal::pipeline {
 
+// Monte Carlo draws of an uncertainty: the range of unit --uncertainty and of unit-inputs.json's
+// uncertainty_samples (200 draws take ~0.5 s of CPU for a unit; 1e5 bounds the work at a few minutes per unit).
+inline constexpr int kMaxUncertaintySamples = 100000;
+
+// How a unit's checks carry the calibration's covariance to their clinical numbers.
+struct UncertaintySetting {
+  enum class Method { kNone, kLinear, kMonteCarlo };
+  Method method = Method::kLinear;
+  int draws = 0;  // kMonteCarlo: 2 to kMaxUncertaintySamples
+  // "linear"; "none" or "0"; or a number of Monte Carlo draws, 2 to kMaxUncertaintySamples. util::InputError naming
+  // `key` otherwise.
+  static UncertaintySetting Parse(const std::string& text, const std::string& key);
+  std::string MethodName() const;  // "none", "linear" or "monte-carlo"
+  // The setting `MethodName()` and `draws` describe (a record's settings); util::InputError naming `key` otherwise.
+  static UncertaintySetting FromName(const std::string& method, int draws, const std::string& key);
+};
+
+// The eigen-directions of a covariance with a spread, each scaled by its standard deviation: sqrt(l_j) v_j for the
+// eigenvalues l_j > 1e-14 of the largest. The directions along which linear propagation moves the parameters.
+// std::runtime_error when the matrix cannot be factored.
+std::vector<Eigen::VectorXd> ScaledEigenDirections(const Eigen::MatrixXd& covariance);
+
 // The central zone of the power reading: 3 mm diameter, the zone keratometers and topographers' simulated-K
 // readings use (the Javal–Schiøtz keratometer measures at about 3 mm).
 inline constexpr double kCentralPowerRadiusMm = 1.5;
 
 struct ClinicalUncertainty {
   struct Quantity {
-    double mean = 0;
-    double expanded_k2 = 0;  // 2 x standard deviation over the draws
+    double mean = 0;         // linear: the calibration's own value; Monte Carlo: the mean over the draws
+    double expanded_k2 = 0;  // U = 2 u
   };
-  int samples = 0;
-  int failed_samples = 0;             // draws whose reconstruction failed (reported, not hidden)
-  // Spots a draw could not undistort (the inverse distortion did not converge: a spot beyond the drawn distortion's
-  // fold) and so left out of that draw's reconstruction, summed over the draws; and how many draws lost any.
+  bool linear = false;                // linear propagation (else Monte Carlo)
+  int samples = 0;                    // linear: the eigen-directions analysed; Monte Carlo: the draws that reconstructed
+  int failed_samples = 0;             // draws whose reconstruction failed (reported, not hidden; linear: always 0)
+  // Spots an analysis could not undistort (the inverse distortion did not converge: a spot beyond the moved
+  // distortion's fold) and so left out of its reconstruction, summed over the analyses; and how many lost any.
   int undistort_failures = 0;
   int draws_with_undistort_failures = 0;
-  std::vector<std::string> drawn;     // parameter names drawn
-  bool correlated = false;            // drawn with the full covariance (false: independent, diagonal only)
+  std::vector<std::string> drawn;     // parameter names moved
+  bool correlated = false;            // moved with the full covariance (false: independent, diagonal only)
   // rx_mm, ry_mm, kx, ky, alpha_deg, pv_tangential_D, pv_axial_D, radius_mm (mean of rx, ry),
   // central_axial_power_D (topo::MeanAxialPowerD over kCentralPowerRadiusMm)
   std::map<std::string, Quantity> quantities;
@@ -51,13 +82,14 @@ struct ClinicalUncertainty {
 // Throws util::InputError when the matrix does not match its names.
 std::vector<std::string> DistortionParametersToDraw(const calib::ParameterCovariance& covariance);
 
-// The draws run on `jobs` threads (<= 0: every core; model/parallel.h); draw i takes its normals from
-// std::seed_seq{seed, i}, so the result is bit-identical whatever `jobs` is. Each draw starts from the nominal
-// analysis (the calibration as it is: topo::AnalysisOptions::start — its slope-fit factor, its surface for the first
-// incidence points, its biconic or sphere fit) and computes only what the quantities need.
-// Throws util::InputError for samples < 2, a covariance whose size does not match its names, or no distortion
-// parameter with a positive variance;
-// std::runtime_error when more than half of the draws fail.
+// `samples` 0: linear propagation; N >= 2: N Monte Carlo draws. The analyses run on `jobs` threads (<= 0: every
+// core; util/parallel.h); draw i takes its normals from std::seed_seq{seed, i}, so the result is bit-identical
+// whatever `jobs` is. Each analysis starts from the nominal one (the calibration as it is: topo::AnalysisOptions::start
+// — its slope-fit factor, its surface for the first incidence points, its biconic or sphere fit) and computes only
+// what the quantities need.
+// Throws util::InputError for samples 1 or negative, a covariance whose size does not match its names, or no
+// distortion parameter with a positive variance; std::runtime_error when the nominal analysis fails, any linear
+// direction's analysis fails (an incomplete sum would understate U), or more than half of the draws fail.
 ClinicalUncertainty PropagateCalibrationUncertainty(const std::vector<model::PlaneSpot>& spots,
                                                     const model::CameraModel& calibrated,
                                                     const calib::ParameterCovariance& covariance,

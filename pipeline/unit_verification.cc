@@ -39,17 +39,17 @@ StageResult Analyze(const std::vector<model::PlaneSpot>& spots, const std::vecto
 
 // The uncertainty of one check, or none when there is nothing to propagate (no distortion parameter with a spread,
 // e.g. all fixed: the record says so by leaving the uncertainty out). Anything else that stops the propagation — a
-// covariance that does not match its names, too few samples, most draws failing — is a computation error of this
+// covariance that does not match its names, too few samples, an analysis failing — is a computation error of this
 // check: one line naming it (std::runtime_error), never a silently missing uncertainty.
 std::optional<ClinicalUncertainty> Uncertainty(const std::vector<model::PlaneSpot>& detected,
                                                const UnitCalibration& unit, const model::TopographerCamera& camera,
                                                const model::Config& config, const CheckOptions& options,
                                                const char* what) {
-  if (options.uncertainty_samples <= 0) return std::nullopt;
+  if (options.uncertainty.method == UncertaintySetting::Method::kNone) return std::nullopt;
   try {
     if (DistortionParametersToDraw(unit.covariance).empty()) return std::nullopt;
     return PropagateCalibrationUncertainty(detected, unit.camera, unit.covariance, camera, config,
-                                           options.uncertainty_samples, options.seed, options.jobs);
+                                           options.uncertainty.draws, options.seed, options.jobs);
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(fmt::format("{}: {}", what, e.what()));
   }

@@ -7,7 +7,7 @@
 //    own measurement errors — the check topographer makers and ISO 19980 use on test surfaces.
 //  * Paper cornea: the configuration's biconic imaged, in simulation, through the unit's camera as calibrated —
 //    uncorrected (its distortion left in) and corrected (undistorted with the calibration), the calibration's
-//    covariance carried through by Monte Carlo. It says what this unit's distortion would do to an aspheric,
+//    covariance carried through (pipeline/uncertainty.h). It says what this unit's distortion would do to an aspheric,
 //    astigmatic cornea, where the conic constants are fragile.
 #include <cstdint>
 #include <opencv2/core/mat.hpp>
@@ -45,9 +45,9 @@ struct UnitCalibration {
 };
 
 struct CheckOptions {
-  int uncertainty_samples = 200;  // 0 = no Monte Carlo
-  std::uint32_t seed = 1;
-  int jobs = 0;                   // threads for the draws (0 = every core); the result does not depend on it
+  UncertaintySetting uncertainty;  // linear propagation unless told (pipeline/uncertainty.h)
+  std::uint32_t seed = 1;          // of the Monte Carlo draws
+  int jobs = 0;                    // threads for the analyses (0 = every core); the result does not depend on it
 };
 
 struct StageResult {

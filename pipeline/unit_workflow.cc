@@ -116,10 +116,8 @@ void ValidateRequest(const UnitRequest& r) {
   if (!r.sphere_repeats.empty() && r.reference_sphere.empty()) {
     throw util::InputError("--sphere-repeats: repeated images of the reference sphere go with --reference-sphere");
   }
-  if (r.uncertainty_samples != 0 && (r.uncertainty_samples < 2 || r.uncertainty_samples > kMaxUncertaintySamples)) {
-    throw util::InputError(
-        fmt::format("--uncertainty {}: 0 (none) or 2 to {} draws", r.uncertainty_samples, kMaxUncertaintySamples));
-  }
+  // Re-checked, as the request may not come from Parse.
+  (void)UncertaintySetting::FromName(r.uncertainty.MethodName(), r.uncertainty.draws, "--uncertainty");
   if (r.images.empty()) throw util::InputError("--images: no image given");
   if (r.balls.size() != r.ball_radii_mm.size()) {
     throw util::InputError(fmt::format("--radii-mm: {} radii for {} ball images (one certified radius per image)",
@@ -239,7 +237,7 @@ SphereRepeats MeasureSphereRepeats(const UnitRequest& r, LoadedInputs& in, const
       const imageio::ImageBytes bytes = std::move(in.repeat_bytes[i]);
       const cv::Mat image = imageio::DecodeImage(bytes, imageio::Channels::kAsStored, path);
       CheckImageSize(image, path, in, r);
-      keep(VerifyOnReferenceSphere(image, r.sphere_radius_mm, unit, in.camera, in.config, CheckOptions{0, r.seed, 1}));
+      keep(VerifyOnReferenceSphere(image, r.sphere_radius_mm, unit, in.camera, in.config, CheckOptions{{UncertaintySetting::Method::kNone, 0}, r.seed, 1}));
     } catch (...) {
       RethrowForImage(std::current_exception(), path, r.serial);
     }
@@ -480,7 +478,7 @@ UnitResult CalibrateUnit(const UnitRequest& r, const std::function<void(const st
   unit.covariance.names = calib::CameraParameterNames(c.result.model);
   unit.covariance.matrix = c.result.covariance;
   unit.covariance.full = true;
-  u.check = CheckOptions{r.uncertainty_samples, r.seed, r.jobs};
+  u.check = CheckOptions{r.uncertainty, r.seed, r.jobs};
   // The two checks are independent: with more than one thread allowed, the paper cornea's runs beside the sphere's,
   // so that each one's serial parts (detection, nominal analyses, the draws' last stragglers) overlap the other's
   // draws. It starts as soon as the camera is calibrated, before the sphere is decoded and detected (the

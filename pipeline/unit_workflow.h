@@ -21,10 +21,6 @@
 
 namespace topocal::pipeline {
 
-// Monte Carlo draws of a unit's verification: the range of --uncertainty and of unit-inputs.json's
-// uncertainty_samples (200 draws take ~1 s; 1e5 bounds the work at a few minutes per unit).
-inline constexpr int kMaxUncertaintySamples = 100000;
-
 struct UnitRequest {
   std::string serial;
   std::string target;                 // target description (Kalibr YAML)
@@ -48,9 +44,9 @@ struct UnitRequest {
   // A calibration with a parameter the views do not determine (calib/parameter_range.h) is refused unless this is
   // set; the record then lists the parameter under calibration.undetermined.
   bool allow_undetermined = false;
-  int uncertainty_samples = 200;      // Monte Carlo draws; 0 = none, else 2 to kMaxUncertaintySamples
-  unsigned seed = 1;
-  int jobs = 0;                       // threads for the Monte Carlo draws (0 = every core; same record either way)
+  UncertaintySetting uncertainty;     // how the checks carry the covariance (--uncertainty; linear unless told)
+  unsigned seed = 1;                  // of the Monte Carlo draws
+  int jobs = 0;                       // threads for the checks' analyses (0 = every core; same record either way)
   std::string out;                    // the record directory, named after the serial (units/SN/)
   // A record already at `out` is refused (nothing computed); with keep_history (--force) it is moved to
   // <parent>/.history/<serial>/<its created_utc>/ when the new one is in place (docs/unit-record.md).

@@ -76,7 +76,7 @@ Check PaperCheck(std::string id, std::string what, std::string unit, double erro
                  double limit) {
   Check c{std::move(id), std::move(what), std::move(unit), error, U, {}, limit, false, ""};
   if (U) {
-    c.budget = {{"calibration (Monte Carlo)", "unit.json: U (k = 2) halved; a simulation: truth exact, no image noise",
+    c.budget = {{"calibration (its covariance)", "unit.json: U (k = 2) halved; a simulation: truth exact, no image noise",
                  0.5 * *U}};
   }
   return c;
@@ -161,7 +161,7 @@ std::string DecisionRuleText(DecisionRule rule) {
   if (rule == DecisionRule::kGuarded) {
     return "Guarded acceptance (ILAC-G8:09/2019, guard band w = U; ISO 14253-1:2017 conformance zone): a check "
            "passes when |error| + U \u2264 limit, U the expanded uncertainty (k = 2) of the uncertainty budget: the "
-           "calibration carried to the number by Monte Carlo, the repeatability and the reference ball's "
+           "calibration's covariance carried to the number, the repeatability and the reference ball's "
            "certificate. A check without the calibration's U in the record fails. The calibration RMS is compared "
            "with its limit directly.";
   }
@@ -225,13 +225,13 @@ std::vector<Check> SphereChecks(const UnitRecord& rec, const Limits& limits, con
     // Calibration: the record's own U of the radius when it has one; else radius = (r_x + r_y) / 2 and the U of a
     // mean is at most the mean of the U's (equality for full correlation).
     std::optional<double> u_radius = QuantityU(s.uncertainty, "radius_mm");
-    std::string radius_note = u_radius ? "U(calibration) of (r_x + r_y) / 2 from the Monte Carlo" : "";
+    std::string radius_note = u_radius ? "U(calibration) of (r_x + r_y) / 2 from its covariance" : "";
     if (auto ux = QuantityU(s.uncertainty, "rx_mm"), uy = QuantityU(s.uncertainty, "ry_mm"); !u_radius && ux && uy) {
       u_radius = 0.5 * (*ux + *uy);
       radius_note = "U(calibration) = (U(r_x) + U(r_y)) / 2, the bound for fully correlated r_x, r_y";
     }
     std::optional<double> u_power = QuantityU(s.uncertainty, "central_axial_power_D");
-    std::string power_note = u_power ? "U(calibration) of the central power from the Monte Carlo" : "";
+    std::string power_note = u_power ? "U(calibration) of the central power from its covariance" : "";
     const double radius_mm = s.corrected.at("radius_mm");
     // dP/dR at the ball's true radius: P = 1000 (n_k - 1) / R.
     const double dP_dR = 1000.0 * (s.keratometric_index - 1.0) / (s.radius_true_mm * s.radius_true_mm);
@@ -267,14 +267,14 @@ std::vector<Check> SphereChecks(const UnitRecord& rec, const Limits& limits, con
                 std::abs(s.corrected.at("power_error_D")), std::nullopt, {}, limits.sphere_power_error_D.max, false,
                 power_note};
     if (u_radius) {
-      radius.budget = {{"calibration (Monte Carlo)", "unit.json: U (k = 2) halved", 0.5 * *u_radius},
+      radius.budget = {{"calibration (its covariance)", "unit.json: U (k = 2) halved", 0.5 * *u_radius},
                        rep_radius,
                        {"reference ball certificate", cert_source, u_cert_mm}};
       radius.U = 2.0 * CombinedStandardUncertainty(radius.budget);
       radius.note += "; U = 2 \u221a(\u03a3 u\u00b2) over the budget";
     }
     if (u_power) {
-      power.budget = {{"calibration (Monte Carlo)", "unit.json: U (k = 2) halved", 0.5 * *u_power},
+      power.budget = {{"calibration (its covariance)", "unit.json: U (k = 2) halved", 0.5 * *u_power},
                       rep_power,
                       {"reference ball certificate",
                        cert_source + fmt::format(", x dP/dR = {:.4g} D/mm (true power from the certified radius)", dP_dR),

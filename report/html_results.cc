@@ -255,6 +255,14 @@ std::string PreviousComparison(const UnitRecord& now, const UnitRecord& prev, co
 }
 
 // The reference sphere before and after correction, against its certified radius.
+// The heading of the column of values with the calibration's U: with linear propagation the value is the corrected
+// one itself, with Monte Carlo the draws' mean.
+std::string UncertaintyHeading(const UnitRecord& rec) {
+  return rec.settings_uncertainty.method == pipeline::UncertaintySetting::Method::kMonteCarlo
+             ? "corrected, Monte Carlo mean \u00b1 U (k = 2)"
+             : "corrected \u00b1 U (k = 2)";
+}
+
 std::string SphereSection(const UnitRecord& rec) {
   std::string s;
   s += "<section id=\"sphere\" class=\"page-break\"><h2>Reference sphere: before and after correction</h2>\n";
@@ -262,8 +270,8 @@ std::string SphereSection(const UnitRecord& rec) {
     const SphereVerification& v = *rec.verification;
     s += fmt::format("<p>Image {}; true radius {} mm, true power {} D (n<sub>k</sub> = {}).</p>\n", H(v.image),
                      Fixed(v.radius_true_mm, 4), Fixed(v.power_true_D, 3), Sig(v.keratometric_index, 5));
-    s += "<table class=\"data\"><tr><th>quantity</th><th>truth</th><th>uncorrected</th><th>corrected</th>"
-         "<th>corrected, Monte Carlo mean \u00b1 U (k = 2)</th></tr>\n";
+    s += "<table class=\"data\"><tr><th>quantity</th><th>truth</th><th>uncorrected</th><th>corrected</th><th>" +
+         UncertaintyHeading(rec) + "</th></tr>\n";
     constexpr const char* kUndefined = "<span class=\"undefined\">undefined</span>";
     for (const Quantity& q : kSphereRows) {
       if (std::string_view(q.key) == "alpha_deg") {
@@ -312,7 +320,7 @@ std::string PaperSection(const UnitRecord& rec) {
   s += "<section id=\"paper\" class=\"page-break\"><h2>Paper biconic cornea (simulated through this camera): before "
        "and after correction</h2>\n";
   s += "<table class=\"data\"><tr><th>quantity</th><th>truth</th><th>uncorrected</th><th>corrected</th>"
-       "<th>corrected \u2212 truth</th><th>Monte Carlo mean \u00b1 U (k = 2)</th></tr>\n";
+       "<th>corrected \u2212 truth</th><th>" + UncertaintyHeading(rec) + "</th></tr>\n";
   for (const Quantity& q : kPaperRows) {
     const auto t = rec.paper.truth.find(q.key);
     const bool has_truth = t != rec.paper.truth.end();

@@ -253,6 +253,19 @@ std::string SignOffSection(const ReportInputs& inputs, const char* verdict_word,
 }
 
 // How the unit was calibrated and judged.
+std::string UncertaintyText(const pipeline::UncertaintySetting& setting, int seed) {
+  switch (setting.method) {
+    case pipeline::UncertaintySetting::Method::kLinear:
+      return "calibration covariance carried to the clinical numbers by linear propagation (central differences "
+             "along its eigen-directions); U = 2 u (k = 2)";
+    case pipeline::UncertaintySetting::Method::kMonteCarlo:
+      return fmt::format("calibration covariance carried to the clinical numbers by Monte Carlo, {} draws, seed {}; "
+                         "U = 2 s (k = 2)", setting.draws, seed);
+    case pipeline::UncertaintySetting::Method::kNone: break;
+  }
+  return "not propagated (--uncertainty none)";
+}
+
 std::string MethodSection(const UnitRecord& rec, const Limits& limits) {
   std::string s;
   s += "<section id=\"method\" class=\"keep\"><h2>Method</h2>\n<table class=\"data\">\n";
@@ -268,11 +281,7 @@ std::string MethodSection(const UnitRecord& rec, const Limits& limits) {
   s += Row("Distortion centre", rec.settings_fit_centre ? "fitted" : "at the principal point (fixed)");
   s += Row("Reference sphere", rec.settings_sphere_radius_mm ? Fixed(*rec.settings_sphere_radius_mm, 4) + " mm"
                                                               : "none given");
-  s += Row("Uncertainty", rec.settings_uncertainty_samples > 0
-                              ? fmt::format("calibration covariance carried to the clinical numbers by Monte Carlo, {} "
-                                            "draws, seed {}; U = 2 s (k = 2)",
-                                            rec.settings_uncertainty_samples, rec.settings_seed)
-                              : std::string("not propagated (uncertainty samples = 0)"));
+  s += Row("Uncertainty", UncertaintyText(rec.settings_uncertainty, rec.settings_seed));
   s += Row("Decision rule", H(DecisionRuleText(limits.rule)));
   s += "</table></section>\n";
   return s;

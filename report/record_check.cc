@@ -124,7 +124,7 @@ void RecomputeRecordNumbers(const UnitRecord& rec, const RecordCheckOptions& opt
   unit.camera = rec.calibration.camera;
   unit.covariance = calib::ParameterCovarianceOf(rec.calibration);
   pipeline::CheckOptions check;
-  check.uncertainty_samples = rec.settings_uncertainty_samples;
+  check.uncertainty = rec.settings_uncertainty;
   check.seed = static_cast<std::uint32_t>(rec.settings_seed);
   check.jobs = options.jobs;
 

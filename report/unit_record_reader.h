@@ -20,6 +20,7 @@
 #include "model/device.h"
 #include "model/spots_csv.h"
 #include "model/topographer_camera.h"
+#include "pipeline/uncertainty.h"
 
 namespace topocal::report {
 
@@ -59,14 +60,16 @@ struct CornerResidualRow {
   bool outlier = false;
 };
 
-// mean +- U (k = 2) of one clinical number from the Monte Carlo of the calibration's uncertainty.
+// value +- U (k = 2) of one clinical number from the calibration's uncertainty (mean: the calibration's own value with
+// linear propagation, the draws' mean with Monte Carlo).
 struct ExpandedUncertainty {
   double mean = 0;
   double U = 0;
 };
 
 struct UncertaintyBlock {
-  int samples = 0;
+  bool linear = false;  // "method": "linear" (records before it: Monte Carlo)
+  int samples = 0;      // linear: eigen-directions; Monte Carlo: draws that reconstructed
   int seed = 0;
   int failed_samples = 0;
   std::vector<std::string> drawn;
@@ -139,7 +142,8 @@ struct UnitRecord {
   std::string settings_model;
   bool settings_single_view = false, settings_fit_centre = false;
   std::optional<double> settings_sphere_radius_mm;
-  int settings_uncertainty_samples = 0, settings_seed = 0;
+  pipeline::UncertaintySetting settings_uncertainty;  // settings.uncertainty and uncertainty_samples
+  int settings_seed = 0;
 
   std::vector<InputFile> inputs;
   std::vector<RecordFile> files;

@@ -284,7 +284,8 @@ json Uncertainty(const std::optional<pipeline::ClinicalUncertainty>& u, const pi
   if (!u) return nullptr;
   json q = json::object();
   for (const auto& [name, v] : u->quantities) q[name] = {{"mean", v.mean}, {"U", v.expanded_k2}};
-  return {{"samples", u->samples},         {"seed", o.seed},          {"failed_samples", u->failed_samples},
+  return {{"method", u->linear ? "linear" : "monte-carlo"},
+          {"samples", u->samples},         {"seed", o.seed},          {"failed_samples", u->failed_samples},
           {"undistort_failures", u->undistort_failures},
           {"draws_with_undistort_failures", u->draws_with_undistort_failures},
           {"drawn", u->drawn},             {"correlated", u->correlated}, {"coverage_factor", 2},
@@ -467,7 +468,8 @@ void WriteUnitRecord(const pipeline::UnitResult& u) {
                         {"fixed_aspect_ratio", r.fixed_aspect_ratio},
                         {"sphere_radius_mm", r.sphere_radius_mm},
                         {"ball_radii_mm", r.ball_radii_mm},
-                        {"uncertainty_samples", r.uncertainty_samples},
+                        {"uncertainty", r.uncertainty.MethodName()},
+                        {"uncertainty_samples", r.uncertainty.draws},
                         {"seed", r.seed}};
   record["inputs"] = json::array();
   for (const auto& in : u.inputs) record["inputs"].push_back({{"role", in.role}, {"path", in.path}, {"sha256", in.sha256}});

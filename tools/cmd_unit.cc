@@ -31,10 +31,21 @@ void AddCommonOptions(CLI::App* cmd, UnitRequest* r) {
   cmd->add_option("--fix-aspect", r->fixed_aspect_ratio,
                   "Hold fx / fy at this ratio in a multi-view fit (e.g. 1 for square pixels; 0 = free)")
       ->capture_default_str();
-  cmd->add_option("--uncertainty", r->uncertainty_samples,
-                  "Monte Carlo draws of the calibration covariance carried to the clinical numbers (0 = none)")
-      ->check(CLI::Range(0, pipeline::kMaxUncertaintySamples));
-  cmd->add_option("--seed", r->seed, "Seed of the Monte Carlo draws");
+  cmd->add_option_function<std::string>(
+         "--uncertainty",
+         [r](const std::string& text) { r->uncertainty = pipeline::UncertaintySetting::Parse(text, "--uncertainty"); },
+         fmt::format("How the calibration covariance reaches the clinical numbers: linear (propagation, the default), "
+                     "none (or 0), or N seeded Monte Carlo draws (2 to {}, a cross-check)",
+                     pipeline::kMaxUncertaintySamples))
+      ->check([](const std::string& text) {
+        try {
+          (void)pipeline::UncertaintySetting::Parse(text, "--uncertainty");
+          return std::string();
+        } catch (const std::exception& e) {
+          return std::string(e.what());
+        }
+      });
+  cmd->add_option("--seed", r->seed, "Seed of the Monte Carlo draws (--uncertainty N)");
   cmd->add_flag("--allow-undetermined", r->allow_undetermined,
                 "Record a calibration whose views leave a parameter undetermined (listed in the record) instead of "
                 "refusing it");

@@ -45,11 +45,12 @@ class UnitCli : public topocal::testing_cli::TempDirTest {
     TempDirTest::SetUp();
     in_ = UnitInputsDir();
   }
-  std::string Calibrate(const std::string& serial, const std::string& out, const std::string& extra = "") const {
+  std::string Calibrate(const std::string& serial, const std::string& out, const std::string& extra = "",
+                        const std::string& uncertainty = "linear") const {
     return fmt::format(
         "unit calibrate --serial {0} --target {1}/target.yaml --images {1}/view.png --reference-sphere {1}/sphere.png "
         "--sphere-radius-mm {2} --device {1}/device.json --uncertainty {3} --out {4} {5}",
-        serial, in_, kUnitSphereRadiusMm, kDraws, out, extra);
+        serial, in_, kUnitSphereRadiusMm, uncertainty, out, extra);
   }
   // Nothing but the record itself may be left in its parent: no staging directory, no half record.
   std::vector<std::string> Entries(const fs::path& d) const {
@@ -181,9 +182,14 @@ TEST_F(UnitCli, WritesACompleteRecordWhoseSphereCheckPasses) {
   EXPECT_GT(std::abs(raw_radius), kCorrectionGain * std::abs(corrected_radius));
   EXPECT_EQ(v["spots_indexed"], 624);
   EXPECT_GT(v["uncertainty"]["quantities"]["radius_mm"]["U"].get<double>(), 0.0);
+  // Linear propagation: k1 alone has a spread, one eigen-direction; the value is the corrected one itself.
+  EXPECT_EQ(j["settings"]["uncertainty"], "linear");
+  EXPECT_EQ(v["uncertainty"]["method"], "linear");
+  EXPECT_EQ(v["uncertainty"]["samples"], 1);
+  EXPECT_EQ(v["uncertainty"]["quantities"]["radius_mm"]["mean"], v["corrected"]["radius_mm"]);
   // The sphere is fitted as a sphere (centre and radius): its conic constants and rotation are 0 by construction.
   EXPECT_EQ(v["surface_fit"], "sphere");
-  // Spots a Monte Carlo draw could not undistort are counted in the record (none for this calibration's spread).
+  // Spots a moved calibration could not undistort are counted in the record (none for this calibration's spread).
   EXPECT_EQ(v["uncertainty"]["undistort_failures"], 0);
   EXPECT_EQ(v["uncertainty"]["draws_with_undistort_failures"], 0);
   EXPECT_EQ(v["corrected"]["kx"].get<double>(), 0.0);
@@ -421,6 +427,10 @@ TEST_F(UnitCli, BadInputIsOneLineAndLeavesNoRecord) {
                    "--device {0}/device.json --uncertainty 0 --out {1}",
                    in_, out),
        1, "no target found"},
+      {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png "
+                   "--device {0}/device.json --uncertainty 1 --out {1}",
+                   in_, out),
+       2, "--uncertainty: \"1\" is not linear, none (or 0) or a number of Monte Carlo draws"},
       // The bundled full-size camera (4000 x 3000) does not match the 1120 x 1120 images.
       {fmt::format("unit calibrate --serial SN-0003 --target {0}/target.yaml --images {0}/view.png --out {1}", in_, out),
        2, "1120 x 1120 px"},
@@ -577,7 +587,7 @@ TEST_F(UnitCli, BatchSeedIsTheSeedOfEveryUnitsDraws) {
   };
   const double batch5 = run_batch("seed5", 5), batch6 = run_batch("seed6", 6);
   const auto alone = (dir_ / "alone" / "SN-S").string();
-  const auto r = RunTopocal(Calibrate("SN-S", alone, "--seed 5"));
+  const auto r = RunTopocal(Calibrate("SN-S", alone, "--seed 5", std::to_string(kDraws)));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(batch5, radius_u(alone));
   EXPECT_NE(batch5, batch6);
@@ -632,7 +642,7 @@ TEST_F(UnitCli, AParameterTheViewsDoNotDetermineIsRefusedUnlessAllowed) {
     fs::create_directories(batch / "f");
     util::WriteFileAtomic((batch / "f" / "unit-inputs.json").string(),
                           fmt::format(R"({{"serial": "F-2", "target": "{0}/target.yaml", "images": "{1}",)"
-                                      R"( "device": "{0}/device.json", "model": "brown5", "uncertainty_samples": 0,)"
+                                      R"( "device": "{0}/device.json", "model": "brown5", "uncertainty_samples": "none",)"
                                       R"( "fix_aspect": 0{2}}})",
                                       in_, far, extra_keys));
   };
@@ -646,7 +656,9 @@ TEST_F(UnitCli, AParameterTheViewsDoNotDetermineIsRefusedUnlessAllowed) {
   write_inputs(R"(, "allow_undetermined": true)");
   r = run_batch();
   EXPECT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_TRUE(fs::exists(dir_ / "b" / "F-2" / "unit.json"));
+  const json batch_unit = json::parse(util::ReadFile((dir_ / "b" / "F-2" / "unit.json").string()));
+  EXPECT_EQ(batch_unit["settings"]["uncertainty"], "none");  // unit-inputs.json's key, as --uncertainty reads it
+  EXPECT_TRUE(batch_unit["paper_cornea"]["uncertainty"].is_null());
 }
 
 // `unit calibrate --balls` writes the same record, device.json included, byte for byte, whether OpenCV

@@ -29,7 +29,7 @@ struct Fixture {
     c.dist = {model::SeidelSigmaToBrownK1(6.3e-5, config.distortion.magnification, camera.a_mm), 0, 0, 0, 0};
     unit.covariance.names = {"fx", "k1"};
     unit.covariance.matrix = Eigen::Matrix2d::Zero();
-    options.uncertainty_samples = 4;
+    options.uncertainty = UncertaintySetting::Parse("4", "test");
   }
 };
 
@@ -65,9 +65,9 @@ TEST(UnitChecks, AMalformedCovarianceOrTooFewDrawsIsAnErrorNamingTheCheck) {
 
   Fixture g;
   g.unit.covariance.matrix(1, 1) = 1e-6;
-  g.options.uncertainty_samples = 1;  // a standard deviation needs 2
+  g.options.uncertainty = {UncertaintySetting::Method::kMonteCarlo, 1};  // a standard deviation needs 2
   const std::string few = ErrorOf(g);
-  EXPECT_NE(few.find("at least 2 samples"), std::string::npos) << few;
+  EXPECT_NE(few.find("at least 2 Monte Carlo draws"), std::string::npos) << few;
 }
 
 }  // namespace

@@ -86,7 +86,7 @@ inline const FixtureChecks& ComputeChecks() {
     unit.covariance.names = calib::CameraParameterNames(r.model);
     unit.covariance.matrix = r.covariance;
     unit.covariance.full = true;
-    const pipeline::CheckOptions check{kFixtureDraws, 1, 0};
+    const pipeline::CheckOptions check{{pipeline::UncertaintySetting::Method::kMonteCarlo, kFixtureDraws}, 1, 0};
     FixtureChecks c;
     c.configuration = {{"design", json::parse(model::ConfigToJson(config))},
                        {"camera", json::parse(model::TopographerCameraToJson(camera))}};

@@ -36,7 +36,6 @@ namespace fs = std::filesystem;
 
 // residuals.csv holds pixels with 6 decimals: a value comes back within half a unit of the last one.
 constexpr double kCsvPixelTolerancePx = 5e-7;
-constexpr int kDraws = 4;  // the uncertainty block must be present; its size is tested elsewhere
 
 // Every value the reader returned for a stage equals the computed one (the reader takes the keys of
 // kSphereStageKeys, kPaperStageKeys, kDeviceStageKeys; the writer writes these and more). `extra`: keys the stage
@@ -71,6 +70,7 @@ void ExpectUncertainty(const std::optional<UncertaintyBlock>& read,
                        const std::optional<pipeline::ClinicalUncertainty>& u, const pipeline::CheckOptions& check) {
   ASSERT_EQ(read.has_value(), u.has_value());
   if (!u) return;
+  EXPECT_EQ(read->linear, u->linear);
   EXPECT_EQ(read->samples, u->samples);
   EXPECT_EQ(read->seed, static_cast<int>(check.seed));
   EXPECT_EQ(read->failed_samples, u->failed_samples);
@@ -123,7 +123,6 @@ TEST(UnitRecordRoundTrip, EveryFieldTheWorkflowComputedIsReadBackUnchanged) {
   r.config = std::string(TOPOCAL_SOURCE_DIR) + "/data/paper.json";
   r.device = in + "/device.json";
   r.sphere_radius_mm = 7.8;
-  r.uncertainty_samples = kDraws;
   r.seed = 3;
   r.out = dir + "/RT-0001";
 
@@ -143,7 +142,8 @@ TEST(UnitRecordRoundTrip, EveryFieldTheWorkflowComputedIsReadBackUnchanged) {
   EXPECT_EQ(rec.settings_fit_centre, r.fit_centre);
   ASSERT_TRUE(rec.settings_sphere_radius_mm);
   EXPECT_EQ(*rec.settings_sphere_radius_mm, r.sphere_radius_mm);
-  EXPECT_EQ(rec.settings_uncertainty_samples, r.uncertainty_samples);
+  EXPECT_EQ(rec.settings_uncertainty.method, pipeline::UncertaintySetting::Method::kLinear);  // the default
+  EXPECT_EQ(rec.settings_uncertainty.draws, r.uncertainty.draws);
   EXPECT_EQ(rec.settings_seed, static_cast<int>(r.seed));
 
   // Provenance: every input with its digest, in order.
