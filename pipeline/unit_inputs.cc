@@ -20,6 +20,25 @@ namespace topocal::pipeline {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
+namespace {
+
+// uncertainty_samples, the values --uncertainty takes: "linear", "none" or a number of draws as a string; 0 (none) or
+// 2 to kMaxUncertaintySamples Monte Carlo draws as a number.
+UncertaintySetting ReadUncertainty(util::JsonSection& s) {
+  const json& v = s.Get("uncertainty_samples");
+  const std::string text = v.is_string()
+                               ? v.get<std::string>()
+                               : std::to_string(s.IntegerInRange("uncertainty_samples", 0, kMaxUncertaintySamples));
+  try {
+    return UncertaintySetting::Parse(text, "uncertainty_samples");
+  } catch (const util::InputError&) {
+    s.Fail("uncertainty_samples", fmt::format("expected \"linear\", \"none\", 0 or 2 to {} (got {})",
+                                             kMaxUncertaintySamples, util::QuoteJsonValue(v)));
+  }
+}
+
+}  // namespace
+
 UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults) {
   const json j = util::ParseJsonStrict(util::ReadFile(path), path);
   util::JsonSection s(j, path, "");
@@ -80,20 +99,7 @@ UnitRequest ReadUnitInputs(const std::string& path, const UnitRequest& defaults)
     }
     r.allow_undetermined = v.get<bool>();
   }
-  // The same values as --uncertainty: 0 (none) or 2 to kMaxUncertaintySamples Monte Carlo draws as a number;
-  // "linear", "none" or a number of draws as a string.
-  if (s.Has("uncertainty_samples")) {
-    const json& v = s.Get("uncertainty_samples");
-    const std::string text =
-        v.is_string() ? v.get<std::string>()
-                      : std::to_string(s.IntegerInRange("uncertainty_samples", 0, kMaxUncertaintySamples));
-    try {
-      r.uncertainty = UncertaintySetting::Parse(text, "uncertainty_samples");
-    } catch (const util::InputError&) {
-      s.Fail("uncertainty_samples", fmt::format("expected \"linear\", \"none\", 0 or 2 to {} (got {})",
-                                               kMaxUncertaintySamples, util::QuoteJsonValue(v)));
-    }
-  }
+  if (s.Has("uncertainty_samples")) r.uncertainty = ReadUncertainty(s);
   if (s.Has("seed")) {
     const json& v = s.Get("seed");
     if (!util::JsonIntegerWithin(v, 0, std::numeric_limits<std::uint32_t>::max())) {
