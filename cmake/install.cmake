@@ -26,7 +26,7 @@ install(TARGETS ${TOPOCAL_LIBRARY_TARGETS} EXPORT topocalTargets
 install(TARGETS topocal RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT cli)
 # Every verb, and `--version` and the sweep without OpenCV; `topocal` (tools/launcher.cc) runs them from
 # <bindir>/../<libexecdir>.
-install(TARGETS topocal_full topocal_sweep RUNTIME DESTINATION ${CMAKE_INSTALL_LIBEXECDIR} COMPONENT cli)
+install(TARGETS topocal_full topocal_sweep topocal_detect RUNTIME DESTINATION ${CMAKE_INSTALL_LIBEXECDIR} COMPONENT cli)
 # imageio's codec plugin (imageio/imgcodecs_abi.h), where the installed CLI finds it relative to itself
 # (<bindir>/../<libdir>/topocal) and programs linking the installed libraries find it by the configured prefix.
 install(TARGETS topocal_imgcodecs LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}/topocal COMPONENT cli)

@@ -4,6 +4,8 @@
 // the C library alone (no C++ library either), so a verb pays for the libraries of the program that runs it only.
 //  - `--version`, and `sweep` without a help flag: topocal-sweep (sweep_main.cc), linked against model, topo, Ceres
 //    and fmt but no OpenCV; it hands a sweep with --correct or --maps on to topocal-full.
+//  - `detect` without a help flag: topocal-detect (detect_main.cc), without the calibration, drawing, database and
+//    digest libraries no capture needs.
 //  - Every other command line, and every --help: topocal-full (main.cc), every verb.
 // Both are installed in <prefix>/<libexecdir>, as this program is in <prefix>/<bindir>; the build tree mirrors that
 // layout (tools/CMakeLists.txt).
@@ -16,9 +18,9 @@
 
 namespace {
 
-// Whether topocal-sweep runs the command line: `--version` alone, or `sweep` without a help flag (`--quiet` may stand
-// anywhere).
-bool RunsInSweepProgram(int argc, char** argv) {
+// The program that runs the command line: topocal-sweep for `--version` alone or `sweep` without a help flag,
+// topocal-detect for `detect` without a help flag (`--quiet` may stand anywhere), topocal-full for any other.
+const char* ProgramFor(int argc, char** argv) {
   int first = 0, count = 0;
   bool help = false;
   for (int i = 1; i < argc; ++i) {
@@ -26,15 +28,18 @@ bool RunsInSweepProgram(int argc, char** argv) {
     if (count++ == 0) first = i;
     help = help || strcmp(argv[i], "-h") == 0 || strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "--help-all") == 0;
   }
-  if (count == 0) return false;
-  if (count == 1 && strcmp(argv[first], "--version") == 0) return true;
-  return strcmp(argv[first], "sweep") == 0 && !help;
+  if (count == 0) return "topocal-full";
+  if (count == 1 && strcmp(argv[first], "--version") == 0) return "topocal-sweep";
+  if (help) return "topocal-full";
+  if (strcmp(argv[first], "sweep") == 0) return "topocal-sweep";
+  if (strcmp(argv[first], "detect") == 0) return "topocal-detect";
+  return "topocal-full";
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  const char* program = RunsInSweepProgram(argc, argv) ? "topocal-sweep" : "topocal-full";
+  const char* program = ProgramFor(argc, argv);
   // <this executable's directory>/../<libexecdir>/<program>
   char path[PATH_MAX + 64];
   const ssize_t n = readlink("/proc/self/exe", path, PATH_MAX);

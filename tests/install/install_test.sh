@@ -56,12 +56,26 @@ case "$msg" in *"no file matches"*|*"none*.png"*) ;; *) echo "installed unit cal
 # library module would load OpenCV's 23 libraries for every sweep.
 needed=$(readelf -d "$prefix/libexec/topocal-sweep")
 if grep -i opencv <<< "$needed"; then echo "topocal-sweep links OpenCV" >&2; exit 1; fi
-# Without topocal-full: `--version` and the sweep still run (topocal-sweep); every other verb fails with one line
-# naming the missing program, and writes nothing.
+# topocal-detect links none of the libraries no capture needs (the drawing, database, digest and AprilTag ones).
+needed=$(readelf -d "$prefix/libexec/topocal-detect")
+if grep -E -i "freetype|sqlite|crypto|apriltag|aruco" <<< "$needed"; then
+  echo "topocal-detect links a library detection does not use" >&2
+  exit 1
+fi
+# Without topocal-full: `--version` and the sweep still run (topocal-sweep), and so does `detect` (topocal-detect: a
+# missing image is its own error); every other verb fails with one line naming the missing program, and writes
+# nothing.
 mv "$prefix/libexec/topocal-full" "$work/full"
 "$prefix/bin/topocal" --version
 "$prefix/bin/topocal" sweep --config "$data/paper.json" --json sweep.json >/dev/null
 test -s sweep.json
+set +e
+msg=$("$prefix/bin/topocal" detect --image missing.png --config "$data/paper.json" --device "$data/device.json" \
+      --out spots.csv 2>&1)
+code=$?
+set -e
+case "$code:$msg" in 2:*"missing.png: cannot be opened"*) ;; *) echo "detect without topocal-full ($code): $msg" >&2; exit 1 ;; esac
+test ! -e spots.csv
 set +e
 msg=$("$prefix/bin/topocal" simulate --config "$data/paper.json" --sigma 0 --out nofull.csv 2>&1)
 code=$?
@@ -94,6 +108,7 @@ grep "usr/share/topocal/data/paper.json" <<< "$contents" >/dev/null
 grep "usr/lib/topocal/libtopocal_imgcodecs.so" <<< "$contents" >/dev/null
 grep "usr/libexec/topocal-full" <<< "$contents" >/dev/null
 grep "usr/libexec/topocal-sweep" <<< "$contents" >/dev/null
+grep "usr/libexec/topocal-detect" <<< "$contents" >/dev/null
 if [ -f "$build/python/topocal/__init__.py" ]; then
   grep "usr/lib/python3.*/dist-packages/topocal/_topocal.*\.so" <<< "$contents" >/dev/null
   grep "usr/lib/python3.*/dist-packages/topocal/__init__.py" <<< "$contents" >/dev/null
