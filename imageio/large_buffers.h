@@ -3,9 +3,9 @@
 // fresh memory in every process that reads one, and on the 2-core development VM every fresh 4 KB page costs
 // ~20-30 us in the page-fault handler: a `detect` of a blank frame spent ~40 % of its CPU there. A huge page is
 // one fault for 2 MB. With THP in `madvise` mode (Debian's default) the kernel gives huge pages only to memory
-// advised so (madvise(2), MADV_HUGEPAGE); this asks for it for every cv::Mat buffer of at least 4 MB, the size from
-// which glibc serves a block with a mapping of its own in topocal's programs (util/allocator.h), so no heap memory is
-// advised and a buffer's rounding costs at most 2 MB. Pixels and results do not change, only how memory is mapped.
+// advised so (madvise(2), MADV_HUGEPAGE); this gives every cv::Mat buffer of at least 2 MB a mapping of its own,
+// aligned to and rounded up to whole huge pages and advised, so that all of it can be huge (a buffer's rounding costs
+// at most 2 MB). Pixels and results do not change, only how memory is mapped.
 // A library never changes the allocator of the program that links it: programs call this (tools/main.cc), before
 // their first image.
 namespace topocal::imageio {
