@@ -240,12 +240,18 @@ std::string UncertaintySetting::MethodName() const {
   return "none";
 }
 
-UncertaintySetting UncertaintySetting::FromName(const std::string& method, int draws, const std::string& key) {
-  if (method == "monte-carlo" && draws >= 2 && draws <= kMaxUncertaintySamples) return {Method::kMonteCarlo, draws};
-  if (method == "linear" && draws == 0) return {Method::kLinear, 0};
-  if (method == "none" && draws == 0) return {Method::kNone, 0};
-  throw util::InputError(fmt::format("{}: \"{}\" with {} draws is not an uncertainty setting (linear or none with 0, "
-                                     "monte-carlo with 2 to {})", key, method, draws, kMaxUncertaintySamples));
+std::optional<UncertaintySetting> UncertaintySetting::FromName(const std::string& method, int draws) {
+  if (method == "monte-carlo" && draws >= 2 && draws <= kMaxUncertaintySamples) {
+    return UncertaintySetting{Method::kMonteCarlo, draws};
+  }
+  if (method == "linear" && draws == 0) return UncertaintySetting{Method::kLinear, 0};
+  if (method == "none" && draws == 0) return UncertaintySetting{Method::kNone, 0};
+  return std::nullopt;
+}
+
+std::string UncertaintySetting::WhyNot(const std::string& method, int draws) {
+  return fmt::format("\"{}\" with {} draws is not an uncertainty setting (linear or none with 0, monte-carlo with 2 "
+                     "to {})", method, draws, kMaxUncertaintySamples);
 }
 
 std::vector<Eigen::VectorXd> ScaledEigenDirections(const Eigen::MatrixXd& covariance) {

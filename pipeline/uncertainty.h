@@ -18,6 +18,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -44,8 +45,10 @@ struct UncertaintySetting {
   // `key` otherwise.
   static UncertaintySetting Parse(const std::string& text, const std::string& key);
   std::string MethodName() const;  // "none", "linear" or "monte-carlo"
-  // The setting `MethodName()` and `draws` describe (a record's settings); util::InputError naming `key` otherwise.
-  static UncertaintySetting FromName(const std::string& method, int draws, const std::string& key);
+  // The setting `MethodName()` and `draws` describe (a record's settings); nullopt when they do not go together.
+  static std::optional<UncertaintySetting> FromName(const std::string& method, int draws);
+  // Why FromName(method, draws) has none, in words.
+  static std::string WhyNot(const std::string& method, int draws);
 };
 
 // The eigen-directions of a covariance with a spread, each scaled by its standard deviation: sqrt(l_j) v_j for the

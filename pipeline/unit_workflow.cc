@@ -117,7 +117,10 @@ void ValidateRequest(const UnitRequest& r) {
     throw util::InputError("--sphere-repeats: repeated images of the reference sphere go with --reference-sphere");
   }
   // Re-checked, as the request may not come from Parse.
-  (void)UncertaintySetting::FromName(r.uncertainty.MethodName(), r.uncertainty.draws, "--uncertainty");
+  if (!UncertaintySetting::FromName(r.uncertainty.MethodName(), r.uncertainty.draws)) {
+    throw util::InputError("--uncertainty: " + UncertaintySetting::WhyNot(r.uncertainty.MethodName(),
+                                                                          r.uncertainty.draws));
+  }
   if (r.images.empty()) throw util::InputError("--images: no image given");
   if (r.balls.size() != r.ball_radii_mm.size()) {
     throw util::InputError(fmt::format("--radii-mm: {} radii for {} ball images (one certified radius per image)",

@@ -58,11 +58,9 @@ std::optional<UncertaintyBlock> ReadUncertainty(JsonSection& parent) {
   if (parent.AbsentOrNull("uncertainty")) return std::nullopt;
   JsonSection u = parent.Child("uncertainty");
   UncertaintyBlock block;
-  if (u.Has("method")) {
-    const std::string method = u.NonEmptyString("method");
-    if (method != "linear" && method != "monte-carlo") u.Fail(u.Key("method"), "must be linear or monte-carlo");
-    block.linear = method == "linear";
-  }
+  const std::string method = u.NonEmptyString("method");
+  if (method != "linear" && method != "monte-carlo") u.Fail(u.Key("method"), "must be linear or monte-carlo");
+  block.linear = method == "linear";
   block.samples = u.NonNegativeInteger("samples");
   block.seed = u.Integer("seed");
   block.failed_samples = u.NonNegativeInteger("failed_samples");
@@ -206,11 +204,11 @@ void ReadSettingsAndInputs(JsonSection& r, UnitRecord* rec) {
   rec->settings_single_view = settings.Bool("single_view");
   rec->settings_fit_centre = settings.Bool("fit_centre");
   if (settings.Has("sphere_radius_mm")) rec->settings_sphere_radius_mm = settings.Number("sphere_radius_mm");
-  // Records written before the linear propagation have no "uncertainty": their samples said it (0: none).
   const int draws = settings.NonNegativeInteger("uncertainty_samples");
-  const std::string method =
-      settings.Has("uncertainty") ? settings.NonEmptyString("uncertainty") : (draws > 0 ? "monte-carlo" : "none");
-  rec->settings_uncertainty = pipeline::UncertaintySetting::FromName(method, draws, settings.Key("uncertainty"));
+  const std::string method = settings.NonEmptyString("uncertainty");
+  const auto uncertainty = pipeline::UncertaintySetting::FromName(method, draws);
+  if (!uncertainty) settings.Fail(settings.Key("uncertainty"), pipeline::UncertaintySetting::WhyNot(method, draws));
+  rec->settings_uncertainty = *uncertainty;
   rec->settings_seed = settings.Integer("seed");
 
   const std::size_t n_inputs = r.Array("inputs").size();

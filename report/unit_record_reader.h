@@ -26,7 +26,8 @@ namespace topocal::report {
 
 // Versions of the record this reader understands.
 inline constexpr const char* kUnitRecordFormat = "topocal-unit-record";
-inline constexpr int kUnitRecordFormatVersion = 3;  // 2: sphere_spots.csv, uncertainty may be null; 3: adequacy
+inline constexpr int kUnitRecordFormatVersion = 4;  // 2: sphere_spots.csv, uncertainty may be null; 3: adequacy;
+                                                    // 4: settings.uncertainty, the uncertainty blocks' method
 inline constexpr const char* kSphereSpotsCsv = "sphere_spots.csv";
 
 struct InputFile {

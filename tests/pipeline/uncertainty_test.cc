@@ -243,10 +243,12 @@ TEST(Uncertainty, TheSettingIsReadAsUsersWriteIt) {
       EXPECT_EQ(std::string(e.what()).rfind("--uncertainty: \"", 0), 0u) << e.what();
     }
   }
-  EXPECT_EQ(UncertaintySetting::FromName("linear", 0, "k").method, Method::kLinear);
-  EXPECT_THROW(UncertaintySetting::FromName("linear", 5, "k"), util::InputError);
-  EXPECT_THROW(UncertaintySetting::FromName("monte-carlo", 1, "k"), util::InputError);
-  EXPECT_THROW(UncertaintySetting::FromName("bootstrap", 0, "k"), util::InputError);
+  ASSERT_TRUE(UncertaintySetting::FromName("linear", 0));
+  EXPECT_EQ(UncertaintySetting::FromName("linear", 0)->method, Method::kLinear);
+  EXPECT_EQ(UncertaintySetting::FromName("monte-carlo", 200)->draws, 200);
+  EXPECT_FALSE(UncertaintySetting::FromName("linear", 5));
+  EXPECT_FALSE(UncertaintySetting::FromName("monte-carlo", 1));
+  EXPECT_FALSE(UncertaintySetting::FromName("bootstrap", 0));
 }
 
 }  // namespace

@@ -133,6 +133,7 @@ inline json RecordBody(const calib::CalibrationResult& r, const std::string& ser
         {"single_view", true},
         {"fit_centre", false},
         {"sphere_radius_mm", 7.8},
+        {"uncertainty", "monte-carlo"},
         {"uncertainty_samples", kFixtureDraws},
         {"seed", 1}}},
       {"inputs",

@@ -89,7 +89,8 @@ inline void WriteMapPng(const std::string& path, int seed) {
 
 
 inline json Uncertainty(double u_r, double u_k) {
-  return {{"samples", 200},
+  return {{"method", "monte-carlo"},
+          {"samples", 200},
           {"seed", 1},
           {"failed_samples", 0},
           {"drawn", {"k1"}},

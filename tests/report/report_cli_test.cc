@@ -180,10 +180,11 @@ TEST(ReportCli, RefusesANumberChangedInUnitJson) {
   }
 }
 
-// A record written with `--uncertainty 0` ("uncertainty": null) reports: guarded acceptance cannot decide without U
+// A record written with `--uncertainty none` ("uncertainty": null) reports: guarded acceptance cannot decide without U
 // (FAIL, exit 3, the reason on the page), simple acceptance judges the errors alone.
 TEST(ReportCli, ReportsARecordWithoutUncertainty) {
   Case c = MakeCase("nou");
+  c.record.unit["settings"]["uncertainty"] = "none";
   c.record.unit["settings"]["uncertainty_samples"] = 0;
   c.record.unit["verification"]["uncertainty"] = nullptr;
   c.record.unit["paper_cornea"]["uncertainty"] = nullptr;

@@ -155,6 +155,31 @@ TEST(UnitRecordReader, RefusesAnotherFormatOrFormatVersion) {
   EXPECT_NE(ReadError(f.dir).find("unit.json: format: 'something-else'"), std::string::npos);
 }
 
+// How the calibration's covariance reached the numbers is part of the record: a setting and a method it does not
+// know, or a setting and a number of draws that do not go together, are refused by key.
+TEST(UnitRecordReader, RefusesAnUncertaintyMethodItDoesNotKnow) {
+  auto f = MakeRecord(FreshDir("method"));
+  f.unit["settings"]["uncertainty"] = "bootstrap";
+  f.WriteUnitJson();
+  std::string e = ReadError(f.dir);
+  EXPECT_NE(e.find("unit.json: settings.uncertainty: \"bootstrap\" with 8 draws is not an uncertainty setting"),
+            std::string::npos)
+      << e;
+  f.unit["settings"]["uncertainty"] = "linear";  // with the fixture's 8 draws
+  f.WriteUnitJson();
+  e = ReadError(f.dir);
+  EXPECT_NE(e.find("unit.json: settings.uncertainty: \"linear\" with 8 draws"), std::string::npos) << e;
+  f.unit["settings"].erase("uncertainty");
+  f.WriteUnitJson();
+  e = ReadError(f.dir);
+  EXPECT_NE(e.find("settings.uncertainty"), std::string::npos) << e;
+  f.unit["settings"]["uncertainty"] = "monte-carlo";
+  f.unit["verification"]["uncertainty"]["method"] = "bootstrap";
+  f.WriteUnitJson();
+  e = ReadError(f.dir);
+  EXPECT_NE(e.find("verification.uncertainty.method: must be linear or monte-carlo"), std::string::npos) << e;
+}
+
 TEST(UnitRecordReader, NamesAMissingOrMistypedKey) {
   auto f = MakeRecord(FreshDir("keys"));
   f.unit["calibration"].erase("rms_px");
