@@ -69,7 +69,7 @@ struct ExpandedUncertainty {
 };
 
 struct UncertaintyBlock {
-  bool linear = false;  // "method": "linear" (records before it: Monte Carlo)
+  bool linear = false;  // "method": "linear" (else "monte-carlo")
   int samples = 0;      // linear: eigen-directions; Monte Carlo: draws that reconstructed
   int seed = 0;
   int failed_samples = 0;
