@@ -434,7 +434,6 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
     if (auto comp = MakeComponent(seg, k, options)) comps.push_back(std::move(*comp));
   }
   FlagUnlikeNeighbours(n, &comps);
-
   if (options.method == CentroidMethod::kGaussianFit) {
     RefineByGaussianFit(image_box, labels, bg, &comps);
   } else if (options.method == CentroidMethod::kWeightedPsfFit) {
