@@ -85,8 +85,8 @@ bool ApplyLocalBackground(const cv::Mat& image, double median, double sigma, dou
 }
 
 // Whether any pixel is above `threshold`, as cv::compare(image, threshold, CMP_GT) has it (an integer image's
-// threshold truncated to an integer, a float image's rounded to float), without a mask: a frame without a spot costs one read pass,
-// not a frame-sized mask (12 MB of fresh memory for 4000 x 3000).
+// threshold truncated to an integer, a float image's rounded to float), without a mask: a frame without a spot costs
+// one read pass, not a frame-sized mask (12 MB of fresh memory for 4000 x 3000).
 template <typename T>
 bool AnyAbove(const cv::Mat& image, T threshold) {
   for (int r = 0; r < image.rows; ++r) {

@@ -66,7 +66,7 @@ struct ClinicalUncertainty {
     double expanded_k2 = 0;  // U = 2 u
   };
   bool linear = false;                // linear propagation (else Monte Carlo)
-  int samples = 0;                    // linear: the eigen-directions analysed; Monte Carlo: the draws that reconstructed
+  int samples = 0;                    // linear: eigen-directions analysed; Monte Carlo: draws that reconstructed
   int failed_samples = 0;             // draws whose reconstruction failed (reported, not hidden; linear: always 0)
   // Spots an analysis could not undistort (the inverse distortion did not converge: a spot beyond the moved
   // distortion's fold) and so left out of its reconstruction, summed over the analyses; and how many lost any.

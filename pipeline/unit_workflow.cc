@@ -240,7 +240,8 @@ SphereRepeats MeasureSphereRepeats(const UnitRequest& r, LoadedInputs& in, const
       const imageio::ImageBytes bytes = std::move(in.repeat_bytes[i]);
       const cv::Mat image = imageio::DecodeImage(bytes, imageio::Channels::kAsStored, path);
       CheckImageSize(image, path, in, r);
-      keep(VerifyOnReferenceSphere(image, r.sphere_radius_mm, unit, in.camera, in.config, CheckOptions{{UncertaintySetting::Method::kNone, 0}, r.seed, 1}));
+      const CheckOptions without_uncertainty{{UncertaintySetting::Method::kNone, 0}, r.seed, 1};
+      keep(VerifyOnReferenceSphere(image, r.sphere_radius_mm, unit, in.camera, in.config, without_uncertainty));
     } catch (...) {
       RethrowForImage(std::current_exception(), path, r.serial);
     }

@@ -76,8 +76,8 @@ Check PaperCheck(std::string id, std::string what, std::string unit, double erro
                  double limit) {
   Check c{std::move(id), std::move(what), std::move(unit), error, U, {}, limit, false, ""};
   if (U) {
-    c.budget = {{"calibration (its covariance)", "unit.json: U (k = 2) halved; a simulation: truth exact, no image noise",
-                 0.5 * *U}};
+    c.budget = {{"calibration (its covariance)",
+                 "unit.json: U (k = 2) halved; a simulation: truth exact, no image noise", 0.5 * *U}};
   }
   return c;
 }

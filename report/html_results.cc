@@ -254,7 +254,6 @@ std::string PreviousComparison(const UnitRecord& now, const UnitRecord& prev, co
   return s;
 }
 
-// The reference sphere before and after correction, against its certified radius.
 // The heading of the column of values with the calibration's U: with linear propagation the value is the corrected
 // one itself, with Monte Carlo the draws' mean.
 std::string UncertaintyHeading(const UnitRecord& rec) {
@@ -263,6 +262,7 @@ std::string UncertaintyHeading(const UnitRecord& rec) {
              : "corrected \u00b1 U (k = 2)";
 }
 
+// The reference sphere before and after correction, against its certified radius.
 std::string SphereSection(const UnitRecord& rec) {
   std::string s;
   s += "<section id=\"sphere\" class=\"page-break\"><h2>Reference sphere: before and after correction</h2>\n";

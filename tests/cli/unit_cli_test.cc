@@ -642,8 +642,8 @@ TEST_F(UnitCli, AParameterTheViewsDoNotDetermineIsRefusedUnlessAllowed) {
     fs::create_directories(batch / "f");
     util::WriteFileAtomic((batch / "f" / "unit-inputs.json").string(),
                           fmt::format(R"({{"serial": "F-2", "target": "{0}/target.yaml", "images": "{1}",)"
-                                      R"( "device": "{0}/device.json", "model": "brown5", "uncertainty_samples": "none",)"
-                                      R"( "fix_aspect": 0{2}}})",
+                                      R"( "device": "{0}/device.json", "model": "brown5",)"
+                                      R"( "uncertainty_samples": "none", "fix_aspect": 0{2}}})",
                                       in_, far, extra_keys));
   };
   const auto run_batch = [&] {

@@ -74,7 +74,10 @@ msg=$("$prefix/bin/topocal" detect --image missing.png --config "$data/paper.jso
       --out spots.csv 2>&1)
 code=$?
 set -e
-case "$code:$msg" in 2:*"missing.png: cannot be opened"*) ;; *) echo "detect without topocal-full ($code): $msg" >&2; exit 1 ;; esac
+case "$code:$msg" in
+  2:*"missing.png: cannot be opened"*) ;;
+  *) echo "detect without topocal-full ($code): $msg" >&2; exit 1 ;;
+esac
 test ! -e spots.csv
 set +e
 msg=$("$prefix/bin/topocal" simulate --config "$data/paper.json" --sigma 0 --out nofull.csv 2>&1)
