@@ -11,6 +11,9 @@
 #include <opencv2/imgcodecs.hpp>  // the IMREAD_ constants only
 #include <string>
 #include <vector>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "imageio/container_check.h"
 
@@ -174,6 +177,38 @@ std::uint8_t Paeth(int a, int b, int c) {
   return static_cast<std::uint8_t>(pa <= pb && pa <= pc ? a : pb <= pc ? b : c);
 }
 
+#if defined(__SSE2__)
+// The Sub filter reversed over a row's first whole 16-byte blocks, kBpp 1, 2, 4 or 8 bytes per pixel; returns the
+// bytes done. x[i] += x[i - kBpp] is a running sum along each of the kBpp interleaved byte sequences: within a block
+// a prefix sum in the register (log2(16 / kBpp) shifted adds), plus the block before's last pixel broadcast. Written
+// here because no Debian library exports one (libpng's SSE2 filters are internal and cover 3 and 4 bytes per pixel;
+// a camera's 16-bit grey frame is 2, and OpenCV writes its PNGs with this filter).
+template <int kBpp>
+std::size_t UnfilterSubBlocks(std::uint8_t* x, std::size_t n) {
+  static_assert(kBpp == 1 || kBpp == 2 || kBpp == 4 || kBpp == 8);
+  __m128i carry = _mm_setzero_si128();
+  std::size_t i = 0;
+  for (; i + 16 <= n; i += 16) {
+    __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(x + i));
+    v = _mm_add_epi8(v, _mm_slli_si128(v, kBpp));
+    if constexpr (kBpp < 8) v = _mm_add_epi8(v, _mm_slli_si128(v, 2 * kBpp));
+    if constexpr (kBpp < 4) v = _mm_add_epi8(v, _mm_slli_si128(v, 4 * kBpp));
+    if constexpr (kBpp < 2) v = _mm_add_epi8(v, _mm_slli_si128(v, 8 * kBpp));
+    v = _mm_add_epi8(v, carry);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(x + i), v);
+    if constexpr (kBpp == 8) {
+      carry = _mm_unpackhi_epi64(v, v);
+    } else if constexpr (kBpp == 4) {
+      carry = _mm_shuffle_epi32(v, 0xFF);
+    } else {
+      const __m128i w = _mm_shufflehi_epi16(kBpp == 1 ? _mm_unpackhi_epi8(v, v) : v, 0xFF);  // word 7 in 4..7
+      carry = _mm_unpackhi_epi64(w, w);
+    }
+  }
+  return i;
+}
+#endif
+
 // One row's filter reversed in place (`x`, n bytes; `prev` the row above, unfiltered), kBpp bytes per pixel. The
 // left, up and up-left bytes of each of the kBpp interleaved sequences are carried in registers, so that no load
 // waits on the store before it.
@@ -181,11 +216,17 @@ template <int kBpp>
 void UnfilterRow(std::uint8_t filter, std::uint8_t* x, const std::uint8_t* prev, std::size_t n) {
   std::uint8_t left[kBpp] = {}, up_left[kBpp] = {};
   switch (filter) {
-    case 1:
-      for (std::size_t i = 0; i < n; i += kBpp) {
+    case 1: {
+      std::size_t i = 0;
+#if defined(__SSE2__)
+      if constexpr (kBpp == 1 || kBpp == 2 || kBpp == 4 || kBpp == 8) i = UnfilterSubBlocks<kBpp>(x, n);
+      if (i > 0) std::memcpy(left, x + i - kBpp, kBpp);
+#endif
+      for (; i < n; i += kBpp) {
         for (int c = 0; c < kBpp; ++c) x[i + c] = left[c] = static_cast<std::uint8_t>(x[i + c] + left[c]);
       }
       return;
+    }
     case 2:
       for (std::size_t i = 0; i < n; ++i) x[i] = static_cast<std::uint8_t>(x[i] + prev[i]);
       return;
@@ -210,29 +251,51 @@ void UnfilterRow(std::uint8_t filter, std::uint8_t* x, const std::uint8_t* prev,
 }
 
 // Reverses the row filters in place: `rows` holds each row as its filter byte and `row_bytes` filtered bytes, `bpp`
-// bytes per pixel (1, 2, 3, 4, 6 or 8). False for a filter byte above 4.
-template <int kBpp>
-bool UnfilterRows(std::uint8_t* rows, std::size_t height, std::size_t row_bytes) {
+// bytes per pixel (1, 2, 3, 4, 6 or 8). Each row is handed to `emit(y, row)` as soon as the row below no longer needs
+// it, while it is still in cache: one pass over the image instead of two. False for a filter byte above 4.
+template <int kBpp, typename Emit>
+bool UnfilterRows(std::uint8_t* rows, std::size_t height, std::size_t row_bytes, Emit& emit) {
   const std::vector<std::uint8_t> zeros(row_bytes, 0);
   const std::uint8_t* prev = zeros.data();
   for (std::size_t y = 0; y < height; ++y) {
     std::uint8_t* row = rows + y * (row_bytes + 1);
     if (row[0] > 4) return false;
     UnfilterRow<kBpp>(row[0], row + 1, prev, row_bytes);
+    if (y > 0) emit(y - 1, prev);
     prev = row + 1;
   }
+  if (height > 0) emit(height - 1, prev);
   return true;
 }
 
-bool Unfilter(std::uint8_t* rows, std::size_t height, std::size_t row_bytes, std::size_t bpp) {
+template <typename Emit>
+bool Unfilter(std::uint8_t* rows, std::size_t height, std::size_t row_bytes, std::size_t bpp, Emit emit) {
   switch (bpp) {
-    case 1: return UnfilterRows<1>(rows, height, row_bytes);
-    case 2: return UnfilterRows<2>(rows, height, row_bytes);
-    case 3: return UnfilterRows<3>(rows, height, row_bytes);
-    case 4: return UnfilterRows<4>(rows, height, row_bytes);
-    case 6: return UnfilterRows<6>(rows, height, row_bytes);
-    case 8: return UnfilterRows<8>(rows, height, row_bytes);
+    case 1: return UnfilterRows<1>(rows, height, row_bytes, emit);
+    case 2: return UnfilterRows<2>(rows, height, row_bytes, emit);
+    case 3: return UnfilterRows<3>(rows, height, row_bytes, emit);
+    case 4: return UnfilterRows<4>(rows, height, row_bytes, emit);
+    case 6: return UnfilterRows<6>(rows, height, row_bytes, emit);
+    case 8: return UnfilterRows<8>(rows, height, row_bytes, emit);
     default: return false;
+  }
+}
+
+// 16-bit big-endian samples into the machine's (little-endian) order, `out` <= `in` allowed to overlap: each block is
+// read whole into a local buffer before it is written, which also lets the compiler vectorise the swap (it cannot
+// prove overlapping pointers safe and would fall back to one sample at a time).
+void SwapSamples16(const std::uint8_t* in, std::size_t samples, std::uint8_t* out) {
+  constexpr std::size_t kBlock = 32;  // samples
+  std::uint16_t block[kBlock];
+  std::size_t i = 0;
+  for (; i + kBlock <= samples; i += kBlock) {
+    std::memcpy(block, in + 2 * i, sizeof block);
+    for (auto& v : block) v = static_cast<std::uint16_t>((v << 8) | (v >> 8));
+    std::memcpy(out + 2 * i, block, sizeof block);
+  }
+  for (; i < samples; ++i) {
+    const auto value = static_cast<std::uint16_t>((in[2 * i] << 8) | in[2 * i + 1]);
+    std::memcpy(out + 2 * i, &value, 2);
   }
 }
 
@@ -244,10 +307,7 @@ void ConvertRow(const std::uint8_t* in, std::size_t width, int channels, bool si
   if (channels == 1 && !sixteen) {
     std::memmove(out, in, samples);
   } else if (channels == 1 && depth == CV_16U) {
-    for (std::size_t i = 0; i < samples; ++i) {
-      const auto value = static_cast<std::uint16_t>((in[2 * i] << 8) | in[2 * i + 1]);
-      std::memcpy(out + 2 * i, &value, 2);
-    }
+    SwapSamples16(in, samples, out);
   } else if (channels == 1) {
     for (std::size_t i = 0; i < samples; ++i) out[i] = in[2 * i];  // the high byte: libpng's strip_16
   } else {
@@ -317,11 +377,13 @@ std::optional<cv::Mat> DecodePlainPng(std::string_view bytes, int imread_flags) 
       in_used != stream.size() || out_made != raw_bytes) {
     return std::nullopt;
   }
-  if (!Unfilter(raw, height, row_bytes, bpp)) return std::nullopt;
   joined.release();
-  for (std::size_t y = 0; y < height; ++y) {
-    ConvertRow(raw + y * (row_bytes + 1) + 1, layout->width, channels, sixteen, depth, buffer.ptr(static_cast<int>(y)));
-  }
+  // Row y - 1 is moved into place once row y is unfiltered: its place ends at y out_row_bytes <= y row_bytes, below
+  // row y's bytes, so no row still needed is overwritten.
+  const auto convert = [&](std::size_t y, const std::uint8_t* row) {
+    ConvertRow(row, layout->width, channels, sixteen, depth, buffer.ptr(static_cast<int>(y)));
+  };
+  if (!Unfilter(raw, height, row_bytes, bpp, convert)) return std::nullopt;
   return buffer.rowRange(0, static_cast<int>(height));
 }
 
