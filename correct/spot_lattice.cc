@@ -21,12 +21,21 @@ Template MakeTemplate(const model::IdealImageParams& ideal) {
     t.spacing.push_back(std::min(arc, t.ring_step));
   }
   t.neighbours.resize(n);
+  // Candidates by distance from the centre: a spot within `reach` of spot i lies within `reach` of its radius, so
+  // only that slice of the radius-sorted spots is measured (the pattern's rings make it a few rings' worth).
+  std::vector<std::pair<double, int>> by_radius;
+  for (int k = 0; k < n; ++k) by_radius.emplace_back(t.spots[k].position_mm.norm(), k);
+  std::sort(by_radius.begin(), by_radius.end());
   for (int i = 0; i < n; ++i) {
     // The neighbourhood's radius from the larger of the two spacings, so that it spans both directions.
-    const double arc = 2.0 * M_PI * t.spots[i].position_mm.norm() / model::SpotsOnRing(ideal, t.spots[i].id.ring);
+    const double radius = t.spots[i].position_mm.norm();
+    const double arc = 2.0 * M_PI * radius / model::SpotsOnRing(ideal, t.spots[i].id.ring);
     const double reach = kNeighbourSpacings * std::max(arc, t.ring_step);
     std::vector<std::pair<double, int>> near;
-    for (int k = 0; k < n; ++k) {
+    const double slice = reach + 1e-9;  // mm: rounding of the norms cannot drop a spot at exactly `reach`
+    const auto first = std::lower_bound(by_radius.begin(), by_radius.end(), std::make_pair(radius - slice, -1));
+    for (auto it = first; it != by_radius.end() && it->first <= radius + slice; ++it) {
+      const int k = it->second;
       const double d = (t.spots[k].position_mm - t.spots[i].position_mm).norm();
       if (k != i && d <= reach) near.emplace_back(d, k);
     }
