@@ -56,9 +56,10 @@ case "$msg" in *"no file matches"*|*"none*.png"*) ;; *) echo "installed unit cal
 # library module would load OpenCV's 23 libraries for every sweep.
 needed=$(readelf -d "$prefix/libexec/topocal-sweep")
 if grep -i opencv <<< "$needed"; then echo "topocal-sweep links OpenCV" >&2; exit 1; fi
-# topocal-detect links none of the libraries no capture needs (the drawing, database, digest and AprilTag ones).
+# topocal-detect links none of the libraries no capture needs (the drawing, database, digest and AprilTag ones, and
+# OpenCV's calib3d, which only the calibration fits call).
 needed=$(readelf -d "$prefix/libexec/topocal-detect")
-if grep -E -i "freetype|sqlite|crypto|apriltag|aruco" <<< "$needed"; then
+if grep -E -i "freetype|sqlite|crypto|apriltag|aruco|calib3d" <<< "$needed"; then
   echo "topocal-detect links a library detection does not use" >&2
   exit 1
 fi
