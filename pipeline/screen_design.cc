@@ -219,6 +219,11 @@ std::string DesignName(const ScreenCandidate& c) {
                      c.ideal.eta0 != c.ideal.eta ? fmt::format(" (eta0 {})", c.ideal.eta0) : "");
 }
 
+// The same with the knot spacing, for the choice's reason.
+std::string DesignAndKnots(const ScreenCandidate& c) {
+  return fmt::format("{}, knots every {:g} mm", DesignName(c), c.spline_spacing_mm);
+}
+
 // Every candidate that resolves and prints, measured on every goal cornea (one work item per pair, written by index).
 void MeasureMapErrors(const model::Config& base, const ScreenDesignGoal& g, const ScreenDesignOptions& options,
                       std::vector<ScreenCandidate>* candidates) {
@@ -234,11 +239,16 @@ void MeasureMapErrors(const model::Config& base, const ScreenDesignGoal& g, cons
   util::ParallelFor(items.size(), options.jobs, [&](size_t i) {
     const auto [c, k] = items[i];
     model::Config config = base;
-    config.ideal_image = (*candidates)[c].ideal;
+    const ScreenCandidate& candidate = (*candidates)[c];
+    config.ideal_image = candidate.ideal;
     config.reconstruction.surface_model = g.surface_model;
+    config.reconstruction.spline_spacing_mm = candidate.spline_spacing_mm;
+    // Seeded per cornea, the same for every candidate: the designs are compared on the same draws.
+    const double noise_mm = candidate.spot_noise_px * g.pixel_pitch_um * 1e-3;
     try {
       (*candidates)[c].tangential_rms_D[k] =
-          topo::MeasureSimulatedCornea(corneas[k].surface, config).comparison.tangential_rms_D;
+          topo::MeasureSimulatedCornea(corneas[k].surface, config, noise_mm, static_cast<unsigned>(k + 1))
+              .comparison.tangential_rms_D;
     } catch (const std::runtime_error& e) {
       failure[i] = fmt::format("the reconstruction of {} failed: {}", corneas[k].name, e.what());
     }
@@ -290,7 +300,7 @@ void Choose(const ScreenDesignGoal& g, ScreenDesignResult* r) {
   if (eligible.empty()) {
     r->why = fmt::format("max_tangential_rms_D: no candidate that resolves and prints meets {} D; the best, {} ({} "
                          "spots), has {:.2f} D",
-                         *g.max_tangential_rms_D, DesignName(cs[best]), cs[best].spots, cs[best].worst_tangential_rms_D);
+                         *g.max_tangential_rms_D, DesignAndKnots(cs[best]), cs[best].spots, cs[best].worst_tangential_rms_D);
     return;
   }
   const size_t chosen = *std::min_element(eligible.begin(), eligible.end(), fewer_spots);
@@ -304,12 +314,12 @@ void Choose(const ScreenDesignGoal& g, ScreenDesignResult* r) {
   if (g.max_tangential_rms_D) {
     r->why = fmt::format("{} ({} spots, spot radius {:.2f} um): the fewest spots of the {} candidates that resolve and "
                          "print with the worst tangential RMS within {} D ({:.2f} D); {}",
-                         DesignName(c), c.spots, c.ideal.spot_radius_um, ok.size(), *g.max_tangential_rms_D,
+                         DesignAndKnots(c), c.spots, c.ideal.spot_radius_um, ok.size(), *g.max_tangential_rms_D,
                          c.worst_tangential_rms_D, resolves);
   } else {
     r->why = fmt::format("{} ({} spots, spot radius {:.2f} um): worst tangential RMS {:.2f} D, {} of the {} candidates "
                          "that resolve and print (lowest {:.2f} D; fewer spots taken within {:.0f} % of it); {}",
-                         DesignName(c), c.spots, c.ideal.spot_radius_um, c.worst_tangential_rms_D,
+                         DesignAndKnots(c), c.spots, c.ideal.spot_radius_um, c.worst_tangential_rms_D,
                          chosen == best ? "the lowest" : "the fewest spots near the lowest", ok.size(),
                          cs[best].worst_tangential_rms_D, 100 * kNegligibleErrorGain, resolves);
   }
@@ -323,18 +333,31 @@ ScreenDesignResult OptimizeScreenDesign(const model::Config& base, const ScreenD
   if (!goal.IsValid(&why)) throw util::InputError("ScreenDesignGoal: " + why);
   (void)model::FreeformTestSubset(goal.corneas);  // an unknown name throws before any work
   ScreenDesignResult r;
-  r.candidates.push_back(Assess(base.ideal_image, true, base.topographer, goal));
+  const double base_spacing = base.reconstruction.spline_spacing_mm;
+  const std::vector<double> spacings = goal.spline_spacing_mm.empty() ? std::vector<double>{base_spacing}
+                                                                      : goal.spline_spacing_mm;
+  const auto with_knots = [&](ScreenCandidate c, double spacing) {
+    c.spline_spacing_mm = spacing;
+    c.spot_noise_px = c.ideal.spot_radius_um > 0
+                          ? goal.spot_noise_px * std::max(1.0, goal.max_spot_radius_um / c.ideal.spot_radius_um)
+                          : goal.spot_noise_px;
+    return c;
+  };
+  const ScreenCandidate base_design = Assess(base.ideal_image, true, base.topographer, goal);
+  r.candidates.push_back(with_knots(base_design, base_spacing));
   for (int rings : goal.rings) {
     for (int eta : goal.eta) {
       model::IdealImageParams ideal = base.ideal_image;
       ideal.rings_N = rings - 1;
       ideal.eta0 = ideal.eta = eta;
       if (ideal.orientation_key && ideal.rings_N < 4) continue;  // the key needs three distinct rings (config.h)
-      ScreenCandidate c = Assess(ideal, false, base.topographer, goal);
-      const auto& b = r.candidates.front().ideal;
-      const bool same_as_base = c.ideal.rings_N == b.rings_N && c.ideal.eta0 == b.eta0 && c.ideal.eta == b.eta &&
-                                c.ideal.spot_radius_um == b.spot_radius_um;
-      if (!same_as_base) r.candidates.push_back(std::move(c));
+      const ScreenCandidate c = Assess(ideal, false, base.topographer, goal);
+      const auto& b = base_design.ideal;
+      const bool same_design = c.ideal.rings_N == b.rings_N && c.ideal.eta0 == b.eta0 && c.ideal.eta == b.eta &&
+                               c.ideal.spot_radius_um == b.spot_radius_um;
+      for (double spacing : spacings) {
+        if (!(same_design && spacing == base_spacing)) r.candidates.push_back(with_knots(c, spacing));
+      }
     }
   }
   MeasureMapErrors(base, goal, options, &r.candidates);
@@ -344,6 +367,7 @@ ScreenDesignResult OptimizeScreenDesign(const model::Config& base, const ScreenD
     r.config.ideal_image = r.candidates[*r.chosen].ideal;
     r.config.reconstruction.surface_model = goal.surface_model;
     r.config.reconstruction.surface_model_given = true;
+    r.config.reconstruction.spline_spacing_mm = r.candidates[*r.chosen].spline_spacing_mm;
   }
   return r;
 }
@@ -355,16 +379,17 @@ std::string ScreenDesignTable(const ScreenDesignResult& result, const ScreenDesi
     return fmt::format("{}{:.2f}-{:.1f}{}", c.steepest_resolved_mm <= kScanSteepestMm ? "<=" : "",
                        c.steepest_resolved_mm, c.flattest_resolved_mm, c.flattest_resolved_mm >= kScanFlattestMm ? "+" : "");
   };
-  std::string t = "| design | spots | spot r um |";
+  std::string t = "| design | spots | spot r um | knots mm | spot noise px |";
   for (const auto& n : g.corneas) t += " " + n + " tgRMS D |";
   t += fmt::format(" worst D | spacing um at {} / {} mm | gap px at {} / {} mm | resolves, mm | page mm | "
-                   "printed width / gap mm | verdict |\n|---|---|---|",
+                   "printed width / gap mm | verdict |\n|---|---|---|---|---|",
                    g.steepest_radius_mm, g.flattest_radius_mm, g.steepest_radius_mm, g.flattest_radius_mm);
   for (size_t k = 0; k < g.corneas.size(); ++k) t += "---|";
   t += "---|---|---|---|---|---|---|\n";
   for (size_t i = 0; i < result.candidates.size(); ++i) {
     const auto& c = result.candidates[i];
-    t += fmt::format("| {}{} | {} | {:.2f} |", DesignName(c), c.base ? " (base)" : "", c.spots, c.ideal.spot_radius_um);
+    t += fmt::format("| {}{} | {} | {:.2f} | {:g} | {:.3f} |", DesignName(c), c.base ? " (base)" : "", c.spots,
+                     c.ideal.spot_radius_um, c.spline_spacing_mm, c.spot_noise_px);
     for (double e : c.tangential_rms_D) t += fmt::format(" {} |", num(e, 2));
     const std::string verdict = result.chosen == i ? "**chosen**"
                                 : !c.refused.empty() ? c.refused

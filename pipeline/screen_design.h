@@ -10,10 +10,14 @@
 //   * printability: the page the printable screen (plot::NullScreenSvg) needs, the narrowest printed ellipse and the
 //     narrowest printed gap between neighbouring ellipses;
 //   * map error: the tangential-map RMS of the goal's test corneas (model/freeform_test_set.h), each imaged through
-//     the candidate with exact spots and reconstructed (topo::MeasureSimulatedCornea), the worst of them the score.
+//     the candidate — exact spots, or spots with the goal's centre noise — and reconstructed
+//     (topo::MeasureSimulatedCornea) with each of the goal's knot spacings of the spline residual, the worst of them
+//     the score. The spacing is part of the design: a denser screen carries the finer knots that its ablations'
+//     blend zones need, and the chosen one goes into the configuration written.
 // The choice: among the candidates that resolve and print, the fewest spots that meet max_tangential_rms_D when
 // the goal states one; otherwise the lowest worst-case error, a design with fewer spots preferred when it is within
 // kNegligibleErrorGain of it.
+#include <algorithm>
 #include <functional>
 #include <optional>
 #include <string>
@@ -40,9 +44,18 @@ struct ScreenDesignGoal {
   double min_spot_radius_um = 4.0;   // below it a candidate is refused (a quarter of the paper's light)
   double min_printed_feature_mm = 0.15;  // narrowest printed ellipse and printed gap between ellipses
   std::vector<double> max_page_mm = {297.0, 210.0};  // the page the sheet must fit, either way round (A4)
-  std::vector<int> rings = {10, 12, 14, 16, 18, 20, 22};  // N + 1 of the grid
-  std::vector<int> eta = {6, 8, 10};                     // eta0 = eta of the grid: ring i holds eta * i spots
+  std::vector<int> rings = {12, 16, 20, 22, 24, 26, 28};  // N + 1 of the grid
+  std::vector<int> eta = {6, 8};                         // eta0 = eta of the grid: ring i holds eta * i spots
+  // Knot spacings of the spline residual tried with every candidate (reconstruction.spline_spacing_mm); empty: the
+  // base configuration's alone.
+  std::vector<double> spline_spacing_mm = {0.33, 0.25, 0.2, 0.15};
+  // Spot-centre noise (px, each coordinate, seeded) of spots of max_spot_radius_um; a smaller spot's is larger by
+  // max_spot_radius_um / its radius (photon-limited: 1 / sqrt(flux), the flux as the spot's area). 0: exact spots.
+  // The default is the paper's spots' in a noisy image (reconstruction.spot_uncertainty_um: 0.045 um, 0.04 px).
+  double spot_noise_px = 0.04;
   bool IsValid(std::string* why) const;
+  // The candidates of the grid: rings x eta x knot spacings (at least one).
+  size_t GridSize() const { return rings.size() * eta.size() * std::max<size_t>(1, spline_spacing_mm.size()); }
 };
 
 // Loads and validates a goal file: unknown keys, wrong types and values out of range throw util::ConfigError
@@ -58,6 +71,8 @@ inline constexpr double kScanSteepestMm = 5.0, kScanFlattestMm = 12.0;
 
 struct ScreenCandidate {
   model::IdealImageParams ideal;  // rings_N, eta0 = eta, spot_radius_um chosen; extent from the base config
+  double spline_spacing_mm = 0;   // the knot spacing it is reconstructed with
+  double spot_noise_px = 0;       // the spot-centre noise it is measured with (the goal's, scaled to its spots)
   bool base = false;              // the base configuration's own design, as given
   int spots = 0;
   // Resolvability (spheres at the goal's steepest / flattest apex radius).

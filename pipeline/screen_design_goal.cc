@@ -58,9 +58,16 @@ bool ScreenDesignGoal::IsValid(std::string* why) const {
   if (max_page_mm.size() != 2 || !positive(max_page_mm[0]) || !positive(max_page_mm[1])) {
     return fail("max_page_mm: must be two sizes > 0 (mm)");
   }
-  if (rings.empty() || eta.empty() || rings.size() * eta.size() > kMaxCandidates) {
-    return fail(fmt::format("rings, eta: the grid must hold 1 to {} candidates (got {} x {})", kMaxCandidates,
-                            rings.size(), eta.size()));
+  if (rings.empty() || eta.empty() || GridSize() > kMaxCandidates) {
+    return fail(fmt::format("rings, eta, spline_spacing_mm: the grid must hold 1 to {} candidates (got {} x {} x {})",
+                            kMaxCandidates, rings.size(), eta.size(), std::max<size_t>(1, spline_spacing_mm.size())));
+  }
+  for (double h : spline_spacing_mm) {
+    // The configuration's own range (reconstruction.spline_spacing_mm).
+    if (!(h >= 0.1 && h <= 2.0)) return fail(fmt::format("spline_spacing_mm: each must lie in [0.1, 2] mm (got {})", h));
+  }
+  if (!(spot_noise_px >= 0 && spot_noise_px <= 1)) {
+    return fail(fmt::format("spot_noise_px: must lie in [0, 1] px (got {})", spot_noise_px));
   }
   for (int r : rings) {
     if (r < 2 || r > kMaxRings) return fail(fmt::format("rings: each must be in [2, {}] (got {})", kMaxRings, r));
@@ -88,6 +95,19 @@ std::vector<int> Integers(util::JsonSection& s, const std::string& key) {
     }
     out.push_back(a[i].get<int>());
   }
+  return out;
+}
+
+std::vector<double> Spacings(util::JsonSection& s, const std::string& key) {
+  const auto& a = s.Array(key);
+  std::vector<double> out;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!a[i].is_number()) {
+      s.Fail(fmt::format("{}[{}]", s.Key(key), i), fmt::format("must be a number (got {})", util::QuoteJsonValue(a[i])));
+    }
+    out.push_back(a[i].get<double>());
+  }
+  if (out.empty()) s.Fail(s.Key(key), "must hold at least one spacing (leave it out for the configuration's own)");
   return out;
 }
 
@@ -129,6 +149,8 @@ ScreenDesignGoal ParseScreenDesignGoal(const std::string& json_text, const std::
   if (s.Has("max_page_mm")) g.max_page_mm = s.Numbers("max_page_mm", 2);
   if (s.Has("rings")) g.rings = Integers(s, "rings");
   if (s.Has("eta")) g.eta = Integers(s, "eta");
+  if (s.Has("spline_spacing_mm")) g.spline_spacing_mm = Spacings(s, "spline_spacing_mm");
+  g.spot_noise_px = s.Number("spot_noise_px", g.spot_noise_px);
   s.RejectUnknown();
   std::string why;
   if (!g.IsValid(&why)) throw util::ConfigError(origin + ": " + why);
