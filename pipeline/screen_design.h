@@ -51,7 +51,8 @@ struct ScreenDesignGoal {
   std::vector<double> spline_spacing_mm = {0.33, 0.25, 0.2, 0.15};
   // Spot-centre noise (px, each coordinate, seeded) of spots of max_spot_radius_um; a smaller spot's is larger by
   // max_spot_radius_um / its radius (photon-limited: 1 / sqrt(flux), the flux as the spot's area). 0: exact spots.
-  // The default is the paper's spots' in a noisy image (reconstruction.spot_uncertainty_um: 0.045 um, 0.04 px).
+  // The default is reconstruction.spot_uncertainty_um's 0.045 um (0.04 px), a conservative figure for a real capture:
+  // topocal's own noisy renders carry 0.001-0.002 px (docs/screen-design.md).
   double spot_noise_px = 0.04;
   bool IsValid(std::string* why) const;
   // The candidates of the grid: rings x eta x knot spacings (at least one).
