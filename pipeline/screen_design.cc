@@ -246,9 +246,12 @@ void MeasureMapErrors(const model::Config& base, const ScreenDesignGoal& g, cons
     // Seeded per cornea, the same for every candidate: the designs are compared on the same draws.
     const double noise_mm = candidate.spot_noise_px * g.pixel_pitch_um * 1e-3;
     try {
-      (*candidates)[c].tangential_rms_D[k] =
-          topo::MeasureSimulatedCornea(corneas[k].surface, config, noise_mm, static_cast<unsigned>(k + 1))
-              .comparison.tangential_rms_D;
+      const auto measured =
+          topo::MeasureSimulatedCornea(corneas[k].surface, config, noise_mm, static_cast<unsigned>(k + 1));
+      (*candidates)[c].tangential_rms_D[k] = measured.comparison.tangential_rms_D;
+      if (const auto why = topo::SplineUndetermined(measured.analysis.reconstruction)) {
+        failure[i] = fmt::format("{}: {}", corneas[k].name, *why);
+      }
     } catch (const std::runtime_error& e) {
       failure[i] = fmt::format("the reconstruction of {} failed: {}", corneas[k].name, e.what());
     }
@@ -300,7 +303,8 @@ void Choose(const ScreenDesignGoal& g, ScreenDesignResult* r) {
   if (eligible.empty()) {
     r->why = fmt::format("max_tangential_rms_D: no candidate that resolves and prints meets {} D; the best, {} ({} "
                          "spots), has {:.2f} D",
-                         *g.max_tangential_rms_D, DesignAndKnots(cs[best]), cs[best].spots, cs[best].worst_tangential_rms_D);
+                         *g.max_tangential_rms_D, DesignAndKnots(cs[best]), cs[best].spots,
+                         cs[best].worst_tangential_rms_D);
     return;
   }
   const size_t chosen = *std::min_element(eligible.begin(), eligible.end(), fewer_spots);

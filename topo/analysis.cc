@@ -206,6 +206,12 @@ Analysis AnalyzeSpots(const std::vector<model::PlaneSpot>& spots, const std::vec
   } else {
     a.clinical_message = "not computed";
   }
+  // A spline the spots do not determine gives maps with no evidence behind them: no clinical reading from it.
+  if (const auto why = SplineUndetermined(a.reconstruction)) {
+    a.warnings.push_back(*why);
+    a.clinical_ok = false;
+    a.clinical_message = *why;
+  }
   return a;
 }
 

@@ -352,6 +352,17 @@ bool ModelFitsData(const Reconstruction& r) {
   return r.adequacy_ratio <= kAdequacyWarningRatio && r.structured_residual_ratio <= kStructuredResidualWarningRatio;
 }
 
+std::optional<std::string> SplineUndetermined(const Reconstruction& r) {
+  const double observations = 2.0 * r.spots_used;
+  const bool determined = r.spline_effective_params <= kMaxSplineParameterShare * observations;
+  if (r.residual.empty() || observations <= 0 || determined) return std::nullopt;
+  return fmt::format("the spline's knots every {:.3g} mm are finer than the {} spots determine ({:.0f} effective "
+                     "parameters for {:.0f} slopes, more than {:.0f} %): set reconstruction.spline_spacing_mm "
+                     "coarser",
+                     r.residual.spacing_mm(), r.spots_used, r.spline_effective_params, observations,
+                     100 * kMaxSplineParameterShare);
+}
+
 Reconstruction ReconstructAt(const std::vector<model::PlaneSpot>& spots, const std::vector<model::TargetPoint>& targets,
                              const model::TopographerParams& topographer,
                              const model::ReconstructionSettings& settings, double t_mm, bool iterate) {

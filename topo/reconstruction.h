@@ -15,6 +15,7 @@
 //    normals from those points and refit, until no point moves by more than convergence_um. Delta(t) is monotone in
 //    t here (the vertex height is not observable from one camera and one screen), so this method works at the
 //    nominal vertex position vertex_t_um; the biconic fit's own vertex offset absorbs a small displacement.
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -92,6 +93,16 @@ inline constexpr double kAdequacyWarningRatio = 3.0;
 inline constexpr double kStructuredResidualWarningRatio = 0.4;
 // The surface model represents the data: neither figure above its warning ratio.
 bool ModelFitsData(const Reconstruction& r);
+
+// Above this share of the slope observations (two per spot) in effective parameters (tr H) the spline residual
+// interpolates the spots: too few residual degrees of freedom are left to judge the fit (the adequacy figures above
+// fall to ~0 whatever the surface) or to hold the curvature between the spots. Measured on the freeform test set
+// from exact spots (docs/reconstruction.md, "Knots finer than the spots"): every fit that held stayed at or below
+// 0.77 (26 rings x 6 with knots every 0.15 mm); the fits at 1.00-1.06 (0.12 mm on 26 rings, 0.1 mm on the paper's
+// screen) gave axial errors up to 15-18 D RMS with an adequacy ratio of 0.00.
+inline constexpr double kMaxSplineParameterShare = 0.9;
+// Empty when the spline residual (if any) is determined by the spots; otherwise why not, naming the setting.
+std::optional<std::string> SplineUndetermined(const Reconstruction& r);
 
 struct ReconstructOptions {
   // Model adequacy (expected_slope_noise, adequacy_ratio): finite differences through every ray, which a Monte

@@ -89,6 +89,32 @@ TEST(Freeform, SplineOnAMyopicAblation) {
   EXPECT_LT(e.height_rms_um, 0.22);
 }
 
+// Knots finer than the spots determine: the spline interpolates them, the adequacy figures fall to 0 and the curvature
+// between the spots is free. Such a fit gives no clinical reading, and says why; the same eye with the
+// configuration's knots is measured.
+TEST(Freeform, KnotsFinerThanTheSpotsDetermineGiveNoClinicalReading) {
+  auto fine = SplineConfig();
+  fine.reconstruction.spline_spacing_mm = 0.1;
+  Analysis analysis;
+  const auto e = Measure("lasik-myopic-6D", fine, &analysis);
+  const auto& r = analysis.reconstruction;
+  // Measured 2026-12-07: 1,538 effective parameters for 1,456 slopes, axial rms error 18 D, adequacy ratio 0.00.
+  EXPECT_GT(r.spline_effective_params, kMaxSplineParameterShare * 2 * r.spots_used);
+  EXPECT_GT(e.axial_rms_D, 1.0);  // what the check guards against: no evidence, no reading
+  EXPECT_TRUE(ModelFitsData(r));  // the adequacy figures cannot see it
+  ASSERT_TRUE(SplineUndetermined(r));
+  EXPECT_FALSE(analysis.clinical_ok);
+  const std::string why =
+      "the spline's knots every 0.1 mm are finer than the " + std::to_string(r.spots_used) + " spots determine";
+  EXPECT_NE(analysis.clinical_message.find(why), std::string::npos) << analysis.clinical_message;
+  EXPECT_NE(analysis.clinical_message.find("set reconstruction.spline_spacing_mm coarser"), std::string::npos);
+  Analysis coarse;
+  Measure("lasik-myopic-6D", SplineConfig(), &coarse);
+  EXPECT_FALSE(SplineUndetermined(coarse.reconstruction));
+  EXPECT_LT(coarse.reconstruction.spline_effective_params, 0.7 * 2 * coarse.reconstruction.spots_used);  // 0.58
+  EXPECT_TRUE(coarse.clinical_ok) << coarse.clinical_message;
+}
+
 TEST(Freeform, BothModelsHoldAnObliqueToricBiconic) {
   // r 8.5 / 7.0 mm, k -0.6 / +0.4, 140 deg; off the axis and tilted. Measured 2026-12-01: spline axial rms 2e-4 D,
   // polynomial 1e-3 D within the supported disc.
