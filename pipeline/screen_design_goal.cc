@@ -64,7 +64,9 @@ bool ScreenDesignGoal::IsValid(std::string* why) const {
   }
   for (double h : spline_spacing_mm) {
     // The configuration's own range (reconstruction.spline_spacing_mm).
-    if (!(h >= 0.1 && h <= 2.0)) return fail(fmt::format("spline_spacing_mm: each must lie in [0.1, 2] mm (got {})", h));
+    if (!(h >= 0.1 && h <= 2.0)) {
+      return fail(fmt::format("spline_spacing_mm: each must lie in [0.1, 2] mm (got {})", h));
+    }
   }
   if (!(spot_noise_px >= 0 && spot_noise_px <= 1)) {
     return fail(fmt::format("spot_noise_px: must lie in [0, 1] px (got {})", spot_noise_px));
@@ -103,7 +105,8 @@ std::vector<double> Spacings(util::JsonSection& s, const std::string& key) {
   std::vector<double> out;
   for (size_t i = 0; i < a.size(); ++i) {
     if (!a[i].is_number()) {
-      s.Fail(fmt::format("{}[{}]", s.Key(key), i), fmt::format("must be a number (got {})", util::QuoteJsonValue(a[i])));
+      s.Fail(fmt::format("{}[{}]", s.Key(key), i),
+             fmt::format("must be a number (got {})", util::QuoteJsonValue(a[i])));
     }
     out.push_back(a[i].get<double>());
   }

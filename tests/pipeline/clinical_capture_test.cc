@@ -366,7 +366,9 @@ TEST(ClinicalCapture, ADesignedScreenResolvesTheAblationsThePapersCannot) {
   designed.reconstruction.surface_model_given = true;
   designed.reconstruction.spline_spacing_mm = 0.15;
   std::vector<Capture> caps;
-  for (const char* name : {"lasik-myopic-4D", "lasik-hyperopic-4D"}) caps.push_back({name, Freeform(name), 0, 0, 0, {}});
+  for (const char* name : {"lasik-myopic-4D", "lasik-hyperopic-4D"}) {
+    caps.push_back({name, Freeform(name), 0, 0, 0, {}});
+  }
   for (const auto& e : correct::testing::Eyes()) {
     if (e.name.rfind("lasik", 0) == 0 || e.name.rfind("kc-33", 0) == 0 || e.name.rfind("kc-60", 0) == 0) {
       caps.push_back({e.name, e.surface, 0, 0, 0, {}});

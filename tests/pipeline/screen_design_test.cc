@@ -210,7 +210,8 @@ TEST(ScreenDesignGoal, ReadsEveryKeyAndRefusesBadOnesNamingThem) {
   EXPECT_EQ(refusal(R"({"spline_spacing_mm": ["fine"]})").rfind("g.json: spline_spacing_mm[0]: must be a number", 0),
             0u);
   EXPECT_EQ(refusal(R"({"spot_noise_px": -0.1})").rfind("g.json: spot_noise_px: must lie in [0, 1]", 0), 0u);
-  const std::string grid = "g.json: rings, eta, spline_spacing_mm: the grid must hold 1 to 60 candidates (got 8 x 2 x 4)";
+  const std::string grid =
+      "g.json: rings, eta, spline_spacing_mm: the grid must hold 1 to 60 candidates (got 8 x 2 x 4)";
   EXPECT_EQ(refusal(R"({"rings": [12, 14, 16, 18, 20, 22, 24, 26], "eta": [6, 8]})").rfind(grid, 0), 0u);
 }
 
