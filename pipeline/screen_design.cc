@@ -243,7 +243,7 @@ void MeasureMapErrors(const model::Config& base, const ScreenDesignGoal& g, cons
     config.ideal_image = candidate.ideal;
     config.reconstruction.surface_model = g.surface_model;
     config.reconstruction.spline_spacing_mm = candidate.spline_spacing_mm;
-    // Seeded per cornea, the same for every candidate: the designs are compared on the same draws.
+    // Seeded per cornea (the same seed for every candidate): the same result whatever the thread count.
     const double noise_mm = candidate.spot_noise_px * g.pixel_pitch_um * 1e-3;
     try {
       const auto measured =

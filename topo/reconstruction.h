@@ -98,7 +98,7 @@ bool ModelFitsData(const Reconstruction& r);
 // interpolates the spots: too few residual degrees of freedom are left to judge the fit (the adequacy figures above
 // fall to ~0 whatever the surface) or to hold the curvature between the spots. Measured on the freeform test set
 // from exact spots (docs/reconstruction.md, "Knots finer than the spots"): every fit that held stayed at or below
-// 0.77 (26 rings x 6 with knots every 0.15 mm); the fits at 1.00-1.06 (0.12 mm on 26 rings, 0.1 mm on the paper's
+// 0.77 (27 rings x 6 with knots every 0.15 mm); the fits at 1.00-1.06 (0.12 mm on 27 rings, 0.1 mm on the paper's
 // screen) gave axial errors up to 15-18 D RMS with an adequacy ratio of 0.00.
 inline constexpr double kMaxSplineParameterShare = 0.9;
 // Empty when the spline residual (if any) is determined by the spots; otherwise why not, naming the setting.
