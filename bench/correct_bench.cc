@@ -109,6 +109,40 @@ void BM_DetectOnly(benchmark::State& state) {
 }
 BENCHMARK(BM_DetectOnly)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// A frame without a spot (the sensor's level, 16-bit, with its read noise, and exactly flat): what `detect` pays
+// before it knows there is nothing to find. The peer is one OpenCV pass over the same frame, its maximum.
+cv::Mat BlankFrame(bool noisy) {
+  const auto& s = GetScene();
+  cv::Mat frame(s.camera.height_px, s.camera.width_px, CV_16UC1, cv::Scalar(1000));
+  if (noisy) {
+    cv::RNG rng(7);
+    cv::Mat noise(frame.size(), CV_32F);
+    rng.fill(noise, cv::RNG::NORMAL, 1000, 60);
+    noise.convertTo(frame, CV_16U);
+  }
+  return frame;
+}
+
+void BM_DetectBlankFrame(benchmark::State& state) {
+  const cv::Mat frame = BlankFrame(state.range(0) != 0);
+  for (auto _ : state) {
+    const auto d = correct::DetectSpots(frame);
+    if (!d.spots.empty()) state.SkipWithError("spots found on a blank frame");
+    benchmark::DoNotOptimize(d);
+  }
+}
+BENCHMARK(BM_DetectBlankFrame)->ArgName("noisy")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_OpenCvMaxOfBlankFrame(benchmark::State& state) {
+  const cv::Mat frame = BlankFrame(state.range(0) != 0);
+  for (auto _ : state) {
+    double max_dn = 0;
+    cv::minMaxIdx(frame, nullptr, &max_dn);
+    benchmark::DoNotOptimize(max_dn);
+  }
+}
+BENCHMARK(BM_OpenCvMaxOfBlankFrame)->ArgName("noisy")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 void BM_IndexOnly(benchmark::State& state) {
   const auto& s = GetScene();
   const auto det = correct::DetectSpots(s.spots16);
