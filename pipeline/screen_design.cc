@@ -66,20 +66,38 @@ class SpacingProbe {
   const std::vector<Pair>& pairs() const { return pairs_; }
 
   // Nearest centre spacing, the smallest gap between spot images of radius spot_radius_um (ideal image) scaled by
-  // the local magnification, and the largest spot radius that leaves min_gap_px.
+  // the local magnification, and the largest spot radius that leaves min_gap_px, on a sphere of that apex radius;
+  // nullopt when a spot is not formed.
   std::optional<SpotSpacing> At(double apex_radius_mm, double spot_radius_um, double pitch_um,
                                 double min_gap_px) const {
     const auto image = model::SynthesizeImage(model::Sphere{apex_radius_mm}, topographer_, design_.targets);
     if (!image.failures.empty() || image.spots.size() != design_.targets.size()) return std::nullopt;
+    return Between(image, spot_radius_um, pitch_um, min_gap_px);
+  }
+  // The spots of any cornea; Between then measures them.
+  model::SyntheticImage Image(const model::Surface& cornea) const {
+    return model::SynthesizeImage(cornea, topographer_, design_.targets);
+  }
+  // At's figures for an image, over the pairs whose spots both form (a cornea's edge may lose a few); nullopt when
+  // none does.
+  std::optional<SpotSpacing> Between(const model::SyntheticImage& image, double spot_radius_um, double pitch_um,
+                                     double min_gap_px) const {
+    std::map<model::SpotId, const model::ImageSpot*> formed;
+    for (const auto& spot : image.spots) formed[spot.id] = &spot;
     SpotSpacing s{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
                   std::numeric_limits<double>::infinity()};
+    bool any = false;
     for (const auto& p : pairs_) {
-      const double image_um = (image.spots[p.a].position_mm - image.spots[p.b].position_mm).norm() * 1e3;
+      const auto a = formed.find(design_.targets[p.a].id), b = formed.find(design_.targets[p.b].id);
+      if (a == formed.end() || b == formed.end()) continue;
+      const double image_um = (a->second->position_mm - b->second->position_mm).norm() * 1e3;
       const double magnification = image_um / p.ideal_um;
       s.min_spacing_um = std::min(s.min_spacing_um, image_um);
       s.min_gap_px = std::min(s.min_gap_px, (image_um - 2.0 * spot_radius_um * magnification) / pitch_um);
       s.max_spot_radius_um = std::min(s.max_spot_radius_um, 0.5 * (image_um - min_gap_px * pitch_um) / magnification);
+      any = true;
     }
+    if (!any) return std::nullopt;
     return s;
   }
   bool Resolves(double apex_radius_mm, double spot_radius_um, const ScreenDesignGoal& g) const {
@@ -165,16 +183,37 @@ std::string PrintRefusal(const ScreenCandidate& c, const ScreenDesignGoal& g) {
   return "";
 }
 
+// The spot images of the goal corneas, which an ablation's blend zone or a cone crowds more than the steepest
+// sphere does: the largest spot radius that leaves min_gap_px on every one of them and the cornea that sets it.
+struct CorneaGaps {
+  std::vector<model::SyntheticImage> images;
+  double max_spot_radius_um = std::numeric_limits<double>::infinity();  // infinite when none images the pattern
+  std::string tightest;
+};
+CorneaGaps GapsOnCorneas(const SpacingProbe& probe, const std::vector<model::TestCornea>& corneas,
+                         const ScreenDesignGoal& g) {
+  CorneaGaps out;
+  for (const auto& cornea : corneas) {
+    out.images.push_back(probe.Image(cornea.surface));
+    const auto s = probe.Between(out.images.back(), g.max_spot_radius_um, g.pixel_pitch_um, g.min_gap_px);
+    if (s && s->max_spot_radius_um < out.max_spot_radius_um) {
+      out.max_spot_radius_um = s->max_spot_radius_um;
+      out.tightest = cornea.name;
+    }
+  }
+  return out;
+}
+
 // Everything but the map error: the spot radius, resolvability and print of one candidate.
 ScreenCandidate Assess(const model::IdealImageParams& ideal, bool base, const model::TopographerParams& topographer,
-                       const ScreenDesignGoal& g) {
+                       const ScreenDesignGoal& g, const std::vector<model::TestCornea>& corneas) {
   ScreenCandidate c;
   c.ideal = ideal;
   c.base = base;
   c.spots = ideal.SpotCount();
   c.tangential_rms_D.assign(g.corneas.size(), kNaN);
   c.worst_tangential_rms_D = kNaN;
-  c.steepest_resolved_mm = c.flattest_resolved_mm = kNaN;
+  c.steepest_resolved_mm = c.flattest_resolved_mm = c.min_gap_corneas_px = kNaN;
   const SpacingProbe probe(ideal, topographer);
   const auto steep = probe.At(g.steepest_radius_mm, ideal.spot_radius_um, g.pixel_pitch_um, g.min_gap_px);
   const auto flat = probe.At(g.flattest_radius_mm, ideal.spot_radius_um, g.pixel_pitch_um, g.min_gap_px);
@@ -182,21 +221,35 @@ ScreenCandidate Assess(const model::IdealImageParams& ideal, bool base, const mo
     c.refused = "steepest_radius_mm, flattest_radius_mm: a spot's ray misses the cone or the cornea";
     return c;
   }
+  const CorneaGaps on_corneas = GapsOnCorneas(probe, corneas, g);
   // Rounded down to 0.01 um: a value the configuration file holds exactly, and the gap it leaves is never below
   // min_gap_px by a rounding error.
-  if (!base) c.ideal.spot_radius_um = std::floor(100.0 * std::min(g.max_spot_radius_um, steep->max_spot_radius_um)) / 100.0;
+  if (!base) {
+    c.ideal.spot_radius_um = std::floor(100.0 * std::min({g.max_spot_radius_um, steep->max_spot_radius_um,
+                                                          on_corneas.max_spot_radius_um})) / 100.0;
+  }
   const double r = c.ideal.spot_radius_um;
   c.min_spacing_steep_um = steep->min_spacing_um;
   c.min_spacing_flat_um = flat->min_spacing_um;
   c.min_gap_steep_px = probe.At(g.steepest_radius_mm, r, g.pixel_pitch_um, g.min_gap_px)->min_gap_px;
   c.min_gap_flat_px = probe.At(g.flattest_radius_mm, r, g.pixel_pitch_um, g.min_gap_px)->min_gap_px;
+  for (const auto& image : on_corneas.images) {
+    if (const auto s = probe.Between(image, r, g.pixel_pitch_um, g.min_gap_px)) {
+      c.min_gap_corneas_px =
+          std::isnan(c.min_gap_corneas_px) ? s->min_gap_px : std::min(c.min_gap_corneas_px, s->min_gap_px);
+    }
+  }
   std::tie(c.steepest_resolved_mm, c.flattest_resolved_mm) = ResolvingRange(probe, r, g);
+  const bool cornea_sets_it = on_corneas.max_spot_radius_um < steep->max_spot_radius_um;
   if (r < g.min_spot_radius_um) {
-    c.refused = fmt::format("min_spot_radius_um: spots of {:.1f} um at most leave {} px at {} mm", r, g.min_gap_px,
-                            g.steepest_radius_mm);
+    c.refused = fmt::format("min_spot_radius_um: spots of {:.1f} um at most leave {} px {}", r, g.min_gap_px,
+                            cornea_sets_it ? "on " + on_corneas.tightest
+                                           : fmt::format("at {} mm", g.steepest_radius_mm));
   } else if (c.min_gap_steep_px < g.min_gap_px) {
     c.refused = fmt::format("min_gap_px: spot images {:.1f} px apart at steepest_radius_mm = {}", c.min_gap_steep_px,
                             g.steepest_radius_mm);
+  } else if (c.min_gap_corneas_px < g.min_gap_px) {
+    c.refused = fmt::format("min_gap_px: spot images {:.1f} px apart on a goal cornea", c.min_gap_corneas_px);
   }
   MeasurePrint(c.ideal, topographer, probe.pairs(), &c);
   if (c.refused.empty()) c.refused = PrintRefusal(c, g);
@@ -335,7 +388,6 @@ ScreenDesignResult OptimizeScreenDesign(const model::Config& base, const ScreenD
                                         const ScreenDesignOptions& options) {
   std::string why;
   if (!goal.IsValid(&why)) throw util::InputError("ScreenDesignGoal: " + why);
-  (void)model::FreeformTestSubset(goal.corneas);  // an unknown name throws before any work
   ScreenDesignResult r;
   const double base_spacing = base.reconstruction.spline_spacing_mm;
   const std::vector<double> spacings = goal.spline_spacing_mm.empty() ? std::vector<double>{base_spacing}
@@ -347,7 +399,8 @@ ScreenDesignResult OptimizeScreenDesign(const model::Config& base, const ScreenD
                           : goal.spot_noise_px;
     return c;
   };
-  const ScreenCandidate base_design = Assess(base.ideal_image, true, base.topographer, goal);
+  const auto corneas = model::FreeformTestSubset(goal.corneas);  // an unknown name throws before any work
+  const ScreenCandidate base_design = Assess(base.ideal_image, true, base.topographer, goal, corneas);
   r.candidates.push_back(with_knots(base_design, base_spacing));
   for (int rings : goal.rings) {
     for (int eta : goal.eta) {
@@ -355,7 +408,7 @@ ScreenDesignResult OptimizeScreenDesign(const model::Config& base, const ScreenD
       ideal.rings_N = rings - 1;
       ideal.eta0 = ideal.eta = eta;
       if (ideal.orientation_key && ideal.rings_N < 4) continue;  // the key needs three distinct rings (config.h)
-      const ScreenCandidate c = Assess(ideal, false, base.topographer, goal);
+      const ScreenCandidate c = Assess(ideal, false, base.topographer, goal, corneas);
       const auto& b = base_design.ideal;
       const bool same_design = c.ideal.rings_N == b.rings_N && c.ideal.eta0 == b.eta0 && c.ideal.eta == b.eta &&
                                c.ideal.spot_radius_um == b.spot_radius_um;
@@ -385,11 +438,11 @@ std::string ScreenDesignTable(const ScreenDesignResult& result, const ScreenDesi
   };
   std::string t = "| design | spots | spot r um | knots mm | spot noise px |";
   for (const auto& n : g.corneas) t += " " + n + " tgRMS D |";
-  t += fmt::format(" worst D | spacing um at {} / {} mm | gap px at {} / {} mm | resolves, mm | page mm | "
-                   "printed width / gap mm | verdict |\n|---|---|---|---|---|",
+  t += fmt::format(" worst D | spacing um at {} / {} mm | gap px at {} / {} mm | gap px on the corneas | "
+                   "resolves, mm | page mm | printed width / gap mm | verdict |\n|---|---|---|---|---|",
                    g.steepest_radius_mm, g.flattest_radius_mm, g.steepest_radius_mm, g.flattest_radius_mm);
   for (size_t k = 0; k < g.corneas.size(); ++k) t += "---|";
-  t += "---|---|---|---|---|---|---|\n";
+  t += "---|---|---|---|---|---|---|---|\n";
   for (size_t i = 0; i < result.candidates.size(); ++i) {
     const auto& c = result.candidates[i];
     t += fmt::format("| {}{} | {} | {:.2f} | {:g} | {:.3f} |", DesignName(c), c.base ? " (base)" : "", c.spots,
@@ -400,9 +453,10 @@ std::string ScreenDesignTable(const ScreenDesignResult& result, const ScreenDesi
                                 : !g.max_tangential_rms_D ? "resolves, prints"
                                 : c.meets_goal ? "meets the goal"
                                                : "misses max_tangential_rms_D";
-    t += fmt::format(" {} | {:.1f} / {:.1f} | {:.2f} / {:.2f} | {} | {:.0f} x {:.0f} | {:.2f} / {:.2f} | {} |\n",
+    t += fmt::format(" {} | {:.1f} / {:.1f} | {:.2f} / {:.2f} | {} | {} | {:.0f} x {:.0f} | {:.2f} / {:.2f} | {} |\n",
                      num(c.worst_tangential_rms_D, 2), c.min_spacing_steep_um, c.min_spacing_flat_um,
-                     c.min_gap_steep_px, c.min_gap_flat_px, range(c), c.page_width_mm, c.page_height_mm,
+                     c.min_gap_steep_px, c.min_gap_flat_px, num(c.min_gap_corneas_px, 2), range(c),
+                     c.page_width_mm, c.page_height_mm,
                      c.min_printed_width_mm, c.min_printed_gap_mm, verdict);
   }
   t += fmt::format("\n{}{}\n", result.chosen ? "Chosen: " : "No design chosen: ", result.why);

@@ -4,9 +4,10 @@
 // A bounded, deterministic grid search over the ideal image's density — N + 1 rings (Eq. 2a) and eta0 = eta spots
 // added per ring (Eq. 2b) — with the pattern's extent (rho0_mm, rhoN_mm) and the topographer of the base
 // configuration. Each candidate gets the largest spot radius (ideal image, µm) up to the goal's maximum that keeps
-// its spots resolvable at the steepest cornea of the goal's range, and is judged on
+// its spots resolvable at the steepest cornea of the goal's range and on each of the goal's corneas, and is judged on
 //   * resolvability: the smallest gap between neighbouring spot images on the detection plane, in pixels, at the
-//     steepest and flattest corneas (spheres of those apex radii) against the detector's need (min_gap_px);
+//     steepest and flattest corneas (spheres of those apex radii) and on the goal's corneas (whose ablation blends
+//     and cones crowd the spots more than the steepest sphere does) against the detector's need (min_gap_px);
 //   * printability: the page the printable screen (plot::NullScreenSvg) needs, the narrowest printed ellipse and the
 //     narrowest printed gap between neighbouring ellipses;
 //   * map error: the tangential-map RMS of the goal's test corneas (model/freeform_test_set.h), each imaged through
@@ -39,9 +40,13 @@ struct ScreenDesignGoal {
   double steepest_radius_mm = 6.5;             // apex radii of the corneas every spot must resolve on
   double flattest_radius_mm = 9.5;
   double pixel_pitch_um = model::kPaperPixelPitchUm;  // the sensor's (data/device.json)
-  double min_gap_px = 3.0;           // gap the detector needs between neighbouring spot images
+  // Gap the detector needs between neighbouring spot images for their centres to be as good as a lone spot's
+  // (3 px to segment them; docs/screen-design.md, "The resolvability criterion").
+  double min_gap_px = 4.5;
   double max_spot_radius_um = 8.0;   // ideal-image spot radius: the paper's, and the largest tried
-  double min_spot_radius_um = 4.0;   // below it a candidate is refused (a quarter of the paper's light)
+  // Below it a candidate is refused: a spot image of 2.2 px radius on the 1.12 um sensor, still flat-topped above a
+  // 1 px PSF (its light is charged by spot_noise_px's scaling).
+  double min_spot_radius_um = 2.5;
   double min_printed_feature_mm = 0.15;  // narrowest printed ellipse and printed gap between ellipses
   std::vector<double> max_page_mm = {297.0, 210.0};  // the page the sheet must fit, either way round (A4)
   std::vector<int> rings = {12, 16, 20, 22, 24, 26, 28};  // N + 1 of the grid
@@ -79,6 +84,7 @@ struct ScreenCandidate {
   // Resolvability (spheres at the goal's steepest / flattest apex radius).
   double min_spacing_steep_um = 0, min_spacing_flat_um = 0;  // nearest spot centres on the detection plane
   double min_gap_steep_px = 0, min_gap_flat_px = 0;          // nearest spot images' edges
+  double min_gap_corneas_px = 0;  // the same on the goal's corneas (NaN: none imaged the pattern)
   double steepest_resolved_mm = 0, flattest_resolved_mm = 0; // range that resolves (NaN: none), within the scan
   // Printability.
   double page_width_mm = 0, page_height_mm = 0;

@@ -49,6 +49,7 @@ TEST(ScreenDesign, BeatsThePaperScreenOnTheGoalWithinTheSpacingConstraint) {
   EXPECT_LT(chosen.worst_tangential_rms_D, paper.worst_tangential_rms_D);
   EXPECT_GE(chosen.min_gap_steep_px, goal.min_gap_px);
   EXPECT_GE(chosen.min_gap_flat_px, chosen.min_gap_steep_px);  // flatter corneas image the pattern larger
+  EXPECT_GE(chosen.min_gap_corneas_px, goal.min_gap_px);       // and so do the goal's own corneas
   EXPECT_GE(chosen.ideal.spot_radius_um, goal.min_spot_radius_um);
   EXPECT_LE(chosen.steepest_resolved_mm, goal.steepest_radius_mm);
   EXPECT_TRUE(chosen.refused.empty());
@@ -57,12 +58,14 @@ TEST(ScreenDesign, BeatsThePaperScreenOnTheGoalWithinTheSpacingConstraint) {
   EXPECT_EQ(r.config.ideal_image.spot_radius_um, chosen.ideal.spot_radius_um);
   EXPECT_EQ(r.config.reconstruction.surface_model, "spline");
   // Regression (measured 2026-12-07): paper 1.87 D (lasik-hyperopic-6D); chosen 18 rings x 6, 1026 spots, spot radius
-  // 7.34 um, worst 0.82 D (the same ablation), gap 3.01 px at 6.5 mm, resolves from 6.48 mm.
+  // 6.00 um (set by the 33 um cone: 4.51 px on it, 4.99 px at 6.5 mm), worst 0.82 D (the same ablation), resolves
+  // from 5.90 mm.
   EXPECT_NEAR(paper.worst_tangential_rms_D, 1.87, 0.05);
   EXPECT_EQ(chosen.ideal.rings_N + 1, 18);
   EXPECT_EQ(chosen.ideal.eta, 6);
   EXPECT_LT(chosen.worst_tangential_rms_D, 0.90);
-  EXPECT_NEAR(chosen.ideal.spot_radius_um, 7.34, 0.02);
+  EXPECT_NEAR(chosen.ideal.spot_radius_um, 6.00, 0.02);
+  EXPECT_NEAR(chosen.min_gap_corneas_px, goal.min_gap_px, 0.05);
 }
 
 // The knots are part of the design: a dense screen's ablation blend needs finer knots than the paper's 0.33 mm, and
@@ -87,6 +90,33 @@ TEST(ScreenDesign, ADenseScreenTakesTheFinerKnotsItCarries) {
   EXPECT_LE(chosen.worst_tangential_rms_D, 0.25);
   EXPECT_NEAR(chosen.worst_tangential_rms_D, 0.216, 0.02);
   EXPECT_NEAR(coarse.worst_tangential_rms_D, 0.69, 0.05);
+}
+
+// An ablation's blend crowds the spots more than the steepest sphere of the range: on a dense screen it, not the
+// sphere, sets the spot's size, so that the detector's centres are not pulled by their neighbours' light.
+TEST(ScreenDesign, TheCorneaThatCrowdsTheSpotsMostSetsTheirSize) {
+  auto goal = SmallGoal();
+  goal.corneas = {"lasik-myopic-6D"};
+  goal.rings = {26};
+  goal.eta = {6};
+  goal.spline_spacing_mm = {0.33};
+  const auto r = OptimizeScreenDesign(Paper(), goal, Jobs(2));
+  ASSERT_EQ(r.candidates.size(), 2u);
+  const auto& dense = r.candidates[1];
+  ASSERT_TRUE(dense.refused.empty()) << dense.refused;
+  // Acceptance: every gap, on the sphere and on the ablation, at least min_gap_px; the ablation's the tighter.
+  // Regression (measured 2026-12-07): 2.70 um spots, 4.51 px on the ablation, 5.42 px at 6.5 mm (the sphere alone
+  // allowed 3.93 um spots at 3 px).
+  EXPECT_GE(dense.min_gap_corneas_px, goal.min_gap_px);
+  EXPECT_GT(dense.min_gap_steep_px, dense.min_gap_corneas_px + 0.5);
+  EXPECT_NEAR(dense.min_gap_corneas_px, goal.min_gap_px, 0.05);
+  EXPECT_NEAR(dense.ideal.spot_radius_um, 2.70, 0.02);
+  // Spots the ablation cannot hold apart at min_gap_px are refused naming it.
+  goal.min_spot_radius_um = 3.0;
+  const auto refused = OptimizeScreenDesign(Paper(), goal, Jobs(2));
+  EXPECT_EQ(refused.candidates[1].refused.rfind("min_spot_radius_um: spots of 2.7 um at most leave 4.5 px on "
+                                                "lasik-myopic-6D", 0), 0u)
+      << refused.candidates[1].refused;
 }
 
 // The noise a candidate is measured with is the goal's for spots of max_spot_radius_um, larger for smaller spots as
@@ -128,12 +158,13 @@ TEST(ScreenDesign, TheResultDoesNotDependOnTheThreadCount) {
 TEST(ScreenDesign, AGoalNoDesignResolvesIsRefusedNamingTheKey) {
   auto goal = SmallGoal();
   // A 1180 x 885 sensor (3.8 um pixels: the paper's spots 6 px apart, docs/spot-noise.md) and spots no smaller
-  // than the paper's: the sparsest candidate, 12 rings x 6, leaves 3 px at 6.5 mm with spots of 7.6 um at most.
+  // than the paper's: the sparsest candidate, 12 rings x 6, leaves 4.5 px on the 33 um cone with spots of 3.1 um
+  // at most.
   goal.pixel_pitch_um = 3.8;
   goal.min_spot_radius_um = 8.0;
   const auto r = OptimizeScreenDesign(Paper(), goal, Jobs(1));
   EXPECT_FALSE(r.chosen);
-  EXPECT_EQ(r.why.rfind("min_spot_radius_um: spots of 7.6 um at most leave 3 px at 6.5 mm", 0), 0u) << r.why;
+  EXPECT_EQ(r.why.rfind("min_spot_radius_um: spots of 3.1 um at most leave 4.5 px on kc-33um-0.85mm", 0), 0u) << r.why;
   EXPECT_NE(r.why.find("no candidate of the grid resolves and prints"), std::string::npos) << r.why;
   for (const auto& c : r.candidates) {
     EXPECT_FALSE(c.refused.empty());
