@@ -11,6 +11,7 @@
 #include <tuple>
 #include <stdexcept>
 
+#include "correct/spot_index.h"
 #include "model/freeform_test_set.h"
 #include "model/null_screen.h"
 #include "model/null_screen_layout.h"
@@ -204,7 +205,34 @@ CorneaGaps GapsOnCorneas(const SpacingProbe& probe, const std::vector<model::Tes
   return out;
 }
 
-// Everything but the map error: the spot radius, resolvability and print of one candidate.
+// The goal corneas' exact spots given to the pattern matcher (correct::IndexSpots) as a capture's would be, their
+// identities compared with the truth: a design whose lattice the matcher misreads or cannot start on, on an eye it
+// is designed for, is refused (empty: every identity given is right). Sets the smallest share identified.
+std::string IdentificationRefusal(const std::vector<model::SyntheticImage>& images,
+                                  const std::vector<model::TestCornea>& corneas, ScreenCandidate* c) {
+  c->identified_share = 1.0;
+  for (size_t k = 0; k < corneas.size(); ++k) {
+    const auto& spots = images[k].spots;
+    std::vector<Eigen::Vector2d> mm;
+    mm.reserve(spots.size());
+    for (const auto& s : spots) mm.push_back(s.position_mm);
+    const auto indexing = correct::IndexSpots(mm, c->ideal);
+    if (!indexing.ok || indexing.spots.empty()) {
+      c->identified_share = 0;
+      return fmt::format("identification: the pattern matcher finds no identity on {}", corneas[k].name);
+    }
+    int wrong = 0;
+    for (const auto& s : indexing.spots) wrong += !(s.id == spots[s.detection].id);
+    if (wrong > 0) {
+      return fmt::format("identification: {} of the {} identities the pattern matcher gives on {} are wrong", wrong,
+                         indexing.spots.size(), corneas[k].name);
+    }
+    c->identified_share = std::min(c->identified_share, static_cast<double>(indexing.spots.size()) / spots.size());
+  }
+  return "";
+}
+
+// Everything but the map error: the spot radius, resolvability, print and identification of one candidate.
 ScreenCandidate Assess(const model::IdealImageParams& ideal, bool base, const model::TopographerParams& topographer,
                        const ScreenDesignGoal& g, const std::vector<model::TestCornea>& corneas) {
   ScreenCandidate c;
@@ -213,7 +241,7 @@ ScreenCandidate Assess(const model::IdealImageParams& ideal, bool base, const mo
   c.spots = ideal.SpotCount();
   c.tangential_rms_D.assign(g.corneas.size(), kNaN);
   c.worst_tangential_rms_D = kNaN;
-  c.steepest_resolved_mm = c.flattest_resolved_mm = c.min_gap_corneas_px = kNaN;
+  c.steepest_resolved_mm = c.flattest_resolved_mm = c.min_gap_corneas_px = c.identified_share = kNaN;
   const SpacingProbe probe(ideal, topographer);
   const auto steep = probe.At(g.steepest_radius_mm, ideal.spot_radius_um, g.pixel_pitch_um, g.min_gap_px);
   const auto flat = probe.At(g.flattest_radius_mm, ideal.spot_radius_um, g.pixel_pitch_um, g.min_gap_px);
@@ -253,6 +281,7 @@ ScreenCandidate Assess(const model::IdealImageParams& ideal, bool base, const mo
   }
   MeasurePrint(c.ideal, topographer, probe.pairs(), &c);
   if (c.refused.empty()) c.refused = PrintRefusal(c, g);
+  if (c.refused.empty()) c.refused = IdentificationRefusal(on_corneas.images, corneas, &c);
   return c;
 }
 
@@ -400,21 +429,31 @@ ScreenDesignResult OptimizeScreenDesign(const model::Config& base, const ScreenD
     return c;
   };
   const auto corneas = model::FreeformTestSubset(goal.corneas);  // an unknown name throws before any work
-  const ScreenCandidate base_design = Assess(base.ideal_image, true, base.topographer, goal, corneas);
-  r.candidates.push_back(with_knots(base_design, base_spacing));
+  // The designs of the grid, the base first, assessed in parallel (each by index: the order does not depend on the
+  // thread count).
+  std::vector<model::IdealImageParams> designs = {base.ideal_image};
   for (int rings : goal.rings) {
     for (int eta : goal.eta) {
       model::IdealImageParams ideal = base.ideal_image;
       ideal.rings_N = rings - 1;
       ideal.eta0 = ideal.eta = eta;
       if (ideal.orientation_key && ideal.rings_N < 4) continue;  // the key needs three distinct rings (config.h)
-      const ScreenCandidate c = Assess(ideal, false, base.topographer, goal, corneas);
-      const auto& b = base_design.ideal;
-      const bool same_design = c.ideal.rings_N == b.rings_N && c.ideal.eta0 == b.eta0 && c.ideal.eta == b.eta &&
-                               c.ideal.spot_radius_um == b.spot_radius_um;
-      for (double spacing : spacings) {
-        if (!(same_design && spacing == base_spacing)) r.candidates.push_back(with_knots(c, spacing));
-      }
+      designs.push_back(ideal);
+    }
+  }
+  std::vector<ScreenCandidate> assessed(designs.size());
+  util::ParallelFor(designs.size(), options.jobs, [&](size_t i) {
+    assessed[i] = Assess(designs[i], i == 0, base.topographer, goal, corneas);
+  });
+  const ScreenCandidate& base_design = assessed.front();
+  r.candidates.push_back(with_knots(base_design, base_spacing));
+  for (size_t i = 1; i < assessed.size(); ++i) {
+    const ScreenCandidate& c = assessed[i];
+    const auto& b = base_design.ideal;
+    const bool same_design = c.ideal.rings_N == b.rings_N && c.ideal.eta0 == b.eta0 && c.ideal.eta == b.eta &&
+                             c.ideal.spot_radius_um == b.spot_radius_um;
+    for (double spacing : spacings) {
+      if (!(same_design && spacing == base_spacing)) r.candidates.push_back(with_knots(c, spacing));
     }
   }
   MeasureMapErrors(base, goal, options, &r.candidates);
@@ -439,10 +478,10 @@ std::string ScreenDesignTable(const ScreenDesignResult& result, const ScreenDesi
   std::string t = "| design | spots | spot r um | knots mm | spot noise px |";
   for (const auto& n : g.corneas) t += " " + n + " tgRMS D |";
   t += fmt::format(" worst D | spacing um at {} / {} mm | gap px at {} / {} mm | gap px on the corneas | "
-                   "resolves, mm | page mm | printed width / gap mm | verdict |\n|---|---|---|---|---|",
+                   "identified % | resolves, mm | page mm | printed width / gap mm | verdict |\n|---|---|---|---|---|",
                    g.steepest_radius_mm, g.flattest_radius_mm, g.steepest_radius_mm, g.flattest_radius_mm);
   for (size_t k = 0; k < g.corneas.size(); ++k) t += "---|";
-  t += "---|---|---|---|---|---|---|---|\n";
+  t += "---|---|---|---|---|---|---|---|---|\n";
   for (size_t i = 0; i < result.candidates.size(); ++i) {
     const auto& c = result.candidates[i];
     t += fmt::format("| {}{} | {} | {:.2f} | {:g} | {:.3f} |", DesignName(c), c.base ? " (base)" : "", c.spots,
@@ -453,9 +492,11 @@ std::string ScreenDesignTable(const ScreenDesignResult& result, const ScreenDesi
                                 : !g.max_tangential_rms_D ? "resolves, prints"
                                 : c.meets_goal ? "meets the goal"
                                                : "misses max_tangential_rms_D";
-    t += fmt::format(" {} | {:.1f} / {:.1f} | {:.2f} / {:.2f} | {} | {} | {:.0f} x {:.0f} | {:.2f} / {:.2f} | {} |\n",
+    t += fmt::format(" {} | {:.1f} / {:.1f} | {:.2f} / {:.2f} | {} | {} | {} | {:.0f} x {:.0f} | {:.2f} / {:.2f} "
+                     "| {} |\n",
                      num(c.worst_tangential_rms_D, 2), c.min_spacing_steep_um, c.min_spacing_flat_um,
-                     c.min_gap_steep_px, c.min_gap_flat_px, num(c.min_gap_corneas_px, 2), range(c),
+                     c.min_gap_steep_px, c.min_gap_flat_px, num(c.min_gap_corneas_px, 2),
+                     num(100.0 * c.identified_share, 1), range(c),
                      c.page_width_mm, c.page_height_mm,
                      c.min_printed_width_mm, c.min_printed_gap_mm, verdict);
   }

@@ -10,6 +10,8 @@
 //     and cones crowd the spots more than the steepest sphere does) against the detector's need (min_gap_px);
 //   * printability: the page the printable screen (plot::NullScreenSvg) needs, the narrowest printed ellipse and the
 //     narrowest printed gap between neighbouring ellipses;
+//   * identification: the goal corneas' exact spots given to the pattern matcher (correct::IndexSpots); a wrong
+//     identity, or none, refuses the candidate;
 //   * map error: the tangential-map RMS of the goal's test corneas (model/freeform_test_set.h), each imaged through
 //     the candidate — exact spots, or spots with the goal's centre noise — and reconstructed
 //     (topo::MeasureSimulatedCornea) with each of the goal's knot spacings of the spline residual, the worst of them
@@ -85,6 +87,9 @@ struct ScreenCandidate {
   double min_spacing_steep_um = 0, min_spacing_flat_um = 0;  // nearest spot centres on the detection plane
   double min_gap_steep_px = 0, min_gap_flat_px = 0;          // nearest spot images' edges
   double min_gap_corneas_px = 0;  // the same on the goal's corneas (NaN: none imaged the pattern)
+  // Identification: the smallest share of a goal cornea's exact spots the pattern matcher identifies (NaN: not
+  // tried — the candidate was refused before); a wrong identity refuses the candidate.
+  double identified_share = 0;
   double steepest_resolved_mm = 0, flattest_resolved_mm = 0; // range that resolves (NaN: none), within the scan
   // Printability.
   double page_width_mm = 0, page_height_mm = 0;
