@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <random>
 #include <tuple>
 #include <stdexcept>
 
@@ -205,29 +206,46 @@ CorneaGaps GapsOnCorneas(const SpacingProbe& probe, const std::vector<model::Tes
   return out;
 }
 
-// The goal corneas' exact spots given to the pattern matcher (correct::IndexSpots) as a capture's would be, their
-// identities compared with the truth: a design whose lattice the matcher misreads or cannot start on, on an eye it
-// is designed for, is refused (empty: every identity given is right). Sets the smallest share identified.
+// The spot-centre noise (px) a candidate with spots of radius_um is measured with: the goal's for spots of
+// max_spot_radius_um, larger by max_spot_radius_um / radius for smaller ones (photon-limited).
+double CentreNoisePx(const ScreenDesignGoal& g, double radius_um) {
+  return radius_um > 0 ? g.spot_noise_px * std::max(1.0, g.max_spot_radius_um / radius_um) : g.spot_noise_px;
+}
+
+// The goal corneas' spots given to the pattern matcher (correct::IndexSpots) as a capture's would be — exact, and
+// with the candidate's centre noise (one seeded draw per cornea) when the goal has noise — their identities compared
+// with the truth: a design whose lattice the matcher misreads or cannot start on, on an eye it is designed for, is
+// refused (empty: every identity given is right). Sets the smallest share identified.
 std::string IdentificationRefusal(const std::vector<model::SyntheticImage>& images,
-                                  const std::vector<model::TestCornea>& corneas, ScreenCandidate* c) {
+                                  const std::vector<model::TestCornea>& corneas, double noise_mm,
+                                  ScreenCandidate* c) {
   c->identified_share = 1.0;
   for (size_t k = 0; k < corneas.size(); ++k) {
     const auto& spots = images[k].spots;
-    std::vector<Eigen::Vector2d> mm;
-    mm.reserve(spots.size());
-    for (const auto& s : spots) mm.push_back(s.position_mm);
-    const auto indexing = correct::IndexSpots(mm, c->ideal);
-    if (!indexing.ok || indexing.spots.empty()) {
-      c->identified_share = 0;
-      return fmt::format("identification: the pattern matcher finds no identity on {}", corneas[k].name);
+    for (const double sd_mm : {0.0, noise_mm}) {
+      std::mt19937 rng(static_cast<unsigned>(k + 1));
+      std::normal_distribution<double> noise(0.0, 1.0);
+      std::vector<Eigen::Vector2d> mm;
+      mm.reserve(spots.size());
+      for (const auto& s : spots) {
+        mm.push_back(sd_mm > 0 ? Eigen::Vector2d(s.position_mm + sd_mm * Eigen::Vector2d(noise(rng), noise(rng)))
+                               : s.position_mm);
+      }
+      const auto indexing = correct::IndexSpots(mm, c->ideal);
+      const std::string draw = sd_mm > 0 ? fmt::format(" (spots with {:.3f} um of noise)", sd_mm * 1e3) : "";
+      if (!indexing.ok || indexing.spots.empty()) {
+        c->identified_share = 0;
+        return fmt::format("identification: the pattern matcher finds no identity on {}{}", corneas[k].name, draw);
+      }
+      int wrong = 0;
+      for (const auto& s : indexing.spots) wrong += !(s.id == spots[s.detection].id);
+      if (wrong > 0) {
+        return fmt::format("identification: {} of the {} identities the pattern matcher gives on {}{} are wrong",
+                           wrong, indexing.spots.size(), corneas[k].name, draw);
+      }
+      c->identified_share = std::min(c->identified_share, static_cast<double>(indexing.spots.size()) / spots.size());
+      if (noise_mm == 0) break;
     }
-    int wrong = 0;
-    for (const auto& s : indexing.spots) wrong += !(s.id == spots[s.detection].id);
-    if (wrong > 0) {
-      return fmt::format("identification: {} of the {} identities the pattern matcher gives on {} are wrong", wrong,
-                         indexing.spots.size(), corneas[k].name);
-    }
-    c->identified_share = std::min(c->identified_share, static_cast<double>(indexing.spots.size()) / spots.size());
   }
   return "";
 }
@@ -281,7 +299,9 @@ ScreenCandidate Assess(const model::IdealImageParams& ideal, bool base, const mo
   }
   MeasurePrint(c.ideal, topographer, probe.pairs(), &c);
   if (c.refused.empty()) c.refused = PrintRefusal(c, g);
-  if (c.refused.empty()) c.refused = IdentificationRefusal(on_corneas.images, corneas, &c);
+  if (c.refused.empty()) {
+    c.refused = IdentificationRefusal(on_corneas.images, corneas, CentreNoisePx(g, r) * g.pixel_pitch_um * 1e-3, &c);
+  }
   return c;
 }
 
@@ -423,9 +443,7 @@ ScreenDesignResult OptimizeScreenDesign(const model::Config& base, const ScreenD
                                                                       : goal.spline_spacing_mm;
   const auto with_knots = [&](ScreenCandidate c, double spacing) {
     c.spline_spacing_mm = spacing;
-    c.spot_noise_px = c.ideal.spot_radius_um > 0
-                          ? goal.spot_noise_px * std::max(1.0, goal.max_spot_radius_um / c.ideal.spot_radius_um)
-                          : goal.spot_noise_px;
+    c.spot_noise_px = CentreNoisePx(goal, c.ideal.spot_radius_um);
     return c;
   };
   const auto corneas = model::FreeformTestSubset(goal.corneas);  // an unknown name throws before any work
