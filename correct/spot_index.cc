@@ -541,13 +541,12 @@ SpotIndexing IndexSpots(const std::vector<Eigen::Vector2d>& det, const model::Id
                         const IndexingOptions& options) {
   SpotIndexing out;
   std::string why;
-  const Template tpl = lattice::MakeTemplate(ideal);
   const int n_det = static_cast<int>(det.size());
   const auto fail = [&](std::string message) {
     out.message = std::move(message);
     out.unassigned_detections.resize(n_det);
     std::iota(out.unassigned_detections.begin(), out.unassigned_detections.end(), 0);
-    for (const auto& s : tpl.spots) out.missing.push_back(s.id);
+    for (const auto& s : model::IdealImage(ideal)) out.missing.push_back(s.id);
     return out;
   };
   if (!options.IsValid(&why)) return fail("invalid options: " + why);
@@ -557,6 +556,9 @@ SpotIndexing IndexSpots(const std::vector<Eigen::Vector2d>& det, const model::Id
   for (const auto& p : det) {
     if (!p.allFinite()) return fail("a detection's position is not finite");
   }
+  // The pattern's template (its spots' neighbours) only once there is something to index: a frame without a spot
+  // does not pay for it.
+  const Template tpl = lattice::MakeTemplate(ideal);
   // Start candidates are tried best first (up to five); the next only when the identities of the last are not clean
   // (more than 3 % refused: a start off by a ring or a spot grows a lattice its own checks keep refusing). The
   // outcome with the most identities net of refusals is kept.
