@@ -240,6 +240,7 @@ std::string IdentificationRefusal(const std::vector<model::SyntheticImage>& imag
       int wrong = 0;
       for (const auto& s : indexing.spots) wrong += !(s.id == spots[s.detection].id);
       if (wrong > 0) {
+        c->identified_share = kNaN;  // no share of right identities to report
         return fmt::format("identification: {} of the {} identities the pattern matcher gives on {}{} are wrong",
                            wrong, indexing.spots.size(), corneas[k].name, draw);
       }

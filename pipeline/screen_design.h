@@ -87,8 +87,8 @@ struct ScreenCandidate {
   double min_spacing_steep_um = 0, min_spacing_flat_um = 0;  // nearest spot centres on the detection plane
   double min_gap_steep_px = 0, min_gap_flat_px = 0;          // nearest spot images' edges
   double min_gap_corneas_px = 0;  // the same on the goal's corneas (NaN: none imaged the pattern)
-  // Identification: the smallest share of a goal cornea's exact spots the pattern matcher identifies (NaN: not
-  // tried — the candidate was refused before); a wrong identity refuses the candidate.
+  // Identification: the smallest share of a goal cornea's spots the pattern matcher identifies (NaN: not tried —
+  // the candidate was refused before — or a wrong identity, which refuses the candidate).
   double identified_share = 0;
   double steepest_resolved_mm = 0, flattest_resolved_mm = 0; // range that resolves (NaN: none), within the scan
   // Printability.
