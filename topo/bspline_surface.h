@@ -77,11 +77,12 @@ SplineFit FitSplineToSlopes(const std::vector<Eigen::Vector2d>& points_mm, const
                             double lambda, const SplineFitOptions& options, BSplineSurface* spline);
 
 // The same fit, repeated as the reconstruction refines its points (micrometres between passes). The unknowns are
-// the coefficients near the data (SplineFitOptions::support_margin; the others are 0); M = A^T A + lambda P is
-// assembled in place on a pattern built once for them (every pair of unknowns within 3 grid steps), and every fit
-// factorises its own M (a band: topo/band_cholesky.h): a refit equals a fresh fit exactly. lambda by REML walks the
-// grid from lambda_start (3 factorisations when REML's minimum is there) and keeps the chosen one's factorisation
-// for the trace probes. Measured 2026-12-02 (docs/reconstruction.md, "The spline's cost").
+// the coefficients near the data (SplineFitOptions::support_margin) and those of holes the data enclose; the others,
+// outside the data, are 0. M = A^T A + lambda P is assembled in place on a pattern built once for them (every pair
+// of unknowns within 3 grid steps), and every fit factorises its own M (a band: topo/band_cholesky.h): a refit equals
+// a fresh fit exactly. lambda by REML walks the grid from lambda_start (3 factorisations when REML's minimum is
+// there) and keeps the chosen one's factorisation for the trace probes. Measured 2026-12-02 (docs/reconstruction.md,
+// "The spline's cost").
 class SplineSlopeFitter {
  public:
   SplineFit Fit(const std::vector<Eigen::Vector2d>& points_mm, const std::vector<Eigen::Vector2d>& slopes, double lambda,
