@@ -148,19 +148,29 @@ int IdentifiedSides(const State& st, int j, const Eigen::Vector2d& q, int exclud
 // Drops the identities inconsistent with their neighbours, worst first. An identity at the lattice's edge (support
 // from one side: a lid's margin, the pattern's rim) is held to a tighter floor, 0.6 of the interior's: there a
 // stray blob (a glint on the lid margin) can sit near where a hidden spot would be, and nothing on the far side
-// contradicts it. Returns the number dropped.
+// contradicts it. Returns the number dropped. An identity's residual and edge depend on its neighbours' identities
+// alone, so after each drop only the identities that count the dropped one as a neighbour are measured again (the
+// same residuals as measuring every identity each time; a lattice its checks refuse by the thousand took seconds).
 int Check(State& st, const IndexingOptions& o) {
   const int n = static_cast<int>(st.tpl.spots.size());
-  int dropped = 0;
-  for (;;) {
-    std::vector<double> r(n, -1), finite;
-    std::vector<bool> edge(n, false);
+  std::vector<std::vector<int>> counted_by(n);  // the designed spots that have j among their neighbours
+  for (int k = 0; k < n; ++k) {
+    for (const int j : st.tpl.neighbours[k]) counted_by[j].push_back(k);
+  }
+  std::vector<double> r(n, -1);
+  std::vector<bool> edge(n, false);
+  const auto measure = [&](int j) {
     double abs;
+    r[j] = st.det_of_tpl[j] < 0 ? -1 : LooResidual(st, j, &abs);
+    edge[j] = st.det_of_tpl[j] >= 0 && IdentifiedSides(st, j, st.tpl.spots[j].position_mm, j) < 3;
+  };
+  for (int j = 0; j < n; ++j) measure(j);
+  int dropped = 0;
+  std::vector<double> finite;
+  for (;;) {
+    finite.clear();
     for (int j = 0; j < n; ++j) {
-      if (st.det_of_tpl[j] < 0) continue;
-      r[j] = LooResidual(st, j, &abs);
-      edge[j] = IdentifiedSides(st, j, st.tpl.spots[j].position_mm, j) < 3;
-      if (std::isfinite(r[j])) finite.push_back(r[j]);
+      if (r[j] >= 0 && std::isfinite(r[j])) finite.push_back(r[j]);
     }
     const double spread = o.residual_gate_sigmas * 1.4826 * Median(finite);
     const double inner = std::min(o.gate_fraction, std::max(spread, o.residual_gate_floor_fraction));
@@ -178,6 +188,8 @@ int Check(State& st, const IndexingOptions& o) {
     st.refused.insert({worst, st.det_of_tpl[worst]});
     st.Unassign(worst);
     ++dropped;
+    measure(worst);
+    for (const int k : counted_by[worst]) measure(k);
   }
 }
 
@@ -308,6 +320,39 @@ void Report(const State& st, int dropped, SpotIndexing* out) {
                              dropped);
 }
 
+// The lattices grown from the starts tried: the one kept, and the first not trusted.
+struct Lattices {
+  std::optional<State> best;
+  int best_net = std::numeric_limits<int>::min(), best_dropped = 0;
+  std::optional<std::pair<int, int>> untrusted;  // refused, kept of the first lattice not trusted
+};
+
+// Seeds, grows and checks a lattice from each start candidate in turn (up to kStartCandidatesTried) until one is
+// clean; `why` gets the first seed's failure.
+void TryStarts(const Template& tpl, const std::vector<Eigen::Vector2d>& det, const std::vector<LocalAffine>& candidates,
+               const IndexingOptions& options, Lattices* found, std::string* why) {
+  for (size_t c = 0; c < std::min<size_t>(candidates.size(), kStartCandidatesTried); ++c) {
+    State st(tpl, det, tpl.ring_step);
+    std::string reason;
+    if (!Seed(st, candidates[c], options, &reason)) {
+      if (c == 0) *why = reason;
+      continue;
+    }
+    const int dropped = Identify(st, options);
+    if (dropped > kMaxRefusedPerKept * st.Assigned()) {
+      if (!found->untrusted) found->untrusted.emplace(dropped, st.Assigned());
+      continue;
+    }
+    const int net = st.Assigned() - dropped;
+    if (net > found->best_net) {
+      found->best_net = net;
+      found->best_dropped = dropped;
+      found->best.emplace(std::move(st));
+    }
+    if (dropped <= std::max(3, found->best->Assigned() * 3 / 100)) return;
+  }
+}
+
 }  // namespace
 
 bool IndexingOptions::IsValid(std::string* why) const {
@@ -356,41 +401,24 @@ SpotIndexing IndexSpots(const std::vector<Eigen::Vector2d>& det, const model::Id
   // lattices whose checks refused at most kMaxRefusedPerKept as many identities as they kept, the one with the most
   // identities net of refusals is kept; a lattice refused more than that grew from a start the checks could not
   // confirm, or slipped where the pattern bends (an ablation's blend zone), and none of its identities is trusted.
-  const auto candidates = StartCandidates(State(tpl, det, tpl.ring_step), options, ideal.rhoN_mm, &why);
-  if (candidates.empty()) return fail(why);
-  std::optional<State> best;
-  int best_net = std::numeric_limits<int>::min(), best_dropped = 0;
-  std::optional<std::pair<int, int>> untrusted;  // refused, kept of the first lattice not trusted
-  for (size_t c = 0; c < std::min<size_t>(candidates.size(), kStartCandidatesTried); ++c) {
-    State st(tpl, det, tpl.ring_step);
-    std::string reason;
-    if (!Seed(st, candidates[c], options, &reason)) {
-      if (c == 0) why = reason;
-      continue;
-    }
-    const int dropped = Identify(st, options);
-    if (dropped > kMaxRefusedPerKept * st.Assigned()) {
-      if (!untrusted) untrusted.emplace(dropped, st.Assigned());
-      continue;
-    }
-    const int net = st.Assigned() - dropped;
-    if (net > best_net) {
-      best_net = net;
-      best_dropped = dropped;
-      best.emplace(std::move(st));
-    }
-    if (dropped <= std::max(3, best->Assigned() * 3 / 100)) break;
+  // When lattices grew and none is trusted, rotated and stretched starts are searched too (a severe cone beside the
+  // apex shears the inner rings; docs/spot-identification.md).
+  Lattices found;
+  for (const bool sheared : {false, true}) {
+    const auto candidates = StartCandidates(State(tpl, det, tpl.ring_step), options, ideal.rhoN_mm, sheared, &why);
+    if (candidates.empty()) return fail(why);
+    TryStarts(tpl, det, candidates, options, &found, &why);
+    if (found.best || !found.untrusted) break;
   }
-  if (!best && untrusted) {
+  const auto& best = found.best;
+  if (!best && found.untrusted) {
     return fail(fmt::format("the identities do not hold together: {} refused against {} kept (a start the checks "
                             "could not confirm, or a lattice that slipped where the pattern bends; is the pattern's "
                             "centre covered or deformed beyond recognition?)",
-                            untrusted->first, untrusted->second));
+                            found.untrusted->first, found.untrusted->second));
   }
   if (!best) return fail(why);
-  const State& st = *best;
-  const int dropped = best_dropped;
-  Report(st, dropped, &out);
+  Report(*best, found.best_dropped, &out);
   return out;
 }
 

@@ -20,16 +20,41 @@ using util::Median;
 struct Hypothesis {
   Eigen::Vector2d centre;
   double scale = 1, score = 0;
+  Eigen::Matrix2d shape = Eigen::Matrix2d::Identity();  // the map's linear part at unit scale
 };
 
-// Coarse search over centres and isotropic scales, scored on rings 1-2 by sum min(d, gate)^2 / gate^2 (0 for a
+// The shapes of the second start (StartCandidates' `sheared`): stretches of 6 and 12 % along 0, 45, 90 and 135 deg
+// (the first start searched the unstretched shape). A severe cone beside the apex stretches the inner rings (a
+// 60 um cone 0.9 mm from the apex of a 26-ring screen: 11 % along -37 deg), which no isotropic hypothesis reaches
+// within the gate, while the cone's flank offers isotropic false centres. Rotations of +-5 deg as well found no
+// more starts on the test eyes and tripled the work.
+std::vector<Eigen::Matrix2d> ShearedShapes() {
+  const auto rotation = [](double deg) {
+    const double t = deg * M_PI / 180.0;
+    Eigen::Matrix2d r;
+    r << std::cos(t), -std::sin(t), std::sin(t), std::cos(t);
+    return r;
+  };
+  std::vector<Eigen::Matrix2d> shapes;
+  for (const double stretch : {0.06, 0.12}) {
+    for (const double axis : {0.0, 45.0, 90.0, 135.0}) {
+      const Eigen::Matrix2d diagonal = Eigen::Vector2d(1 + stretch, 1 - stretch).asDiagonal();
+      shapes.push_back(rotation(axis) * diagonal * rotation(-axis));
+    }
+  }
+  return shapes;
+}
+
+// Coarse search over centres and scales (of each shape), scored on rings 1-2 by sum min(d, gate)^2 / gate^2 (0 for a
 // perfect match, ~0.75 per spot for points that only land somewhere on the lattice). The gate and the grid are set
 // by the image's own spot spacing (`image_spacing`: the median distance between neighbouring detections), not by the
 // hypothesis' scale, so that no scale is favoured; scales are searched around the one that spacing implies. The grid
 // (a quarter spacing, 5 % in scale) keeps the true hypothesis within ~0.25 spacings of every inner spot of a
-// near-isotropic image, inside the 0.4-spacing gate. Returns the best dozen, a spot spacing apart.
+// near-isotropic image, inside the 0.4-spacing gate. Each of `shapes` (the linear part at unit scale) is searched
+// alike. Returns the best dozen, a spot spacing apart.
 std::vector<Hypothesis> CoarseStart(const State& st, const Eigen::Vector2d& around, double radius,
-                                    double image_spacing, double scale_lo, double scale_hi) {
+                                    double image_spacing, double scale_lo, double scale_hi,
+                                    const std::vector<Eigen::Matrix2d>& shapes) {
   const std::vector<int> ids = InnerSpots(st.tpl, 2);
   double reach = 0;
   for (const int j : ids) reach = std::max(reach, st.tpl.spots[j].position_mm.norm());
@@ -44,24 +69,26 @@ std::vector<Hypothesis> CoarseStart(const State& st, const Eigen::Vector2d& arou
   std::vector<Eigen::Vector2d> offsets(ids.size());
   const int n = static_cast<int>(std::ceil(radius / step));
   const double gate2 = gate * gate;
-  for (double s = scale_lo; s <= scale_hi * 1.0001; s *= 1.05) {
-    for (size_t k = 0; k < ids.size(); ++k) offsets[k] = s * st.tpl.spots[ids[k]].position_mm;
-    for (int iy = -n; iy <= n; ++iy) {
-      for (int ix = -n; ix <= n; ++ix) {
-        if (ix * ix + iy * iy > n * n) continue;
-        const Eigen::Vector2d c = around + Eigen::Vector2d(ix * step, iy * step);
-        const double bound = all.size() == kKept ? all.front().score * gate2 : 1e300;
-        double sum = 0;
-        for (size_t k = 0; k < offsets.size() && sum < bound; ++k) {
-          const double d = field.At(c + offsets[k], gate);
-          sum += d * d;
-        }
-        if (sum >= bound) continue;
-        all.push_back({c, s, sum / gate2});
-        std::push_heap(all.begin(), all.end(), worse);
-        if (all.size() > kKept) {
-          std::pop_heap(all.begin(), all.end(), worse);
-          all.pop_back();
+  for (const Eigen::Matrix2d& shape : shapes) {
+    for (double s = scale_lo; s <= scale_hi * 1.0001; s *= 1.05) {
+      for (size_t k = 0; k < ids.size(); ++k) offsets[k] = s * shape * st.tpl.spots[ids[k]].position_mm;
+      for (int iy = -n; iy <= n; ++iy) {
+        for (int ix = -n; ix <= n; ++ix) {
+          if (ix * ix + iy * iy > n * n) continue;
+          const Eigen::Vector2d c = around + Eigen::Vector2d(ix * step, iy * step);
+          const double bound = all.size() == kKept ? all.front().score * gate2 : 1e300;
+          double sum = 0;
+          for (size_t k = 0; k < offsets.size() && sum < bound; ++k) {
+            const double d = field.At(c + offsets[k], gate);
+            sum += d * d;
+          }
+          if (sum >= bound) continue;
+          all.push_back({c, s, sum / gate2, shape});
+          std::push_heap(all.begin(), all.end(), worse);
+          if (all.size() > kKept) {
+            std::pop_heap(all.begin(), all.end(), worse);
+            all.pop_back();
+          }
         }
       }
     }
@@ -134,7 +161,8 @@ int AssignMutualNearest(State& st, const std::vector<int>& ids, const LocalAffin
 
 // The start's candidates: the coarse hypotheses refined to affine maps of rings 1-3, best (lowest score) first.
 // Empty, with the reason, when the detections give no hypothesis.
-std::vector<LocalAffine> StartCandidates(const State& st, const IndexingOptions& o, double rho_n, std::string* why) {
+std::vector<LocalAffine> StartCandidates(const State& st, const IndexingOptions& o, double rho_n, bool sheared,
+                                         std::string* why) {
   const std::vector<int> inner = InnerSpots(st.tpl, 3);
   if (st.det.size() < inner.size()) {
     *why = fmt::format("{} detections, fewer than the {} spots of the pattern's three inner rings (merged or missing "
@@ -166,12 +194,13 @@ std::vector<LocalAffine> StartCandidates(const State& st, const IndexingOptions&
   }
   const double scale = image_spacing / Median(nn_design);
   const auto coarse = CoarseStart(st, median, o.centre_search_fraction * rho_n, image_spacing,
-                                  std::max(o.min_scale, 0.75 * scale), std::min(o.max_scale, 1.33 * scale));
+                                  std::max(o.min_scale, 0.75 * scale), std::min(o.max_scale, 1.33 * scale),
+                                  sheared ? ShearedShapes() : std::vector<Eigen::Matrix2d>{Eigen::Matrix2d::Identity()});
   std::vector<std::pair<double, LocalAffine>> refined;
   for (const auto& h : coarse) {
     LocalAffine m;
     m.offset = h.centre;
-    m.linear = h.scale * Eigen::Matrix2d::Identity();
+    m.linear = h.scale * h.shape;
     const double score = RefineAffine(st, inner, &m);
     refined.emplace_back(score, m);
   }

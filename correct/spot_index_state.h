@@ -39,9 +39,10 @@ struct State {
 
 
 // The start's candidates: the coarse hypotheses refined to affine maps of rings 1-3, best (lowest score) first.
-// Empty, with the reason, when the detections give no hypothesis.
+// Empty, with the reason, when the detections give no hypothesis. `sheared` searches rotated and stretched
+// hypotheses too (27 times the work), for when no isotropic start holds.
 std::vector<lattice::LocalAffine> StartCandidates(const State& st, const IndexingOptions& o, double rho_n,
-                                                  std::string* why);
+                                                  bool sheared, std::string* why);
 
 // Rings 1-3 identified from a start candidate by mutual nearest neighbours, the affine map refitted once. False,
 // with the reason, when fewer than half of them are found.

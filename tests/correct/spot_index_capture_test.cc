@@ -87,5 +87,36 @@ TEST(SpotIndexCapture, LidsConesAblationsAndAssembledDevicesGiveNoWrongIdentity)
   EXPECT_GE(worst[1][1], 0.42);
 }
 
+// A severe cone beside the apex of a dense screen (the 26-ring x 6 design of docs/screen-design.md, exact spots):
+// it stretches the inner rings by ~11 % along one axis, the isotropic start search seats rings 1-3 on the cone's
+// flank, and every lattice grown from there is wrong and refused. The stretched starts find the centre; the eyes the
+// isotropic start already reads take the same path as before (no stretched search).
+TEST(SpotIndexCapture, ASevereConeBesideTheApexOfADenseScreenIsReadFromAStretchedStart) {
+  auto cfg = testing::PaperConfig();
+  cfg.ideal_image.rings_N = 25;
+  cfg.ideal_image.eta0 = cfg.ideal_image.eta = 6;
+  cfg.ideal_image.spot_radius_um = 2.70;
+  const auto eyes = Eyes();
+  const auto severe = std::find_if(eyes.begin(), eyes.end(), [](const auto& e) { return e.name.rfind("kc-60", 0) == 0; });
+  ASSERT_NE(severe, eyes.end());
+  int read = 0;
+  for (int dev = 0; dev < 3; ++dev) {
+    SCOPED_TRACE(fmt::format("device {}", dev));
+    const auto truth = SpotsOnSensor(severe->surface, cfg.ideal_image, cfg.topographer, AssembledDevice(dev));
+    std::vector<Eigen::Vector2d> mm;
+    for (const auto& s : truth.spots) mm.push_back(testing::DefaultCamera().DetectionPlaneFromPixel(s.centre_px));
+    const auto idx = IndexSpots(mm, cfg.ideal_image);
+    const Tally t = Score(idx, truth.spots);
+    fmt::print("device {}: {} of {} identified, {} wrong; {}\n", dev, t.labelled, t.visible, t.wrong, idx.message);
+    EXPECT_EQ(t.wrong, 0);  // acceptance, read or refused
+    if (!idx.ok) continue;
+    ++read;
+    // Measured 2026-12-07: 2,095 of 2,106 on devices 0 and 1 (none read before the stretched starts).
+    EXPECT_GE(static_cast<double>(t.labelled) / t.visible, 0.99);
+  }
+  // Devices 0 and 1 read; device 2 still refused ("the identities do not hold together"), measured 2026-12-07.
+  EXPECT_GE(read, 2);
+}
+
 }  // namespace
 }  // namespace topocal::correct

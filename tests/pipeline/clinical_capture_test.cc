@@ -419,17 +419,18 @@ TEST(ClinicalCapture, ADesignedScreenResolvesTheAblationsThePapersCannot) {
              "{} refused\n", worst_axial, worst_tangential, worst_centre_px, designed_refused);
   // Acceptance: axial rms <= 0.1 D; the tangential 0.25 D holds on all but the deepest myopic ablation, which
   // is decentred. Measured 2026-12-07: myopic -4 / -6 / -8 D 0.128 / 0.200 / 0.278 D, hyperopic +4 / +6 D 0.134 /
-  // 0.222 D, the 33 um cone 0.052 D; worst axial rms 0.016 D; centres 0.0017-0.0020 px from the truth (the paper's
-  // lone 8 um spots: 0.0012-0.0016 px; the same screen with 4.34 um spots, 2.5 px apart on the -6 D blend:
-  // 0.0048-0.0138 px and 0.266 / 0.339 D on the -6 / -8 D ablations). The paper's screen: 0.8-1.9 D on the
-  // ablations, four of the six refused by the surface model's adequacy check. The severe decentred 60 um cone is
-  // refused on the designed screen (no start of its 2,106 spots holds together) and measured on the paper's.
+  // 0.222 D, the 33 um cone 0.052 D, the severe decentred 60 um cone 0.055 D; worst axial rms 0.016 D; centres
+  // 0.0017-0.0020 px from the truth (the paper's lone 8 um spots: 0.0012-0.0016 px; the same screen with 4.34 um
+  // spots, 2.5 px apart on the -6 D blend: 0.0048-0.0138 px and 0.266 / 0.339 D on the -6 / -8 D ablations). The
+  // paper's screen: 0.8-1.9 D on the ablations, four of the six refused by the surface model's adequacy check. The
+  // 60 um cone shears the designed screen's inner rings: it is identified from a stretched start (before the
+  // matcher searched them, it was refused).
   EXPECT_LE(worst_axial, 0.1);
   EXPECT_LE(worst_axial, 0.025);
-  EXPECT_EQ(within_tangential_target, 5);  // of the six measured
+  EXPECT_EQ(within_tangential_target, 6);  // of the seven measured
   EXPECT_LE(worst_tangential, 0.30);
   EXPECT_LE(worst_centre_px, 0.0025);
-  EXPECT_EQ(designed_refused, 1);
+  EXPECT_EQ(designed_refused, 0);
 }
 
 }  // namespace
