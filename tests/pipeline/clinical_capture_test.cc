@@ -12,6 +12,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <optional>
 #include <random>
 #include <set>
 #include <string>
@@ -431,6 +432,42 @@ TEST(ClinicalCapture, ADesignedScreenResolvesTheAblationsThePapersCannot) {
   EXPECT_LE(worst_tangential, 0.30);
   EXPECT_LE(worst_centre_px, 0.0025);
   EXPECT_EQ(designed_refused, 0);
+}
+
+// The severe decentred 60 um cone on the screens `design --optimize` weighs (spot radii as its table gives them,
+// knots every 0.2 mm), rendered noisy as above: on each, the identities are right, or the measurement is refused.
+TEST(ClinicalCapture, TheSevereDecentredConeIsReadOrRefusedOnEveryCandidateScreen) {
+  const auto paper = ForEyes(testing::PaperConfig());
+  std::optional<Capture> cap;
+  for (const auto& e : correct::testing::Eyes()) {
+    if (e.name.rfind("kc-60", 0) == 0) cap = Capture{e.name, e.surface, 0, 0, 0, {}};
+  }
+  ASSERT_TRUE(cap);
+  struct Screen {
+    int rings, eta;
+    double spot_radius_um;
+  };
+  int right = 0;
+  for (const Screen s : {Screen{12, 6, 8.0}, Screen{16, 6, 6.97}, Screen{22, 6, 3.90}, Screen{22, 8, 3.3},
+                         Screen{12, 8, 8.0}, Screen{16, 8, 5.64}, Screen{26, 6, 2.70}}) {
+    SCOPED_TRACE(fmt::format("{} x {}", s.rings, s.eta));
+    model::Config c = paper;
+    c.ideal_image.rings_N = s.rings - 1;
+    c.ideal_image.eta0 = c.ideal_image.eta = s.eta;
+    c.ideal_image.spot_radius_um = s.spot_radius_um;
+    c.reconstruction.surface_model = "spline";
+    c.reconstruction.surface_model_given = true;
+    c.reconstruction.spline_spacing_mm = 0.2;
+    const ScreenOutcome o = MeasureOnScreen(*cap, 36, c);
+    fmt::print("{} x {}: {} of {} identified, {} wrong; {}\n", s.rings, s.eta, o.identified, o.visible, o.wrong,
+               o.refused ? "refused: " + o.reason : "valid");
+    if (o.wrong > 0) EXPECT_TRUE(o.refused);  // acceptance: a wrong identity never gives a reading
+    right += o.wrong == 0 && o.identified == o.visible;
+  }
+  // Measured 2026-12-07: every identity right on six of the seven; on 16 x 6 the lattice slips by a spot (375
+  // identities, all wrong) and the surface refuses it. Before the matcher searched stretched starts: two of seven
+  // (12 x 8, 16 x 8), the others refused.
+  EXPECT_GE(right, 6);
 }
 
 }  // namespace
