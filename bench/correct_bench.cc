@@ -12,6 +12,7 @@
 #include "correct/undistort_map.h"
 #include "model/config.h"
 #include "model/device.h"
+#include "model/freeform_test_set.h"
 #include "model/topographer_camera.h"
 
 namespace {
@@ -151,6 +152,31 @@ void BM_IndexOnly(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(correct::IndexSpots(mm, s.config.ideal_image));
 }
 BENCHMARK(BM_IndexOnly)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The pattern matcher where its first start fails: a 60 um cone 0.9 mm beside the apex, imaged on the 26-ring x 6
+// screen `design --optimize` chooses (exact spots, nominal device). The isotropic starts grow lattices that are all
+// wrong and refused; the stretched starts read it (docs/spot-identification.md, step 1).
+void BM_IndexSevereConeOnDenseScreen(benchmark::State& state) {
+  const auto& s = GetScene();
+  model::IdealImageParams ideal = s.config.ideal_image;
+  ideal.rings_N = 25;
+  ideal.eta0 = ideal.eta = 6;
+  ideal.spot_radius_um = 2.70;
+  model::Freeform cornea = model::FreeformTestSubset({"kc-33um-0.85mm"}).front().surface;
+  cornea.cones = {{60.0, 1.0, 0.4, -0.8}};
+  model::FocusOnAxis(&cornea);
+  const auto truth = correct::SpotsOnSensor(cornea, ideal, s.config.topographer, model::NominalDevice(s.camera));
+  std::vector<Eigen::Vector2d> mm;
+  for (const auto& spot : truth.spots) mm.push_back(s.camera.DetectionPlaneFromPixel(spot.centre_px));
+  size_t identified = 0;
+  for (auto _ : state) {
+    const auto r = correct::IndexSpots(mm, ideal);
+    identified = r.spots.size();
+    benchmark::DoNotOptimize(r);
+  }
+  state.counters["identified"] = static_cast<double>(identified);
+}
+BENCHMARK(BM_IndexSevereConeOnDenseScreen)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_BuildUndistortMapBrown(benchmark::State& state) {
   const auto& s = GetScene();
