@@ -340,7 +340,7 @@ bool HoldsItsCentre(const State& st) {
 struct Lattices {
   std::optional<State> best;
   int best_net = std::numeric_limits<int>::min(), best_dropped = 0;
-  std::optional<std::pair<int, int>> untrusted;  // refused, kept of the first lattice not trusted
+  std::optional<std::string> untrusted;  // why the first lattice not trusted was not
 };
 
 // Seeds, grows and checks a lattice from each start candidate in turn (up to kStartCandidatesTried) until one is
@@ -355,8 +355,18 @@ void TryStarts(const Template& tpl, const std::vector<Eigen::Vector2d>& det, con
       continue;
     }
     const int dropped = Identify(st, options);
-    if (dropped > kMaxRefusedPerKept * st.Assigned() || !HoldsItsCentre(st)) {
-      if (!found->untrusted) found->untrusted.emplace(dropped, st.Assigned());
+    if (dropped > kMaxRefusedPerKept * st.Assigned()) {
+      if (!found->untrusted) {
+        found->untrusted = fmt::format("{} refused against {} kept (a start the checks could not confirm, or a "
+                                       "lattice that slipped where the pattern bends)", dropped, st.Assigned());
+      }
+      continue;
+    }
+    if (!HoldsItsCentre(st)) {
+      if (!found->untrusted) {
+        found->untrusted = fmt::format("of {} identities kept, too few are of rings 1-3 (a lattice that slid along "
+                                       "the rings)", st.Assigned());
+      }
       continue;
     }
     const int net = st.Assigned() - dropped;
@@ -429,10 +439,8 @@ SpotIndexing IndexSpots(const std::vector<Eigen::Vector2d>& det, const model::Id
   }
   const auto& best = found.best;
   if (!best && found.untrusted) {
-    return fail(fmt::format("the identities do not hold together: {} refused against {} kept (a start the checks "
-                            "could not confirm, or a lattice that slipped where the pattern bends; is the pattern's "
-                            "centre covered or deformed beyond recognition?)",
-                            found.untrusted->first, found.untrusted->second));
+    return fail(fmt::format("the identities do not hold together: {}; is the pattern's centre covered or deformed "
+                            "beyond recognition?", *found.untrusted));
   }
   if (!best) return fail(why);
   Report(*best, found.best_dropped, &out);
