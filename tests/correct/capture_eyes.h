@@ -46,6 +46,15 @@ inline std::vector<Eye> Eyes() {
   return eyes;
 }
 
+// The screen `design --optimize` chooses for the default goal (docs/screen-design.md): 26 rings x 6, spots of
+// 2.70 um; the rest of `ideal` kept.
+inline model::IdealImageParams DesignedScreen(model::IdealImageParams ideal) {
+  ideal.rings_N = 25;
+  ideal.eta0 = ideal.eta = 6;
+  ideal.spot_radius_um = 2.70;
+  return ideal;
+}
+
 inline model::Device AssembledDevice(int variant) {
   model::Device device = model::NominalDevice(DefaultCamera());
   if (variant == 0) return device;

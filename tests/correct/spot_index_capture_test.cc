@@ -93,9 +93,7 @@ TEST(SpotIndexCapture, LidsConesAblationsAndAssembledDevicesGiveNoWrongIdentity)
 // isotropic start already reads take the same path as before (no stretched search).
 TEST(SpotIndexCapture, ASevereConeBesideTheApexOfADenseScreenIsReadFromAStretchedStart) {
   auto cfg = testing::PaperConfig();
-  cfg.ideal_image.rings_N = 25;
-  cfg.ideal_image.eta0 = cfg.ideal_image.eta = 6;
-  cfg.ideal_image.spot_radius_um = 2.70;
+  cfg.ideal_image = testing::DesignedScreen(cfg.ideal_image);
   const auto eyes = Eyes();
   const auto severe = std::find_if(eyes.begin(), eyes.end(), [](const auto& e) { return e.name.rfind("kc-60", 0) == 0; });
   ASSERT_NE(severe, eyes.end());
@@ -123,9 +121,7 @@ TEST(SpotIndexCapture, ASevereConeBesideTheApexOfADenseScreenIsReadFromAStretche
 // easier to make and as consistent with itself.
 TEST(SpotIndexCapture, TheDenseDesignedScreenUnderLidsGivesNoWrongIdentity) {
   auto cfg = testing::PaperConfig();
-  cfg.ideal_image.rings_N = 25;
-  cfg.ideal_image.eta0 = cfg.ideal_image.eta = 6;
-  cfg.ideal_image.spot_radius_um = 2.70;
+  cfg.ideal_image = testing::DesignedScreen(cfg.ideal_image);
   const LidCase lids[] = {{0.15, 0}, {0.25, 0}, {0.40, 0}, {0.30, 0.15}};
   uint32_t seed = 501;
   int wrong = 0, refused = 0, cases = 0;

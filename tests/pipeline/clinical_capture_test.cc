@@ -374,9 +374,7 @@ ScreenOutcome MeasureOnScreen(const Capture& cap, uint32_t seed, const model::Co
 TEST(ClinicalCapture, ADesignedScreenResolvesTheAblationsThePapersCannot) {
   const auto paper = ForEyes(testing::PaperConfig());
   model::Config designed = paper;
-  designed.ideal_image.rings_N = 25;
-  designed.ideal_image.eta0 = designed.ideal_image.eta = 6;
-  designed.ideal_image.spot_radius_um = 2.70;
+  designed.ideal_image = correct::testing::DesignedScreen(designed.ideal_image);
   designed.reconstruction.surface_model = "spline";
   designed.reconstruction.surface_model_given = true;
   designed.reconstruction.spline_spacing_mm = 0.15;
