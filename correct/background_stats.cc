@@ -73,32 +73,23 @@ class SpreadHistogram {
   double total_ = 0;
 };
 
-template <typename T>
-double DifferenceSigma(const cv::Mat& img) {
-  constexpr bool kInteger = std::is_integral_v<T>;
-  std::vector<uint32_t> hist(kInteger ? (sizeof(T) == 1 ? 256 : 65536) : 0, 0);
+// 1.4826 MAD / sqrt 2 of the differences of adjacent pixels, from their histogram (integer images).
+double DifferenceSigmaOf(const std::vector<uint32_t>& hist) {
+  const SpreadHistogram h(hist);
+  if (h.total() == 0) return 0;
+  return kMadToSigma * h.Quantile(0.5) / std::sqrt(2.0);
+}
+
+// The same of a float image's pairs (FrameSummary counts only integer ones).
+double FloatDifferenceSigma(const cv::Mat& img) {
   std::vector<float> d;
   for (int r = 0; r < img.rows; r += 4) {
-    const T* p = img.ptr<T>(r);
-    for (int c = 0; c + 1 < img.cols; c += 2) {
-      if constexpr (kInteger) {
-        ++hist[std::abs(static_cast<int>(p[c + 1]) - static_cast<int>(p[c]))];
-      } else {
-        d.push_back(std::abs(p[c + 1] - p[c]));
-      }
-    }
+    const auto* p = img.ptr<float>(r);
+    for (int c = 0; c + 1 < img.cols; c += 2) d.push_back(std::abs(p[c + 1] - p[c]));
   }
-  double mad = 0;
-  if constexpr (kInteger) {
-    const SpreadHistogram h(hist);
-    if (h.total() == 0) return 0;
-    mad = h.Quantile(0.5);
-  } else {
-    if (d.empty()) return 0;
-    std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
-    mad = d[d.size() / 2];
-  }
-  return kMadToSigma * mad / std::sqrt(2.0);
+  if (d.empty()) return 0;
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  return kMadToSigma * d[d.size() / 2] / std::sqrt(2.0);
 }
 
 // The negative log-likelihood of a histogram's core as the rounded samples of a Gaussian (mean p[0], sigma
@@ -164,13 +155,7 @@ double MaximumLikelihoodReadNoise(const std::vector<uint32_t>& hist, double medi
   return sigma;
 }
 
-template <typename T>
-BackgroundStats IntegerStats(const cv::Mat& img) {
-  std::vector<uint32_t> hist(sizeof(T) == 1 ? 256 : 65536, 0);
-  for (int r = 0; r < img.rows; r += 2) {
-    const T* p = img.ptr<T>(r);
-    for (int c = 0; c < img.cols; c += 2) ++hist[p[c]];
-  }
+BackgroundStats IntegerStats(const std::vector<uint32_t>& hist) {
   BackgroundStats s;
   const SpreadHistogram h(hist);
   if (h.total() == 0) return s;
@@ -248,21 +233,16 @@ double ReadNoiseAwayFrom(const cv::Mat& image, const std::vector<cv::Rect>& occu
                                 : ReadNoiseOutside<uint16_t>(image, free_half);
 }
 
+BackgroundStats BackgroundOf(const FrameSummary& summary) {
+  BackgroundStats s = IntegerStats(summary.values());
+  s.sigma_diff = DifferenceSigmaOf(summary.differences());
+  return s;
+}
+
 BackgroundStats MeasureBackground(const cv::Mat& image) {
-  BackgroundStats s;
-  switch (image.depth()) {
-    case CV_8U:
-      s = IntegerStats<uint8_t>(image);
-      s.sigma_diff = DifferenceSigma<uint8_t>(image);
-      break;
-    case CV_16U:
-      s = IntegerStats<uint16_t>(image);
-      s.sigma_diff = DifferenceSigma<uint16_t>(image);
-      break;
-    default:
-      s = FloatStats(image);
-      s.sigma_diff = DifferenceSigma<float>(image);
-  }
+  if (image.depth() == CV_8U || image.depth() == CV_16U) return BackgroundOf(FrameSummary::Of(image));
+  BackgroundStats s = FloatStats(image);
+  s.sigma_diff = FloatDifferenceSigma(image);
   return s;
 }
 

@@ -5,6 +5,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "correct/frame_summary.h"
+
 namespace topocal::correct::detail {
 
 struct BackgroundStats {
@@ -21,9 +23,11 @@ struct BackgroundStats {
 };
 
 // Every 2nd pixel of every 2nd row for the level (a quarter of the image: enough samples, a quarter of the cost),
-// disjoint adjacent pairs on every 4th row for the differences. Integer images go through histograms (one pass, no
-// sort); float images through nth_element. `image`: CV_8UC1, CV_16UC1 or CV_32FC1.
+// disjoint adjacent pairs on every 4th row for the differences. Integer images go through the histograms of their
+// FrameSummary (one pass, no sort); float images through nth_element. `image`: CV_8UC1, CV_16UC1 or CV_32FC1.
 BackgroundStats MeasureBackground(const cv::Mat& image);
+// The same from the summary of an integer frame (MeasureBackground of an integer image is this of its summary).
+BackgroundStats BackgroundOf(const FrameSummary& summary);
 
 // The read noise (DN, quantisation excluded) of the background left where the spots' light cannot reach: the
 // pixels of MeasureBackground's subsample outside every rectangle of `occupied` (image coordinates) grown by half

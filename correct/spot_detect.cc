@@ -84,27 +84,15 @@ bool ApplyLocalBackground(const cv::Mat& image, double median, double sigma, dou
   return true;
 }
 
-// Whether any pixel is above `threshold`, as cv::compare(image, threshold, CMP_GT) has it (an integer image's
-// threshold truncated to an integer, a float image's rounded to float), without a mask: a frame without a spot costs
-// one read pass, not a frame-sized mask (12 MB of fresh memory for 4000 x 3000). The pass is OpenCV's maximum
-// (cv::minMaxIdx, vectorised with the CPU's widest instructions at run time) over bands of rows, so that a frame
-// with a spot stops at the band that holds it; a NaN is above no threshold, as for cv::compare.
-bool AnyAbove(const cv::Mat& image, double threshold) {
-  if (image.depth() != CV_32F && threshold < 0) return !image.empty();  // every integer pixel
-  const double limit = image.depth() == CV_32F ? static_cast<float>(threshold) : std::floor(threshold);
-  constexpr int kBandRows = 64;
-  for (int r = 0; r < image.rows; r += kBandRows) {
-    const cv::Mat band = image.rowRange(r, std::min(image.rows, r + kBandRows));
-    if (image.depth() == CV_32F) {
-      // A float band by comparison itself: a NaN fails it, where cv::minMaxIdx makes no promise about NaNs.
-      cv::Mat above;
-      cv::compare(band, limit, above, cv::CMP_GT);
-      if (cv::countNonZero(above) > 0) return true;
-      continue;
-    }
-    double max_value = 0;
-    cv::minMaxIdx(band, nullptr, &max_value);
-    if (max_value > limit) return true;
+// Whether any pixel of a float image is above `threshold` (rounded to float), as cv::compare(image, threshold,
+// CMP_GT) has it, without a frame-sized mask: band by band, stopping at the band that holds one; a NaN is above no
+// threshold. An integer frame asks its FrameSummary (the maxima of the same bands).
+bool AnyAboveFloat(const cv::Mat& image, double threshold) {
+  const auto limit = static_cast<float>(threshold);
+  for (int r = 0; r < image.rows; r += FrameSummary::kBandRows) {
+    cv::Mat above;
+    cv::compare(image.rowRange(r, std::min(image.rows, r + FrameSummary::kBandRows)), limit, above, cv::CMP_GT);
+    if (cv::countNonZero(above) > 0) return true;
   }
   return false;
 }
@@ -379,7 +367,8 @@ void MeasureReadNoise(const cv::Mat& image, const detail::BackgroundStats& st, b
   out->read_noise_source = "the background's histogram away from the spots (uniform frame)";
 }
 
-SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& options) {
+SpotDetection DetectSpots(const Frame& frame, const SpotDetectionOptions& options) {
+  const cv::Mat& image = frame.image;
   std::string why;
   if (!options.IsValid(&why)) throw util::InputError("DetectSpots: " + why);
   if (image.channels() != 1 || (image.depth() != CV_8U && image.depth() != CV_16U && image.depth() != CV_32F)) {
@@ -390,7 +379,14 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
                         ? "not measured: no spot"
                         : "not measured: only the psf estimator uses a noise model";
   if (image.empty()) return out;
-  const detail::BackgroundStats st = detail::MeasureBackground(image);
+  // An integer frame's background and band maxima from its summary: the decoder's, when it made one.
+  std::optional<FrameSummary> own;
+  const FrameSummary* summary = nullptr;
+  if (image.type() != CV_32FC1) {
+    if (!frame.summary || !frame.summary->Summarises(image)) own = FrameSummary::Of(image);
+    summary = own ? &*own : frame.summary.get();
+  }
+  const detail::BackgroundStats st = summary ? detail::BackgroundOf(*summary) : detail::MeasureBackground(image);
   // The threshold's noise: the smaller estimate (equal on a uniform frame; the difference-based one where a
   // smooth background change widens the histogram). An integer image's difference MAD can be 0 at < 1 DN noise.
   const double threshold_sigma = st.sigma_diff > 0 ? std::min(st.sigma, st.sigma_diff) : st.sigma;
@@ -400,7 +396,7 @@ SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& opti
   const double q = detail::QuantisationVariance(image);
   out.threshold_dn = st.median + std::max(options.threshold_sigmas * threshold_sigma,
                                           options.threshold_fraction * (st.bright - st.median));
-  if (!AnyAbove(image, out.threshold_dn)) return out;
+  if (!(summary ? summary->AnyAbove(out.threshold_dn) : AnyAboveFloat(image, out.threshold_dn))) return out;
   cv::Mat full_mask;
   cv::compare(image, out.threshold_dn, full_mask, cv::CMP_GT);
   cv::Rect box = ForegroundBox(full_mask, options.window_margin_px + 1);

@@ -1,0 +1,117 @@
+// The frame summary the detector reads a frame's background from: the same counts however it is fed, and the same
+// detection whether the decoder made it or the detector did.
+#include "correct/frame_summary.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <cstdlib>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+
+#include "correct/spot_detect.h"
+#include "correct/spot_render.h"
+#include "synthetic.h"
+
+namespace topocal::correct {
+namespace {
+
+// Noise with flat stretches (runs of one value, as a dark or saturated region gives) and an odd width, so that the
+// counting's whole-stretch shortcut and its tail both run.
+cv::Mat Patchy(int rows, int cols, int type, int seed) {
+  cv::Mat image(rows, cols, type);
+  cv::RNG rng(seed);
+  cv::randn(image, type == CV_8UC1 ? 40 : 1000, type == CV_8UC1 ? 3 : 60);
+  image(cv::Rect(0, 0, cols / 2, rows / 3)).setTo(type == CV_8UC1 ? 255 : 4095);
+  image(cv::Rect(cols / 3, rows / 2, cols / 2, rows / 4)).setTo(7);
+  return image;
+}
+
+// The statistics of the summary's definition, counted plainly.
+template <typename T>
+void ExpectCountsOf(const cv::Mat& image, const FrameSummary& s) {
+  std::vector<std::uint32_t> values(sizeof(T) == 1 ? 256 : 65536, 0), pairs(values.size(), 0);
+  T top = 0;
+  for (int r = 0; r < image.rows; ++r) {
+    const T* p = image.ptr<T>(r);
+    for (int c = 0; c < image.cols; ++c) {
+      top = std::max(top, p[c]);
+      if (r % 2 == 0 && c % 2 == 0) ++values[p[c]];
+      if (r % 4 == 0 && c % 2 == 0 && c + 1 < image.cols) ++pairs[std::abs(int{p[c + 1]} - int{p[c]})];
+    }
+  }
+  EXPECT_EQ(s.values(), values);
+  EXPECT_EQ(s.differences(), pairs);
+  EXPECT_TRUE(s.AnyAbove(top - 0.5));
+  EXPECT_FALSE(s.AnyAbove(top));
+}
+
+TEST(FrameSummary, CountsTheSubsampleRowByRowAsWhole) {
+  for (const int type : {CV_8UC1, CV_16UC1}) {
+    SCOPED_TRACE(type);
+    const cv::Mat image = Patchy(203, 157, type, 3);
+    FrameSummary streamed;
+    streamed.AddRow(0, image.row(0));
+    streamed.AddRow(1, image.row(1));  // a decoder that gives up part-way starts again at row 0
+    for (int y = 0; y < image.rows; ++y) streamed.AddRow(y, image.row(y));
+    const FrameSummary whole = FrameSummary::Of(image);
+    ASSERT_TRUE(streamed.Summarises(image));
+    ASSERT_TRUE(whole.Summarises(image));
+    if (type == CV_8UC1) {
+      ExpectCountsOf<std::uint8_t>(image, streamed);
+    } else {
+      ExpectCountsOf<std::uint16_t>(image, streamed);
+    }
+    EXPECT_EQ(streamed.values(), whole.values());
+    EXPECT_EQ(streamed.differences(), whole.differences());
+  }
+}
+
+TEST(FrameSummary, AnIncompleteOrForeignSummaryIsNotUsed) {
+  const cv::Mat image = Patchy(40, 33, CV_16UC1, 5);
+  FrameSummary skipped;
+  for (int y = 0; y < image.rows; ++y) {
+    if (y != 17) skipped.AddRow(y, image.row(y));
+  }
+  EXPECT_FALSE(skipped.Summarises(image));
+  FrameSummary part;
+  for (int y = 0; y < 20; ++y) part.AddRow(y, image.row(y));
+  EXPECT_FALSE(part.Summarises(image));
+  const FrameSummary whole = FrameSummary::Of(image);
+  EXPECT_FALSE(whole.Summarises(image.colRange(0, 32)));
+  cv::Mat eight;
+  image.convertTo(eight, CV_8U);
+  EXPECT_FALSE(whole.Summarises(eight));
+  cv::Mat colour(4, 4, CV_8UC3, cv::Scalar::all(1));
+  EXPECT_FALSE(FrameSummary::Of(colour).Summarises(colour));
+}
+
+// The decoder's summary and the detector's own give the same detection, spot for spot.
+TEST(FrameSummary, ADecodersSummaryDetectsAsTheImageAlone) {
+  const auto cfg = testing::PaperConfig();
+  auto camera = testing::DefaultCamera();  // a 1000 x 1000 crop about the principal point: the whole pattern
+  camera.width_px = camera.height_px = 1000;
+  camera.principal_point_px = {499.5, 499.5};
+  SpotRenderOptions o;
+  o.read_noise_dn = 60;
+  o.gain_e_per_dn = 4;
+  o.seed = 11;
+  const auto truth = testing::Truth(cfg, cfg.cornea, 6.3e-5, camera);
+  const cv::Mat image = RenderSpotImage(truth.spots, camera.width_px, camera.height_px, o);
+  const SpotDetection alone = DetectSpots(image);
+  FrameSummary summary;
+  for (int y = 0; y < image.rows; ++y) summary.AddRow(y, image.row(y));
+  const SpotDetection with = DetectSpots(Frame(image, summary));
+  ASSERT_GT(alone.spots.size(), 500u);
+  ASSERT_EQ(with.spots.size(), alone.spots.size());
+  EXPECT_EQ(with.threshold_dn, alone.threshold_dn);
+  EXPECT_EQ(with.noise_dn, alone.noise_dn);
+  for (size_t i = 0; i < alone.spots.size(); ++i) EXPECT_EQ(with.spots[i].centre_px, alone.spots[i].centre_px);
+  // A blank frame: nothing above the threshold, from the band maxima alone.
+  const cv::Mat blank(image.size(), CV_16UC1, cv::Scalar(1000));
+  EXPECT_TRUE(DetectSpots(Frame(blank, FrameSummary::Of(blank))).spots.empty());
+}
+
+}  // namespace
+}  // namespace topocal::correct
