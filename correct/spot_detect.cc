@@ -367,26 +367,50 @@ void MeasureReadNoise(const cv::Mat& image, const detail::BackgroundStats& st, b
   out->read_noise_source = "the background's histogram away from the spots (uniform frame)";
 }
 
-SpotDetection DetectSpots(const Frame& frame, const SpotDetectionOptions& options) {
-  const cv::Mat& image = frame.image;
+namespace {
+
+// A frame's background, and whether any pixel is above a threshold: an integer frame's from its summary (the
+// decoder's when it Summarises the image, else made here: one pass either way), a float frame's from its pixels.
+class FrameStatistics {
+ public:
+  explicit FrameStatistics(const Frame& frame) : image_(frame.image) {
+    if (image_.type() == CV_32FC1) return;
+    if (!frame.summary || !frame.summary->Summarises(image_)) own_ = FrameSummary::Of(image_);
+    summary_ = own_ ? &*own_ : frame.summary.get();
+  }
+  detail::BackgroundStats Background() const {
+    return summary_ ? detail::BackgroundOf(*summary_) : detail::MeasureBackground(image_);
+  }
+  bool AnyAbove(double threshold_dn) const {
+    return summary_ ? summary_->AnyAbove(threshold_dn) : AnyAboveFloat(image_, threshold_dn);
+  }
+
+ private:
+  const cv::Mat& image_;
+  std::optional<FrameSummary> own_;
+  const FrameSummary* summary_ = nullptr;
+};
+
+void CheckDetectionInput(const cv::Mat& image, const SpotDetectionOptions& options) {
   std::string why;
   if (!options.IsValid(&why)) throw util::InputError("DetectSpots: " + why);
   if (image.channels() != 1 || (image.depth() != CV_8U && image.depth() != CV_16U && image.depth() != CV_32F)) {
     throw util::InputError("DetectSpots: the image must be one channel of 8-bit, 16-bit or float pixels");
   }
+}
+
+}  // namespace
+
+SpotDetection DetectSpots(const Frame& frame, const SpotDetectionOptions& options) {
+  const cv::Mat& image = frame.image;
+  CheckDetectionInput(image, options);
   SpotDetection out;
   out.gain_source = options.method == CentroidMethod::kWeightedPsfFit
                         ? "not measured: no spot"
                         : "not measured: only the psf estimator uses a noise model";
   if (image.empty()) return out;
-  // An integer frame's background and band maxima from its summary: the decoder's, when it made one.
-  std::optional<FrameSummary> own;
-  const FrameSummary* summary = nullptr;
-  if (image.type() != CV_32FC1) {
-    if (!frame.summary || !frame.summary->Summarises(image)) own = FrameSummary::Of(image);
-    summary = own ? &*own : frame.summary.get();
-  }
-  const detail::BackgroundStats st = summary ? detail::BackgroundOf(*summary) : detail::MeasureBackground(image);
+  const FrameStatistics frame_statistics(frame);
+  const detail::BackgroundStats st = frame_statistics.Background();
   // The threshold's noise: the smaller estimate (equal on a uniform frame; the difference-based one where a
   // smooth background change widens the histogram). An integer image's difference MAD can be 0 at < 1 DN noise.
   const double threshold_sigma = st.sigma_diff > 0 ? std::min(st.sigma, st.sigma_diff) : st.sigma;
@@ -396,7 +420,7 @@ SpotDetection DetectSpots(const Frame& frame, const SpotDetectionOptions& option
   const double q = detail::QuantisationVariance(image);
   out.threshold_dn = st.median + std::max(options.threshold_sigmas * threshold_sigma,
                                           options.threshold_fraction * (st.bright - st.median));
-  if (!(summary ? summary->AnyAbove(out.threshold_dn) : AnyAboveFloat(image, out.threshold_dn))) return out;
+  if (!frame_statistics.AnyAbove(out.threshold_dn)) return out;
   cv::Mat full_mask;
   cv::compare(image, out.threshold_dn, full_mask, cv::CMP_GT);
   cv::Rect box = ForegroundBox(full_mask, options.window_margin_px + 1);
