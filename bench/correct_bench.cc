@@ -3,6 +3,7 @@
 // Run: build/bench/bench_correct --benchmark_min_time=1
 #include <benchmark/benchmark.h>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "correct/detect_and_index.h"
@@ -10,6 +11,8 @@
 #include "correct/spot_render.h"
 #include "correct/spot_truth.h"
 #include "correct/undistort_map.h"
+#include "imageio/image_file.h"
+#include "imageio/large_buffers.h"
 #include "model/config.h"
 #include "model/device.h"
 #include "model/freeform_test_set.h"
@@ -143,6 +146,41 @@ void BM_OpenCvMaxOfBlankFrame(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_OpenCvMaxOfBlankFrame)->ArgName("noisy")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// A blank frame from its PNG bytes to "nothing above the threshold", as `detect` does it (imageio's decoder, then
+// DetectSpots). The peer is OpenCV decoding the same bytes and taking the frame's maximum (cv::imdecode +
+// cv::minMaxIdx).
+std::string BlankPng(bool noisy) {
+  topocal::imageio::UseHugePagesForImageBuffers();  // the CLI's image buffers
+  std::vector<unsigned char> bytes;
+  cv::imencode(".png", BlankFrame(noisy), bytes);
+  return std::string(bytes.begin(), bytes.end());
+}
+
+void BM_DecodeAndDetectBlankPng(benchmark::State& state) {
+  const std::string png = BlankPng(state.range(0) != 0);
+  for (auto _ : state) {
+    const auto d = correct::DetectSpots(imageio::DecodeImage(png, imageio::Channels::kAsStored, "blank.png"));
+    if (!d.spots.empty()) state.SkipWithError("spots found on a blank frame");
+  }
+}
+BENCHMARK(BM_DecodeAndDetectBlankPng)->ArgName("noisy")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_OpenCvDecodeAndMaxOfBlankPng(benchmark::State& state) {
+  const std::string png = BlankPng(state.range(0) != 0);
+  const cv::Mat bytes(1, static_cast<int>(png.size()), CV_8UC1, const_cast<char*>(png.data()));
+  for (auto _ : state) {
+    double max_dn = 0;
+    cv::minMaxIdx(cv::imdecode(bytes, cv::IMREAD_UNCHANGED), nullptr, &max_dn);
+    benchmark::DoNotOptimize(max_dn);
+  }
+}
+BENCHMARK(BM_OpenCvDecodeAndMaxOfBlankPng)
+    ->ArgName("noisy")
+    ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 void BM_IndexOnly(benchmark::State& state) {
   const auto& s = GetScene();

@@ -169,7 +169,7 @@ void FlagFluxOutliers(const model::IdealImageParams& ideal, const SpotIndexing& 
 
 }  // namespace
 
-DetectAndIndexResult DetectAndIndexSpots(const Frame& image, const model::TopographerCamera& camera,
+DetectAndIndexResult DetectAndIndexSpots(const cv::Mat& image, const model::TopographerCamera& camera,
                                          const model::IdealImageParams& ideal, const DetectAndIndexOptions& options) {
   DetectAndIndexResult out;
   out.detection = DetectSpots(image, options.detection);

@@ -72,7 +72,7 @@ struct DetectAndIndexResult {
 };
 
 // Throws util::InputError for an unusable image type or invalid options; never for what the image contains.
-DetectAndIndexResult DetectAndIndexSpots(const Frame& image, const model::TopographerCamera& camera,
+DetectAndIndexResult DetectAndIndexSpots(const cv::Mat& image, const model::TopographerCamera& camera,
                                          const model::IdealImageParams& ideal,
                                          const DetectAndIndexOptions& options = {});
 

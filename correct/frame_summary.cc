@@ -8,7 +8,7 @@
 #include <emmintrin.h>
 #endif
 
-namespace topocal::correct {
+namespace topocal::correct::detail {
 namespace {
 
 // Sixteen pixels from p: whether all equal p[0]. On a flat stretch (a dark or saturated frame, a blank one) every
@@ -113,4 +113,4 @@ bool FrameSummary::AnyAbove(double threshold_dn) const noexcept {
   return std::any_of(band_max_.begin(), band_max_.end(), [limit](std::uint16_t m) { return m > limit; });
 }
 
-}  // namespace topocal::correct
+}  // namespace topocal::correct::detail

@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "correct/background_stats.h"
+#include "correct/frame_summary.h"
 #include "correct/spot_detail.h"
 #include "util/io.h"
 
@@ -89,9 +90,10 @@ bool ApplyLocalBackground(const cv::Mat& image, double median, double sigma, dou
 // threshold. An integer frame asks its FrameSummary (the maxima of the same bands).
 bool AnyAboveFloat(const cv::Mat& image, double threshold) {
   const auto limit = static_cast<float>(threshold);
-  for (int r = 0; r < image.rows; r += FrameSummary::kBandRows) {
+  constexpr int kBand = detail::FrameSummary::kBandRows;
+  for (int r = 0; r < image.rows; r += kBand) {
     cv::Mat above;
-    cv::compare(image.rowRange(r, std::min(image.rows, r + FrameSummary::kBandRows)), limit, above, cv::CMP_GT);
+    cv::compare(image.rowRange(r, std::min(image.rows, r + kBand)), limit, above, cv::CMP_GT);
     if (cv::countNonZero(above) > 0) return true;
   }
   return false;
@@ -369,14 +371,12 @@ void MeasureReadNoise(const cv::Mat& image, const detail::BackgroundStats& st, b
 
 namespace {
 
-// A frame's background, and whether any pixel is above a threshold: an integer frame's from its summary (the
-// decoder's when it Summarises the image, else made here: one pass either way), a float frame's from its pixels.
+// A frame's background, and whether any pixel is above a threshold: an integer frame's from its FrameSummary (one
+// pass over the frame), a float frame's from its pixels.
 class FrameStatistics {
  public:
-  explicit FrameStatistics(const Frame& frame) : image_(frame.image) {
-    if (image_.type() == CV_32FC1) return;
-    if (!frame.summary || !frame.summary->Summarises(image_)) own_ = FrameSummary::Of(image_);
-    summary_ = own_ ? &*own_ : frame.summary.get();
+  explicit FrameStatistics(const cv::Mat& image) : image_(image) {
+    if (image_.type() != CV_32FC1) summary_ = detail::FrameSummary::Of(image_);
   }
   detail::BackgroundStats Background() const {
     return summary_ ? detail::BackgroundOf(*summary_) : detail::MeasureBackground(image_);
@@ -387,8 +387,7 @@ class FrameStatistics {
 
  private:
   const cv::Mat& image_;
-  std::optional<FrameSummary> own_;
-  const FrameSummary* summary_ = nullptr;
+  std::optional<detail::FrameSummary> summary_;
 };
 
 void CheckDetectionInput(const cv::Mat& image, const SpotDetectionOptions& options) {
@@ -401,15 +400,14 @@ void CheckDetectionInput(const cv::Mat& image, const SpotDetectionOptions& optio
 
 }  // namespace
 
-SpotDetection DetectSpots(const Frame& frame, const SpotDetectionOptions& options) {
-  const cv::Mat& image = frame.image;
+SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& options) {
   CheckDetectionInput(image, options);
   SpotDetection out;
   out.gain_source = options.method == CentroidMethod::kWeightedPsfFit
                         ? "not measured: no spot"
                         : "not measured: only the psf estimator uses a noise model";
   if (image.empty()) return out;
-  const FrameStatistics frame_statistics(frame);
+  const FrameStatistics frame_statistics(image);
   const detail::BackgroundStats st = frame_statistics.Background();
   // The threshold's noise: the smaller estimate (equal on a uniform frame; the difference-based one where a
   // smooth background change widens the histogram). An integer image's difference MAD can be 0 at < 1 DN noise.

@@ -42,7 +42,6 @@
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
-#include "correct/frame_summary.h"
 #include "util/io.h"
 
 namespace topocal::correct {
@@ -112,8 +111,7 @@ struct SpotDetection {
   std::string read_noise_source;  // one phrase: given, or which statistic of the background measured it
 };
 
-// `frame`: CV_8UC1, CV_16UC1 or CV_32FC1 (a cv::Mat, or one with the summary its decoder made: frame_summary.h).
-// Throws util::InputError for other types or invalid options.
-SpotDetection DetectSpots(const Frame& frame, const SpotDetectionOptions& options = {});
+// `image`: CV_8UC1, CV_16UC1 or CV_32FC1. Throws util::InputError for other types or invalid options.
+SpotDetection DetectSpots(const cv::Mat& image, const SpotDetectionOptions& options = {});
 
 }  // namespace topocal::correct

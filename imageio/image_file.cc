@@ -156,8 +156,7 @@ std::optional<StoredSize> ProbeStoredSize(std::string_view bytes) noexcept {
   return ProbeJpeg(bytes);
 }
 
-cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string& name, const ImageLimits& limits,
-                    const RowSink& rows) {
+cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string& name, const ImageLimits& limits) {
   if (bytes.empty()) throw util::InputError(fmt::format("{}: empty file, not an image", name));
   if (bytes.size() > limits.max_file_bytes) {
     throw util::InputError(
@@ -170,9 +169,8 @@ cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string
   char error[512] = "";
   // The common PNGs in this process (png_decode.h), the rest through the plugin: the same pixels and messages.
   std::optional<cv::Mat> common;
-  bool rows_given = false;
   try {
-    common = DecodeCommonPng(bytes, flags, rows, &rows_given);
+    common = DecodeCommonPng(bytes, flags);
   } catch (const cv::Exception& e) {  // as the plugin reports OpenCV's exceptions
     throw util::InputError(fmt::format("{}: cannot be read as an image ({})", name, e.err));
   } catch (const std::exception& e) {
@@ -189,9 +187,6 @@ cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string
                                        *error ? error : "not a format OpenCV decodes, or truncated"));
   }
   CheckPixels(image.cols, image.rows, name, limits);
-  if (rows && !rows_given) {
-    for (int y = 0; y < image.rows; ++y) rows(y, image.row(y));
-  }
   return image;
 }
 
@@ -259,8 +254,8 @@ ImageBytes ReadImageBytes(const std::string& path, const ImageLimits& limits) {
   return ImageBytes(std::move(bytes));
 }
 
-cv::Mat ReadImage(const std::string& path, Channels channels, const ImageLimits& limits, const RowSink& rows) {
-  return DecodeImage(ReadImageBytes(path, limits), channels, path, limits, rows);
+cv::Mat ReadImage(const std::string& path, Channels channels, const ImageLimits& limits) {
+  return DecodeImage(ReadImageBytes(path, limits), channels, path, limits);
 }
 
 std::vector<unsigned char> EncodePng(const cv::Mat& image, const std::string& name) {

@@ -20,7 +20,6 @@
 //   const cv::Mat grey = imageio::ReadImage(path, imageio::Channels::kGrey);
 //   imageio::RequireSize(grey, path, camera.width_px, camera.height_px, "camera.json");
 #include <cstdint>
-#include <functional>
 #include <future>
 #include <optional>
 #include <stdexcept>
@@ -49,15 +48,8 @@ struct StoredSize {
 // The image size a PNG or JPEG declares in its header; nullopt for other formats or when no header is found.
 std::optional<StoredSize> ProbeStoredSize(std::string_view bytes) noexcept;
 
-// Rows of an image as its decoder finishes them: row y (1 x width, of the image's type), for a reader that
-// summarises the image in the same pass (correct::FrameSummary). Rows come in order from 0; the in-process PNG
-// decoder hands each while it is still in cache, the others after decoding; a decoder that gives up part-way for
-// another starts again at 0.
-using RowSink = std::function<void(int y, const cv::Mat& row)>;
-
 // Decodes an image held in memory; `name` names it in errors. Throws util::InputError.
-cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string& name, const ImageLimits& limits = {},
-                    const RowSink& rows = {});
+cv::Mat DecodeImage(std::string_view bytes, Channels channels, const std::string& name, const ImageLimits& limits = {});
 // An image file's bytes: a regular file mapped read-only, anything else (a pipe) read into memory. Mapping costs no
 // fresh memory: on the 2-core development VM, where every new page costs ~20 us, reading the 17 MB reference sphere
 // into a new buffer took ~90 ms and mapping it ~8 ms. The price of a mapping: a file truncated by another
@@ -86,8 +78,7 @@ class ImageBytes {
 // also hash the file (the unit record's provenance): read once, then Sha256Hex and DecodeImage on the same bytes.
 ImageBytes ReadImageBytes(const std::string& path, const ImageLimits& limits = {});
 // Reads and decodes an image file: DecodeImage(ReadImageBytes(path)). Throws util::InputError naming the path.
-cv::Mat ReadImage(const std::string& path, Channels channels, const ImageLimits& limits = {},
-                  const RowSink& rows = {});
+cv::Mat ReadImage(const std::string& path, Channels channels, const ImageLimits& limits = {});
 // PNG bytes of `image` (8- or 16-bit; 1, 3 or 4 channels in OpenCV's BGR(A) order), OpenCV's encoder with its
 // default settings (zlib level 1, SUB filter). `name` names the output in errors. Throws std::runtime_error.
 std::vector<unsigned char> EncodePng(const cv::Mat& image, const std::string& name);

@@ -329,8 +329,7 @@ void ConvertRow(const std::uint8_t* in, std::size_t width, int channels, bool si
 }
 
 // The image by the fast path; nullopt when the file is not one it takes (the libpng path decides).
-std::optional<cv::Mat> DecodePlainPng(std::string_view bytes, int imread_flags,
-                                      const std::function<void(int, const cv::Mat&)>& sink) {
+std::optional<cv::Mat> DecodePlainPng(std::string_view bytes, int imread_flags) {
   const int colour_type = static_cast<unsigned char>(bytes[25]);
   // Colour read as grey is libpng's own weighted conversion: left to it.
   if (colour_type != 0 && imread_flags != cv::IMREAD_UNCHANGED) return std::nullopt;
@@ -383,7 +382,6 @@ std::optional<cv::Mat> DecodePlainPng(std::string_view bytes, int imread_flags,
   // row y's bytes, so no row still needed is overwritten.
   const auto convert = [&](std::size_t y, const std::uint8_t* row) {
     ConvertRow(row, layout->width, channels, sixteen, depth, buffer.ptr(static_cast<int>(y)));
-    if (sink) sink(static_cast<int>(y), buffer.row(static_cast<int>(y)));
   };
   if (!Unfilter(raw, height, row_bytes, bpp, convert)) return std::nullopt;
   return buffer.rowRange(0, static_cast<int>(height));
@@ -393,17 +391,12 @@ std::optional<cv::Mat> DecodePlainPng(std::string_view bytes, int imread_flags,
 
 bool IsInProcessPng(std::string_view bytes) noexcept { return IsCommonPng(bytes); }
 
-std::optional<cv::Mat> DecodeCommonPng(std::string_view bytes, int imread_flags,
-                                       const std::function<void(int, const cv::Mat&)>& sink, bool* rows_given) {
-  if (rows_given) *rows_given = false;
+std::optional<cv::Mat> DecodeCommonPng(std::string_view bytes, int imread_flags) {
   static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "ReadPixels swaps 16-bit samples as OpenCV does here");
   if ((imread_flags != cv::IMREAD_UNCHANGED && imread_flags != cv::IMREAD_GRAYSCALE) || !IsCommonPng(bytes)) {
     return std::nullopt;
   }
-  if (auto image = DecodePlainPng(bytes, imread_flags, sink)) {
-    if (rows_given) *rows_given = static_cast<bool>(sink);
-    return image;
-  }
+  if (auto image = DecodePlainPng(bytes, imread_flags)) return image;
   PngReadStructs s;
   s.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
   if (!s.png) return cv::Mat();

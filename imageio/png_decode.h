@@ -9,7 +9,6 @@
 // result (ImageFile.CommonPngDecodesAsOpenCvDoes and EveryRowFilterAndPixelSizeDecodesAsOpenCvDoes compare the two).
 // Every other image, and every PNG whose header or chunks fall outside that list, is left to OpenCV through the
 // plugin.
-#include <functional>
 #include <optional>
 #include <string_view>
 
@@ -20,11 +19,7 @@ namespace topocal::imageio {
 // nullopt: not such a PNG (the caller decodes it through OpenCV). Otherwise what cv::imdecode(bytes, imread_flags)
 // returns for it (IMREAD_UNCHANGED or IMREAD_GRAYSCALE; other flags give nullopt): the image, or an empty Mat when
 // libpng refuses the data. Throws cv::Exception where cv::imdecode would (the image's memory cannot be had).
-// `sink` (if set) is handed each row of a plain file as it is finished, in order (*rows_given then true); a file that
-// turns out not to be plain after some rows were handed goes to libpng and is not handed again (false).
-std::optional<cv::Mat> DecodeCommonPng(std::string_view bytes, int imread_flags,
-                                       const std::function<void(int, const cv::Mat&)>& sink = {},
-                                       bool* rows_given = nullptr);
+std::optional<cv::Mat> DecodeCommonPng(std::string_view bytes, int imread_flags);
 // Whether DecodeCommonPng decodes these bytes (rather than returning nullopt) for the flags above.
 bool IsInProcessPng(std::string_view bytes) noexcept;
 

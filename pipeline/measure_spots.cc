@@ -44,7 +44,7 @@ bool FreeDetectionIsSpotLike(const correct::LocatedSpot& free, const std::vector
   return free.flux_dn >= kFreeFluxLow * median && free.flux_dn <= kFreeFluxHigh * median;
 }
 
-IdentifiedSpots IdentifySpots(const correct::Frame& image, const model::TopographerCamera& camera,
+IdentifiedSpots IdentifySpots(const cv::Mat& image, const model::TopographerCamera& camera,
                               const model::IdealImageParams& ideal, const correct::DetectAndIndexOptions& options) {
   IdentifiedSpots out;
   out.located = correct::DetectAndIndexSpots(image, camera, ideal, options);
@@ -86,23 +86,19 @@ SpotMeasurement MeasurementOf(const IdentifiedSpots& identified, const std::opti
   return m;
 }
 
-correct::Frame ReadSpotImage(const std::string& path, const model::TopographerCamera& camera,
-                             const std::string& camera_file) {
-  correct::FrameSummary summary;  // made while the file is decoded: the frame is then read from memory once
-  cv::Mat image = imageio::ReadImage(path, imageio::Channels::kAsStored, {},
-                                     [&summary](int y, const cv::Mat& row) { summary.AddRow(y, row); });
+cv::Mat ReadSpotImage(const std::string& path, const model::TopographerCamera& camera, const std::string& camera_file) {
+  cv::Mat image = imageio::ReadImage(path, imageio::Channels::kAsStored);
   imageio::RequireSize(image, path, camera.width_px, camera.height_px, camera_file);
-  return {std::move(image), std::move(summary)};
+  return image;
 }
 
-SpotMeasurement MeasureSpots(const correct::Frame& image, const model::TopographerCamera& camera,
+SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,
                              const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion,
                              const correct::DetectAndIndexOptions& options) {
   return MeasurementOf(IdentifySpots(image, camera, ideal, options), distortion, options);
 }
 
-SpotMeasurement MeasureSpots(const correct::Frame& image, const model::Device& device,
-                             const model::IdealImageParams& ideal,
+SpotMeasurement MeasureSpots(const cv::Mat& image, const model::Device& device, const model::IdealImageParams& ideal,
                              const correct::DetectAndIndexOptions& options) {
   return MeasureSpots(image, device.camera, ideal, device.distortion, options);
 }
@@ -189,7 +185,7 @@ correct::DetectAndIndexResult WithSurfaceIdentities(const correct::DetectAndInde
   return out;
 }
 
-CheckedSpots DetectThroughSurface(const correct::Frame& image, const model::Device& imaging, bool undistort,
+CheckedSpots DetectThroughSurface(const cv::Mat& image, const model::Device& imaging, bool undistort,
                                   const SpotAnalysis& analyze, const model::Config& config,
                                   const correct::DetectAndIndexOptions& options) {
   const IdentifiedSpots identified = IdentifySpots(image, imaging.camera, config.ideal_image, options);

@@ -55,7 +55,7 @@ struct IdentifiedSpots {
   correct::DetectAndIndexResult located;
   CaptureQuality capture;
 };
-IdentifiedSpots IdentifySpots(const correct::Frame& image, const model::TopographerCamera& camera,
+IdentifiedSpots IdentifySpots(const cv::Mat& image, const model::TopographerCamera& camera,
                               const model::IdealImageParams& ideal, const correct::DetectAndIndexOptions& options = {});
 
 // The identified spots of `identified` on the detection plane, undistorted with `distortion` when one is given; the
@@ -69,18 +69,16 @@ std::vector<model::PlaneSpot> UndistortSpots(const std::vector<model::PlaneSpot>
                                                const model::Distortion& distortion, int* failures = nullptr);
 
 // IdentifySpots, then the identified spots on the detection plane. Throws what IdentifySpots throws.
-SpotMeasurement MeasureSpots(const correct::Frame& image, const model::TopographerCamera& camera,
+SpotMeasurement MeasureSpots(const cv::Mat& image, const model::TopographerCamera& camera,
                              const model::IdealImageParams& ideal, const std::optional<model::Distortion>& distortion,
                              const correct::DetectAndIndexOptions& options = {});
 
 // A raw spot image, checked against the camera's sensor size: util::InputError naming the file (and `camera_file`,
-// where the size comes from) otherwise. With the summary the detector needs of it, made while it was decoded.
-correct::Frame ReadSpotImage(const std::string& path, const model::TopographerCamera& camera,
-                             const std::string& camera_file);
+// where the size comes from) otherwise.
+cv::Mat ReadSpotImage(const std::string& path, const model::TopographerCamera& camera, const std::string& camera_file);
 
 // Through an as-built device: its camera maps pixels to the detection plane and its distortion is undone.
-SpotMeasurement MeasureSpots(const correct::Frame& image, const model::Device& device,
-                             const model::IdealImageParams& ideal,
+SpotMeasurement MeasureSpots(const cv::Mat& image, const model::Device& device, const model::IdealImageParams& ideal,
                              const correct::DetectAndIndexOptions& options = {});
 
 // The configuration as eyes are measured with it (`reconstruct`, `detect` and the Python module): unless the
@@ -126,7 +124,7 @@ struct CheckedSpots {
 // unassigned blobs with its flags, its id the missing ones. Returns how many were dropped.
 int CheckFlaggedIdentities(correct::DetectAndIndexResult* located, const topo::Reconstruction& surface,
                            const model::Device& imaging, const model::Config& config);
-CheckedSpots DetectThroughSurface(const correct::Frame& image, const model::Device& imaging, bool undistort,
+CheckedSpots DetectThroughSurface(const cv::Mat& image, const model::Device& imaging, bool undistort,
                                   const SpotAnalysis& analyze, const model::Config& config,
                                   const correct::DetectAndIndexOptions& options = {});
 

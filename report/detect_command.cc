@@ -52,7 +52,7 @@ void RunDetect(const DetectRequest& a, std::ostream& out) {
   const model::Device imaging = pipeline::LoadMeasuringDevice(a.device_path, a.calibration_path).device;
   correct::DetectAndIndexOptions options;
   options.detection.method = correct::CentroidMethodFromName(a.estimator);
-  const correct::Frame image = pipeline::ReadSpotImage(a.image_path, imaging.camera, a.device_path);
+  const cv::Mat image = pipeline::ReadSpotImage(a.image_path, imaging.camera, a.device_path);
   pipeline::CheckedSpots checked;
   try {
     checked =

@@ -149,7 +149,7 @@ void PrintAnalysis(const topo::Analysis& a, const pipeline::MeasurementUncertain
 }
 
 // pipeline::MeasureSpots with the user's estimator; its failures name the image.
-pipeline::SpotMeasurement MeasureImage(const correct::Frame& image, const model::TopographerCamera& camera,
+pipeline::SpotMeasurement MeasureImage(const cv::Mat& image, const model::TopographerCamera& camera,
                                        const model::IdealImageParams& ideal,
                                        const std::optional<model::Distortion>& distortion, const ReconstructRequest& in,
                                        std::ostream& out) {
@@ -185,7 +185,7 @@ std::vector<model::PlaneSpot> ReadMeasurement(const ReconstructRequest& in, cons
     (*info)["spots_read"] = measured.size();
     return measured;
   }
-  const correct::Frame image = pipeline::ReadSpotImage(in.image_path, device->device.camera, in.device_path);
+  const cv::Mat image = pipeline::ReadSpotImage(in.image_path, device->device.camera, in.device_path);
   const auto m = MeasureImage(image, device->device.camera, cfg.ideal_image, device->device.distortion, in, out);
   out << fmt::format(
       "image: {} spots indexed, {} unassigned detections, {} designed spots missing, measured through the "

@@ -247,32 +247,6 @@ TEST(ImageFile, CommonPngDecodesAsOpenCvDoes) {
   EXPECT_FALSE(DecodeCommonPng(grey, cv::IMREAD_COLOR));
 }
 
-// Every decoder hands the image's rows to a RowSink in order, each as the image holds it: the in-process PNG decoder
-// while it decodes, libpng's path (an ancillary chunk) and OpenCV's (JPEG) after.
-TEST(ImageFile, EveryDecoderHandsItsRowsInOrder) {
-  cv::Mat sixteen(53, 41, CV_16UC1);
-  cv::randu(sixteen, 0, 65536);
-  const std::string plain = Encode(sixteen, ".png");
-  const std::string ancillary = WithChunk(Encode(Gradient(40, 30), ".png"), "tIME", std::string(7, '\x01'));
-  const std::string jpeg = Encode(Gradient(24, 16), ".jpg");
-  for (const std::string* file : {&plain, &ancillary, &jpeg}) {
-    for (const Channels channels : {Channels::kAsStored, Channels::kGrey}) {
-      SCOPED_TRACE(fmt::format("file {} bytes, channels {}", file->size(), static_cast<int>(channels)));
-      std::vector<cv::Mat> handed;
-      const cv::Mat image = DecodeImage(*file, channels, "rows.png", {}, [&](int y, const cv::Mat& row) {
-        EXPECT_EQ(y, static_cast<int>(handed.size()));
-        handed.push_back(row.clone());
-      });
-      ASSERT_EQ(static_cast<int>(handed.size()), image.rows);
-      for (int y = 0; y < image.rows; ++y) {
-        ASSERT_EQ(handed[y].type(), image.type());
-        ASSERT_EQ(handed[y].size(), cv::Size(image.cols, 1));
-        EXPECT_EQ(cv::norm(handed[y], image.row(y), cv::NORM_INF), 0) << y;
-      }
-    }
-  }
-}
-
 // A PNG that declares 100 000 x 100 000 px in 60 bytes: refused from its header, before any decoding.
 TEST(ImageFile, DecompressionBombsAreRefusedFromTheHeader) {
   std::string png = Encode(Gradient(8, 8), ".png");
