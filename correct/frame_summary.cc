@@ -67,48 +67,31 @@ T CountRow(const T* p, int cols, std::uint32_t* values, std::uint32_t* pairs) no
 }  // namespace
 
 FrameSummary FrameSummary::Of(const cv::Mat& image) {
+  CV_Assert(image.type() == CV_8UC1 || image.type() == CV_16UC1);
   FrameSummary s;
-  for (int y = 0; y < image.rows; ++y) s.AddRow(y, image.row(y));
+  s.values_.assign(image.type() == CV_8UC1 ? 256 : 65536, 0);
+  s.differences_.assign(s.values_.size(), 0);
+  s.empty_ = image.empty();
+  for (int y = 0; y < image.rows; ++y) {
+    if (image.type() == CV_8UC1) {
+      s.AddRow(y, image.ptr<std::uint8_t>(y), image.cols);
+    } else {
+      s.AddRow(y, image.ptr<std::uint16_t>(y), image.cols);
+    }
+  }
   return s;
 }
 
-void FrameSummary::AddRow(int y, const cv::Mat& row) {
-  if (y == 0) {
-    *this = FrameSummary{};
-    type_ = row.type();
-    cols_ = row.cols;
-    broken_ = type_ != CV_8UC1 && type_ != CV_16UC1;
-    if (!broken_) {
-      const std::size_t bins = type_ == CV_8UC1 ? 256 : 65536;
-      values_.assign(bins, 0);
-      differences_.assign(bins, 0);
-    }
-  }
-  if (broken_ || y != next_row_ || row.rows != 1 || row.cols != cols_ || row.type() != type_) {
-    broken_ = true;
-    return;
-  }
-  const bool even = y % 2 == 0, fourth = y % 4 == 0;
-  std::uint32_t* pairs = fourth ? differences_.data() : nullptr;
-  std::uint16_t top = 0;
-  if (type_ == CV_8UC1) {
-    const auto* p = row.ptr<std::uint8_t>();
-    top = even ? CountRow(p, cols_, values_.data(), pairs) : RowMax(p, cols_);
-  } else {
-    const auto* p = row.ptr<std::uint16_t>();
-    top = even ? CountRow(p, cols_, values_.data(), pairs) : RowMax(p, cols_);
-  }
+template <typename T>
+void FrameSummary::AddRow(int y, const T* row, int cols) {
+  std::uint32_t* pairs = y % 4 == 0 ? differences_.data() : nullptr;
+  const T top = y % 2 == 0 ? CountRow(row, cols, values_.data(), pairs) : RowMax(row, cols);
   if (y % kBandRows == 0) band_max_.push_back(0);
-  band_max_.back() = std::max(band_max_.back(), top);
-  rows_ = ++next_row_;
-}
-
-bool FrameSummary::Summarises(const cv::Mat& image) const noexcept {
-  return !broken_ && rows_ > 0 && image.rows == rows_ && image.cols == cols_ && image.type() == type_;
+  band_max_.back() = std::max<std::uint16_t>(band_max_.back(), top);
 }
 
 bool FrameSummary::AnyAbove(double threshold_dn) const noexcept {
-  if (threshold_dn < 0) return rows_ > 0 && cols_ > 0;
+  if (threshold_dn < 0) return !empty_;
   const double limit = std::floor(threshold_dn);
   return std::any_of(band_max_.begin(), band_max_.end(), [limit](std::uint16_t m) { return m > limit; });
 }

@@ -16,16 +16,8 @@ class FrameSummary {
  public:
   static constexpr int kBandRows = 64;
 
-  // The summary of a whole frame.
+  // The summary of a whole frame: `image` CV_8UC1 or CV_16UC1 (DetectSpots has checked it).
   static FrameSummary Of(const cv::Mat& image);
-
-  // Row y (1 x width, the frame's type) of a frame read top to bottom; y = 0 starts a new frame. A row out of order
-  // or of a type that is not summarised leaves the summary incomplete (Summarises is then false). Of() is this for
-  // every row.
-  void AddRow(int y, const cv::Mat& row);
-
-  // Whether this is the complete summary of a frame of `image`'s size and type.
-  bool Summarises(const cv::Mat& image) const noexcept;
 
   // Whether any pixel is above `threshold_dn` (every pixel of an integer frame is above a negative one).
   bool AnyAbove(double threshold_dn) const noexcept;
@@ -34,8 +26,10 @@ class FrameSummary {
   const std::vector<std::uint32_t>& differences() const noexcept { return differences_; }  // by |difference|
 
  private:
-  int rows_ = 0, cols_ = 0, type_ = -1, next_row_ = 0;
-  bool broken_ = true;
+  template <typename T>
+  void AddRow(int y, const T* row, int cols);
+
+  bool empty_ = true;
   std::vector<std::uint32_t> values_, differences_;
   std::vector<std::uint16_t> band_max_;
 };
