@@ -341,6 +341,8 @@ bool SpotDetectionOptions::IsValid(std::string* why) const {
   return true;
 }
 
+namespace {
+
 // The sensor's read noise (quantisation excluded) into *out: on a uniform frame the histogram's own, of the pixels
 // away from every component (`stats`, box coordinates); where a skin or an iris widens the histogram, the
 // adjacent-pixel differences' (less the quantisation they include: two roundings, and the spread of the
@@ -368,8 +370,6 @@ void MeasureReadNoise(const cv::Mat& image, const detail::BackgroundStats& st, b
   out->read_noise_dn = detail::ReadNoiseAwayFrom(image, occupied, options.window_margin_px, st.sigma);
   out->read_noise_source = "the background's histogram away from the spots (uniform frame)";
 }
-
-namespace {
 
 // A frame's background, and whether any pixel is above a threshold: an integer frame's from its FrameSummary (one
 // pass over the frame), a float frame's from its pixels.
