@@ -21,7 +21,7 @@ namespace {
 cv::Mat Patchy(int rows, int cols, int type, int seed) {
   cv::Mat image(rows, cols, type);
   cv::RNG rng(seed);
-  cv::randn(image, type == CV_8UC1 ? 40 : 1000, type == CV_8UC1 ? 3 : 60);
+  rng.fill(image, cv::RNG::NORMAL, type == CV_8UC1 ? 40 : 1000, type == CV_8UC1 ? 3 : 60);
   image(cv::Rect(0, 0, cols / 2, rows / 3)).setTo(type == CV_8UC1 ? 255 : 4095);
   image(cv::Rect(cols / 3, rows / 2, cols / 2, rows / 4)).setTo(7);
   return image;
@@ -64,7 +64,7 @@ TEST(FrameSummary, CountsTheSubsampleOfItsDefinition) {
 TEST(FrameSummary, ABlankFrameHasNothingAboveItsThresholdAndOneSpotIsFound) {
   cv::Mat flat(1000, 1000, CV_16UC1, cv::Scalar(1000)), noisy(flat.size(), CV_16UC1);
   cv::RNG rng(7);
-  cv::randn(noisy, 1000, 60);
+  rng.fill(noisy, cv::RNG::NORMAL, 1000, 60);
   for (const cv::Mat* blank : {&flat, &noisy}) {
     const SpotDetection d = DetectSpots(*blank);
     EXPECT_TRUE(d.spots.empty());
