@@ -80,7 +80,7 @@ double DifferenceSigmaOf(const std::vector<uint32_t>& hist) {
   return kMadToSigma * h.Quantile(0.5) / std::sqrt(2.0);
 }
 
-// The same of a float image's pairs (FrameSummary counts only integer ones).
+// The same of a float image's pairs (FrameSummary counts an integer frame's).
 double FloatDifferenceSigma(const cv::Mat& img) {
   std::vector<float> d;
   for (int r = 0; r < img.rows; r += 4) {
@@ -187,7 +187,7 @@ BackgroundStats FloatStats(const cv::Mat& img) {
 }
 
 // The read noise from the histogram of the pixels on every 4th row, every 2nd column, where `free_half` (on
-// MeasureBackground's subsample grid, every 2nd row and column) is set — or of all of them when fewer than 10,000
+// the background's subsample grid, every 2nd row and column) is set — or of all of them when fewer than 10,000
 // are (750,000 pixels on a 12 MP frame: ample for one number, half the cost of the full subsample).
 template <typename T>
 double ReadNoiseOutside(const cv::Mat& img, const cv::Mat& free_half) {
@@ -221,7 +221,7 @@ double ReadNoiseOutside(const cv::Mat& img, const cv::Mat& free_half) {
 double ReadNoiseAwayFrom(const cv::Mat& image, const std::vector<cv::Rect>& occupied, int margin_px,
                          double whole_frame) {
   if (image.depth() != CV_8U && image.depth() != CV_16U) return whole_frame;  // float: no rounding to model
-  // A mask on MeasureBackground's subsample grid (every 2nd pixel of every 2nd row).
+  // A mask on the background's subsample grid (every 2nd pixel of every 2nd row).
   cv::Mat free_half((image.rows + 1) / 2, (image.cols + 1) / 2, CV_8U, cv::Scalar(1));
   for (const cv::Rect& r : occupied) {
     const int grow = std::max(margin_px, std::max(r.width, r.height) / 2);
@@ -240,7 +240,6 @@ BackgroundStats BackgroundOf(const FrameSummary& summary) {
 }
 
 BackgroundStats MeasureBackground(const cv::Mat& image) {
-  if (image.depth() == CV_8U || image.depth() == CV_16U) return BackgroundOf(FrameSummary::Of(image));
   BackgroundStats s = FloatStats(image);
   s.sigma_diff = FloatDifferenceSigma(image);
   return s;

@@ -23,15 +23,16 @@ struct BackgroundStats {
 };
 
 // Every 2nd pixel of every 2nd row for the level (a quarter of the image: enough samples, a quarter of the cost),
-// disjoint adjacent pairs on every 4th row for the differences. Integer images go through the histograms of their
-// FrameSummary (one pass, no sort); float images through nth_element. `image`: CV_8UC1, CV_16UC1 or CV_32FC1.
-BackgroundStats MeasureBackground(const cv::Mat& image);
-// The same from the summary of an integer frame (MeasureBackground of an integer image is this of its summary).
+// disjoint adjacent pairs on every 4th row for the differences. An integer frame's from the histograms of its
+// FrameSummary (one pass, no sort).
 BackgroundStats BackgroundOf(const FrameSummary& summary);
+// The same samples of a float image (CV_32FC1), through nth_element.
+BackgroundStats MeasureBackground(const cv::Mat& image);
 
 // The read noise (DN, quantisation excluded) of the background left where the spots' light cannot reach: the
-// pixels of MeasureBackground's subsample outside every rectangle of `occupied` (image coordinates) grown by half
-// its own size and at least `margin_px` (a spot's tail reaches a few PSF widths past its thresholded extent). Where
+// pixels of the background's subsample (BackgroundOf) outside every rectangle of `occupied` (image coordinates)
+// grown by half its own size and at least `margin_px` (a spot's tail reaches a few PSF widths past its thresholded
+// extent). Where
 // the spots cover most of the frame the histogram of the whole frame is widened by their tails (a 1000 x 1000 crop
 // of the pattern reads 8-10 % high); the whole frame's when fewer than 10,000 pixels are left. Maximum likelihood
 // of the histogram's core as rounded Gaussian samples; for a float image `whole_frame` (its sigma) is returned.
